@@ -1,5 +1,41 @@
-"""loadbayes: Bayesian identification of power-system load models."""
+"""loadbayes: Bayesian identification of power-system load models.
+
+The public API is imported lazily so that ``import loadbayes`` (and the CLI's ``--help``)
+stays fast; numba, ArviZ and pandapower load only when a fit or a case needs them.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 from loadbayes._version import __version__
 
-__all__ = ["__version__"]
+__all__ = [
+    "__version__",
+    "BlockPrior",
+    "Posterior",
+    "ZIPModel",
+    "fit_zip",
+    "fit_zip_file",
+    "zip_priors",
+]
+
+_LAZY = {
+    "BlockPrior": "loadbayes.inference.priors",
+    "Posterior": "loadbayes.posterior",
+    "ZIPModel": "loadbayes.models.zip",
+    "fit_zip": "loadbayes.fitting",
+    "fit_zip_file": "loadbayes.fitting",
+    "zip_priors": "loadbayes.fitting",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'loadbayes' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

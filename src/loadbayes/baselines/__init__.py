@@ -1,0 +1,1 @@
+"""Estimators to compare against: least squares and the Kalman filter."""

@@ -1,0 +1,1 @@
+"""The paper's studies and the comparisons, as functions returning tables and figures."""

@@ -1,0 +1,1 @@
+"""Samplers and what they need: sufficient statistics, priors, conjugate Gibbs blocks."""

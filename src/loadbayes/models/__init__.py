@@ -1,0 +1,1 @@
+"""Load models (physics only): ZIP, exponential, induction motor, composite."""

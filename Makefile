@@ -1,0 +1,37 @@
+# The two commands: `make demo` and `make test`. Each builds .venv on a fresh machine.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-fast lint bench validate clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[grid,cluster,test]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/loadbayes reproduce all --quick --out results --force
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+	$(PY) -m pytest -n 2 -q tests
+
+test-fast: $(STAMP)
+	$(PY) -m pytest -n 2 -q tests -m "not statistical and not integration"
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff format --check src tests benchmarks
+
+bench: $(STAMP)
+	$(PY) -m pip install --quiet -e ".[bench]"
+	$(PY) benchmarks/run_all.py
+
+validate: $(STAMP)
+	$(PY) -m loadbayes.experiments.validate --out results/validation
+
+clean:
+	rm -rf $(VENV) results .pytest_cache .ruff_cache

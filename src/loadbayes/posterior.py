@@ -1,0 +1,369 @@
+"""The one result type of every estimator: draws shaped (chain, draw), with diagnostics.
+
+Gibbs samplers fill it with their chains; least squares and the Kalman filter fill it with
+draws from their Gaussian estimate (:meth:`Posterior.from_gaussian`), so that every
+comparison is one loop over the same summary, plots and exports.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from loadbayes._version import __version__
+
+__all__ = ["Posterior", "IDENTIFIABILITY_CORR"]
+
+#: |posterior correlation| above which two coefficients are reported as not separable.
+IDENTIFIABILITY_CORR = 0.99
+
+
+def _arviz():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"\s*ArviZ is undergoing", category=FutureWarning)
+        import arviz
+
+    return arviz
+
+
+def _finite_or_none(x: Any) -> Any:
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    return x
+
+
+class Posterior:
+    """Posterior draws of a load model's parameters, with their provenance.
+
+    Parameters
+    ----------
+    draws : mapping of str to ndarray
+        Each array shaped (chain, draw). Order of the mapping is the report order.
+    model : str
+        Model name (``"zip"``, ``"im"``, ``"exp"``, ...).
+    method : str
+        Estimator (``"gibbs-blocked"``, ``"least-squares"``, ``"kalman"``, ...).
+    coefficients : sequence of str, optional
+        The model's coefficients (reported in the correlation matrix); defaults to every
+        parameter whose name does not start with ``tau``.
+    free : sequence of str, optional
+        The coefficients checked pairwise for identifiability; defaults to
+        ``coefficients``. Leave out derived ones (a3 = 1 - a1 - a2 is perfectly
+        correlated with a1 + a2 by construction, which says nothing about the data).
+    observed : mapping of str to ndarray, optional
+        The observed data (kept in the ``observed_data`` group).
+    constant : mapping of str to ndarray, optional
+        Sufficient statistics and other constants (the ``constant_data`` group).
+    settings : mapping, optional
+        Everything needed to reproduce the result (seed, priors, data options, n, ...).
+    warnings : iterable of str, optional
+        Plain-words warnings about the data or the fit; identifiability warnings are
+        added automatically.
+    """
+
+    def __init__(
+        self,
+        draws: Mapping[str, np.ndarray],
+        *,
+        model: str,
+        method: str,
+        coefficients: Sequence[str] | None = None,
+        free: Sequence[str] | None = None,
+        observed: Mapping[str, np.ndarray] | None = None,
+        constant: Mapping[str, np.ndarray] | None = None,
+        settings: Mapping[str, Any] | None = None,
+        warnings: Iterable[str] = (),
+    ) -> None:
+        self.draws = {k: np.asarray(v, dtype=float) for k, v in draws.items()}
+        shapes = {v.shape for v in self.draws.values()}
+        if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+            raise ValueError(f"draws must all be shaped (chain, draw); got {shapes}")
+        self.model = model
+        self.method = method
+        self.observed = dict(observed or {})
+        self.constant = dict(constant or {})
+        self.settings = dict(settings or {})
+        self.coefficients = list(
+            coefficients
+            if coefficients is not None
+            else [k for k in self.draws if not k.startswith("tau")]
+        )
+        self.free = list(free) if free is not None else list(self.coefficients)
+        self.warnings = list(warnings)
+        self.warnings.extend(w for w in self._identifiability_warnings() if w not in self.warnings)
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def names(self) -> list[str]:
+        """Parameter names, in report order."""
+        return list(self.draws)
+
+    @property
+    def n_chains(self) -> int:
+        """Number of chains."""
+        return next(iter(self.draws.values())).shape[0]
+
+    @property
+    def n_draws(self) -> int:
+        """Kept draws per chain."""
+        return next(iter(self.draws.values())).shape[1]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.draws[name]
+
+    def __repr__(self) -> str:
+        return (
+            f"Posterior(model={self.model!r}, method={self.method!r}, "
+            f"chains={self.n_chains}, draws={self.n_draws}, parameters={self.names})"
+        )
+
+    def mean(self) -> dict[str, float]:
+        """Posterior mean of every parameter."""
+        return {k: float(v.mean()) for k, v in self.draws.items()}
+
+    def flat(self, names: Sequence[str] | None = None) -> np.ndarray:
+        """Draws of ``names`` pooled over chains, shaped (chain * draw, len(names))."""
+        names = list(names or self.names)
+        return np.stack([self.draws[n].reshape(-1) for n in names], axis=1)
+
+    # ------------------------------------------------------------ summaries
+    def correlation(self, names: Sequence[str] | None = None) -> pd.DataFrame:
+        """Posterior correlation matrix of ``names`` (default: the coefficients)."""
+        names = list(names or self.coefficients)
+        x = self.flat(names)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = np.corrcoef(x, rowvar=False) if len(names) > 1 else np.ones((1, 1))
+        return pd.DataFrame(np.atleast_2d(c), index=names, columns=names)
+
+    def _identifiability_warnings(self) -> list[str]:
+        names = [n for n in self.free if n in self.draws]
+        if len(names) < 2:
+            return []
+        corr = self.correlation(names).to_numpy()
+        out = []
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                r = corr[i, j]
+                if np.isfinite(r) and abs(r) > IDENTIFIABILITY_CORR:
+                    out.append(
+                        f"{names[i]} and {names[j]} cannot be told apart on these data "
+                        f"(posterior correlation {r:+.4f}): their combination is well "
+                        f"determined, each alone is not. A wider voltage range, more "
+                        f"samples, or an informative prior on one of them would help."
+                    )
+        return out
+
+    def summary(
+        self, *, hdi_prob: float = 0.95, var_names: Sequence[str] | None = None
+    ) -> pd.DataFrame:
+        """Mean, sd, HDI, MCSE, bulk and tail ESS and R-hat of each parameter (via ArviZ).
+
+        Parameters
+        ----------
+        hdi_prob : float
+            Probability mass of the highest-density interval.
+        var_names : sequence of str, optional
+            Parameters to summarise (default: all).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by parameter, columns ``mean, sd, hdi_low, hdi_high, mcse_mean,
+            mcse_sd, ess_bulk, ess_tail, r_hat``.
+        """
+        if not 0 < hdi_prob < 1:
+            raise ValueError(f"hdi_prob must be in (0, 1), got {hdi_prob}")
+        az = _arviz()
+        names = list(var_names or self.names)
+        import warnings
+
+        with warnings.catch_warnings():
+            # ArviZ warns when R-hat cannot be computed (one chain) or draws are constant.
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.simplefilter("ignore", UserWarning)
+            df = az.summary({n: self.draws[n] for n in names}, hdi_prob=hdi_prob, round_to="none")
+        df = df.rename(columns={df.columns[2]: "hdi_low", df.columns[3]: "hdi_high"})
+        return df.loc[names]
+
+    # --------------------------------------------------------------- export
+    def to_arviz(self):
+        """Return an :class:`arviz.InferenceData` (posterior, observed and constant data)."""
+        az = _arviz()
+        attrs = {
+            "loadbayes_version": __version__,
+            "model": self.model,
+            "method": self.method,
+            "coefficients": json.dumps(self.coefficients),
+            "free": json.dumps(self.free),
+            "settings": json.dumps(self.settings, default=_json_default),
+            "warnings": json.dumps(self.warnings),
+        }
+        return az.from_dict(
+            posterior=self.draws,
+            observed_data=self.observed or None,
+            constant_data=self.constant or None,
+            attrs=attrs,
+        )
+
+    def to_netcdf(self, path: str | Path, *, force: bool = False) -> Path:
+        """Write the ArviZ NetCDF file atomically (no overwrite without ``force``)."""
+        from loadbayes.io.atomic import atomic_write
+
+        path = Path(path)
+        with atomic_write(path, force=force) as tmp:
+            self.to_arviz().to_netcdf(str(tmp))
+        return path
+
+    @classmethod
+    def from_arviz(cls, idata) -> Posterior:
+        """Rebuild a :class:`Posterior` from an InferenceData written by :meth:`to_arviz`."""
+        post = idata.posterior
+        # ArviZ keeps from_dict(attrs=...) on the InferenceData; older files on the group.
+        attrs = {**dict(post.attrs), **dict(getattr(idata, "attrs", {}) or {})}
+        draws = {k: post[k].to_numpy() for k in post.data_vars}
+        observed = (
+            {k: v.to_numpy() for k, v in idata.observed_data.data_vars.items()}
+            if "observed_data" in idata.groups()
+            else None
+        )
+        constant = (
+            {k: v.to_numpy() for k, v in idata.constant_data.data_vars.items()}
+            if "constant_data" in idata.groups()
+            else None
+        )
+        return cls(
+            draws,
+            model=str(attrs.get("model", "unknown")),
+            method=str(attrs.get("method", "unknown")),
+            coefficients=json.loads(attrs.get("coefficients", "null")),
+            free=json.loads(attrs.get("free", "null")),
+            observed=observed,
+            constant=constant,
+            settings=json.loads(attrs.get("settings", "{}")),
+            warnings=json.loads(attrs.get("warnings", "[]")),
+        )
+
+    @classmethod
+    def from_netcdf(cls, path: str | Path) -> Posterior:
+        """Read a file written by :meth:`to_netcdf`."""
+        az = _arviz()
+        idata = az.from_netcdf(str(path))
+        out = cls.from_arviz(idata)
+        idata.close() if hasattr(idata, "close") else None
+        return out
+
+    def to_dict(self, *, hdi_prob: float = 0.95) -> dict[str, Any]:
+        """The JSON contract of ``loadbayes fit``: parameters, correlation, warnings."""
+        s = self.summary(hdi_prob=hdi_prob)
+        params = {
+            name: {
+                key: _finite_or_none(row[key])
+                for key in ("mean", "sd", "hdi_low", "hdi_high", "r_hat", "ess_bulk", "ess_tail")
+            }
+            for name, row in s.iterrows()
+        }
+        corr = self.correlation()
+        out: dict[str, Any] = {
+            "model": self.model,
+            "method": self.method,
+            "n": int(self.settings.get("n", 0)),
+            "scheme": self.settings.get("scheme", self.method),
+            "chains": self.n_chains,
+            "draws": int(self.settings.get("draws", self.n_draws)),
+            "burn": int(self.settings.get("burn", 0)),
+            "thin": int(self.settings.get("thin", 1)),
+            "kept_draws": self.n_draws,
+            "hdi_prob": hdi_prob,
+            "parameters": params,
+            "correlation": {
+                a: {b: _finite_or_none(corr.loc[a, b]) for b in corr.columns} for a in corr.index
+            },
+            "warnings": list(self.warnings),
+            "loadbayes_version": __version__,
+            "settings": json.loads(json.dumps(self.settings, default=_json_default)),
+        }
+        return out
+
+    def to_json(self, path: str | Path, *, hdi_prob: float = 0.95, force: bool = False) -> Path:
+        """Write :meth:`to_dict` as JSON, atomically."""
+        from loadbayes.io.atomic import atomic_write
+
+        path = Path(path)
+        text = json.dumps(self.to_dict(hdi_prob=hdi_prob), indent=2, allow_nan=False)
+        with atomic_write(path, force=force) as tmp:
+            Path(tmp).write_text(text + "\n", encoding="utf-8")
+        return path
+
+    # --------------------------------------------------------- constructors
+    @classmethod
+    def from_gaussian(
+        cls,
+        mean: Sequence[float],
+        cov: np.ndarray,
+        names: Sequence[str],
+        *,
+        model: str,
+        method: str,
+        chains: int = 4,
+        draws: int = 1000,
+        rng: np.random.Generator | int | None = None,
+        **kwargs: Any,
+    ) -> Posterior:
+        """Represent a Gaussian estimate (LS, KF) by independent draws from it.
+
+        The draws make point estimators comparable with the samplers through the same
+        summary, intervals and plots; their mean is the estimate up to Monte Carlo error,
+        and the exact estimate is kept in ``settings["estimate"]``.
+        """
+        gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        mean = np.asarray(mean, dtype=float)
+        cov = np.atleast_2d(np.asarray(cov, dtype=float))
+        # Cholesky of a possibly singular covariance via eigen-decomposition.
+        w, v = np.linalg.eigh((cov + cov.T) / 2)
+        root = v * np.sqrt(np.clip(w, 0.0, None))
+        z = gen.standard_normal((chains, draws, mean.size))
+        x = mean + z @ root.T
+        settings = dict(kwargs.pop("settings", {}) or {})
+        settings.setdefault("estimate", dict(zip(names, mean.tolist(), strict=True)))
+        settings.setdefault("covariance", cov.tolist())
+        return cls(
+            {n: x[..., i] for i, n in enumerate(names)},
+            model=model,
+            method=method,
+            settings=settings,
+            **kwargs,
+        )
+
+    def with_draws(self, extra: Mapping[str, np.ndarray]) -> Posterior:
+        """A copy with transformed parameters added (e.g. a3 = 1 - a1 - a2)."""
+        return Posterior(
+            {**self.draws, **extra},
+            model=self.model,
+            method=self.method,
+            coefficients=self.coefficients,
+            free=self.free,
+            observed=self.observed,
+            constant=self.constant,
+            settings=self.settings,
+            warnings=self.warnings,
+        )
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
