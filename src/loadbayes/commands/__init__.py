@@ -1,0 +1,1 @@
+"""The CLI commands, one module per subject; :mod:`loadbayes.cli` gathers them."""

@@ -1,0 +1,225 @@
+"""What every command shares: one-line user errors, output checks, progress, options."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+EXIT_DATA = 2
+
+
+class UserError(click.ClickException):
+    """A one-line error for the user, exit code 2."""
+
+    exit_code = EXIT_DATA
+
+    def show(self, file: Any = None) -> None:  # noqa: D102
+        click.echo(f"loadbayes: error: {self.format_message()}", err=True)
+
+
+def user_errors(func):
+    """Turn the library's user-facing exceptions into one-line errors with exit code 2."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        from loadbayes.io.errors import DataError
+
+        try:
+            return func(*args, **kwargs)
+        except DataError as exc:
+            raise UserError(str(exc)) from None
+        except (FileExistsError, ValueError) as exc:
+            raise UserError(str(exc)) from None
+        except KeyboardInterrupt:
+            click.echo("loadbayes: interrupted; no output was written", err=True)
+            sys.exit(130)
+
+    return wrapper
+
+
+def check_outputs(outputs: dict[str, str | None], inputs: list[str], force: bool) -> None:
+    """Refuse before any work: an existing output without --force, or an output = input."""
+    seen: dict[Path, str] = {}
+    ins = {Path(p).resolve() for p in inputs if p and p != "-"}
+    for opt, path in outputs.items():
+        if not path:
+            continue
+        p = Path(path)
+        rp = p.resolve()
+        if rp in ins:
+            raise UserError(f"{path}: {opt} would overwrite the input data")
+        if rp in seen:
+            raise UserError(f"{path}: given to both {seen[rp]} and {opt}")
+        seen[rp] = opt
+        if p.is_dir():
+            raise UserError(f"{path}: {opt} is a directory")
+        if p.exists() and not force:
+            raise UserError(f"{path}: exists; use --force to overwrite")
+        if not p.parent.exists():
+            raise UserError(f"{path}: folder {p.parent} does not exist")
+
+
+class Progress:
+    """A progress bar on stderr (a no-op with --quiet)."""
+
+    def __init__(self, label: str, total: int | None, quiet: bool) -> None:
+        self.bar = None
+        if not quiet:
+            self.bar = click.progressbar(
+                length=total, label=label, file=sys.stderr, show_pos=True, show_eta=False
+            )
+            self.bar.__enter__()
+
+    def __call__(self, n: int) -> None:
+        if self.bar is not None:
+            self.bar.update(n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+
+
+def estimate_rows(path: str) -> int | None:
+    """Rows in a data file: exact for Parquet, estimated from the size for CSV."""
+    p = Path(path)
+    if path == "-" or not p.is_file():
+        return None
+    try:
+        if p.suffix.lower() in (".parquet", ".pq"):
+            import pyarrow.parquet as pq
+
+            return pq.ParquetFile(p).metadata.num_rows
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 16)
+        lines = head.count(b"\n")
+        if lines < 2:
+            return None
+        return max(int(p.stat().st_size / (len(head) / lines)) - 1, 1)
+    except Exception:  # an estimate only: the reader reports real problems
+        return None
+
+
+# ------------------------------------------------------------------ options shared
+def sampler_options(func):
+    """--draws --burn --chains --thin --seed --init --scheme --hdi-prob."""
+    opts = [
+        click.option(
+            "--draws",
+            type=click.IntRange(min=1),
+            default=40_000,
+            show_default=True,
+            help="Iterations per chain including burn-in (the paper's M).",
+        ),
+        click.option(
+            "--burn",
+            type=click.IntRange(min=0),
+            default=5_000,
+            show_default=True,
+            help="Leading iterations discarded (the paper's m).",
+        ),
+        click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True),
+        click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True),
+        click.option("--seed", type=int, default=0, show_default=True),
+        click.option(
+            "--init",
+            type=click.Choice(["prior", "dispersed"]),
+            default="prior",
+            show_default=True,
+            help="Start from a prior draw (the paper) or scattered around LS.",
+        ),
+        click.option(
+            "--hdi-prob",
+            type=click.FloatRange(0, 1, min_open=True, max_open=True),
+            default=0.95,
+            show_default=True,
+        ),
+    ]
+    for opt in reversed(opts):
+        func = opt(func)
+    return func
+
+
+def output_options(func):
+    """--json --netcdf --plot --quiet --force."""
+    opts = [
+        click.option(
+            "--json",
+            "json_out",
+            type=click.Path(dir_okay=False),
+            required=True,
+            help="Summary in the loadbayes JSON contract.",
+        ),
+        click.option(
+            "--netcdf",
+            "netcdf_out",
+            type=click.Path(dir_okay=False),
+            help="All draws as an ArviZ InferenceData NetCDF file.",
+        ),
+        click.option(
+            "--plot",
+            "plot_out",
+            type=click.Path(dir_okay=False),
+            help="Figure (PNG, SVG or PDF by extension).",
+        ),
+        click.option("--quiet", is_flag=True, help="No progress bar and no table on stdout."),
+        click.option("--force", is_flag=True, help="Overwrite existing outputs."),
+    ]
+    for opt in reversed(opts):
+        func = opt(func)
+    return func
+
+
+def nominal(value: str, name: str) -> float | str:
+    if value.strip().lower() == "auto":
+        return "auto"
+    try:
+        out = float(value)
+    except ValueError:
+        raise click.BadParameter(
+            f"{value!r} is neither a number nor 'auto'", param_hint=name
+        ) from None
+    if not (out == out and abs(out) != float("inf")) or out == 0:
+        raise click.BadParameter("must be a finite non-zero number or 'auto'", param_hint=name)
+    return out
+
+
+def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    out = {}
+    for item in items:
+        try:
+            name, rest = item.split("=", 1)
+            mean_s, sd_s = rest.split(",", 1)
+            mean, sd = float(mean_s), float(sd_s)
+        except ValueError:
+            raise click.BadParameter(
+                f"{item!r}: expected NAME=MEAN,SD such as a1=0.25,0.1", param_hint="--prior"
+            ) from None
+        if not sd > 0 or sd == float("inf") or mean != mean or abs(mean) == float("inf"):
+            raise click.BadParameter(
+                f"{item!r}: SD must be positive, MEAN finite", param_hint="--prior"
+            )
+        out[name.strip()] = (mean, sd)
+    return out
+
+
+def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet):
+    """Write the JSON, NetCDF and figure; print the table unless quiet."""
+    post.to_json(json_out, hdi_prob=hdi_prob, force=force)
+    if netcdf_out:
+        post.to_netcdf(netcdf_out, force=force)
+    if plot_out:
+        from loadbayes.report.figures import plot_fit, save_figure
+
+        save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), plot_out, force=force)
+    for w in post.warnings:
+        click.echo(f"loadbayes: warning: {w}", err=True)
+    if not quiet:
+        table = post.summary(hdi_prob=hdi_prob)
+        cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
+        click.echo(f"{post.model} posterior, {post.method}, n = {post.settings.get('n')}")
+        click.echo(table[cols].to_string(float_format=lambda x: f"{x:.5g}"))

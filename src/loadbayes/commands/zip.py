@@ -1,0 +1,187 @@
+"""``loadbayes fit zip``."""
+
+from __future__ import annotations
+
+import click
+
+from loadbayes.cli import fit
+from loadbayes.commands.common import (
+    Progress,
+    UserError,
+    check_outputs,
+    estimate_rows,
+    nominal,
+    output_options,
+    parse_coef_priors,
+    sampler_options,
+    user_errors,
+    write_outputs,
+)
+
+
+@fit.command("zip")
+@click.argument("data", type=str)
+@click.option("--v-col", default="v", show_default=True, help="Voltage column.")
+@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
+@click.option(
+    "--q-col",
+    default="q",
+    show_default=True,
+    help="Reactive-power column, or 'none' to fit P only.",
+)
+@click.option("--v0", type=float, default=1.0, show_default=True, help="Nominal voltage.")
+@click.option("--p0", default="1.0", show_default=True, help="Nominal P, or 'auto'.")
+@click.option("--q0", default="1.0", show_default=True, help="Nominal Q, or 'auto'.")
+@click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
+@click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
+@click.option(
+    "--scheme",
+    type=click.Choice(["blocked", "single-site", "exact"]),
+    default="blocked",
+    show_default=True,
+)
+@sampler_options
+@click.option(
+    "--prior-mean",
+    type=float,
+    default=0.0,
+    show_default=True,
+    help="Prior mean of every ZIP coefficient.",
+)
+@click.option(
+    "--prior-sd",
+    type=click.FloatRange(min=0, min_open=True),
+    default=10.0,
+    show_default=True,
+    help="Prior sd of every ZIP coefficient.",
+)
+@click.option(
+    "--prior",
+    "coef_priors",
+    multiple=True,
+    metavar="NAME=MEAN,SD",
+    help="Prior of one coefficient (a1, a2, a4, a5); repeatable.",
+)
+@click.option(
+    "--tau-shape",
+    type=click.FloatRange(min=0, min_open=True),
+    default=1e-3,
+    show_default=True,
+    help="Gamma prior shape of the noise precisions.",
+)
+@click.option(
+    "--tau-rate",
+    type=click.FloatRange(min=0, min_open=True),
+    default=1e-9,
+    show_default=True,
+    help="Gamma prior rate of the noise precisions.",
+)
+@click.option(
+    "--conjugate",
+    is_flag=True,
+    help="Normal-gamma prior (coefficient precision scaled by tau); needed by --scheme exact.",
+)
+@click.option(
+    "--drop-invalid",
+    is_flag=True,
+    help="Drop rows with NaN, inf or non-positive voltage (and report how many).",
+)
+@click.option(
+    "--chunk-rows",
+    type=click.IntRange(min=1),
+    default=1_000_000,
+    show_default=True,
+    help="Rows read at a time (memory does not grow with the file).",
+)
+@output_options
+@user_errors
+def fit_zip_cmd(
+    data,
+    v_col,
+    p_col,
+    q_col,
+    v0,
+    p0,
+    q0,
+    v_base,
+    s_base,
+    scheme,
+    draws,
+    burn,
+    chains,
+    thin,
+    seed,
+    init,
+    hdi_prob,
+    prior_mean,
+    prior_sd,
+    coef_priors,
+    tau_shape,
+    tau_rate,
+    conjugate,
+    drop_invalid,
+    chunk_rows,
+    json_out,
+    netcdf_out,
+    plot_out,
+    quiet,
+    force,
+):
+    """Posterior of the ZIP coefficients from a CSV or Parquet file of V, P (and Q)."""
+    check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, [data], force)
+    p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
+    if scheme == "exact" and not conjugate:
+        raise UserError("--scheme exact needs the conjugate prior: add --conjugate")
+    if burn >= draws:
+        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
+    per_coef = parse_coef_priors(coef_priors)
+
+    from loadbayes.fitting import fit_zip_file, zip_priors
+
+    priors = zip_priors(
+        p0=p0_val,
+        q0=q0_val,
+        mean=prior_mean,
+        sd=prior_sd,
+        per_coef=per_coef,
+        shape=tau_shape,
+        rate=tau_rate,
+        conjugate=conjugate,
+    )
+    progress = Progress("reading", estimate_rows(data), quiet)
+    try:
+        post, model = fit_zip_file(
+            data,
+            v_col=v_col,
+            p_col=p_col,
+            q_col=None if q_col.lower() == "none" else q_col,
+            q_required=q_col not in ("q", "none"),
+            v0=v0,
+            p0=p0_val,
+            q0=q0_val,
+            v_base=v_base,
+            s_base=s_base,
+            priors=priors,
+            scheme=scheme,
+            draws=draws,
+            burn=burn,
+            chains=chains,
+            thin=thin,
+            seed=seed,
+            init=init,
+            drop_invalid=drop_invalid,
+            chunk_rows=chunk_rows,
+            progress=progress,
+        )
+    finally:
+        progress.close()
+    write_outputs(
+        post,
+        model=model,
+        hdi_prob=hdi_prob,
+        json_out=json_out,
+        netcdf_out=netcdf_out,
+        plot_out=plot_out,
+        force=force,
+        quiet=quiet,
+    )
