@@ -36,6 +36,3 @@ def reproduce() -> None:
 
 # Each module attaches its commands to the groups above (imported last on purpose).
 from loadbayes.commands import zip as _zip  # noqa: E402, F401
-
-if __name__ == "__main__":  # pragma: no cover
-    main()

@@ -64,17 +64,21 @@ def check_outputs(outputs: dict[str, str | None], inputs: list[str], force: bool
 
 
 class Progress:
-    """A progress bar on stderr (a no-op with --quiet)."""
+    """A progress bar on stderr (a no-op with --quiet); a plain count when the total is unknown."""
 
     def __init__(self, label: str, total: int | None, quiet: bool) -> None:
         self.bar = None
-        if not quiet:
+        self.label = label
+        self.count = 0
+        self.quiet = quiet
+        if not quiet and total:
             self.bar = click.progressbar(
                 length=total, label=label, file=sys.stderr, show_pos=True, show_eta=False
             )
             self.bar.__enter__()
 
     def __call__(self, n: int) -> None:
+        self.count += n
         if self.bar is not None:
             self.bar.update(n)
 
@@ -82,6 +86,11 @@ class Progress:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
+            if not sys.stderr.isatty():
+                click.echo("", err=True)
+        elif not self.quiet and self.count:
+            click.echo(f"{self.label}: {self.count} rows", err=True)
+        self.quiet = True
 
 
 def estimate_rows(path: str) -> int | None:
