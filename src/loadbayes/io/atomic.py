@@ -1,0 +1,165 @@
+"""Write a file all at once or not at all.
+
+Every writer in loadbayes (tables, JSON, NetCDF, figures) writes to a temporary file in
+the target's folder and renames it over the target only when the writing has finished,
+so an error, a full disk or Ctrl-C never leaves a half-written file, and an existing
+file is either kept whole or replaced whole.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from loadbayes.io.errors import DataError
+
+__all__ = ["atomic_write", "check_target"]
+
+_WRITE_MODES = ("w", "wt", "wb")
+
+
+def check_target(path: str | os.PathLike[str], *, force: bool = False) -> Path:
+    """Check that a file can be written at ``path``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    force : bool, default False
+        Allow replacing an existing file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path`` as a Path.
+
+    Raises
+    ------
+    DataError
+        If ``path`` exists and ``force`` is False, is a directory, or its folder does
+        not exist.
+    """
+    target = Path(path)
+    name = os.fspath(path)
+    if target.is_dir():
+        raise DataError("is a directory, expected a file name", name)
+    if not target.parent.is_dir():
+        raise DataError(f"folder '{target.parent}' does not exist", name)
+    if target.exists() and not force:
+        raise DataError("exists; use --force to overwrite", name)
+    return target
+
+
+@contextlib.contextmanager
+def atomic_write(
+    path: str | os.PathLike[str],
+    *,
+    force: bool = False,
+    mode: str | None = None,
+    encoding: str = "utf-8",
+) -> Iterator[Any]:
+    """Write ``path`` through a temporary file that replaces it at the end.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    force : bool, default False
+        Replace ``path`` if it exists; otherwise an existing ``path`` is an error.
+    mode : {None, "w", "wt", "wb"}, default None
+        None yields the temporary file's path (for writers that take a file name; it
+        ends with the same suffix as ``path`` so they pick the same format); otherwise
+        the temporary file opened in this mode.
+    encoding : str, default "utf-8"
+        Encoding in text mode.
+
+    Yields
+    ------
+    pathlib.Path or file object
+        Where to write.
+
+    Raises
+    ------
+    DataError
+        If ``path`` exists and ``force`` is False, or the folder is missing or cannot
+        be written.
+
+    Notes
+    -----
+    The temporary file is hidden (``.name.XXXX.tmp.ext``) in the folder of ``path``, so
+    the final ``os.replace`` is atomic. It is flushed to disk before the rename. If the
+    block raises (KeyboardInterrupt included) the temporary file is removed and any old
+    ``path`` is untouched.
+
+    Examples
+    --------
+    >>> with atomic_write("summary.json", mode="w", force=True) as fh:  # doctest: +SKIP
+    ...     json.dump(summary, fh)
+    """
+    if mode is not None and mode not in _WRITE_MODES:
+        raise ValueError(f"mode must be None or one of {_WRITE_MODES}, not {mode!r}")
+    target = check_target(path, force=force)
+    name = os.fspath(path)
+    try:
+        fd, tmp_name = tempfile.mkstemp(
+            dir=target.parent, prefix=f".{target.name}.", suffix=f".tmp{target.suffix}"
+        )
+    except OSError as err:
+        message = f"cannot create a file in '{target.parent}': {err.strerror}"
+        raise DataError(message, name) from None
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        if mode is None:
+            yield tmp
+        else:
+            with open(tmp, mode, encoding=None if "b" in mode else encoding) as fh:
+                yield fh
+        _fsync(tmp)
+        # Checked again: the target may have appeared while we were writing.
+        if target.exists() and not force:
+            raise DataError("exists; use --force to overwrite", name)
+        os.chmod(tmp, _file_mode(target))
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    _fsync_dir(target.parent)
+
+
+def _fsync(path: Path) -> None:
+    # Without it a crash soon after the rename can leave an empty file on some
+    # filesystems (ext4 delayed allocation): the old data lost, the new not yet there.
+    with open(path, "rb") as fh:
+        os.fsync(fh.fileno())
+
+
+def _fsync_dir(folder: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _file_mode(target: Path) -> int:
+    # mkstemp creates the file 0600; give it the permissions a plain open() would have
+    # given it, or those of the file it replaces.
+    with contextlib.suppress(OSError):
+        return target.stat().st_mode & 0o7777
+    return 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    # Read it without os.umask(), which sets it and races with other threads.
+    with contextlib.suppress(OSError, ValueError), open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    return 0o022
