@@ -35,4 +35,5 @@ def reproduce() -> None:
 
 
 # Each module attaches its commands to the groups above (imported last on purpose).
+from loadbayes.commands import im as _im  # noqa: E402, F401
 from loadbayes.commands import zip as _zip  # noqa: E402, F401
