@@ -1,0 +1,72 @@
+"""End-to-end checks of the 33-bus generator through pandapower (slower than the unit tier)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from loadbayes.cases import ieee33
+from loadbayes.cases.ieee33 import DEFAULT_ZIP, Feeder33
+
+pytest.importorskip("pandapower")
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.mark.parametrize("engine", ["newton", "recycle"])
+def test_fast_paths_match_plain_runpp_over_many_shares(engine):
+    rng = np.random.default_rng(20)
+    n = 60
+    factors = ieee33.draw_factors(n, seed=21)
+    # Posterior-like scatter around the truth, including negative Z or I shares.
+    zip_p = np.column_stack([0.25 + rng.normal(0, 0.4, n), 0.25 + rng.normal(0, 0.4, n)])
+    zip_p[:, 1] = np.minimum(zip_p[:, 1], 1.0 - zip_p[:, 0])  # keep a3 >= 0 for runpp
+    zip_q = np.column_stack([rng.uniform(-0.5, 1.0, n), np.zeros(n)])
+    ref = Feeder33(engine="runpp").run_many(factors, zip_p=zip_p, zip_q=zip_q)
+    got = Feeder33(engine=engine).run_many(factors, zip_p=zip_p, zip_q=zip_q)
+    assert ref["converged"].all() and got["converged"].all()
+    for key in ("v_pu", "p_pu", "q_pu"):
+        np.testing.assert_allclose(got[key], ref[key], rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize(("engine", "n"), [("newton", 450), ("recycle", 150)])
+def test_output_is_identical_for_one_and_two_workers(engine, n, monkeypatch):
+    # Chunks restart the recycle engine cold; small chunks make several of them.
+    monkeypatch.setattr(ieee33, "_CHUNK", 40 if engine == "recycle" else ieee33._CHUNK)
+    kw = {"seed": 31, "engine": engine, "factor_range": (0.1, 6.5)}  # some failures too
+    one = ieee33.generate_experiments(n, **kw)
+    two = ieee33.generate_experiments(n, workers=2, **kw)
+    pd.testing.assert_frame_equal(one, two, check_exact=True)
+    assert one.attrs == two.attrs
+    assert 0 < one.attrs["n_failed"] < n
+
+
+def test_paper_setting_converges_over_the_expected_voltage_band():
+    df = ieee33.generate_experiments(500, seed=0, workers=2)
+    assert df.attrs["n_failed"] == 0
+    assert 0.55 < df.v_pu.min() and df.v_pu.max() < 0.92
+    # The noise is N(0, 0.1) in per unit of P0 and Q0.
+    resid = df.p_meas_pu - df.p_true_pu
+    assert resid.std() == pytest.approx(0.1, rel=0.15)
+
+
+def test_posterior_predictive_band_covers_the_truth():
+    rng = np.random.default_rng(4)
+    # Draws along the paper's a1-a2 ridge (correlation near -1), centred on the truth.
+    a1 = 0.25 + rng.normal(0, 0.3, 100)
+    draws = np.column_stack([a1, 0.5 - a1 + rng.normal(0, 0.01, 100)])
+    out = ieee33.validate(DEFAULT_ZIP, draws, n=20, seed=8, workers=2)
+    assert out.converged.all() and (out.n_draws_ok == 100).all()
+    for x in ("v", "p"):
+        lo, mid, hi = (out[f"{x}_est_q{q}_pu"] for q in ("2.5", "50", "97.5"))
+        assert (lo <= mid).all() and (mid <= hi).all()
+        assert ((lo <= out[f"{x}_true_pu"]) & (out[f"{x}_true_pu"] <= hi)).all()
+    assert out.attrs["n_draws"] == 100
+
+
+def test_validate_point_estimate_close_to_truth_is_small():
+    out = ieee33.validate(DEFAULT_ZIP, (0.25, 0.249), n=100, seed=1)
+    assert out.converged.all()
+    assert out.dv_pu.abs().max() < 1e-4
+    assert out.dp_pu.abs().max() < 2e-3
