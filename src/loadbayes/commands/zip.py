@@ -40,6 +40,21 @@ from loadbayes.commands.common import (
     default="blocked",
     show_default=True,
 )
+@click.option(
+    "--likelihood",
+    type=click.Choice(["normal", "student-t"]),
+    default="normal",
+    show_default=True,
+    help="Gaussian noise (the paper's), or Student-t noise that discounts bad samples "
+    "and lists them under 'flagged' in the JSON.",
+)
+@click.option(
+    "--nu",
+    default="auto",
+    show_default=True,
+    metavar="VALUE|auto",
+    help="Student-t degrees of freedom: a number, or 'auto' to sample them.",
+)
 @sampler_options
 @click.option(
     "--prior-mean",
@@ -106,6 +121,8 @@ def fit_zip_cmd(
     v_base,
     s_base,
     scheme,
+    likelihood,
+    nu,
     draws,
     burn,
     chains,
@@ -135,6 +152,14 @@ def fit_zip_cmd(
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     per_coef = parse_coef_priors(coef_priors)
+    nu_val = _parse_nu(nu)
+    if likelihood == "student-t" and scheme != "blocked":
+        raise UserError(
+            f"--scheme {scheme} is a Gaussian-likelihood scheme; the Student-t sampler has "
+            "its own (leave --scheme at blocked)"
+        )
+    if likelihood == "normal" and nu.strip().lower() != "auto":
+        raise UserError("--nu needs --likelihood student-t")
 
     from loadbayes.fitting import fit_zip_file, zip_priors
 
@@ -148,6 +173,42 @@ def fit_zip_cmd(
         rate=tau_rate,
         conjugate=conjugate,
     )
+    if likelihood == "student-t":
+        post, model = _fit_student_t(
+            data,
+            nu=nu_val,
+            v_col=v_col,
+            p_col=p_col,
+            q_col=q_col,
+            v0=v0,
+            p0=p0_val,
+            q0=q0_val,
+            v_base=v_base,
+            s_base=s_base,
+            priors=priors,
+            drop_invalid=drop_invalid,
+            chunk_rows=chunk_rows,
+            quiet=quiet,
+            sampler={
+                "draws": draws,
+                "burn": burn,
+                "chains": chains,
+                "thin": thin,
+                "seed": seed,
+                "init": init,
+            },
+        )
+        write_outputs(
+            _WithFlagged(post),
+            model=model,
+            hdi_prob=hdi_prob,
+            json_out=json_out,
+            netcdf_out=netcdf_out,
+            plot_out=plot_out,
+            force=force,
+            quiet=quiet,
+        )
+        return
     progress = Progress("reading", estimate_rows(data), quiet)
     try:
         post, model = fit_zip_file(
@@ -185,3 +246,105 @@ def fit_zip_cmd(
         force=force,
         quiet=quiet,
     )
+
+
+# ----------------------------------------------------------------- Student-t path
+def _parse_nu(value: str) -> float | str:
+    if value.strip().lower() == "auto":
+        return "auto"
+    try:
+        out = float(value)
+    except ValueError:
+        raise click.BadParameter(
+            f"{value!r} is neither a number nor 'auto'", param_hint="--nu"
+        ) from None
+    if not (out > 0 and out != float("inf")):
+        raise click.BadParameter("must be a positive finite number or 'auto'", param_hint="--nu")
+    return out
+
+
+def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base, priors,
+                   drop_invalid, chunk_rows, quiet, sampler):  # fmt: skip
+    """Read the file into memory and fit the Student-t ZIP; flagged samples as file rows."""
+    from loadbayes.commands.exp import read_power_columns, relocate
+    from loadbayes.fitting import MAX_OBSERVED, accumulate
+    from loadbayes.inference.robust import fit_robust
+    from loadbayes.io.errors import DataError
+    from loadbayes.models.zip import ZIPModel
+
+    q_name = None if q_col.lower() == "none" else q_col
+    progress = Progress("reading", estimate_rows(data), quiet)
+    try:
+        pc = read_power_columns(
+            data, v_col=v_col, p_col=p_col, q_col=q_name, q_required=q_col not in ("q", "none"),
+            v_base=v_base, s_base=s_base, drop_invalid=drop_invalid, chunk_rows=chunk_rows,
+            progress=progress,
+        )  # fmt: skip
+    finally:
+        progress.close()
+    model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in pc.cols)
+    names = {"v": v_col, "p": p_col, "q": q_name}
+    warnings = []
+    if pc.n_dropped:
+        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+    try:
+        warnings += model.check(accumulate(model, [pc.cols]))
+        post = fit_robust(
+            model,
+            pc.cols,
+            priors=priors,
+            nu=nu,
+            observed=pc.cols if pc.rows.size <= MAX_OBSERVED else None,
+            warnings=warnings,
+            settings={
+                "data": str(data),
+                "columns": {"v": v_col, "p": p_col, "q": q_name if model.with_q else None},
+                "v0": v0,
+                "p0": p0,
+                "q0": q0 if model.with_q else None,
+                "v_base": v_base,
+                "s_base": s_base,
+                "n_dropped": pc.n_dropped,
+            },
+            **sampler,
+        )
+    except DataError as exc:
+        raise relocate(exc, data, pc.rows, names) from None
+    # 0-based sample indices -> 1-based data rows of the file
+    by_channel = {
+        ch: [int(pc.rows[i]) for i in idx] for ch, idx in post.settings["flagged"].items()
+    }
+    post.settings["flagged"] = by_channel
+    post.settings["flagged_rows"] = sorted({r for rows in by_channel.values() for r in rows})
+    post.settings["flagged_are"] = "1-based data rows of the input (header excluded)"
+    return post, model
+
+
+class _WithFlagged:
+    """A Posterior whose JSON also lists the flagged rows at the top level."""
+
+    def __init__(self, post) -> None:
+        self._post = post
+
+    def __getattr__(self, name):
+        return getattr(self._post, name)
+
+    def to_dict(self, *, hdi_prob: float = 0.95):
+        out = self._post.to_dict(hdi_prob=hdi_prob)
+        st = self._post.settings
+        out["likelihood"] = "student-t"
+        out["flagged"] = list(st["flagged_rows"])
+        out["flagged_by_channel"] = dict(st["flagged"])
+        out["flag_rule"] = st["flag_rule"]
+        return out
+
+    def to_json(self, path, *, hdi_prob: float = 0.95, force: bool = False):
+        import json
+        from pathlib import Path
+
+        from loadbayes.io.atomic import atomic_write
+
+        text = json.dumps(self.to_dict(hdi_prob=hdi_prob), indent=2, allow_nan=False)
+        with atomic_write(Path(path), force=force) as tmp:
+            Path(tmp).write_text(text + "\n", encoding="utf-8")
+        return Path(path)
