@@ -1,7 +1,8 @@
 """Gibbs sampling of a conjugate linear-Gaussian block ``r = Z b + e``, ``e ~ N(0, 1/tau)``.
 
 The sampler sees the data only through :class:`~loadbayes.inference.stats.RegressionStats`
-(``Z'Z``, ``Z'r``, ``r'r``, ``n``), so one iteration costs O(k^3) and nothing in ``n``.
+(``Z'Z``, ``Z'r``, ``r'r``, ``n``), so one iteration costs O(k) (blocked) or O(k^2)
+(single-site), and nothing in ``n``.
 
 Schemes
 -------
@@ -17,12 +18,29 @@ Schemes
     (only with ``BlockPrior(conjugate=True)``): the test oracle.
 
 Randomness is drawn in bulk from per-chain generators (standard normals, and standard
-gammas with the fixed posterior shape ``a0 + n/2``), and a compiled loop turns them into
-the chain. The same seed gives the same draws whatever runs the chains.
+gammas with the fixed posterior shape ``a0 + n/2``, :data:`SEGMENT` iterations at a
+time), and a compiled loop turns them into the chain. The same seed gives the same draws
+whatever runs the chains.
+
+Speed
+-----
+``blocked`` never factorises a matrix inside the loop. The prior precision ``P0`` and
+``Z'Z`` are diagonalised together once (``W' P0 W = E``, ``W' Z'Z W = D``, both
+diagonal), so that the conditional precision ``s P0 + tau Z'Z`` is diagonal in the
+coordinates ``u = W^-1 b`` for every ``tau``: a draw of ``u`` is ``k`` independent
+univariate normals, ``b = W u``, and ``SSR(b)`` is a diagonal quadratic form in ``u``.
+One iteration is ``O(k)`` with one division and one square root per coefficient, and
+nothing in ``n``. (The map from standard normals to ``b`` is the symmetric-eigen factor
+of the conditional covariance rather than its Cholesky factor: the same distribution.)
+
+Chains run in threads (the kernels release the GIL), each chain drawing its randomness
+from its own generator and writing its own rows of the output, so the draws do not
+depend on the number of threads. ``LOADBAYES_NUM_THREADS`` caps the threads.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -30,7 +48,7 @@ import numpy as np
 from numba import njit
 
 from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats
+from loadbayes.inference.stats import RegressionStats, _num_threads, _run_threads
 
 __all__ = ["SCHEMES", "BlockDraws", "sample_block", "chain_generators"]
 
@@ -55,79 +73,223 @@ class BlockDraws:
     tau: np.ndarray
 
 
+#: Iterations whose randomness is drawn at a time, per chain: normals, then gammas, for
+#: each segment in turn. It defines the random stream, so changing it changes the draws.
+SEGMENT = 4096
+
+
 @njit(cache=True, nogil=True)
-def _chain(
-    ztz, ztr, b_ls, ssr_min, m0, p0, rate0, conj, single, tau, b, z, g, burn, thin, out_b, out_t
+def _first_kept(start, burn, thin):  # pragma: no cover - compiled
+    """First kept iteration at or after ``start``, and its index among the kept ones."""
+    if start <= burn:
+        return burn, 0
+    kept = (start - burn + thin - 1) // thin
+    return burn + kept * thin, kept
+
+
+#: Chain iterations below which a second thread costs more than it saves.
+_MIN_ITERS_PER_THREAD = 20_000
+
+
+@njit(cache=True, nogil=True)
+def _blocked_chains(
+    w,
+    e,
+    d,
+    c0,
+    c1,
+    u_ls,
+    u0,
+    ssr_min,
+    rate0,
+    conj,
+    tau,
+    u,
+    z,
+    g,
+    m,
+    start,
+    burn,
+    thin,
+    out_b,
+    out_t,
 ):  # pragma: no cover - compiled
-    k = ztr.shape[0]
+    """Blocked Gibbs in the coordinates ``u = W^-1 b`` where both precisions are diagonal.
+
+    ``b | tau``: ``u_i ~ N((s c0_i + tau c1_i) / den_i, 1 / den_i)``, independent, with
+    ``den_i = s e_i + tau d_i`` and ``c0 = W' P0 m0``, ``c1 = W' Z'r``.
+    ``tau | b``: ``SSR(b) = SSR_min + sum_i d_i (u_i - u_ls_i)^2`` and, for the
+    conjugate prior, ``(b - m0)' P0 (b - m0) = sum_i e_i (u_i - u0_i)^2``.
+    Chains are interleaved (the loop over chains is innermost) so that the processor
+    overlaps their independent dependency chains. One call runs iterations
+    ``start .. start + m - 1`` from the first ``m`` rows of ``z`` and ``g``.
+    """
+    nc = z.shape[0]
+    k = z.shape[2]
+    keep, kept = _first_kept(start, burn, thin)
+    for j in range(m):
+        it = start + j
+        store = it == keep
+        for c in range(nc):
+            t = tau[c]
+            s = t if conj else 1.0
+            q = 0.0
+            qp = 0.0
+            for i in range(k):
+                r = 1.0 / (s * e[i] + t * d[i])
+                ui = (s * c0[i] + t * c1[i]) * r + z[c, j, i] * np.sqrt(r)
+                u[c, i] = ui
+                du = ui - u_ls[i]
+                q += d[i] * du * du
+                if conj:
+                    dp = ui - u0[i]
+                    qp += e[i] * dp * dp
+            rate = rate0 + 0.5 * (ssr_min + q)
+            if conj:
+                rate += 0.5 * qp
+            t = max(g[c, j] / rate, _TAU_FLOOR)
+            tau[c] = t
+            if store:
+                for i in range(k):
+                    acc = 0.0
+                    for h in range(k):
+                        acc += w[i, h] * u[c, h]
+                    out_b[c, kept, i] = acc
+                out_t[c, kept] = t
+        if store:
+            kept += 1
+            keep += thin
+
+
+@njit(cache=True, nogil=True)
+def _single_site_chains(
+    ztz,
+    ztr,
+    b_ls,
+    ssr_min,
+    m0,
+    p0,
+    rate0,
+    conj,
+    tau,
+    b,
+    z,
+    g,
+    m,
+    start,
+    burn,
+    thin,
+    out_b,
+    out_t,
+):  # pragma: no cover - compiled
+    """The paper's Algorithm 1: each ``b_j | b_-j, tau`` in turn, then ``tau | b``."""
+    nc = z.shape[0]
+    k = z.shape[2]
     p0m = p0 @ m0
-    lam = np.empty((k, k))
-    h = np.empty(k)
-    chol = np.empty((k, k))
-    y = np.empty(k)
-    d = np.empty(k)
-    kept = 0
-    for it in range(z.shape[0]):
-        s = tau if conj else 1.0
-        for i in range(k):
-            h[i] = s * p0m[i] + tau * ztr[i]
+    inv = np.empty(k)
+    sd = np.empty(k)
+    keep, kept = _first_kept(start, burn, thin)
+    for row in range(m):
+        it = start + row
+        store = it == keep
+        for c in range(nc):
+            t = tau[c]
+            s = t if conj else 1.0
+            for j in range(k):  # the diagonal depends on tau only: off the serial path
+                inv[j] = 1.0 / (s * p0[j, j] + t * ztz[j, j])
+                sd[j] = np.sqrt(inv[j])
             for j in range(k):
-                lam[i, j] = s * p0[i, j] + tau * ztz[i, j]
-        if single:
-            # The paper's Algorithm 1: b_j | b_-j, tau, one coordinate at a time.
-            for j in range(k):
-                acc = h[j]
+                acc = s * p0m[j] + t * ztr[j]
                 for i in range(k):
                     if i != j:
-                        acc -= lam[j, i] * b[i]
-                b[j] = acc / lam[j, j] + z[it, j] / np.sqrt(lam[j, j])
-        else:
-            # b | tau ~ N(lam^-1 h, lam^-1): Cholesky lam = L L', b = L'^-1 (L^-1 h + z).
-            for j in range(k):
-                sdiag = lam[j, j]
-                for m in range(j):
-                    sdiag -= chol[j, m] * chol[j, m]
-                chol[j, j] = np.sqrt(sdiag)
-                for i in range(j + 1, k):
-                    acc = lam[i, j]
-                    for m in range(j):
-                        acc -= chol[i, m] * chol[j, m]
-                    chol[i, j] = acc / chol[j, j]
-            for i in range(k):
-                acc = h[i]
-                for m in range(i):
-                    acc -= chol[i, m] * y[m]
-                y[i] = acc / chol[i, i]
-            for i in range(k):  # add the noise only after the solve: y = L^-1 h + z
-                y[i] += z[it, i]
-            for i in range(k - 1, -1, -1):
-                acc = y[i]
-                for m in range(i + 1, k):
-                    acc -= chol[m, i] * b[m]
-                b[i] = acc / chol[i, i]
-        # tau | b ~ Gamma(shape fixed, rate): SSR(b) = SSR_min + (b - b_ls)' Z'Z (b - b_ls),
-        # a form with no cancellation even on noise-free data.
-        for i in range(k):
-            d[i] = b[i] - b_ls[i]
-        q = 0.0
-        for i in range(k):
-            for j in range(k):
-                q += d[i] * ztz[i, j] * d[j]
-        rate = rate0 + 0.5 * (ssr_min + max(q, 0.0))
-        if conj:
-            for i in range(k):
-                d[i] = b[i] - m0[i]
+                        acc -= (s * p0[j, i] + t * ztz[j, i]) * b[c, i]
+                b[c, j] = acc * inv[j] + z[c, row, j] * sd[j]
+            # SSR(b) = SSR_min + (b - b_ls)' Z'Z (b - b_ls): no cancellation even on
+            # noise-free data.
             q = 0.0
             for i in range(k):
+                di = b[c, i] - b_ls[i]
                 for j in range(k):
-                    q += d[i] * p0[i, j] * d[j]
-            rate += 0.5 * q
-        tau = max(g[it] / rate, 1e-100)
-        if it >= burn and (it - burn) % thin == 0:
-            for i in range(k):
-                out_b[kept, i] = b[i]
-            out_t[kept] = tau
+                    q += di * ztz[i, j] * (b[c, j] - b_ls[j])
+            rate = rate0 + 0.5 * (ssr_min + max(q, 0.0))
+            if conj:
+                q = 0.0
+                for i in range(k):
+                    di = b[c, i] - m0[i]
+                    for j in range(k):
+                        q += di * p0[i, j] * (b[c, j] - m0[j])
+                rate += 0.5 * q
+            t = max(g[c, row] / rate, _TAU_FLOOR)
+            tau[c] = t
+            if store:
+                for i in range(k):
+                    out_b[c, kept, i] = b[c, i]
+                out_t[c, kept] = t
+        if store:
             kept += 1
+            keep += thin
+
+
+@dataclass(frozen=True)
+class _Diagonal:
+    """``W`` with ``W' P0 W = diag(e)`` and ``W' Z'Z W = diag(d)``, and the data in ``u``."""
+
+    w: np.ndarray
+    w_inv: np.ndarray
+    e: np.ndarray
+    d: np.ndarray
+    c0: np.ndarray
+    c1: np.ndarray
+    u_ls: np.ndarray
+    u0: np.ndarray
+
+
+def _diagonalise(stats: RegressionStats, prior: BlockPrior, b_ls: np.ndarray) -> _Diagonal:
+    """Diagonalise ``P0`` and ``Z'Z`` together (a generalised symmetric eigenproblem).
+
+    With ``S = P0 + Z'Z = L L'`` (after scaling to a unit diagonal, for conditioning),
+    ``L^-1 Z'Z L^-T = V diag(d) V'`` and ``L^-1 P0 L^-T = V diag(1 - d) V'`` share their
+    eigenvectors, so ``W = L^-T V`` makes both diagonal. ``S`` is positive definite
+    exactly when the posterior is proper.
+    """
+    p0 = prior.precision
+    ztz = np.asarray(stats.ztz, dtype=float)
+    s = p0 + ztz
+    diag = np.diag(s)
+    if not np.all(np.isfinite(s)) or np.any(diag <= 0):
+        raise ValueError(_IMPROPER)
+    scale = 1.0 / np.sqrt(diag)
+    outer = np.outer(scale, scale)
+    try:
+        chol = np.linalg.cholesky(s * outer)
+    except np.linalg.LinAlgError:
+        raise ValueError(_IMPROPER) from None
+    chol_inv = np.linalg.inv(chol)
+    m = chol_inv @ (ztz * outer) @ chol_inv.T
+    _, v = np.linalg.eigh((m + m.T) / 2)
+    w = (scale[:, None] * chol_inv.T) @ v
+    w_inv = v.T @ (chol.T / scale[None, :])
+    e = np.clip(np.einsum("ij,ik,kj->j", w, p0, w), 0.0, None)
+    d = np.clip(np.einsum("ij,ik,kj->j", w, ztz, w), 0.0, None)
+    if np.any(e + d <= 0):
+        raise ValueError(_IMPROPER)
+    return _Diagonal(
+        w=np.ascontiguousarray(w),
+        w_inv=w_inv,
+        e=e,
+        d=d,
+        c0=w.T @ (p0 @ prior.mean),
+        c1=w.T @ np.asarray(stats.ztr, dtype=float),
+        u_ls=w_inv @ b_ls,
+        u0=w_inv @ prior.mean,
+    )
+
+
+_IMPROPER = (
+    "the posterior is improper: the prior is flat along a direction of the coefficients "
+    "that the data do not identify (prior precision + Z'Z is singular); give those "
+    "coefficients a proper prior"
+)
 
 
 def chain_generators(
@@ -239,32 +401,53 @@ def sample_block(
         return _sample_exact(stats, prior, gens, kept)
     b_ls, ssr_min = stats.least_squares()
     shape = _posterior_shape(stats, prior)
+    single = scheme == "single-site"
+    diag = None if single else _diagonalise(stats, prior, b_ls)
+    tau = np.empty(chains)
+    state = np.empty((chains, k))  # b (single-site) or u = W^-1 b (blocked)
     out_b = np.empty((chains, kept, k))
     out_t = np.empty((chains, kept))
-    for c, gen in enumerate(gens):
-        tau0, b0 = _initial(stats, prior, gen, init, b_ls, ssr_min)
-        z = gen.standard_normal((draws, k))
-        g = gen.standard_gamma(shape, draws)
-        _chain(
-            np.ascontiguousarray(stats.ztz, dtype=float),
-            np.ascontiguousarray(stats.ztr, dtype=float),
-            b_ls,
-            float(ssr_min),
-            prior.mean,
-            prior.precision,
-            float(prior.rate),
-            bool(prior.conjugate),
-            scheme == "single-site",
-            tau0,
-            b0.copy(),
-            z,
-            g,
-            burn,
-            thin,
-            out_b[c],
-            out_t[c],
-        )
+    ztz = np.ascontiguousarray(stats.ztz, dtype=float)
+    ztr = np.ascontiguousarray(stats.ztr, dtype=float)
+
+    def run(c0: int, c1: int) -> None:
+        for c in range(c0, c1):
+            tau[c], b0 = _initial(stats, prior, gens[c], init, b_ls, ssr_min)
+            state[c] = b0 if diag is None else diag.w_inv @ b0
+        # Randomness a segment at a time: small buffers that stay in cache and are reused
+        # (fresh multi-megabyte buffers cost more in page faults than in drawing).
+        z = np.empty((c1 - c0, min(SEGMENT, draws), k))
+        g = np.empty((c1 - c0, min(SEGMENT, draws)))
+        sl = slice(c0, c1)
+        for start in range(0, draws, SEGMENT):
+            m = min(SEGMENT, draws - start)
+            for j, c in enumerate(range(c0, c1)):  # per chain: the normals, then the gammas
+                gens[c].standard_normal(out=z[j, :m])
+                gens[c].standard_gamma(shape, out=g[j, :m])
+            if diag is None:
+                _single_site_chains(
+                    ztz, ztr, b_ls, float(ssr_min), prior.mean, prior.precision,
+                    float(prior.rate), bool(prior.conjugate), tau[sl], state[sl], z, g, m,
+                    start, burn, thin, out_b[sl], out_t[sl],
+                )  # fmt: skip
+            else:
+                _blocked_chains(
+                    diag.w, diag.e, diag.d, diag.c0, diag.c1, diag.u_ls, diag.u0,
+                    float(ssr_min), float(prior.rate), bool(prior.conjugate), tau[sl],
+                    state[sl], z, g, m, start, burn, thin, out_b[sl], out_t[sl],
+                )  # fmt: skip
+
+    _run_threads(_chain_groups(chains, draws, run))
     return BlockDraws(out_b, out_t)
+
+
+def _chain_groups(
+    chains: int, draws: int, run: Callable[[int, int], None]
+) -> list[Callable[[], None]]:
+    """Split the chains into contiguous groups, one per thread."""
+    workers = min(chains, _num_threads(), max(chains * draws // _MIN_ITERS_PER_THREAD, 1))
+    bounds = [chains * w // workers for w in range(workers + 1)]
+    return [(lambda c0=c0, c1=c1: run(c0, c1)) for c0, c1 in zip(bounds, bounds[1:], strict=False)]
 
 
 def exact_posterior(stats: RegressionStats, prior: BlockPrior) -> dict[str, np.ndarray | float]:

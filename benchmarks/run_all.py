@@ -1,0 +1,357 @@
+"""Run every benchmark script and write ``benchmarks/README.md`` from their results.
+
+Usage::
+
+    python benchmarks/run_all.py                 # full runs (what `make bench` does)
+    python benchmarks/run_all.py --quick         # smoke sizes, results in results/quick/
+    python benchmarks/run_all.py --readme-only   # rebuild the README from results/*.json
+
+Each script is run as ``python SCRIPT [--quick] --output results/NAME.json`` in its own
+process, its output kept in ``results/NAME.log``. The contract for a script: accept
+``--quick`` and ``--output PATH``, and write there a JSON object with ``date``,
+``machine``, ``versions`` and ``results`` (a list of flat dicts, one per table row);
+optionally ``targets`` (a list of ``{"target", "measured", "met"}``) and ``notes``
+(a list of strings). Scripts that are missing are skipped (the power-flow and motor
+benchmarks belong to their modules' owners).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import datetime
+import json
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+SCRIPTS = [
+    ("bench_zip.py", "zip"),
+    ("bench_stream.py", "stream"),
+    ("bench_powerflow.py", "powerflow"),
+    ("bench_im.py", "im"),
+]
+
+
+def script_options(path: Path) -> set[str]:
+    """The long options a script's argparse declares (read from its source)."""
+    opts = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "add_argument":
+            for arg in node.args:
+                if isinstance(arg, ast.Constant) and str(arg.value).startswith("--"):
+                    opts.add(arg.value)
+    return opts
+
+
+def run_scripts(quick: bool, only: list[str] | None) -> dict[str, dict]:
+    out_dir = RESULTS / "quick" if quick else RESULTS
+    out_dir.mkdir(parents=True, exist_ok=True)
+    status = {}
+    for script, name in SCRIPTS:
+        if only and name not in only:
+            continue
+        path = HERE / script
+        if not path.exists():
+            status[name] = {"status": "absent"}
+            print(f"{script}: absent, skipped", flush=True)
+            continue
+        opts = script_options(path)
+        if quick and "--quick" not in opts:
+            status[name] = {"status": "no --quick"}
+            print(f"{script}: has no --quick option, skipped", flush=True)
+            continue
+        out_opt = "--output" if "--output" in opts else "--out"
+        cmd = [sys.executable, str(path), out_opt, str(out_dir / f"{name}.json")]
+        if quick:
+            cmd.append("--quick")
+        print(f"{script}: running {' '.join(cmd[1:])}", flush=True)
+        t0 = time.perf_counter()
+        with open(out_dir / f"{name}.log", "w") as log:
+            proc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, cwd=HERE.parent)
+        seconds = time.perf_counter() - t0
+        status[name] = {"status": "ok" if proc.returncode == 0 else f"exit {proc.returncode}"}
+        status[name]["seconds"] = seconds
+        print(f"{script}: {status[name]['status']} in {seconds:.0f} s", flush=True)
+    return status
+
+
+# ------------------------------------------------------------------------------ README
+
+
+def _num(x, digits: int = 3) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, (list, tuple)):
+        return "[" + ", ".join(_num(v, digits) for v in x) + "]"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, int):
+        return f"{x:,}"
+    if isinstance(x, float):
+        if not math.isfinite(x):
+            return str(x)
+        if x == 0:
+            return "0"
+        mag = math.floor(math.log10(abs(x)))
+        if mag < -3:
+            return f"{x:.{digits - 1}e}"
+        if mag >= digits:
+            return f"{x:,.0f}"
+        return f"{x:.{max(digits - 1 - mag, 0)}f}"
+    return str(x)
+
+
+def _ratio(x: float) -> str:
+    return f"{x:.2g}x" if x < 10 else f"{x:,.0f}x"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return lines
+
+
+def _title(script: str) -> str:
+    path = HERE / script
+    try:
+        doc = ast.get_docstring(ast.parse(path.read_text())) or script
+    except (OSError, SyntaxError):
+        return script
+    return " ".join(doc.split("\n\n")[0].split())
+
+
+def _targets(info: dict) -> list[str]:
+    if not info.get("targets"):
+        return []
+    rows = [
+        [t["target"], t["measured"], "met" if t["met"] else "**not met**"] for t in info["targets"]
+    ]
+    return ["", *_table(["target", "measured", ""], rows)]
+
+
+def _zip_section(info: dict) -> list[str]:
+    header = [
+        "sampler", "n", "settings", "first call s", "warm s", "ESS(a1)", "ESS/s",
+        "warm ESS/s", "peak RSS MB", "a1 mean (sd)", "a2 mean (sd)", "check",
+        "lb blocked ESS/s ÷ this (first / warm)",
+    ]  # fmt: skip
+    rows = []
+    for r in info["results"]:
+        if "first_s" not in r:
+            why = r.get("skipped") or r.get("error", "")
+            rows.append([r["sampler"], _num(r["n"]), r.get("settings", ""), f"skipped: {why}"])
+            rows[-1] += [""] * (len(header) - len(rows[-1]))
+            continue
+        ratio = "-"
+        if "ratio_first" in r:
+            ratio = _ratio(r["ratio_first"])
+            if r.get("ratio_warm"):
+                ratio += " / " + _ratio(r["ratio_warm"])
+        check = r.get("check", "")
+        if "check_max_z" in r:
+            check += f" (\\|z\\| {r['check_max_z']:.1f})"
+        rows.append(
+            [
+                r["sampler"],
+                _num(r["n"]),
+                r.get("settings", ""),
+                _num(r["first_s"]),
+                _num(r.get("warm_s")),
+                _num(r["ess_a1"], 2),
+                _num(r["ess_per_s"]),
+                _num(r.get("warm_ess_per_s")),
+                _num(r["peak_rss_mb"], 2),
+                f"{r['a1_mean']:.4f} ({r['a1_sd']:.4f})",
+                f"{r['a2_mean']:.4f} ({r['a2_sd']:.4f})",
+                check,
+                ratio,
+            ]
+        )
+    lines = _table(header, rows)
+    lb = [r for r in info["results"] if r["sampler"] == "loadbayes-blocked" and "sampling_ms" in r]
+    if lb:
+        lines += ["", "loadbayes blocked, sampling alone (`sample_block`, one block, warm):"]
+        lines += [""] + _table(
+            [
+                "n",
+                "sufficient statistics ms (O(n))",
+                "sampling ms (4 x 40,000, wall)",
+                "sampling CPU ms",
+            ],
+            [
+                [
+                    _num(r["n"]),
+                    _num(r["stats_ms"]),
+                    _num(r["sampling_ms"]),
+                    _num(r.get("sampling_cpu_ms")),
+                ]
+                for r in lb
+            ],
+        )
+    return lines
+
+
+def _stream_section(info: dict) -> list[str]:
+    header = [
+        "chunk_rows", "rows", "seconds", "rows/s", "peak RSS MB", "RSS before fit MB",
+        "read s", "rows s", "gram s", "sample s", "other s", "digest",
+    ]  # fmt: skip
+    rows = []
+    for r in info["results"]:
+        if "error" in r:
+            rows.append([_num(r["chunk_rows"]), "error: " + r["error"]] + [""] * 10)
+            continue
+        rows.append(
+            [
+                _num(r["chunk_rows"]),
+                _num(r["n"]),
+                _num(r["seconds"]),
+                _num(r["rows_per_second"]),
+                _num(r["peak_rss_mb"], 2),
+                _num(r["rss_before_fit_mb"], 2),
+                _num(r["read_s"]),
+                _num(r["rows_s"]),
+                _num(r["gram_s"]),
+                _num(r["sample_s"]),
+                _num(r["other_s"]),
+                f"`{r['digest']}`",
+            ]
+        )
+    lines = [
+        f"File: {info['rows']:,} rows, {info.get('file_mb', 0):,.0f} MiB Parquet "
+        f"(written in {_num(info.get('write_s'))} s).",
+        "",
+        *_table(header, rows),
+        "",
+        "Sampling time against n (the O(n) pass, then 4 chains x 40,000 of one block):",
+        "",
+    ]
+    lines += _table(
+        [
+            "n",
+            "rows + Gram ms (O(n))",
+            "sampling ms (wall, best of 7)",
+            "sampling CPU ms",
+            "ns per draw",
+        ],
+        [
+            [
+                _num(r["n"]),
+                _num(r["stats_ms"]),
+                _num(r["sampling_ms"]),
+                _num(r.get("sampling_cpu_ms")),
+                _num(r["sampling_ns_per_draw"]),
+            ]
+            for r in info["flat_in_n"]
+        ],
+    )
+    return lines
+
+
+def _generic_section(info: dict) -> list[str]:
+    rows = info.get("results")
+    if isinstance(rows, list) and rows and all(isinstance(r, dict) for r in rows):
+        cols: list[str] = []
+        for r in rows:
+            cols += [c for c in r if c not in cols and not isinstance(r[c], (list, dict))]
+        return _table(cols, [[_num(r.get(c)) for c in cols] for r in rows])
+    # No list of rows: show the top-level entries, one per line.
+    skip = {"date", "machine", "versions", "targets", "notes", "quick", "benchmark"}
+    out = []
+    for key, val in info.items():
+        if key in skip:
+            continue
+        if isinstance(val, dict):
+            val = ", ".join(f"{k} {_num(v)}" for k, v in val.items() if not isinstance(v, dict))
+        elif isinstance(val, list):
+            val = ", ".join(_num(v) for v in val)
+        out.append([key, _num(val) if not isinstance(val, str) else val])
+    return _table(["quantity", "value"], out) if out else ["(no results)"]
+
+
+SECTIONS = {"zip": _zip_section, "stream": _stream_section}
+
+
+def _machine_line(info: dict) -> str:
+    m = info.get("machine", {})
+    load = m.get("load_average_at_start")
+    load_s = f"; load average at start {', '.join(f'{x:.1f}' for x in load)}" if load else ""
+    mem = f", {m['memory_gb']} GB RAM" if m.get("memory_gb") else ""
+    return (
+        f"{m.get('cpu', '?')}, {m.get('cpu_count', '?')} CPUs ({m.get('cpus_usable', '?')} "
+        f"usable){mem}; {m.get('platform', '?')}; Python {m.get('python', '?')}{load_s}"
+    )
+
+
+def write_readme(results_dir: Path, readme: Path, status: dict | None = None) -> None:
+    lines = [
+        "# Benchmarks",
+        "",
+        "Generated by `benchmarks/run_all.py` (`make bench`) from `benchmarks/results/*.json`;",
+        "edit the scripts or `run_all.py`, not this file. Each section says how its times are",
+        "counted. Everything ran on the machine named in its section, at the same time as",
+        "any other load that machine had (the load average at start is given).",
+        "",
+        f"README written {datetime.datetime.now(datetime.UTC).isoformat(timespec='seconds')}.",
+    ]
+    summary = []
+    for script, name in SCRIPTS:
+        path = results_dir / f"{name}.json"
+        if path.exists():
+            for t in json.loads(path.read_text()).get("targets") or []:
+                met = "met" if t["met"] else "**not met**"
+                summary.append([script, t["target"], t["measured"], met])
+    if summary:
+        lines += ["", "## Targets", "", *_table(["script", "target", "measured", ""], summary)]
+    for script, name in SCRIPTS:
+        path = results_dir / f"{name}.json"
+        lines += ["", f"## {script}", "", _title(script), ""]
+        if status and status.get(name, {}).get("status") in ("absent", "no --quick"):
+            lines.append(f"Not run: {status[name]['status']}.")
+            continue
+        if not path.exists():
+            lines.append(f"No results (`{path.name}` missing).")
+            continue
+        info = json.loads(path.read_text())
+        versions = ", ".join(f"{k} {v}" for k, v in (info.get("versions") or {}).items() if v)
+        lines += [
+            f"- date: {info.get('date', '?')}" + (" (--quick)" if info.get("quick") else ""),
+            f"- machine: {_machine_line(info)}",
+            f"- versions: {versions}",
+        ]
+        if status and name in status and "seconds" in status[name]:
+            lines.append(f"- script run time: {status[name]['seconds']:.0f} s")
+        lines += _targets(info)
+        lines += ["", *SECTIONS.get(name, _generic_section)(info)]
+        for note in info.get("notes") or []:
+            lines += ["", note]
+    readme.write_text("\n".join(lines) + "\n")
+    print(f"wrote {readme}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smoke sizes; README not touched")
+    parser.add_argument("--only", nargs="*", default=None, help="zip, stream, powerflow, im")
+    parser.add_argument("--readme-only", action="store_true")
+    args = parser.parse_args(argv)
+    status = None
+    if not args.readme_only:
+        status = run_scripts(args.quick, args.only)
+    if args.quick:
+        write_readme(RESULTS / "quick", RESULTS / "quick" / "README.md", status)
+    else:
+        write_readme(RESULTS, HERE / "README.md", status)
+    failed = [
+        k for k, v in (status or {}).items() if v["status"] not in ("ok", "absent", "no --quick")
+    ]
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
