@@ -34,6 +34,15 @@ def reproduce() -> None:
     """Reproduce the paper's studies into a results folder with a report."""
 
 
+@main.group()
+def track() -> None:
+    """Track load-model coefficients over time, sample by sample (online Bayes)."""
+
+
 # Each module attaches its commands to the groups above (imported last on purpose).
+from loadbayes.commands import exp as _exp  # noqa: E402, F401
 from loadbayes.commands import im as _im  # noqa: E402, F401
+from loadbayes.commands import reproduce_all as _reproduce_all  # noqa: E402, F401
+from loadbayes.commands import track as _track  # noqa: E402, F401
 from loadbayes.commands import zip as _zip  # noqa: E402, F401
+from loadbayes.commands import zip_study as _zip_study  # noqa: E402, F401

@@ -140,9 +140,9 @@ class Posterior:
     def correlation(self, names: Sequence[str] | None = None) -> pd.DataFrame:
         """Posterior correlation matrix of ``names`` (default: the coefficients)."""
         names = list(names or self.coefficients)
-        x = self.flat(names)
+        x = np.stack([self.draws[n].reshape(-1) for n in names])
         with np.errstate(invalid="ignore", divide="ignore"):
-            c = np.corrcoef(x, rowvar=False) if len(names) > 1 else np.ones((1, 1))
+            c = np.corrcoef(x) if len(names) > 1 else np.ones((1, 1))
         return pd.DataFrame(np.atleast_2d(c), index=names, columns=names)
 
     def _identifiability_warnings(self) -> list[str]:
@@ -262,9 +262,15 @@ class Posterior:
         idata.close() if hasattr(idata, "close") else None
         return out
 
-    def to_dict(self, *, hdi_prob: float = 0.95) -> dict[str, Any]:
-        """The JSON contract of ``loadbayes fit``: parameters, correlation, warnings."""
-        s = self.summary(hdi_prob=hdi_prob)
+    def to_dict(
+        self, *, hdi_prob: float = 0.95, summary: pd.DataFrame | None = None
+    ) -> dict[str, Any]:
+        """The JSON contract of ``loadbayes fit``: parameters, correlation, warnings.
+
+        ``summary`` may pass a :meth:`summary` already computed at ``hdi_prob`` (it is the
+        costly part: ArviZ's rank-normalised diagnostics).
+        """
+        s = self.summary(hdi_prob=hdi_prob) if summary is None else summary
         params = {
             name: {
                 key: _finite_or_none(row[key])
@@ -294,12 +300,20 @@ class Posterior:
         }
         return out
 
-    def to_json(self, path: str | Path, *, hdi_prob: float = 0.95, force: bool = False) -> Path:
+    def to_json(
+        self,
+        path: str | Path,
+        *,
+        hdi_prob: float = 0.95,
+        force: bool = False,
+        summary: pd.DataFrame | None = None,
+    ) -> Path:
         """Write :meth:`to_dict` as JSON, atomically."""
         from loadbayes.io.atomic import atomic_write
 
         path = Path(path)
-        text = json.dumps(self.to_dict(hdi_prob=hdi_prob), indent=2, allow_nan=False)
+        d = self.to_dict(hdi_prob=hdi_prob, summary=summary)
+        text = json.dumps(d, indent=2, allow_nan=False)
         with atomic_write(path, force=force) as tmp:
             Path(tmp).write_text(text + "\n", encoding="utf-8")
         return path

@@ -218,7 +218,8 @@ def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
 
 def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet):
     """Write the JSON, NetCDF and figure; print the table unless quiet."""
-    post.to_json(json_out, hdi_prob=hdi_prob, force=force)
+    table = post.summary(hdi_prob=hdi_prob)
+    post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
     if netcdf_out:
         post.to_netcdf(netcdf_out, force=force)
     if plot_out:
@@ -228,7 +229,6 @@ def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, forc
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        table = post.summary(hdi_prob=hdi_prob)
         cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
         click.echo(f"{post.model} posterior, {post.method}, n = {post.settings.get('n')}")
         click.echo(table[cols].to_string(float_format=lambda x: f"{x:.5g}"))

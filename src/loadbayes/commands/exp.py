@@ -47,7 +47,7 @@ def power_chunks(
     v_base: float | None = None,
     s_base: float | None = None,
     drop_invalid: bool = False,
-    chunk_rows: int = 1_000_000,
+    chunk_rows: int = 1 << 18,
 ) -> Iterator[PowerColumns]:
     """Read ``v``, ``p`` (``q``, ``f``, ``t`` and optional ``extra`` columns) in chunks.
 
@@ -151,7 +151,7 @@ def relocate(exc: Exception, path: str, rows: np.ndarray, names: dict[str, str |
     "--tau-rate", type=click.FloatRange(min=0, min_open=True), default=1e-9, show_default=True
 )
 @click.option("--drop-invalid", is_flag=True, help="Drop rows with NaN, inf or V <= 0.")
-@click.option("--chunk-rows", type=click.IntRange(min=1), default=1_000_000, show_default=True)
+@click.option("--chunk-rows", type=click.IntRange(min=1), default=1 << 18, show_default=True)
 @output_options
 @user_errors
 def fit_exp_cmd(

@@ -321,7 +321,7 @@ def _f_hz_from_sidecar(data: str) -> float | None:
 )
 @click.option("--conjugate", is_flag=True, help="Normal-gamma prior (measured form only).")
 @click.option("--drop-invalid", is_flag=True, help="Drop rows with NaN or inf (and count them).")
-@click.option("--chunk-rows", type=click.IntRange(min=1), default=1_000_000, show_default=True)
+@click.option("--chunk-rows", type=click.IntRange(min=1), default=1 << 18, show_default=True)
 @output_options
 @user_errors
 def fit_im_cmd(

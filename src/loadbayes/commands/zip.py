@@ -104,7 +104,7 @@ from loadbayes.commands.common import (
 @click.option(
     "--chunk-rows",
     type=click.IntRange(min=1),
-    default=1_000_000,
+    default=1 << 18,
     show_default=True,
     help="Rows read at a time (memory does not grow with the file).",
 )
