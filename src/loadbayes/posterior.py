@@ -99,6 +99,8 @@ class Posterior:
             else [k for k in self.draws if not k.startswith("tau")]
         )
         self.free = list(free) if free is not None else list(self.coefficients)
+        #: Extra top-level keys of the JSON (e.g. the samples a robust fit flags).
+        self.extra_json: dict[str, Any] = {}
         self.warnings = list(warnings)
         self.warnings.extend(w for w in self._identifiability_warnings() if w not in self.warnings)
 
@@ -298,6 +300,7 @@ class Posterior:
             "loadbayes_version": __version__,
             "settings": json.loads(json.dumps(self.settings, default=_json_default)),
         }
+        out.update(json.loads(json.dumps(self.extra_json, default=_json_default)))
         return out
 
     def to_json(

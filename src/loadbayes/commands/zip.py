@@ -198,8 +198,15 @@ def fit_zip_cmd(
                 "init": init,
             },
         )
+        st = post.settings
+        post.extra_json.update(
+            likelihood="student-t",
+            flagged=list(st["flagged_rows"]),
+            flagged_by_channel=dict(st["flagged"]),
+            flag_rule=st["flag_rule"],
+        )
         write_outputs(
-            _WithFlagged(post),
+            post,
             model=model,
             hdi_prob=hdi_prob,
             json_out=json_out,
@@ -318,33 +325,3 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
     post.settings["flagged_rows"] = sorted({r for rows in by_channel.values() for r in rows})
     post.settings["flagged_are"] = "1-based data rows of the input (header excluded)"
     return post, model
-
-
-class _WithFlagged:
-    """A Posterior whose JSON also lists the flagged rows at the top level."""
-
-    def __init__(self, post) -> None:
-        self._post = post
-
-    def __getattr__(self, name):
-        return getattr(self._post, name)
-
-    def to_dict(self, *, hdi_prob: float = 0.95):
-        out = self._post.to_dict(hdi_prob=hdi_prob)
-        st = self._post.settings
-        out["likelihood"] = "student-t"
-        out["flagged"] = list(st["flagged_rows"])
-        out["flagged_by_channel"] = dict(st["flagged"])
-        out["flag_rule"] = st["flag_rule"]
-        return out
-
-    def to_json(self, path, *, hdi_prob: float = 0.95, force: bool = False):
-        import json
-        from pathlib import Path
-
-        from loadbayes.io.atomic import atomic_write
-
-        text = json.dumps(self.to_dict(hdi_prob=hdi_prob), indent=2, allow_nan=False)
-        with atomic_write(Path(path), force=force) as tmp:
-            Path(tmp).write_text(text + "\n", encoding="utf-8")
-        return Path(path)
