@@ -34,8 +34,13 @@ def user_errors(func):
             raise UserError(str(exc)) from None
         except (FileExistsError, ValueError) as exc:
             raise UserError(str(exc)) from None
-        except KeyboardInterrupt:
-            click.echo("loadbayes: interrupted; no output was written", err=True)
+        except KeyboardInterrupt as exc:
+            done = getattr(exc, "written", [])
+            if done:
+                msg = f"interrupted; only {', '.join(done)} written (complete), the rest not"
+            else:
+                msg = "interrupted; no output was written"
+            click.echo(f"loadbayes: {msg}", err=True)
             sys.exit(130)
 
     return wrapper
@@ -44,12 +49,19 @@ def user_errors(func):
 def check_outputs(outputs: dict[str, str | None], inputs: list[str], force: bool) -> None:
     """Refuse before any work: an existing output without --force, or an output = input."""
     seen: dict[Path, str] = {}
-    ins = {Path(p).resolve() for p in inputs if p and p != "-"}
+
+    def resolve(path: str, what: str) -> Path:
+        try:
+            return Path(path).resolve()
+        except (OSError, RuntimeError) as exc:  # a symlink loop, say
+            raise UserError(f"{path}: {what} cannot be resolved ({exc})") from None
+
+    ins = {resolve(p, "the input") for p in inputs if p and p != "-"}
     for opt, path in outputs.items():
         if not path:
             continue
         p = Path(path)
-        rp = p.resolve()
+        rp = resolve(path, opt)
         if rp in ins:
             raise UserError(f"{path}: {opt} would overwrite the input data")
         if rp in seen:
@@ -219,13 +231,22 @@ def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
 def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet):
     """Write the JSON, NetCDF and figure; print the table unless quiet."""
     table = post.summary(hdi_prob=hdi_prob)
-    post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
-    if netcdf_out:
-        post.to_netcdf(netcdf_out, force=force)
-    if plot_out:
-        from loadbayes.report.figures import plot_fit, save_figure
+    written: list[str] = []
+    try:
+        post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
+        written.append(str(json_out))
+        if netcdf_out:
+            post.to_netcdf(netcdf_out, force=force)
+            written.append(str(netcdf_out))
+        if plot_out:
+            from loadbayes.report.figures import plot_fit, save_figure
 
-        save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), plot_out, force=force)
+            save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), plot_out, force=force)
+            written.append(str(plot_out))
+    except KeyboardInterrupt as exc:
+        # Each file is atomic; say truthfully which ones were completed before the stop.
+        exc.written = written  # type: ignore[attr-defined]
+        raise
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:

@@ -40,6 +40,9 @@ __all__ = ["ZIPModel"]
 
 Nominal = float | Literal["auto"]
 
+#: Largest |V / v0| or |P / P0| accepted: beyond it the data are in the wrong units.
+MAX_RATIO = 1e6
+
 #: Relative voltage span below which the data are called a narrow band in the warnings.
 NARROW_BAND = 0.02
 
@@ -139,7 +142,9 @@ class ZIPModel:
         """Rows of the augmented matrix for a chunk with keys ``v``, ``p`` and maybe ``q``."""
         x = np.asarray(data["v"], dtype=float) / self.v0
         dx = x - 1.0
-        cols = [dx * (x + 1.0), dx, np.ones_like(x)]
+        # An absurd voltage (a unit error) may overflow here; check() refuses it by name.
+        with np.errstate(over="ignore"):
+            cols = [dx * (x + 1.0), dx, np.ones_like(x)]
         for ch, nom, _ in self._channels():
             y = np.asarray(data[ch], dtype=float)
             cols.append(y if nom == "auto" else y / float(nom) - 1.0)
@@ -156,6 +161,24 @@ class ZIPModel:
             )
         iz = gram.index("z2")
         lo, hi = gram.col_min[iz] + 1.0, gram.col_max[iz] + 1.0
+        # Sums of squares of x^2 overflow or swamp the prior far before float64 does:
+        # a voltage a million times v0 is a unit error, not a measurement.
+        if hi > MAX_RATIO:
+            raise DataError(
+                f"voltage up to {hi:.3g} times v0 ({hi * self.v0:.3g}): not per unit of "
+                "v0; check the units (--v-base, --v0)",
+                column=v_col,
+            )
+        cols = {"rp": "p", "p": "p", "rq": "q", "q": "q"}
+        for name in [c for c in gram.names if c in cols]:
+            i = gram.index(name)
+            big = max(abs(gram.col_min[i]), abs(gram.col_max[i]))
+            if not np.isfinite(gram.matrix[i, i]) or big > MAX_RATIO:
+                raise DataError(
+                    f"values up to {big:.3g} (per unit of the nominal value): too large "
+                    "for their sums of squares; check the units (--s-base, --p0, --q0)",
+                    column=cols.get(name, v_col),
+                )
         if hi == lo:
             raise DataError(
                 f"voltage has no spread (every sample is {lo * self.v0:g}): the ZIP "
@@ -181,7 +204,9 @@ class ZIPModel:
                     "levels); the estimates follow the prior along the unidentified direction."
                 )
             _, ssr = st.least_squares()
-            if ssr <= 1e-24 * max(st.rtr, 1e-300) * st.n:
+            # Residual RMS below 1e-6 of the signal's: noise-free for any purpose (a
+            # tighter threshold is defeated by rounding in r'r - b'Z'r).
+            if ssr <= 1e-12 * max(st.rtr, 1e-300):
                 warnings.append(
                     f"the {block.name.upper()} data fit the model exactly (no noise): "
                     f"{block.tau_name} is bounded only by its prior and the intervals are "
