@@ -652,33 +652,10 @@ def _write_bytes(path: Path, data: bytes, force: bool) -> None:
 
 
 def update_report(path: str | Path, section: str) -> Path:
-    """Put ``section`` into ``path`` between IM markers (replacing an older one).
+    """Put ``section`` into the report between the IM markers (see ``update_section``)."""
+    from loadbayes.report.html import update_section
 
-    A missing report becomes a minimal page; another study's sections are kept.
-    """
-    path = Path(path)
-    block = f"<!-- {_MARK} -->\n{section}\n<!-- /{_MARK} -->"
-    begin, end = f"<!-- {_MARK} -->", f"<!-- /{_MARK} -->"
-    if path.exists():
-        text = path.read_text(encoding="utf-8")
-        if begin in text and end in text:
-            i, j = text.index(begin), text.index(end) + len(end)
-            text = text[:i] + block + text[j:]
-        elif "</body>" in text:
-            i = text.rindex("</body>")
-            text = text[:i] + block + "\n" + text[i:]
-        else:
-            text += "\n" + block + "\n"
-    else:
-        text = (
-            '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"/>'
-            "<title>loadbayes report</title><style>body{font-family:sans-serif;max-width:"
-            "1100px;margin:auto}table{border-collapse:collapse;font-size:12px}td,th{padding:"
-            "2px 6px;border-bottom:1px solid #ddd}img{max-width:100%}</style></head><body>\n"
-            f"<h1>loadbayes report</h1>\n{block}\n</body></html>\n"
-        )
-    _write_text(path, text, force=True)
-    return path
+    return update_section(path, section, mark=_MARK)
 
 
 def write(study: ImStudy, root: str | Path, *, force: bool = False) -> list[Path]:

@@ -1265,33 +1265,16 @@ def _write_bytes(path: Path, data: bytes, force: bool) -> None:
 
 def marked(section: str, mark: str = _MARK) -> str:
     """``section`` between the begin and end markers of ``mark``."""
-    return f"<!-- {mark} -->\n{section}\n<!-- /{mark} -->"
+    from loadbayes.report.html import marked as _marked
+
+    return _marked(section, mark)
 
 
 def update_report(path: str | Path, section: str, *, mark: str = _MARK) -> Path:
-    """Put ``section`` into ``path`` between the markers of ``mark`` (replacing an older one).
+    """Put ``section`` into the report between the markers of ``mark`` (``update_section``)."""
+    from loadbayes.report.html import update_section
 
-    Same convention as :func:`loadbayes.experiments.im_study.update_report`: a missing
-    report becomes a page of its own; the other studies' sections are kept.
-    """
-    from loadbayes.report.html import write_report
-
-    path = Path(path)
-    block = marked(section, mark)
-    begin, end = f"<!-- {mark} -->", f"<!-- /{mark} -->"
-    if not path.exists():
-        return write_report(path, [block], force=True)
-    text = path.read_text(encoding="utf-8")
-    if begin in text and end in text:
-        i, j = text.index(begin), text.index(end) + len(end)
-        text = text[:i] + block + text[j:]
-    elif "</body>" in text:
-        i = text.rindex("</body>")
-        text = text[:i] + block + "\n" + text[i:]
-    else:
-        text += "\n" + block + "\n"
-    _write_text(path, text, force=True)
-    return path
+    return update_section(path, section, mark=mark)
 
 
 def _experiments_csv(study: ZipStudy) -> str:

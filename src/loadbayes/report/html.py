@@ -18,7 +18,7 @@ from typing import Any
 
 from loadbayes._version import __version__
 
-__all__ = ["figure_html", "table_html", "write_report", "escape"]
+__all__ = ["figure_html", "marked", "table_html", "update_section", "write_report", "escape"]
 
 escape = html.escape
 
@@ -94,4 +94,37 @@ def write_report(
     )
     with atomic_write(path, force=force) as tmp:
         Path(tmp).write_text(page, encoding="utf-8")
+    return path
+
+
+def marked(section: str, mark: str) -> str:
+    """``section`` between the begin and end comments of ``mark``."""
+    return f"<!-- {mark} -->\n{section}\n<!-- /{mark} -->"
+
+
+def update_section(path: str | Path, section: str, *, mark: str) -> Path:
+    """Put ``section`` into the report at ``path`` between the markers of ``mark``.
+
+    An older section with the same mark is replaced and other studies' sections are kept,
+    so ``reproduce zip`` and ``reproduce im`` each refresh only their own part; a missing
+    report becomes a page of its own.
+    """
+    from loadbayes.io.atomic import atomic_write
+
+    path = Path(path)
+    block = marked(section, mark)
+    begin, end = f"<!-- {mark} -->", f"<!-- /{mark} -->"
+    if not path.exists():
+        return write_report(path, [block], force=True)
+    text = path.read_text(encoding="utf-8")
+    if begin in text and end in text:
+        i, j = text.index(begin), text.index(end) + len(end)
+        text = text[:i] + block + text[j:]
+    elif "</body>" in text:
+        i = text.rindex("</body>")
+        text = text[:i] + block + "\n" + text[i:]
+    else:
+        text += "\n" + block + "\n"
+    with atomic_write(path, force=True) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
     return path
