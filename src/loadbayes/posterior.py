@@ -18,10 +18,25 @@ import pandas as pd
 
 from loadbayes._version import __version__
 
-__all__ = ["Posterior", "IDENTIFIABILITY_CORR"]
+__all__ = ["Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws"]
 
 #: |posterior correlation| above which two coefficients are reported as not separable.
 IDENTIFIABILITY_CORR = 0.99
+
+
+def gaussian_draws(
+    mean: np.ndarray, cov: np.ndarray, chains: int, draws: int, rng: np.random.Generator
+) -> np.ndarray:
+    """Draws shaped (chains, draws, k) from N(mean, cov); cov may be singular.
+
+    The square root is taken by eigen-decomposition (negative rounding-level eigenvalues
+    clipped to zero), so a rank-deficient covariance from unidentifiable data still works.
+    """
+    mean = np.asarray(mean, dtype=float)
+    cov = np.atleast_2d(np.asarray(cov, dtype=float))
+    w, v = np.linalg.eigh((cov + cov.T) / 2)
+    root = v * np.sqrt(np.clip(w, 0.0, None))
+    return mean + rng.standard_normal((chains, draws, mean.size)) @ root.T
 
 
 def _arviz():
@@ -345,11 +360,7 @@ class Posterior:
         gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         mean = np.asarray(mean, dtype=float)
         cov = np.atleast_2d(np.asarray(cov, dtype=float))
-        # Cholesky of a possibly singular covariance via eigen-decomposition.
-        w, v = np.linalg.eigh((cov + cov.T) / 2)
-        root = v * np.sqrt(np.clip(w, 0.0, None))
-        z = gen.standard_normal((chains, draws, mean.size))
-        x = mean + z @ root.T
+        x = gaussian_draws(mean, cov, chains, draws, gen)
         settings = dict(kwargs.pop("settings", {}) or {})
         settings.setdefault("estimate", dict(zip(names, mean.tolist(), strict=True)))
         settings.setdefault("covariance", cov.tolist())

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from loadbayes.posterior import Posterior
+from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = ["KalmanResult", "block_equations", "kalman", "kalman_block"]
 
@@ -194,9 +194,7 @@ def kalman(
             p0=p0,
         )
         used_r[block.name] = res.measurement_var
-        w, v = np.linalg.eigh(res.cov)
-        root = v * np.sqrt(np.clip(w, 0.0, None))
-        x = res.mean + rng.standard_normal((chains, draws, block.k)) @ root.T
+        x = gaussian_draws(res.mean, res.cov, chains, draws, rng)
         for i, name in enumerate(block.coef_names):
             raw[name] = x[..., i]
             estimate[name] = float(res.mean[i])

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.inference.stats import Gram, RegressionStats
-from loadbayes.posterior import Posterior
+from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = ["GaussianEstimate", "least_squares", "least_squares_block"]
 
@@ -79,9 +79,7 @@ def least_squares(
     estimate: dict[str, float] = {}
     for block in model.blocks:
         est = least_squares_block(block.stats(gram))
-        w, v = np.linalg.eigh((est.cov + est.cov.T) / 2)
-        root = v * np.sqrt(np.clip(w, 0.0, None))
-        x = est.mean + rng.standard_normal((chains, draws, block.k)) @ root.T
+        x = gaussian_draws(est.mean, est.cov, chains, draws, rng)
         for i, name in enumerate(block.coef_names):
             raw[name] = x[..., i]
             estimate[name] = float(est.mean[i])

@@ -76,7 +76,7 @@ from loadbayes.inference.priors import BlockPrior
 from loadbayes.inference.stats import Gram
 from loadbayes.io.errors import DataError
 from loadbayes.models.motor import COEFFICIENT_NAMES, inverse
-from loadbayes.posterior import Posterior
+from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = [
     "CURRENTS",
@@ -420,9 +420,7 @@ def coupled_least_squares(
     names = list(_U + _V)
     mean = np.r_[ml["u"], ml["v"]]
     rng = np.random.default_rng(seed)
-    w, vecs = np.linalg.eigh((ml["cov"] + ml["cov"].T) / 2)
-    root = vecs * np.sqrt(np.clip(w, 0.0, None))
-    x = mean + rng.standard_normal((chains, draws, mean.size)) @ root.T
+    x = gaussian_draws(mean, ml["cov"], chains, draws, rng)
     raw = {n: x[..., i] for i, n in enumerate(names)}
     est = dict(zip(names, mean.tolist(), strict=True))
     for n, t in zip(TAU_NAMES, ml["tau"], strict=True):
