@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> dict:
             for chunk in iter_chunks(csv, list(DATA_COLUMNS)):
                 rows = model.rows(chunk.data)
                 if acc is None:
-                    from loadbayes.inference.stats import GramAccumulator
+                    from loadbayes.core.stats import GramAccumulator
 
                     acc = GramAccumulator(model.gram_columns)
                 acc.update(rows)

@@ -79,7 +79,7 @@ class _Stages:
     def install(self) -> None:
         import loadbayes.fitting as fitting
         import loadbayes.io.tables as tables
-        from loadbayes.inference.stats import GramAccumulator
+        from loadbayes.core.stats import GramAccumulator
         from loadbayes.models.zip import ZIPModel
 
         stages = self

@@ -414,8 +414,8 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
     warm_repeats = cfg["warm_repeats"]
 
     if name.startswith("loadbayes"):
+        from loadbayes.core.priors import BlockPrior
         from loadbayes.fitting import fit_zip
-        from loadbayes.inference.priors import BlockPrior
 
         scheme = {"single-site": "single-site", "exact": "exact"}.get(
             name.removeprefix("loadbayes-"), "blocked"

@@ -22,7 +22,7 @@ __all__ = [
 ]
 
 _LAZY = {
-    "BlockPrior": "loadbayes.inference.priors",
+    "BlockPrior": "loadbayes.core.priors",
     "Posterior": "loadbayes.posterior",
     "ZIPModel": "loadbayes.models.zip",
     "fit_zip": "loadbayes.fitting",

@@ -13,10 +13,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from loadbayes.core.blocks import LinearBlock
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import Gram, GramAccumulator
 from loadbayes.inference.gibbs import Scheme
-from loadbayes.inference.linear import LinearBlock, sample_blocks
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import Gram, GramAccumulator
+from loadbayes.inference.linear import sample_blocks
 from loadbayes.posterior import Posterior
 
 __all__ = ["LinearModel", "accumulate", "fit_gram", "fit_zip", "prior_settings"]

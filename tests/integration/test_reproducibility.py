@@ -26,10 +26,10 @@ import pandas as pd
 import pytest
 
 import loadbayes
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 from loadbayes.fitting import fit_im, fit_zip, fit_zip_file
 from loadbayes.inference.gibbs import sample_block
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats
 from loadbayes.posterior import Posterior
 
 pytestmark = pytest.mark.integration

@@ -28,7 +28,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from loadbayes.inference.stats import RegressionStats
+from loadbayes.core.stats import RegressionStats
 from loadbayes.validation.geweke import (
     GEWEKE_PRIOR,
     _state_init,

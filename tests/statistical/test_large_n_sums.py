@@ -20,7 +20,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from loadbayes.inference.stats import GramAccumulator
+from loadbayes.core.stats import GramAccumulator
 from loadbayes.validation.sums import exact_entry, gram_bound, two_product, zip_chunks
 
 pytestmark = pytest.mark.statistical

@@ -30,11 +30,11 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.motor_sim import MOTORS, simulate
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 from loadbayes.fitting import accumulate, fit_im
 from loadbayes.inference.bilinear import sample_bilinear
 from loadbayes.inference.gibbs import sample_block
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats
 from loadbayes.models.motor import COEFFICIENT_NAMES, inverse
 from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 from loadbayes.posterior import Posterior

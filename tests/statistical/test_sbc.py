@@ -31,7 +31,7 @@ import loadbayes.inference.bilinear as bilinear
 import loadbayes.inference.linear as linear
 import loadbayes.inference.online as online
 import loadbayes.inference.robust as robust
-from loadbayes.inference.stats import RegressionStats
+from loadbayes.core.stats import RegressionStats
 from loadbayes.validation.registry import REGISTRY
 from loadbayes.validation.sbc import run_sbc
 

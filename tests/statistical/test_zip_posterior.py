@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 from loadbayes.fitting import fit_zip
 from loadbayes.inference.gibbs import exact_posterior, sample_block
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats
 from loadbayes.posterior import Posterior
 
 pytestmark = pytest.mark.statistical

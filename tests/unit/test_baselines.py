@@ -3,8 +3,8 @@ import pytest
 
 from loadbayes.baselines.kalman import kalman, kalman_block
 from loadbayes.baselines.least_squares import least_squares, least_squares_block
+from loadbayes.core.stats import RegressionStats
 from loadbayes.fitting import accumulate
-from loadbayes.inference.stats import RegressionStats
 from loadbayes.models.zip import ZIPModel
 
 

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 from loadbayes.inference.gibbs import exact_posterior, sample_block
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats
 
 
 def _stats(n=200, seed=0, noise=0.1, lo=0.7, hi=1.1):

@@ -9,9 +9,9 @@ import pytest
 from loadbayes.baselines.kalman import kalman
 from loadbayes.baselines.least_squares import least_squares
 from loadbayes.cases.motor_sim import MOTORS, constant, simulate, write_csv
+from loadbayes.core.priors import BlockPrior
 from loadbayes.fitting import accumulate, fit_im, fit_im_file, im_priors
 from loadbayes.inference.bilinear import bilinear_least_squares, sample_bilinear
-from loadbayes.inference.priors import BlockPrior
 from loadbayes.io.errors import DataError
 from loadbayes.models.motor import COEFFICIENT_NAMES
 from loadbayes.models.motor_fit import (

@@ -3,6 +3,7 @@ import pytest
 from scipy import stats
 
 from loadbayes.baselines.kalman import kalman_block
+from loadbayes.core.priors import BlockPrior
 from loadbayes.inference.online import (
     OnlinePrior,
     OnlineTracker,
@@ -10,7 +11,6 @@ from loadbayes.inference.online import (
     _t_quantile,
     track,
 )
-from loadbayes.inference.priors import BlockPrior
 
 PRIOR = OnlinePrior.weak(2, coef_sd=3.0, noise_sd=0.2, shape=2.0)
 C = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, -1.0]])

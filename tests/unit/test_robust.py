@@ -1,15 +1,15 @@
 import numpy as np
 import pytest
 
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 from loadbayes.inference.gibbs import sample_block
-from loadbayes.inference.priors import BlockPrior
 from loadbayes.inference.robust import (
     FLAG_SIGMAS,
     fit_robust,
     flag_threshold,
     sample_student_t,
 )
-from loadbayes.inference.stats import RegressionStats
 from loadbayes.models.zip import ZIPModel
 
 FAST = {"chains": 2, "draws": 1500, "burn": 300}

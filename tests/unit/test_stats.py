@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from loadbayes.inference.stats import GramAccumulator, gram_of
+from loadbayes.core.stats import GramAccumulator, gram_of
 
 
 def _data(n, k=4, seed=0):

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.inference.stats import Gram, RegressionStats
+from loadbayes.core.stats import Gram, RegressionStats
 from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = ["GaussianEstimate", "least_squares", "least_squares_block"]

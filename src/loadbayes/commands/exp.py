@@ -198,7 +198,7 @@ def fit_exp_cmd(
         raise click.BadParameter(
             f"{exponent_prior!r}: expected MEAN,SD with SD > 0", param_hint="--exponent-prior"
         ) from None
-    from loadbayes.inference.priors import BlockPrior
+    from loadbayes.core.priors import BlockPrior
     from loadbayes.io.errors import DataError
     from loadbayes.models.exponential import ExponentialModel, ExpPriors, fit_exp
 

@@ -74,7 +74,7 @@ def _sbc(name: str, replications: int, seed: int) -> dict[str, Any]:
 def _broken_sbc(name: str, bug: str, replications: int, seed: int) -> dict[str, Any]:
     import loadbayes.inference.bilinear as bilinear
     import loadbayes.inference.linear as linear
-    from loadbayes.inference.stats import RegressionStats
+    from loadbayes.core.stats import RegressionStats
     from loadbayes.validation.registry import REGISTRY
     from loadbayes.validation.sbc import run_sbc
 
@@ -158,7 +158,7 @@ def _coverage(which: str, datasets: int, seed: int) -> dict[str, Any]:
 
 
 def _geweke(scheme: str, conjugate: bool, bug: str | None, steps: int, seed: int):
-    from loadbayes.inference.stats import RegressionStats
+    from loadbayes.core.stats import RegressionStats
     from loadbayes.validation.geweke import GEWEKE_PRIOR, gibbs_kernel, run_geweke, zip_design
 
     prior = GEWEKE_PRIOR
@@ -191,7 +191,7 @@ def _geweke(scheme: str, conjugate: bool, bug: str | None, steps: int, seed: int
 
 
 def _sums(rows: int, seed: int) -> dict[str, Any]:
-    from loadbayes.inference.stats import GramAccumulator
+    from loadbayes.core.stats import GramAccumulator
     from loadbayes.validation.sums import exact_entry, gram_bound, zip_chunks
 
     t0 = time.perf_counter()

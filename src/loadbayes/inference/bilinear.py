@@ -17,8 +17,8 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 
+from loadbayes.core.priors import BlockPrior
 from loadbayes.inference.gibbs import chain_generators
-from loadbayes.inference.priors import BlockPrior
 
 
 @dataclass(frozen=True)
@@ -382,5 +382,3 @@ def _prior_draw(gen: np.random.Generator, mean: np.ndarray, prec: np.ndarray) ->
         return gen.multivariate_normal(mean, np.linalg.inv(prec))
     except np.linalg.LinAlgError:  # flat prior: any start
         return mean + gen.standard_normal(mean.size)
-
-

@@ -1,6 +1,6 @@
 """Gibbs sampling of a conjugate linear-Gaussian block ``r = Z b + e``, ``e ~ N(0, 1/tau)``.
 
-The sampler sees the data only through :class:`~loadbayes.inference.stats.RegressionStats`
+The sampler sees the data only through :class:`~loadbayes.core.stats.RegressionStats`
 (``Z'Z``, ``Z'r``, ``r'r``, ``n``), so one iteration costs O(k) (blocked) or O(k^2)
 (single-site), and nothing in ``n``.
 
@@ -47,8 +47,9 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats, _num_threads, _run_threads
+from loadbayes.core.parallel import chain_generators, num_threads, run_threads
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 
 __all__ = ["SCHEMES", "BlockDraws", "sample_block", "chain_generators"]
 
@@ -292,16 +293,6 @@ _IMPROPER = (
 )
 
 
-def chain_generators(
-    rng: np.random.Generator | int | np.random.SeedSequence | None, chains: int
-) -> list[np.random.Generator]:
-    """One independent generator per chain, derived from ``rng`` (a seed or a Generator)."""
-    if isinstance(rng, np.random.Generator):
-        return list(rng.spawn(chains))
-    seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
-    return [np.random.default_rng(s) for s in seq.spawn(chains)]
-
-
 def _n_kept(draws: int, burn: int, thin: int) -> int:
     return len(range(burn, draws, thin))
 
@@ -437,7 +428,7 @@ def sample_block(
                     state[sl], z, g, m, start, burn, thin, out_b[sl], out_t[sl],
                 )  # fmt: skip
 
-    _run_threads(_chain_groups(chains, draws, run))
+    run_threads(_chain_groups(chains, draws, run))
     return BlockDraws(out_b, out_t)
 
 
@@ -445,7 +436,7 @@ def _chain_groups(
     chains: int, draws: int, run: Callable[[int, int], None]
 ) -> list[Callable[[], None]]:
     """Split the chains into contiguous groups, one per thread."""
-    workers = min(chains, _num_threads(), max(chains * draws // _MIN_ITERS_PER_THREAD, 1))
+    workers = min(chains, num_threads(), max(chains * draws // _MIN_ITERS_PER_THREAD, 1))
     bounds = [chains * w // workers for w in range(workers + 1)]
     return [(lambda c0=c0, c1=c1: run(c0, c1)) for c0, c1 in zip(bounds, bounds[1:], strict=False)]
 

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from loadbayes.inference.priors import BlockPrior
+from loadbayes.core.priors import BlockPrior
 
 __all__ = ["OnlinePrior", "OnlineTracker", "TrackResult", "track"]
 

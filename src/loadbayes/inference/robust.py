@@ -54,7 +54,8 @@ from typing import Any, Literal
 import numpy as np
 from numba import njit
 
-from loadbayes.inference.priors import BlockPrior
+from loadbayes.core.parallel import chain_generators, num_threads
+from loadbayes.core.priors import BlockPrior
 
 __all__ = [
     "FLAG_SIGMAS",
@@ -261,13 +262,6 @@ def _student_t_chain(
 
 
 # ----------------------------------------------------------------------- driver
-def _generators(rng: Any, chains: int) -> list[np.random.Generator]:
-    if isinstance(rng, np.random.Generator):
-        return list(rng.spawn(chains))
-    seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
-    return [np.random.default_rng(s) for s in seq.spawn(chains)]
-
-
 def _start(z, r, prior, gen, init):
     """Starting (b, tau): b from the prior or scattered around LS; tau scaled by the data.
 
@@ -370,7 +364,7 @@ def sample_student_t(
             nu_fixed = float("nan")
         if not (np.isfinite(nu_fixed) and nu_fixed > 0):
             raise ValueError(f"nu must be a positive number or 'auto', got {nu!r}")
-    gens = _generators(rng, chains)
+    gens = chain_generators(rng, chains)
     kept = len(range(burn, draws, thin))
     out_b = np.empty((chains, kept, k))
     out_t = np.empty((chains, kept))
@@ -392,7 +386,7 @@ def sample_student_t(
             out_b[c], out_t[c], out_nu[c], wsum[c], acc[c],
         )  # fmt: skip
 
-    workers = min(chains, _threads(), max(n * draws * chains // 2_000_000, 1))
+    workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
     if workers > 1:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             ok = list(pool.map(run, range(chains)))
@@ -408,18 +402,6 @@ def sample_student_t(
     with np.errstate(invalid="ignore", divide="ignore"):
         accept = np.where(acc[:, 1] > 0, acc[:, 0] / acc[:, 1], np.nan)
     return RobustDraws(out_b, out_t, out_nu, weight, accept)
-
-
-def _threads() -> int:
-    import os
-
-    env = os.environ.get("LOADBAYES_NUM_THREADS", "").strip()
-    if env.isdigit():
-        return max(int(env), 1)
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(os.cpu_count() or 1, 1)
 
 
 # ------------------------------------------------------------------ model level

@@ -55,9 +55,9 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from loadbayes.inference.linear import LinearBlock
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import Gram
+from loadbayes.core.blocks import LinearBlock
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import Gram
 from loadbayes.io.errors import DataError
 
 __all__ = ["NOISE_MODELS", "ExponentialModel", "ExpPriors", "fit_exp"]
@@ -564,7 +564,7 @@ def _sample_additive(
     thin: int,
     seed: Any,
 ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
-    from loadbayes.inference.robust import _generators, _threads
+    from loadbayes.core.parallel import chain_generators, num_threads
 
     seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     chans = model.channels()
@@ -591,7 +591,7 @@ def _sample_additive(
         pc = np.ascontiguousarray(lin.precision if kc else np.zeros((0, 0)))
         pcm = np.ascontiguousarray(lin.precision @ lin.mean if kc else np.zeros(0))
         th_hat, se, sigma2 = _nls_start(lx, u, y, o, pr.exponent[0])
-        gens = _generators(child, chains)
+        gens = chain_generators(child, chains)
         out_th = np.empty((chains, kept))
         out_c = np.empty((chains, kept, kc))
         out_t = np.empty((chains, kept))
@@ -645,7 +645,7 @@ def _sample_additive(
                 acc[c],
             )
 
-        workers = min(chains, _threads(), max(n * draws * chains // 2_000_000, 1))
+        workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
         if workers > 1:
             with ThreadPoolExecutor(max_workers=workers) as pool:
                 list(pool.map(run, range(chains)))

@@ -70,10 +70,10 @@ from typing import Any, Literal
 
 import numpy as np
 
+from loadbayes.core.blocks import LinearBlock
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import Gram
 from loadbayes.inference.bilinear import BilinearStats, bilinear_least_squares
-from loadbayes.inference.linear import LinearBlock
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import Gram
 from loadbayes.io.errors import DataError
 from loadbayes.models.motor import COEFFICIENT_NAMES, inverse
 from loadbayes.posterior import Posterior, gaussian_draws

@@ -31,9 +31,9 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from loadbayes.inference.linear import LinearBlock
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import Gram
+from loadbayes.core.blocks import LinearBlock
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import Gram
 from loadbayes.io.errors import DataError
 
 __all__ = ["ZIPModel"]

@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from loadbayes.inference.priors import BlockPrior
-from loadbayes.inference.stats import RegressionStats
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import RegressionStats
 
 __all__ = [
     "GEWEKE_PRIOR",

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.inference.priors import BlockPrior
+from loadbayes.core.priors import BlockPrior
 from loadbayes.validation.sbc import SamplerUnderTest, draw_block_prior
 
 __all__ = [

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from loadbayes.inference.priors import BlockPrior
+from loadbayes.core.priors import BlockPrior
 
 __all__ = [
     "CoverageResult",

@@ -6,7 +6,7 @@ rounding error, both floats) and all the ``p`` and ``e`` are summed by :func:`ma
 which returns the correctly rounded value of the exact sum. Data are generated chunk by
 chunk from seeded generators, so memory stays bounded at any ``n``.
 
-Error bound of :class:`~loadbayes.inference.stats.GramAccumulator`: each block of ``B``
+Error bound of :class:`~loadbayes.core.stats.GramAccumulator`: each block of ``B``
 rows is summed in floating point (every term is one rounded product and goes through at
 most ``B`` roundings, whatever the order inside the block), and the block sums are
 combined exactly (``math.fsum``) and rounded once. Hence::

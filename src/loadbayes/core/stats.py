@@ -30,13 +30,13 @@ call from several threads at once (a Dask worker) and after ``fork``.
 from __future__ import annotations
 
 import math
-import os
-import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from loadbayes.core.parallel import num_threads, run_threads
 
 __all__ = ["Gram", "GramAccumulator", "RegressionStats", "gram_of"]
 
@@ -45,48 +45,6 @@ BLOCK_ROWS = 1 << 14
 
 #: Rows per thread below which a chunk is not worth splitting between threads.
 _MIN_ROWS_PER_THREAD = 1 << 16
-
-
-def _num_threads() -> int:
-    """Threads to use: ``LOADBAYES_NUM_THREADS`` or the CPUs available to this process."""
-    env = os.environ.get("LOADBAYES_NUM_THREADS", "").strip()
-    if env:
-        try:
-            return max(int(env), 1)
-        except ValueError:
-            raise ValueError(f"LOADBAYES_NUM_THREADS must be an integer, got {env!r}") from None
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(os.cpu_count() or 1, 1)
-
-
-def _run_threads(tasks: Sequence[Callable[[], None]]) -> None:
-    """Run callables concurrently: the first in this thread, the others in new threads.
-
-    Meant for compiled kernels that release the GIL. Threads are started per call (tens
-    of microseconds), which keeps this safe after ``fork`` and from any thread. The first
-    exception raised by a task is re-raised here once all have finished.
-    """
-    if len(tasks) == 1:
-        tasks[0]()
-        return
-    errors: list[BaseException] = []
-
-    def guarded(task: Callable[[], None]) -> None:
-        try:
-            task()
-        except BaseException as exc:  # noqa: BLE001 - re-raised in the caller
-            errors.append(exc)
-
-    threads = [threading.Thread(target=guarded, args=(t,), daemon=True) for t in tasks[1:]]
-    for th in threads:
-        th.start()
-    guarded(tasks[0])
-    for th in threads:
-        th.join()
-    if errors:
-        raise errors[0]
 
 
 @njit(cache=True, nogil=True)
@@ -157,14 +115,14 @@ def _grams(a: np.ndarray, block_rows: int) -> tuple[np.ndarray, np.ndarray, np.n
     grams = np.empty((nb, k, k))
     mins = np.empty((nb, k))
     maxs = np.empty((nb, k))
-    workers = min(_num_threads(), nb, max(m // _MIN_ROWS_PER_THREAD, 1))
+    workers = min(num_threads(), nb, max(m // _MIN_ROWS_PER_THREAD, 1))
     bounds = [nb * w // workers for w in range(workers + 1)]
 
     def task(b0: int, b1: int) -> Callable[[], None]:
         rows = a[b0 * block_rows : b1 * block_rows]
         return lambda: _gram_blocks(rows, block_rows, grams[b0:b1], mins[b0:b1], maxs[b0:b1])
 
-    _run_threads([task(b0, b1) for b0, b1 in zip(bounds, bounds[1:], strict=False)])
+    run_threads([task(b0, b1) for b0, b1 in zip(bounds, bounds[1:], strict=False)])
     return grams, mins, maxs
 
 
