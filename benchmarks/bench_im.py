@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "im.json"))
     args = ap.parse_args(argv)
 
-    from loadbayes.fitting import accumulate, fit_im, fit_im_file
+    from loadbayes.fit import accumulate, fit_im, fit_im_file
     from loadbayes.inference.bilinear import sample_bilinear
     from loadbayes.models.motor import COEFFICIENT_NAMES
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel

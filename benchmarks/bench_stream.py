@@ -77,7 +77,7 @@ class _Stages:
         self.chunks = 0
 
     def install(self) -> None:
-        import loadbayes.fitting as fitting
+        import loadbayes.fit as fitting
         import loadbayes.io.tables as tables
         from loadbayes.core.stats import GramAccumulator
         from loadbayes.models.zip import ZIPModel
@@ -123,7 +123,7 @@ class _Stages:
 
 def fit_file(path: str, chunk_rows: int) -> dict:
     """One ``fit_zip_file`` call: time, memory, stages and a digest of the result."""
-    from loadbayes.fitting import fit_zip_file
+    from loadbayes.fit import fit_zip_file
 
     stages = _Stages()
     stages.install()
@@ -160,7 +160,7 @@ def fit_file(path: str, chunk_rows: int) -> dict:
 
 def flat_in_n(sizes: list[int], repeats: int = 7) -> list[dict]:
     """Time of the O(n) statistics and of the O(1)-in-n sampling, for growing n."""
-    from loadbayes.fitting import accumulate
+    from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
 

@@ -415,7 +415,7 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
 
     if name.startswith("loadbayes"):
         from loadbayes.core.priors import BlockPrior
-        from loadbayes.fitting import fit_zip
+        from loadbayes.fit import fit_zip
 
         scheme = {"single-site": "single-site", "exact": "exact"}.get(
             name.removeprefix("loadbayes-"), "blocked"
@@ -506,7 +506,7 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
 
 def _sampling_only(data, priors, seed, g, repeats) -> dict:
     """``sample_block`` alone on the P block (the O(1)-in-n part), best of ``repeats``."""
-    from loadbayes.fitting import accumulate
+    from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
 

@@ -25,9 +25,9 @@ _LAZY = {
     "BlockPrior": "loadbayes.core.priors",
     "Posterior": "loadbayes.posterior",
     "ZIPModel": "loadbayes.models.zip",
-    "fit_zip": "loadbayes.fitting",
-    "fit_zip_file": "loadbayes.fitting",
-    "zip_priors": "loadbayes.fitting",
+    "fit_zip": "loadbayes.fit",
+    "fit_zip_file": "loadbayes.fit",
+    "zip_priors": "loadbayes.fit",
 }
 
 

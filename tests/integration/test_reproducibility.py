@@ -28,7 +28,7 @@ import pytest
 import loadbayes
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import RegressionStats
-from loadbayes.fitting import fit_im, fit_zip, fit_zip_file
+from loadbayes.fit import fit_im, fit_zip, fit_zip_file
 from loadbayes.inference.gibbs import sample_block
 from loadbayes.posterior import Posterior
 
@@ -70,7 +70,7 @@ def test_same_seed_same_draws_and_another_seed_others(scheme, tmp_path):
     path = _bus(tmp_path / "bus.csv")
     kw = {"scheme": scheme, "draws": 3000, "burn": 500, "chains": 3}
     if scheme == "exact":
-        from loadbayes.fitting import zip_priors
+        from loadbayes.fit import zip_priors
 
         kw["priors"] = zip_priors(conjugate=True)
     a, _ = fit_zip_file(str(path), seed=11, **kw)
@@ -134,7 +134,7 @@ def test_a_chain_run_alone_is_the_same_chain(scheme):
 def test_a_chain_of_a_fit_run_alone_is_the_same_chain(tmp_path):
     # fit_zip gives block b (P = 0, Q = 1) child b of the seed, and chain c of that block
     # child c of it: a worker holding the block's statistics can run one chain.
-    from loadbayes.fitting import accumulate
+    from loadbayes.fit import accumulate
     from loadbayes.models.zip import ZIPModel
 
     df = pd.read_csv(_bus(tmp_path / "bus.csv"))

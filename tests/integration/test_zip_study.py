@@ -42,7 +42,7 @@ def test_pipeline_on_a_small_n_writes_every_output(tmp_path):
     # The Gibbs mean is the posterior mean of a normal prior and the data: at n = 80 the
     # N(0, 10^2) prior still pulls a little along the ridge, so compare with the closed
     # form at the LS noise level (tau is sharp), and with LS itself more loosely.
-    from loadbayes.fitting import accumulate
+    from loadbayes.fit import accumulate
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel()

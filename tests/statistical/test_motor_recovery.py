@@ -32,7 +32,7 @@ import pytest
 from loadbayes.cases.motor_sim import MOTORS, simulate
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import RegressionStats
-from loadbayes.fitting import accumulate, fit_im
+from loadbayes.fit import accumulate, fit_im
 from loadbayes.inference.bilinear import sample_bilinear
 from loadbayes.inference.gibbs import sample_block
 from loadbayes.models.motor import COEFFICIENT_NAMES, inverse

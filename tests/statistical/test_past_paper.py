@@ -28,10 +28,8 @@ import pytest
 from scipy import stats
 
 from loadbayes.experiments.model_choice import compare
-from loadbayes.fitting import fit_zip
+from loadbayes.fit import fit_exp, fit_robust, fit_zip
 from loadbayes.inference.online import OnlinePrior, track
-from loadbayes.inference.robust import fit_robust
-from loadbayes.models.exponential import fit_exp
 from loadbayes.models.zip import ZIPModel
 
 pytestmark = pytest.mark.statistical

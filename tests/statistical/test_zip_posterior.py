@@ -14,7 +14,7 @@ from scipy import stats
 
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import RegressionStats
-from loadbayes.fitting import fit_zip
+from loadbayes.fit import fit_zip
 from loadbayes.inference.gibbs import exact_posterior, sample_block
 from loadbayes.posterior import Posterior
 

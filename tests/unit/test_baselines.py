@@ -4,7 +4,7 @@ import pytest
 from loadbayes.baselines.kalman import kalman, kalman_block
 from loadbayes.baselines.least_squares import least_squares, least_squares_block
 from loadbayes.core.stats import RegressionStats
-from loadbayes.fitting import accumulate
+from loadbayes.fit import accumulate
 from loadbayes.models.zip import ZIPModel
 
 

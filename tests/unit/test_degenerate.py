@@ -16,7 +16,7 @@ import json
 import numpy as np
 import pytest
 
-from loadbayes.fitting import accumulate, fit_gram, fit_zip, zip_priors
+from loadbayes.fit import accumulate, fit_gram, fit_zip, zip_priors
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 

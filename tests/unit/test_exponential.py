@@ -5,9 +5,9 @@ import pytest
 from scipy import integrate
 
 from loadbayes.experiments.model_choice import pointwise_loglik, verdict
-from loadbayes.fitting import fit_zip
+from loadbayes.fit import fit_exp, fit_zip
 from loadbayes.io.errors import DataError
-from loadbayes.models.exponential import ExponentialModel, fit_exp
+from loadbayes.models.exponential import ExponentialModel
 from loadbayes.posterior import Posterior
 
 FAST = {"chains": 2, "draws": 1500, "burn": 400}

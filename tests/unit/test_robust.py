@@ -3,13 +3,9 @@ import pytest
 
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import RegressionStats
+from loadbayes.fit import fit_robust
 from loadbayes.inference.gibbs import sample_block
-from loadbayes.inference.robust import (
-    FLAG_SIGMAS,
-    fit_robust,
-    flag_threshold,
-    sample_student_t,
-)
+from loadbayes.inference.robust import FLAG_SIGMAS, flag_threshold, sample_student_t
 from loadbayes.models.zip import ZIPModel
 
 FAST = {"chains": 2, "draws": 1500, "burn": 300}

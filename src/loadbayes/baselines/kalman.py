@@ -23,7 +23,7 @@ from numba import njit
 
 from loadbayes.posterior import Posterior, gaussian_draws
 
-__all__ = ["KalmanResult", "block_equations", "kalman", "kalman_block"]
+__all__ = ["KalmanResult", "kalman", "kalman_block"]
 
 
 @dataclass(frozen=True)
@@ -148,19 +148,6 @@ def kalman_block(
     )
 
 
-def block_equations(
-    block: Any, rows: np.ndarray, names: tuple[str, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Regressors and targets of a block, its equations interleaved in time order."""
-    zs, rs = [], []
-    for design, target in block.equations:
-        zs.append(rows[:, [names.index(c) for c in design]])
-        rs.append(rows[:, names.index(target)])
-    z = np.stack(zs, axis=1).reshape(-1, block.k)
-    r = np.stack(rs, axis=1).reshape(-1)
-    return z, r
-
-
 def kalman(
     model: Any,
     data: Mapping[str, np.ndarray],
@@ -185,7 +172,7 @@ def kalman(
     estimate: dict[str, float] = {}
     used_r: dict[str, float] = {}
     for block in model.blocks:
-        z, r = block_equations(block, rows, names)
+        z, r = block.equations_of(rows, names)
         res = kalman_block(
             z,
             r,

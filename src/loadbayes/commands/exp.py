@@ -199,8 +199,9 @@ def fit_exp_cmd(
             f"{exponent_prior!r}: expected MEAN,SD with SD > 0", param_hint="--exponent-prior"
         ) from None
     from loadbayes.core.priors import BlockPrior
+    from loadbayes.fit import fit_exp
     from loadbayes.io.errors import DataError
-    from loadbayes.models.exponential import ExponentialModel, ExpPriors, fit_exp
+    from loadbayes.models.exponential import ExponentialModel, ExpPriors
 
     q_name = None if q_col.lower() == "none" else q_col
     progress = Progress("reading", estimate_rows(data), quiet)

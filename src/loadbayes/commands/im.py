@@ -371,7 +371,7 @@ def fit_im_cmd(
     if f_hz is None:
         f_hz = _f_hz_from_sidecar(data) or 60.0
 
-    from loadbayes.fitting import fit_im_file, im_priors
+    from loadbayes.fit import fit_im_file, im_priors
 
     priors = im_priors(
         mean=prior_mean,

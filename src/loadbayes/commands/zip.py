@@ -161,7 +161,7 @@ def fit_zip_cmd(
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
 
-    from loadbayes.fitting import fit_zip_file, zip_priors
+    from loadbayes.fit import fit_zip_file, zip_priors
 
     priors = zip_priors(
         p0=p0_val,
@@ -274,8 +274,7 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
                    drop_invalid, chunk_rows, quiet, sampler):  # fmt: skip
     """Read the file into memory and fit the Student-t ZIP; flagged samples as file rows."""
     from loadbayes.commands.exp import read_power_columns, relocate
-    from loadbayes.fitting import MAX_OBSERVED, accumulate
-    from loadbayes.inference.robust import fit_robust
+    from loadbayes.fit import MAX_OBSERVED, accumulate, fit_robust
     from loadbayes.io.errors import DataError
     from loadbayes.models.zip import ZIPModel
 

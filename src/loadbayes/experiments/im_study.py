@@ -132,9 +132,9 @@ def _columns(df: pd.DataFrame) -> dict[str, np.ndarray]:
 
 def _fit_all(params: MotorParams, df: pd.DataFrame, sampler: dict, seed: int) -> dict:
     from loadbayes.baselines.kalman import kalman
-    from loadbayes.baselines.least_squares import least_squares
-    from loadbayes.fitting import accumulate, fit_im
-    from loadbayes.models.motor_fit import InductionMotorModel, coupled_least_squares
+    from loadbayes.baselines.least_squares import coupled_least_squares, least_squares
+    from loadbayes.fit import accumulate, fit_im
+    from loadbayes.models.motor_fit import InductionMotorModel
 
     cols = _columns(df)
     f = params.f_hz
@@ -234,7 +234,7 @@ def run(
 
 def _eiv(name, *, noise, seed, t_end_s, dt_s, sampler) -> pd.DataFrame:
     from loadbayes.cases.motor_sim import MOTORS, simulate
-    from loadbayes.fitting import fit_im
+    from loadbayes.fit import fit_im
 
     params = MOTORS[name]
     truth = params.coefficients()

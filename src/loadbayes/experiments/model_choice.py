@@ -249,8 +249,7 @@ def compare_zip_exp(
     student_t: bool = False,
 ) -> pd.DataFrame:
     """Fit ZIP and exponential (P only) to the same data and compare them by LOO."""
-    from loadbayes.fitting import fit_zip
-    from loadbayes.models.exponential import fit_exp
+    from loadbayes.fit import fit_exp, fit_zip
 
     cols = {"v": np.asarray(data["v"], float), "p": np.asarray(data["p"], float)}
     if "f" in data:
@@ -261,7 +260,7 @@ def compare_zip_exp(
         "exponential": fit_exp(cols, v0=v0, p0=p0, with_q=False, noise=exp_noise, **kw),
     }
     if student_t:
-        from loadbayes.inference.robust import fit_robust
+        from loadbayes.fit import fit_robust
         from loadbayes.models.zip import ZIPModel
 
         model = ZIPModel(v0=v0, p0=p0, with_q=False)  # type: ignore[arg-type]

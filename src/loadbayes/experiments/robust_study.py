@@ -11,7 +11,7 @@ Protocol (every number in the tables is measured by :func:`run`):
   6 replicates (quick) or 40 (full), the same noise draws in every scenario so that the
   ratios to the clean-data error are paired;
 * estimators, on identical data: ``gibbs`` (Gaussian likelihood, blocked, weak priors),
-  ``student-t`` (:func:`loadbayes.inference.robust.fit_robust`, nu sampled), ``ls``
+  ``student-t`` (:func:`loadbayes.fit.fit_robust`, nu sampled), ``ls``
   (least squares) and ``kf`` (Kalman filter, no process noise, R = LS residual
   variance: the paper's comparison);
 * coefficient error: root mean square over replicates and over a1, a2, a3 of the
@@ -87,8 +87,7 @@ def _fit(method: str, data: dict[str, np.ndarray], sampler: dict, seed: int):
     """Point estimate (a1, a2) of one method, and the Student-t flags (else None)."""
     from loadbayes.baselines.kalman import kalman
     from loadbayes.baselines.least_squares import least_squares
-    from loadbayes.fitting import accumulate, fit_zip
-    from loadbayes.inference.robust import fit_robust
+    from loadbayes.fit import accumulate, fit_robust, fit_zip
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel(with_q=False)

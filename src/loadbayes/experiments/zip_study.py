@@ -246,7 +246,7 @@ def _validation_seed(seed: int) -> int:
 def _fits(cols, priors, smp, seed, kf_process_noise, settings) -> dict[str, Posterior]:
     from loadbayes.baselines.kalman import kalman
     from loadbayes.baselines.least_squares import least_squares
-    from loadbayes.fitting import accumulate, fit_gram
+    from loadbayes.fit import accumulate, fit_gram
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel()
@@ -278,7 +278,7 @@ def _traces(cols, priors, smp, seed) -> dict[str, np.ndarray]:
     the sampler draws its randomness for every iteration whatever the burn-in, so the
     part after the burn-in is the fitted chain itself.
     """
-    from loadbayes.fitting import accumulate
+    from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
 
@@ -401,7 +401,7 @@ def _sweep(
     level (common random numbers: the curves differ by the noise level only).
     """
     from loadbayes.baselines.least_squares import least_squares_block
-    from loadbayes.fitting import accumulate
+    from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
 
@@ -516,7 +516,7 @@ def run(
     ZipStudy
     """
     from loadbayes.cases import ieee33
-    from loadbayes.fitting import prior_settings
+    from loadbayes.fit import prior_settings
     from loadbayes.models.zip import ZIPModel
 
     cfg = dict(QUICK if quick else FULL)

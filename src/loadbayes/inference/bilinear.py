@@ -11,63 +11,14 @@ Nothing here knows about motors.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 from numba import njit
 
+from loadbayes.core.blocks import BilinearStats
+from loadbayes.core.parallel import chain_generators
 from loadbayes.core.priors import BlockPrior
-from loadbayes.inference.gibbs import chain_generators
-
-
-@dataclass(frozen=True)
-class BilinearStats:
-    """Sufficient statistics of a model whose residuals are bilinear in two blocks.
-
-    The residual vector of every equation of noise group ``g`` is ``X T phi`` with
-    ``phi = kron([1, u], [1, v])``; ``h[g] = sum T' X'X T`` so that the group's sum of
-    squares is ``phi' h[g] phi``.
-
-    Attributes
-    ----------
-    h : ndarray, shape (G, p, p)
-        One matrix per noise group, ``p = (len(u) + 1) (len(v) + 1)``.
-    n_eq : ndarray, shape (G,)
-        Scalar equations per group (rows times equations).
-    u_names, v_names, tau_names : tuple of str
-        Names of the two coefficient blocks and of the G precisions.
-    t0_k : tuple of float, optional
-        Motor only: ``(k1, k2)`` with ``T0 = ab k1 + ac k2`` when T0 is not given.
-    """
-
-    h: np.ndarray
-    n_eq: np.ndarray
-    u_names: tuple[str, ...]
-    v_names: tuple[str, ...]
-    tau_names: tuple[str, ...]
-    t0_k: tuple[float, float] | None = None
-
-    def ssr(self, u: Sequence[float], v: Sequence[float]) -> np.ndarray:
-        """Sum of squared residuals of each group at ``(u, v)``."""
-        phi = np.kron(np.r_[1.0, u], np.r_[1.0, v])
-        return np.maximum(np.einsum("i,gij,j->g", phi, self.h, phi), 0.0)
-
-    def conditional(
-        self, which: str, other: Sequence[float], tau: Sequence[float]
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Data precision ``L`` and linear term ``c`` of block ``which`` given the other.
-
-        The log-likelihood in that block is ``-x'Lx/2 + c'x`` (plus a constant).
-        """
-        q1, q2 = len(self.u_names) + 1, len(self.v_names) + 1
-        o = np.r_[1.0, other]
-        h4 = self.h.reshape(-1, q1, q2, q1, q2)
-        if which == "u":
-            q = np.einsum("g,j,k,gijlk->il", np.asarray(tau, float), o, o, h4)
-        else:
-            q = np.einsum("g,i,l,gijlk->jk", np.asarray(tau, float), o, o, h4)
-        return q[1:, 1:], -q[1:, 0]
 
 
 @njit(cache=True, nogil=True)

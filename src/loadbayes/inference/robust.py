@@ -46,10 +46,9 @@ among bad data; ``c = 4``, 0.01% and 0.14%.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from numba import njit
@@ -62,7 +61,6 @@ __all__ = [
     "NU_BOUNDS",
     "NU_PRIOR",
     "RobustDraws",
-    "fit_robust",
     "flag_threshold",
     "sample_student_t",
 ]
@@ -402,134 +400,3 @@ def sample_student_t(
     with np.errstate(invalid="ignore", divide="ignore"):
         accept = np.where(acc[:, 1] > 0, acc[:, 0] / acc[:, 1], np.nan)
     return RobustDraws(out_b, out_t, out_nu, weight, accept)
-
-
-# ------------------------------------------------------------------ model level
-def fit_robust(
-    model: Any,
-    data: Mapping[str, np.ndarray],
-    *,
-    priors: Mapping[str, BlockPrior] | None = None,
-    nu: float | Literal["auto"] = "auto",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: Literal["prior", "dispersed"] = "prior",
-    seed: int | np.random.SeedSequence | None = 0,
-    flag_sigmas: float = FLAG_SIGMAS,
-    observed: Mapping[str, np.ndarray] | None = None,
-    settings: Mapping[str, Any] | None = None,
-    warnings: Sequence[str] = (),
-):
-    """Student-t fit of every block of a linear load model, as a :class:`Posterior`.
-
-    Parameters
-    ----------
-    model : object
-        A model with ``rows``, ``gram_columns``, ``blocks``, ``coefficients``,
-        ``transform`` and ``default_priors`` (e.g. :class:`loadbayes.models.zip.ZIPModel`);
-        nothing here depends on what the blocks mean.
-    data : mapping of str to ndarray
-        The model's input columns, in memory (every iteration visits every sample).
-    priors : mapping, optional
-        One :class:`BlockPrior` per block name; ``model.default_priors()`` otherwise.
-    nu : float or "auto"
-        Degrees of freedom of every block (each block has its own ``nu_<block>``).
-    chains, draws, burn, thin, init, seed
-        Sampler settings; each block gets its own child of ``seed``.
-    flag_sigmas : float
-        Flag rule (module notes).
-    observed, settings, warnings
-        Passed to the :class:`Posterior`.
-
-    Returns
-    -------
-    Posterior
-        The model's parameters plus ``nu_<block>``; ``constant`` holds the mean weight of
-        each sample per block (``weight_<block>``) and ``settings["flagged"]`` the 0-based
-        indices of flagged samples per block.
-    """
-    from loadbayes.baselines.kalman import block_equations
-    from loadbayes.posterior import Posterior
-
-    rows = model.rows(data)
-    names = tuple(model.gram_columns)
-    priors = dict(priors or model.default_priors())
-    seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-    raw: dict[str, np.ndarray] = {}
-    extra: dict[str, np.ndarray] = {}
-    constant: dict[str, np.ndarray] = {}
-    flagged: dict[str, list[int]] = {}
-    accept: dict[str, float | None] = {}
-    blocks = list(model.blocks)
-    for block, child in zip(blocks, seq.spawn(len(blocks)), strict=True):
-        z, r = block_equations(block, rows, names)
-        res = sample_student_t(
-            z, r, priors[block.name], nu=nu, chains=chains, draws=draws, burn=burn,
-            thin=thin, init=init, rng=child,
-        )  # fmt: skip
-        for i, cname in enumerate(block.coef_names):
-            raw[cname] = res.coef[..., i]
-        raw[block.tau_name] = res.tau
-        extra[f"nu_{block.name}"] = res.nu
-        n_eq = len(block.equations)
-        weight = res.weight.reshape(-1, n_eq).min(axis=1)  # a sample: its worst equation
-        constant[f"weight_{block.name}"] = weight
-        thr = flag_threshold(res.nu, sigmas=flag_sigmas)
-        flagged[block.name] = np.flatnonzero(weight < thr).tolist()
-        acc = float(np.nanmean(res.accept_nu)) if np.any(np.isfinite(res.accept_nu)) else None
-        accept[block.name] = acc
-    draws_out = model.transform(raw)
-    if nu != "auto":
-        extra = {}  # a fixed nu is a setting, not a parameter
-    draws_out.update(extra)
-    full = dict(settings or {})
-    full.update(
-        n=int(rows.shape[0]),
-        likelihood="student-t",
-        nu=nu,
-        nu_prior=list(NU_PRIOR) if nu == "auto" else None,
-        nu_bounds=list(NU_BOUNDS) if nu == "auto" else None,
-        nu_acceptance=accept,
-        flag_rule=(
-            f"mean weight < (nu + 1) / (nu + {flag_sigmas:g}^2), nu = posterior median "
-            f"(or the fixed value): discounted like a {flag_sigmas:g}-scale residual"
-        ),
-        flagged=flagged,
-        scheme="student-t",
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed if not isinstance(seed, np.random.SeedSequence) else None,
-        priors={
-            k: {
-                "mean": p.mean.tolist(),
-                "precision": p.precision.tolist(),
-                "shape": p.shape,
-                "rate": p.rate,
-                "conjugate": p.conjugate,
-            }
-            for k, p in priors.items()
-        },
-    )
-    n_flag = sorted({i for v in flagged.values() for i in v})
-    warn = list(warnings)
-    if n_flag:
-        warn.append(
-            f"{len(n_flag)} of {rows.shape[0]} samples look like bad data (Student-t weight "
-            "below the flag threshold); they are listed under 'flagged'."
-        )
-    return Posterior(
-        draws_out,
-        model=model.name,
-        method="gibbs-student-t",
-        coefficients=model.coefficients,
-        free=getattr(model, "free", None),
-        observed=observed,
-        constant=constant,
-        settings=full,
-        warnings=warn,
-    )

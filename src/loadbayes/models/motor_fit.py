@@ -70,20 +70,17 @@ from typing import Any, Literal
 
 import numpy as np
 
-from loadbayes.core.blocks import LinearBlock
+from loadbayes.core.blocks import BilinearStats, LinearBlock
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import Gram
-from loadbayes.inference.bilinear import BilinearStats, bilinear_least_squares
 from loadbayes.io.errors import DataError
 from loadbayes.models.motor import COEFFICIENT_NAMES, inverse
-from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = [
     "CURRENTS",
     "DATA_COLUMNS",
     "PHYSICAL_NAMES",
     "InductionMotorModel",
-    "coupled_least_squares",
 ]
 
 Currents = Literal["modelled", "measured"]
@@ -396,46 +393,3 @@ class InductionMotorModel:
         coef, ssr = st.least_squares()
         s2 = max(ssr / max(st.n - 2, 1), 1e-300)
         return coef, s2 * np.linalg.pinv(st.ztz), s2
-
-
-def coupled_least_squares(
-    model: InductionMotorModel,
-    gram: Gram,
-    *,
-    first: Mapping[str, float] | None = None,
-    chains: int = 4,
-    draws: int = 2000,
-    seed: int | None = 0,
-    settings: Mapping[str, Any] | None = None,
-) -> Posterior:
-    """Least squares of the modelled-currents form (the coupled blocks), as a Posterior.
-
-    The maximum-likelihood estimate of :func:`bilinear_least_squares`, started from the
-    current equations' own least squares, with draws from its Gaussian approximation
-    (transformed like the Gibbs draws); ``settings["estimate"]`` has the exact values.
-    """
-    st = model.bilinear_stats(gram, first)
-    v_ls, _, _ = model.current_estimate(gram)
-    ml = bilinear_least_squares(st, v0=v_ls)
-    names = list(_U + _V)
-    mean = np.r_[ml["u"], ml["v"]]
-    rng = np.random.default_rng(seed)
-    x = gaussian_draws(mean, ml["cov"], chains, draws, rng)
-    raw = {n: x[..., i] for i, n in enumerate(names)}
-    est = dict(zip(names, mean.tolist(), strict=True))
-    for n, t in zip(TAU_NAMES, ml["tau"], strict=True):
-        raw[n] = np.full((chains, draws), float(t))
-        est[n] = float(t)
-    point = model.transform({k: np.asarray(v).reshape(1, 1) for k, v in est.items()})
-    full = {"n": gram.n, "scheme": "least-squares", "currents": model.currents, "draws": draws}
-    full.update(settings or {})
-    full["iterations"] = ml["iterations"]
-    full["estimate"] = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in point.items()}
-    return Posterior(
-        model.transform(raw),
-        model=model.name,
-        method="least-squares",
-        coefficients=model.coefficients,
-        free=model.free,
-        settings=full,
-    )

@@ -89,8 +89,8 @@ def zip_sampler(
     ZIP model with normal noise of precision ``tau``; with ``auto`` the nominal power is
     a parameter (the block ``(p0, d1, d2)``, reported as ``p0`` and the shares
     ``a_i = d_i / p0``). The fit goes through
-    :class:`~loadbayes.models.zip.ZIPModel`, :func:`~loadbayes.fitting.accumulate` and
-    :func:`~loadbayes.fitting.fit_gram` (one chain, ``burn`` then ``kept`` draws
+    :class:`~loadbayes.models.zip.ZIPModel`, :func:`~loadbayes.fit.accumulate` and
+    :func:`~loadbayes.fit.fit_gram` (one chain, ``burn`` then ``kept`` draws
     every ``thin``).
 
     Parameters
@@ -144,7 +144,7 @@ def zip_sampler(
         return _ZipData(v, out["p"], out.get("q"))
 
     def fit(data: _ZipData, seed: int) -> dict[str, np.ndarray]:
-        from loadbayes.fitting import accumulate, fit_gram
+        from loadbayes.fit import accumulate, fit_gram
         from loadbayes.models.zip import ZIPModel
 
         nominal = "auto" if auto else 1.0
@@ -338,7 +338,7 @@ def im_sampler(
         return _im_targets(states, theta, attrs["t0"], attrs["wb"], currents, rng)
 
     def fit(data: Mapping[str, np.ndarray], seed: int) -> dict[str, np.ndarray]:
-        from loadbayes.fitting import fit_im
+        from loadbayes.fit import fit_im
 
         attrs = _im_record(motor, every)[1]
         post = fit_im(
@@ -399,7 +399,7 @@ def robust_sampler(
     kept: int = 499,
     notes: str = "",
 ) -> SamplerUnderTest:
-    """The Student-t ZIP sampler (:func:`loadbayes.inference.robust.fit_robust`), P only.
+    """The Student-t ZIP sampler (:func:`loadbayes.fit.fit_robust`), P only.
 
     Data: ZIP with Student-t noise of scale ``1/sqrt(tau)`` and ``nu`` degrees of freedom
     (fixed, or drawn from the sampler's own prior on ``nu`` with ``nu="auto"``).
@@ -422,7 +422,7 @@ def robust_sampler(
         return _ZipData(v, curve + rng.standard_t(dof, n) / np.sqrt(theta["tau_p"]))
 
     def fit(data: _ZipData, seed: int) -> dict[str, np.ndarray]:
-        from loadbayes.inference.robust import fit_robust
+        from loadbayes.fit import fit_robust
         from loadbayes.models.zip import ZIPModel
 
         post = fit_robust(

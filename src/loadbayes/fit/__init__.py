@@ -1,0 +1,27 @@
+"""Fit a load model: one driver (:mod:`loadbayes.fit.core`) and a thin entry per model.
+
+``fit_zip`` / ``fit_zip_file`` (ZIP), ``fit_exp`` (exponential), ``fit_im`` /
+``fit_im_file`` (motor from its states), ``fit_robust`` (Student-t on any linear model);
+each builds a model from :mod:`loadbayes.models`, hands its likelihood pieces to a
+sampler of :mod:`loadbayes.inference` and returns a :class:`~loadbayes.posterior.Posterior`.
+"""
+
+from loadbayes.fit.core import accumulate, fit_gram, prior_settings
+from loadbayes.fit.exp import fit_exp
+from loadbayes.fit.motor import fit_im, fit_im_file, im_priors
+from loadbayes.fit.robust import fit_robust
+from loadbayes.fit.zip import fit_zip, fit_zip_file, zip_priors
+
+__all__ = [
+    "accumulate",
+    "fit_exp",
+    "fit_gram",
+    "fit_im",
+    "fit_im_file",
+    "fit_robust",
+    "fit_zip",
+    "fit_zip_file",
+    "im_priors",
+    "prior_settings",
+    "zip_priors",
+]

@@ -1,0 +1,175 @@
+"""The one driver: a model's likelihood pieces -> a sampler -> :class:`Posterior`.
+
+This is the glue between a model (which turns measurements into Gram columns and
+conjugate blocks) and the samplers (which know nothing about power systems). Data may be
+in memory (a mapping of arrays or a DataFrame) or an iterator of chunks (a file read in
+pieces); either way one pass builds the sufficient statistics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import Gram, GramAccumulator
+from loadbayes.inference.gibbs import Scheme
+from loadbayes.inference.linear import sample_blocks
+from loadbayes.models.base import LinearModel
+from loadbayes.posterior import Posterior
+
+__all__ = [
+    "CHUNK_ROWS",
+    "MAX_OBSERVED",
+    "accumulate",
+    "as_columns",
+    "fit_gram",
+    "fit_power_law",
+    "prior_settings",
+]
+
+#: Rows read at a time by default: small enough that every per-chunk array stays under
+#: glibc's mmap threshold and is reused rather than re-faulted (measured 2.8x faster
+#: row building on 1e8 rows than 1e6-row chunks), large enough to amortise the calls.
+CHUNK_ROWS = 1 << 18
+
+#: Observed data are stored in the result up to this many samples.
+MAX_OBSERVED = 200_000
+
+
+def accumulate(
+    model: LinearModel,
+    chunks: Iterable[Mapping[str, np.ndarray]],
+    *,
+    progress: Callable[[int], None] | None = None,
+) -> Gram:
+    """One pass over chunks of measurements: the Gram matrix of the model's columns."""
+    acc = GramAccumulator(model.gram_columns)
+    for chunk in chunks:
+        rows = model.rows(chunk)
+        acc.update(rows)
+        if progress is not None:
+            progress(rows.shape[0])
+    return acc.result()
+
+
+def prior_settings(priors: Mapping[str, BlockPrior]) -> dict[str, Any]:
+    """Priors as plain JSON-able settings (recorded with every result)."""
+    return {
+        name: {
+            "mean": p.mean.tolist(),
+            "precision": p.precision.tolist(),
+            "shape": p.shape,
+            "rate": p.rate,
+            "conjugate": p.conjugate,
+        }
+        for name, p in priors.items()
+    }
+
+
+def fit_gram(
+    model: LinearModel,
+    gram: Gram,
+    *,
+    priors: Mapping[str, BlockPrior],
+    scheme: Scheme = "blocked",
+    chains: int = 4,
+    draws: int = 40_000,
+    burn: int = 5_000,
+    thin: int = 1,
+    init: str = "prior",
+    seed: int = 0,
+    observed: Mapping[str, np.ndarray] | None = None,
+    settings: Mapping[str, Any] | None = None,
+    warnings: Iterable[str] = (),
+) -> Posterior:
+    """Sample the model's blocks from precomputed statistics and wrap the result."""
+    warn = list(warnings) + model.check(gram)
+    raw = sample_blocks(
+        gram,
+        model.blocks,
+        priors,
+        scheme=scheme,
+        chains=chains,
+        draws=draws,
+        burn=burn,
+        thin=thin,
+        init=init,
+        seed=seed,
+    )
+    full = dict(settings or {})
+    full.update(
+        n=gram.n,
+        scheme=scheme,
+        chains=chains,
+        draws=draws,
+        burn=burn,
+        thin=thin,
+        init=init,
+        seed=seed,
+        priors=prior_settings(priors),
+    )
+    return Posterior(
+        model.transform(raw),
+        model=model.name,
+        method=f"gibbs-{scheme}" if scheme != "exact" else "exact",
+        coefficients=model.coefficients,
+        free=getattr(model, "free", None),
+        observed=observed,
+        constant={"gram": gram.matrix},
+        settings=full,
+        warnings=warn,
+    )
+
+
+def as_columns(data: Any) -> dict[str, np.ndarray]:
+    """Columns of a DataFrame or a mapping, as float arrays."""
+    if hasattr(data, "to_dict") and hasattr(data, "columns"):  # DataFrame
+        return {str(c): np.asarray(data[c], dtype=float) for c in data.columns}
+    return {k: np.asarray(v, dtype=float) for k, v in dict(data).items()}
+
+
+def fit_power_law(
+    model: Any,
+    cols: Mapping[str, np.ndarray],
+    priors: Mapping[str, Any],
+    *,
+    chains: int,
+    draws: int,
+    burn: int,
+    thin: int,
+    seed: Any,
+) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """Sample each of the model's power-law blocks (Metropolis within Gibbs).
+
+    Each block gets its own child of ``seed`` (``SeedSequence.spawn``); ``priors`` maps a
+    block name to an object with ``exponent`` (mean, sd) and ``linear`` (BlockPrior).
+    Returns the model's named raw draws and the acceptance rate of each block.
+    """
+    from loadbayes.inference.mwg import sample_power_law
+
+    seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    blocks = model.power_law_blocks(cols)
+    raw: dict[str, np.ndarray] = {}
+    accept: dict[str, float] = {}
+    for block, child in zip(blocks, seq.spawn(len(blocks)), strict=True):
+        pr = priors[block.name]
+        if not (hasattr(pr, "exponent") and hasattr(pr, "linear")):
+            raise ValueError(
+                f"priors['{block.name}'] must give an exponent prior and a linear BlockPrior"
+            )
+        th, c, tau, acc = sample_power_law(
+            block,
+            pr.exponent,
+            pr.linear,
+            chains=chains,
+            draws=draws,
+            burn=burn,
+            thin=thin,
+            seed=child,
+        )
+        raw.update(model.from_power_law(block.name, th, c, tau))
+        accept[block.name] = acc
+    return raw, accept

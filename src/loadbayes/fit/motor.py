@@ -1,0 +1,348 @@
+"""Induction-motor fits from the motor's states (the paper's IM study)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+from loadbayes.core.priors import BlockPrior
+from loadbayes.core.stats import Gram, GramAccumulator
+from loadbayes.fit.core import (
+    CHUNK_ROWS,
+    MAX_OBSERVED,
+    accumulate,
+    as_columns,
+    prior_settings,
+)
+from loadbayes.inference.gibbs import Scheme
+from loadbayes.inference.linear import sample_blocks
+from loadbayes.posterior import Posterior
+
+__all__ = ["fit_im", "fit_im_file", "im_priors"]
+
+
+def im_priors(
+    *,
+    mean: float = 0.0,
+    sd: float = 100.0,
+    per_coef: Mapping[str, tuple[float, float]] | None = None,
+    shape: float = 1e-3,
+    rate: float = 1e-9,
+    conjugate: bool = False,
+) -> dict[str, BlockPrior]:
+    """Priors of the motor's flux, speed and current blocks from plain options.
+
+    ``per_coef`` maps any of b1, b2, b3, ab, ac to (mean, sd); the others take
+    (``mean``, ``sd``). Each block's precision gets ``Gamma(shape, rate)``.
+    """
+    from loadbayes.models.motor import COEFFICIENT_NAMES
+
+    per_coef = dict(per_coef or {})
+    unknown = set(per_coef) - set(COEFFICIENT_NAMES)
+    if unknown:
+        raise ValueError(
+            f"priors can be set on {', '.join(COEFFICIENT_NAMES)}; got {', '.join(sorted(unknown))}"
+        )
+    out = {}
+    for block, names in (("flux", ("b1", "b2")), ("speed", ("b3",)), ("current", ("ab", "ac"))):
+        ms = [per_coef.get(n, (mean, sd)) for n in names]
+        out[block] = BlockPrior.weak(
+            len(names),
+            mean=[m for m, _ in ms],
+            sd=[s for _, s in ms],
+            shape=shape,
+            rate=rate,
+            conjugate=conjugate,
+        )
+    return out
+
+
+def _fit_im_gram(
+    model,
+    gram: Gram,
+    first: Mapping[str, float],
+    *,
+    t0: float | None = None,
+    priors: Mapping[str, BlockPrior] | None = None,
+    scheme: Scheme = "blocked",
+    chains: int = 4,
+    draws: int = 40_000,
+    burn: int = 5_000,
+    thin: int = 1,
+    init: str = "prior",
+    seed: int = 0,
+    observed: Mapping[str, np.ndarray] | None = None,
+    settings: Mapping[str, Any] | None = None,
+    warnings: Iterable[str] = (),
+):
+    """Sample the motor from its Gram matrix (either form); return (Posterior, model)."""
+    from loadbayes.inference.bilinear import sample_bilinear
+    from loadbayes.io.errors import DataError
+
+    if not np.all(np.isfinite(gram.matrix)):
+        raise DataError("the data hold NaN or infinite values (or values too large to square)")
+    priors = dict(priors or model.default_priors())
+    for block, k in (("flux", 2), ("speed", 1), ("current", 2)):
+        if block not in priors or priors[block].k != k:
+            raise ValueError(f"priors need a '{block}' block with {k} coefficient(s)")
+    if t0 is not None:
+        model = model.with_t0(t0)
+    warn = list(warnings) + model.check(gram)
+    full = dict(settings or {})
+    full.update(
+        n=gram.n,
+        currents=model.currents,
+        f_hz=model.f_hz,
+        wb=model.wb,
+        t0_source="given" if t0 is not None else "first sample",
+        scheme=scheme,
+        chains=chains,
+        draws=draws,
+        burn=burn,
+        thin=thin,
+        init=init,
+        seed=seed,
+        priors=prior_settings(priors),
+    )
+    if model.currents == "measured":
+        if model.t0 is None:
+            model = model.with_t0(model.resolve_t0(gram, first))
+        raw = sample_blocks(
+            model.complete(gram),
+            model.blocks,
+            priors,
+            scheme=scheme,
+            chains=chains,
+            draws=draws,
+            burn=burn,
+            thin=thin,
+            init=init,
+            seed=seed,
+        )
+        full["t0"] = model.t0
+    else:
+        if scheme == "exact":
+            raise ValueError(
+                "scheme 'exact' needs the measured-currents form (currents='measured') and a "
+                "conjugate prior; the coupled form has no closed-form posterior"
+            )
+        if model.t0 is None:
+            model.resolve_t0(gram, first)  # refuses a first row that is not motoring
+        stats = model.bilinear_stats(gram, first)
+        v_ls, v_cov, _ = model.current_estimate(gram)
+        raw = sample_bilinear(
+            stats,
+            [priors["flux"], priors["speed"]],
+            priors["current"],
+            tau_shape=[priors[b].shape for b in ("flux", "speed", "current")],
+            tau_rate=[priors[b].rate for b in ("flux", "speed", "current")],
+            scheme=scheme,  # type: ignore[arg-type]
+            chains=chains,
+            draws=draws,
+            burn=burn,
+            thin=thin,
+            init=init,  # type: ignore[arg-type]
+            v_start=(v_ls, v_cov),
+            rng=seed,
+        )
+        if model.t0 is None:
+            k1, k2 = stats.t0_k  # type: ignore[misc]
+            t0_draws = raw["ab"] * k1 + raw["ac"] * k2
+            full["t0"] = float(np.mean(t0_draws))
+            full["t0_sd"] = float(np.std(t0_draws))
+            model = model.with_t0(full["t0"])
+        else:
+            full["t0"] = model.t0
+    post = Posterior(
+        model.transform(raw),
+        model=model.name,
+        method=f"gibbs-{scheme}" if scheme != "exact" else "exact",
+        coefficients=model.coefficients,
+        free=model.free,
+        observed=observed,
+        constant={"gram": gram.matrix},
+        settings=full,
+        warnings=warn,
+    )
+    n_nan = int(np.isnan(post.draws["xm"]).sum())
+    if n_nan:
+        post.warnings.append(
+            f"{n_nan} draws have X (X - X') < 0: the closure Xs = Xr has no real solution "
+            "there and xs, xm, xr, rr are NaN for them."
+        )
+    return post, model
+
+
+def fit_im(
+    data: Any,
+    *,
+    t0: float | None = None,
+    f_hz: float = 60.0,
+    currents: str = "modelled",
+    priors: Mapping[str, BlockPrior] | None = None,
+    scheme: Scheme = "blocked",
+    chains: int = 4,
+    draws: int = 40_000,
+    burn: int = 5_000,
+    thin: int = 1,
+    init: str = "prior",
+    seed: int = 0,
+) -> Posterior:
+    """Posterior of the induction-motor coefficients from in-memory measurements.
+
+    Parameters
+    ----------
+    data : mapping or DataFrame
+        Columns ``ud, uq, ed, eq, w, id, iq, ded, deq, dw`` (per unit; derivatives per
+        second), e.g. from :func:`loadbayes.cases.motor_sim.simulate`.
+    t0 : float, optional
+        Load-torque coefficient T0; by default from the first sample, taken as a steady
+        state (:class:`loadbayes.models.motor_fit.InductionMotorModel`).
+    f_hz : float
+        Nominal frequency (the slip terms carry ``wb = 2 pi f_hz``).
+    currents : {"modelled", "measured"}
+        ``modelled`` (default): the coupled form, whose flux and speed regressors use the
+        model's currents, so noisy measured currents are only targets. ``measured``: the
+        paper's three independent blocks with the measured currents as regressors
+        (biased by errors in variables when the currents are noisy).
+    priors : mapping, optional
+        ``{"flux": BlockPrior(2), "speed": BlockPrior(1), "current": BlockPrior(2)}``;
+        weak defaults otherwise (:func:`im_priors`).
+    scheme, chains, draws, burn, thin, init, seed
+        Sampler settings; ``draws`` counts iterations including burn-in (the paper's M).
+
+    Returns
+    -------
+    Posterior
+        Draws of b1, b2, b3, ab, ac, tau_e, tau_w, tau_i and the physical rs, xp, x,
+        tp_s, h_s, xs, xm, xr, rr (Xs = Xr closure).
+
+    Examples
+    --------
+    >>> from loadbayes.cases.motor_sim import simulate
+    >>> df = simulate("small_industrial", noise=0.05, seed=1)  # doctest: +SKIP
+    >>> post = fit_im(df, draws=4000, burn=1000)  # doctest: +SKIP
+    >>> round(post.mean()["b3"], 2)  # doctest: +SKIP
+    -0.71
+    """
+    from loadbayes.io.errors import DataError
+    from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
+
+    cols = as_columns(data)
+    missing = [c for c in DATA_COLUMNS[1:] if c not in cols]
+    if missing:
+        raise DataError(f"missing column(s) {', '.join(missing)}")
+    n = len(cols["ud"])
+    if n == 0:
+        raise DataError("no rows")
+    model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
+    gram = accumulate(model, [cols])
+    observed = {k: cols[k] for k in DATA_COLUMNS if k in cols} if n <= MAX_OBSERVED else None
+    post, _ = _fit_im_gram(
+        model,
+        gram,
+        model.first_row(cols),
+        t0=t0,
+        priors=priors,
+        scheme=scheme,
+        chains=chains,
+        draws=draws,
+        burn=burn,
+        thin=thin,
+        init=init,
+        seed=seed,
+        observed=observed,
+    )
+    return post
+
+
+def fit_im_file(
+    path: str,
+    *,
+    t0: float | None = None,
+    f_hz: float = 60.0,
+    currents: str = "modelled",
+    priors: Mapping[str, BlockPrior] | None = None,
+    drop_invalid: bool = False,
+    chunk_rows: int = CHUNK_ROWS,
+    progress: Callable[[int], None] | None = None,
+    **sampler: Any,
+):
+    """Fit the induction motor to a CSV or Parquet file read in chunks.
+
+    Parameters
+    ----------
+    path : str
+        CSV or Parquet file (by extension), or ``"-"`` for CSV on standard input; columns
+        ``t_s, ud, uq, ed, eq, w, id, iq, ded, deq, dw`` (others are ignored).
+    t0, f_hz, currents, priors
+        As :func:`fit_im`.
+    drop_invalid : bool
+        Drop rows with NaN or inf instead of refusing the file.
+    chunk_rows : int
+        Rows read at a time (memory does not grow with the file).
+    progress : callable, optional
+        Called with the number of rows of each chunk.
+    **sampler
+        ``scheme``, ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
+
+    Returns
+    -------
+    (Posterior, InductionMotorModel)
+        The model comes back with T0 resolved, ready for the baselines.
+    """
+    from loadbayes.io.errors import DataError
+    from loadbayes.io.tables import iter_chunks
+    from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
+
+    model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
+    acc = GramAccumulator(model.gram_columns)
+    state: dict[str, Any] = {"dropped": 0}
+    keep: dict[str, list[np.ndarray]] = {c: [] for c in DATA_COLUMNS}
+    kept = 0
+    for chunk in iter_chunks(
+        path, list(DATA_COLUMNS), chunk_rows=chunk_rows, drop_invalid=drop_invalid
+    ):
+        state["dropped"] += chunk.n_dropped
+        if chunk.n_rows == 0:
+            continue
+        if "first" not in state:
+            state["first"] = model.first_row(chunk.data)
+            state["first_row"] = chunk.row_of(0)
+        rows = model.rows(chunk.data)
+        acc.update(rows)
+        if kept <= MAX_OBSERVED:
+            for c in DATA_COLUMNS:
+                keep[c].append(chunk.data[c])
+            kept += chunk.n_rows
+        if progress is not None:
+            progress(rows.shape[0])
+    gram = acc.result()
+    warnings = []
+    if state["dropped"]:
+        warnings.append(
+            f"{state['dropped']} rows with invalid values were dropped (--drop-invalid)"
+        )
+    if t0 is None and state.get("first_row", 1) != 1:
+        warnings.append(
+            f"row 1 was dropped: T0 comes from row {state['first_row']}, taken as a steady state"
+        )
+    observed = None
+    if gram.n <= MAX_OBSERVED:
+        observed = {c: np.concatenate(v) for c, v in keep.items() if v}
+    try:
+        return _fit_im_gram(
+            model,
+            gram,
+            state["first"],
+            t0=t0,
+            priors=priors,
+            observed=observed,
+            settings={"data": str(path), "n_dropped": state["dropped"]},
+            warnings=warnings,
+            **sampler,
+        )
+    except DataError as exc:
+        raise DataError(exc.message, path=str(path), column=exc.column, row=exc.row) from None
