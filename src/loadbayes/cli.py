@@ -2,7 +2,8 @@
 
 Only click is imported at start-up; everything heavy (numba, ArviZ, matplotlib,
 pandapower) is imported inside the command that needs it, so ``loadbayes --help`` is fast.
-The commands live in :mod:`loadbayes.commands`, one module per subject.
+The commands live in :mod:`loadbayes.commands`, one module per subject, and are attached
+to the groups at the bottom of this module.
 
 Exit codes: 0 success, 2 bad usage or bad data (one line on stderr naming the file, the
 column and the row, never a traceback), 130 interrupted (no output left half-written).
@@ -11,6 +12,13 @@ column and the row, never a traceback), 130 interrupted (no output left half-wri
 from __future__ import annotations
 
 import click
+
+from loadbayes.commands import exp as _exp
+from loadbayes.commands import im as _im
+from loadbayes.commands import reproduce as _reproduce
+from loadbayes.commands import simulate as _simulate
+from loadbayes.commands import track as _track
+from loadbayes.commands import zip as _zip
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -39,10 +47,13 @@ def track() -> None:
     """Track load-model coefficients over time, sample by sample (online Bayes)."""
 
 
-# Each module attaches its commands to the groups above (imported last on purpose).
-from loadbayes.commands import exp as _exp  # noqa: E402, F401
-from loadbayes.commands import im as _im  # noqa: E402, F401
-from loadbayes.commands import reproduce_all as _reproduce_all  # noqa: E402, F401
-from loadbayes.commands import track as _track  # noqa: E402, F401
-from loadbayes.commands import zip as _zip  # noqa: E402, F401
-from loadbayes.commands import zip_study as _zip_study  # noqa: E402, F401
+# The commands know nothing of this module: they are attached here, so the imports run
+# one way (cli -> commands) with no circle.
+fit.add_command(_zip.fit_zip_cmd)
+fit.add_command(_exp.fit_exp_cmd)
+fit.add_command(_im.fit_im_cmd)
+simulate.add_command(_simulate.simulate_im_cmd)
+track.add_command(_track.track_zip_cmd)
+reproduce.add_command(_reproduce.reproduce_zip_cmd)
+reproduce.add_command(_reproduce.reproduce_im_cmd)
+reproduce.add_command(_reproduce.reproduce_all_cmd)

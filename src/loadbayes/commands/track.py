@@ -5,20 +5,14 @@ from __future__ import annotations
 import click
 import numpy as np
 
-from loadbayes.cli import track
-from loadbayes.commands.common import (
-    Progress,
-    UserError,
-    check_outputs,
-    estimate_rows,
-    user_errors,
-)
+from loadbayes.commands.options import data_options, nominal_options
+from loadbayes.commands.output import Progress, UserError, check_outputs, estimate_rows, user_errors
 
 TRUTH_COLUMNS = tuple(f"a{i}_true" for i in range(1, 7))
 _PLOT_MAX_POINTS = 20_000
 
 
-@track.command("zip")
+@click.command("zip")
 @click.argument("data", type=str)
 @click.option(
     "--out",
@@ -47,25 +41,14 @@ _PLOT_MAX_POINTS = 20_000
     help="Random-walk drift of the coefficients per sample, in units of the "
     "noise variance, instead of forgetting.",
 )
-@click.option("--v-col", default="v", show_default=True, help="Voltage column.")
-@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
-@click.option(
-    "--q-col",
-    default="q",
-    show_default=True,
-    help="Reactive-power column, or 'none' to track P only.",
-)
+@data_options(chunk_rows=100_000, q_help="Reactive-power column, or 'none' to track P only.")
 @click.option(
     "--t-col",
     default="t",
     show_default=True,
     help="Time column, copied to the output when present (else the row number).",
 )
-@click.option("--v0", type=float, default=1.0, show_default=True, help="Nominal voltage.")
-@click.option("--p0", type=float, default=1.0, show_default=True, help="Nominal P (numeric).")
-@click.option("--q0", type=float, default=1.0, show_default=True, help="Nominal Q (numeric).")
-@click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
-@click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
+@nominal_options(auto=False)
 @click.option(
     "--prob",
     type=click.FloatRange(0, 1, min_open=True, max_open=True),
@@ -87,8 +70,6 @@ _PLOT_MAX_POINTS = 20_000
     show_default=True,
     help="Prior guess of the noise sd, per unit of P0 (Q0).",
 )
-@click.option("--drop-invalid", is_flag=True, help="Drop rows with NaN, inf or V <= 0.")
-@click.option("--chunk-rows", type=click.IntRange(min=1), default=100_000, show_default=True)
 @click.option(
     "--plot",
     "plot_out",
@@ -143,9 +124,9 @@ def track_zip_cmd(
 
     import pandas as pd
 
-    from loadbayes.commands.exp import power_chunks
     from loadbayes.inference.online import OnlinePrior, OnlineTracker
     from loadbayes.io.atomic import atomic_write
+    from loadbayes.measurements import power_chunks
 
     q_name = None if q_col.lower() == "none" else q_col
     contrasts = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, -1.0]])

@@ -4,36 +4,29 @@ from __future__ import annotations
 
 import click
 
-from loadbayes.cli import fit
-from loadbayes.commands.common import (
+from loadbayes.commands.options import (
+    data_options,
+    nominal,
+    nominal_options,
+    output_options,
+    parse_coef_priors,
+    sampler_options,
+    tau_prior_options,
+)
+from loadbayes.commands.output import (
     Progress,
     UserError,
     check_outputs,
     estimate_rows,
-    nominal,
-    output_options,
-    parse_coef_priors,
-    sampler_options,
     user_errors,
     write_outputs,
 )
 
 
-@fit.command("zip")
+@click.command("zip")
 @click.argument("data", type=str)
-@click.option("--v-col", default="v", show_default=True, help="Voltage column.")
-@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
-@click.option(
-    "--q-col",
-    default="q",
-    show_default=True,
-    help="Reactive-power column, or 'none' to fit P only.",
-)
-@click.option("--v0", type=float, default=1.0, show_default=True, help="Nominal voltage.")
-@click.option("--p0", default="1.0", show_default=True, help="Nominal P, or 'auto'.")
-@click.option("--q0", default="1.0", show_default=True, help="Nominal Q, or 'auto'.")
-@click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
-@click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
+@data_options()
+@nominal_options()
 @click.option(
     "--scheme",
     type=click.Choice(["blocked", "single-site", "exact"]),
@@ -77,36 +70,11 @@ from loadbayes.commands.common import (
     metavar="NAME=MEAN,SD",
     help="Prior of one coefficient (a1, a2, a4, a5); repeatable.",
 )
-@click.option(
-    "--tau-shape",
-    type=click.FloatRange(min=0, min_open=True),
-    default=1e-3,
-    show_default=True,
-    help="Gamma prior shape of the noise precisions.",
-)
-@click.option(
-    "--tau-rate",
-    type=click.FloatRange(min=0, min_open=True),
-    default=1e-9,
-    show_default=True,
-    help="Gamma prior rate of the noise precisions.",
-)
+@tau_prior_options
 @click.option(
     "--conjugate",
     is_flag=True,
     help="Normal-gamma prior (coefficient precision scaled by tau); needed by --scheme exact.",
-)
-@click.option(
-    "--drop-invalid",
-    is_flag=True,
-    help="Drop rows with NaN, inf or non-positive voltage (and report how many).",
-)
-@click.option(
-    "--chunk-rows",
-    type=click.IntRange(min=1),
-    default=1 << 18,
-    show_default=True,
-    help="Rows read at a time (memory does not grow with the file).",
 )
 @output_options
 @user_errors
@@ -273,9 +241,10 @@ def _parse_nu(value: str) -> float | str:
 def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base, priors,
                    drop_invalid, chunk_rows, quiet, sampler):  # fmt: skip
     """Read the file into memory and fit the Student-t ZIP; flagged samples as file rows."""
-    from loadbayes.commands.exp import read_power_columns, relocate
-    from loadbayes.fit import MAX_OBSERVED, accumulate, fit_robust
+    from loadbayes.fit import accumulate, fit_robust
+    from loadbayes.fit.core import MAX_OBSERVED
     from loadbayes.io.errors import DataError
+    from loadbayes.measurements import read_power_columns, relocate
     from loadbayes.models.zip import ZIPModel
 
     q_name = None if q_col.lower() == "none" else q_col

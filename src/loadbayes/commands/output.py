@@ -1,4 +1,4 @@
-"""What every command shares: one-line user errors, output checks, progress, options."""
+"""What every command does with its outputs: one-line errors, output checks, progress, writing."""
 
 from __future__ import annotations
 
@@ -125,109 +125,6 @@ def estimate_rows(path: str) -> int | None:
         return None
 
 
-# ------------------------------------------------------------------ options shared
-def sampler_options(func):
-    """--draws --burn --chains --thin --seed --init --scheme --hdi-prob."""
-    opts = [
-        click.option(
-            "--draws",
-            type=click.IntRange(min=1),
-            default=40_000,
-            show_default=True,
-            help="Iterations per chain including burn-in (the paper's M).",
-        ),
-        click.option(
-            "--burn",
-            type=click.IntRange(min=0),
-            default=5_000,
-            show_default=True,
-            help="Leading iterations discarded (the paper's m).",
-        ),
-        click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True),
-        click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True),
-        click.option("--seed", type=int, default=0, show_default=True),
-        click.option(
-            "--init",
-            type=click.Choice(["prior", "dispersed"]),
-            default="prior",
-            show_default=True,
-            help="Start from a prior draw (the paper) or scattered around LS.",
-        ),
-        click.option(
-            "--hdi-prob",
-            type=click.FloatRange(0, 1, min_open=True, max_open=True),
-            default=0.95,
-            show_default=True,
-        ),
-    ]
-    for opt in reversed(opts):
-        func = opt(func)
-    return func
-
-
-def output_options(func):
-    """--json --netcdf --plot --quiet --force."""
-    opts = [
-        click.option(
-            "--json",
-            "json_out",
-            type=click.Path(dir_okay=False),
-            required=True,
-            help="Summary in the loadbayes JSON contract.",
-        ),
-        click.option(
-            "--netcdf",
-            "netcdf_out",
-            type=click.Path(dir_okay=False),
-            help="All draws as an ArviZ InferenceData NetCDF file.",
-        ),
-        click.option(
-            "--plot",
-            "plot_out",
-            type=click.Path(dir_okay=False),
-            help="Figure (PNG, SVG or PDF by extension).",
-        ),
-        click.option("--quiet", is_flag=True, help="No progress bar and no table on stdout."),
-        click.option("--force", is_flag=True, help="Overwrite existing outputs."),
-    ]
-    for opt in reversed(opts):
-        func = opt(func)
-    return func
-
-
-def nominal(value: str, name: str) -> float | str:
-    if value.strip().lower() == "auto":
-        return "auto"
-    try:
-        out = float(value)
-    except ValueError:
-        raise click.BadParameter(
-            f"{value!r} is neither a number nor 'auto'", param_hint=name
-        ) from None
-    if not (out == out and abs(out) != float("inf")) or out == 0:
-        raise click.BadParameter("must be a finite non-zero number or 'auto'", param_hint=name)
-    return out
-
-
-def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
-    out = {}
-    for item in items:
-        try:
-            name, rest = item.split("=", 1)
-            mean_s, sd_s = rest.split(",", 1)
-            mean, sd = float(mean_s), float(sd_s)
-        except ValueError:
-            raise click.BadParameter(
-                f"{item!r}: expected NAME=MEAN,SD such as a1=0.25,0.1", param_hint="--prior"
-            ) from None
-        if not sd > 0 or sd == float("inf") or mean != mean or abs(mean) == float("inf"):
-            raise click.BadParameter(
-                f"{item!r}: SD must be positive, MEAN finite", param_hint="--prior"
-            )
-        out[name.strip()] = (mean, sd)
-    return out
-
-
 def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet):
     """Write the JSON, NetCDF and figure; print the table unless quiet."""
     table = post.summary(hdi_prob=hdi_prob)
@@ -253,3 +150,12 @@ def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, forc
         cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
         click.echo(f"{post.model} posterior, {post.method}, n = {post.settings.get('n')}")
         click.echo(table[cols].to_string(float_format=lambda x: f"{x:.5g}"))
+
+
+def sidecar(path: str) -> Path | None:
+    """The JSON settings file written beside a data file (``data.csv`` -> ``data.json``)."""
+    if path == "-":
+        return None
+    p = Path(path)
+    side = p.with_suffix(".json")
+    return side if side != p else None
