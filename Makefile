@@ -39,7 +39,7 @@ bench: $(BENCH_VENV)/.installed
 	$(BENCH_VENV)/bin/python benchmarks/run_all.py
 
 validate: $(STAMP)
-	$(PY) -m loadbayes.experiments.validate --out results/validation
+	$(PY) -m loadbayes.studies.calibration.run --out results/validation
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) results .pytest_cache .ruff_cache

@@ -198,7 +198,7 @@ def test_reproduce_writes_results_and_its_report_section(tmp_path, monkeypatch) 
 
 
 def test_report_section_is_replaced_not_duplicated(tmp_path) -> None:
-    from loadbayes.experiments.im_study import update_report
+    from loadbayes.studies.im_paper import update_report
 
     path = tmp_path / "report.html"
     update_report(path, "<section id='im'>one</section>")

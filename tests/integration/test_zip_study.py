@@ -14,9 +14,9 @@ from click.testing import CliRunner
 
 pytest.importorskip("pandapower")
 
-from loadbayes.experiments import zip_study  # noqa: E402
 from loadbayes.io.errors import DataError  # noqa: E402
 from loadbayes.posterior import Posterior  # noqa: E402
+from loadbayes.studies import zip_paper as zip_study  # noqa: E402
 
 pytestmark = pytest.mark.integration
 

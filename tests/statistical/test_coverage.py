@@ -24,8 +24,8 @@ import warnings
 import numpy as np
 import pytest
 
-from loadbayes.validation.registry import BUS18_BAND, im_sampler, im_truth, zip_sampler
-from loadbayes.validation.sbc import hdi, run_coverage
+from loadbayes.studies.calibration.registry import BUS18_BAND, im_sampler, im_truth, zip_sampler
+from loadbayes.testing.sbc import hdi, run_coverage
 
 pytestmark = pytest.mark.statistical
 

@@ -17,7 +17,7 @@ A kernel handed a wrong sign in one term of the coefficient conditional (the dat
 ``(Z'r)_2`` or the prior term ``(m0)_2``) must fail the same check.
 
 Hook: ``sample_block`` cannot start from a given state yet; until it takes
-``init=(coef, tau)``, ``loadbayes.validation.geweke`` supplies the state by standing in
+``init=(coef, tau)``, ``loadbayes.testing.geweke`` supplies the state by standing in
 for ``loadbayes.inference.gibbs._initial`` (see ``sweep_from``).
 """
 
@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 from loadbayes.core.stats import RegressionStats
-from loadbayes.validation.geweke import (
+from loadbayes.testing.geweke import (
     GEWEKE_PRIOR,
     _state_init,
     gibbs_kernel,

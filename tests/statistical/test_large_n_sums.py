@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from loadbayes.core.stats import GramAccumulator
-from loadbayes.validation.sums import exact_entry, gram_bound, two_product, zip_chunks
+from loadbayes.studies.calibration.sums import exact_entry, gram_bound, two_product, zip_chunks
 
 pytestmark = pytest.mark.statistical
 

@@ -27,10 +27,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from loadbayes.experiments.model_choice import compare
 from loadbayes.fit import fit_exp, fit_robust, fit_zip
 from loadbayes.inference.online import OnlinePrior, track
 from loadbayes.models.zip import ZIPModel
+from loadbayes.studies.model_choice import compare
 
 pytestmark = pytest.mark.statistical
 

@@ -1,6 +1,6 @@
 """Simulation-based calibration (Talts et al. 2018) of every sampler in the registry.
 
-Each sampler under test (``loadbayes.validation.registry.REGISTRY``: ZIP blocked,
+Each sampler under test (``loadbayes.studies.calibration.registry.REGISTRY``: ZIP blocked,
 single-site, exact, blocked with the conjugate prior, unknown nominal power; the motor's
 three blocks in both forms and every scheme; the Student-t sampler with nu fixed and
 sampled; the online tracker, exact, windowed and with drift) is run on 500 data sets
@@ -32,8 +32,8 @@ import loadbayes.inference.linear as linear
 import loadbayes.inference.online as online
 import loadbayes.inference.robust as robust
 from loadbayes.core.stats import RegressionStats
-from loadbayes.validation.registry import REGISTRY
-from loadbayes.validation.sbc import run_sbc
+from loadbayes.studies.calibration.registry import REGISTRY
+from loadbayes.testing.sbc import run_sbc
 
 pytestmark = pytest.mark.statistical
 

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from loadbayes.experiments.model_choice import pointwise_loglik, verdict
 from loadbayes.fit import fit_exp, fit_zip
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel
 from loadbayes.posterior import Posterior
+from loadbayes.studies.model_choice import pointwise_loglik, verdict
 
 FAST = {"chains": 2, "draws": 1500, "burn": 400}
 

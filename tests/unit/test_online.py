@@ -166,7 +166,7 @@ def test_bad_data():
 
 
 def test_windowed_ls_baseline_matches_lstsq():
-    from loadbayes.experiments.tracking_study import windowed_ls
+    from loadbayes.studies.tracking import windowed_ls
 
     z, r = _data(200)
     mean, low, high = windowed_ls(z, r, 30)

@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from loadbayes.experiments import zip_study
-from loadbayes.experiments.zip_study import PAPER_TABLE2, error_pct, required_n, table2
+from loadbayes.studies import zip_paper as zip_study
+from loadbayes.studies.zip_paper import PAPER_TABLE2, error_pct, required_n, table2
 
 
 def test_error_pct_is_mean_absolute_relative_error_in_percent():

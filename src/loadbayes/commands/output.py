@@ -136,7 +136,7 @@ def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, forc
             post.to_netcdf(netcdf_out, force=force)
             written.append(str(netcdf_out))
         if plot_out:
-            from loadbayes.report.figures import plot_fit, save_figure
+            from loadbayes.plots import plot_fit, save_figure
 
             save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), plot_out, force=force)
             written.append(str(plot_out))

@@ -36,7 +36,7 @@ def run_zip(
     force: bool,
 ):
     """Run and write the ZIP study; return it (shared with ``reproduce all``)."""
-    from loadbayes.experiments import zip_study
+    from loadbayes.studies import zip_paper as zip_study
 
     def say(msg: str) -> None:
         if not quiet:
@@ -96,7 +96,7 @@ def run_zip(
 @user_errors
 def reproduce_zip_cmd(out, n, noise, seed, quick, workers, quiet, force):
     """The paper's ZIP study: data by power flow, GS/LS/KF, validation, Table II, sweep."""
-    from loadbayes.experiments import zip_study
+    from loadbayes.studies import zip_paper as zip_study
 
     root = check_root(out, zip_study.output_paths(out), force)
     study = run_zip(
@@ -137,7 +137,7 @@ def reproduce_zip_cmd(out, n, noise, seed, quick, workers, quiet, force):
 @user_errors
 def reproduce_im_cmd(out, motors, noise, seed, quick, quiet, force):
     """The paper's induction-motor study: Table I, Table III, Fig. 6, physical parameters."""
-    from loadbayes.experiments import im_study
+    from loadbayes.studies import im_paper as im_study
 
     root = Path(out)
     if root.exists() and not root.is_dir():
@@ -190,8 +190,9 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     time-varying loads (online tracking), and the choice between ZIP and exponential.
     """
     from loadbayes.cases.motor_sim import MOTORS
-    from loadbayes.experiments import im_study, zip_study
-    from loadbayes.report.html import write_report
+    from loadbayes.studies import im_paper as im_study
+    from loadbayes.studies import zip_paper as zip_study
+    from loadbayes.studies.report import write_report
 
     motors = list(MOTORS)
     targets = zip_study.output_paths(out) + im_study.output_paths(out, motors)
@@ -211,7 +212,9 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     im_study.write(ims, root, force=force)
     t_im = time.perf_counter() - t0
     t0 = time.perf_counter()
-    from loadbayes.experiments import model_choice, robust_study, tracking_study
+    from loadbayes.studies import model_choice
+    from loadbayes.studies import robust as robust_study
+    from loadbayes.studies import tracking as tracking_study
 
     past = []
     for name, mod in (("robust", robust_study), ("tracking", tracking_study),

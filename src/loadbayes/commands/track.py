@@ -222,7 +222,7 @@ def track_zip_cmd(
 
 
 def _plot(df, path, force, has_t, prob, t_col) -> None:
-    from loadbayes.report.figures import pyplot, save_figure
+    from loadbayes.plots import pyplot, save_figure
 
     plt = pyplot()
     step = max(len(df) // _PLOT_MAX_POINTS, 1)

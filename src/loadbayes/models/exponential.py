@@ -35,7 +35,7 @@ are offered:
 A paper-style user (additive Gaussian noise of 10% of P0 on P, as the paper's 33-bus
 experiments) gets the additive model by default: it is the model that generated such
 data, it does not break on samples with ``P <= 0``, and it is on the same scale as the
-ZIP fit, so a LOO comparison needs no Jacobian (:mod:`loadbayes.experiments.model_choice`
+ZIP fit, so a LOO comparison needs no Jacobian (:mod:`loadbayes.studies.model_choice`
 applies the ``1/P`` Jacobian when the multiplicative form is compared).
 
 The posterior comes back as :class:`~loadbayes.posterior.Posterior` with ``np`` (``nq``),

@@ -13,7 +13,7 @@ independent (the lag-1 autocorrelation of the kept draws is reported so that thi
 checked), otherwise the ranks pile up at the ends.
 
 A sampler under test is one :class:`SamplerUnderTest`: a prior simulator, a data
-simulator and a fit function. :data:`loadbayes.validation.registry.REGISTRY` holds one
+simulator and a fit function. :data:`loadbayes.studies.calibration.registry.REGISTRY` holds one
 per sampler; adding a sampler (a robust or an online estimator) means adding one entry
 there, and the SBC and coverage tests and ``make validate`` pick it up.
 

@@ -272,7 +272,7 @@ def text_table(study: RobustStudy) -> str:
 
 def html_section(study: RobustStudy) -> str:
     """The robust-estimation section of the report (an HTML ``<section>``)."""
-    from loadbayes.report.html import escape, table_html
+    from loadbayes.studies.report import escape, table_html
 
     st = study.settings
     t = study.table.copy()

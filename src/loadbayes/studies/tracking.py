@@ -282,7 +282,7 @@ def text_table(study: TrackingStudy) -> str:
 
 def figure(study: TrackingStudy):
     """Tracks of a1 and a3 at 1% noise, prediction-tuned, with 95% bands, and the truth."""
-    from loadbayes.report.figures import pyplot
+    from loadbayes.plots import pyplot
 
     plt = pyplot()
     tr = study.tracks.get("_truth")
@@ -319,7 +319,7 @@ def figure(study: TrackingStudy):
 
 def html_section(study: TrackingStudy) -> str:
     """The tracking section of the report (an HTML ``<section>``)."""
-    from loadbayes.report.html import figure_html, table_html
+    from loadbayes.studies.report import figure_html, table_html
 
     st = study.settings
     t = study.table.copy()

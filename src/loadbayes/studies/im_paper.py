@@ -380,7 +380,7 @@ def text_tables(study: ImStudy) -> str:
 # ----------------------------------------------------------------- figures
 def figures(study: ImStudy) -> dict[str, Any]:
     """Matplotlib figures: ``fig6_coefficients``, ``physical``, and ``eiv``."""
-    from loadbayes.report.figures import pyplot
+    from loadbayes.plots import pyplot
 
     plt = pyplot()
     out = {}
@@ -459,7 +459,7 @@ def figures(study: ImStudy) -> dict[str, Any]:
 
 
 def _png(fig: Any) -> bytes:
-    from loadbayes.report.figures import pyplot
+    from loadbayes.plots import pyplot
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
@@ -653,7 +653,7 @@ def _write_bytes(path: Path, data: bytes, force: bool) -> None:
 
 def update_report(path: str | Path, section: str) -> Path:
     """Put ``section`` into the report between the IM markers (see ``update_section``)."""
-    from loadbayes.report.html import update_section
+    from loadbayes.studies.report import update_section
 
     return update_section(path, section, mark=_MARK)
 

@@ -3,7 +3,7 @@
 Runs, with fixed seeds:
 
 - simulation-based calibration of every sampler in
-  :data:`loadbayes.validation.registry.REGISTRY` (default 1000 replications each);
+  :data:`loadbayes.studies.calibration.registry.REGISTRY` (default 1000 replications each);
 - coverage of the 95% HDI at fixed truths with the default priors (ZIP on the paper's
   bus-18 setting, the motor in both forms; default 4000 data sets each);
 - Geweke's joint-distribution test of the blocked and single-site Gibbs kernels, with the
@@ -16,7 +16,7 @@ Runs, with fixed seeds:
 
 Writes ``OUT/validation.json`` and ``OUT/validation.md``. Usage::
 
-    python -m loadbayes.experiments.validate --out results/validation [--quick] [--jobs N]
+    python -m loadbayes.studies.calibration --out results/validation [--quick] [--jobs N]
 
 ``--quick`` runs every part at a tiny size (a smoke test of the script, not a result).
 """
@@ -60,8 +60,8 @@ class Sizes:
 
 # ------------------------------------------------------------------------- the parts
 def _sbc(name: str, replications: int, seed: int) -> dict[str, Any]:
-    from loadbayes.validation.registry import REGISTRY
-    from loadbayes.validation.sbc import run_sbc
+    from loadbayes.studies.calibration.registry import REGISTRY
+    from loadbayes.testing.sbc import run_sbc
 
     res = run_sbc(REGISTRY[name], replications, seed=seed)
     out = res.to_dict()
@@ -75,8 +75,8 @@ def _broken_sbc(name: str, bug: str, replications: int, seed: int) -> dict[str, 
     import loadbayes.inference.bilinear as bilinear
     import loadbayes.inference.linear as linear
     from loadbayes.core.stats import RegressionStats
-    from loadbayes.validation.registry import REGISTRY
-    from loadbayes.validation.sbc import run_sbc
+    from loadbayes.studies.calibration.registry import REGISTRY
+    from loadbayes.testing.sbc import run_sbc
 
     def flip(x, j):
         y = np.array(x, dtype=float, copy=True)
@@ -130,8 +130,8 @@ def _broken_sbc(name: str, bug: str, replications: int, seed: int) -> dict[str, 
 
 
 def _coverage(which: str, datasets: int, seed: int) -> dict[str, Any]:
-    from loadbayes.validation.registry import BUS18_BAND, im_sampler, im_truth, zip_sampler
-    from loadbayes.validation.sbc import run_coverage
+    from loadbayes.studies.calibration.registry import BUS18_BAND, im_sampler, im_truth, zip_sampler
+    from loadbayes.testing.sbc import run_coverage
 
     if which == "zip":
         sut = zip_sampler(
@@ -159,7 +159,7 @@ def _coverage(which: str, datasets: int, seed: int) -> dict[str, Any]:
 
 def _geweke(scheme: str, conjugate: bool, bug: str | None, steps: int, seed: int):
     from loadbayes.core.stats import RegressionStats
-    from loadbayes.validation.geweke import GEWEKE_PRIOR, gibbs_kernel, run_geweke, zip_design
+    from loadbayes.testing.geweke import GEWEKE_PRIOR, gibbs_kernel, run_geweke, zip_design
 
     prior = GEWEKE_PRIOR
     if conjugate:  # the same prior sd at the prior-mean tau (4)
@@ -192,7 +192,7 @@ def _geweke(scheme: str, conjugate: bool, bug: str | None, steps: int, seed: int
 
 def _sums(rows: int, seed: int) -> dict[str, Any]:
     from loadbayes.core.stats import GramAccumulator
-    from loadbayes.validation.sums import exact_entry, gram_bound, zip_chunks
+    from loadbayes.studies.calibration.sums import exact_entry, gram_bound, zip_chunks
 
     t0 = time.perf_counter()
     names = ("z1", "z2", "1", "rp")
@@ -231,7 +231,7 @@ def _sums(rows: int, seed: int) -> dict[str, Any]:
 
 # --------------------------------------------------------------------------- driver
 def _tasks(sizes: Sizes) -> list[tuple[str, Callable[..., Any], tuple]]:
-    from loadbayes.validation.registry import REGISTRY
+    from loadbayes.studies.calibration.registry import REGISTRY
 
     tasks: list[tuple[str, Callable[..., Any], tuple]] = []
     for i, name in enumerate(sorted(REGISTRY)):
@@ -407,7 +407,7 @@ def _plain(x: Any) -> Any:
 
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point."""
-    ap = argparse.ArgumentParser(prog="python -m loadbayes.experiments.validate")
+    ap = argparse.ArgumentParser(prog="python -m loadbayes.studies.calibration")
     ap.add_argument("--out", default="results/validation", help="output folder")
     ap.add_argument("--quick", action="store_true", help="tiny sizes: a smoke test")
     ap.add_argument(

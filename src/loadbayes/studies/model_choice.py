@@ -339,7 +339,7 @@ def run(*, quick: bool = True, seed: int = 0) -> ModelChoice:
 
 def html_section(result: ModelChoice) -> str:
     """The model-choice section of the report (an HTML ``<section>``)."""
-    from loadbayes.report.html import escape, table_html
+    from loadbayes.studies.report import escape, table_html
 
     st = result.settings
     parts = [

@@ -1,4 +1,4 @@
-"""The samplers under test: one :class:`~loadbayes.validation.sbc.SamplerUnderTest` each.
+"""The samplers under test: one :class:`~loadbayes.testing.sbc.SamplerUnderTest` each.
 
 :data:`REGISTRY` is what the SBC and coverage tests (``tests/statistical``) and
 ``make validate`` iterate over. To put a new sampler under test (the exponential model,
@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
-from loadbayes.validation.sbc import SamplerUnderTest, draw_block_prior
+from loadbayes.testing.sbc import SamplerUnderTest, draw_block_prior
 
 __all__ = [
     "BUS18_BAND",

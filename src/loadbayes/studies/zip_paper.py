@@ -771,7 +771,7 @@ def figures(study: ZipStudy) -> dict[str, Any]:
     ``fig2_posterior``, ``fig3_voltage``, ``fig4_dv_dp``, ``fig5_burn_in``,
     ``fig8_errors``, ``pair_a1_a2``, ``sweep``.
     """
-    from loadbayes.report.figures import pyplot
+    from loadbayes.plots import pyplot
 
     plt = pyplot()
     out: dict[str, Any] = {}
@@ -943,7 +943,7 @@ def figures(study: ZipStudy) -> dict[str, Any]:
 
 
 def _png(fig: Any) -> bytes:
-    from loadbayes.report.figures import pyplot
+    from loadbayes.plots import pyplot
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
@@ -1265,14 +1265,14 @@ def _write_bytes(path: Path, data: bytes, force: bool) -> None:
 
 def marked(section: str, mark: str = _MARK) -> str:
     """``section`` between the begin and end markers of ``mark``."""
-    from loadbayes.report.html import marked as _marked
+    from loadbayes.studies.report import marked as _marked
 
     return _marked(section, mark)
 
 
 def update_report(path: str | Path, section: str, *, mark: str = _MARK) -> Path:
     """Put ``section`` into the report between the markers of ``mark`` (``update_section``)."""
-    from loadbayes.report.html import update_section
+    from loadbayes.studies.report import update_section
 
     return update_section(path, section, mark=mark)
 

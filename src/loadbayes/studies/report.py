@@ -37,7 +37,7 @@ code{background:#f3f3f3;padding:0 .2em}
 
 def figure_html(fig: Any, caption: str = "", *, dpi: int = 100) -> str:
     """Embed a matplotlib figure as a base64 PNG ``<figure>`` (and close the figure)."""
-    from loadbayes.report.figures import pyplot
+    from loadbayes.plots import pyplot
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
