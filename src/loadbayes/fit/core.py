@@ -25,6 +25,8 @@ __all__ = [
     "MAX_OBSERVED",
     "accumulate",
     "as_columns",
+    "METHODS",
+    "fit",
     "fit_gram",
     "fit_power_law",
     "prior_settings",
@@ -173,3 +175,129 @@ def fit_power_law(
         raw.update(model.from_power_law(block.name, th, c, tau))
         accept[block.name] = acc
     return raw, accept
+
+
+#: Methods of :func:`fit`, by name.
+METHODS = ("gibbs", "student-t", "least-squares", "kalman")
+
+
+def fit(
+    model: Any,
+    data: Any,
+    *,
+    method: str = "gibbs",
+    priors: Mapping[str, Any] | None = None,
+    scheme: Scheme = "blocked",
+    chains: int = 4,
+    draws: int = 40_000,
+    burn: int = 5_000,
+    thin: int = 1,
+    init: str = "prior",
+    seed: int = 0,
+    observed: Mapping[str, np.ndarray] | None = None,
+    settings: Mapping[str, Any] | None = None,
+    warnings: Iterable[str] = (),
+) -> Posterior:
+    """Posterior of any load model's parameters from in-memory data, by a method chosen by name.
+
+    The model says which likelihood pieces it has (``model.pieces``: ``"linear"`` blocks
+    read off a Gram matrix, or ``"power-law"`` blocks for Metropolis within Gibbs); this
+    function hands them to the matching sampler and wraps the draws in a
+    :class:`~loadbayes.posterior.Posterior`. Nothing here depends on what the blocks mean.
+
+    Parameters
+    ----------
+    model : object
+        A model of :mod:`loadbayes.models` (see :mod:`loadbayes.models.base`).
+    data : mapping or DataFrame
+        The model's input columns (``v``, ``p``, ``q`` ... in per unit).
+    method : {"gibbs", "student-t", "least-squares", "kalman"}
+        Conjugate Gibbs (or MwG for power-law pieces), the Student-t Gibbs sampler, or
+        the two baselines (returned as the same result type).
+    priors : mapping, optional
+        One prior per block; the model's weak defaults otherwise.
+    scheme : {"blocked", "single-site", "exact"}
+        Gibbs scheme of linear blocks.
+    chains, draws, burn, thin, init, seed
+        Sampler settings; ``draws`` includes burn-in.
+    observed, settings, warnings
+        Recorded with the result.
+
+    Returns
+    -------
+    Posterior
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+    cols = as_columns(data)
+    sampler = dict(chains=chains, draws=draws, burn=burn, thin=thin, seed=seed)
+    if method == "student-t":
+        from loadbayes.fit.robust import fit_robust
+
+        return fit_robust(
+            model, cols, priors=priors, init=init, observed=observed, settings=settings,
+            warnings=tuple(warnings), **sampler,
+        )  # fmt: skip
+    if method in ("least-squares", "kalman"):
+        from loadbayes.baselines.kalman import kalman
+        from loadbayes.baselines.least_squares import least_squares
+
+        kept = len(range(burn, draws, thin))
+        if method == "kalman":
+            return kalman(model, cols, chains=chains, draws=kept, seed=seed, settings=settings)
+        gram = accumulate(model, [cols])
+        return least_squares(model, gram, chains=chains, draws=kept, seed=seed, settings=settings)
+    pieces = getattr(model, "pieces", "linear")
+    if pieces not in ("linear", "power-law"):
+        raise ValueError(
+            f"fit() samples linear and power-law pieces; a {model.name!r} model with "
+            f"{pieces!r} pieces has its own driver in loadbayes.fit"
+        )
+    if pieces == "power-law":
+        priors = dict(priors or model.default_priors())
+        raw, accept = fit_power_law(model, cols, priors, **sampler)
+        n = int(next(iter(cols.values())).size)
+        full = dict(settings or {})
+        full.update(
+            n=n,
+            scheme="metropolis-within-gibbs",
+            chains=chains,
+            draws=draws,
+            burn=burn,
+            thin=thin,
+            init="scattered around nonlinear least squares",
+            seed=seed,
+            acceptance=accept,
+            priors={
+                ch: {
+                    "exponent": list(p.exponent),
+                    "linear_mean": p.linear.mean.tolist(),
+                    "linear_precision": p.linear.precision.tolist(),
+                    "shape": p.linear.shape,
+                    "rate": p.linear.rate,
+                }
+                for ch, p in priors.items()
+            },
+        )
+        return Posterior(
+            model.transform(raw),
+            model=model.name,
+            method="gibbs-mwg",
+            coefficients=model.coefficients,
+            free=model.free,
+            observed=observed,
+            settings=full,
+            warnings=list(warnings),
+        )
+    gram = accumulate(model, [cols])
+    return fit_gram(
+        model,
+        gram,
+        priors=priors or model.default_priors(),
+        scheme=scheme,
+        init=init,
+        observed=observed,
+        settings=settings,
+        warnings=warnings,
+        **sampler,
+    )

@@ -7,10 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.core import accumulate, as_columns, fit_gram, fit_power_law
+from loadbayes.fit.core import accumulate, as_columns, fit, fit_gram
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
-from loadbayes.posterior import Posterior
 
 __all__ = ["fit_exp"]
 
@@ -112,31 +111,6 @@ def fit_exp(
         )
         post.settings["scheme"] = "blocked (log-linear)"
         return post
-    priors = dict(priors or model.default_priors())
-    raw, accept = fit_power_law(
-        model, cols, priors, chains=chains, draws=draws, burn=burn, thin=thin, seed=seed
-    )
-    base.update(
-        n=int(v.size),
-        scheme="metropolis-within-gibbs",
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init="scattered around nonlinear least squares",
-        seed=seed,
-        acceptance=accept,
-        priors={
-            ch: {
-                "exponent": list(p.exponent),
-                "linear_mean": p.linear.mean.tolist(),
-                "linear_precision": p.linear.precision.tolist(),
-                "shape": p.linear.shape,
-                "rate": p.linear.rate,
-            }
-            for ch, p in priors.items()
-        },
-    )
     warn = list(warnings or [])
     span = float(np.ptp(v) / v0)
     if span < 0.02:
@@ -144,12 +118,15 @@ def fit_exp(
             f"voltage spans only {100 * span:.2g}% of v0: the exponent is poorly determined "
             "on so narrow a band."
         )
-    return Posterior(
-        model.transform(raw),
-        model="exp",
-        method="gibbs-mwg",
-        coefficients=model.coefficients,
-        free=model.free,
+    return fit(
+        model,
+        cols,
+        priors=priors,
+        chains=chains,
+        draws=draws,
+        burn=burn,
+        thin=thin,
+        seed=seed,
         observed=observed,
         settings=base,
         warnings=warn,

@@ -117,6 +117,11 @@ class ExponentialModel:
 
     name = "exp"
 
+    @property
+    def pieces(self) -> str:
+        """Likelihood pieces: log-linear blocks (multiplicative) or power-law blocks (additive)."""
+        return "linear" if self.noise == "multiplicative" else "power-law"
+
     def __post_init__(self) -> None:
         if not (np.isfinite(self.v0) and self.v0 > 0):
             raise ValueError(f"v0 must be positive, got {self.v0}")

@@ -127,6 +127,11 @@ class InductionMotorModel:
 
     name = "im"
 
+    @property
+    def pieces(self) -> str:
+        """Likelihood pieces: linear blocks (measured currents) or bilinear (modelled)."""
+        return "linear" if self.currents == "measured" else "bilinear"
+
     def __post_init__(self) -> None:
         if not (np.isfinite(self.f_hz) and self.f_hz > 0):
             raise ValueError(f"f_hz must be positive, got {self.f_hz}")

@@ -79,6 +79,8 @@ class ZIPModel:
 
     # ------------------------------------------------------------ structure
     name = "zip"
+    #: Likelihood pieces (:mod:`loadbayes.models.base`): conjugate linear blocks.
+    pieces = "linear"
 
     def _channels(self) -> list[tuple[str, Nominal, tuple[str, str, str]]]:
         out = [("p", self.p0, ("a1", "a2", "a3"))]
