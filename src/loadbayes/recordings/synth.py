@@ -28,6 +28,7 @@ def sag_profile(
     sags: Sequence[tuple[float, float, float]],
     *,
     ramp_s: float = 0.02,
+    recovery_s: float | None = None,
 ) -> np.ndarray:
     """A voltage magnitude (p.u.) of 1 with rectangular sags with short linear ramps.
 
@@ -38,7 +39,11 @@ def sag_profile(
     sags : sequence of (start_s, duration_s, depth_pu)
         Each sag takes the voltage from 1 down to ``1 - depth_pu``.
     ramp_s : float, default 0.02
-        Ramp time into and out of each sag (s).
+        Ramp time into each sag (s).
+    recovery_s : float, optional
+        Ramp time out of each sag (s); ``ramp_s`` by default. A slow recovery sweeps the
+        voltage through every level of the sag, which is what separates the Z, I and P
+        shares.
 
     Returns
     -------
@@ -49,7 +54,7 @@ def sag_profile(
     v = np.ones_like(t)
     for start, dur, depth in sags:
         up = np.clip((t - start) / ramp_s, 0.0, 1.0)
-        down = np.clip((t - start - dur) / ramp_s, 0.0, 1.0)
+        down = np.clip((t - start - dur) / (recovery_s or ramp_s), 0.0, 1.0)
         v -= depth * (up - down)
     return v
 
