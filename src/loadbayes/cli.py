@@ -52,3 +52,6 @@ from loadbayes.commands.recordings import events_cmd, read_group  # noqa: E402
 
 main.add_command(read_group)
 main.add_command(events_cmd)
+from loadbayes.commands.export import export_cmd  # noqa: E402
+
+main.add_command(export_cmd)
