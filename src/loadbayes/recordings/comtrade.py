@@ -301,6 +301,12 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
             )
 
     f, ln = rd.next("line frequency")
+    if len(f) != 1:
+        raise DataError(
+            f"line {ln}: expected the line frequency alone, got {len(f)} fields (do the "
+            f"channel counts on line {ln_counts} match the channel lines?)",
+            name,
+        )
     f_nominal = _num(f[0], "line frequency", name, ln)
     if not 1.0 <= f_nominal <= 1000.0:
         # An analog-channel line here means the counts on line 2 were too small.

@@ -180,14 +180,11 @@ def write_comtrade(
         prim_sec[:3] = [ratio] * 3
     units = ["kV"] * 3 + ["A"] * 3
     vals[:3] /= 1e3  # voltages written in kV, to exercise the unit scaling
-    if fmt == "ASCII":
-        a = np.full(6, 1e-6)
-        raw = np.round(vals / a[:, None])
-    elif fmt == "FLOAT32":
+    if fmt == "FLOAT32":
         a = np.ones(6)
         raw = vals.astype(np.float32)
     else:
-        top = 32000.0 if fmt == "BINARY" else 2.0e9
+        top = {"BINARY": 32000.0, "BINARY32": 2.0e9, "ASCII": 1.0e9}[fmt]
         a = np.maximum(np.abs(vals).max(axis=1), 1e-12) / top
         raw = np.round(vals / a[:, None])
     lines = []
