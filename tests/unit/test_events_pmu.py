@@ -87,8 +87,10 @@ def test_pmu_positive_sequence_and_per_phase(tmp_path, per_phase):
     df, s = _pmu_frame(per_phase=per_phase)
     path = tmp_path / "pmu.csv"
     df.to_csv(path, index=False)
-    cols = {"v_mag": "va_mag,vb_mag,vc_mag", "v_ang": "va_ang,vb_ang,vc_ang",
-            "i_mag": "ia_mag,ib_mag,ic_mag", "i_ang": "ia_ang,ib_ang,ic_ang"} if per_phase else {}  # fmt: skip
+    cols = {}
+    if per_phase:
+        cols = {f"{x}_{k}": ",".join(f"{x[0]}{ph}_{k}" for ph in "abc")
+                for x in ("v", "i") for k in ("mag", "ang")}  # fmt: skip
     m = load_map(None, voltage="kV", current="kA", freq="freq", v_kv=230.0, s_mva=100.0, **cols)
     rec = read_pmu(path, m)
     assert rec.report == []
