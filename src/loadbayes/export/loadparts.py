@@ -180,7 +180,12 @@ def load_parts(values: Mapping[str, float], *, model: str, options: Mapping[str,
         if "kpf" in values or "kqf" in values:
             notes.append("frequency dependence (kpf, kqf) is not exported")
     else:
-        sp, sq = _shares(values, ("a1", "a2", "a3")), _shares(values, ("a4", "a5", "a6"))
+        sp = _shares(values, ("a1", "a2", "a3"))
+        if "a4" in values or "a5" in values:
+            sq = _shares(values, ("a4", "a5", "a6"))
+        else:
+            sq = np.array([0.0, 0.0, 1.0])
+            notes.append("the posterior has no Q model (a4, a5): Q written as constant power")
     motor = None
     p_static, q_static, qz_extra = p_tot, q_tot, 0.0
     if model == "composite":
