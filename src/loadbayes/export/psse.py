@@ -72,7 +72,7 @@ CIM5_FIELDS = ("RA", "XA", "XM", "R1", "X1", "R2", "X2", "E1", "SE1", "E2", "SE2
 
 
 def _g(x: float) -> str:
-    return f"{x:.10g}"
+    return f"{x + 0.0:.10g}"  # + 0.0: no "-0"
 
 
 def _load_record(bus: int, load_id: str, p: tuple[float, float, float], q: tuple) -> str:
