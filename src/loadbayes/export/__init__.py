@@ -53,6 +53,8 @@ def get(fmt: str) -> ModuleType:
     try:
         return importlib.import_module(FORMATS[fmt])
     except ModuleNotFoundError as exc:
+        if exc.name == FORMATS[fmt]:
+            raise ValueError(f"the {fmt} export is not part of this loadbayes build") from None
         raise ValueError(
             f"the {fmt} export needs {exc.name!r}, which is not installed "
             f"(pip install 'loadbayes[{'grid' if fmt == 'pandapower' else fmt}]')"
