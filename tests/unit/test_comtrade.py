@@ -174,3 +174,42 @@ def test_kv_units_scale_to_volts(rec):
     w = read_comtrade(cfg)
     # 230 kV line to line: the phase peak is 230e3 * sqrt(2/3) volts before the sag.
     assert np.abs(w.v[0, :20]).max() == pytest.approx(230e3 * math.sqrt(2 / 3), rel=1e-3)
+
+
+def test_non_integer_and_multiple_rates_are_resampled(tmp_path):
+    from loadbayes.recordings.phasors import cycle_phasors, to_cycle_grid
+
+    coefs = (0.3, 0.2, 0.5, 0.6, 0.1, 0.3)
+    # 1 kHz at 60 Hz (16.7 samples per cycle), then 3 kHz: two rate segments.
+    t = np.concatenate([np.arange(500) / 1000.0, 0.499 + np.arange(1, 1501) / 3000.0])
+    v, i = zip_waveforms(t, np.full(t.size, 0.9), coefs, f_hz=60.0)
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision="2013", fmt="FLOAT32",
+                            f_nominal=60.0, rates=[(1000.0, 500), (3000.0, 2000)])  # fmt: skip
+    w = read_comtrade(cfg)
+    assert not w.uniform
+    np.testing.assert_allclose(w.t_s, t, atol=1e-9)
+    tg, vg, ig, rate = to_cycle_grid(w.t_s, w.v, w.i, f0=60.0, rate_hz=w.rate_hz, uniform=False)
+    assert rate == 60.0 * 50  # ceil(3000 / 60) samples per cycle
+    c = cycle_phasors(tg, vg, ig, f0=60.0, rate_hz=rate)
+    vb = 230e3 / math.sqrt(3)
+    # Cubic-spline error at 16.7 samples per cycle: ~5e-5 of the amplitude.
+    np.testing.assert_allclose(c["v"] / vb, 0.9, rtol=2e-4)
+    np.testing.assert_allclose(c["p"] / 100e6, 0.3 * 0.81 + 0.2 * 0.9 + 0.5, rtol=5e-4)
+    with pytest.raises(ValueError, match="fewer than 8 per 60 Hz cycle"):
+        to_cycle_grid(t[::10], v[:, ::10], i[:, ::10], f0=60.0, rate_hz=100.0, uniform=False)
+
+
+def test_lenient_on_what_real_files_vary_in(tmp_path):
+    t, v, i = _waves()
+    names = ("VAN", "VBN", "VCN", "IA", "IB", "IC")
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision="1999", names=names)
+    lines = cfg.read_text().splitlines()
+    for k in range(2, 8):
+        f = lines[k].split(",")
+        f[2] = ""  # no phase field: found from the name (VAN -> a)
+        f[4] = f[4].lower()  # "kv", "a"
+        lines[k] = ",".join(f[:10])  # the 1991 short form in a 1999 file: ratio 1
+    cfg.write_text("\n".join(lines) + "\n")
+    w = read_comtrade(cfg)
+    assert w.channels["va"] == "VAN" and w.channels["ic"] == "IC"
+    np.testing.assert_allclose(w.v, v, atol=1e-6 * np.abs(v).max())

@@ -72,11 +72,14 @@ def read_comtrade_cmd(cfg, out, voltage, current, side, v_base, s_base, quiet, f
     import numpy as np
 
     from loadbayes.recordings.comtrade import read_comtrade
-    from loadbayes.recordings.phasors import cycle_phasors
+    from loadbayes.recordings.phasors import cycle_phasors, to_cycle_grid
 
     w = read_comtrade(cfg, voltage=vnames, current=inames, side=side)
     try:
-        c = cycle_phasors(w.t_s, w.v, w.i, f0=w.f_nominal, rate_hz=w.rate_hz)
+        t, v, i, rate = to_cycle_grid(
+            w.t_s, w.v, w.i, f0=w.f_nominal, rate_hz=w.rate_hz, uniform=w.uniform
+        )
+        c = cycle_phasors(t, v, i, f0=w.f_nominal, rate_hz=rate)
     except ValueError as exc:
         raise UserError(f"{cfg}: {exc}") from None
     vb = v_base * 1e3 / math.sqrt(3) if v_base else float(c["v"][0])
@@ -86,10 +89,11 @@ def read_comtrade_cmd(cfg, out, voltage, current, side, v_base, s_base, quiet, f
     table = {"t_s": c["t_s"], "v": c["v"] / vb, "p": c["p"] / sb, "q": c["q"] / sb, "f": c["f"]}
     _write(table, out, force)
     if not quiet:
+        resampled = "" if rate == w.rate_hz else f", resampled to {rate:g}"
         click.echo(
             f"{out}: {len(c['t_s'])} cycles at {w.f_nominal:g} Hz nominal "
-            f"({w.rate_hz:g} samples/s); v base {vb * math.sqrt(3) / 1e3:.6g} kV l-l, "
-            f"s base {sb / 1e6:.6g} MVA; channels "
+            f"({w.rate_hz:g} samples/s{resampled}); v base "
+            f"{vb * math.sqrt(3) / 1e3:.6g} kV l-l, s base {sb / 1e6:.6g} MVA; channels "
             + ", ".join(f"{k}={v}" for k, v in w.channels.items()),
             err=True,
         )

@@ -20,7 +20,8 @@ reads it. Any problem is a
 (ASCII ``.dat``) or record (binary ``.dat``). Units ``V``/``kV``/``A``/``kA`` (and
 ``mV``, ``MV``, ``mA``) are converted to volts and amperes. Per-channel time skews
 (microseconds) are not applied: at 1 us they turn a 50 Hz phasor by 0.02 degrees.
-One sampling rate per record is supported.
+Records with several sampling rates or time stamps only are returned as sampled, marked
+not uniform, for :func:`~loadbayes.recordings.phasors.to_cycle_grid` to resample.
 """
 
 from __future__ import annotations
@@ -60,6 +61,10 @@ class Waveforms:
         First-sample time stamp as written in the ``.cfg``.
     channels : dict of str to str
         Which channels were used (``"va"`` -> channel name ...).
+    uniform : bool
+        Whether the samples are evenly spaced at ``rate_hz`` (records with several
+        rates, or time stamps only, are not: resample them with
+        :func:`loadbayes.recordings.phasors.to_cycle_grid`).
     """
 
     t_s: np.ndarray
@@ -69,6 +74,7 @@ class Waveforms:
     rate_hz: float
     start: str
     channels: dict[str, str]
+    uniform: bool = True
 
 
 # ----------------------------------------------------------------------- the .dat
@@ -158,10 +164,16 @@ def _load_samples(info: CfgInfo, cfg: Path, dat: Path):
 # ------------------------------------------------------------------ channel choice
 def _phase_key(ch: AnalogChannel) -> str | None:
     ph = ch.phase.strip().upper()
+    if len(ph) == 2 and ph.endswith("N"):
+        ph = ph[0]  # "AN": phase a to neutral
     for trio in _PHASES:
         if ph in trio:
             return "abc"[trio.index(ph)]
     tail = ch.name.strip().upper()
+    for suffix in ("-N", "_N", "N"):
+        if tail.endswith(suffix) and len(tail) > len(suffix) + 1:
+            tail = tail[: -len(suffix)]  # "VA-N", "VAN": phase to neutral
+            break
     for trio in _PHASES[:3]:
         for k, tag in enumerate(trio):
             if tail.endswith(tag) and len(tail) > len(tag):
@@ -184,7 +196,7 @@ def _pick(info: CfgInfo, names: list[str] | None, kind: str) -> list[AnalogChann
         return out
     base = "V" if kind == "voltage" else "A"
     cands = [ch for ch in info.analog if ch.unit.strip().upper().endswith(base)]
-    cands = [ch for ch in cands if ch.unit.strip() in _UNIT_SCALE]
+    cands = [ch for ch in cands if _unit_factor(ch.unit) is not None]
     found: dict[str, AnalogChannel] = {}
     for ch in cands:
         key = _phase_key(ch)
@@ -199,16 +211,24 @@ def _pick(info: CfgInfo, names: list[str] | None, kind: str) -> list[AnalogChann
     return [found["a"], found["b"], found["c"]]
 
 
+def _unit_factor(unit: str) -> float | None:
+    unit = unit.strip()
+    if unit in _UNIT_SCALE:
+        return _UNIT_SCALE[unit]
+    # Case is only meaningful for m/M (milli, mega); "kv", "KV", "a" are plain.
+    return {"V": 1.0, "KV": 1e3, "A": 1.0, "KA": 1e3}.get(unit.upper())
+
+
 def _scale(ch: AnalogChannel, values: np.ndarray, side: str, path: str) -> np.ndarray:
     unit = ch.unit.strip()
-    if unit not in _UNIT_SCALE:
+    factor = _unit_factor(unit)
+    if factor is None:
         raise DataError(
             f"line {ch.line}: channel {ch.name!r} unit {unit[:20]!r} is not one of "
             f"{', '.join(sorted(set(_UNIT_SCALE)))}",
             path,
         )
     ratio = ch.primary / ch.secondary
-    factor = _UNIT_SCALE[unit]
     if side == "primary" and ch.pors == "S":
         factor *= ratio
     elif side == "secondary" and ch.pors == "P":
@@ -240,13 +260,13 @@ def read_comtrade(
     Returns
     -------
     Waveforms
-        Times and phase waveforms (V, A), uniformly sampled.
+        Times and phase waveforms (V, A), as sampled (see ``Waveforms.uniform``).
 
     Raises
     ------
     DataError
         For a malformed ``.cfg`` (with its line), a missing or short ``.dat``, a
-        missing sample in a channel used, or several sampling rates.
+        missing sample in a channel used, or times that do not increase.
     """
     if side not in ("primary", "secondary"):
         raise ValueError(f"side must be 'primary' or 'secondary', not {side!r}")
@@ -260,21 +280,15 @@ def read_comtrade(
     ich = _pick(info, current, "current")
     t, analog = _load_samples(info, cfg, dat)
     t = t[: info.n_samples]
-    if info.rates[0][0] > 0 and len(info.rates) > 1:
-        raise DataError(
-            f"line {info.lines['rates']}: {len(info.rates)} sampling rates; one rate is "
-            "supported (resample the record first)",
-            info.path,
-        )
     dt = np.diff(t)
     if dt.size == 0 or not np.all(dt > 0):
-        raise DataError("sample times are not increasing", str(dat))
-    # The .cfg's rate is exact; the times may be rounded to the time base.
-    step = 1.0 / info.rates[0][0] if info.rates[0][0] > 0 else float(np.median(dt))
-    if np.max(np.abs(dt - step)) > 0.01 * step:
-        k = int(np.argmax(np.abs(dt - step)))
-        msg = f"sample {k + 2}: uneven sampling ({dt[k]:.3g} s vs {step:.3g} s)"
-        raise DataError(msg, str(dat))
+        k = int(np.argmax(dt <= 0)) if dt.size else 0
+        raise DataError(f"sample {k + 2}: sample times are not increasing", str(dat))
+    # One rate: the .cfg's rate is exact (the times are rounded to the time base).
+    # Several rates, or time stamps only (rate 0): sampled unevenly, resampled later.
+    one_rate = len(info.rates) == 1 and info.rates[0][0] > 0
+    rate = info.rates[0][0] if one_rate else float(1.0 / np.median(dt))
+    uniform = one_rate or bool(np.max(np.abs(dt * rate - 1.0)) < 0.01)
 
     def stack(chans):
         out = []
@@ -296,7 +310,8 @@ def read_comtrade(
         v=stack(vch),
         i=stack(ich),
         f_nominal=info.f_nominal,
-        rate_hz=1.0 / step,
+        rate_hz=rate,
+        uniform=uniform,
         start=info.start,
         channels=names,
     )

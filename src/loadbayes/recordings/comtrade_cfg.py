@@ -212,7 +212,9 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
     analog = []
     for k in range(n_a):
         f, ln = rd.next(f"analog channel {k + 1} of {n_a}")
-        if len(f) < 10 or (revision != "1991" and len(f) < 13):
+        # 10 fields is the 1991 form; later revisions add primary, secondary, PS. Files
+        # labelled 1999 or 2013 with the short form are read as 1991 lines (ratio 1, P).
+        if len(f) < 10:
             raise DataError(
                 f"line {ln}: analog channel {k + 1} has {len(f)} fields, expected {n_fields} "
                 f"(the counts on line {ln_counts} say {n_a} analog channels)",
@@ -227,7 +229,7 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
         a = _num(f[5], "multiplier a", name, ln)
         b = _num(f[6], "offset b", name, ln, default=0.0)
         skew = _num(f[7], "skew", name, ln, default=0.0)
-        if revision == "1991":
+        if revision == "1991" or len(f) < 13:
             primary, secondary, pors = 1.0, 1.0, "P"
         else:
             primary = _num(f[10], "primary", name, ln)

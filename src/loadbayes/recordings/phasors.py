@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CyclePhasors", "cycle_phasors", "samples_per_cycle"]
+__all__ = ["CyclePhasors", "cycle_phasors", "samples_per_cycle", "to_cycle_grid"]
 
 _A = np.exp(2j * np.pi / 3)
 
@@ -78,6 +78,72 @@ def samples_per_cycle(rate_hz: float, f0: float) -> int:
             f"frequency {f0:g} Hz: the one-cycle DFT needs whole cycles"
         )
     return n
+
+
+def to_cycle_grid(
+    t_s: np.ndarray,
+    v: np.ndarray,
+    i: np.ndarray,
+    *,
+    f0: float,
+    rate_hz: float,
+    uniform: bool = True,
+    n_min: int = 32,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Resample waveforms to a whole number of samples per nominal cycle, if needed.
+
+    Parameters
+    ----------
+    t_s : numpy.ndarray
+        Sample times (s), increasing.
+    v, i : numpy.ndarray
+        Shaped (3, n).
+    f0 : float
+        Nominal frequency (Hz).
+    rate_hz : float
+        Sampling rate (Hz) (the median one when not uniform).
+    uniform : bool, default True
+        Whether the samples are evenly spaced at ``rate_hz``.
+    n_min : int, default 32
+        Fewest samples per cycle of the new grid.
+
+    Returns
+    -------
+    t_s, v, i : numpy.ndarray
+        Unchanged when already uniform with a whole number of samples per cycle;
+        otherwise cubic-spline interpolated onto ``N = max(n_min, ceil(rate / f0))``
+        samples per cycle.
+    rate_hz : float
+        The rate of the returned samples.
+
+    Raises
+    ------
+    ValueError
+        If somewhere the samples are sparser than 8 per nominal cycle.
+
+    Notes
+    -----
+    A cubic spline through a sinusoid sampled k times per period errs by about
+    (2 pi / k)^4 / 384 of its amplitude: 5e-5 at k = 16.7 (1 kHz at 60 Hz), 3e-6 at 32.
+    """
+    ratio = rate_hz / f0
+    if uniform and abs(ratio - round(ratio)) <= 1e-6 * ratio and round(ratio) >= 8:
+        return t_s, v, i, rate_hz
+    from scipy.interpolate import CubicSpline
+
+    t_s = np.asarray(t_s, dtype=float)
+    widest = float(np.max(np.diff(t_s)))
+    if widest * f0 > 1 / 8:
+        k = int(np.argmax(np.diff(t_s)))
+        raise ValueError(
+            f"samples {k + 1} and {k + 2} are {widest:.3g} s apart: fewer than 8 per "
+            f"{f0:g} Hz cycle, too sparse for phasors"
+        )
+    n = max(n_min, int(np.ceil(ratio - 1e-9)))
+    new_rate = n * f0
+    grid = t_s[0] + np.arange(int(np.floor((t_s[-1] - t_s[0]) * new_rate)) + 1) / new_rate
+    vi = CubicSpline(t_s, np.vstack([v, i]), axis=1)(grid)
+    return grid, vi[:3], vi[3:], new_rate
 
 
 def _dft(x: np.ndarray, n: int) -> np.ndarray:

@@ -135,6 +135,7 @@ def write_comtrade(
     f_nominal: float = 50.0,
     ratio: tuple[float, float] | None = None,
     names: Sequence[str] = ("VA", "VB", "VC", "IA", "IB", "IC"),
+    rates: Sequence[tuple[float, int]] | None = None,
     force: bool = False,
 ) -> tuple[Path, Path]:
     """Write three-phase waveforms as a COMTRADE ``.cfg``/``.dat`` pair.
@@ -158,6 +159,9 @@ def write_comtrade(
         secondary values (``PS = S``), the currents as primary. 1999 and 2013 only.
     names : sequence of 6 str
         Channel names.
+    rates : sequence of (float, int), optional
+        The ``.cfg``'s sampling-rate segments (rate in Hz, last sample); ``t_s`` must
+        follow them. Default: one rate, from ``t_s``.
     force : bool
         Overwrite existing files.
 
@@ -200,7 +204,8 @@ def write_comtrade(
         if revision != "1991":
             fields += [f"{prim_sec[k][0]:g}", f"{prim_sec[k][1]:g}", pors[k]]
         lines.append(",".join(fields))
-    lines += [f"{f_nominal:g}", "1", f"{rate:.12g},{n}"]
+    segs = list(rates) if rates is not None else [(rate, n)]
+    lines += [f"{f_nominal:g}", str(len(segs))] + [f"{r:.12g},{e}" for r, e in segs]
     stamp = "01/02/2024,10:00:00.000000"
     lines += [stamp, stamp, fmt]
     if revision != "1991":
