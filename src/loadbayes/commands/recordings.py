@@ -183,8 +183,8 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
         raise UserError(f"{out}: --out is a file, expected a folder")
     if not folder.parent.exists():
         raise UserError(f"{out}: folder {folder.parent} does not exist")
-    data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["f", "rocof"],
-                           positive=["v"])  # fmt: skip
+    # v may be 0 (an interruption in a long record): not refused here.
+    data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["f", "rocof"])
     try:
         events = find_sags(
             data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,
