@@ -155,6 +155,18 @@ def write(
     parts = load_parts(values, model=model, options=options)
     cols = percentages(parts)
     net, src = _build_net(options)
+    if "const_z_q_percent" not in net.load.columns:
+        # pandapower < 2.14 (or a net saved by it): one pair of shares for P and Q.
+        same = all(abs(cols[f"const_{k}_p_percent"] - cols[f"const_{k}_q_percent"]) < 1e-9
+                   for k in ("z", "i"))  # fmt: skip
+        if not same:
+            raise ValueError(
+                f"pandapower {pp.__version__} has one const_z_percent / const_i_percent for "
+                "both P and Q; the fitted P and Q shares differ (pandapower >= 2.14 needed)"
+            )
+        cols = {"p_mw": cols["p_mw"], "q_mvar": cols["q_mvar"],
+                "const_z_percent": cols["const_z_p_percent"],
+                "const_i_percent": cols["const_i_p_percent"]}  # fmt: skip
     idx = options.get("load_index")
     if idx is not None:
         if int(idx) not in net.load.index:
@@ -179,8 +191,7 @@ def write(
             "so the fitted shares would be changed; merge or move them first"
         )
     notes = list(parts.notes)
-    if min(cols["const_z_p_percent"], cols["const_i_p_percent"], cols["const_z_q_percent"],
-           cols["const_i_q_percent"]) < 0:  # fmt: skip
+    if min(v for k, v in cols.items() if k.endswith("percent")) < 0:
         notes.append("a Z or I share is negative: pandapower takes it as is (exact)")
     if parts.motor is not None:
         m = parts.motor
