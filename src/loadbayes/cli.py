@@ -47,11 +47,10 @@ from loadbayes.commands import track as _track  # noqa: E402, F401
 from loadbayes.commands import zip as _zip  # noqa: E402, F401
 from loadbayes.commands import zip_study as _zip_study  # noqa: E402, F401
 
-# Recordings in (issue 13): `read comtrade|pmu`, `events`, and `export`.
+# Recordings in and simulator models out (issue 13): `read`, `events`, `export`.
+from loadbayes.commands.export import export_cmd  # noqa: E402
 from loadbayes.commands.recordings import events_cmd, read_group  # noqa: E402
 
 main.add_command(read_group)
 main.add_command(events_cmd)
-from loadbayes.commands.export import export_cmd  # noqa: E402
-
 main.add_command(export_cmd)
