@@ -213,3 +213,11 @@ def test_lenient_on_what_real_files_vary_in(tmp_path):
     w = read_comtrade(cfg)
     assert w.channels["va"] == "VAN" and w.channels["ic"] == "IC"
     np.testing.assert_allclose(w.v, v, atol=1e-6 * np.abs(v).max())
+
+
+def test_time_stamps_checked_and_a_missing_fraction_accepted(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 12, "01/02/2024,10:00:00")  # no fraction: the comtrade package crashes
+    assert read_comtrade(cfg).t_s.size == 320
+    _rewrite(cfg, 13, "01/02/2024,99999999999")
+    _error(cfg, "line 13", "time '99999999999' is not hh:mm:ss.ssssss")

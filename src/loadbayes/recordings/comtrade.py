@@ -145,16 +145,16 @@ def _load_samples(info: CfgInfo, cfg: Path, dat: Path):
 
     # The array options are read by the constructor (not by load()).
     rec = comtrade.Comtrade(ignore_warnings=True, use_numpy_arrays=True, use_double_precision=True)
-    encoding = "utf-8"
-    try:
-        cfg.read_bytes().decode("utf-8")
-    except UnicodeDecodeError:
-        encoding = "latin-1"
+    raw = dat.read_bytes()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            rec.load(str(cfg), str(dat), encoding=encoding)
-    except (ValueError, IndexError, comtrade.ComtradeError) as exc:
+            # The checked .cfg text (time stamps normalised) rather than the file.
+            if info.format == "ASCII":
+                rec.read(info.text, raw.decode("latin-1"))
+            else:
+                rec.read(info.text, raw)
+    except (ValueError, IndexError, TypeError, comtrade.ComtradeError) as exc:
         if info.format == "ASCII":
             raise _locate_ascii_error(dat, info.n_samples) from None
         raise DataError(f"cannot be read: {exc}", str(dat)) from None

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,6 +83,9 @@ class CfgInfo:
         First-sample time stamp as written.
     lines : dict of str to int
         Line numbers of the key fields (``"counts"``, ``"rates"``, ``"format"``).
+    text : str
+        The ``.cfg`` as checked, time stamps normalised (a missing fraction of a second
+        written as ``.0``), for the ``comtrade`` package to read.
     """
 
     path: str
@@ -96,6 +100,7 @@ class CfgInfo:
     timemult: float
     start: str
     lines: dict[str, int] = field(default_factory=dict)
+    text: str = ""
 
     @property
     def n_samples(self) -> int:
@@ -138,6 +143,27 @@ def _num(cell: str, what: str, path: str, line: int, kind=float, default=None):
     if kind is float and not math.isfinite(value):
         raise DataError(f"line {line}: {what} {cell!r} is not finite", path)
     return value
+
+
+_DATE = re.compile(r"\d{1,2}/\d{1,2}/\d{2,4}")
+_TIME = re.compile(r"(\d{1,2}):(\d{2}):(\d{1,2})(\.\d{1,12})?")
+
+
+def _stamp(cells: list[str], line: int, path: str) -> str:
+    """Check a ``dd/mm/yyyy,hh:mm:ss.ssssss`` line (either part may be empty); normalise it."""
+    if cells == [""]:
+        return ""
+    if len(cells) != 2:
+        raise DataError(f"line {line}: expected a time stamp date,time", path)
+    date, time = cells
+    if date and not _DATE.fullmatch(date):
+        raise DataError(f"line {line}: date {date[:20]!r} is not dd/mm/yyyy", path)
+    m = _TIME.fullmatch(time)
+    if time and m is None:
+        raise DataError(f"line {line}: time {time[:20]!r} is not hh:mm:ss.ssssss", path)
+    if m is not None and m.group(4) is None:
+        time += ".0"  # the comtrade package needs a fraction of a second
+    return f"{date},{time}"
 
 
 def _decode(raw: bytes) -> str:
@@ -280,8 +306,10 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
         if samp < 0 or end < 1 or (rates and end <= rates[-1][1]):
             raise DataError(f"line {ln}: sample rate {samp} / end sample {end} invalid", name)
         rates.append((samp, end))
-    start_cells, _ = rd.next("first-sample time stamp")
-    rd.next("trigger time stamp")
+    start_cells, ln = rd.next("first-sample time stamp")
+    rd.lines[ln - 1] = _stamp(start_cells, ln, name)
+    trig_cells, ln = rd.next("trigger time stamp")
+    rd.lines[ln - 1] = _stamp(trig_cells, ln, name)
     f, ln_ft = rd.next("data file type")
     fmt = f[0].upper()
     if fmt not in FORMATS:
@@ -310,4 +338,5 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
         timemult=timemult,
         start=",".join(start_cells),
         lines={"counts": ln_counts, "rates": ln_rates, "format": ln_ft},
+        text="\n".join(rd.lines) + "\n",
     )
