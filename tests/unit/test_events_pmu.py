@@ -147,3 +147,17 @@ def test_pmu_bad_input_named(tmp_path):
         load_map(bad)
     with pytest.raises(DataError, match="1 column .positive sequence. or 3"):
         load_map(None, v_mag="a,b")
+
+
+def test_pmu_mixed_zoned_and_naive_timestamps(tmp_path):
+    df, _ = _pmu_frame(n=4)
+    # UTC, naive Paris summer time (+02:00), a bare-hour offset, New York (-04:00).
+    df["timestamp"] = [
+        "2024-06-01T12:00:00Z",
+        "2024-06-01 14:00:00.02",
+        "2024-06-01T12:00:00.04+00",
+        "2024-06-01T08:00:00.06-04:00",
+    ]
+    df.to_csv(tmp_path / "pmu.csv", index=False)
+    rec = read_pmu(tmp_path / "pmu.csv", load_map(None, timezone="Europe/Paris"))
+    np.testing.assert_allclose(rec.data["t_s"], [0.0, 0.02, 0.04, 0.06], atol=1e-9)

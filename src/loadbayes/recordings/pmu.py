@@ -48,6 +48,8 @@ from loadbayes.io.errors import DataError
 __all__ = ["PmuMap", "PmuRecord", "load_map", "read_pmu"]
 
 _A = np.exp(2j * np.pi / 3)
+# A time of day followed by a UTC offset or Z: the timestamp carries its zone.
+_OFFSET = r"[T ]\d{1,2}:\d{2}(?::\d{2}(?:\.\d+)?)?\s*(?:Z|[+-]\d{2}(?::?\d{2})?)$"
 _V_UNITS = {"V": 1.0, "kV": 1e3}
 _I_UNITS = {"A": 1.0, "kA": 1e3}
 
@@ -210,20 +212,27 @@ def _times(df, m: PmuMap, name: str) -> np.ndarray:
         secs = _numeric(df, m.time, name)
         return np.round(secs * 1e9).astype("int64")
     text = raw.astype(str).str.strip()
-    try:
-        ts = pd.to_datetime(text, errors="coerce", utc=False, format="ISO8601")
-    except (ValueError, TypeError):
-        # Offsets that differ row to row: parse each to UTC.
-        ts = pd.to_datetime(text, errors="coerce", utc=True, format="ISO8601")
-    if ts.isna().any():
-        k = int(np.flatnonzero(ts.isna().to_numpy())[0])
+    # Timestamps with an offset (Z, +02:00) go straight to UTC; those without are read in
+    # the mapping's zone. Parsed apart: pandas refuses (or warns on) a mix of the two.
+    aware = text.str.contains(_OFFSET, regex=True).to_numpy()
+    out = np.zeros(len(text), dtype="int64")
+    bad = np.zeros(len(text), dtype=bool)
+    for part in (aware, ~aware):
+        if not part.any():
+            continue
+        ts = pd.to_datetime(text[part], errors="coerce", utc=part is aware, format="ISO8601")
+        bad[part] = ts.isna().to_numpy()
+        if part is not aware:
+            try:
+                ts = ts.dt.tz_localize(m.timezone)
+            except Exception as exc:  # unknown zone, or a local time that does not exist
+                raise DataError(f"timezone {m.timezone!r}: {exc}", name, m.time) from None
+        utc = ts.dt.tz_convert("UTC").dt.tz_localize(None)
+        out[part] = utc.to_numpy(dtype="datetime64[ns]").astype("int64")
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
         raise DataError(f"not an ISO 8601 timestamp: {text.iloc[k][:30]!r}", name, m.time, k + 1)
-    if getattr(ts.dt, "tz", None) is None:
-        try:
-            ts = ts.dt.tz_localize(m.timezone)
-        except Exception as exc:  # unknown zone, or a local time that does not exist
-            raise DataError(f"timezone {m.timezone!r}: {exc}", name, m.time) from None
-    return ts.dt.tz_convert("UTC").to_numpy(dtype="datetime64[ns]").astype("int64")
+    return out
 
 
 def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
