@@ -230,6 +230,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     for path, _, _ in jobs:
         if path.resolve() == Path(posterior).resolve():
             raise UserError(f"{path}: --out would overwrite the posterior")
+        if net_file and path.resolve() == Path(net_file).resolve():
+            raise UserError(f"{path}: --out would overwrite the --net it starts from")
         if not path.parent.is_dir():
             raise UserError(f"{path}: folder {path.parent} does not exist")
         related = [path, *(path.with_suffix(s) for s in writer.SUFFIXES)]

@@ -179,7 +179,7 @@ def write(
             net.load.at[idx, k] = v
         net.load.at[idx, "name"] = "loadbayes fit"
     else:
-        bus = int(options.get("bus") or net.bus.index[0])
+        bus = int(options["bus"]) if options.get("bus") is not None else int(net.bus.index[0])
         if bus not in net.bus.index:
             raise ValueError(f"bus {bus} is not in the net")
         idx = pp.create_load(net, bus, name="loadbayes fit", **cols)

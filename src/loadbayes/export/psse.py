@@ -200,7 +200,7 @@ def write(
     opts = dict(options)
     opts.setdefault("s_base_mva", 100.0)
     sbase = float(opts["s_base_mva"] or 100.0)
-    bus = int(opts.get("bus") or 1)
+    bus = int(opts["bus"]) if opts.get("bus") is not None else 1
     if not 1 <= bus <= 999_997:
         raise ValueError(f"PSS/E bus numbers run from 1 to 999997, got {bus}")
     parts = load_parts(values, model=model, options=opts)
