@@ -375,10 +375,10 @@ class ChainDraws:
 
 
 def run_chain(
+    seed: np.random.SeedSequence,
     data: HierData,
     prior: HierPrior,
     sampler: SamplerSettings,
-    seed: np.random.SeedSequence,
 ) -> ChainDraws:
     """Run one Gibbs chain of the pooled model (see the module notes)."""
     gen = np.random.default_rng(seed)
