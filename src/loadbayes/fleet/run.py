@@ -22,8 +22,8 @@ from loadbayes.models.zip import ZIPModel
 __all__ = ["FleetResult", "fleet_statistics", "run_fleet"]
 
 #: Buses fitted per task: large enough to amortise a task, small enough for memory
-#: (4 chains x 2,500 draws x 8 parameters x 8 bytes = 640 kB per bus). Fixed, so that
-#: the batches, and hence every result, are the same for any number of workers.
+#: (4 chains x 2,500 draws x 8 parameters x 8 bytes = 640 kB per bus). Each bus's
+#: summary is computed on its own series, so results do not depend on the batches.
 BATCH_BUSES = 256
 
 
@@ -105,6 +105,7 @@ def run_fleet(
     progress_files: Callable[[int], None] | None = None,
     progress_buses: Callable[[int], None] | None = None,
     on_stats: Callable[[FleetStats], None] | None = None,
+    batch_buses: int = BATCH_BUSES,
 ) -> FleetResult:
     """Fit ZIP to every bus of a fleet.
 
@@ -133,6 +134,8 @@ def run_fleet(
         Called with counts of files read and buses fitted.
     on_stats : callable, optional
         Called with the statistics once the map-reduce is done (before the fits).
+    batch_buses : int
+        Buses per fitting task (results do not depend on it).
 
     Returns
     -------
@@ -149,7 +152,8 @@ def run_fleet(
         on_stats(stats)
     if pool == "none":
         nb = stats.buses.size
-        batches = [np.arange(b0, min(b0 + BATCH_BUSES, nb)) for b0 in range(0, nb, BATCH_BUSES)]
+        step = int(batch_buses)
+        batches = [np.arange(b0, min(b0 + step, nb)) for b0 in range(0, nb, step)]
         frames = eng.map(
             _fit_batch,
             batches,

@@ -257,7 +257,10 @@ def merge(parts: Iterable[PartialStats]) -> PartialStats:
     DataError
         If a bus has different classes in different files.
     """
-    parts = [p for p in parts if p.buses.size] or list(parts)[:1]
+    given = list(parts)
+    if not given:
+        raise ValueError("merge needs at least one PartialStats")
+    parts = [p for p in given if p.buses.size] or given[:1]
     if len(parts) == 1:
         return parts[0]
     names = parts[0].names
