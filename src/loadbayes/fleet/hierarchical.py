@@ -34,9 +34,12 @@ then the Bartlett variates of ``Sigma``: the draws depend on the seed only, not 
 worker runs the chain.
 
 Shrinkage of a bus (reported per bus): with ``theta_hat`` its own least-squares estimate,
-``|E theta_b - theta_hat| / (|E theta_b - theta_hat| + |E theta_b - E mu_c|)`` (Euclidean,
-on the coefficients): 0 where the bus stays where its own data put it, 1 where it sits on
-its class mean. A bus whose own data cannot identify its coefficients (no voltage spread,
+``|E theta_b - theta_hat|_J / (|E theta_b - theta_hat|_J + |E theta_b - E mu_c|_J)``,
+distances measured in the bus's own data precision ``J_b`` (at the posterior mean of
+``tau``): 0 where the bus stays where its own data put it, 1 where it sits on its class
+mean. The metric matters: along the a1-a2 ridge a bus's data say little, and a move
+along it is no departure from them (a Euclidean ratio called data-rich buses 80%
+shrunk because of such moves). A bus whose own data cannot identify its coefficients (no voltage spread,
 as many distinct voltages as coefficients or fewer) has shrinkage 1.
 """
 
@@ -469,8 +472,17 @@ def summarize_chains(
         post_mean = np.stack([summ[p]["mean"] for p in data.params], axis=1)  # (m, d)
         mu_mean = np.mean([c.mu.mean(axis=0) for c in chains], axis=0)  # (C, d)
         own = data.theta_ls[b0:b1].reshape(b1 - b0, d)
-        to_own = np.linalg.norm(post_mean - own, axis=1)
-        to_cls = np.linalg.norm(post_mean - mu_mean[data.cls[b0:b1]], axis=1)
+        tau_mean = np.stack([summ[t]["mean"] for t in data.taus], axis=1)  # (m, nch)
+        ztz = data.ztz[b0:b1]
+
+        def dist(e: np.ndarray) -> np.ndarray:
+            # the bus's own data precision as metric: sum_ch tau_ch e_ch' Z'Z e_ch
+            e = e.reshape(e.shape[0], -1, 2)
+            q = np.einsum("bci,bij,bcj->bc", e, ztz, e)
+            return np.sqrt(np.maximum((tau_mean * q).sum(axis=1), 0.0))
+
+        to_own = dist(post_mean - own)
+        to_cls = dist(post_mean - mu_mean[data.cls[b0:b1]])
         with np.errstate(invalid="ignore", divide="ignore"):
             shrink = np.where(data.identified[b0:b1], to_own / (to_own + to_cls), 1.0)
         frames.append(
