@@ -21,9 +21,12 @@ SPEC = ReadSpec(class_col="customer_class")
 @pytest.fixture(scope="module")
 def client():
     # One cluster for the module: starting one costs seconds.
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster, distributed.Client(cluster) as c:
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as c,
+    ):
         yield c
 
 
