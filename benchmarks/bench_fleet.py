@@ -29,7 +29,6 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_zip import PeakRSS, machine  # noqa: E402
-
 from loadbayes.fleet.engine import Engine  # noqa: E402
 from loadbayes.fleet.generate import fleet_truth, write_fleet  # noqa: E402
 from loadbayes.fleet.partitions import ReadSpec  # noqa: E402

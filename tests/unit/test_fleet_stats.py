@@ -60,7 +60,8 @@ def test_statistics_are_bit_identical_for_any_partitioning(tmp_path):
         sub.drop(columns="bus_id").iloc[::-1].to_csv(d / "part-0.csv", index=False)
     model = ZIPModel()
     results = []
-    for data, chunk in ((tmp_path / "all.csv", 300), (tmp_path / "split", 64), (tmp_path / "hive", 1000)):  # fmt: skip
+    cases = ((tmp_path / "all.csv", 300), (tmp_path / "split", 64), (tmp_path / "hive", 1000))
+    for data, chunk in cases:
         spec = ReadSpec(class_col="customer_class", chunk_rows=chunk)
         parts = [partition_stats(p, spec, model) for p in find_partitions(str(data))]
         results.append(finish(merge(parts)))
@@ -99,8 +100,12 @@ def test_a_bus_in_two_classes_is_refused_by_name(tmp_path):
 def test_thin_and_flat_buses_get_warning_rows_not_a_crash(tmp_path, pool):
     rng = np.random.default_rng(4)
     good = _fleet_frame(rng, 400)
-    thin = pd.DataFrame({"bus_id": "thin", "customer_class": "x", "v": [1.0, 1.02], "p": [1.0, 1.01], "q": [1.0, 1.0]})  # fmt: skip
-    flat = pd.DataFrame({"bus_id": "flat", "customer_class": "x", "v": 1.01, "p": rng.normal(1, 0.01, 50), "q": 1.0})  # fmt: skip
+    thin = pd.DataFrame(
+        {"bus_id": "thin", "customer_class": "x", "v": [1.0, 1.02], "p": [1.0, 1.01], "q": 1.0}
+    )
+    flat = pd.DataFrame(
+        {"bus_id": "flat", "customer_class": "x", "v": 1.01, "p": rng.normal(1, 0.01, 50), "q": 1}
+    )
     pd.concat([good, thin, flat]).to_parquet(tmp_path / "f.parquet")
     res = run_fleet(
         str(tmp_path / "f.parquet"),

@@ -39,8 +39,8 @@ distances measured in the bus's own data precision ``J_b`` (at the posterior mea
 ``tau``): 0 where the bus stays where its own data put it, 1 where it sits on its class
 mean. The metric matters: along the a1-a2 ridge a bus's data say little, and a move
 along it is no departure from them (a Euclidean ratio called data-rich buses 80%
-shrunk because of such moves). A bus whose own data cannot identify its coefficients (no voltage spread,
-as many distinct voltages as coefficients or fewer) has shrinkage 1.
+shrunk because of such moves). A bus whose own data cannot identify its coefficients
+(no voltage spread, as many distinct voltages as coefficients or fewer) has shrinkage 1.
 """
 
 from __future__ import annotations
@@ -444,6 +444,13 @@ def _third(params: Sequence[str]) -> dict[str, tuple[str, str]]:
     return out
 
 
+def _data_distance(e: np.ndarray, ztz: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Length of ``e`` in each bus's own data precision: sum_ch tau_ch e_ch' Z'Z e_ch."""
+    e = e.reshape(e.shape[0], -1, 2)
+    q = np.einsum("bci,bij,bcj->bc", e, ztz, e)
+    return np.sqrt(np.maximum((tau * q).sum(axis=1), 0.0))
+
+
 def summarize_chains(
     data: HierData,
     chains: Sequence[ChainDraws],
@@ -475,14 +482,8 @@ def summarize_chains(
         tau_mean = np.stack([summ[t]["mean"] for t in data.taus], axis=1)  # (m, nch)
         ztz = data.ztz[b0:b1]
 
-        def dist(e: np.ndarray) -> np.ndarray:
-            # the bus's own data precision as metric: sum_ch tau_ch e_ch' Z'Z e_ch
-            e = e.reshape(e.shape[0], -1, 2)
-            q = np.einsum("bci,bij,bcj->bc", e, ztz, e)
-            return np.sqrt(np.maximum((tau_mean * q).sum(axis=1), 0.0))
-
-        to_own = dist(post_mean - own)
-        to_cls = dist(post_mean - mu_mean[data.cls[b0:b1]])
+        to_own = _data_distance(post_mean - own, ztz, tau_mean)
+        to_cls = _data_distance(post_mean - mu_mean[data.cls[b0:b1]], ztz, tau_mean)
         with np.errstate(invalid="ignore", divide="ignore"):
             shrink = np.where(data.identified[b0:b1], to_own / (to_own + to_cls), 1.0)
         frames.append(
