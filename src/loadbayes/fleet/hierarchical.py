@@ -247,6 +247,7 @@ def _mu_terms(cls, ztz, ztr, tau, sig_inv, prec, lin):  # pragma: no cover - com
     u = np.empty(d)
     e = np.empty(d)
     col = np.empty(d)
+    mrow = np.empty(d)
     for b in range(cls.shape[0]):
         c = cls[b]
         for i in range(d):
@@ -266,23 +267,22 @@ def _mu_terms(cls, ztz, ztr, tau, sig_inv, prec, lin):  # pragma: no cover - com
             _chol_solve(lm, e, col, d)
             for i in range(d):
                 inv[i, j] = col[i]
-        # prec += S^-1 - S^-1 A S^-1 ; lin += S^-1 A u   (S^-1 = sig_inv[c], A = inv)
+        # prec += S^-1 - M S^-1, lin += M u, with M = S^-1 A (S^-1 = sig_inv[c], A = inv)
         for i in range(d):
+            for k in range(d):
+                acc = 0.0
+                for j in range(d):
+                    acc += sig_inv[c, i, j] * inv[j, k]
+                mrow[k] = acc
+            acc = 0.0
+            for k in range(d):
+                acc += mrow[k] * u[k]
+            lin[c, i] += acc
             for j in range(d):
                 acc = 0.0
                 for k in range(d):
-                    sa = 0.0
-                    for m in range(d):
-                        sa += sig_inv[c, i, m] * inv[m, k]
-                    acc += sa * sig_inv[c, k, j]
+                    acc += mrow[k] * sig_inv[c, k, j]
                 prec[c, i, j] += sig_inv[c, i, j] - acc
-            acc = 0.0
-            for k in range(d):
-                sa = 0.0
-                for m in range(d):
-                    sa += sig_inv[c, i, m] * inv[m, k]
-                acc += sa * u[k]
-            lin[c, i] += acc
 
 
 @njit(cache=True, nogil=True)
