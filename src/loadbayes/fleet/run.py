@@ -19,7 +19,7 @@ from loadbayes.inference.priors import BlockPrior
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 
-__all__ = ["FleetResult", "fleet_statistics", "run_fleet"]
+__all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "run_fleet"]
 
 #: Buses fitted per task: large enough to amortise a task, small enough for memory
 #: (4 chains x 2,500 draws x 8 parameters x 8 bytes = 640 kB per bus). Each bus's
@@ -144,12 +144,46 @@ def run_fleet(
     if pool not in ("none", "class"):
         raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
     eng = engine or Engine()
-    sampler = sampler or SamplerSettings()
     stats, model, files = fleet_statistics(
         data, spec, v0=v0, p0=p0, q0=q0, engine=eng, progress=progress_files
     )
     if on_stats is not None:
         on_stats(stats)
+    table = fit_fleet(
+        stats,
+        model,
+        pool=pool,
+        priors=priors,
+        hyper=hyper,
+        sampler=sampler,
+        engine=eng,
+        netcdf_dir=netcdf_dir,
+        force=force,
+        progress_buses=progress_buses,
+        batch_buses=batch_buses,
+    )
+    return FleetResult(table, stats, files, eng.name)
+
+
+def fit_fleet(
+    stats: FleetStats,
+    model: ZIPModel,
+    *,
+    pool: str = "none",
+    priors: Mapping[str, BlockPrior] | None = None,
+    hyper: hier.HierPrior | None = None,
+    sampler: SamplerSettings | None = None,
+    engine: Engine | None = None,
+    netcdf_dir: str | None = None,
+    force: bool = False,
+    progress_buses: Callable[[int], None] | None = None,
+    batch_buses: int = BATCH_BUSES,
+) -> pd.DataFrame:
+    """The fits of :func:`run_fleet` from statistics already computed (same options)."""
+    if pool not in ("none", "class"):
+        raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
+    eng = engine or Engine()
+    sampler = sampler or SamplerSettings()
     if pool == "none":
         nb = stats.buses.size
         step = int(batch_buses)
@@ -177,7 +211,7 @@ def run_fleet(
             frames = [hier.summarize_chains(data_h, chains, sampler), failed]
         if progress_buses:
             progress_buses(stats.buses.size)
-    return FleetResult(concat(frames), stats, files, eng.name)
+    return concat(frames)
 
 
 def _fit_batch(idx, stats, model, priors, sampler, netcdf_dir, force):
