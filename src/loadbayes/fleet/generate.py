@@ -232,7 +232,7 @@ def ieee33_fleet(
         e_p = rng.standard_normal(loads.size)
         e_q = rng.standard_normal(loads.size)
         try:
-            pp.runpp(net, tolerance_mva=1e-10)
+            pp.runpp(net, tolerance_mva=1e-10, numba=False)  # 33 buses: compiling costs more
         except pp.LoadflowNotConverged:
             continue
         out.append(
