@@ -37,6 +37,29 @@ from loadbayes.fleet.perbus import SamplerSettings  # noqa: E402
 from loadbayes.fleet.run import fit_fleet, fleet_statistics  # noqa: E402
 
 SAMPLER = SamplerSettings(chains=4, draws=2500, burn=500)
+
+
+def cpu_seconds() -> float:
+    """CPU time (user + system) of this process and of its live children (the workers).
+
+    On a machine shared with other jobs, wall time measures the neighbours too; CPU time
+    is what the fleet itself costs (wall time on an idle machine is about CPU time over
+    the workers, when the work divides evenly).
+    """
+    import psutil
+
+    me = psutil.Process()
+    procs = [me, *me.children(recursive=True)]
+    total = 0.0
+    for p in procs:
+        try:
+            t = p.cpu_times()
+        except psutil.Error:
+            continue
+        total += t.user + t.system
+    return total
+
+
 SPEC = ReadSpec(class_col="customer_class")
 
 
@@ -68,15 +91,17 @@ def main() -> None:
         with Engine(workers=workers) as eng:
             row = {"engine": eng_name}
             with PeakRSS() as peak:
-                t = time.perf_counter()
+                t, c = time.perf_counter(), cpu_seconds()
                 stats, model, files = fleet_statistics(str(folder), SPEC, engine=eng)
                 row["stats_s"] = time.perf_counter() - t
+                row["stats_cpu_s"] = cpu_seconds() - c
             row["stats_peak_mb"] = peak.mb
             for pool in args.pools.split(","):
                 with PeakRSS() as peak:
-                    t = time.perf_counter()
+                    t, c = time.perf_counter(), cpu_seconds()
                     table = fit_fleet(stats, model, pool=pool, sampler=SAMPLER, engine=eng)
                 row[f"{pool}_fit_s"] = time.perf_counter() - t
+                row[f"{pool}_fit_cpu_s"] = cpu_seconds() - c
                 row[f"{pool}_peak_mb"] = peak.mb
                 tables.setdefault(pool, []).append(table)
             results.append(row)
@@ -101,6 +126,7 @@ def main() -> None:
         "results": results,
         "efficiency_2_workers": eff,
         "identical_across_engines": identical,
+        "load_average_at_end": list(__import__("os").getloadavg()),
     }
     Path(args.out).write_text(json.dumps(out, indent=2))
     print("wrote", args.out)
