@@ -96,7 +96,7 @@ def main() -> None:
                 row["stats_s"] = time.perf_counter() - t
                 row["stats_cpu_s"] = cpu_seconds() - c
             row["stats_peak_mb"] = peak.mb
-            for pool in args.pools.split(","):
+            for pool in [p for p in args.pools.split(",") if p]:
                 with PeakRSS() as peak:
                     t, c = time.perf_counter(), cpu_seconds()
                     table = fit_fleet(stats, model, pool=pool, sampler=SAMPLER, engine=eng)
@@ -111,7 +111,7 @@ def main() -> None:
     base = df.set_index("engine")
     eff = {}
     if {"1", "2"} <= set(base.index):
-        for col in ("stats_s", "none_fit_s", "class_fit_s"):
+        for col in [c for c in ("stats_s", "none_fit_s", "class_fit_s") if c in base]:
             eff[col] = float(base.loc["1", col] / (2 * base.loc["2", col]))
     print(df.to_string(float_format=lambda x: f"{x:.1f}"))
     print("parallel efficiency on 2 workers:", {k: round(v, 2) for k, v in eff.items()})
