@@ -1,23 +1,20 @@
 """ANDES as the independent simulator: a ZIP load and a ``Motor3`` on one bus, under a fault.
 
-The case is built in code (ANDES 2.0), four buses in a row::
-
-    bus 1 (Slack, infinite) --Z_src-- bus 2 (Fault) --Z_feed-- bus 3 (PQ -> ZIP, Motor3, BusFreq)
-
-The Slack's voltage is set by Ohm's law so that the power flow puts bus 3 at ``v0`` (the
-ZIP's reference voltage in both programs); the motor is sized so that it draws the share
-``f_m`` of ``p0`` there. A three-phase fault at bus 2 with reactance ``xf`` (found by a few
-short runs so that the deepest load-bus voltage during the fault is ``1 - sag_depth``
-times ``v0``) makes the event. ANDES integrates it (implicit trapezoid, fixed step).
+The case is :mod:`loadbayes.cases.andes_case` (infinite bus, network bus, load bus; the
+power flow puts the load bus at ``v0`` with the motor drawing the share ``f_m`` of
+``p0``), plus a ``BusFreq`` at the load bus and a three-phase ``Fault`` at the network bus
+whose reactance ``xf`` is found by a few short runs so that the deepest load-bus voltage
+during the fault is ``(1 - sag_depth) v0``. ANDES integrates the event (implicit
+trapezoid, fixed step).
 
 The record (:class:`AndesEvent`) has, at ANDES's own time points, the load bus's
 ``t_s, v, angle_rad, f`` (Hz, from ANDES's ``BusFreq``), the load's ``p, q`` (system p.u.,
 load convention, computed from the feeder's current so that they are what a meter at the
-bus would see), the motor's own ``p_motor, q_motor`` (ANDES's ``Motor3.p, q``) and states
-``slip, e1d, e1q`` (ANDES frame), its torques ``tm, te`` (system base), and
-``p_static, q_static = p - p_motor, q - q_motor``.
-:attr:`AndesEvent.truth` holds the parameters in loadbayes's naming contract
-(``docs/andes.md``). ANDES runs in a temporary output folder with its logging silenced.
+bus would see), the motor's own ``p_motor, q_motor`` (ANDES's ``Motor3.p, q``), states
+``slip, e1d, e1q`` (ANDES frame) and torques ``tm, te`` (system base), and
+``p_static, q_static = p - p_motor, q - q_motor``. :attr:`AndesEvent.truth` holds the
+parameters in loadbayes's naming contract (``docs/andes.md``). ANDES runs in a temporary
+output folder with its logging and warnings silenced.
 """
 
 from __future__ import annotations
@@ -31,21 +28,12 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from loadbayes.cases.andes_motor3 import (
-    andes_quiet,
-    motor3_fields,
-    solve_power_flow,
-    zip_fields,
-)
+from loadbayes.cases.andes_case import Z_FEED, CompositeCase, add_composite
+from loadbayes.cases.andes_motor3 import andes_quiet, solve_power_flow
 from loadbayes.cases.motor_sim import DEFAULT_T0, MOTORS
 from loadbayes.models.motor import MotorParams, steady_state
 
 __all__ = ["AndesEvent", "fault_reactance_guess", "simulate"]
-
-VN_KV = 110.0
-"""Nominal voltage of every bus and device (kV); equal everywhere so ANDES rescales nothing."""
-Z_FEED = complex(0.002, 0.02)
-"""Feeder impedance between the fault bus and the load bus (system p.u.)."""
 
 
 @dataclass(frozen=True)
@@ -92,50 +80,35 @@ class AndesEvent:
         return pd.DataFrame(cols, columns=list(self.record.columns))
 
 
-def _load_side(motor: MotorParams, t0: float, mva_m: float, v0: float, s_static: complex):
-    # Norton equivalent of the load bus just after a fault: the static load as its
-    # pre-fault admittance, the motor as E' behind (Rs + j X') / mva_m (system base).
-    op = steady_state(motor, v_pu=v0, t0=t0)
-    z_m = complex(motor.rs, motor.xp) / mva_m
-    y_load = s_static.conjugate() / v0**2 + 1.0 / z_m
-    return complex(op.ed, op.eq) / z_m, y_load
+def fault_reactance_guess(depth: float, case: CompositeCase, fault_s: float) -> float:
+    """Fault reactance at bus 2 that drops the load bus to ``(1 - depth) v0`` by the fault's end.
 
-
-def fault_reactance_guess(
-    depth: float,
-    *,
-    v_src: complex,
-    z_src: complex,
-    motor: MotorParams,
-    t0: float,
-    mva_m: float,
-    v0: float,
-    s_static: complex,
-) -> float:
-    """Fault reactance that drops the load bus to ``(1 - depth) v0`` at the fault instant.
-
-    A linear-circuit estimate (Ohm's and Kirchhoff's laws on the four-bus case, static
-    load as its pre-fault admittance, motor as its transient EMF behind its transient
-    impedance); :func:`simulate` then corrects it on ANDES's own result.
+    A linear-circuit estimate (nodal equations of buses 2 and 3; the static load as its
+    pre-fault admittance, the motor as its transient EMF behind its transient impedance
+    ``(Rs + j X') / mva_m``, its EMF moving from ``E'0`` towards ``(1 - depth) E'0`` with
+    the short-circuit time constant ``T' X' / X`` over the fault); :func:`simulate` then
+    corrects it on ANDES's own result.
 
     Returns
     -------
     float
         ``xf`` in system p.u., within ``[1e-4, 1e3]``.
     """
-    i_m, y3 = _load_side(motor, t0, mva_m, v0, s_static)
-
-    def v3(xf: float) -> float:
-        y2 = 1.0 / z_src + 1.0 / (1j * xf) + 1.0 / Z_FEED
-        # Nodal equations of buses 2 and 3 (source and motor as current injections).
-        a = np.array([[y2, -1.0 / Z_FEED], [-1.0 / Z_FEED, 1.0 / Z_FEED + y3]])
-        rhs = np.array([v_src / z_src, i_m])
-        return abs(np.linalg.solve(a, rhs)[1])
-
-    target = (1.0 - depth) * v0
+    y3 = (case.static_pq - 1j * case.q_c).conjugate() / case.v0**2
+    i_m = 0j
+    if case.motor is not None:
+        op = steady_state(case.motor, v_pu=case.v0, t0=case.t0)
+        z_m = complex(case.motor.rs, case.motor.xp) / case.mva_m
+        decay = math.exp(-fault_s / (case.motor.tp_s * case.motor.xp / case.motor.x))
+        emf = complex(op.ed, op.eq) * ((1.0 - depth) + depth * decay)
+        y3, i_m = y3 + 1.0 / z_m, emf / z_m
+    y_feed, y_src = 1.0 / Z_FEED, 1.0 / case.z_src
 
     def gap(log_xf: float) -> float:
-        return v3(math.exp(log_xf)) - target
+        y2 = y_src + y_feed + 1.0 / (1j * math.exp(log_xf))
+        nodal = np.array([[y2, -y_feed], [-y_feed, y_feed + y3]])
+        v3 = np.linalg.solve(nodal, np.array([case.v_src * y_src, i_m]))[1]
+        return abs(v3) - (1.0 - depth) * case.v0
 
     lo, hi = math.log(1e-4), math.log(1e3)
     if gap(lo) >= 0:
@@ -150,31 +123,13 @@ def _run(spec: dict[str, Any], xf: float, t_end_s: float) -> dict[str, np.ndarra
 
     with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
         ss = andes.System(no_output=True, default_config=True, output_path=tmp)
-        ss.config.mva = spec["base_mva"]
-        for idx, name in ((1, "source"), (2, "fault"), (3, "load")):
-            ss.add("Bus", {"idx": idx, "name": name, "Vn": VN_KV, "v0": spec["v0"]})
-        v_src = spec["v_src"]
-        ss.add(
-            "Slack",
-            {"idx": 1, "bus": 1, "Vn": VN_KV, "Sn": spec["base_mva"], "v0": abs(v_src),
-             "a0": float(np.angle(v_src))},
-        )  # fmt: skip
-        for idx, (b1, b2, z) in enumerate(((1, 2, spec["z_src"]), (2, 3, Z_FEED)), start=1):
-            ss.add(
-                "Line",
-                {"idx": idx, "bus1": b1, "bus2": b2, "r": z.real, "x": z.imag, "b": 0.0,
-                 "Vn1": VN_KV, "Vn2": VN_KV, "Sn": spec["base_mva"]},
-            )  # fmt: skip
-        s_pq = spec["s_static"] + 1j * spec["q_c"]  # the ZIP's own part, before the shunt
-        ss.add("PQ", {"idx": 1, "bus": 3, "Vn": VN_KV, "p0": s_pq.real, "q0": s_pq.imag})
-        ss.add("ZIP", {"idx": 1, "pq": 1, **zip_fields(spec["a_p"], spec["a_q"])})
-        if spec["q_c"]:
-            b = spec["q_c"] / spec["v0"] ** 2
-            ss.add("Shunt", {"idx": 1, "bus": 3, "Vn": VN_KV, "Sn": spec["base_mva"], "b": b})
-        ss.add("Motor3", {"idx": 1, "bus": 3, **spec["motor3"]})
-        ss.add("BusFreq", {"idx": 1, "bus": 3, "fn": spec["motor"].f_hz})
+        ids = add_composite(ss, spec["case"])
+        ss.add("BusFreq", {"idx": 1, "bus": ids["load_bus"], "fn": spec["f_hz"]})
         t_f = spec["fault_start_s"]
-        ss.add("Fault", {"idx": 1, "bus": 2, "tf": t_f, "tc": t_f + spec["fault_s"], "xf": xf})
+        ss.add(
+            "Fault",
+            {"idx": 1, "bus": ids["net_bus"], "tf": t_f, "tc": t_f + spec["fault_s"], "xf": xf},
+        )
         ss.setup()
         solve_power_flow(ss)
         ss.TDS.config.tf = t_end_s
@@ -192,12 +147,13 @@ def _run(spec: dict[str, Any], xf: float, t_end_s: float) -> dict[str, np.ndarra
         def col(var: Any, k: int = 0, states: bool = False) -> np.ndarray:
             return (x if states else y)[:, int(var.a[k])].copy()
 
+        net, load = ss.Bus.idx2uid([ids["net_bus"], ids["load_bus"]])
         out = {
             "t": np.asarray(ts.t, dtype=float).copy(),
-            "v2": col(ss.Bus.v, 1),
-            "a2": col(ss.Bus.a, 1),
-            "v3": col(ss.Bus.v, 2),
-            "a3": col(ss.Bus.a, 2),
+            "v2": col(ss.Bus.v, net),
+            "a2": col(ss.Bus.a, net),
+            "v3": col(ss.Bus.v, load),
+            "a3": col(ss.Bus.a, load),
             "f": col(ss.BusFreq.f),
             "p_motor": col(ss.Motor3.p),
             "q_motor": col(ss.Motor3.q),
@@ -287,58 +243,60 @@ def simulate(
         If ANDES fails (power flow or time-domain simulation).
     """
     params = MOTORS[motor] if isinstance(motor, str) else motor
-    if not (0 < f_m <= 1 and p0 > 0 and v0 > 0 and 0 < sag_depth < 1):
-        raise ValueError("need 0 < f_m <= 1, p0 > 0, v0 > 0 and 0 < sag_depth < 1")
-    if not (0 < fault_start_s and fault_s > 0 and t_end_s > fault_start_s + fault_s):
-        raise ValueError("need 0 < fault_start_s and the fault to end before t_end_s")
-    op = steady_state(params, v_pu=v0, t0=t0)
-    mva_m = f_m * p0 / op.p
-    s_total = complex(p0, q0)
-    s_static = s_total - mva_m * complex(op.p, op.q)  # ZIP and shunt together
-    z_total = z_src + Z_FEED
-    v_src = v0 + z_total * (s_total / v0).conjugate()  # bus 3 at v0, angle 0 (Ohm's law)
-    spec = {
-        "motor": params,
-        "motor3": motor3_fields(params, t0=t0, mva_m=mva_m, base_mva=base_mva, vn_kv=VN_KV),
-        "a_p": tuple(zip_p),
-        "a_q": tuple(zip_q),
-        "s_static": s_static,
-        "q_c": float(q_c),
+    if not (0 < sag_depth < 1 and 0 < fault_start_s and fault_s > 0):
+        raise ValueError("need 0 < sag_depth < 1, fault_start_s > 0 and fault_s > 0")
+    if not t_end_s > fault_start_s + fault_s:
+        raise ValueError("the fault must end before t_end_s")
+    values = {
+        **{k: getattr(params, k) for k in ("rs", "xs", "xm", "rr", "xr", "h_s", "a", "b", "c")},
+        **dict(zip(("a1", "a2", "a3"), zip_p, strict=True)),
+        **dict(zip(("a4", "a5", "a6"), zip_q, strict=True)),
+        "f_hz": params.f_hz,
+        "p0": p0,
+        "q0": q0,
         "v0": v0,
-        "v_src": v_src,
-        "z_src": z_src,
-        "base_mva": base_mva,
+        "f_m": f_m,
+        "t0": t0,
+        "q_c": q_c,
+    }
+    case = CompositeCase.from_values(values, with_motor=True, base_mva=base_mva, z_src=z_src)
+    spec = {
+        "case": case,
+        "f_hz": params.f_hz,
         "fault_start_s": fault_start_s,
         "fault_s": fault_s,
         "step_s": step_s,
     }
-    xf = fault_reactance_guess(
-        sag_depth, v_src=v_src, z_src=z_src, motor=params, t0=t0, mva_m=mva_m, v0=v0,
-        s_static=s_static,
-    )  # fmt: skip
-    t_fault_end = fault_start_s + fault_s + 2 * step_s
-    tried: list[tuple[float, float]] = []
-    for _ in range(max_runs - 1):
-        depth = _sag_depth(_run(spec, xf, t_fault_end), spec)
-        tried.append((math.log(xf), depth))
-        if abs(depth - sag_depth) <= depth_tol:
-            break
+    xf = fault_reactance_guess(sag_depth, case, fault_s)
+    # First the whole event; if its sag misses the target, secant steps on log xf with
+    # runs that stop at the fault's end, then the whole event again.
+    raw = _run(spec, xf, t_end_s)
+    tried = [(math.log(xf), _sag_depth(raw, spec))]
+    runs = 1
+    while abs(tried[-1][1] - sag_depth) > depth_tol and runs < max_runs:
         if len(tried) == 1:
-            # Depth falls with xf roughly as 1 / (1 + xf / x_th): step in log xf.
-            xf *= math.exp((depth - sag_depth) / max(depth * (1 - depth), 0.05))
+            # Depth falls with xf roughly as 1 / (1 + xf / x_th): a step in log xf.
+            d = tried[0][1]
+            xf *= math.exp((d - sag_depth) / max(d * (1 - d), 0.05))
         else:
             (x1, d1), (x2, d2) = tried[-2], tried[-1]
             slope = (d2 - d1) / (x2 - x1) if x2 != x1 else -0.2
             xf = math.exp(x2 + (sag_depth - d2) / (slope if slope < 0 else -0.2))
-        xf = min(max(xf, 1e-4), 1e3)
-    raw = _run(spec, xf, t_end_s)
-    return _event(raw, spec, xf, t0, mva_m, sag_depth, t_end_s)
+        xf = min(max(xf, 1e-4, math.exp(tried[-1][0]) / 10), 1e3, math.exp(tried[-1][0]) * 10)
+        last = runs == max_runs - 1
+        raw = _run(spec, xf, t_end_s if last else fault_start_s + fault_s + 2 * step_s)
+        tried.append((math.log(xf), _sag_depth(raw, spec)))
+        runs += 1
+    if raw["t"][-1] < t_end_s - 1e-9:
+        raw = _run(spec, xf, t_end_s)
+    return _event(raw, spec, xf, sag_depth, t_end_s)
 
 
-def _event(raw, spec, xf, t0, mva_m, target, t_end_s) -> AndesEvent:
+def _event(raw, spec, xf, target, t_end_s) -> AndesEvent:
     import andes
 
-    params: MotorParams = spec["motor"]
+    case: CompositeCase = spec["case"]
+    params = case.motor
     v2 = raw["v2"] * np.exp(1j * raw["a2"])
     v3 = raw["v3"] * np.exp(1j * raw["a3"])
     s = v3 * np.conj((v2 - v3) / Z_FEED)  # power into the load bus, load convention
@@ -362,7 +320,7 @@ def _event(raw, spec, xf, t0, mva_m, target, t_end_s) -> AndesEvent:
         }
     )
     p0, q0 = float(s[0].real), float(s[0].imag)
-    (a1, a2, a3), (a4, a5, a6) = spec["a_p"], spec["a_q"]
+    (a1, a2, a3), (a4, a5, a6) = case.a_p, case.a_q
     truth = {
         "p0": p0,
         "q0": q0,
@@ -383,9 +341,9 @@ def _event(raw, spec, xf, t0, mva_m, target, t_end_s) -> AndesEvent:
         "a": params.a,
         "b": params.b,
         "c": params.c,
-        "t0": t0,
-        "mva_m": mva_m,
-        "q_c": spec["q_c"],
+        "t0": case.t0,
+        "mva_m": case.mva_m,
+        "q_c": case.q_c,
         "x_prime": params.xp,
         "x_open": params.x,
         "t_prime_s": params.tp_s,
@@ -395,10 +353,10 @@ def _event(raw, spec, xf, t0, mva_m, target, t_end_s) -> AndesEvent:
     settings = {
         "simulator": f"ANDES {andes.__version__}",
         "motor_name": params.name,
-        "base_mva": spec["base_mva"],
-        "z_src": [spec["z_src"].real, spec["z_src"].imag],
+        "base_mva": case.base_mva,
+        "z_src": [case.z_src.real, case.z_src.imag],
         "z_feed": [Z_FEED.real, Z_FEED.imag],
-        "v_src": [abs(spec["v_src"]), float(np.angle(spec["v_src"]))],
+        "v_src": [abs(case.v_src), float(np.angle(case.v_src))],
         "fault_bus": 2,
         "load_bus": 3,
         "fault_start_s": spec["fault_start_s"],
@@ -409,7 +367,7 @@ def _event(raw, spec, xf, t0, mva_m, target, t_end_s) -> AndesEvent:
         "step_s": spec["step_s"],
         "t_end_s": t_end_s,
         "integrator": "ANDES TDS, implicit trapezoid, fixed step",
-        "motor3": spec["motor3"],
+        "motor3": case.motor3(),
     }
     record.attrs.update({"truth": truth, "settings": settings})
     return AndesEvent(record=record, truth=truth, settings=settings, motor=params)
