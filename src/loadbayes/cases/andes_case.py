@@ -2,13 +2,14 @@
 
 Three buses in a row, all at ``VN_KV``, on the system base ``base_mva``::
 
-    bus 1 (Slack: infinite bus) --z_src-- bus 2 (network) --Z_FEED-- bus 3 (the load)
+    source (Slack: infinite bus) --z_src-- network bus --Z_FEED-- load bus
 
 The load bus carries a ``PQ`` replaced in the time domain by a ``ZIP`` (the static part),
 a ``Motor3`` and, when ``q_c`` is not zero, a ``Shunt`` capacitor. The Slack's voltage is
 set by Ohm's law so that the power flow puts the load bus at ``v0`` with angle 0: the
 ZIP's reference voltage is then ``v0`` in ANDES as in loadbayes, and the motor sits at
-loadbayes's steady state there. A fault or other event is added at bus 2 by the caller.
+loadbayes's steady state there. A fault or other event is added at the network bus by
+the caller.
 
 The parameter set follows the naming contract (docs/andes.md); the split of ``p0, q0``
 is the one of :mod:`loadbayes.cases.composite_reference`.
@@ -32,7 +33,6 @@ VN_KV = 110.0
 """Nominal voltage of every bus and device (kV); equal everywhere so ANDES rescales nothing."""
 Z_FEED = complex(0.002, 0.02)
 """Feeder impedance between bus 2 and the load bus (system p.u.)."""
-BUS_SOURCE, BUS_NET, BUS_LOAD = 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -136,7 +136,7 @@ def _shares(values: Mapping[str, float], names: tuple[str, str, str]) -> tuple:
     return shares
 
 
-def add_composite(system: Any, case: CompositeCase) -> dict[str, Any]:
+def add_composite(system: Any, case: CompositeCase, *, load_bus: int = 3) -> dict[str, Any]:
     """Add the three buses, the source, the lines and the load devices to an ANDES system.
 
     Parameters
@@ -145,6 +145,8 @@ def add_composite(system: Any, case: CompositeCase) -> dict[str, Any]:
         A system not yet set up (``System()`` or ``andes.load(..., setup=False)``).
     case : CompositeCase
         The load.
+    load_bus : int
+        The load bus's idx; the infinite bus and the network bus get the next two.
 
     Returns
     -------
@@ -154,14 +156,15 @@ def add_composite(system: Any, case: CompositeCase) -> dict[str, Any]:
     """
     base, v_src = case.base_mva, case.v_src
     system.config.mva = base
-    for idx, name in ((BUS_SOURCE, "source"), (BUS_NET, "network"), (BUS_LOAD, "load")):
+    bus_load, bus_source, bus_net = load_bus, load_bus + 1, load_bus + 2
+    for idx, name in ((bus_load, "load"), (bus_source, "source"), (bus_net, "network")):
         system.add("Bus", {"idx": idx, "name": name, "Vn": VN_KV, "v0": case.v0})
     system.add(
         "Slack",
-        {"idx": 1, "bus": BUS_SOURCE, "Vn": VN_KV, "Sn": base, "v0": abs(v_src),
+        {"idx": 1, "bus": bus_source, "Vn": VN_KV, "Sn": base, "v0": abs(v_src),
          "a0": float(np.angle(v_src))},
     )  # fmt: skip
-    lines = ((BUS_SOURCE, BUS_NET, case.z_src), (BUS_NET, BUS_LOAD, Z_FEED))
+    lines = ((bus_source, bus_net, case.z_src), (bus_net, bus_load, Z_FEED))
     for idx, (b1, b2, z) in enumerate(lines, start=1):
         system.add(
             "Line",
@@ -169,15 +172,15 @@ def add_composite(system: Any, case: CompositeCase) -> dict[str, Any]:
              "Vn1": VN_KV, "Vn2": VN_KV, "Sn": base},
         )  # fmt: skip
     s_pq = case.static_pq
-    system.add("PQ", {"idx": 1, "bus": BUS_LOAD, "Vn": VN_KV, "p0": s_pq.real, "q0": s_pq.imag})
+    system.add("PQ", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "p0": s_pq.real, "q0": s_pq.imag})
     system.add("ZIP", {"idx": 1, "pq": 1, **zip_fields(case.a_p, case.a_q)})
-    ids: dict[str, Any] = {"load_bus": BUS_LOAD, "net_bus": BUS_NET, "pq": 1, "zip": 1}
+    ids: dict[str, Any] = {"load_bus": bus_load, "net_bus": bus_net, "pq": 1, "zip": 1}
     ids["shunt"] = ids["motor"] = None
     if case.q_c:
         b = case.q_c / case.v0**2
-        system.add("Shunt", {"idx": 1, "bus": BUS_LOAD, "Vn": VN_KV, "Sn": base, "b": b})
+        system.add("Shunt", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "Sn": base, "b": b})
         ids["shunt"] = 1
     if case.motor is not None:
-        system.add("Motor3", {"idx": 1, "bus": BUS_LOAD, **case.motor3()})
+        system.add("Motor3", {"idx": 1, "bus": bus_load, **case.motor3()})
         ids["motor"] = 1
     return ids

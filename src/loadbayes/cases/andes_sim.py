@@ -33,7 +33,7 @@ from loadbayes.cases.andes_motor3 import andes_quiet, solve_power_flow
 from loadbayes.cases.motor_sim import DEFAULT_T0, MOTORS
 from loadbayes.models.motor import MotorParams, steady_state
 
-__all__ = ["AndesEvent", "fault_reactance_guess", "simulate"]
+__all__ = ["AndesEvent", "fault_reactance_guess", "run_tds", "simulate"]
 
 
 @dataclass(frozen=True)
@@ -118,7 +118,7 @@ def fault_reactance_guess(depth: float, case: CompositeCase, fault_s: float) -> 
     return math.exp(optimize.brentq(gap, lo, hi, xtol=1e-10))
 
 
-def _run(spec: dict[str, Any], xf: float, t_end_s: float) -> dict[str, np.ndarray]:
+def _run(spec: dict[str, Any], xf: float, t_end_s: float) -> pd.DataFrame:
     import andes
 
     with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
@@ -131,48 +131,92 @@ def _run(spec: dict[str, Any], xf: float, t_end_s: float) -> dict[str, np.ndarra
             {"idx": 1, "bus": ids["net_bus"], "tf": t_f, "tc": t_f + spec["fault_s"], "xf": xf},
         )
         ss.setup()
-        solve_power_flow(ss)
-        ss.TDS.config.tf = t_end_s
-        ss.TDS.config.fixt = 1
-        ss.TDS.config.tstep = spec["step_s"]
-        ss.TDS.config.no_tqdm = 1
-        ss.TDS.config.criteria = 0
-        ok = ss.TDS.run()
-        if not ok or ss.dae.ts.t[-1] < t_end_s - 1e-9:
-            raise RuntimeError(f"ANDES time-domain simulation failed (xf={xf:g})")
-        ts = ss.dae.ts
-        y = np.asarray(ts.y)
-        x = np.asarray(ts.x)
-
-        def col(var: Any, k: int = 0, states: bool = False) -> np.ndarray:
-            return (x if states else y)[:, int(var.a[k])].copy()
-
-        net, load = ss.Bus.idx2uid([ids["net_bus"], ids["load_bus"]])
-        out = {
-            "t": np.asarray(ts.t, dtype=float).copy(),
-            "v2": col(ss.Bus.v, net),
-            "a2": col(ss.Bus.a, net),
-            "v3": col(ss.Bus.v, load),
-            "a3": col(ss.Bus.a, load),
-            "f": col(ss.BusFreq.f),
-            "p_motor": col(ss.Motor3.p),
-            "q_motor": col(ss.Motor3.q),
-            "slip": col(ss.Motor3.slip, states=True),
-            "e1d": col(ss.Motor3.e1d, states=True),
-            "e1q": col(ss.Motor3.e1q, states=True),
-            "tm": col(ss.Motor3.tm),
-            "te": col(ss.Motor3.te),
-        }
-    # ANDES records a switch time twice; keep the later record of each time.
-    t = out["t"]
-    keep = np.append(np.diff(t) > 0, True)
-    return {k: v[keep] for k, v in out.items()}
+        return run_tds(
+            ss,
+            load_bus=ids["load_bus"],
+            net_bus=ids["net_bus"],
+            t_end_s=t_end_s,
+            step_s=spec["step_s"],
+        )
 
 
-def _sag_depth(raw: dict[str, np.ndarray], spec: dict[str, Any]) -> float:
+def run_tds(
+    system: Any, *, load_bus: Any, net_bus: Any, t_end_s: float, step_s: float
+) -> pd.DataFrame:
+    """Power flow (``Motor3`` seeded) and time-domain run of a set-up ANDES system.
+
+    Parameters
+    ----------
+    system : andes.System
+        Set up, not yet solved; its load bus is fed by one line from ``net_bus`` (no
+        line charging), as in :mod:`loadbayes.cases.andes_case` or an exported case.
+    load_bus, net_bus : idx
+        The load bus and the bus feeding it.
+    t_end_s, step_s : float
+        End time and ANDES's fixed step (s).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``t_s, v, angle_rad, p, q`` (load bus; P, Q from the feeder's current, system
+        p.u., load convention), then with a ``Motor3`` ``p_motor, q_motor, p_static,
+        q_static, slip, e1d, e1q, tm, te`` and with a ``BusFreq`` ``f`` (Hz). A time that
+        ANDES records twice (a switching instant) keeps its later record.
+
+    Raises
+    ------
+    RuntimeError
+        If the power flow or the time-domain run fails.
+    """
+    from andes.linsolvers.solverbase import Solver
+
+    solve_power_flow(system)
+    cfg = system.TDS.config
+    cfg.tf, cfg.fixt, cfg.tstep, cfg.no_tqdm, cfg.criteria = t_end_s, 1, step_s, 1, 0
+    system.TDS.solver = Solver(sparselib="spsolve")  # raise, never segfault, on a NaN
+    with andes_quiet():
+        ok = system.TDS.run()
+    ts = system.dae.ts
+    if not ok or ts.t[-1] < t_end_s - 1e-9:
+        raise RuntimeError("ANDES time-domain simulation failed")
+    y, x = np.asarray(ts.y), np.asarray(ts.x)
+    lines = system.Line
+    pairs = list(zip(lines.bus1.v, lines.bus2.v, strict=True))
+    k = pairs.index((net_bus, load_bus))
+    if lines.b.v[k] or lines.b1.v[k] or lines.b2.v[k]:
+        raise ValueError("the feeder of the load bus must have no line charging")
+    z = complex(lines.r.v[k], lines.x.v[k])
+    net, load = system.Bus.idx2uid([net_bus, load_bus])
+
+    def col(var: Any, k: int = 0, states: bool = False) -> np.ndarray:
+        return (x if states else y)[:, int(var.a[k])].copy()
+
+    v_net = col(system.Bus.v, net) * np.exp(1j * col(system.Bus.a, net))
+    v_load = col(system.Bus.v, load) * np.exp(1j * col(system.Bus.a, load))
+    s = v_load * np.conj((v_net - v_load) / z)  # into the load bus
+    out = {
+        "t_s": np.asarray(ts.t, dtype=float).copy(),
+        "v": np.abs(v_load),
+        "angle_rad": col(system.Bus.a, load),
+        "p": s.real,
+        "q": s.imag,
+    }
+    if "Motor3" in system.models and system.Motor3.n:
+        m = system.Motor3
+        out.update(p_motor=col(m.p), q_motor=col(m.q))
+        out.update(p_static=s.real - out["p_motor"], q_static=s.imag - out["q_motor"])
+        out.update(slip=col(m.slip, states=True), e1d=col(m.e1d, states=True))
+        out.update(e1q=col(m.e1q, states=True), tm=col(m.tm), te=col(m.te))
+    if "BusFreq" in system.models and system.BusFreq.n:
+        out["f"] = col(system.BusFreq.f) * float(system.BusFreq.fn.v[0])
+    keep = np.append(np.diff(out["t_s"]) > 0, True)
+    return pd.DataFrame({key: value[keep] for key, value in out.items()})
+
+
+def _sag_depth(raw: pd.DataFrame, spec: dict[str, Any]) -> float:
     t0, t1 = spec["fault_start_s"], spec["fault_start_s"] + spec["fault_s"]
-    during = (raw["t"] > t0) & (raw["t"] < t1)
-    return float(1.0 - raw["v3"][during].min() / raw["v3"][0])
+    t, v = raw["t_s"].to_numpy(), raw["v"].to_numpy()
+    return float(1.0 - v[(t > t0) & (t < t1)].min() / v[0])
 
 
 def simulate(
@@ -287,7 +331,7 @@ def simulate(
         raw = _run(spec, xf, t_end_s if last else fault_start_s + fault_s + 2 * step_s)
         tried.append((math.log(xf), _sag_depth(raw, spec)))
         runs += 1
-    if raw["t"][-1] < t_end_s - 1e-9:
+    if raw["t_s"].iloc[-1] < t_end_s - 1e-9:
         raw = _run(spec, xf, t_end_s)
     return _event(raw, spec, xf, sag_depth, t_end_s)
 
@@ -297,41 +341,22 @@ def _event(raw, spec, xf, target, t_end_s) -> AndesEvent:
 
     case: CompositeCase = spec["case"]
     params = case.motor
-    v2 = raw["v2"] * np.exp(1j * raw["a2"])
-    v3 = raw["v3"] * np.exp(1j * raw["a3"])
-    s = v3 * np.conj((v2 - v3) / Z_FEED)  # power into the load bus, load convention
-    record = pd.DataFrame(
-        {
-            "t_s": raw["t"],
-            "v": raw["v3"],
-            "angle_rad": raw["a3"],
-            "f": raw["f"] * params.f_hz,
-            "p": s.real,
-            "q": s.imag,
-            "p_motor": raw["p_motor"],
-            "q_motor": raw["q_motor"],
-            "p_static": s.real - raw["p_motor"],
-            "q_static": s.imag - raw["q_motor"],
-            "slip": raw["slip"],
-            "e1d": raw["e1d"],
-            "e1q": raw["e1q"],
-            "tm": raw["tm"],
-            "te": raw["te"],
-        }
-    )
-    p0, q0 = float(s[0].real), float(s[0].imag)
+    cols = ["t_s", "v", "angle_rad", "f", "p", "q", "p_motor", "q_motor", "p_static"]
+    cols += ["q_static", "slip", "e1d", "e1q", "tm", "te"]
+    record = raw[cols].copy()
+    p0, q0 = float(record["p"].iloc[0]), float(record["q"].iloc[0])
     (a1, a2, a3), (a4, a5, a6) = case.a_p, case.a_q
     truth = {
         "p0": p0,
         "q0": q0,
-        "v0": float(raw["v3"][0]),
+        "v0": float(record["v"].iloc[0]),
         "a1": a1,
         "a2": a2,
         "a3": a3,
         "a4": a4,
         "a5": a5,
         "a6": a6,
-        "f_m": float(raw["p_motor"][0]) / p0,
+        "f_m": float(record["p_motor"].iloc[0]) / p0,
         "rs": params.rs,
         "xs": params.xs,
         "xm": params.xm,
