@@ -81,7 +81,9 @@ def simulate_andes_cmd(
         from loadbayes.cases import andes_sim
     except ImportError as exc:
         raise UserError(f"ANDES is not installed ({exc}); install the 'andes' extra") from None
-    step = 1.0 / 600.0 if rate <= 600 else 1.0 / rate
+    from loadbayes.cases.motor_sim import MOTORS
+
+    step = min(andes_sim.default_step(MOTORS[motor]), 1.0 / rate)
     try:
         event = andes_sim.simulate(
             motor, f_m=f_m, p0=p0, q0=q0, zip_p=shares_p, zip_q=shares_q, t0=t0, q_c=q_c,
