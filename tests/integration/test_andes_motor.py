@@ -92,6 +92,9 @@ def test_initial_state_matches_loadbayes_steady_state(events, name):
     assert ev.record["slip"].iloc[0] == pytest.approx(op.slip, rel=1e-6)
     assert ev.record["p_motor"].iloc[0] == pytest.approx(ev.truth["mva_m"] * op.p, abs=1e-7)
     assert ev.record["q_motor"].iloc[0] == pytest.approx(ev.truth["mva_m"] * op.q, abs=1e-7)
+    # The frames: ANDES's E' turned by -(pi/2 + theta0) is loadbayes's.
+    assert ev.record["ed"].iloc[0] == pytest.approx(op.ed, abs=1e-7)
+    assert ev.record["eq"].iloc[0] == pytest.approx(op.eq, abs=1e-7)
 
 
 def _torque(ev, a, b, c):

@@ -11,7 +11,8 @@ The record (:class:`AndesEvent`) has, at ANDES's own time points, the load bus's
 ``t_s, v, angle_rad, f`` (Hz, from ANDES's ``BusFreq``), the load's ``p, q`` (system p.u.,
 load convention, computed from the feeder's current so that they are what a meter at the
 bus would see), the motor's own ``p_motor, q_motor`` (ANDES's ``Motor3.p, q``), states
-``slip, e1d, e1q`` (ANDES frame) and torques ``tm, te`` (system base), and
+``slip, e1d, e1q`` (ANDES frame) and ``ed, eq, w`` (loadbayes's frame), torques
+``tm, te`` (system base), and
 ``p_static, q_static = p - p_motor, q - q_motor``. :attr:`AndesEvent.truth` holds the
 parameters in loadbayes's naming contract (``docs/andes.md``). ANDES runs in a temporary
 output folder with its logging and warnings silenced.
@@ -49,7 +50,7 @@ class AndesEvent:
     ----------
     record : pandas.DataFrame
         Columns ``t_s, v, angle_rad, f, p, q, p_motor, q_motor, p_static, q_static, slip,
-        e1d, e1q, tm, te`` at ANDES's time points (module docstring).
+        e1d, e1q, tm, te, ed, eq, w`` at ANDES's time points (module docstring).
     truth : dict
         Parameters in the naming contract: ``p0, q0, v0, a1..a6, f_m, rs, xs, xm, rr, xr,
         h_s, a, b, c, t0, mva_m, q_c, x_prime, x_open, t_prime_s, f_hz``.
@@ -364,6 +365,10 @@ def _event(raw, spec, xf, target, t_end_s) -> AndesEvent:
     cols = ["t_s", "v", "angle_rad", "f", "p", "q", "p_motor", "q_motor", "p_static"]
     cols += ["q_static", "slip", "e1d", "e1q", "tm", "te"]
     record = raw[cols].copy()
+    # The states in loadbayes's frame: ANDES's vd + j vq is j V e^{j theta}; loadbayes
+    # puts the initial terminal voltage on the d axis (docs/andes.md, "axes").
+    e = (raw["e1d"] + 1j * raw["e1q"]).to_numpy() * np.exp(-1j * (np.pi / 2 + raw["angle_rad"][0]))
+    record["ed"], record["eq"], record["w"] = e.real, e.imag, 1.0 - raw["slip"].to_numpy()
     p0, q0 = float(record["p"].iloc[0]), float(record["q"].iloc[0])
     (a1, a2, a3), (a4, a5, a6) = case.a_p, case.a_q
     truth = {
