@@ -327,6 +327,7 @@ def simulate(
     case = CompositeCase.from_values(values, with_motor=True, base_mva=base_mva, z_src=z_src)
     spec = {
         "case": case,
+        "name": params.name,
         "f_hz": params.f_hz,
         "fault_start_s": fault_start_s,
         "fault_s": fault_s,
@@ -402,7 +403,7 @@ def _event(raw, spec, xf, target, t_end_s) -> AndesEvent:
     depth = _sag_depth(raw, spec)
     settings = {
         "simulator": f"ANDES {andes.__version__}",
-        "motor_name": params.name,
+        "motor_name": spec["name"],
         "base_mva": case.base_mva,
         "z_src": [case.z_src.real, case.z_src.imag],
         "z_feed": [Z_FEED.real, Z_FEED.imag],
