@@ -46,6 +46,8 @@ def test_writes_an_event_and_the_truth(tmp_path):
         (["--zip-p", "1,2"], "--zip-p: expected three shares"),
         (["--rate", "0"], "--rate must be > 0"),
         (["--f-m", "1.5"], "0 < f_m <= 1"),
+        (["--bus", "7"], "--bus needs --case"),
+        (["--case", "kundur/kundur_full.xlsx"], "--case needs --bus"),
     ],
 )
 def test_refuses_bad_options_with_exit_2(tmp_path, args, message):

@@ -22,6 +22,28 @@ def _triple(text: str, name: str) -> tuple[float, float, float]:
     return parts  # type: ignore[return-value]
 
 
+def _in_case(case_file: str, bus: str | None, motor: str, q_c: float, common: dict):
+    import andes
+
+    from loadbayes.cases.andes_grid import simulate_in_case
+
+    if bus is None:
+        raise UserError("--case needs --bus (the idx of the bus that gets the load)")
+    if q_c:
+        raise UserError("--q-c is not supported with --case")
+    path = Path(case_file)
+    if not path.is_file():
+        try:
+            path = Path(andes.get_case(case_file))
+        except FileNotFoundError:
+            raise UserError(f"{case_file}: no such file, nor a case shipped with ANDES") from None
+    idx: int | str = int(bus) if bus.lstrip("-").isdigit() else bus
+    try:
+        return simulate_in_case(path, idx, motor, **common)
+    except (KeyError, IndexError):
+        raise UserError(f"{case_file}: no bus with idx {bus!r}") from None
+
+
 @click.command("andes")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Event CSV.")
 @click.option(
@@ -51,11 +73,18 @@ def _triple(text: str, name: str) -> tuple[float, float, float]:
     help="Gaussian noise sd on p and q, as a fraction of each channel's RMS.",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the noise.")
+@click.option(
+    "--case",
+    "case_file",
+    help="An ANDES case file (or a name for andes.get_case, e.g. kundur/kundur_full.xlsx) "
+    "to put the load in, instead of the built-in infinite-bus case.",
+)
+@click.option("--bus", help="With --case: the idx of the bus that gets the load and the fault.")
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def simulate_andes_cmd(
     out, motor, sag_depth, f_m, t0, p0, q0, zip_p, zip_q, q_c, fault_start, fault_duration,
-    t_end, rate, noise, seed, force,
+    t_end, rate, noise, seed, case_file, bus, force,
 ) -> None:  # fmt: skip
     """Simulate a ZIP + induction-motor load through a fault in ANDES (independent simulator).
 
@@ -84,12 +113,18 @@ def simulate_andes_cmd(
     from loadbayes.cases.motor_sim import MOTORS
 
     step = min(andes_sim.default_step(MOTORS[motor]), 1.0 / rate)
+    common = {
+        "f_m": f_m, "p0": p0, "q0": q0, "zip_p": shares_p, "zip_q": shares_q, "t0": t0,
+        "sag_depth": sag_depth, "fault_start_s": fault_start, "fault_s": fault_duration,
+        "t_end_s": t_end, "step_s": step,
+    }  # fmt: skip
     try:
-        event = andes_sim.simulate(
-            motor, f_m=f_m, p0=p0, q0=q0, zip_p=shares_p, zip_q=shares_q, t0=t0, q_c=q_c,
-            sag_depth=sag_depth, fault_start_s=fault_start, fault_s=fault_duration,
-            t_end_s=t_end, step_s=step,
-        )  # fmt: skip
+        if case_file is None:
+            if bus is not None:
+                raise UserError("--bus needs --case")
+            event = andes_sim.simulate(motor, q_c=q_c, **common)
+        else:
+            event = _in_case(case_file, bus, motor, q_c, common)
     except RuntimeError as exc:
         raise UserError(f"ANDES failed: {exc}") from None
     table = event.resample(rate)[list(COLUMNS)]
