@@ -23,14 +23,14 @@ def _triple(text: str, name: str) -> tuple[float, float, float]:
 
 
 def _in_case(case_file: str, bus: str | None, motor: str, q_c: float, common: dict):
-    import andes
-
-    from loadbayes.cases.andes_grid import simulate_in_case
-
     if bus is None:
         raise UserError("--case needs --bus (the idx of the bus that gets the load)")
     if q_c:
         raise UserError("--q-c is not supported with --case")
+    import andes
+
+    from loadbayes.cases.andes_grid import simulate_in_case
+
     path = Path(case_file)
     if not path.is_file():
         try:
@@ -106,10 +106,11 @@ def simulate_andes_cmd(
     if not rate > 0:
         raise UserError(f"--rate must be > 0, got {rate}")
     shares_p, shares_q = _triple(zip_p, "--zip-p"), _triple(zip_q, "--zip-q")
-    try:
-        from loadbayes.cases import andes_sim
-    except ImportError as exc:
-        raise UserError(f"ANDES is not installed ({exc}); install the 'andes' extra") from None
+    import importlib.util
+
+    if importlib.util.find_spec("andes") is None:
+        raise UserError("ANDES is not installed; install the 'andes' extra (pip install andes)")
+    from loadbayes.cases import andes_sim
     from loadbayes.cases.motor_sim import MOTORS
 
     step = min(andes_sim.default_step(MOTORS[motor]), 1.0 / rate)
