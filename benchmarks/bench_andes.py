@@ -8,6 +8,10 @@ step, the largest error of the motor's P, Q (on its rating), of the static part 
 total (system p.u.), the same without the bus angle (the convention that matters most),
 and the CPU time of the ANDES runs and of the reproduction.
 
+Then the same on a bus of two cases ANDES ships (Kundur's two-area system, bus 7; the
+IEEE 14-bus system, bus 9), with their machines swinging
+(``loadbayes.cases.andes_grid``).
+
 Writes ``benchmarks/results/andes.json`` and prints a table. Needs the ``andes`` extra.
 
 Run: ``python benchmarks/bench_andes.py [--quick] [--output PATH]``.
@@ -26,20 +30,30 @@ from pathlib import Path
 MOTORS = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
 SAGS = (0.15, 0.3, 0.5)
 SHARES = (0.2, 0.8)
+CASES = (("kundur/kundur_full.xlsx", 7), ("ieee14/ieee14_full.xlsx", 9))
 
 
-def one(motor: str, depth: float, f_m: float) -> dict:
+def one(motor: str, depth: float, f_m: float, case: tuple | None = None) -> dict:
+    """One event and its reproduction (``case``: an ANDES case and bus, else built-in)."""
     from loadbayes.cases.andes_compare import max_errors, reproduce
+    from loadbayes.cases.andes_grid import simulate_in_case
     from loadbayes.cases.andes_sim import simulate
 
     t = time.process_time()
-    ev = simulate(motor, sag_depth=depth, f_m=f_m, fault_start_s=0.3, t_end_s=1.3)
+    kw = {"sag_depth": depth, "f_m": f_m, "fault_start_s": 0.3, "t_end_s": 1.3}
+    if case is None:
+        ev = simulate(motor, **kw)
+    else:
+        import andes
+
+        ev = simulate_in_case(andes.get_case(case[0]), case[1], motor, **kw)
     t_andes = time.process_time() - t
     t = time.process_time()
     err = max_errors(reproduce(ev, refine=2), ev.truth["mva_m"])
     t_lb = time.process_time() - t
     flat = max_errors(reproduce(ev, use_angle=False, refine=1), ev.truth["mva_m"])
     return {
+        "case": "built-in" if case is None else f"{case[0]} bus {case[1]}",
         "motor": motor,
         "sag_target": depth,
         "sag": round(ev.settings["sag_depth"], 4),
@@ -66,17 +80,19 @@ def main() -> None:
     except ImportError:
         print("ANDES is not installed (the 'andes' extra): nothing to measure")
         return
-    cases = [("small_industrial", 0.3, 0.4)] if args.quick else [
-        (m, d, f) for m in MOTORS for d in SAGS for f in SHARES
-    ]  # fmt: skip
+    cases = [("small_industrial", 0.3, 0.4, None)] if args.quick else [
+        (m, d, f, None) for m in MOTORS for d in SAGS for f in SHARES
+    ] + [("small_industrial", 0.3, 0.4, c) for c in CASES]  # fmt: skip
     rows = []
-    head = "motor              sag    f_m  step      motor    static   total    no-angle  cpu s"
+    head = f"{'case':24s} {'motor':18s} sag    f_m  step      motor    static   total    "
+    head += "no-angle  cpu s"
     print(head)
-    for motor, depth, f_m in cases:
-        row = one(motor, depth, f_m)
+    for motor, depth, f_m, case in cases:
+        row = one(motor, depth, f_m, case)
         rows.append(row)
         print(
-            f"{motor:18s} {row['sag']:.3f}  {f_m:.1f}  1/{1 / row['andes_step_s']:<6.0f} "
+            f"{row['case'][:24]:24s} {motor:18s} {row['sag']:.3f}  {f_m:.1f}  "
+            f"1/{1 / row['andes_step_s']:<6.0f} "
             f"{row['motor_err']:.1e}  {row['static_err']:.1e}  {row['total_err']:.1e}  "
             f"{row['motor_err_no_angle']:.1e}   {row['andes_cpu_s'] + row['reproduce_cpu_s']:.1f}",
             flush=True,
