@@ -91,10 +91,10 @@ def default_step(motor: MotorParams) -> float:
 
     The fastest mode of the third-order motor under a fault is the short-circuit transient
     ``T' X' / X`` (40-70 ms for the IEEE motors and Krause's 2250 hp, 5 ms for Krause's
-    3 hp). ANDES's implicit trapezoid missed Krause's 3 hp in a 60% sag by 1.6e-3 of its
-    rating at a third of that mode and by 1e-3 at a ninth; a sixteenth keeps the error
-    inside the 1e-3 the tests allow. ``k`` is an integer so that 60, 120 and 600
-    samples/s fall on ANDES's points.
+    3 hp). ANDES's implicit trapezoid missed Krause's 3 hp in a 10% sag by 1.4e-3 of its
+    rating at a third of that mode, and in a 60% sag by 1e-3 at a ninth; at a sixteenth
+    the worst seen is 5.4e-4, inside the 1e-3 the tests allow (docs/andes.md). ``k`` is
+    an integer so that 60, 120 and 600 samples/s fall on ANDES's points.
     """
     fastest = motor.tp_s * motor.xp / motor.x
     return 1.0 / (600.0 * math.ceil((1.0 / 600.0) / (fastest / 16.0)))
