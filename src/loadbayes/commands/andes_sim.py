@@ -22,9 +22,7 @@ def _triple(text: str, name: str) -> tuple[float, float, float]:
     return parts  # type: ignore[return-value]
 
 
-def _in_case(case_file: str, bus: str | None, motor: str, q_c: float, common: dict):
-    if bus is None:
-        raise UserError("--case needs --bus (the idx of the bus that gets the load)")
+def _in_case(case_file: str, bus: str, motor: str, q_c: float, common: dict):
     if q_c:
         raise UserError("--q-c is not supported with --case")
     import andes
@@ -106,6 +104,10 @@ def simulate_andes_cmd(
     if not rate > 0:
         raise UserError(f"--rate must be > 0, got {rate}")
     shares_p, shares_q = _triple(zip_p, "--zip-p"), _triple(zip_q, "--zip-q")
+    if not 0 < f_m <= 1:
+        raise UserError(f"--f-m must be in (0, 1] (0 < f_m <= 1), got {f_m}")
+    if (case_file is None) != (bus is None):
+        raise UserError("--bus needs --case" if case_file is None else "--case needs --bus")
     import importlib.util
 
     if importlib.util.find_spec("andes") is None:
@@ -121,8 +123,6 @@ def simulate_andes_cmd(
     }  # fmt: skip
     try:
         if case_file is None:
-            if bus is not None:
-                raise UserError("--bus needs --case")
             event = andes_sim.simulate(motor, q_c=q_c, **common)
         else:
             event = _in_case(case_file, bus, motor, q_c, common)
