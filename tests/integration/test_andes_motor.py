@@ -15,7 +15,7 @@ Tolerances, and why:
   1/1200 s, 3.2e-4 at 1/2400 s), while the package's DOP853 at rtol 1e-9 adds nothing
   visible. Seen at the default steps: 1e-5 to 1e-4 (IEEE motors), about 4e-4 (3 hp).
 - Static (ZIP) P, Q: 1e-4 system p.u. ANDES solves its network equations to 1e-9
-  (andes_sim.TDS_TOL); what is left is the linear reading of the package's output
+  (andes_run.TDS_TOL); what is left is the linear reading of the package's output
   between its points on the fastest transient. Seen: 1e-6 to 3e-5.
 """
 

@@ -19,7 +19,7 @@ pytest.importorskip("andes", reason="ANDES is in the optional 'andes' extra")
 import andes  # noqa: E402
 
 from loadbayes.cases.andes_motor3 import andes_quiet  # noqa: E402
-from loadbayes.cases.andes_sim import run_tds  # noqa: E402
+from loadbayes.cases.andes_run import run_tds  # noqa: E402
 from loadbayes.cases.composite_reference import predict  # noqa: E402
 from loadbayes.cases.motor_sim import MOTORS  # noqa: E402
 from loadbayes.export import andes as export  # noqa: E402

@@ -20,7 +20,8 @@ from typing import Any
 
 from loadbayes.cases.andes_case import CompositeCase
 from loadbayes.cases.andes_motor3 import andes_quiet, zip_fields
-from loadbayes.cases.andes_sim import AndesEvent, _event, _sag_depth, default_step, run_tds
+from loadbayes.cases.andes_run import run_tds
+from loadbayes.cases.andes_sim import AndesEvent, achieved_depth, default_step, event_from_run
 from loadbayes.cases.motor_sim import DEFAULT_T0, MOTORS
 from loadbayes.models.motor import MotorParams
 
@@ -135,7 +136,7 @@ def simulate_in_case(
     for run in range(max_runs):
         last = run == max_runs - 1
         raw, comp = _run(spec, xf, t_end_s if last else short)
-        depth = _sag_depth(raw, spec)
+        depth = achieved_depth(raw, spec)
         tried.append((math.log(xf), depth))
         if abs(depth - sag_depth) <= depth_tol or last:
             break
@@ -150,7 +151,7 @@ def simulate_in_case(
         xf = min(max(xf, 1e-5, math.exp(tried[-1][0]) / 20), 1e3, math.exp(tried[-1][0]) * 20)
     if raw["t_s"].iloc[-1] < t_end_s - 1e-9:
         raw, comp = _run(spec, xf, t_end_s)
-    event = _event(raw, {**spec, "case": comp}, xf, sag_depth, t_end_s)
+    event = event_from_run(raw, {**spec, "case": comp}, xf, sag_depth, t_end_s)
     for key in ("z_src", "z_feed", "v_src"):
         event.settings.pop(key)
     event.settings.update(

@@ -30,16 +30,19 @@ import pandas as pd
 from scipy import optimize
 
 from loadbayes.cases.andes_case import Z_FEED, CompositeCase, add_composite
-from loadbayes.cases.andes_motor3 import andes_quiet, solve_power_flow
+from loadbayes.cases.andes_motor3 import andes_quiet
+from loadbayes.cases.andes_run import run_tds
 from loadbayes.cases.motor_sim import DEFAULT_T0, MOTORS
 from loadbayes.models.motor import MotorParams, steady_state
 
-TDS_TOL = 1e-9
-"""ANDES's Newton tolerance in the time domain (its default, 1e-4, lets the load's P, Q
-from the feeder current miss the device equations by 2e-4: the feeder's admittance, 50
-p.u., multiplies any voltage error)."""
-
-__all__ = ["AndesEvent", "default_step", "fault_reactance_guess", "run_tds", "simulate"]
+__all__ = [
+    "AndesEvent",
+    "achieved_depth",
+    "default_step",
+    "event_from_run",
+    "fault_reactance_guess",
+    "simulate",
+]
 
 
 @dataclass(frozen=True)
@@ -160,104 +163,8 @@ def _run(spec: dict[str, Any], xf: float, t_end_s: float) -> pd.DataFrame:
         )
 
 
-def run_tds(
-    system: Any,
-    *,
-    load_bus: Any,
-    net_bus: Any | None,
-    t_end_s: float,
-    step_s: float,
-    zip_idx: Any = None,
-    motor_idx: Any = None,
-) -> pd.DataFrame:
-    """Power flow (``Motor3`` seeded) and time-domain run of a set-up ANDES system.
-
-    Parameters
-    ----------
-    system : andes.System
-        Set up, not yet solved; its load bus is fed by one line from ``net_bus`` (no
-        line charging), as in :mod:`loadbayes.cases.andes_case` or an exported case.
-    load_bus, net_bus : idx
-        The load bus and the bus feeding it. With ``net_bus=None`` (a load bus inside a
-        meshed network) the static part's P, Q are read from the ``ZIP`` device's own
-        equation (``zip_idx``) instead of the feeder current.
-    t_end_s, step_s : float
-        End time and ANDES's fixed step (s).
-    zip_idx, motor_idx : idx, optional
-        The load's ``ZIP`` and ``Motor3``; default the first of each.
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``t_s, v, angle_rad, p, q`` (load bus; P, Q from the feeder's current, system
-        p.u., load convention), then with a ``Motor3`` ``p_motor, q_motor, p_static,
-        q_static, slip, e1d, e1q, tm, te`` and with a ``BusFreq`` ``f`` (Hz). A time that
-        ANDES records twice (a switching instant) keeps its later record.
-
-    Raises
-    ------
-    RuntimeError
-        If the power flow or the time-domain run fails.
-    """
-    from andes.linsolvers.solverbase import Solver
-
-    solve_power_flow(system)
-    cfg = system.TDS.config
-    cfg.tf, cfg.fixt, cfg.tstep, cfg.no_tqdm, cfg.criteria = t_end_s, 1, step_s, 1, 0
-    cfg.tol = TDS_TOL
-    system.TDS.solver = Solver(sparselib="spsolve")  # raise, never segfault, on a NaN
-    with andes_quiet():
-        ok = system.TDS.run()
-    ts = system.dae.ts
-    if not ok or ts.t[-1] < t_end_s - 1e-9:
-        raise RuntimeError("ANDES time-domain simulation failed")
-    y, x = np.asarray(ts.y), np.asarray(ts.x)
-
-    def col(var: Any, k: int = 0, states: bool = False) -> np.ndarray:
-        return (x if states else y)[:, int(var.a[k])].copy()
-
-    load = system.Bus.idx2uid(load_bus)
-    v_load = col(system.Bus.v, load) * np.exp(1j * col(system.Bus.a, load))
-    m = system.Motor3
-    km = 0 if motor_idx is None else m.idx2uid(motor_idx)
-    if net_bus is not None:
-        lines = system.Line
-        pairs = list(zip(lines.bus1.v, lines.bus2.v, strict=True))
-        k = pairs.index((net_bus, load_bus))
-        if lines.b.v[k] or lines.b1.v[k] or lines.b2.v[k]:
-            raise ValueError("the feeder of the load bus must have no line charging")
-        z = complex(lines.r.v[k], lines.x.v[k])
-        net = system.Bus.idx2uid(net_bus)
-        v_net = col(system.Bus.v, net) * np.exp(1j * col(system.Bus.a, net))
-        s = v_load * np.conj((v_net - v_load) / z)  # into the load bus
-    else:
-        zp = system.ZIP
-        kz = 0 if zip_idx is None else zp.idx2uid(zip_idx)
-        vm = np.abs(v_load)
-        s = zp.pp0.v[kz] + zp.pi0.v[kz] * vm + zp.pz0.v[kz] * vm**2
-        s = s + 1j * (zp.qp0.v[kz] + zp.qi0.v[kz] * vm + zp.qz0.v[kz] * vm**2)
-        if m.n:
-            s = s + col(m.p, km) + 1j * col(m.q, km)
-    out = {
-        "t_s": np.asarray(ts.t, dtype=float).copy(),
-        "v": np.abs(v_load),
-        "angle_rad": col(system.Bus.a, load),
-        "p": s.real,
-        "q": s.imag,
-    }
-    if m.n:
-        out.update(p_motor=col(m.p, km), q_motor=col(m.q, km))
-        out.update(p_static=s.real - out["p_motor"], q_static=s.imag - out["q_motor"])
-        out.update(slip=col(m.slip, km, True), e1d=col(m.e1d, km, True))
-        out.update(e1q=col(m.e1q, km, True), tm=col(m.tm, km), te=col(m.te, km))
-    at_bus = [k for k, b in enumerate(system.BusFreq.bus.v) if b == load_bus]
-    if at_bus:
-        out["f"] = col(system.BusFreq.f, at_bus[0]) * float(system.BusFreq.fn.v[at_bus[0]])
-    keep = np.append(np.diff(out["t_s"]) > 0, True)
-    return pd.DataFrame({key: value[keep] for key, value in out.items()})
-
-
-def _sag_depth(raw: pd.DataFrame, spec: dict[str, Any]) -> float:
+def achieved_depth(raw: pd.DataFrame, spec: dict[str, Any]) -> float:
+    """``1 - min V / V(0)`` at the load bus over the fault (``spec``: its start and length)."""
     t0, t1 = spec["fault_start_s"], spec["fault_start_s"] + spec["fault_s"]
     t, v = raw["t_s"].to_numpy(), raw["v"].to_numpy()
     return float(1.0 - v[(t > t0) & (t < t1)].min() / v[0])
@@ -360,7 +267,7 @@ def simulate(
     # First the whole event; if its sag misses the target, secant steps on log xf with
     # runs that stop at the fault's end, then the whole event again.
     raw = _run(spec, xf, t_end_s)
-    tried = [(math.log(xf), _sag_depth(raw, spec))]
+    tried = [(math.log(xf), achieved_depth(raw, spec))]
     runs = 1
     while abs(tried[-1][1] - sag_depth) > depth_tol and runs < max_runs:
         if len(tried) == 1:
@@ -374,14 +281,15 @@ def simulate(
         xf = min(max(xf, 1e-4, math.exp(tried[-1][0]) / 10), 1e3, math.exp(tried[-1][0]) * 10)
         last = runs == max_runs - 1
         raw = _run(spec, xf, t_end_s if last else fault_start_s + fault_s + 2 * spec["step_s"])
-        tried.append((math.log(xf), _sag_depth(raw, spec)))
+        tried.append((math.log(xf), achieved_depth(raw, spec)))
         runs += 1
     if raw["t_s"].iloc[-1] < t_end_s - 1e-9:
         raw = _run(spec, xf, t_end_s)
-    return _event(raw, spec, xf, sag_depth, t_end_s)
+    return event_from_run(raw, spec, xf, sag_depth, t_end_s)
 
 
-def _event(raw, spec, xf, target, t_end_s) -> AndesEvent:
+def event_from_run(raw, spec, xf, target, t_end_s) -> AndesEvent:
+    """Build the :class:`AndesEvent` (record, truth, settings) from a run's record."""
     import andes
 
     case: CompositeCase = spec["case"]
@@ -423,7 +331,7 @@ def _event(raw, spec, xf, target, t_end_s) -> AndesEvent:
         "t_prime_s": params.tp_s,
         "f_hz": params.f_hz,
     }
-    depth = _sag_depth(raw, spec)
+    depth = achieved_depth(raw, spec)
     settings = {
         "simulator": f"ANDES {andes.__version__}",
         "motor_name": spec["name"],
