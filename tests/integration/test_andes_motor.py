@@ -1,22 +1,22 @@
 """The package's motor and ZIP against ANDES 2.0's ``Motor3`` and ``ZIP`` (docs/andes.md).
 
-Each event is simulated once by ANDES (module-scoped fixture, 1.5-4 s each) and then
-reproduced by the package's own motor simulator, driven by ANDES's terminal voltage
+Each event is simulated once by ANDES (module-scoped fixture, 2-10 s of CPU each) and
+then reproduced by the package's own motor simulator, driven by ANDES's terminal voltage
 (magnitude and angle), at ANDES's time points (loadbayes.cases.andes_compare). Every
-convention in docs/andes.md is proved by one assertion here:
-a wrong time base, inertia, torque map, base or frame makes one of them fail (the negative
-controls show by how much).
+convention in docs/andes.md is proved by one assertion here: a wrong time base, inertia,
+torque map, base or frame makes one of them fail (the negative controls show by how much).
 
 Tolerances, and why:
 - Motor P, Q: 1e-3 of the motor's rating. ANDES integrates with the implicit trapezoid at
-  a fixed step, at most an eighth of the motor's fastest mode (andes_sim.default_step:
-  1/600 s for the IEEE motors, 1/1800 s for Krause's 3 hp). Its error is ANDES's: it
+  a fixed step, at most a sixteenth of the motor's fastest mode (andes_sim.default_step:
+  1/600 s for the IEEE motors, 1/3600 s for Krause's 3 hp). The error is ANDES's: it
   shrinks with ANDES's step (Krause 3 hp, 10% sag: 1.4e-3 at 1/600 s, 5.9e-4 at
   1/1200 s, 3.2e-4 at 1/2400 s), while the package's DOP853 at rtol 1e-9 adds nothing
-  visible. Seen at the default steps: 1e-5 to 1e-4 (IEEE motors), about 4e-4 (3 hp).
+  visible. Seen at the default steps (benchmarks/bench_andes.py): 7e-6 to 2.5e-4 for the
+  IEEE and 2250 hp motors, up to 5.4e-4 for the 3 hp.
 - Static (ZIP) P, Q: 1e-4 system p.u. ANDES solves its network equations to 1e-9
   (andes_run.TDS_TOL); what is left is the linear reading of the package's output
-  between its points on the fastest transient. Seen: 1e-6 to 3e-5.
+  between its points on the fastest transient. Seen: 1.5e-7 to 1.4e-5.
 """
 
 from __future__ import annotations
