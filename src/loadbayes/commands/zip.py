@@ -5,8 +5,13 @@ from __future__ import annotations
 import click
 
 from loadbayes.commands.options import (
+    OneLineCommand,
+    accept_units_option,
+    check_prior_sd,
     data_options,
+    distinct_columns,
     nominal,
+    nominal_note,
     nominal_options,
     output_options,
     parse_coef_priors,
@@ -16,16 +21,22 @@ from loadbayes.commands.options import (
 from loadbayes.commands.output import (
     Progress,
     UserError,
+    check_cost,
     check_outputs,
     estimate_rows,
     user_errors,
     write_outputs,
 )
 
+#: Parameters stored per draw, at most: a1..a6, tau_p, tau_q, p0, q0, and the Student-t
+#: extras (nu and a weight scale per channel).
+N_PARAMS = 14
 
-@click.command("zip")
+
+@click.command("zip", cls=OneLineCommand)
 @click.argument("data", type=str)
 @data_options()
+@accept_units_option
 @nominal_options()
 @click.option(
     "--scheme",
@@ -106,6 +117,7 @@ def fit_zip_cmd(
     conjugate,
     drop_invalid,
     chunk_rows,
+    accept_units,
     json_out,
     netcdf_out,
     plot_out,
@@ -113,13 +125,27 @@ def fit_zip_cmd(
     force,
 ):
     """Posterior of the ZIP coefficients from a CSV or Parquet file of V, P (and Q)."""
-    check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, [data], force)
+    check_outputs(
+        {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out},
+        [data],
+        force,
+        stdout_ok=("--json",),
+    )
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col)
+    check_prior_sd(prior_sd, "--prior-sd")
+    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if scheme == "exact" and not conjugate:
         raise UserError("--scheme exact needs the conjugate prior: add --conjugate")
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     per_coef = parse_coef_priors(coef_priors)
+    for ch, val, names in (("p", p0_val, ("a1", "a2")), ("q", q0_val, ("a4", "a5"))):
+        if val == "auto" and any(n in per_coef for n in names):
+            raise UserError(
+                f"--prior on {'/'.join(n for n in names if n in per_coef)} needs a known "
+                f"nominal power: give --{ch}0 (e.g. --{ch}0 1 for data in per unit of it)"
+            )
     nu_val = _parse_nu(nu)
     if likelihood == "student-t" and scheme != "blocked":
         raise UserError(
@@ -128,6 +154,19 @@ def fit_zip_cmd(
         )
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
+    check_cost(
+        chains=chains, draws=draws, burn=burn, thin=thin, n_params=N_PARAMS,
+        netcdf_out=netcdf_out, quiet=quiet,
+    )  # fmt: skip
+    if note and not quiet:
+        click.echo(f"loadbayes: note: {note}", err=True)
+    # The priors the user set on shares sampled directly: said if the data add nothing.
+    prior_sds = {
+        n: per_coef.get(n, (prior_mean, prior_sd))[1]
+        for ch, val, names in (("p", p0_val, ("a1", "a2")), ("q", q0_val, ("a4", "a5")))
+        if val != "auto"
+        for n in names
+    }
 
     from loadbayes.fit import fit_zip_file, zip_priors
 
@@ -157,6 +196,7 @@ def fit_zip_cmd(
             drop_invalid=drop_invalid,
             chunk_rows=chunk_rows,
             quiet=quiet,
+            accept_units=accept_units,
             sampler={
                 "draws": draws,
                 "burn": burn,
@@ -182,6 +222,7 @@ def fit_zip_cmd(
             plot_out=plot_out,
             force=force,
             quiet=quiet,
+            prior_sd=prior_sds,
         )
         return
     progress = Progress("reading", estimate_rows(data), quiet)
@@ -208,6 +249,7 @@ def fit_zip_cmd(
             drop_invalid=drop_invalid,
             chunk_rows=chunk_rows,
             progress=progress,
+            accept_units=accept_units,
         )
     finally:
         progress.close()
@@ -220,6 +262,7 @@ def fit_zip_cmd(
         plot_out=plot_out,
         force=force,
         quiet=quiet,
+        prior_sd=prior_sds,
     )
 
 
@@ -239,7 +282,7 @@ def _parse_nu(value: str) -> float | str:
 
 
 def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base, priors,
-                   drop_invalid, chunk_rows, quiet, sampler):  # fmt: skip
+                   drop_invalid, chunk_rows, quiet, accept_units, sampler):  # fmt: skip
     """Read the file into memory and fit the Student-t ZIP; flagged samples as file rows."""
     from loadbayes.fit import accumulate, fit_robust
     from loadbayes.fit.core import MAX_OBSERVED
@@ -257,9 +300,14 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
         )  # fmt: skip
     finally:
         progress.close()
+    from loadbayes.fit.zip import data_checks
+
     model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in pc.cols)
     names = {"v": v_col, "p": p_col, "q": q_name}
-    warnings = []
+    warnings = data_checks(
+        pc.cols, path=data, names=names, accept_units=accept_units,
+        v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base,
+    )  # fmt: skip
     if pc.n_dropped:
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
     try:
