@@ -20,7 +20,13 @@ import numpy as np
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["UnitProblem", "check_motor_units", "check_power_units", "refuse"]
+__all__ = [
+    "UnitProblem",
+    "check_motor_units",
+    "check_power_units",
+    "level_at_nominal",
+    "refuse",
+]
 
 #: ``median(V / V0)`` outside this range is not per unit of V0.
 V_RANGE = (0.7, 1.3)
@@ -72,8 +78,21 @@ def _suggest_base(raw_median: float) -> str:
     return f"{raw_median:.4g}"
 
 
-def _at_nominal(x: np.ndarray, y: np.ndarray) -> float:
-    """``y`` at ``x = 1`` by least squares on (1, x^2 - 1, x - 1): the model's own form."""
+def level_at_nominal(x: np.ndarray, y: np.ndarray) -> float:
+    """``y`` at ``x = 1`` by least squares on (1, x^2 - 1, x - 1): the ZIP model's own form.
+
+    Parameters
+    ----------
+    x : ndarray
+        Voltage in per unit of V0.
+    y : ndarray
+        Power (any units).
+
+    Returns
+    -------
+    float
+        The fitted power at ``V = V0`` (the median of ``y`` when V has no spread).
+    """
     dx = x - 1.0
     with np.errstate(all="ignore"):
         a = np.column_stack([np.ones_like(x), dx * (x + 1.0), dx])
@@ -160,7 +179,7 @@ def check_power_units(
                     )
                 )
             continue
-        level = _at_nominal(x[fin], y[fin] / float(nom))
+        level = level_at_nominal(x[fin], y[fin] / float(nom))
         if not NOMINAL_RANGE[0] <= level <= NOMINAL_RANGE[1]:
             raw = level * float(nom) * (s_base or 1.0)
             out.append(
