@@ -69,13 +69,17 @@ class UnitProblem:
 
 
 def _suggest_base(raw_median: float) -> str:
+    """``--v-base X`` for the data's median V: a standard voltage when one is close."""
     near = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median / s)))
     if abs(raw_median / near - 1) < 0.08:
-        return f"{near:g}"
+        return f"--v-base {near:g}"
     line = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median * np.sqrt(3) / s)))
     if abs(raw_median * np.sqrt(3) / line - 1) < 0.05:
-        return f"{raw_median:.4g} (line-to-neutral data of a {line:g} system: {line:g}/sqrt(3))"
-    return f"{raw_median:.4g}"
+        return (
+            f"--v-base {raw_median:.4g} (line-to-neutral data of a {line:g} system: "
+            f"{line:g}/sqrt(3))"
+        )
+    return f"--v-base {raw_median:.4g}"
 
 
 def level_at_nominal(x: np.ndarray, y: np.ndarray) -> float:
@@ -155,7 +159,8 @@ def check_power_units(
                 "v",
                 f"V / V0 has median {med:.4g}{given}{v0_txt}, not about 1: the voltage is "
                 "not per unit",
-                f"give the nominal voltage in the data's units, e.g. --v-base {_suggest_base(raw)}",
+                f"give the system's nominal voltage in the data's units with --v-base (V's "
+                f"median is {raw:.4g}: {_suggest_base(raw)} if that is near nominal)",
             )
         )
         return out  # the power checks need a per-unit x
