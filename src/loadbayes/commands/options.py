@@ -23,20 +23,28 @@ class OneLineCommand(click.Command):
         return UserError(f"{msg.rstrip('.')} (see 'loadbayes ... {self.name} --help')")
 
     def make_context(self, info_name, args, parent=None, **extra):  # noqa: D102
-        from loadbayes.commands.output import install_signal_handlers
+        from loadbayes.commands.output import install_signal_handlers, restore_signal_handlers
 
         # As early as a command of ours runs: a signal from here on gets its one line.
         install_signal_handlers()
         try:
             return super().make_context(info_name, args, parent=parent, **extra)
         except click.UsageError as exc:
+            restore_signal_handlers()
             raise self._one_line(exc) from None
+        except BaseException:
+            restore_signal_handlers()
+            raise
 
     def invoke(self, ctx):  # noqa: D102
+        from loadbayes.commands.output import restore_signal_handlers
+
         try:
             return super().invoke(ctx)
         except click.UsageError as exc:
             raise self._one_line(exc) from None
+        finally:
+            restore_signal_handlers()
 
 
 def distinct_columns(**cols: str | None) -> None:

@@ -59,14 +59,31 @@ def _on_signal(signum, frame) -> None:
 
 
 def install_signal_handlers() -> None:
-    """SIGINT and SIGTERM raise in the main thread (no-op elsewhere)."""
+    """SIGINT and SIGTERM raise in the main thread (no-op elsewhere, or if installed)."""
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         return
+    if signal.getsignal(signal.SIGINT) is _on_signal:
+        return
     _STOP.update(signal=None, outputs=None, committed=False)
-    signal.signal(signal.SIGINT, _on_signal)
-    signal.signal(signal.SIGTERM, _on_signal)
+    _STOP["previous"] = {s: signal.getsignal(s) for s in EXIT_SIGNAL}
+    for s in EXIT_SIGNAL:
+        signal.signal(s, _on_signal)
+
+
+def restore_signal_handlers() -> None:
+    """Put back the handlers :func:`install_signal_handlers` found.
+
+    A command run in-process (by a test or a notebook) leaves the process as it was.
+    """
+    import threading
+
+    previous = _STOP.pop("previous", None)
+    if previous is None or threading.current_thread() is not threading.main_thread():
+        return
+    for s, h in previous.items():
+        signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
 def stop_if_signalled() -> None:
@@ -123,6 +140,8 @@ def user_errors(func):
             del exc
             click.echo(f"loadbayes: {msg}", err=True)
             sys.exit(EXIT_SIGNAL.get(sig, 130))
+        finally:
+            restore_signal_handlers()
 
     return wrapper
 
@@ -271,14 +290,18 @@ def check_cost(
 
 
 class Progress:
-    """A progress bar on stderr (a no-op with --quiet); a plain count when the total is unknown."""
+    """A progress bar on a terminal's stderr; nothing otherwise (nor with --quiet).
+
+    Only a person watching a terminal needs it: in a pipe or a log it would put lines
+    before a one-line error.
+    """
 
     def __init__(self, label: str, total: int | None, quiet: bool) -> None:
         self.bar = None
         self.label = label
         self.count = 0
-        self.quiet = quiet
-        if not quiet and total:
+        self.quiet = quiet or not _isatty(sys.stderr)
+        if not self.quiet and total:
             self.bar = click.progressbar(
                 length=total, label=label, file=sys.stderr, show_pos=True, show_eta=False
             )
@@ -293,11 +316,16 @@ class Progress:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
-            if not sys.stderr.isatty():
-                click.echo("", err=True)
         elif not self.quiet and self.count:
             click.echo(f"{self.label}: {self.count} rows", err=True)
         self.quiet = True
+
+
+def _isatty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
 
 
 def estimate_rows(path: str) -> int | None:
