@@ -93,7 +93,7 @@ def test_track_zip_stdin_window_p_only(tmp_path):
     [
         (["--forgetting", "0.9", "--window", "5"], ["only one"]),
         (["--forgetting", "1.5"], ["--forgetting"]),
-        (["--p0", "auto"], ["--p0"]),
+        (["--p0", "0"], ["--p0"]),  # 'auto' is accepted since issue 14
         (["--out", "bus.csv", "--force"], ["bus.csv"]),
     ],
     ids=["two-memories", "bad-forgetting", "auto-p0", "out-is-input"],

@@ -165,24 +165,27 @@ def track_zip_cmd(
             open(outputs.temp("--out"), "w", encoding="utf-8", newline="") as fh,
         ):
             first = True
-            for part in power_chunks(
-                data,
-                v_col=v_col,
-                p_col=p_col,
-                q_col=q_name,
-                q_required=q_col not in ("q", "none"),
-                t_col=t_col,
-                extra=TRUTH_COLUMNS if plot_out else (),
-                v_base=v_base,
-                s_base=s_base,
-                drop_invalid=drop_invalid,
-                chunk_rows=chunk_rows,
-            ):
+            parts, head = _head(
+                power_chunks(
+                    data,
+                    v_col=v_col,
+                    p_col=p_col,
+                    q_col=q_name,
+                    q_required=q_col not in ("q", "none"),
+                    t_col=t_col,
+                    extra=TRUTH_COLUMNS if plot_out else (),
+                    v_base=v_base,
+                    s_base=s_base,
+                    drop_invalid=drop_invalid,
+                    chunk_rows=chunk_rows,
+                )
+            )
+            for part in parts:
                 n_dropped += part.n_dropped
                 n = part.rows.size
                 if not trackers and n:
                     has_t = "t" in part.cols
-                    c = part.cols
+                    c = head
                     problems = check_power_units(
                         c["v"], c["p"], c.get("q"), v0=v0, p0=p0, q0=q0,
                         v_base=v_base, s_base=s_base,
@@ -190,8 +193,9 @@ def track_zip_cmd(
                     if not accept_units:
                         refuse(problems, path=str(data), names=names)
                     unit_notes = [f"units: {pr}" for pr in problems]
-                    # 'auto' here: P0 (Q0) from the first chunk, then held fixed, since
-                    # the tracker's shares are linear only for a known nominal power.
+                    # 'auto' here: P0 (Q0) from the first AUTO_ROWS rows (whatever the
+                    # chunking), then held fixed: the tracker's shares are linear only
+                    # for a known nominal power.
                     x = c["v"] / v0
                     nom = {ch: level_at_nominal(x, c[ch]) for ch in ("p", "q") if ch in c}
                     if p0 == "auto":
@@ -204,7 +208,7 @@ def track_zip_cmd(
                             if k in c and isinstance(v, float)
                         )  # fmt: skip
                         click.echo(
-                            f"loadbayes: note: {note}: {est} from the first {n} rows "
+                            f"loadbayes: note: {note}: {est} from the first {c['v'].size} rows "
                             "(at V = V0, by least squares), then held fixed",
                             err=True,
                         )
@@ -278,6 +282,26 @@ def track_zip_cmd(
             else f"forgetting {forgetting:g}"
         )
         click.echo(f"tracked {n_total} samples ({memory}) into {out}", err=True)
+
+
+#: Rows that fix an ``auto`` nominal power and the unit check, whatever the chunking.
+AUTO_ROWS = 10_000
+
+
+def _head(chunks):
+    """The chunks again, and the first AUTO_ROWS rows of V, P, Q gathered from them."""
+    import itertools
+
+    it = iter(chunks)
+    buffered, got = [], 0
+    for part in it:
+        buffered.append(part)
+        got += part.rows.size
+        if got >= AUTO_ROWS:
+            break
+    keys = buffered[0].cols if buffered else {}
+    head = {k: np.concatenate([b.cols[k] for b in buffered])[:AUTO_ROWS] for k in keys}
+    return itertools.chain(buffered, it), head
 
 
 def _plot(df, path, has_t, prob, t_col) -> None:
