@@ -29,9 +29,8 @@ from loadbayes.commands.output import (
     write_outputs,
 )
 
-#: Parameters stored per draw, at most: np, nq, kpf, kqf, tau_p, tau_q, p0, q0, and the
-#: sampler's raw copies.
-N_PARAMS = 12
+#: Parameters stored per draw, at most: np, nq, kpf, kqf, tau_p, tau_q, p0, q0.
+N_PARAMS = 8
 
 
 @click.command("exp", cls=OneLineCommand)

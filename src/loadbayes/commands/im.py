@@ -38,9 +38,8 @@ def _f_hz_fromsidecar(data: str) -> float | None:
     return value if value > 0 else None
 
 
-#: Parameters stored per draw, at most: the coefficients, noise precisions and the
-#: physical parameters derived from them.
-N_PARAMS = 32
+#: Parameters stored per draw: 5 coefficients, 3 noise precisions, 9 physical parameters.
+N_PARAMS = 17
 
 
 @click.command("im", cls=OneLineCommand)

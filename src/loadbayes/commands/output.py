@@ -369,12 +369,11 @@ def write_outputs(
     stop_if_signalled()
     with OutputSet(files, force=force) as out:
         _STOP["outputs"] = out
-        text = None
-        if json_out == "-":
-            text = json.dumps(post.to_dict(hdi_prob=hdi_prob, summary=table), indent=2,
-                              allow_nan=False)  # fmt: skip
-        else:
-            post.to_json(out.temp("--json"), hdi_prob=hdi_prob, force=True, summary=table)
+        # The JSON as Posterior.to_json writes it, but straight into the set's temporary.
+        text = json.dumps(post.to_dict(hdi_prob=hdi_prob, summary=table), indent=2,
+                          allow_nan=False)  # fmt: skip
+        if json_out != "-":
+            out.temp("--json").write_text(text + "\n", encoding="utf-8")
         stop_if_signalled()
         if netcdf_out:
             post.to_netcdf(out.temp("--netcdf"), force=True)
@@ -388,7 +387,7 @@ def write_outputs(
             stop_if_signalled()
         out.commit()
         _STOP["committed"] = True
-    if text is not None:
+    if json_out == "-":
         click.echo(text)
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)

@@ -28,9 +28,8 @@ from loadbayes.commands.output import (
     write_outputs,
 )
 
-#: Parameters stored per draw, at most: a1..a6, tau_p, tau_q, p0, q0, and the Student-t
-#: extras (nu and a weight scale per channel).
-N_PARAMS = 14
+#: Parameters stored per draw and channel: three shares, tau, P0 (auto); Student-t adds nu.
+PER_CHANNEL = 5
 
 
 @click.command("zip", cls=OneLineCommand)
@@ -155,7 +154,9 @@ def fit_zip_cmd(
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
     check_cost(
-        chains=chains, draws=draws, burn=burn, thin=thin, n_params=N_PARAMS,
+        chains=chains, draws=draws, burn=burn, thin=thin,
+        n_params=PER_CHANNEL * (1 if q_col.lower() == "none" else 2)
+        + (1 if likelihood == "student-t" else 0),
         netcdf_out=netcdf_out, quiet=quiet,
     )  # fmt: skip
     if note and not quiet:
