@@ -209,12 +209,19 @@ def voltage_noise_warning(v: np.ndarray) -> str | None:
         share = 0.5 * float(np.var(np.diff(v))) / total if total > 0 else 0.0
     if not (np.isfinite(share) and share > V_NOISE_SHARE):
         return None
+    pct = f"{100 * min(share, 1):.0f}%"
+    if share >= 0.5:
+        return (
+            f"V changes from row to row as much as across the record (half the variance of "
+            f"its differences is {pct} of its variance): either the rows are not in time "
+            "order, or noise dominates V, and then the shares are biased toward a flat load "
+            "because the fit treats V as exact (errors in variables, docs/zip.md)"
+        )
     return (
-        f"V changes from row to row by {100 * min(share, 1):.0f}% of its variance (half "
-        "the variance of its differences): if V carries measurement noise, the shares are "
-        f"biased by up to about {100 * min(share, 1):.0f}% toward a flat load, because the "
-        "fit treats V as exact (errors in variables, docs/zip.md); ignore this if the rows "
-        "are not in time order or V really moves that fast"
+        f"V changes from row to row by {pct} of its variance (half the variance of its "
+        "differences): if that is measurement noise on V, the shares are biased by up to "
+        f"about {pct} toward a flat load, because the fit treats V as exact (errors in "
+        "variables, docs/zip.md); ignore this if V really moves that fast"
     )
 
 

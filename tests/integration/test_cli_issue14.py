@@ -195,7 +195,6 @@ def test_json_dash_is_standard_output(tmp_path, monkeypatch):
 # ----------------------------------------------------------- signals (4, 5), subprocess
 MOMENTS = [
     ("TERM", None),  # during start-up or sampling: no temporary yet
-    ("INT", ".o.json."),  # after the JSON, during the NetCDF or the figure
     ("TERM", ".o.nc."),  # during the NetCDF write (issue item 4)
     ("INT", ".o.nc."),  # Ctrl-C during the NetCDF write (item 5: was ignored)
     ("TERM", ".o.png."),  # during the figure

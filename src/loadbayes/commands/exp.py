@@ -211,4 +211,5 @@ def fit_exp_cmd(
         plot_out=plot_out,
         force=force,
         quiet=quiet,
+        prior_sd={"np": e_sd, "nq": e_sd},
     )

@@ -192,4 +192,5 @@ def fit_im_cmd(
         plot_out=plot_out,
         force=force,
         quiet=quiet,
+        prior_sd={n: per_coef.get(n, (prior_mean, prior_sd))[1] for n in model.free},
     )
