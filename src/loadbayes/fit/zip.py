@@ -228,6 +228,8 @@ def fit_zip_file(
                         cols[key] = cols[key] / ss
             if "model" not in state:
                 state["model"] = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
+            if "first_warnings" not in state and cols["v"].size:
+                # the first chunk with rows (one whose rows were all dropped says nothing)
                 state["first_warnings"] = data_checks(
                     cols, path=path, names=names, accept_units=accept_units,
                     v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base,
@@ -249,7 +251,7 @@ def fit_zip_file(
         if progress is not None:
             progress(rows.shape[0])
     gram = acc.result()
-    warnings = list(state["first_warnings"])
+    warnings = list(state.get("first_warnings", []))
     if state["dropped"]:
         warnings.append(
             f"{state['dropped']} rows with invalid values were dropped (--drop-invalid)"
