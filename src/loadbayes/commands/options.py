@@ -17,10 +17,9 @@ class OneLineCommand(click.Command):
     def _one_line(self, exc: click.UsageError):
         from loadbayes.commands.output import UserError
 
-        msg = exc.format_message()
-        if isinstance(exc, click.BadParameter) and exc.param_hint is None and exc.param:
-            msg = f"{'/'.join(exc.param.opts) or exc.param.name}: {msg}"
-        return UserError(f"{msg.rstrip('.')} (see 'loadbayes ... {self.name} --help')")
+        msg = exc.format_message()  # click names the option in it
+        where = exc.ctx.command_path if exc.ctx is not None else f"loadbayes ... {self.name}"
+        return UserError(f"{msg.rstrip('.')} (see '{where} --help')")
 
     def make_context(self, info_name, args, parent=None, **extra):  # noqa: D102
         from loadbayes.commands.output import install_signal_handlers, restore_signal_handlers
