@@ -22,6 +22,7 @@ from loadbayes.io.errors import DataError
 
 __all__ = [
     "UnitProblem",
+    "check_gram_units",
     "check_motor_units",
     "check_power_units",
     "level_at_nominal",
@@ -280,3 +281,54 @@ def refuse(
     column = (names or {}).get(first.column) or first.column
     more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
     raise DataError(str(first) + more, path=path, column=column)
+
+
+def check_gram_units(gram, *, v0: float, nominal: Mapping[str, object]) -> list[str]:
+    """The unit check of one bus from its ZIP Gram matrix alone (fleets keep no rows).
+
+    Parameters
+    ----------
+    gram : loadbayes.core.stats.Gram
+        Columns of :class:`~loadbayes.models.zip.ZIPModel`: ``z1, z2, 1`` and ``rp``/``p``
+        (``rq``/``q``).
+    v0 : float
+        Nominal voltage of the model.
+    nominal : mapping
+        ``{"p": P0 or "auto", "q": ...}`` for the channels present.
+
+    Returns
+    -------
+    list of str
+        Plain-words problems (empty when the bus looks per unit). The mean stands in for
+        the median of :func:`check_power_units`.
+    """
+    names = list(gram.names)
+    n = max(int(gram.n), 1)
+    one = names.index("1")
+    x_mean = 1.0 + float(gram.matrix[names.index("z2"), one]) / n
+    out = []
+    if not (V_RANGE[0] <= x_mean <= V_RANGE[1]):
+        out.append(
+            f"voltage averages {x_mean:.4g} times v0 ({x_mean * v0:.4g}): not per unit "
+            f"({_suggest_base(x_mean * v0)})"
+        )
+        return out
+    idx = [names.index(c) for c in ("1", "z1", "z2")]
+    a = gram.matrix[np.ix_(idx, idx)]
+    for ch, nom in nominal.items():
+        col = ch if nom == "auto" else f"r{ch}"
+        if col not in names:
+            continue
+        coef = np.linalg.lstsq(a, gram.matrix[idx, names.index(col)], rcond=None)[0]
+        level = float(coef[0])
+        if nom == "auto" and abs(level) > AUTO_MAX:
+            out.append(
+                f"{ch.upper()} at V0 is about {level:.4g}: not per unit of any sensible base "
+                "(give --s-base)"
+            )
+        elif nom != "auto" and not (NOMINAL_RANGE[0] <= 1.0 + level <= NOMINAL_RANGE[1]):
+            out.append(
+                f"{ch.upper()} at V0 is {1.0 + level:.3g} times the given {ch}0: "
+                f"not the power at V0 (give --{ch}0 auto, or --s-base)"
+            )
+    return out
