@@ -382,5 +382,3 @@ def _prior_draw(gen: np.random.Generator, mean: np.ndarray, prec: np.ndarray) ->
         return gen.multivariate_normal(mean, np.linalg.inv(prec))
     except np.linalg.LinAlgError:  # flat prior: any start
         return mean + gen.standard_normal(mean.size)
-
-
