@@ -46,3 +46,6 @@ from loadbayes.commands import reproduce_all as _reproduce_all  # noqa: E402, F4
 from loadbayes.commands import track as _track  # noqa: E402, F401
 from loadbayes.commands import zip as _zip  # noqa: E402, F401
 from loadbayes.commands import zip_study as _zip_study  # noqa: E402, F401
+from loadbayes.commands.composite import fit_composite_cmd as _fit_composite_cmd  # noqa: E402
+
+fit.add_command(_fit_composite_cmd)

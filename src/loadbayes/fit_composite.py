@@ -37,7 +37,14 @@ from loadbayes.models.composite import (
 from loadbayes.models.motor_kernel import H_MAX_S, steady_state
 from loadbayes.posterior import Posterior, gaussian_draws
 
-__all__ = ["CompositeFit", "fit_composite", "identifiability", "named_draws"]
+__all__ = [
+    "CompositeFit",
+    "beta_from_named",
+    "fit_composite",
+    "identifiability",
+    "named_draws",
+    "predictive_band",
+]
 
 #: Plain names of the sampled (scale-free) coordinates, for the identifiability section.
 #: The rating is unknown, so impedances are read on the base of the motor's own initial
@@ -372,3 +379,53 @@ def fit_composite(
         },
     )
     return CompositeFit(post, baseline, problem, start, {"nls": t1 - t0, "sampler": t2 - t1})
+
+
+def beta_from_named(draws: dict[str, np.ndarray], event: int = 0) -> np.ndarray:
+    """The linear coefficients (..., 7) of one event, rebuilt from the named draws."""
+    sfx = "" if event == 0 else f"_e{event}"
+    p0, q0, f_m = draws[f"p0{sfx}"], draws[f"q0{sfx}"], draws[f"f_m{sfx}"]
+    pz = p0 * (1 - f_m)
+    cols = [pz * draws[f"a{i}{sfx}"] for i in (1, 2, 3)]
+    cols += [q0 * draws[f"a{i}{sfx}"] for i in (4, 5, 6)]
+    cols.append(f_m * p0)
+    return np.stack(cols, axis=-1)
+
+
+def predictive_band(
+    post: Posterior,
+    events: Sequence[Event],
+    *,
+    f_hz: float = 60.0,
+    torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
+    n_draws: int = 200,
+    prob: float = 0.95,
+    seed: int = 0,
+) -> list[dict[str, np.ndarray]]:
+    """Posterior band of the model's P(t), Q(t) for each event (noise not added).
+
+    Returns, per event, ``p_lo, p_mid, p_hi, q_lo, q_mid, q_hi`` (the ``prob`` central
+    interval and the median over ``n_draws`` posterior draws).
+    """
+    from loadbayes.models.composite import predict
+
+    rng = np.random.default_rng(seed)
+    theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
+    pick = rng.choice(theta.shape[0], size=min(n_draws, theta.shape[0]), replace=False)
+    out = []
+    for k, ev in enumerate(events):
+        beta = beta_from_named(post.draws, k).reshape(-1, 7)
+        ps, qs = [], []
+        for i in pick:
+            r = predict(ev, theta[i], beta[i], f_hz=f_hz, torque=torque)
+            if r is not None:
+                ps.append(r[0])
+                qs.append(r[1])
+        lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+        band = {}
+        for name, arr in (("p", np.array(ps)), ("q", np.array(qs))):
+            band[f"{name}_lo"], band[f"{name}_mid"], band[f"{name}_hi"] = np.percentile(
+                arr, [lo, 50, hi], axis=0
+            )
+        out.append(band)
+    return out
