@@ -20,6 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numba
 import numpy as np
 from scipy import optimize
 
@@ -201,8 +202,10 @@ class CompositeProblem:
             return None
         out = []
         for ev, (pm, qm) in zip(self.events, resp, strict=True):
-            zp, zq = design(ev, pm, qm)
-            out.append(GroupSums.from_arrays([zp, zq], [ev.p, ev.q]))
+            # Compiled sums of the two designs (models.composite.design), without forming
+            # them: the sampler needs only Z'Z, Z'y and y'y.
+            ztz, zty, yty = _design_sums(ev.x, pm, qm, ev.p, ev.q)
+            out.append(GroupSums(ztz, zty, yty, np.array([ev.n, ev.n], dtype=float)))
         return out
 
     def log_collapsed(self, sums: list[GroupSums] | None, u, tau) -> float:
@@ -213,6 +216,29 @@ class CompositeProblem:
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=_POS)
         return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _design_sums(x, pm, qm, p, q):  # pragma: no cover - compiled
+    ztz = np.zeros((2, 7, 7))
+    zty = np.zeros((2, 7))
+    yty = np.zeros(2)
+    pm0, qm0 = pm[0], qm[0]
+    zp = np.zeros(7)
+    zq = np.zeros(7)
+    for i in range(x.size):
+        x2 = x[i] * x[i]
+        zp[0], zp[1], zp[2], zp[6] = x2, x[i], 1.0, pm[i] / pm0
+        zq[3], zq[4], zq[5], zq[6] = x2, x[i], 1.0, (qm[i] - qm0 * x2) / pm0
+        for a in range(7):
+            zty[0, a] += zp[a] * p[i]
+            zty[1, a] += zq[a] * q[i]
+            for b in range(7):
+                ztz[0, a, b] += zp[a] * zp[b]
+                ztz[1, a, b] += zq[a] * zq[b]
+        yty[0] += p[i] * p[i]
+        yty[1] += q[i] * q[i]
+    return ztz, zty, yty
 
 
 # ------------------------------------------------------------------------- NLS

@@ -150,8 +150,7 @@ def draw_beta(
     mu, cov, _, _ = posterior_moments(sums, np.asarray(tau, dtype=float), m0, p0)
     k = mu.size
     if positive is None:
-        w, v = np.linalg.eigh(cov)
-        return mu + v @ (np.sqrt(np.clip(w, 0.0, None)) * rng.standard_normal(k))
+        return mu + np.linalg.cholesky(cov) @ rng.standard_normal(k)
     j = positive
     sd = math.sqrt(cov[j, j])
     bj = mu[j] + sd * _truncated_standard(-mu[j] / sd, rng)
@@ -159,10 +158,14 @@ def draw_beta(
     c_rj = cov[rest, j]
     mean_r = mu[rest] + c_rj / cov[j, j] * (bj - mu[j])
     cov_r = cov[np.ix_(rest, rest)] - np.outer(c_rj, c_rj) / cov[j, j]
-    w, v = np.linalg.eigh((cov_r + cov_r.T) / 2)
     out = np.empty(k)
     out[j] = bj
-    out[rest] = mean_r + v @ (np.sqrt(np.clip(w, 0.0, None)) * rng.standard_normal(k - 1))
+    z = rng.standard_normal(k - 1)
+    try:
+        out[rest] = mean_r + np.linalg.cholesky(cov_r) @ z
+    except np.linalg.LinAlgError:  # rounding made it semi-definite: fall back to eigh
+        w, v = np.linalg.eigh((cov_r + cov_r.T) / 2)
+        out[rest] = mean_r + v @ (np.sqrt(np.clip(w, 0.0, None)) * z)
     return out
 
 

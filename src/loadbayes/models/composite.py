@@ -141,6 +141,8 @@ def motor_response(
         is not finite.
     """
     rs, xp, dx, tp, h, t0 = np.exp(np.asarray(theta, dtype=float))
+    # RK4's error grows as (h / T')^4: a fast motor proposed by a sampler gets a finer step.
+    h_max = min(h_max, tp / 40.0)
     out = integrate(
         event.t,
         event.v,

@@ -17,7 +17,8 @@ the electrical torque reaches the load torque).
 Accuracy (``tests/unit/test_motor_kernel.py``): against ``scipy.integrate.solve_ivp``
 (DOP853, ``rtol=1e-10``) driven by the same piecewise-linear voltage, on every motor of
 ``cases.motor_sim.MOTORS`` and sags of 10-60%, the largest error in P and Q is below
-``1e-4`` p.u. on the motor's base with the default ``h_max = 1 ms``.
+``1e-4`` p.u. on the motor's base with the default ``h_max = 2 ms`` (measured: below
+3e-5 for krause_3hp, whose T' = 0.087 s is the shortest, and 1e-7 for the others).
 """
 
 from __future__ import annotations
@@ -31,8 +32,9 @@ from numpy.typing import NDArray
 __all__ = ["H_MAX_S", "integrate", "steady_slip", "steady_state"]
 
 #: Default largest RK4 sub-step (s). The fastest motor of the library (krause_3hp,
-#: T' = 0.087 s, slip frequency ~20 rad/s) keeps RK4's error below 1e-5 at this step.
-H_MAX_S = 1e-3
+#: T' = 0.087 s) keeps RK4's error in P and Q below 3e-5 p.u. at this step (1e-7 for the
+#: others); :func:`loadbayes.models.composite.motor_response` also caps it at T'/40.
+H_MAX_S = 2e-3
 
 
 @numba.njit(cache=True, nogil=True)
