@@ -29,6 +29,7 @@ from loadbayes.inference.condlinear import (
     draw_beta,
     draw_tau,
     log_marginal,
+    log_marginal_arrays,
     residual_ss,
 )
 from loadbayes.inference.mwg import AdaptiveMetropolis, run_chains
@@ -40,7 +41,7 @@ from loadbayes.models.composite import (
     design,
     motor_response,
 )
-from loadbayes.models.motor_kernel import H_MAX_S
+from loadbayes.models.motor_kernel import H_MAX_S, _integrate
 
 __all__ = [
     "CompositePrior",
@@ -65,6 +66,7 @@ THETA_PRIOR: dict[str, tuple[float, float]] = {
 _POS = BETA_NAMES.index("p_m0")
 _T = SCALE_FREE_MATRIX
 _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
+_T_INV5 = np.ascontiguousarray(_T_INV[:, :5])
 # Priors are frozen dataclasses holding arrays (not hashable): cache by their bytes.
 _SCALE_FREE_CACHE: dict[Any, Any] = {}
 
@@ -169,15 +171,67 @@ class CompositeProblem:
     h_max: float = H_MAX_S
     evaluations: int = field(default=0, init=False)
 
-    @property
-    def m0(self) -> np.ndarray:
-        """Prior mean of beta."""
-        return np.zeros(7)
+    def __post_init__(self) -> None:
+        self.m0 = np.zeros(7)
+        self.p0 = 1.0 / self.prior.beta_sd**2
+        ev = self.events
+        self._starts = np.cumsum([0] + [e.n for e in ev]).astype(np.int64)
+        self._t = np.concatenate([e.t for e in ev])
+        self._v = np.concatenate([e.v for e in ev])
+        self._delta = np.concatenate(
+            [np.zeros(e.n) if e.delta is None else e.delta - e.delta[0] for e in ev]
+        )
+        self._x = np.concatenate([e.x for e in ev])
+        self._p = np.concatenate([e.p for e in ev])
+        self._q = np.concatenate([e.q for e in ev])
+        self._n = np.array([[e.n, e.n] for e in ev], dtype=float)
+        mean_u, cov_u, _, _ = self.prior.scale_free()
+        self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
 
-    @property
-    def p0(self) -> np.ndarray:
-        """Prior precision of beta."""
-        return 1.0 / self.prior.beta_sd**2
+    def collapsed(self, u: np.ndarray, tau: np.ndarray) -> tuple[float, list[GroupSums] | None]:
+        """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
+
+        The same value as :meth:`log_collapsed` of :meth:`sums` (tested); ``(-inf, None)``
+        when the motor has no steady state or the linear block is singular.
+        """
+        self.evaluations += 1
+        n_ev = len(self.events)
+        ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
+        if not np.all(np.isfinite(u)):
+            return -math.inf, None
+        a, b, c = self.torque
+        try:
+            lp = _collapsed(
+                np.asarray(u, dtype=float),
+                np.asarray(tau, dtype=float),
+                self._t,
+                self._v,
+                self._delta,
+                self._x,
+                self._p,
+                self._q,
+                self._starts,
+                self._n,
+                self._mean_u,
+                self._prec_u,
+                _T_INV5,
+                self.m0,
+                self.p0,
+                _POS,
+                2.0 * math.pi * self.f_hz,
+                float(a),
+                float(b),
+                float(c),
+                float(self.h_max),
+                ztz,
+                zty,
+                yty,
+            )
+        except np.linalg.LinAlgError:
+            return -math.inf, None
+        if not math.isfinite(lp):
+            return -math.inf, None
+        return lp, [GroupSums(ztz[e], zty[e], yty[e], self._n[e]) for e in range(n_ev)]
 
     def responses(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
         """The motor's P, Q in every event for scale-free ``u`` (None if no steady state).
@@ -216,6 +270,71 @@ class CompositeProblem:
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=_POS)
         return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _collapsed(  # pragma: no cover - compiled
+    u,
+    tau,
+    t,
+    v,
+    delta,
+    x,
+    p,
+    q,
+    starts,
+    n,
+    mean_u,
+    prec_u,
+    t_inv,
+    m0,
+    p0,
+    pos,
+    wb,
+    a,
+    b,
+    c,
+    h_max,
+    ztz,
+    zty,
+    yty,
+):
+    # theta on the base where T0 = 1 (log T0 = 0): the scale-free map's inverse.
+    th = t_inv @ u
+    rs, xp, dx = math.exp(th[0]), math.exp(th[1]), math.exp(th[2])
+    tp, h, t0 = math.exp(th[3]), math.exp(th[4]), math.exp(th[5])
+    hm = min(h_max, tp / 40.0)
+    d = u - mean_u
+    lp = -0.5 * (d @ (prec_u @ d))
+    for e in range(starts.size - 1):
+        s0, s1 = starts[e], starts[e + 1]
+        m = s1 - s0
+        pm, qm, states = np.empty(m), np.empty(m), np.empty((3, m))
+        ok = _integrate(
+            t[s0:s1],
+            v[s0:s1],
+            delta[s0:s1],
+            rs,
+            xp,
+            dx,
+            tp,
+            h,
+            wb,
+            t0,
+            a,
+            b,
+            c,
+            hm,
+            pm,
+            qm,
+            states,
+        )
+        if not ok:
+            return -math.inf
+        zz, zy, yy = _design_sums(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1])
+        ztz[e], zty[e], yty[e] = zz, zy, yy
+        lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
+    return lp
 
 
 @numba.njit(cache=True, nogil=True)
@@ -468,8 +587,7 @@ def sample(
             lp = problem.log_collapsed(sums, u, tau)
 
             def logp(x, tau=tau):
-                s = problem.sums(x)
-                return problem.log_collapsed(s, x, tau), s
+                return problem.collapsed(x, tau)
 
             u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
             betas = [draw_beta(s, tau, problem.m0, problem.p0, rng, positive=_POS) for s in sums]

@@ -106,3 +106,21 @@ def test_nls_recovers_the_motor_share_and_the_ratio_b2():
         (truth["x_open"] - truth["x_prime"]) / truth["t_prime_s"], rel=0.15
     )
     assert np.all(res.sigma < 0.003)
+
+
+def test_compiled_collapsed_density_equals_the_python_path():
+    evs = [
+        simulate_event("small_industrial", depth=d, seed=i, t_end_s=1.5)[0]
+        for i, d in enumerate((0.3, 0.5))
+    ]
+    prob = CompositeProblem(evs, CompositePrior.default(evs))
+    u = (SCALE_FREE_MATRIX @ _theta("small_industrial"))[:5]
+    tau = np.array([9000.0, 11000.0])
+    lp, sums = prob.collapsed(u, tau)
+    want = prob.log_collapsed(prob.sums(u), u, tau)
+    assert lp == pytest.approx(want, rel=1e-10)
+    np.testing.assert_allclose(sums[1].ztz, prob.sums(u)[1].ztz, rtol=1e-12)
+    # No steady state (a motor loaded past its breakdown torque): -inf, no sums.
+    bad = u.copy()
+    bad[1] += 3.0  # X' T0 twenty times larger
+    assert prob.collapsed(bad, tau) == (-np.inf, None)

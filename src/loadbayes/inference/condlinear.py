@@ -60,10 +60,6 @@ class GroupSums:
         )
 
 
-def _log_ndtr(x: float) -> float:
-    return float(special.log_ndtr(x))
-
-
 @numba.njit(cache=True, nogil=True)
 def _moments(ztz, zty, tau, m0, p0):  # pragma: no cover - compiled
     k = m0.size
@@ -101,6 +97,30 @@ def posterior_moments(
     )
 
 
+@numba.njit(cache=True, nogil=True)
+def log_ndtr(z):  # pragma: no cover - compiled
+    """``log Phi(z)`` (standard normal CDF), accurate far into the lower tail."""
+    if z > -30.0:
+        return math.log(0.5 * math.erfc(-z / math.sqrt(2.0)))
+    # Asymptotic series of the Mills ratio: Phi(z) ~ phi(z) / -z (1 - 1/z^2 + 3/z^4).
+    z2 = z * z
+    return -0.5 * z2 - math.log(-z) - 0.5 * _LOG_2PI + math.log1p(-1.0 / z2 + 3.0 / (z2 * z2))
+
+
+@numba.njit(cache=True, nogil=True)
+def log_marginal_arrays(ztz, zty, yty, n, tau, m0, p0, positive):  # pragma: no cover
+    """:func:`log_marginal` on raw arrays (``positive < 0`` for none); compiled."""
+    mu, cov, h, logdet = _moments(ztz, zty, tau, m0, p0)
+    out = 0.0
+    for g in range(tau.size):
+        out += 0.5 * n[g] * (math.log(tau[g]) - _LOG_2PI) - 0.5 * tau[g] * yty[g]
+    out += 0.5 * (np.sum(np.log(p0)) - np.sum(p0 * m0 * m0) + np.sum(h * mu) - logdet)
+    if positive >= 0:
+        sd = math.sqrt(cov[positive, positive])
+        out += log_ndtr(mu[positive] / sd) - log_ndtr(m0[positive] * math.sqrt(p0[positive]))
+    return out
+
+
 def log_marginal(
     sums: GroupSums,
     tau: np.ndarray,
@@ -113,17 +133,21 @@ def log_marginal(
 
     Returns ``-inf`` when ``A`` is not positive definite (numerically singular design).
     """
-    tau = np.asarray(tau, dtype=float)
     try:
-        mu, cov, h, logdet = posterior_moments(sums, tau, m0, p0)
+        return float(
+            log_marginal_arrays(
+                sums.ztz,
+                sums.zty,
+                sums.yty,
+                sums.n,
+                np.asarray(tau, dtype=float),
+                np.asarray(m0, dtype=float),
+                np.asarray(p0, dtype=float),
+                -1 if positive is None else int(positive),
+            )
+        )
     except np.linalg.LinAlgError:
         return -math.inf
-    out = 0.5 * float(sums.n @ (np.log(tau) - _LOG_2PI)) - 0.5 * float(tau @ sums.yty)
-    out += 0.5 * (float(np.sum(np.log(p0))) - float(p0 @ (m0 * m0)) + float(h @ mu) - logdet)
-    if positive is not None:
-        sd = math.sqrt(cov[positive, positive])
-        out += _log_ndtr(mu[positive] / sd) - _log_ndtr(m0[positive] * math.sqrt(p0[positive]))
-    return out
 
 
 def _truncated_standard(a: float, rng: np.random.Generator) -> float:

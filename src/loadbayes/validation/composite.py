@@ -131,8 +131,7 @@ def run_recovery(
             {
                 "depth": case["depth"],
                 "f_m_sd": float(np.std(post.draws["f_m"])),
-                "log_t_prime_sd_over_prior": float(np.std(post.draws["log_t_prime"]))
-                / prior_sd_tp,
+                "log_t_prime_sd_over_prior": float(np.std(post.draws["log_t_prime"])) / prior_sd_tp,
             }
         )
         import arviz as az

@@ -62,7 +62,13 @@ def _prior(event):
 
 
 def composite_sampler(
-    name: str, *, thin: int = 20, burn: int = 800, kept: int = 99, notes: str = ""
+    name: str,
+    *,
+    thin: int = 40,
+    burn: int = 600,
+    kept: int = 59,
+    notes: str = "",
+    ci_replications: int | None = None,
 ) -> SamplerUnderTest:
     """The composite Metropolis-within-Gibbs sampler as SBC sees it (module docstring)."""
     from loadbayes.composite_problem import CompositeProblem, nls, sample
@@ -103,7 +109,8 @@ def composite_sampler(
 
     def fit(data, seed: int) -> dict[str, np.ndarray]:
         prob = CompositeProblem([data], prior)
-        start = nls(prob)
+        # One NLS start (the prior median): the chain's burn-in does the rest.
+        start = nls(prob, starts=[mean_u])
         res = sample(
             prob,
             start=start,
@@ -122,4 +129,6 @@ def composite_sampler(
         out["tau_p"], out["tau_q"] = res.tau[:, 0], res.tau[:, 1]
         return out
 
-    return SamplerUnderTest(name, PARAMETERS, draw_prior, simulate, fit, kept, notes)
+    return SamplerUnderTest(
+        name, PARAMETERS, draw_prior, simulate, fit, kept, notes, ci_replications
+    )
