@@ -257,8 +257,8 @@ def fit_composite(
     prior: CompositePrior | None = None,
     f_hz: float = 60.0,
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
-    draws: int = 4000,
-    burn: int = 2000,
+    draws: int = 10_000,
+    burn: int = 3000,
     thin: int = 1,
     chains: int = 4,
     seed: int = 0,
@@ -363,6 +363,21 @@ def fit_composite(
             + "; ".join(ident["what_would_help"])
             + " would help."
         )
+    if chains > 1:
+        import warnings as _w
+
+        from loadbayes.posterior import _arviz
+
+        with _w.catch_warnings():
+            _w.simplefilter("ignore")
+            rhat = {n: float(_arviz().rhat(draws_named[n])) for n in THETA_NAMES[:5]}
+        slow = [n for n, r in rhat.items() if not r < 1.01]
+        if slow:
+            post.warnings.append(
+                "the chains have not converged for "
+                + ", ".join(f"{n} (R-hat {rhat[n]:.3f})" for n in slow)
+                + ": run longer (--draws, --burn)"
+            )
     bl_draws = _baseline(problem, start, chains, max((draws - burn) // thin, 1), seed)
     baseline = Posterior(
         bl_draws,

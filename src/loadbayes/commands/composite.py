@@ -96,8 +96,20 @@ def _parse_torque(text: str) -> tuple[float, float, float]:
     metavar="NAME=MEDIAN,SD_LOG",
     help="Log-normal prior of rs, x_prime, dx, t_prime_s, h_s or t0 (repeatable).",
 )
-@click.option("--draws", type=click.IntRange(min=2), default=4000, show_default=True)
-@click.option("--burn", type=click.IntRange(min=1), default=2000, show_default=True)
+@click.option(
+    "--draws",
+    type=click.IntRange(min=2),
+    default=10_000,
+    show_default=True,
+    help="Iterations per chain, burn-in included.",
+)
+@click.option(
+    "--burn",
+    type=click.IntRange(min=1),
+    default=3000,
+    show_default=True,
+    help="Burn-in (the proposal adapts during it, then freezes).",
+)
 @click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True)
 @click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True)
 @click.option("--seed", type=int, default=0, show_default=True)
