@@ -12,7 +12,7 @@ Timed, in the same run:
 - emcee 3 (32 walkers, the stretch move) on the same model's joint log-posterior
   (scale-free motor coordinates, the seven linear coefficients, log tau_p, log tau_q;
   the same priors), with the motor integrated by ``scipy.integrate.solve_ivp``
-  (DOP853, rtol 1e-6, atol 1e-9) inside each log-density call, for 240 s of wall time
+  (DOP853, rtol 1e-6, atol 1e-9) inside each log-density call, for 150 s of wall time
   (or 2,000 steps);
 - the NLS baseline alone (time, and its error against the truth).
 
@@ -132,9 +132,8 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
         def rhs(tt, y):
             return derivatives(y, np.interp(tt, ev.t, ev.v), 0.0, m, t0=t0)
 
-        sol = solve_ivp(
-            rhs, (0, ev.t[-1]), op.state, "DOP853", ev.t, rtol=1e-6, atol=1e-9, max_step=1 / fs
-        )
+        # Adaptive steps (no max_step): the cheapest honest use of solve_ivp here.
+        sol = solve_ivp(rhs, (0, ev.t[-1]), op.state, "DOP853", ev.t, rtol=1e-6, atol=1e-9)
         if not sol.success:
             return None
         i_d, iq = currents(ev.v, 0.0, sol.y[0], sol.y[1], m)
@@ -192,9 +191,18 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
         torque = (1.0, 0.0, 0.0)
 
     named = named_draws(_P, theta, x[..., 5:12][:, :, None, :], np.exp(x[..., 12:]))
-    ess, rhat, worst = _ess_rhat(named)
+    try:
+        ess, rhat, worst = _ess_rhat(named)
+    except Exception:  # too few steps for ArviZ's diagnostics
+        ess, rhat, worst = math.nan, math.nan, "n/a"
+    # With a few steps per walker ArviZ's ESS is unreliable (or undefined): bound it by
+    # the number of kept draws, which no sampler can beat. The ratio is then a lower bound.
+    kept = walkers * (steps - steps // 2)
+    ess_bound = min(ess, kept) if math.isfinite(ess) else float(kept)
     return {
         "sampler": "emcee-solve_ivp",
+        "steps_done": steps,
+        "ess_upper_bound": ess_bound,
         "fs": fs,
         "n": ev.n,
         "settings": f"32 walkers x {steps} (discard {steps // 2})",
@@ -202,7 +210,7 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
         "min_ess_bulk": ess,
         "worst": worst,
         "max_r_hat": rhat,
-        "ess_per_s": ess / wall,
+        "ess_per_s": ess_bound / wall,
         "acceptance": float(np.mean(sampler.acceptance_fraction)),
         "log_prob_evals": walkers * steps,
         "s_per_eval": wall / (walkers * steps),
@@ -222,7 +230,7 @@ def main(argv=None) -> int:
     run_loadbayes(60.0, 2.0, 40, 20)
     rows = [run_loadbayes(60.0, t_end, draws, burn)]
     rows.append(run_loadbayes(960.0, t_end, draws, burn))
-    rows.append(run_emcee(60.0, t_end, steps, seconds=30.0 if args.quick else 240.0))
+    rows.append(run_emcee(60.0, t_end, steps, seconds=30.0 if args.quick else 150.0))
     lb, em = rows[0], rows[2]
     ratio = lb["ess_per_s"] / em["ess_per_s"] if em["ess_per_s"] > 0 else math.inf
     targets = []
@@ -240,7 +248,9 @@ def main(argv=None) -> int:
     targets.append(
         {
             "target": "ESS/s >= 100x emcee (32 walkers, solve_ivp inside), same run",
-            "measured": f"{ratio:,.0f}x ({lb['ess_per_s']:.3g} vs {em['ess_per_s']:.3g} ESS/s)",
+            "measured": f"at least {ratio:,.0f}x ({lb['ess_per_s']:.3g} vs at most "
+            f"{em['ess_per_s']:.3g} ESS/s; emcee: {em['steps_done']} steps per walker in "
+            f"{em['wall_s']:.0f} s, R-hat {em['max_r_hat']:.3g})",
             "met": bool(ratio >= 100),
         }
     )
@@ -265,8 +275,10 @@ def main(argv=None) -> int:
         "notes": [
             "Errors are posterior (or NLS) mean minus truth; the NLS is penalised by the "
             "prior (its Tikhonov rows), as the sampler's start.",
-            "emcee's ESS is on walkers treated as chains after discarding the first half; "
-            "with few steps per walker it is a rough figure, and generous to emcee.",
+            "emcee's ESS is on walkers treated as chains after discarding the first half, "
+            "bounded above by the number of kept draws (with a few steps per walker "
+            "ArviZ's estimate is meaningless); its ESS/s is therefore an upper bound and "
+            "the ratio a lower bound.",
         ],
     }
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
