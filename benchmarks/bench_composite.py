@@ -259,9 +259,14 @@ def main(argv=None) -> int:
 
     out = {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs; "
-        f"{platform.platform()}; Python {platform.python_version()}; load average at start "
-        f"{load[0]:.1f}, {load[1]:.1f}, {load[2]:.1f}",
+        "machine": {
+            "cpu": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(),
+            "cpus_usable": len(os.sched_getaffinity(0)),
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "load_average_at_start": list(load),
+        },
         "versions": {
             "numpy": np.__version__,
             "scipy": scipy.__version__,
