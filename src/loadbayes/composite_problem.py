@@ -24,6 +24,7 @@ import numba
 import numpy as np
 from scipy import optimize
 
+from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
@@ -32,7 +33,6 @@ from loadbayes.inference.condlinear import (
     log_marginal_arrays,
     residual_ss,
 )
-from loadbayes.inference.mwg import AdaptiveMetropolis, run_chains
 from loadbayes.models.composite import (
     BETA_NAMES,
     SCALE_FREE_MATRIX,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
+from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import GroupSums, draw_beta, log_marginal
-from loadbayes.inference.mwg import AdaptiveMetropolis, run_chains
 
 
 def _problem(seed=0, k=3):

@@ -167,7 +167,10 @@ def read_events(
     ``f_col`` and ``angle_col`` default to ``f`` and ``angle_rad`` when present (the angle
     wins when both are); ``event_col`` is used when present.
     """
-    from loadbayes.commands.exp import read_power_columns
+    try:  # the shared reader's home after the lead's refactoring; before it, commands.exp
+        from loadbayes.measurements import read_power_columns
+    except ImportError:
+        from loadbayes.commands.exp import read_power_columns
 
     out: list[Event] = []
     for path in paths:
