@@ -40,6 +40,8 @@ bench: $(BENCH_VENV)/.installed
 
 validate: $(STAMP)
 	$(PY) -m loadbayes.studies.calibration.run --out results/validation
+	$(PY) -m loadbayes.studies.calibration.composite_recovery --events 200 \
+		--output results/validation/composite_recovery.json
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) results .pytest_cache .ruff_cache
