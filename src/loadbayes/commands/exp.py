@@ -163,6 +163,7 @@ def fit_exp_cmd(
             init=init,
             seed=seed,
             warnings=warnings,
+            warn=False,
             settings={
                 "data": str(data),
                 "columns": names,
