@@ -20,7 +20,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Pointwise", "channel_units", "model_of", "pointwise"]
+__all__ = [
+    "Pointwise",
+    "channel_units",
+    "curves",
+    "data_units",
+    "model_of",
+    "param_unit",
+    "pointwise",
+]
 
 #: Largest number of values of one pointwise array (chain x draw x sample): 16 MB.
 MAX_CELLS = 2_000_000
@@ -90,6 +98,54 @@ def channel_units(post: Any) -> dict[str, str]:
         "f": units.get("f", "Hz"),
     }
     return out
+
+
+def data_units(post: Any) -> dict[str, str]:
+    """Units of v, p, q, f in the data as read (what the user's file holds)."""
+    st = post.settings
+    units = dict(st.get("units") or {})
+    out = {}
+    for key, base in (("v", "v_base"), ("p", "s_base"), ("q", "s_base")):
+        out[key] = units.get(key) or ("data units" if st.get(base) else "p.u.")
+    out["f"] = units.get("f", "Hz")
+    return out
+
+
+#: Units of the coefficients (docs/zip.md, docs/motor.md).
+_PARAM_UNITS = {
+    **{f"a{i}": "share of nominal power" for i in range(1, 7)},
+    "np": "dimensionless", "nq": "dimensionless", "kpf": "dimensionless",
+    "kqf": "dimensionless", "b1": "1/s", "b2": "p.u./s", "b3": "1/s", "ab": "p.u.",
+    "ac": "p.u.", "rs": "p.u.", "xp": "p.u.", "x": "p.u.", "xs": "p.u.", "xm": "p.u.",
+    "xr": "p.u.", "rr": "p.u.", "tp_s": "s", "h_s": "s",
+}  # fmt: skip
+
+
+def param_unit(name: str, post: Any) -> str:
+    """The unit of a parameter of this fit, in words (for axes and tables)."""
+    if name in _PARAM_UNITS:
+        return _PARAM_UNITS[name]
+    fitted = channel_units(post)
+    if name in ("p0", "q0"):
+        return fitted[name[0]]
+    if name.startswith("tau_"):
+        ch = name[4:]
+        if post.model in ("zip", "exp") and ch in ("p", "q"):
+            nom = post.settings.get(f"{ch}0")
+            if post.settings.get("noise") == "multiplicative":
+                return "1/(log units)²"
+            return f"1/({fitted[ch]})²" if nom == "auto" else f"1/({ch.upper()}/{ch.upper()}0)²"
+        return "1/(equation units)²"
+    return "–"
+
+
+def curves(model: Any, draws: Mapping[str, np.ndarray], obs: Mapping[str, np.ndarray]):
+    """Mean P (Q) at the voltages ``obs["v"]`` per draw, and the noise sd per draw.
+
+    ``draws`` are flat (one value a draw); returns ``({channel: (S, n)}, {channel: (S,)})``
+    in the fitted units (per unit when bases were given).
+    """
+    return _curves(model, draws, obs)
 
 
 def _curves(model: Any, draws: Mapping[str, np.ndarray], obs: Mapping[str, np.ndarray]):
