@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import click
 
+from loadbayes.commands import example as _example
 from loadbayes.commands import exp as _exp
 from loadbayes.commands import im as _im
+from loadbayes.commands import report as _report
 from loadbayes.commands import reproduce as _reproduce
 from loadbayes.commands import simulate as _simulate
 from loadbayes.commands import track as _track
@@ -57,3 +59,5 @@ track.add_command(_track.track_zip_cmd)
 reproduce.add_command(_reproduce.reproduce_zip_cmd)
 reproduce.add_command(_reproduce.reproduce_im_cmd)
 reproduce.add_command(_reproduce.reproduce_all_cmd)
+main.add_command(_report.report_cmd)
+main.add_command(_example.example_cmd)

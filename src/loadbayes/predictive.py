@@ -8,8 +8,9 @@ replicated measurement. ArviZ's ``log_likelihood`` and ``posterior_predictive`` 
 made of these, so that ``az.loo`` and ``az.plot_ppc`` work on a saved fit.
 
 The arrays are (chain, draw, sample): at 1,440 samples and 35,000 draws a chain they would
-be 1.6 GB, so the draws are thinned evenly to keep each array under ``max_cells`` values;
-the kept draws' indices are the ``draw`` coordinate, so they line up with the posterior.
+be 1.6 GB, so the draws are thinned evenly to keep each array under ``max_cells`` values
+(stored as float32); the kept draws' indices are the ``draw`` coordinate, so they line up
+with the posterior.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ __all__ = [
     "pointwise",
 ]
 
-#: Largest number of values of one pointwise array (chain x draw x sample): 16 MB.
-MAX_CELLS = 2_000_000
+#: Largest number of values of one pointwise array (chain x draw x sample): 2 MB as float32.
+MAX_CELLS = 500_000
 
 #: Draws kept per chain at most for the pointwise groups.
 MAX_DRAWS = 1000
@@ -227,6 +228,7 @@ def pointwise(
             z = (y - m) / sd
             ll[ch] = -0.5 * z**2 - np.log(sd) - 0.5 * np.log(2 * np.pi)
             pp[ch] = m + sd * gen.standard_normal(m.shape)
-        ll[ch], pp[ch] = ll[ch].reshape(shape), pp[ch].reshape(shape)
+        ll[ch] = ll[ch].reshape(shape).astype(np.float32)
+        pp[ch] = pp[ch].reshape(shape).astype(np.float32)
         mu[ch] = m.reshape(shape)
     return Pointwise(idx, ll, pp, mu)

@@ -51,8 +51,8 @@ def output_options(func):
             "--json",
             "json_out",
             type=click.Path(dir_okay=False),
-            required=True,
-            help="Summary in the loadbayes JSON contract.",
+            required=False,
+            help="Summary in the loadbayes JSON contract (optional: the table goes to stdout).",
         ),
         click.option(
             "--netcdf",

@@ -126,13 +126,20 @@ def estimate_rows(path: str) -> int | None:
 
 
 def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet):
-    """Write the JSON, NetCDF and figure; print the table unless quiet."""
+    """Write the JSON, NetCDF and figure (each optional); print the table unless quiet."""
+    from loadbayes.report.text import summary_table
+
+    if not quiet:
+        click.echo("loadbayes: summarising the draws (R-hat, ESS)...", err=True)
     table = post.summary(hdi_prob=hdi_prob)
     written: list[str] = []
     try:
-        post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
-        written.append(str(json_out))
+        if json_out:
+            post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
+            written.append(str(json_out))
         if netcdf_out:
+            if not quiet:
+                click.echo(f"loadbayes: writing {netcdf_out} (draws, predictions)...", err=True)
             post.to_netcdf(netcdf_out, force=force)
             written.append(str(netcdf_out))
         if plot_out:
@@ -147,9 +154,7 @@ def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, forc
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
-        click.echo(f"{post.model} posterior, {post.method}, n = {post.settings.get('n')}")
-        click.echo(table[cols].to_string(float_format=lambda x: f"{x:.5g}"))
+        click.echo(summary_table(post, hdi_prob=hdi_prob, summary=table))
 
 
 def sidecar(path: str) -> Path | None:
