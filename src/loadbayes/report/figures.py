@@ -99,7 +99,8 @@ def pairs_figure(post: Any, *, k: int = 3) -> Figure | None:
     """Joint draws of the ``k`` most correlated pairs of free coefficients."""
     from loadbayes.plots import correlated_pairs, draw_pair, pyplot
 
-    pairs = correlated_pairs(post, k)
+    # The most correlated pair always; others only when they are correlated at all.
+    pairs = [pr for i, pr in enumerate(correlated_pairs(post, k)) if i == 0 or abs(pr[2]) > 0.3]
     if not pairs:
         return None
     plt = pyplot()

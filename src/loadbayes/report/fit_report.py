@@ -152,11 +152,14 @@ def fit_report(
     st = d.get("settings", {}) or {}
     model_name = MODEL_NAMES.get(d["model"], d["model"])
     data = st.get("data")
+    fitted = d.get("loadbayes_version", "?")
     page = Page(
         title or f"{model_name[0].upper()}{model_name[1:]}" + (f": {data}" if data else ""),
-        f"loadbayes {d.get('loadbayes_version', __version__)} report"
+        "Report"
         + (f" of {source}" if source else "")
-        + f" (made with loadbayes {__version__})",
+        + f", fitted with loadbayes {fitted}"
+        + (f", reported with {__version__}" if fitted != __version__ else "")
+        + ".",
     )
     coefs = [n for n in d["parameters"] if not n.startswith("tau")]
     if post is not None:
@@ -216,6 +219,12 @@ def fit_report(
     _correlation_section(page, d, coefs)
     _settings_section(page, d, st)
     return page.render()
+
+
+def _corr(r: float | None) -> str:
+    if r is None:
+        return "–"
+    return "0.00" if abs(r) < 0.005 else f"{r:+.2f}"
 
 
 def _flag_text(flag: bool | None) -> str:
@@ -283,8 +292,7 @@ def _correlation_section(page, d, coefs) -> None:
     if len(names) < 2:
         return
     sec = page.section("Correlations")
-    rows = [[a] + [f"{corr[a][b]:+.2f}" if corr[a].get(b) is not None else "–" for b in names]
-            for a in names]  # fmt: skip
+    rows = [[a] + [_corr(corr[a].get(b)) for b in names] for a in names]
     sec.add(table_html(["", *names], rows))
     strong = [
         (a, b, corr[a][b])

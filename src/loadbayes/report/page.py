@@ -33,9 +33,10 @@ h3 { font-size: 1.05rem; margin-top: 1.4rem; }
 p.meta { color: #57606a; margin-top: 0; }
 .summary { background: #f6f8fa; border: 1px solid #d0d7de; border-radius: 6px;
            padding: .6rem 1.2rem 1rem; }
+.summary h2 { margin-top: .4rem; }
 nav.contents ol { columns: 2; margin: .3rem 0; }
-table { border-collapse: collapse; margin: .6rem 0 1rem; font-size: .86rem;
-        max-width: 100%; }
+table { border-collapse: collapse; margin: .6rem 0 1rem; font-size: .86rem; }
+table.wide { width: 100%; }
 th, td { border-bottom: 1px solid #d0d7de; padding: .25rem .55rem; text-align: right;
          vertical-align: top; overflow-wrap: anywhere; }
 th:first-child, td:first-child, td.text, th.text { text-align: left; }
@@ -78,6 +79,7 @@ def table_html(
     text_cols: Sequence[int] = (0,),
     flags: Sequence[bool] | None = None,
     caption: str | None = None,
+    wide: bool = False,
 ) -> str:
     """An HTML table from already formatted cells (escaped here).
 
@@ -93,6 +95,9 @@ def table_html(
         Rows to highlight (e.g. a true value outside the interval).
     caption : str, optional
         Table caption.
+    wide : bool
+        Take the page's width, so that text cells wrap instead of pushing the table past
+        the margin (tables of many columns).
     """
     e = html.escape
     head = "".join(
@@ -109,7 +114,8 @@ def table_html(
         )  # fmt: skip
         body.append(f"<tr{' class=flag' if flag else ''}>{cells}</tr>")
     cap = f"<caption>{e(caption)}</caption>" if caption else ""
-    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    cls = " class='wide'" if wide else ""
+    return f"<table{cls}>{cap}<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
 @dataclass
