@@ -58,7 +58,7 @@ class Browser:
         r_cmd, self._w_cmd = os.pipe()  # we write commands, chromium reads fd 3
         self._r_evt, w_evt = os.pipe()  # chromium writes fd 4, we read
         args = [exe, "--headless=new", "--remote-debugging-pipe", "--no-sandbox",
-                "--disable-gpu", "--no-first-run", "--no-default-browser-check",
+                "--disable-gpu", "--hide-scrollbars", "--no-first-run", "--no-default-browser-check",
                 "--disable-extensions", "--disable-background-networking",
                 f"--user-data-dir={profile}", "about:blank"]  # fmt: skip
 
@@ -246,6 +246,7 @@ def test_report_in_a_headless_browser(report, tmp_path):
         printed = b.evaluate(OVERFLOW_JS)
         assert all(t["over"] <= 0 and t["right"] <= 0 for t in printed), printed
         assert b.evaluate("document.documentElement.scrollWidth") <= 688
+        assert b.evaluate("document.documentElement.clientWidth") == 688
         b.send("Emulation.clearDeviceMetricsOverride")
         pdf = b.send("Page.printToPDF", {"paperWidth": 8.27, "paperHeight": 11.69,
                                           "preferCSSPageSize": True}, timeout=120)  # fmt: skip
