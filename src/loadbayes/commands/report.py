@@ -51,13 +51,19 @@ def report_cmd(result, out, truth, title, force, quiet):
     """
     check_outputs({"--out": out}, [result], force)
     truth_val = _parse_truth(truth)
-    if not quiet:
-        click.echo(f"loadbayes: reading {result} and drawing the figures...", err=True)
-    from loadbayes.report.fit_report import write_report
+    from pathlib import Path
 
+    from loadbayes.io.atomic import atomic_write
+    from loadbayes.report.fit_report import fit_report, load_result
+
+    d, post = load_result(result)
+    if not quiet:
+        click.echo(f"loadbayes: drawing the figures of {result}...", err=True)
     try:
-        path = write_report(result, out, truth=truth_val, title=title, force=force)
+        text = fit_report(d, post, truth=truth_val, title=title, source=Path(result).name)
     except KeyError as exc:  # a JSON result missing a field of the contract
         raise UserError(f"{result}: not a complete loadbayes result (no {exc})") from None
+    with atomic_write(Path(out), force=force) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
     if not quiet:
-        click.echo(f"loadbayes: wrote {path}", err=True)
+        click.echo(f"loadbayes: wrote {out}", err=True)
