@@ -58,8 +58,9 @@ class Browser:
         r_cmd, self._w_cmd = os.pipe()  # we write commands, chromium reads fd 3
         self._r_evt, w_evt = os.pipe()  # chromium writes fd 4, we read
         args = [exe, "--headless=new", "--remote-debugging-pipe", "--no-sandbox",
-                "--disable-gpu", "--hide-scrollbars", "--no-first-run", "--no-default-browser-check",
-                "--disable-extensions", "--disable-background-networking",
+                "--disable-gpu", "--hide-scrollbars", "--no-first-run",
+                "--no-default-browser-check", "--disable-extensions",
+                "--disable-background-networking",
                 f"--user-data-dir={profile}", "about:blank"]  # fmt: skip
 
         def fds():
