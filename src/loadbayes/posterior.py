@@ -291,18 +291,20 @@ class Posterior:
     def to_arviz(self, *, pointwise: bool = True):
         """Return an :class:`arviz.InferenceData` that every ArviZ function accepts.
 
-        Groups: ``posterior`` (all draws), ``sample_stats`` (the log-likelihood of each
-        draw, summed over samples), ``observed_data`` (the measured P, Q),
-        ``constant_data`` (the inputs V, f, t and the Gram matrix), and, for models with
-        a density of P (ZIP, exponential), ``posterior_predictive`` and
-        ``log_likelihood`` on evenly thinned draws (:mod:`loadbayes.predictive`), so
-        that ``az.loo`` and ``az.plot_ppc`` work. Units, bases, columns and timestamps
-        are attributes of the variables and of the file.
+        Groups: ``posterior``, ``observed_data`` (the measured P, Q), ``constant_data``
+        (the inputs V, f, t and the Gram matrix), and, for models with a density of P
+        (ZIP, exponential), ``posterior_predictive``, ``log_likelihood`` and
+        ``sample_stats`` (``lp``, the log-likelihood of each draw), so that ``az.loo``
+        and ``az.plot_ppc`` work (:mod:`loadbayes.predictive`). The pointwise groups are
+        (chain, draw, sample) arrays: when all draws would make them too large, every
+        group holds the same evenly thinned draws (attribute ``draws_thinned``), since
+        ``az.loo`` takes its relative efficiency from the posterior's ESS. Units,
+        bases, columns and timestamps are attributes of the variables and of the file.
 
         Parameters
         ----------
         pointwise : bool
-            Compute the pointwise groups (they cost one pass over the kept draws).
+            Add the pointwise groups; ``False`` keeps every draw and no predictions.
         """
         az = _arviz()
         from loadbayes.predictive import channel_units
@@ -330,30 +332,36 @@ class Posterior:
             dims = {k: ["sample"] for k in self.observed}
             coords["sample"] = np.arange(1, n_obs.pop() + 1)
         pw = _pointwise(self) if pointwise and measured else None
-        groups: dict[str, Any] = {}
+        draws = self.draws
+        extra: dict[str, Any] = {}
         if pw is not None:
-            groups["log_likelihood"] = pw.log_likelihood
-            groups["posterior_predictive"] = pw.predictive
-            coords["draw"] = pw.draw_index
+            if pw.draw_index.size < self.n_draws:
+                # One consistent sample for every ArviZ function: az.loo takes its
+                # relative efficiency from the posterior group's ESS, which must count
+                # the same draws as the log-likelihood (JSON summaries use all draws).
+                draws = {k: v[:, pw.draw_index] for k, v in self.draws.items()}
+                coords["draw"] = pw.draw_index
+                attrs["draws_thinned"] = (
+                    f"{pw.draw_index.size} of the {self.n_draws} kept draws per chain, evenly "
+                    "spaced, so that the pointwise groups stay small; to_netcdf(pointwise="
+                    "False) keeps every draw"
+                )
+            total = sum(a.sum(axis=2, dtype=float) for a in pw.log_likelihood.values())
+            extra = {
+                "posterior_predictive": pw.predictive,
+                "log_likelihood": pw.log_likelihood,
+                "sample_stats": {"lp": total},
+            }
+            dims.update({k: ["sample"] for k in pw.log_likelihood})
         idata = az.from_dict(
-            posterior=self.draws,
+            posterior=draws,
             observed_data=measured or None,
             constant_data={**inputs, **self.constant} or None,
-            dims={**dims, **{k: ["sample"] for k in groups.get("log_likelihood", {})}},
-            coords={k: v for k, v in coords.items() if k != "draw"} or None,
+            dims=dims or None,
+            coords=coords or None,
             attrs=attrs,
+            **extra,
         )
-        if pw is not None:
-            extra = az.from_dict(
-                posterior_predictive=pw.predictive,
-                log_likelihood=pw.log_likelihood,
-                dims={k: ["sample"] for k in pw.predictive},
-                coords=coords,
-            )
-            idata.extend(extra)
-            total = sum(a.sum(axis=2) for a in pw.log_likelihood.values())
-            stats = az.from_dict(sample_stats={"lp": total}, coords={"draw": pw.draw_index})
-            idata.extend(stats)
         for group in ("observed_data", "constant_data", "posterior_predictive"):
             if group in idata.groups():
                 ds = getattr(idata, group)
@@ -368,13 +376,13 @@ class Posterior:
             )
         return idata
 
-    def to_netcdf(self, path: str | Path, *, force: bool = False) -> Path:
-        """Write the ArviZ NetCDF file atomically (no overwrite without ``force``)."""
+    def to_netcdf(self, path: str | Path, *, force: bool = False, pointwise: bool = True) -> Path:
+        """Write :meth:`to_arviz` as NetCDF, atomically (no overwrite without ``force``)."""
         from loadbayes.io.atomic import atomic_write
 
         path = Path(path)
         with atomic_write(path, force=force) as tmp:
-            self.to_arviz().to_netcdf(str(tmp))
+            self.to_arviz(pointwise=pointwise).to_netcdf(str(tmp))
         return path
 
     @classmethod
@@ -408,7 +416,10 @@ class Posterior:
             free=json.loads(attrs.get("free", "null")),
             observed=observed,
             constant=constant,
-            settings=json.loads(attrs.get("settings", "{}")),
+            settings={
+                **json.loads(attrs.get("settings", "{}")),
+                **({"draws_thinned": attrs["draws_thinned"]} if "draws_thinned" in attrs else {}),
+            },
             warnings=json.loads(attrs.get("warnings", "[]")),
         )
 

@@ -9,8 +9,8 @@ made of these, so that ``az.loo`` and ``az.plot_ppc`` work on a saved fit.
 
 The arrays are (chain, draw, sample): at 1,440 samples and 35,000 draws a chain they would
 be 1.6 GB, so the draws are thinned evenly to keep each array under ``max_cells`` values
-(stored as float32); the kept draws' indices are the ``draw`` coordinate, so they line up
-with the posterior.
+(stored as float32); the kept draws' indices are the ``draw`` coordinate, and
+:meth:`Posterior.to_arviz` thins the posterior group to the same draws.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ __all__ = [
     "pointwise",
 ]
 
-#: Largest number of values of one pointwise array (chain x draw x sample): 2 MB as float32.
-MAX_CELLS = 500_000
+#: Largest number of values of one pointwise array (chain x draw x sample): 4 MB as float32.
+MAX_CELLS = 1_000_000
 
 #: Draws kept per chain at most for the pointwise groups.
 MAX_DRAWS = 1000

@@ -76,10 +76,15 @@ def _what(d: Mapping[str, Any]) -> str:
     if st.get("time_start"):
         span = f", from {st['time_start']} to {st['time_end']}"
     n = d.get("n") or st.get("n")
-    return (
-        f"A {model} ({chans}) fitted to {int(n):,} samples{src}{span}, by {d.get('method')} "
-        f"({d.get('chains')} chains × {int(d.get('kept_draws', 0)):,} kept draws)."
-    )
+    kept = f"{d.get('chains')} chains × {int(d.get('kept_draws', 0)):,} kept draws"
+    if st.get("draws_thinned"):
+        burn, draws, thin = (int(st.get(k, v)) for k, v in (("burn", 0), ("draws", 0), ("thin", 1)))
+        total = len(range(burn, draws, thin))
+        used = int(d.get("kept_draws", 0))
+        kept = (f"{d.get('chains')} chains × {total:,} kept draws; the NetCDF file and this "
+                f"report use {used:,} of them a chain, evenly spaced")  # fmt: skip
+    how = f"by {d.get('method')} ({kept})"
+    return f"A {model} ({chans}) fitted to {int(n):,} samples{src}{span}, {how}."
 
 
 def _verdict(d: Mapping[str, Any]) -> tuple[bool, str]:
