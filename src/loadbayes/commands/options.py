@@ -58,7 +58,8 @@ def output_options(func):
             "--netcdf",
             "netcdf_out",
             type=click.Path(dir_okay=False),
-            help="All draws as an ArviZ InferenceData NetCDF file.",
+            help="Draws, predictions and log-likelihood as an ArviZ NetCDF file "
+            "(draws thinned evenly when large; docs/getting_started.md).",
         ),
         click.option(
             "--plot",
