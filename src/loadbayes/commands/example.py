@@ -11,7 +11,7 @@ EXAMPLES = {"zip": "zip_example.csv"}
 @click.command("example")
 @click.argument("name", type=click.Choice(sorted(EXAMPLES)))
 def example_cmd(name):
-    """Print an example data file to stdout: ``loadbayes example zip > bus.csv``.
+    """Print an example data file to stdout, e.g. loadbayes example zip > bus.csv.
 
     zip: a day of 1-minute samples at an 11 kV bus, columns time, v (kV), p (MW),
     q (Mvar); a ZIP load with shares a1..a3 = 0.30, 0.25, 0.45 and a4..a6 = 0.60, 0.10,

@@ -42,7 +42,7 @@ def _parse_truth(items: tuple[str, ...]) -> dict[str, float]:
 @click.option("--quiet", is_flag=True, help="Do not say where the report was written.")
 @user_errors
 def report_cmd(result, out, truth, title, force, quiet):
-    """Write the HTML report of a fit from RESULT (.nc for figures, or .json).
+    """Write the HTML report of a fit: RESULT is its .nc (with figures) or .json file.
 
     The report starts with a summary (what was fitted, the headline numbers with their
     intervals, the diagnostics' verdict, the warnings), then a contents list, the
