@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.report.page import Page, table_html
-from loadbayes.report.text import DESCRIPTIONS, fmt
+from loadbayes.report.text import DESCRIPTIONS, fmt, fmt_like
 
 __all__ = ["MODEL_NAMES", "fit_report", "load_result", "write_report"]
 
@@ -157,6 +157,8 @@ def fit_report(
     st = d.get("settings", {}) or {}
     model_name = MODEL_NAMES.get(d["model"], d["model"])
     data = st.get("data")
+    if data in ("DataFrame", "mapping"):  # fitted from memory: no file to name
+        data = None
     fitted = d.get("loadbayes_version", "?")
     page = Page(
         title or f"{model_name[0].upper()}{model_name[1:]}" + (f": {data}" if data else ""),
@@ -176,12 +178,8 @@ def fit_report(
     head_rows = []
     for n in coefs:
         p = d["parameters"][n]
-        row = [
-            n,
-            DESCRIPTIONS.get(n, ""),
-            fmt(p["mean"]),
-            f"{fmt(p['hdi_low'])} to {fmt(p['hdi_high'])}",
-        ]
+        lo, hi = fmt_like(p["hdi_low"], p["sd"]), fmt_like(p["hdi_high"], p["sd"])
+        row = [n, DESCRIPTIONS.get(n, ""), fmt_like(p["mean"], p["sd"]), f"{lo} to {hi}"]
         if truth:
             row += [fmt(truth[n]) if n in truth else "", _flag_text(flags.get(n))]
         head_rows.append(row)
@@ -247,8 +245,8 @@ def _parameters_section(page, d, post, truth, flags, pct) -> None:
     for n in names:
         p = d["parameters"][n]
         unit = param_unit(n, post) if post is not None else ""
-        row = [n, DESCRIPTIONS.get(n, ""), unit, fmt(p["mean"]), fmt(p["sd"], 2),
-               fmt(p["hdi_low"]), fmt(p["hdi_high"]),
+        row = [n, DESCRIPTIONS.get(n, ""), unit, fmt_like(p["mean"], p["sd"]), fmt(p["sd"], 2),
+               fmt_like(p["hdi_low"], p["sd"]), fmt_like(p["hdi_high"], p["sd"]),
                "–" if p.get("ess_bulk") is None else f"{p['ess_bulk']:,.0f}",
                "–" if p.get("r_hat") is None else f"{p['r_hat']:.3f}"]  # fmt: skip
         if truth:
@@ -261,8 +259,9 @@ def _parameters_section(page, d, post, truth, flags, pct) -> None:
     )
     sec.text(
         f"Mean and standard deviation of the posterior draws, the {pct} highest-density "
-        "interval, the bulk effective sample size (ESS) and the rank-normalised R-hat; three "
-        "significant digits throughout. Noise precisions tau are 1/variance of the noise."
+        "interval, the bulk effective sample size (ESS) and the rank-normalised R-hat. A mean "
+        "and its interval show the digits their sd warrants (two digits of the sd); the sd "
+        "has two significant digits. Noise precisions tau are 1/variance of the noise."
     )
 
 

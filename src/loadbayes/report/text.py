@@ -2,7 +2,9 @@
 
 :func:`fmt` is the one number format of the terminal table, the notebook view and the
 HTML report (3 significant digits, no exponent between 0.001 and 100,000; thousands
-grouped); :func:`summary_table` is the table ``loadbayes fit`` prints (80 columns).
+grouped); :func:`fmt_like` prints a mean and its interval to the precision of its sd
+(two digits of the sd); :func:`summary_table` is the table ``loadbayes fit`` prints
+(80 columns).
 """
 
 from __future__ import annotations
@@ -13,7 +15,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DESCRIPTIONS", "fmt", "headline", "summary_html", "summary_rows", "summary_table"]
+__all__ = [
+    "DESCRIPTIONS",
+    "fmt",
+    "fmt_like",
+    "headline",
+    "summary_html",
+    "summary_rows",
+    "summary_table",
+]
 
 #: What each parameter is, in words (the report's and the notebook's tables).
 DESCRIPTIONS = {
@@ -36,6 +46,18 @@ DESCRIPTIONS = {
     "b3": "speed coefficient b3",
     "ab": "current coefficient ab",
     "ac": "current coefficient ac",
+    "tau_e": "noise precision, flux equations",
+    "tau_w": "noise precision, speed equation",
+    "tau_i": "noise precision, current equations",
+    "rs": "stator resistance Rs",
+    "xp": "transient reactance X'",
+    "x": "open-circuit reactance X",
+    "tp_s": "transient time constant T'",
+    "h_s": "inertia constant H",
+    "xs": "stator leakage reactance",
+    "xm": "magnetising reactance",
+    "xr": "rotor leakage reactance",
+    "rr": "rotor resistance",
 }
 
 
@@ -63,6 +85,33 @@ def fmt(x: Any, sig: int = 3) -> str:
     return f"{r:,.{decimals}f}"
 
 
+def fmt_like(x: Any, sd: Any) -> str:
+    """``x`` to the precision its posterior sd warrants: the sd's first two digits.
+
+    A mean, and the ends of its interval, print with the same decimals, so that a tight
+    interval never reads ``13.4 to 13.4``; without a usable sd, :func:`fmt`.
+
+    Examples
+    --------
+    >>> fmt_like(-11.44051, 0.0050), fmt_like(0.26812, 0.037), fmt_like(39512.3, 1471.2)
+    ('-11.4405', '0.268', '39,500')
+    """
+    try:
+        x, sd = float(x), float(sd)
+    except (TypeError, ValueError):
+        return fmt(x)
+    if not (math.isfinite(x) and math.isfinite(sd) and sd > 0) or x == 0:
+        return fmt(x)
+    if not -3 <= math.floor(math.log10(abs(x))) < 5:
+        return fmt(x)
+    decimals = 1 - math.floor(math.log10(sd))
+    if decimals > 8:
+        return fmt(x, 9)
+    if decimals >= 0:
+        return f"{round(x, decimals):,.{decimals}f}"
+    return f"{round(x, decimals):,.0f}"
+
+
 def summary_rows(post: Any, *, hdi_prob: float = 0.95, summary: Any = None) -> list[dict]:
     """One dict per parameter: name, mean, sd, HDI, ESS, R-hat as formatted strings."""
     s = post.summary(hdi_prob=hdi_prob) if summary is None else summary
@@ -73,10 +122,10 @@ def summary_rows(post: Any, *, hdi_prob: float = 0.95, summary: Any = None) -> l
         rows.append(
             {
                 "name": str(name),
-                "mean": fmt(r["mean"]),
+                "mean": fmt_like(r["mean"], r["sd"]),
                 "sd": fmt(r["sd"], 2),
-                "low": fmt(r["hdi_low"]),
-                "high": fmt(r["hdi_high"]),
+                "low": fmt_like(r["hdi_low"], r["sd"]),
+                "high": fmt_like(r["hdi_high"], r["sd"]),
                 "ess": f"{ess:,.0f}" if np.isfinite(ess) else "–",
                 "r_hat": f"{rhat:.3f}" if np.isfinite(rhat) else "–",
                 "what": DESCRIPTIONS.get(str(name), ""),
