@@ -15,7 +15,9 @@ import click
 
 from loadbayes.commands import example as _example
 from loadbayes.commands import exp as _exp
+from loadbayes.commands import export as _export
 from loadbayes.commands import im as _im
+from loadbayes.commands import recordings as _recordings
 from loadbayes.commands import report as _report
 from loadbayes.commands import reproduce as _reproduce
 from loadbayes.commands import simulate as _simulate
@@ -59,5 +61,8 @@ track.add_command(_track.track_zip_cmd)
 reproduce.add_command(_reproduce.reproduce_zip_cmd)
 reproduce.add_command(_reproduce.reproduce_im_cmd)
 reproduce.add_command(_reproduce.reproduce_all_cmd)
+main.add_command(_recordings.read_group)
+main.add_command(_recordings.events_cmd)
+main.add_command(_export.export_cmd)
 main.add_command(_report.report_cmd)
 main.add_command(_example.example_cmd)

@@ -8,6 +8,8 @@ import pytest
 
 from loadbayes.cases import ieee33
 from loadbayes.cases.ieee33 import DEFAULT_ZIP, Feeder33
+from loadbayes.cases.ieee33 import parallel as ieee33_parallel
+from loadbayes.studies.ieee33_validation import validate
 
 pytest.importorskip("pandapower")
 
@@ -33,7 +35,9 @@ def test_fast_paths_match_plain_runpp_over_many_shares(engine):
 @pytest.mark.parametrize(("engine", "n"), [("newton", 450), ("recycle", 150)])
 def test_output_is_identical_for_one_and_two_workers(engine, n, monkeypatch):
     # Chunks restart the recycle engine cold; small chunks make several of them.
-    monkeypatch.setattr(ieee33, "_CHUNK", 40 if engine == "recycle" else ieee33._CHUNK)
+    monkeypatch.setattr(
+        ieee33_parallel, "_CHUNK", 40 if engine == "recycle" else ieee33_parallel._CHUNK
+    )
     kw = {"seed": 31, "engine": engine, "factor_range": (0.1, 6.5)}  # some failures too
     one = ieee33.generate_experiments(n, **kw)
     two = ieee33.generate_experiments(n, workers=2, **kw)
@@ -56,7 +60,7 @@ def test_posterior_predictive_band_covers_the_truth():
     # Draws along the paper's a1-a2 ridge (correlation near -1), centred on the truth.
     a1 = 0.25 + rng.normal(0, 0.3, 100)
     draws = np.column_stack([a1, 0.5 - a1 + rng.normal(0, 0.01, 100)])
-    out = ieee33.validate(DEFAULT_ZIP, draws, n=20, seed=8, workers=2)
+    out = validate(DEFAULT_ZIP, draws, n=20, seed=8, workers=2)
     assert out.converged.all() and (out.n_draws_ok == 100).all()
     for x in ("v", "p"):
         lo, mid, hi = (out[f"{x}_est_q{q}_pu"] for q in ("2.5", "50", "97.5"))
@@ -66,7 +70,7 @@ def test_posterior_predictive_band_covers_the_truth():
 
 
 def test_validate_point_estimate_close_to_truth_is_small():
-    out = ieee33.validate(DEFAULT_ZIP, (0.25, 0.249), n=100, seed=1)
+    out = validate(DEFAULT_ZIP, (0.25, 0.249), n=100, seed=1)
     assert out.converged.all()
     assert out.dv_pu.abs().max() < 1e-4
     assert out.dp_pu.abs().max() < 2e-3

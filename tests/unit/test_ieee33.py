@@ -13,6 +13,8 @@ import pytest
 
 from loadbayes.cases import ieee33
 from loadbayes.cases.ieee33 import DEFAULT_ZIP, N_FACTORS, ZIP_BUS, Feeder33
+from loadbayes.cases.ieee33 import parallel as ieee33_parallel
+from loadbayes.studies.ieee33_validation import validate
 
 pp = pytest.importorskip("pandapower")
 pn = pytest.importorskip("pandapower.networks")
@@ -166,7 +168,7 @@ def test_generate_experiments_is_reproducible_and_documented(feeder):
 
 
 def test_workers_do_not_change_the_output(monkeypatch):
-    monkeypatch.setattr(ieee33, "_CHUNK", 20)  # three chunks, cheaply
+    monkeypatch.setattr(ieee33_parallel, "_CHUNK", 20)  # three chunks, cheaply
     one = ieee33.generate_experiments(50, seed=7, noise_on_v=0.01)
     two = ieee33.generate_experiments(50, seed=7, noise_on_v=0.01, workers=2)
     pd.testing.assert_frame_equal(one, two, check_exact=True)
@@ -183,10 +185,10 @@ def test_failed_power_flows_are_kept_and_counted():
 
 
 def test_validate_is_zero_when_the_estimate_is_the_truth():
-    point = ieee33.validate(DEFAULT_ZIP, DEFAULT_ZIP[:2], n=10, seed=9)
+    point = validate(DEFAULT_ZIP, DEFAULT_ZIP[:2], n=10, seed=9)
     assert (point[["dv_pu", "dp_pu", "dq_pu"]] == 0).all().all()
     assert point.converged.all() and len(point) == 10
-    draws = ieee33.validate(DEFAULT_ZIP, np.tile(DEFAULT_ZIP, (3, 1)), n=10, seed=9)
+    draws = validate(DEFAULT_ZIP, np.tile(DEFAULT_ZIP, (3, 1)), n=10, seed=9)
     for x in ("v", "p"):
         for col in (f"{x}_est_q2.5_pu", f"{x}_est_q50_pu", f"{x}_est_q97.5_pu"):
             np.testing.assert_array_equal(draws[col], draws[f"{x}_true_pu"])
@@ -195,7 +197,7 @@ def test_validate_is_zero_when_the_estimate_is_the_truth():
 
 
 def test_validate_sees_a_wrong_estimate():
-    out = ieee33.validate(DEFAULT_ZIP, (0.5, 0.0, 0.5), n=5, seed=9)
+    out = validate(DEFAULT_ZIP, (0.5, 0.0, 0.5), n=5, seed=9)
     assert (out.dp_pu.abs() > 1e-3).all()
     # A heavier Z share draws less power at V < 1, so V rises.
     assert (out.dv_pu > 0).all() and (out.dp_pu < 0).all()

@@ -20,10 +20,11 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
-from loadbayes.io import tables
+from loadbayes.io import sources
 from loadbayes.io.atomic import atomic_write
+from loadbayes.io.cells import _parse_cell
 from loadbayes.io.errors import DataError
-from loadbayes.io.tables import Chunk, _parse_cell, iter_chunks, read_columns, write_table
+from loadbayes.io.tables import Chunk, iter_chunks, read_columns, write_table
 
 
 def write(folder: Path, name: str, content: str | bytes) -> Path:
@@ -265,7 +266,7 @@ def test_unreadable_file(tmp_path, monkeypatch, name):
         raise PermissionError(13, "Permission denied")
 
     # chmod 0 does not stop root, who runs some CI containers.
-    monkeypatch.setattr(tables, "open", refuse, raising=False)
+    monkeypatch.setattr(sources, "open", refuse, raising=False)
     assert str(error_of(path)) == f"{path}: cannot open: Permission denied"
 
 

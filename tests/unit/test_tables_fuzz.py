@@ -13,8 +13,9 @@ import pytest
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
+from loadbayes.io.cells import _parse_cell
 from loadbayes.io.errors import DataError
-from loadbayes.io.tables import _parse_cell, iter_chunks, read_columns
+from loadbayes.io.tables import iter_chunks, read_columns
 
 NAMES = ["v", "p", "q", "t", "V", " v", "v ", "x", "", "v.1", "é", "a,b", '"v"']
 ODD_CELLS = [

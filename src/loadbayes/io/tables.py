@@ -33,34 +33,42 @@ The error names the first offending row of the file, whatever the chunk size.
 A cell is a number if, once spaces and tabs around it are removed, it reads as
 ``[+-]digits[.digits][e[+-]digits]``, ``inf``, ``infinity`` or ``nan`` (any case).
 Thousands separators, decimal commas, hexadecimal and non-ASCII digits are not numbers.
+
+The work is split by job: :mod:`loadbayes.io.sources` (file types, opening),
+:mod:`loadbayes.io.csv_reader`, :mod:`loadbayes.io.parquet_reader`, and
+:mod:`loadbayes.io.cells` (cells to float64, the checks and the messages). This module
+holds the public functions and cuts the readers' pieces into chunks.
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import difflib
-import gzip
 import io
-import math
 import operator
 import os
-import re
-import sys
-import zlib
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from loadbayes.io.atomic import atomic_write
+from loadbayes.io.cells import _Piece
+from loadbayes.io.csv_reader import _csv_pieces
 from loadbayes.io.errors import DataError
+from loadbayes.io.parquet_reader import _parquet_pieces
+from loadbayes.io.sources import (
+    _SUPPORTED,
+    CSV_SUFFIXES,
+    PARQUET_SUFFIXES,
+    _display_name,
+    _format_by_name,
+    _format_of,
+)
 
 __all__ = [
     "CSV_SUFFIXES",
@@ -70,34 +78,6 @@ __all__ = [
     "read_columns",
     "write_table",
 ]
-
-CSV_SUFFIXES = (".csv", ".csv.gz", ".txt", ".txt.gz")
-PARQUET_SUFFIXES = (".parquet", ".pq")
-STDIN = "-"
-
-# CSV bytes per Arrow batch and Parquet rows per batch: what is validated at a time,
-# independent of ``chunk_rows`` so the same first bad row is found for any chunk size.
-_CSV_BLOCK_BYTES = 1 << 20
-_PARQUET_BATCH_ROWS = 1 << 16
-_HEADER_MAX_BYTES = 1 << 20
-_SHOW_CHARS = 20
-
-# Cells that mean "no value": pandas' default NA strings.
-_NULL_TOKENS = (
-    "", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND",
-    "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null",
-)  # fmt: skip
-_NULL_SET = frozenset(_NULL_TOKENS)
-_NULL_ARRAY = pa.array(_NULL_TOKENS, pa.string())
-# Exactly what Arrow's string-to-float64 cast accepts (checked against it cell by cell
-# in the tests), so the slow path below never refuses a cell the fast path took.
-_NUMBER = re.compile(
-    r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
-    r"|inf(?:inity)?|nan(?:\([0-9A-Za-z_]*\))?)",
-    re.IGNORECASE | re.ASCII,
-)
-_SPACE = " \t\n\v\f\r"
-_FLOAT64 = pa.float64()
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,15 +137,6 @@ class Chunk:
         # Kept rows before the k-th dropped row: its offset minus k. Non-decreasing.
         kept_before = self.dropped_rows - self.start_row - np.arange(self.n_dropped)
         return self.start_row + i + int(np.searchsorted(kept_before, i, side="right"))
-
-
-class _Piece(NamedTuple):
-    """Validated rows of one Arrow batch, before cutting into chunks."""
-
-    start_row: int
-    n_read: int
-    data: dict[str, np.ndarray]
-    dropped: np.ndarray
 
 
 def iter_chunks(
@@ -313,11 +284,6 @@ def write_table(
     return Path(path)
 
 
-# --- arguments and file types ---------------------------------------------------------
-
-_SUPPORTED = "expected " + ", ".join(CSV_SUFFIXES + PARQUET_SUFFIXES) + ", or '-' for stdin"
-
-
 def _read_pieces(
     path: str | os.PathLike[str],
     columns: Sequence[str],
@@ -351,370 +317,6 @@ def _check_arguments(
     if not must_be_positive <= set(names):
         raise ValueError(f"positive columns {sorted(must_be_positive - set(names))} not read")
     return required, extra, must_be_positive
-
-
-def _display_name(path: str | os.PathLike[str]) -> str:
-    name = os.fspath(path)
-    return "<stdin>" if name == STDIN else str(name)
-
-
-def _format_by_name(name: str) -> str | None:
-    lower = name.lower()
-    if lower.endswith(CSV_SUFFIXES):
-        return "csv"
-    if lower.endswith(PARQUET_SUFFIXES):
-        return "parquet"
-    return None
-
-
-def _format_of(path: str | os.PathLike[str], name: str) -> str:
-    if os.fspath(path) == STDIN:
-        return "csv"
-    target = Path(path)
-    if not target.exists():
-        raise DataError("file not found", name)
-    if target.is_dir():
-        raise DataError("is a directory, expected a file", name)
-    kind = _format_by_name(target.name)
-    if kind is None:
-        raise DataError(f"unsupported file type; {_SUPPORTED}", name)
-    return kind
-
-
-# --- CSV ------------------------------------------------------------------------------
-
-
-def _open_binary(path: str | os.PathLike[str], name: str) -> contextlib.AbstractContextManager:
-    if os.fspath(path) == STDIN:
-        return contextlib.nullcontext(sys.stdin.buffer)
-    try:
-        if name.lower().endswith(".gz"):
-            return gzip.open(path, "rb")
-        return open(path, "rb")
-    except OSError as err:
-        raise DataError(f"cannot open: {err.strerror or err}", name) from None
-
-
-def _read_header(fh: Any, name: str) -> tuple[list[str], str]:
-    """Read and split the first line; leave ``fh`` at the first data row."""
-    try:
-        line = fh.readline(_HEADER_MAX_BYTES + 1)
-    except (OSError, EOFError, zlib.error) as err:
-        raise DataError(f"cannot read: {_one_line(err)}", name) from None
-    if not line:
-        raise DataError("empty file", name)
-    if len(line) > _HEADER_MAX_BYTES:
-        raise DataError("first line longer than 1 MiB: not a CSV file?", name)
-    if b"\0" in line:
-        raise DataError("header contains NUL bytes: a binary file, not CSV text?", name)
-    try:
-        text = line.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise DataError(
-            f"header is not UTF-8 text (byte {line[err.start]:#04x}): "
-            "a binary file, or saved in another encoding?",
-            name,
-        ) from None
-    text = text.rstrip("\r\n")
-    if not text.strip():
-        raise DataError("first line is empty; expected a header with the column names", name)
-    if "\r" in text:
-        raise DataError("lines end in a bare CR; save the file with LF or CRLF endings", name)
-    sep = next((c for c in ",\t;" if c in text), ",")
-    try:
-        header = next(csv.reader([text], delimiter=sep))
-    except csv.Error as err:
-        raise DataError(f"cannot parse the header: {err}", name) from None
-    return header, sep
-
-
-def _csv_pieces(
-    path: str | os.PathLike[str],
-    name: str,
-    required: list[str],
-    extra: list[str],
-    positive: frozenset[str],
-    drop_invalid: bool,
-) -> Iterator[_Piece]:
-    with _open_binary(path, name) as fh:
-        header, sep = _read_header(fh, name)
-        present = _select(header, required, extra, name)
-        arrow_names = [f"f{i}" for i in range(len(header))]
-        start = 1
-        try:
-            # Cells come as raw bytes: decoding and parsing them here is what lets an
-            # error name its row (Arrow's own conversion errors do not, when streaming).
-            reader = pacsv.open_csv(
-                fh,
-                read_options=pacsv.ReadOptions(
-                    column_names=arrow_names, block_size=_CSV_BLOCK_BYTES, use_threads=False
-                ),
-                parse_options=pacsv.ParseOptions(delimiter=sep),
-                convert_options=pacsv.ConvertOptions(
-                    include_columns=[arrow_names[i] for i in present.values()],
-                    column_types={arrow_names[i]: pa.binary() for i in present.values()},
-                    null_values=[],
-                    strings_can_be_null=False,
-                    quoted_strings_can_be_null=False,
-                ),
-            )
-            while True:
-                try:
-                    batch = reader.read_next_batch()
-                except StopIteration:
-                    break
-                if batch.num_rows:
-                    columns = {c: batch.column(arrow_names[i]) for c, i in present.items()}
-                    yield _validate(columns, start, positive, drop_invalid, name)
-                    start += batch.num_rows
-        except (pa.ArrowException, OSError, EOFError, zlib.error) as err:
-            if isinstance(err, pa.ArrowInvalid) and "Empty CSV file" in str(err):
-                return
-            raise _csv_read_error(err, start, name) from None
-
-
-# Arrow's message for a row with too many or too few fields. Not an invalid_row_handler:
-# Arrow decodes the row for it, and a row that is not UTF-8 then raises inside Arrow.
-# Single-threaded reading is what puts the row number (counted from the first data row,
-# blank lines skipped) in the message.
-_RAGGED = re.compile(r"Row #(\d+): Expected (\d+) columns, got (\d+): (.*)", re.DOTALL)
-
-
-def _csv_read_error(err: BaseException, start: int, name: str) -> DataError:
-    ragged = _RAGGED.search(str(err)) if isinstance(err, pa.ArrowInvalid) else None
-    if ragged:
-        row, expected, found, text = ragged.groups()
-        fields = "field" if found == "1" else "fields"
-        message = f"{found} {fields} where the header has {expected}: {_show(text)}"
-        return DataError(message, name, row=int(row))
-    if isinstance(err, EOFError | zlib.error | gzip.BadGzipFile):
-        return DataError(f"corrupt or truncated gzip file, read up to row {start - 1}", name)
-    return DataError(f"cannot read as CSV past row {start - 1}: {_one_line(err)}", name)
-
-
-def _select(header: list[str], required: list[str], extra: list[str], name: str) -> dict[str, int]:
-    """Map each requested column present to its position in the header."""
-    present = {}
-    for col in required + extra:
-        where = [i for i, h in enumerate(header) if h == col]
-        if len(where) > 1:
-            at = ", ".join(str(i + 1) for i in where)
-            raise DataError(f"named {len(where)} times in the header (columns {at})", name, col)
-        if where:
-            present[col] = where[0]
-        elif col in required:
-            found = f"not found; the columns are {_list(header)}{_hint(col, header)}"
-            raise DataError(found, name, col)
-    return present
-
-
-def _list(header: Sequence[str], limit: int = 12) -> str:
-    shown = ", ".join(repr(h) for h in header[:limit])
-    return shown + (f" and {len(header) - limit} more" if len(header) > limit else "")
-
-
-def _hint(col: str, header: Sequence[str]) -> str:
-    def norm(s: str) -> str:
-        return s.strip(_SPACE + "\ufeff\"'").casefold()
-
-    same = [h for h in header if norm(h) == norm(col)]
-    close = same or difflib.get_close_matches(col, list(header), n=1, cutoff=0.75)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-# --- Parquet --------------------------------------------------------------------------
-
-
-def _parquet_pieces(
-    path: str | os.PathLike[str],
-    name: str,
-    required: list[str],
-    extra: list[str],
-    positive: frozenset[str],
-    drop_invalid: bool,
-) -> Iterator[_Piece]:
-    try:
-        with open(path, "rb") as probe:
-            if not probe.read(1):
-                raise DataError("empty file", name)
-        # pre_buffer (Arrow's default) would read all the columns asked for into memory
-        # before the first batch; without it memory stays at about one row group.
-        parquet = pq.ParquetFile(path, pre_buffer=False)
-    except OSError as err:
-        raise DataError(f"cannot open: {err.strerror or _one_line(err)}", name) from None
-    except pa.ArrowException as err:
-        raise DataError(f"not a readable Parquet file: {_one_line(err)}", name) from None
-    with parquet:
-        schema = parquet.schema_arrow
-        present = _select(schema.names, required, extra, name)
-        for col, i in present.items():
-            _check_arrow_type(schema.field(i).type, name, col)
-        start = 1
-        batches = parquet.iter_batches(batch_size=_PARQUET_BATCH_ROWS, columns=list(present))
-        while True:
-            try:
-                batch = next(batches)
-            except StopIteration:
-                break
-            except (pa.ArrowException, OSError) as err:
-                raise DataError(
-                    f"corrupt Parquet file, read up to row {start - 1}: {_one_line(err)}", name
-                ) from None
-            if batch.num_rows:
-                columns = {col: batch.column(col) for col in present}
-                yield _validate(columns, start, positive, drop_invalid, name)
-                start += batch.num_rows
-
-
-def _check_arrow_type(kind: pa.DataType, name: str, col: str) -> None:
-    value = kind.value_type if pa.types.is_dictionary(kind) else kind
-    if not (_is_numeric(value) or _is_text(value)):
-        raise DataError(f"has type {kind}, expected numbers", name, col)
-
-
-def _is_numeric(kind: pa.DataType) -> bool:
-    t = pa.types
-    return t.is_integer(kind) or t.is_floating(kind) or t.is_decimal(kind) or t.is_null(kind)
-
-
-def _is_text(kind: pa.DataType) -> bool:
-    t = pa.types
-    return (
-        t.is_string(kind)
-        or t.is_large_string(kind)
-        or t.is_string_view(kind)
-        or t.is_binary(kind)
-        or t.is_large_binary(kind)
-        or t.is_binary_view(kind)
-        or t.is_fixed_size_binary(kind)
-    )
-
-
-# --- cells to float64, and validation ----------------------------------------------------
-
-
-def _validate(
-    columns: Mapping[str, pa.Array],
-    start: int,
-    positive: frozenset[str],
-    drop_invalid: bool,
-    name: str,
-) -> _Piece:
-    """Convert one batch and check it; raise at its first bad cell (row, then column)."""
-    n = len(next(iter(columns.values())))
-    values: dict[str, np.ndarray] = {}
-    invalid = np.zeros(n, dtype=bool) if drop_invalid else None
-    first: tuple[int, int, str, str] | None = None
-    for j, (col, arr) in enumerate(columns.items()):
-        vals, bad = _to_float(arr, name, col)
-        limit = n
-        if bad is not None:
-            limit = bad[0]
-            first = _earlier(first, (bad[0], j, col, bad[1]))
-        mask = ~np.isfinite(vals[:limit])
-        if col in positive:
-            mask |= vals[:limit] <= 0
-        if invalid is not None:
-            invalid[:limit] |= mask
-        elif mask.any():
-            i = int(np.argmax(mask))
-            first = _earlier(first, (i, j, col, _describe(arr, vals[i], i)))
-        values[col] = vals
-    if first is not None:
-        raise DataError(first[3], name, first[2], start + first[0])
-    if invalid is None or not invalid.any():
-        return _Piece(start, n, values, np.empty(0, np.int64))
-    keep = ~invalid
-    dropped = start + np.flatnonzero(invalid).astype(np.int64)
-    return _Piece(start, n, {col: v[keep] for col, v in values.items()}, dropped)
-
-
-def _earlier(
-    a: tuple[int, int, str, str] | None, b: tuple[int, int, str, str]
-) -> tuple[int, int, str, str]:
-    return b if a is None or b[:2] < a[:2] else a
-
-
-def _to_float(arr: pa.Array, name: str, col: str) -> tuple[np.ndarray, tuple[int, str] | None]:
-    """Return float64 values and, if a cell is not a number, (its index, the problem)."""
-    if pa.types.is_dictionary(arr.type):
-        arr = arr.dictionary_decode()
-    if not _is_text(arr.type):
-        try:
-            return pc.cast(arr, _FLOAT64, safe=False).to_numpy(zero_copy_only=False), None
-        except pa.ArrowException as err:
-            raise DataError(
-                f"type {arr.type} cannot be read as float64: {_one_line(err)}", name, col
-            ) from None
-    try:
-        text = arr if arr.type == pa.string() else pc.cast(arr, pa.string())  # checks UTF-8
-        try:
-            floats = pc.cast(text, _FLOAT64)
-        except pa.ArrowInvalid:
-            # Spaces around numbers, NA tokens: still vectorised.
-            text = pc.ascii_trim_whitespace(text)
-            null = pa.scalar(None, pa.string())
-            text = pc.if_else(pc.is_in(text, value_set=_NULL_ARRAY), null, text)
-            floats = pc.cast(text, _FLOAT64)
-        return floats.to_numpy(zero_copy_only=False), None
-    except pa.ArrowException:
-        return _to_float_slowly(arr)
-
-
-def _to_float_slowly(arr: pa.Array) -> tuple[np.ndarray, tuple[int, str] | None]:
-    """Cell by cell, to find the first bad one; only for batches that have one."""
-    vals = np.full(len(arr), np.nan)
-    for i, cell in enumerate(arr.to_pylist()):
-        if cell is None:
-            continue
-        if isinstance(cell, bytes):
-            try:
-                cell = cell.decode("utf-8")
-            except UnicodeDecodeError:
-                return vals, (i, f"not UTF-8 text: {_show(cell)} (saved in another encoding?)")
-        x = _parse_cell(cell)
-        if x is None:
-            return vals, (i, f"non-numeric value {_show(cell)}")
-        vals[i] = x
-    return vals, None
-
-
-def _parse_cell(cell: str) -> float | None:
-    text = cell.strip(_SPACE)
-    if text in _NULL_SET:
-        return math.nan
-    if _NUMBER.fullmatch(text) is None:
-        return None
-    if text.lstrip("+-")[:3].lower() == "nan":  # 'nan(123)': float() refuses it, Arrow not
-        return math.nan
-    return float(text)  # '1e999' -> inf, as in Arrow
-
-
-def _describe(arr: pa.Array, x: float, i: int) -> str:
-    """Say what is wrong with the finite-and-positive check of cell ``i``."""
-    cell = arr[i].as_py()
-    if isinstance(cell, bytes):
-        cell = cell.decode("utf-8", errors="replace")
-    hint = " (--drop-invalid, or drop_invalid=True, drops such rows)"
-    if cell is None:
-        return "missing value (null)" + hint
-    # Text cells are shown as written, numbers as Arrow holds them ('-2' for an int).
-    shown = _show(cell) if isinstance(cell, str) else str(cell)
-    if math.isnan(x):
-        blank = isinstance(cell, str) and not cell.strip(_SPACE)
-        return ("empty cell" if blank else f"missing value {shown}") + hint
-    if math.isinf(x):
-        return f"infinite value {shown} (inf, or beyond the float64 range)" + hint
-    return f"value {shown} is not > 0" + hint
-
-
-def _show(cell: str | bytes) -> str:
-    return repr(cell[:_SHOW_CHARS]) + ("..." if len(cell) > _SHOW_CHARS else "")
-
-
-def _one_line(err: BaseException) -> str:
-    text = str(err).strip().splitlines()
-    return text[0] if text else type(err).__name__
 
 
 # --- cutting into chunks --------------------------------------------------------------

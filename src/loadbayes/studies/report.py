@@ -16,9 +16,25 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from loadbayes._version import __version__
 
-__all__ = ["figure_html", "marked", "table_html", "update_section", "write_report", "escape"]
+__all__ = [
+    "bullet_list",
+    "embedded_png",
+    "escape",
+    "figure_html",
+    "frame_html",
+    "marked",
+    "png_bytes",
+    "refuse_existing",
+    "table_html",
+    "update_section",
+    "write_bytes",
+    "write_report",
+    "write_text",
+]
 
 escape = html.escape
 
@@ -128,3 +144,66 @@ def update_section(path: str | Path, section: str, *, mark: str) -> Path:
     with atomic_write(path, force=True) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
     return path
+
+
+# The pieces the paper's two studies (zip_paper, im_paper) share to build their sections
+# and write their folders; each was copied in both before.
+def png_bytes(fig: Any) -> bytes:
+    """A matplotlib figure as PNG bytes at 100 dpi (and close the figure)."""
+    from loadbayes.plots import pyplot
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
+    pyplot().close(fig)
+    return buf.getvalue()
+
+
+def frame_html(df: Any, *, index: bool = False) -> str:
+    """A DataFrame as an HTML table: 4 significant digits, ``n/a`` for NaN, yes/no."""
+
+    def fmt(x: Any) -> str:
+        if isinstance(x, (bool, np.bool_)):
+            return "yes" if x else "no"
+        if isinstance(x, (float, np.floating)):
+            return f"{x:.4g}" if np.isfinite(x) else "n/a"
+        return str(x)
+
+    return df.to_html(index=index, formatters=dict.fromkeys(df.columns, fmt), border=0)
+
+
+def embedded_png(pngs: Mapping[str, bytes], name: str, alt: str) -> str:
+    """``pngs[name]`` as a base64 ``<figure>``; empty when the figure was not drawn."""
+    if name not in pngs:
+        return ""
+    b64 = base64.b64encode(pngs[name]).decode("ascii")
+    return f'<figure><img alt="{alt}" src="data:image/png;base64,{b64}"/></figure>'
+
+
+def bullet_list(items: Sequence[str]) -> str:
+    """Items (HTML already) as one ``<ul>``."""
+    return "<ul>" + "".join(f"<li>{s}</li>" for s in items) + "</ul>"
+
+
+def write_text(path: Path, text: str, force: bool) -> None:
+    """Write text atomically; refuse an existing file unless ``force``."""
+    from loadbayes.io.atomic import atomic_write
+
+    with atomic_write(path, force=force, mode="w") as fh:
+        fh.write(text)
+
+
+def write_bytes(path: Path, data: bytes, force: bool) -> None:
+    """Write bytes atomically; refuse an existing file unless ``force``."""
+    from loadbayes.io.atomic import atomic_write
+
+    with atomic_write(path, force=force, mode="wb") as fh:
+        fh.write(data)
+
+
+def refuse_existing(paths: Sequence[Path]) -> None:
+    """Raise ``DataError`` naming the first of ``paths`` that exists."""
+    existing = [p for p in paths if p.exists()]
+    if existing:
+        from loadbayes.io.errors import DataError
+
+        raise DataError("exists; use --force to overwrite", str(existing[0]))

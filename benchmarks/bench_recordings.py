@@ -1,0 +1,111 @@
+"""Recordings in: how fast COMTRADE files are read and turned into phasors, sags found.
+
+Usage::
+
+    python benchmarks/bench_recordings.py            # 10 min of 3.2 kHz COMTRADE, a day of cycles
+    python benchmarks/bench_recordings.py --quick    # 20 s, an hour
+
+Prints a table and writes ``benchmarks/results/recordings.json`` (the run_all contract:
+``date``, ``machine``, ``versions``, ``results``). Rows:
+
+- ``comtrade-<format>``: a synthetic 50 Hz three-phase record (6 channels, 64 samples per
+  cycle, 1999 revision) written by the test writer, then read (``read_comtrade``:
+  ``.cfg`` checks, ``.dat`` checks, the ``comtrade`` package's decoding, scaling), and
+  its per-cycle phasors computed (``cycle_phasors``); seconds and samples per second.
+- ``events``: ``find_sags`` on a per-cycle record (50 rows a second) with a sag a minute.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_zip import _version, machine  # noqa: E402
+
+OUT = Path(__file__).resolve().parent / "results" / "recordings.json"
+FS = 3200.0
+
+
+def _best(fn, repeat=3):
+    best = float("inf")
+    out = None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def bench_comtrade(seconds: float, fmt: str, folder: Path) -> dict:
+    """Write, read and phasor a record of ``seconds`` in format ``fmt``."""
+    from loadbayes.recordings.comtrade import read_comtrade
+    from loadbayes.recordings.phasors import cycle_phasors
+    from loadbayes.recordings.synth import sag_profile, write_comtrade, zip_waveforms
+
+    t = np.arange(int(seconds * FS)) / FS
+    sags = [(s, 0.3, 0.3) for s in np.arange(5.0, seconds - 2, 60.0)]
+    v, i = zip_waveforms(t, sag_profile(t, sags, recovery_s=1.0), (0.3, 0.2, 0.5, 0.6, 0.1, 0.3))
+    cfg, dat = write_comtrade(folder / f"rec_{fmt}", t, v, i, fmt=fmt, force=True)
+    read_s, w = _best(lambda: read_comtrade(cfg))
+    ph_s, c = _best(lambda: cycle_phasors(w.t_s, w.v, w.i, f0=50.0, rate_hz=w.rate_hz))
+    return {
+        "case": f"comtrade-{fmt.lower()}",
+        "samples": t.size,
+        "dat_mb": round(dat.stat().st_size / 2**20, 1),
+        "read_s": round(read_s, 3),
+        "phasors_s": round(ph_s, 3),
+        "samples_per_s": round(t.size / (read_s + ph_s)),
+        "cycles": len(c["t_s"]),
+    }
+
+
+def bench_events(hours: float) -> dict:
+    """Find the sags of a per-cycle record of ``hours``."""
+    from loadbayes.recordings.events import find_sags
+    from loadbayes.recordings.synth import sag_profile
+
+    t = np.arange(int(hours * 3600 * 50)) / 50.0
+    sags = [(s, 0.2, 0.25) for s in np.arange(30.0, t[-1] - 5, 60.0)]
+    v = sag_profile(t, sags) + np.random.default_rng(0).normal(0, 0.002, t.size)
+    sec, ev = _best(lambda: find_sags(t, v))
+    return {"case": "events", "samples": t.size, "read_s": None, "phasors_s": None,
+            "events_s": round(sec, 3), "events": len(ev), "expected": len(sags)}  # fmt: skip
+
+
+def main() -> None:
+    """Run the benchmark, print the table, write the JSON."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--output", type=Path, default=OUT)
+    args = ap.parse_args()
+    seconds, hours = (20.0, 1.0) if args.quick else (600.0, 24.0)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for fmt in ("ASCII", "BINARY", "FLOAT32"):
+            rows.append(bench_comtrade(seconds, fmt, Path(tmp)))
+    rows.append(bench_events(hours))
+    for r in rows:
+        print("  ".join(f"{k}={v}" for k, v in r.items()))
+    doc = {
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "machine": machine(),
+        "versions": {p: _version(p) for p in ("loadbayes", "numpy", "scipy", "comtrade")},
+        "results": rows,
+        "notes": [
+            f"COMTRADE: {seconds:g} s at {FS:g} Hz, 6 channels; events: {hours:g} h of 50 cycles/s"
+        ],  # fmt: skip
+    }
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(doc, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,257 @@
+"""``loadbayes export``: a posterior into a simulator's files (pandapower, PSS/E, ANDES).
+
+A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
+attaches it. The format writers are imported only once chosen.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import click
+
+from loadbayes.commands.output import UserError, user_errors
+
+__all__ = ["export_cmd", "pick_values", "summary_lines"]
+
+_STAT = re.compile(r"^(mean|median|q(\d{1,2}(?:\.\d+)?))$")
+_MODEL_NAMES = {"zip": "zip", "exp": "exponential", "exponential": "exponential",
+                "composite": "composite"}  # fmt: skip
+
+
+def _read_posterior(path: str):
+    """(model, {name: pooled draws or None}, {name: summary row}, settings)."""
+    import json
+
+    import numpy as np
+
+    from loadbayes.io.errors import DataError
+
+    p = Path(path)
+    if not p.is_file():
+        raise DataError("file not found", path)
+    if p.suffix.lower() in (".nc", ".netcdf", ".nc4"):
+        from loadbayes.posterior import Posterior
+
+        try:
+            post = Posterior.from_netcdf(p)
+        except Exception as exc:  # xarray/netCDF raise many types for a bad file
+            raise DataError(f"not a loadbayes NetCDF posterior ({exc})", path) from None
+        draws = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in post.draws.items()}
+        summary = {
+            k: {"mean": float(d.mean()), "sd": float(d.std()),
+                "hdi_low": float(np.quantile(d, 0.025)), "hdi_high": float(np.quantile(d, 0.975))}
+            for k, d in draws.items()
+        }  # fmt: skip
+        return post.model, draws, summary, dict(post.settings), "2.5% and 97.5% quantiles"
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+        params = doc["parameters"]
+        model = doc["model"]
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+        raise DataError("not a loadbayes posterior JSON (no 'model'/'parameters')", path) from None
+    summary = {k: v for k, v in params.items() if isinstance(v, dict) and v.get("mean") is not None}
+    prob = doc.get("hdi_prob", 0.95)
+    return model, None, summary, doc.get("settings", {}), f"{100 * prob:g}% HDI"
+
+
+def _fill(values: dict, settings: dict) -> dict:
+    # Fixed nominal values of the fit (p0, q0, v0 given, not sampled) come from settings.
+    for key in ("p0", "q0", "v0"):
+        if key not in values and isinstance(settings.get(key), int | float):
+            values[key] = float(settings[key])
+    return values
+
+
+def _complete_triples(values: dict) -> dict:
+    # Marginal quantiles do not keep a1 + a2 + a3 = 1: recompute the third share.
+    for a, b, c in (("a1", "a2", "a3"), ("a4", "a5", "a6")):
+        if a in values and b in values:
+            values[c] = 1.0 - values[a] - values[b]
+    return values
+
+
+def pick_values(draws, summary, stat: str) -> dict[str, float]:
+    """One parameter set from a posterior: its mean, median or a marginal quantile.
+
+    Parameters
+    ----------
+    draws : dict of str to numpy.ndarray or None
+        Pooled draws (None for a JSON summary, which only has the mean).
+    summary : dict
+        Per-parameter summary rows (``mean`` ...).
+    stat : str
+        ``mean``, ``median`` or ``qNN`` (NN in percent, e.g. ``q05``, ``q97.5``).
+
+    Returns
+    -------
+    dict of str to float
+        The values.
+
+    Raises
+    ------
+    ValueError
+        For an unknown statistic, or one that needs draws when only the summary is there.
+    """
+    import numpy as np
+
+    m = _STAT.match(stat)
+    if not m:
+        raise ValueError(f"--stat {stat!r}: expected mean, median or qNN (q05, q50, q97.5)")
+    if stat == "mean":
+        return {k: float(v["mean"]) for k, v in summary.items()}
+    if draws is None:
+        raise ValueError(
+            f"--stat {stat} needs the posterior draws: export from the NetCDF file "
+            "(fit ... --netcdf post.nc); the JSON holds only the mean and interval"
+        )
+    q = 0.5 if stat == "median" else float(m.group(2)) / 100
+    if not 0 <= q <= 1:
+        raise ValueError(f"--stat {stat}: the quantile must be between q0 and q100")
+    return _complete_triples({k: float(np.quantile(d, q)) for k, d in draws.items()})
+
+
+def summary_lines(source: str, model: str, summary: dict, what: str, interval: str) -> list[str]:
+    """The posterior summary every export carries.
+
+    Parameters
+    ----------
+    source : str
+        The posterior file.
+    model : str
+        The model.
+    summary : dict
+        Per-parameter rows with ``mean``, ``sd``, ``hdi_low``, ``hdi_high``.
+    what : str
+        Which statistic or draw was exported.
+    interval : str
+        What the interval is.
+
+    Returns
+    -------
+    list of str
+        One line each.
+    """
+    lines = [f"loadbayes {model} posterior from {source}; exported: {what}",
+             f"parameter: mean (sd) [{interval}]"]  # fmt: skip
+    for name, row in summary.items():
+        m, sd, lo, hi = (
+            "nan" if row.get(k) is None else f"{row[k]:.6g}"
+            for k in ("mean", "sd", "hdi_low", "hdi_high")
+        )
+        lines.append(f"{name}: {m} ({sd}) [{lo}, {hi}]")
+    return lines
+
+
+@click.command("export")
+@click.argument("posterior", type=click.Path(dir_okay=False))
+@click.option("--to", "fmt", required=True, type=click.Choice(["pandapower", "psse", "andes"]))
+@click.option(
+    "--out",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Output file (pandapower .json, PSS/E .raw [+ .dyr], ANDES case).",
+)
+@click.option(
+    "--stat",
+    default="mean",
+    show_default=True,
+    help="mean, median or a marginal quantile qNN (q05, q95); needs draws (NetCDF) "
+    "except for the mean.",
+)
+@click.option(
+    "--draws",
+    "n_draws",
+    type=click.IntRange(min=1),
+    help="Export N posterior draws instead, one output each (_draw001 ...).",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Which draws (--draws).")
+@click.option("--bus", type=click.IntRange(min=0), help="Bus number of the load.")
+@click.option(
+    "--s-base",
+    type=float,
+    help="MVA per p.u. of the posterior's powers (PSS/E: also SBASE, default 100).",
+)
+@click.option("--p-mw", type=float, help="Load P at v0 in MW when the posterior has no p0.")
+@click.option("--q-mvar", type=float, help="Load Q at v0 in Mvar when the posterior has no q0.")
+@click.option("--vn-kv", type=float, help="Bus base voltage (kV) of the net/case built.")
+@click.option(
+    "--net",
+    "net_file",
+    type=click.Path(dir_okay=False),
+    help="pandapower: JSON net to write the load into (default: a one-bus net).",
+)
+@click.option("--load-index", type=int, help="pandapower: the load of --net to overwrite.")
+@click.option("--quiet", is_flag=True)
+@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
+@user_errors
+def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
+               net_file, load_index, quiet, force):  # fmt: skip
+    """Write a fitted load model into pandapower, PSS/E or ANDES files.
+
+    The posterior summary (mean, sd and interval of each parameter, the source and the
+    statistic exported) goes with every output, as comments or a sidecar .summary.txt.
+    """
+    for name, val in (("--s-base", s_base), ("--vn-kv", vn_kv)):
+        if val is not None and not (math.isfinite(val) and val > 0):
+            raise click.BadParameter("must be a positive finite number", param_hint=name)
+    for name, val in (("--p-mw", p_mw), ("--q-mvar", q_mvar)):
+        if val is not None and not math.isfinite(val):
+            raise click.BadParameter("must be a finite number", param_hint=name)
+    if n_draws is not None and stat != "mean":
+        raise UserError("give either --stat or --draws, not both")
+    from loadbayes import export
+
+    writer = export.get(fmt)
+    model_raw, draws, summary, settings, interval = _read_posterior(posterior)
+    model = _MODEL_NAMES.get(model_raw, model_raw)
+    export.check_model(model)
+    outp = Path(out)
+    if n_draws is None:
+        jobs = [(outp, _fill(pick_values(draws, summary, stat), settings), stat)]
+    else:
+        import numpy as np
+
+        if draws is None:
+            raise UserError(f"{posterior}: --draws needs the NetCDF posterior (fit --netcdf)")
+        total = len(next(iter(draws.values())))
+        if n_draws > total:
+            raise UserError(f"--draws {n_draws}: the posterior holds {total} draws")
+        picks = np.sort(np.random.default_rng(seed).choice(total, n_draws, replace=False))
+        jobs = [
+            (outp.with_name(f"{outp.stem}_draw{k + 1:03d}{outp.suffix}"),
+             _fill({n: float(d[i]) for n, d in draws.items()}, settings),
+             f"posterior draw {i} (seed {seed}, {k + 1} of {n_draws})")
+            for k, i in enumerate(picks)
+        ]  # fmt: skip
+    sidecar = [".summary.txt"]
+    for path, _, _ in jobs:
+        if path.resolve() == Path(posterior).resolve():
+            raise UserError(f"{path}: --out would overwrite the posterior")
+        if net_file and path.resolve() == Path(net_file).resolve():
+            raise UserError(f"{path}: --out would overwrite the --net it starts from")
+        if not path.parent.is_dir():
+            raise UserError(f"{path}: folder {path.parent} does not exist")
+        related = [path, *(path.with_suffix(s) for s in writer.SUFFIXES)]
+        related += [path.with_name(path.name + s) for s in sidecar]
+        for r in related:
+            if r.exists() and not force:
+                raise UserError(f"{r}: exists; use --force to overwrite")
+    options = {"bus": bus, "s_base_mva": s_base, "p_mw": p_mw, "q_mvar": q_mvar,
+               "vn_kv": vn_kv, "net": net_file, "load_index": load_index, "force": force,
+               "v0": settings.get("v0")}  # fmt: skip
+    if s_base is None:
+        options.pop("s_base_mva")
+    written: list[str] = []
+    try:
+        for path, values, what in jobs:
+            header = summary_lines(posterior, model, summary, what, interval)
+            paths = writer.write(values, path, model=model, header=header, options=options)
+            written += [str(p) for p in paths]
+    except KeyboardInterrupt as exc:
+        exc.written = written  # type: ignore[attr-defined]
+        raise
+    if not quiet:
+        click.echo(f"{posterior}: {model} exported to {fmt}: {', '.join(written)}", err=True)

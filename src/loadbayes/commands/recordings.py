@@ -1,0 +1,217 @@
+"""``loadbayes read comtrade|pmu`` and ``loadbayes events``: recordings to per-unit events.
+
+Standalone click objects (this module does not import :mod:`loadbayes.cli`); ``cli.py``
+attaches them. Heavy imports stay inside the commands.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from loadbayes.commands.output import UserError, check_outputs, user_errors
+
+__all__ = ["events_cmd", "read_group"]
+
+
+def _positive(value: float | None, name: str) -> float | None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise click.BadParameter("must be a positive finite number", param_hint=name)
+    return value
+
+
+def _names(value: str | None, opt: str) -> list[str] | None:
+    if value is None:
+        return None
+    names = [s.strip() for s in value.split(",")]
+    if len(names) != 3 or not all(names):
+        raise click.BadParameter("expected three channel names A,B,C", param_hint=opt)
+    return names
+
+
+def _write(table: dict, out: str, force: bool) -> None:
+    from loadbayes.io.tables import write_table
+
+    write_table(table, out, force=force)
+
+
+@click.group("read")
+def read_group() -> None:
+    """Read a recording (COMTRADE, PMU CSV) into a per-unit t_s, v, p, q, f table."""
+
+
+@read_group.command("comtrade")
+@click.argument("cfg", type=click.Path(dir_okay=False))
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="CSV or Parquet.")
+@click.option("--voltage", help="Phase a, b, c voltage channels (default: found by unit/phase).")
+@click.option("--current", help="Phase a, b, c current channels (default: found by unit/phase).")
+@click.option(
+    "--side",
+    type=click.Choice(["primary", "secondary"]),
+    default="primary",
+    show_default=True,
+    help="Scale to the transformer's primary or secondary side (the .cfg's ratio).",
+)
+@click.option("--v-base", type=float, help="Voltage base, line-to-line kV (default: first cycle).")
+@click.option("--s-base", type=float, help="Power base, 3-phase MVA (default: first cycle |S|).")
+@click.option("--quiet", is_flag=True)
+@click.option("--force", is_flag=True, help="Overwrite the output.")
+@user_errors
+def read_comtrade_cmd(cfg, out, voltage, current, side, v_base, s_base, quiet, force):
+    """Per-cycle positive-sequence V, three-phase P, Q and frequency from a COMTRADE record.
+
+    One-cycle DFT phasors (see docs/formats.md); the output has one row per cycle:
+    t_s (window centre, s), v, p, q (per unit of the bases), f (Hz).
+    """
+    check_outputs({"--out": out}, [cfg], force)
+    _positive(v_base, "--v-base")
+    _positive(s_base, "--s-base")
+    vnames, inames = _names(voltage, "--voltage"), _names(current, "--current")
+    import numpy as np
+
+    from loadbayes.recordings.comtrade import read_comtrade
+    from loadbayes.recordings.phasors import cycle_phasors, to_cycle_grid
+
+    w = read_comtrade(cfg, voltage=vnames, current=inames, side=side)
+    try:
+        t, v, i, rate = to_cycle_grid(
+            w.t_s, w.v, w.i, f0=w.f_nominal, rate_hz=w.rate_hz, uniform=w.uniform
+        )
+        c = cycle_phasors(t, v, i, f0=w.f_nominal, rate_hz=rate)
+    except ValueError as exc:
+        raise UserError(f"{cfg}: {exc}") from None
+    vb = v_base * 1e3 / math.sqrt(3) if v_base else float(c["v"][0])
+    sb = s_base * 1e6 if s_base else float(np.hypot(c["p"][0], c["q"][0]))
+    if not (vb > 0 and sb > 0):
+        raise UserError(f"{cfg}: the first cycle has no voltage or power; give --v-base/--s-base")
+    table = {"t_s": c["t_s"], "v": c["v"] / vb, "p": c["p"] / sb, "q": c["q"] / sb, "f": c["f"]}
+    _write(table, out, force)
+    if not quiet:
+        resampled = "" if rate == w.rate_hz else f", resampled to {rate:g}"
+        click.echo(
+            f"{out}: {len(c['t_s'])} cycles at {w.f_nominal:g} Hz nominal "
+            f"({w.rate_hz:g} samples/s{resampled}); v base "
+            f"{vb * math.sqrt(3) / 1e3:.6g} kV l-l, s base {sb / 1e6:.6g} MVA; channels "
+            + ", ".join(f"{k}={v}" for k, v in w.channels.items()),
+            err=True,
+        )
+
+
+@read_group.command("pmu")
+@click.argument("csv", type=click.Path(dir_okay=False))
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="CSV or Parquet.")
+@click.option("--map", "map_file", type=click.Path(dir_okay=False), help="TOML column mapping.")
+@click.option("--time-col", help="Timestamp column.")
+@click.option("--v-mag", help="Voltage magnitude column(s): one (positive sequence) or a,b,c.")
+@click.option("--v-ang", help="Voltage angle column(s).")
+@click.option("--i-mag", help="Current magnitude column(s).")
+@click.option("--i-ang", help="Current angle column(s).")
+@click.option("--freq-col", help="Frequency column (Hz).")
+@click.option("--rocof-col", help="ROCOF column (Hz/s).")
+@click.option("--angles", type=click.Choice(["deg", "rad"]), help="Angle unit.")
+@click.option("--voltage-unit", type=click.Choice(["V", "kV"]), help="Voltage magnitude unit.")
+@click.option("--current-unit", type=click.Choice(["A", "kA"]), help="Current magnitude unit.")
+@click.option("--epoch", is_flag=True, default=None, help="Timestamps are epoch seconds.")
+@click.option("--tz", help="Time zone of timestamps written without an offset (default UTC).")
+@click.option("--v-base", type=float, help="Voltage base, line-to-line kV (default: first row).")
+@click.option("--s-base", type=float, help="Power base, MVA (default: first row |S|).")
+@click.option("--quiet", is_flag=True)
+@click.option("--force", is_flag=True, help="Overwrite the output.")
+@user_errors
+def read_pmu_cmd(
+    csv, out, map_file, time_col, v_mag, v_ang, i_mag, i_ang, freq_col, rocof_col, angles,
+    voltage_unit, current_unit, epoch, tz, v_base, s_base, quiet, force,
+):  # fmt: skip
+    """Per-unit V, P, Q (and f, ROCOF) from a PMU historian CSV of phasors.
+
+    Duplicate timestamps (first kept), rows out of order (sorted) and gaps are reported
+    on stderr.
+    """
+    check_outputs({"--out": out}, [csv] + ([map_file] if map_file else []), force)
+    from loadbayes.recordings.pmu import load_map, read_pmu
+
+    mapping = load_map(
+        map_file, time=time_col, v_mag=v_mag, v_ang=v_ang, i_mag=i_mag, i_ang=i_ang,
+        freq=freq_col, rocof=rocof_col, angle=angles, voltage=voltage_unit,
+        current=current_unit, time_format="epoch" if epoch else None, timezone=tz,
+        v_kv=_positive(v_base, "--v-base"), s_mva=_positive(s_base, "--s-base"),
+    )  # fmt: skip
+    rec = read_pmu(csv, mapping)
+    _write(rec.data, out, force)
+    for line in rec.report:
+        click.echo(f"loadbayes: warning: {csv}: {line}", err=True)
+    if not quiet:
+        click.echo(
+            f"{out}: {len(rec.data['t_s'])} rows from {rec.start}; v base "
+            f"{rec.v_base_kv:.6g} kV l-l, s base {rec.s_base_mva:.6g} MVA",
+            err=True,
+        )
+
+
+@click.command("events")
+@click.argument("record", type=click.Path(dir_okay=False))
+@click.option("--out", required=True, type=click.Path(file_okay=False), help="Output folder.")
+@click.option("--threshold", type=float, default=0.9, show_default=True,
+              help="A sag starts below threshold x v_ref.")  # fmt: skip
+@click.option("--hysteresis", type=float, default=0.02, show_default=True,
+              help="It recovers above (threshold + hysteresis) x v_ref.")  # fmt: skip
+@click.option("--min-duration", type=float, default=0.02, show_default=True,
+              help="Shorter sags are ignored (s).")  # fmt: skip
+@click.option("--pre", type=float, default=0.5, show_default=True, help="Seconds kept before.")
+@click.option("--post", type=float, default=2.0, show_default=True,
+              help="Seconds kept after the recovery.")  # fmt: skip
+@click.option("--v-ref", type=float, help="Reference voltage (default: the record's median).")
+@click.option("--format", "fmt", type=click.Choice(["csv", "parquet"]), default="csv",
+              show_default=True)  # fmt: skip
+@click.option("--quiet", is_flag=True)
+@click.option("--force", is_flag=True, help="Overwrite event files already in the folder.")
+@user_errors
+def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_ref, fmt, quiet,
+               force):  # fmt: skip
+    """Find the voltage sags in a long t_s, v, p, q[, f] record; write one file per event.
+
+    Writes OUT/event_001.csv ... (t_s from each event's start) and OUT/events.csv, the
+    list of events (window, sag start, recovery, depth).
+    """
+    from loadbayes.io.tables import read_columns, write_table
+    from loadbayes.recordings.events import cut_events, find_sags
+
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"{out}: --out is a file, expected a folder")
+    if not folder.parent.exists():
+        raise UserError(f"{out}: folder {folder.parent} does not exist")
+    # v may be 0 (an interruption in a long record): not refused here.
+    data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["f", "rocof"])
+    try:
+        events = find_sags(
+            data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,
+            min_duration_s=min_duration, pre_s=pre, post_s=post, v_ref=v_ref,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise UserError(f"{record}: {exc}") from None
+    names = [folder / f"event_{ev.index:03d}.{fmt}" for ev in events]
+    index = folder / "events.csv"
+    for path in [*names, index]:
+        if path.exists() and not force:
+            raise UserError(f"{path}: exists; use --force to overwrite")
+    folder.mkdir(exist_ok=True)
+    for path, table in zip(names, cut_events(data, events), strict=True):
+        write_table(table, path, force=force)
+    rows = [ev.as_row() | {"file": p.name} for ev, p in zip(events, names, strict=True)]
+    cols = ["index", "file", "start", "stop", "sag_start_s", "recovery_s", "duration_s",
+            "v_min", "depth", "recovered", "n_sags"]  # fmt: skip
+    import pandas as pd
+
+    write_table(pd.DataFrame(rows, columns=cols), index, force=force)
+    if not quiet:
+        click.echo(f"{record}: {len(events)} event(s) written to {out}", err=True)
+        for ev in events:
+            rec = f"recovered at {ev.recovery_s:.4g} s" if ev.recovered else "not recovered"
+            click.echo(
+                f"  event {ev.index}: sag at {ev.sag_start_s:.4g} s, depth {ev.depth:.3f}, "
+                f"{ev.duration_s:.4g} s, {rec}",
+                err=True,
+            )

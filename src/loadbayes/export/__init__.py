@@ -1,0 +1,78 @@
+"""Fitted load models out to simulators: pandapower, PSS/E, ANDES.
+
+Each format is one module ``loadbayes.export.<fmt>`` exposing
+
+- ``FORMAT``: its name;
+- ``SUFFIXES``: the file suffixes it writes;
+- ``write(values, out, *, model, header, options) -> list[Path]``: one parameter set
+  (posterior mean, a quantile or one draw, named as in the composite naming contract)
+  written at ``out``, with the posterior summary ``header`` as comments or a sidecar.
+
+Modules are imported only when asked for (:func:`get`), so a missing optional simulator
+package (ANDES) costs nothing to the others.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+__all__ = ["FORMATS", "MODELS", "check_model", "get"]
+
+#: Format name -> module path.
+FORMATS = {
+    "pandapower": "loadbayes.export.pandapower",
+    "psse": "loadbayes.export.psse",
+    "andes": "loadbayes.export.andes",
+}
+
+#: Models the exports take.
+MODELS = ("zip", "exponential", "composite")
+
+
+def get(fmt: str) -> ModuleType:
+    """Import the writer of a format.
+
+    Parameters
+    ----------
+    fmt : str
+        ``"pandapower"``, ``"psse"`` or ``"andes"``.
+
+    Returns
+    -------
+    module
+        The module with ``FORMAT``, ``SUFFIXES`` and ``write``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown format, or one whose module or simulator package is missing.
+    """
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown export format {fmt!r} (known: {', '.join(FORMATS)})")
+    try:
+        return importlib.import_module(FORMATS[fmt])
+    except ModuleNotFoundError as exc:
+        if exc.name == FORMATS[fmt]:
+            raise ValueError(f"the {fmt} export is not part of this loadbayes build") from None
+        raise ValueError(
+            f"the {fmt} export needs {exc.name!r}, which is not installed "
+            f"(pip install 'loadbayes[{'grid' if fmt == 'pandapower' else fmt}]')"
+        ) from None
+
+
+def check_model(model: str) -> None:
+    """Refuse a model no export takes.
+
+    Parameters
+    ----------
+    model : str
+        The model name.
+
+    Raises
+    ------
+    ValueError
+        Unless ``model`` is one of :data:`MODELS`.
+    """
+    if model not in MODELS:
+        raise ValueError(f"model {model!r} cannot be exported (exports take {', '.join(MODELS)})")

@@ -1,0 +1,236 @@
+"""A fitted load as the parts simulators hold: a static V-polynomial and a motor.
+
+Every simulator format here writes a load as
+
+    P(V) = pz V^2 + pi V + pp       (MW),    Q(V) = qz V^2 + qi V + qp   (Mvar)
+
+with V in per unit of the bus's base voltage, plus, for the composite load, an induction
+motor drawing ``p_mw, q_mvar`` at the initial voltage. :func:`load_parts` builds these
+from one parameter set named as in the naming contract.
+
+- ZIP: ``P = p0 (a1 (V/v0)^2 + a2 V/v0 + a3)``, so ``pz = p0 a1 / v0^2``,
+  ``pi = p0 a2 / v0``, ``pp = p0 a3`` (and the same for Q with a4, a5, a6 and q0).
+- Exponential ``P = p0 (V/v0)^np``: no simulator here takes it as such in its power flow,
+  so it is replaced by the ZIP that fits ``x^np`` best in least squares on
+  ``V/v0`` in [0.7, 1.1] with shares summing to 1; the largest relative deviation on
+  that band is reported in the notes (it is zero for np = 0, 1, 2).
+- Composite: the static ZIP carries ``(1 - f_m) p0`` of the active power and
+  ``q0 - q_m + q_c`` of the reactive, where ``q_m`` is the motor's reactive power at
+  its steady state at ``v0`` (from :func:`loadbayes.models.motor.steady_state`, with
+  the load torque ``t0`` on the motor's base, scaled by ``mva_m``) and ``q_c`` the shunt
+  compensation (reactive power supplied at v0, positive for capacitors; it becomes a
+  constant-impedance term ``-q_c (V/v0)^2`` of the load's Q).
+
+Powers in the posterior are in per unit of ``s_base_mva`` (``options["s_base_mva"]``,
+default 1: the posterior's units are then MW and Mvar); ``options["p_mw"]`` and
+``options["q_mvar"]`` give the load's P and Q at v0 directly when the posterior has
+no ``p0``/``q0`` (a ZIP fitted with fixed nominal values).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["LoadParts", "MotorPart", "load_parts", "zip_of_exponent"]
+
+_MOTOR_FIELDS = ("rs", "xs", "xm", "rr", "xr", "h_s")
+
+
+@dataclass
+class MotorPart:
+    """The motor of a composite load, at its initial operating point.
+
+    Parameters
+    ----------
+    params : loadbayes.models.motor.MotorParams
+        Its parameters on its own base.
+    t0 : float
+        Load torque at synchronous speed (own base).
+    mva : float
+        Rating (MVA).
+    p_mw, q_mvar : float
+        Power drawn at ``v0``.
+    slip : float
+        Initial slip.
+    """
+
+    params: Any
+    t0: float
+    mva: float
+    p_mw: float
+    q_mvar: float
+    slip: float
+
+
+@dataclass
+class LoadParts:
+    """Static polynomial (MW, Mvar at V in p.u.), optional motor, and notes for the header."""
+
+    pz: float
+    pi: float
+    pp: float
+    qz: float
+    qi: float
+    qp: float
+    v0: float
+    motor: MotorPart | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def p(self, v: np.ndarray | float) -> np.ndarray:
+        """Static P (MW) at V (p.u.)."""
+        v = np.asarray(v, dtype=float)
+        return self.pz * v**2 + self.pi * v + self.pp
+
+    def q(self, v: np.ndarray | float) -> np.ndarray:
+        """Static Q (Mvar) at V (p.u.)."""
+        v = np.asarray(v, dtype=float)
+        return self.qz * v**2 + self.qi * v + self.qp
+
+
+def zip_of_exponent(n: float, lo: float = 0.7, hi: float = 1.1) -> tuple[np.ndarray, float]:
+    """ZIP shares (summing to 1) closest to ``x^n`` on ``[lo, hi]``, and the worst error.
+
+    Parameters
+    ----------
+    n : float
+        The exponent.
+    lo, hi : float
+        The band of ``x = V / v0``.
+
+    Returns
+    -------
+    shares : numpy.ndarray
+        ``(z, i, p)``.
+    max_error : float
+        Largest ``|ZIP(x) - x^n|`` on the band.
+    """
+    x = np.linspace(lo, hi, 201)
+    # y - 1 = z (x^2 - 1) + i (x - 1): the sum-to-one constraint eliminated.
+    a = np.column_stack([x**2 - 1, x - 1])
+    z, i = np.linalg.lstsq(a, x**n - 1, rcond=None)[0]
+    shares = np.array([z, i, 1 - z - i])
+    fit = shares[0] * x**2 + shares[1] * x + shares[2]
+    return shares, float(np.max(np.abs(fit - x**n)))
+
+
+def _nominal(values: Mapping[str, float], options: Mapping[str, Any], ch: str) -> float:
+    unit = "p_mw" if ch == "p" else "q_mvar"
+    if options.get(unit) is not None:
+        return float(options[unit])
+    if f"{ch}0" not in values:
+        what = "P in MW" if ch == "p" else "Q in Mvar"
+        raise ValueError(
+            f"the parameter set has no {ch}0: give the load's {what} at v0 "
+            f"(--{unit.replace('_', '-')})"
+        )
+    return float(values[f"{ch}0"]) * float(options.get("s_base_mva") or 1.0)
+
+
+def _shares(values: Mapping[str, float], names: tuple[str, str, str]) -> np.ndarray:
+    a, b, c = names
+    if a not in values or b not in values:
+        raise ValueError(f"the parameter set lacks {a} or {b}")
+    third = values.get(c, 1.0 - values[a] - values[b])
+    return np.array([values[a], values[b], third], dtype=float)
+
+
+def load_parts(values: Mapping[str, float], *, model: str, options: Mapping[str, Any]) -> LoadParts:
+    """Turn one parameter set into a static polynomial and a motor.
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        Parameters named as in the naming contract.
+    model : {"zip", "exponential", "composite"}
+        The model.
+    options : mapping
+        ``s_base_mva``, ``p_mw``, ``q_mvar``, ``v0``, ``f_hz`` (see module docstring).
+
+    Returns
+    -------
+    LoadParts
+        The parts.
+
+    Raises
+    ------
+    ValueError
+        For another model, missing parameters, or a motor with no steady state.
+    """
+    from loadbayes.export import check_model
+
+    check_model(model)
+    v0 = float(values.get("v0", options.get("v0") or 1.0))
+    if not (math.isfinite(v0) and v0 > 0):
+        raise ValueError(f"v0 must be a positive number, got {v0}")
+    notes: list[str] = []
+    p_tot, q_tot = _nominal(values, options, "p"), _nominal(values, options, "q")
+    if model == "exponential":
+        sp, errp = zip_of_exponent(float(values["np"]))
+        sq, errq = zip_of_exponent(float(values.get("nq", 2.0)))
+        notes.append(
+            f"exponential load (np = {values['np']:.4g}, nq = {values.get('nq', 2.0):.4g}) "
+            f"written as the closest ZIP on V/v0 in [0.7, 1.1]: largest error "
+            f"{errp:.2g} (P) and {errq:.2g} (Q) of P0, Q0"
+        )
+        if "kpf" in values or "kqf" in values:
+            notes.append("frequency dependence (kpf, kqf) is not exported")
+    else:
+        sp = _shares(values, ("a1", "a2", "a3"))
+        if "a4" in values or "a5" in values:
+            sq = _shares(values, ("a4", "a5", "a6"))
+        else:
+            sq = np.array([0.0, 0.0, 1.0])
+            notes.append("the posterior has no Q model (a4, a5): Q written as constant power")
+    motor = None
+    p_static, q_static, qz_extra = p_tot, q_tot, 0.0
+    if model == "composite":
+        motor = _motor(values, options, p_tot, v0)
+        p_static = p_tot - motor.p_mw
+        q_c = float(values.get("q_c", 0.0)) * float(options.get("s_base_mva") or 1.0)
+        q_static = q_tot - motor.q_mvar + q_c
+        qz_extra = -q_c / v0**2
+        notes.append(
+            f"composite: motor {motor.p_mw:.6g} MW, {motor.q_mvar:.6g} Mvar at v0 "
+            f"(slip {motor.slip:.4g}, rating {motor.mva:.6g} MVA); static part "
+            f"{p_static:.6g} MW, {q_static:.6g} Mvar; shunt compensation {q_c:.6g} Mvar"
+        )
+    return LoadParts(
+        pz=p_static * sp[0] / v0**2,
+        pi=p_static * sp[1] / v0,
+        pp=p_static * sp[2],
+        qz=q_static * sq[0] / v0**2 + qz_extra,
+        qi=q_static * sq[1] / v0,
+        qp=q_static * sq[2],
+        v0=v0,
+        motor=motor,
+        notes=notes,
+    )
+
+
+def _motor(values: Mapping[str, float], options: Mapping[str, Any], p_tot: float, v0: float):
+    from loadbayes.models.motor import MotorParams, steady_state
+
+    missing = [k for k in (*_MOTOR_FIELDS, "f_m") if k not in values]
+    if missing:
+        raise ValueError(f"composite parameter set lacks {', '.join(missing)}")
+    params = MotorParams(
+        **{k: float(values[k]) for k in _MOTOR_FIELDS},
+        a=float(values.get("a", 1.0)),
+        b=float(values.get("b", 0.0)),
+        c=float(values.get("c", 0.0)),
+        f_hz=float(values.get("f_hz", options.get("f_hz") or 60.0)),
+    )
+    p_m = float(values["f_m"]) * p_tot
+    if "t0" in values:
+        op = steady_state(params, v_pu=v0, t0=float(values["t0"]))
+    else:
+        raise ValueError("composite parameter set lacks t0 (the motor's load torque)")
+    mva = p_m / op.p if "mva_m" not in values else None
+    if mva is None:
+        mva = float(values["mva_m"]) * float(options.get("s_base_mva") or 1.0)
+    return MotorPart(params, op.t0, mva, op.p * mva, op.q * mva, op.slip)

@@ -1,0 +1,283 @@
+"""Export to PSS/E: a version-33 ``.raw`` case with the load, and a ``.dyr`` CIM5BL motor.
+
+The ``.raw`` (PSS/E 33 format) is a whole minimal case: a swing bus with a generator, the
+load bus, a short branch between them, the load record(s), and every other section
+empty. The load record (v33 fields ``I, 'ID', STATUS, AREA, ZONE, PL, QL, IP, IQ, YP,
+YQ, OWNER, SCALE, INTRPT``) holds the static polynomial of
+:func:`~loadbayes.export.loadparts.load_parts`, PSS/E's convention being
+
+    P(V) = PL + IP V + YP V^2,     Q(V) = QL + IQ V - YQ V^2     (MW, Mvar; V in p.u.)
+
+so ``PL = pp, IP = pi, YP = pz, QL = qp, IQ = qi, YQ = -qz`` (YQ is negative for an
+inductive load, PSS/E's sign for admittance load). ANDES's PSS/E reader uses the same
+formula, which the tests use to read the file back independently.
+
+The composite load is two load records on the bus: ``'1'`` the static part and ``'M'``
+the motor's steady-state P, Q at v0, with a CIM5BL record in the ``.dyr`` attached to
+load ``'M'`` (PSS/E initialises the motor from that load's power)::
+
+    IBUS 'CIM5BL' 'M' IT RA XA XM R1 X1 R2 X2 E1 SE1 E2 SE2 MBASE PMULT H VT TV TB D TNOM /
+
+mapped from :class:`loadbayes.models.motor.MotorParams` (the motor's own base) as:
+
+==========  ==========================================================================
+field       value
+==========  ==========================================================================
+IT          1 (type 1 equivalent circuit: R1, X1 the rotor branch)
+RA, XA      ``rs``, ``xs`` (stator resistance, leakage reactance)
+XM          ``xm`` (magnetising reactance)
+R1, X1      ``rr``, ``xr`` (rotor resistance, leakage reactance)
+R2, X2      0, 0 (single cage: the third-order model has one rotor circuit)
+E1 .. SE2   0 (no saturation; loadbayes's motor has none)
+MBASE       the motor rating in MVA (``mva_m`` times the system base, or
+            ``f_m p0 / P_motor(own base)``)
+PMULT       0 (unused when MBASE > 0)
+H           ``h_s`` (s, on MBASE)
+VT, TV, TB  0 (no undervoltage trip)
+D           ``2 a + b``: PSS/E's load torque is ``T (1 + dw)^D``; it equals loadbayes's
+            ``t0 (a w^2 + b w + c)`` for a pure quadratic (D = 2), linear (1) or constant
+            (0) load and matches its slope at synchronous speed otherwise
+TNOM        0 (PSS/E computes the load torque from the power flow at initialisation;
+            the fitted ``t0`` is in the summary)
+==========  ==========================================================================
+
+The posterior summary goes into ``<out>.summary.txt`` (PSS/E files have no room for
+it); the ``.raw`` title lines name the model and the statistic. Options: ``bus``
+(default 1), ``s_base_mva`` (system base, also written as SBASE; default 100), ``vn_kv``
+(default 230), ``p_mw``, ``q_mvar``, ``force``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from loadbayes.export.loadparts import LoadParts, load_parts
+from loadbayes.io.atomic import atomic_write
+
+__all__ = ["FORMAT", "SUFFIXES", "VERSION", "read_dyr", "read_loads", "write"]
+
+FORMAT = "psse"
+SUFFIXES = (".raw", ".dyr")
+VERSION = 33
+
+_EMPTY_SECTIONS = (
+    "TRANSFORMER", "AREA", "TWO-TERMINAL DC", "VSC DC LINE", "IMPEDANCE CORRECTION",
+    "MULTI-TERMINAL DC", "MULTI-SECTION LINE", "ZONE", "INTER-AREA TRANSFER", "OWNER",
+    "FACTS DEVICE", "SWITCHED SHUNT", "GNE", "INDUCTION MACHINE",
+)  # fmt: skip
+CIM5_FIELDS = ("RA", "XA", "XM", "R1", "X1", "R2", "X2", "E1", "SE1", "E2", "SE2",
+               "MBASE", "PMULT", "H", "VT", "TV", "TB", "D", "TNOM")  # fmt: skip
+
+
+def _g(x: float) -> str:
+    return f"{x + 0.0:.10g}"  # + 0.0: no "-0"
+
+
+def _load_record(bus: int, load_id: str, p: tuple[float, float, float], q: tuple) -> str:
+    # p = (pp, pi, pz), q = (qp, qi, qz)
+    fields = [str(bus), f"'{load_id:<2}'", "1", "1", "1", _g(p[0]), _g(q[0]), _g(p[1]),
+              _g(q[1]), _g(p[2]), _g(-q[2]), "1", "1", "0"]  # fmt: skip
+    return ",".join(fields)
+
+
+def _raw_text(parts: LoadParts, *, bus: int, sbase: float, vn_kv: float, title: str) -> str:
+    src = 1 if bus != 1 else 2
+    p_total = float(parts.p(parts.v0)) + (parts.motor.p_mw if parts.motor else 0.0)
+    bus_line = "{},'{:<12}',{},{},1,1,1,{},0.0,1.1,0.9,1.1,0.9"
+    lines = [
+        f"0,{_g(sbase)},{VERSION},0,0,60.0     / PSS(R)E-33 RAW created by loadbayes",
+        title[:60],
+        "static load as PL/IP/YP, QL/IQ/YQ; motor (if any) as load 'M' + CIM5BL (.dyr)"[:60],
+        bus_line.format(src, "SOURCE", _g(vn_kv), 3, _g(parts.v0)),
+        bus_line.format(bus, "LOADBAYES", _g(vn_kv), 1, _g(parts.v0)),
+        "0 / END OF BUS DATA, BEGIN LOAD DATA",
+        _load_record(bus, "1", (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz)),
+    ]
+    if parts.motor is not None:
+        m = parts.motor
+        lines.append(_load_record(bus, "M", (m.p_mw, 0.0, 0.0), (m.q_mvar, 0.0, 0.0)))
+    gen = [str(src), "'1 '", _g(p_total), "0.0", "9999.0", "-9999.0", _g(parts.v0), "0",
+           _g(max(sbase, 1.0)), "0.0", "1.0", "0.0", "0.0", "1.0", "1", "100.0", "9999.0",
+           "-9999.0", "1", "1.0", "0", "1.0", "0", "1.0", "0", "1.0", "0", "1.0"]  # fmt: skip
+    branch = [str(src), str(bus), "'1 '", "0.0", "1e-4", "0.0", "0.0", "0.0", "0.0", "0.0",
+              "0.0", "0.0", "0.0", "1", "1", "0.0", "1", "1.0", "0", "1.0", "0", "1.0", "0",
+              "1.0"]  # fmt: skip
+    lines += [
+        "0 / END OF LOAD DATA, BEGIN FIXED SHUNT DATA",
+        "0 / END OF FIXED SHUNT DATA, BEGIN GENERATOR DATA",
+        ",".join(gen),
+        "0 / END OF GENERATOR DATA, BEGIN BRANCH DATA",
+        ",".join(branch),
+        "0 / END OF BRANCH DATA, BEGIN TRANSFORMER DATA",
+    ]
+    for k, name in enumerate(_EMPTY_SECTIONS[:-1]):
+        lines.append(f"0 / END OF {name} DATA, BEGIN {_EMPTY_SECTIONS[k + 1]} DATA")
+    lines += [f"0 / END OF {_EMPTY_SECTIONS[-1]} DATA", "Q"]
+    return "\n".join(lines) + "\n"
+
+
+def cim5_values(parts: LoadParts) -> dict[str, float]:
+    """The CIM5BL constants of a composite load's motor (see the module docstring).
+
+    Parameters
+    ----------
+    parts : LoadParts
+        With a motor.
+
+    Returns
+    -------
+    dict
+        Field name -> value, in the record's order.
+    """
+    m = parts.motor
+    if m is None:
+        raise ValueError("no motor in this load")
+    pr = m.params
+    return dict(
+        zip(
+            CIM5_FIELDS,
+            [
+                pr.rs,
+                pr.xs,
+                pr.xm,
+                pr.rr,
+                pr.xr,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                m.mva,
+                0.0,
+                pr.h_s,
+                0.0,
+                0.0,
+                0.0,
+                2 * pr.a + pr.b,
+                0.0,
+            ],  # fmt: skip
+            strict=True,
+        )
+    )
+
+
+def write(
+    values: Mapping[str, float],
+    out: Path,
+    *,
+    model: str,
+    header: Sequence[str],
+    options: Mapping[str, Any],
+) -> list[Path]:
+    """Write the ``.raw`` (and for a composite load the ``.dyr``) and a summary sidecar.
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        One parameter set.
+    out : pathlib.Path
+        The ``.raw`` file; the ``.dyr`` takes the same stem.
+    model : {"zip", "exponential", "composite"}
+        The model.
+    header : sequence of str
+        Posterior summary lines.
+    options : mapping
+        See the module docstring.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+
+    Raises
+    ------
+    ValueError
+        For another model, missing parameters, or a bad bus number.
+    """
+    opts = dict(options)
+    opts.setdefault("s_base_mva", 100.0)
+    sbase = float(opts["s_base_mva"] or 100.0)
+    bus = int(opts["bus"]) if opts.get("bus") is not None else 1
+    if not 1 <= bus <= 999_997:
+        raise ValueError(f"PSS/E bus numbers run from 1 to 999997, got {bus}")
+    parts = load_parts(values, model=model, options=opts)
+    force = bool(opts.get("force"))
+    what = header[0].split("exported: ")[-1] if header else "parameters given"
+    title = f"loadbayes {model} load, {what}"
+    written = []
+    text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=float(opts.get("vn_kv") or 230.0),
+                     title=title)  # fmt: skip
+    with atomic_write(out, force=force, mode="w") as fh:
+        fh.write(text)
+    written.append(Path(out))
+    notes = list(parts.notes)
+    if parts.motor is not None:
+        cim = cim5_values(parts)
+        nums = " ".join(_g(v) for v in cim.values())
+        dyr = Path(out).with_suffix(".dyr")
+        with atomic_write(dyr, force=force, mode="w") as fh:
+            fh.write(f"{bus} 'CIM5BL' 'M' 1 {nums} /\n")
+        written.append(dyr)
+        pr = parts.motor.params
+        notes.append(
+            f"CIM5BL: t0 = {parts.motor.t0:.6g} (own base), torque a, b, c = "
+            f"{pr.a:.4g}, {pr.b:.4g}, {pr.c:.4g} -> D = {cim['D']:.4g}"
+        )
+    side = Path(out).with_name(Path(out).name + ".summary.txt")
+    rec = _load_record(bus, "1", (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz))
+    with atomic_write(side, force=force, mode="w") as fh:
+        fh.write("\n".join(f"# {ln}" for ln in [*header, *notes, f"load record: {rec}"]) + "\n")
+    written.append(side)
+    return written
+
+
+def read_loads(path: str | Path) -> dict[str, dict[str, float]]:
+    """Read the load records of a v33 ``.raw`` written by :func:`write` (for round trips).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.raw``.
+
+    Returns
+    -------
+    dict
+        Load ID -> ``{"bus", "pl", "ql", "ip", "iq", "yp", "yq"}``.
+    """
+    lines = Path(path).read_text().splitlines()
+    start = next(k for k, ln in enumerate(lines) if "BEGIN LOAD DATA" in ln) + 1
+    out = {}
+    for ln in lines[start:]:
+        if ln.startswith("0 /"):
+            break
+        f = [c.strip() for c in ln.split(",")]
+        keys = ("pl", "ql", "ip", "iq", "yp", "yq")
+        out[f[1].strip("'").strip()] = {"bus": int(f[0])} | dict(
+            zip(keys, map(float, f[5:11]), strict=True)
+        )
+    return out
+
+
+def read_dyr(path: str | Path) -> dict[str, float]:
+    """Read the CIM5BL record of a ``.dyr`` written by :func:`write` (for round trips).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.dyr``.
+
+    Returns
+    -------
+    dict
+        ``bus``, ``id``, ``IT`` and the CIM5BL constants by name.
+    """
+    text = Path(path).read_text().split("/")[0].split()
+    if text[1] != "'CIM5BL'":
+        raise ValueError(f"{path}: not a CIM5BL record")
+    vals = list(map(float, text[4:]))
+    return {"bus": int(text[0]), "id": text[2].strip("'"), "IT": int(text[3])} | dict(
+        zip(CIM5_FIELDS, vals, strict=True)
+    )

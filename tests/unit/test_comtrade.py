@@ -1,0 +1,223 @@
+"""COMTRADE reading: every revision and format round-trips; malformed files name file and line."""
+
+import math
+
+import numpy as np
+import pytest
+
+from loadbayes.io.errors import DataError
+from loadbayes.recordings.comtrade import parse_cfg, read_comtrade
+from loadbayes.recordings.synth import sag_profile, write_comtrade, zip_waveforms
+
+FS = 1600.0  # 32 samples per 50 Hz cycle
+CASES = [
+    ("1991", "ASCII"),
+    ("1991", "BINARY"),
+    ("1999", "ASCII"),
+    ("1999", "BINARY"),
+    ("2013", "ASCII"),
+    ("2013", "BINARY"),
+    ("2013", "BINARY32"),
+    ("2013", "FLOAT32"),
+]
+
+
+def _waves(seconds=0.2):
+    t = np.arange(int(seconds * FS)) / FS
+    v, i = zip_waveforms(t, sag_profile(t, [(0.05, 0.05, 0.3)]), (0.3, 0.2, 0.5, 0.6, 0.1, 0.3))
+    return t, v, i
+
+
+@pytest.mark.parametrize(("revision", "fmt"), CASES)
+def test_round_trip_every_revision_and_format(tmp_path, revision, fmt):
+    t, v, i = _waves()
+    ratio = None if revision == "1991" else (230_000.0, 110.0)
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision=revision, fmt=fmt, ratio=ratio)
+    w = read_comtrade(cfg)
+    # Quantisation: 16-bit binary keeps ~4.5 significant digits of the channel's peak.
+    rel = 1e-4 if fmt == "BINARY" else 1e-6
+    assert w.rate_hz == pytest.approx(FS)
+    assert w.f_nominal == 50.0
+    np.testing.assert_allclose(w.t_s, t, atol=1e-9)
+    np.testing.assert_allclose(w.v, v, atol=rel * np.abs(v).max())
+    np.testing.assert_allclose(w.i, i, atol=rel * np.abs(i).max())
+    assert w.channels == {"va": "VA", "vb": "VB", "vc": "VC", "ia": "IA", "ib": "IB", "ic": "IC"}
+
+
+def test_secondary_side_divides_by_the_ratio(tmp_path):
+    t, v, i = _waves()
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision="1999", ratio=(230_000.0, 110.0))
+    prim = read_comtrade(cfg)
+    sec = read_comtrade(cfg, side="secondary")
+    np.testing.assert_allclose(sec.v * 230_000.0 / 110.0, prim.v, rtol=1e-12)
+    np.testing.assert_allclose(sec.i, prim.i)  # currents were written as primary values
+
+
+def test_channels_by_name(tmp_path):
+    t, v, i = _waves()
+    names = ("U1", "U2", "U3", "J1", "J2", "J3")
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, names=names)
+    w = read_comtrade(cfg, voltage=["U1", "U2", "U3"], current=["J1", "J2", "J3"])
+    np.testing.assert_allclose(w.v[1], v[1], atol=1e-6 * np.abs(v).max())
+    with pytest.raises(DataError, match="no analog channel 'X1'"):
+        read_comtrade(cfg, voltage=["X1", "U2", "U3"])
+
+
+def _rewrite(cfg, line_no, new):
+    lines = cfg.read_text().splitlines()
+    lines[line_no - 1] = new
+    cfg.write_text("\r\n".join(lines) + "\r\n")
+
+
+@pytest.fixture
+def rec(tmp_path):
+    t, v, i = _waves()
+    return write_comtrade(tmp_path / "rec", t, v, i, revision="1999", fmt="BINARY")
+
+
+def _error(cfg, *needles):
+    with pytest.raises(DataError) as err:
+        read_comtrade(cfg)
+    msg = str(err.value)
+    assert "\n" not in msg
+    for needle in needles:
+        assert needle in msg, msg
+    return msg
+
+
+def test_unknown_revision(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 1, "station,device,2005")
+    _error(cfg, str(cfg), "line 1", "unknown COMTRADE revision '2005'")
+
+
+def test_channel_counts_that_disagree(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 2, "7,6A,0D")
+    _error(cfg, "line 2", "total 7 != 6 analog + 0 status")
+
+
+def test_more_analog_channels_declared_than_described(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 2, "7,7A,0D")  # the 7th "channel" is the frequency line
+    _error(cfg, "line 9", "analog channel 7")
+
+
+def test_fewer_analog_channels_declared_than_described(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 2, "5,5A,0D")  # the 6th channel line is read as the frequency
+    _error(cfg, "line 8", "expected the line frequency alone", "line 2")
+
+
+def test_non_numeric_field(rec):
+    cfg, _ = rec
+    lines = cfg.read_text().splitlines()
+    fields = lines[3].split(",")
+    fields[5] = "abc"
+    _rewrite(cfg, 4, ",".join(fields))
+    _error(cfg, "line 4", "multiplier a 'abc' is not a number")
+
+
+def test_cfg_cut_short(rec):
+    cfg, _ = rec
+    cfg.write_text("\r\n".join(cfg.read_text().splitlines()[:9]) + "\r\n")
+    _error(cfg, "line 10", "file ends early, expected nrates")
+
+
+def test_unknown_data_format(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 14, "BINARY64")
+    _error(cfg, "line 14", "unknown data file type 'BINARY64'")
+
+
+def test_missing_dat(rec):
+    cfg, dat = rec
+    dat.unlink()
+    _error(cfg, str(cfg), "rec.dat not found")
+
+
+def test_truncated_binary_record(rec):
+    cfg, dat = rec
+    raw = dat.read_bytes()
+    dat.write_bytes(raw[: len(raw) - 5])
+    info = parse_cfg(cfg)
+    n = info.n_samples
+    _error(cfg, str(dat), f"record {n}", "truncated", f"{n - 1} whole records of 20 bytes")
+
+
+def test_short_ascii_dat_and_bad_cell(tmp_path):
+    t, v, i = _waves()
+    cfg, dat = write_comtrade(tmp_path / "rec", t, v, i, revision="2013", fmt="ASCII")
+    lines = dat.read_text().splitlines()
+    dat.write_text("\n".join(lines[:-3]) + "\n")
+    _error(cfg, str(dat), f"line {len(lines) - 2}", f"says {len(lines)}")
+    bad = list(lines)
+    bad[4] = bad[4].replace(",", ",x", 1)
+    dat.write_text("\n".join(bad) + "\n")
+    _error(cfg, str(dat), "line 5", "not a number")
+    bad = list(lines)
+    bad[6] = bad[6] + ",7"
+    dat.write_text("\n".join(bad) + "\n")
+    _error(cfg, str(dat), "line 7", "9 fields, expected 8")
+
+
+def test_channels_not_found_by_unit(tmp_path):
+    t, v, i = _waves()
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, names=("a", "b", "c", "d", "e", "f"))
+    text = cfg.read_text().replace(",A,", ",N,").replace(",B,", ",N,").replace(",C,", ",N,")
+    cfg.write_text(text)
+    _error(cfg, "cannot tell which three channels are the phase voltages", "--voltage")
+
+
+def test_kv_units_scale_to_volts(rec):
+    cfg, _ = rec
+    w = read_comtrade(cfg)
+    # 230 kV line to line: the phase peak is 230e3 * sqrt(2/3) volts before the sag.
+    assert np.abs(w.v[0, :20]).max() == pytest.approx(230e3 * math.sqrt(2 / 3), rel=1e-3)
+
+
+def test_non_integer_and_multiple_rates_are_resampled(tmp_path):
+    from loadbayes.recordings.phasors import cycle_phasors, to_cycle_grid
+
+    coefs = (0.3, 0.2, 0.5, 0.6, 0.1, 0.3)
+    # 1 kHz at 60 Hz (16.7 samples per cycle), then 3 kHz: two rate segments.
+    t = np.concatenate([np.arange(500) / 1000.0, 0.499 + np.arange(1, 1501) / 3000.0])
+    v, i = zip_waveforms(t, np.full(t.size, 0.9), coefs, f_hz=60.0)
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision="2013", fmt="FLOAT32",
+                            f_nominal=60.0, rates=[(1000.0, 500), (3000.0, 2000)])  # fmt: skip
+    w = read_comtrade(cfg)
+    assert not w.uniform
+    np.testing.assert_allclose(w.t_s, t, atol=1e-9)
+    tg, vg, ig, rate = to_cycle_grid(w.t_s, w.v, w.i, f0=60.0, rate_hz=w.rate_hz, uniform=False)
+    assert rate == 60.0 * 50  # ceil(3000 / 60) samples per cycle
+    c = cycle_phasors(tg, vg, ig, f0=60.0, rate_hz=rate)
+    vb = 230e3 / math.sqrt(3)
+    # Cubic-spline error at 16.7 samples per cycle: ~5e-5 of the amplitude.
+    np.testing.assert_allclose(c["v"] / vb, 0.9, rtol=2e-4)
+    np.testing.assert_allclose(c["p"] / 100e6, 0.3 * 0.81 + 0.2 * 0.9 + 0.5, rtol=5e-4)
+    with pytest.raises(ValueError, match="fewer than 8 per 60 Hz cycle"):
+        to_cycle_grid(t[::10], v[:, ::10], i[:, ::10], f0=60.0, rate_hz=100.0, uniform=False)
+
+
+def test_lenient_on_what_real_files_vary_in(tmp_path):
+    t, v, i = _waves()
+    names = ("VAN", "VBN", "VCN", "IA", "IB", "IC")
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision="1999", names=names)
+    lines = cfg.read_text().splitlines()
+    for k in range(2, 8):
+        f = lines[k].split(",")
+        f[2] = ""  # no phase field: found from the name (VAN -> a)
+        f[4] = f[4].lower()  # "kv", "a"
+        lines[k] = ",".join(f[:10])  # the 1991 short form in a 1999 file: ratio 1
+    cfg.write_text("\n".join(lines) + "\n")
+    w = read_comtrade(cfg)
+    assert w.channels["va"] == "VAN" and w.channels["ic"] == "IC"
+    np.testing.assert_allclose(w.v, v, atol=1e-6 * np.abs(v).max())
+
+
+def test_time_stamps_checked_and_a_missing_fraction_accepted(rec):
+    cfg, _ = rec
+    _rewrite(cfg, 12, "01/02/2024,10:00:00")  # no fraction: the comtrade package crashes
+    assert read_comtrade(cfg).t_s.size == 320
+    _rewrite(cfg, 13, "01/02/2024,99999999999")
+    _error(cfg, "line 13", "time '99999999999' is not hh:mm:ss.ssssss")
