@@ -1,7 +1,7 @@
 """In-memory tables checked exactly as files are: the Python API's one reader.
 
 A DataFrame or a mapping of arrays goes through the same column selection and cell
-checks as a CSV file (:mod:`loadbayes.io.tables`), so ``fit_zip(df)`` and
+checks as a CSV file (:mod:`loadbayes.io.cells`), so ``fit_zip(df)`` and
 ``loadbayes fit zip file.csv`` refuse the same data with the same one-line
 :class:`~loadbayes.io.errors.DataError` (column and 1-based row), and columns not asked
 for (a timestamp, a label) are ignored.
@@ -75,7 +75,7 @@ def read_frame(
     import pyarrow as pa
 
     from loadbayes.io.errors import DataError
-    from loadbayes.io.tables import _select, _validate
+    from loadbayes.io.cells import _select, _validate
 
     if hasattr(data, "columns") and hasattr(data, "iloc"):
         header = [str(c) for c in data.columns]
