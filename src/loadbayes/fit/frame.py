@@ -74,8 +74,8 @@ def read_frame(
     """
     import pyarrow as pa
 
-    from loadbayes.io.errors import DataError
     from loadbayes.io.cells import _select, _validate
+    from loadbayes.io.errors import DataError
 
     if hasattr(data, "columns") and hasattr(data, "iloc"):
         header = [str(c) for c in data.columns]
