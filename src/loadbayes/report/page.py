@@ -58,13 +58,13 @@ dl.settings { display: grid; grid-template-columns: max-content 1fr; gap: .15rem
 dl.settings dt { font-weight: 600; }
 dl.settings dd { margin: 0; overflow-wrap: anywhere; }
 @media print {
-  body { font-size: 10pt; max-width: none; padding: 0; }
+  body { font-size: 10pt; max-width: 100%; padding: 0; }
   h2 { break-after: avoid; page-break-after: avoid; }
   table { font-size: 8pt; break-inside: auto; }
   th, td { padding: .15rem .3rem; }
   tr { break-inside: avoid; page-break-inside: avoid; }
   nav.contents ol { columns: 2; }
-  a { color: inherit; text-decoration: none; }
+  a { color: inherit; }
 }
 @page { size: A4; margin: 14mm; }
 """
