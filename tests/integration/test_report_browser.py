@@ -256,3 +256,56 @@ def test_report_in_a_headless_browser(report, tmp_path):
         assert data[:5] == b"%PDF-" and data.count(b"/Type /Page") >= 3
     finally:
         b.close()
+
+
+def _open(b: Browser, path: Path, width: int = 1280) -> None:
+    target = b.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+    b.session = b.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+    for domain in ("Page", "Runtime", "Log", "Network"):
+        b.send(f"{domain}.enable")
+    b.send("Emulation.setDeviceMetricsOverride",
+           {"width": width, "height": 900, "deviceScaleFactor": 1, "mobile": False})  # fmt: skip
+    b.events.clear()
+    b.send("Page.navigate", {"url": path.resolve().as_uri()})
+    b.wait_for("Page.loadEventFired")
+
+
+def test_paper_report_pieces_fit_the_screen_and_the_page(tmp_path):
+    """The paper's report (studies/report.py) on the same page: its widest kind of table."""
+    import numpy as np
+    import pandas as pd
+
+    from loadbayes.plots import pyplot
+    from loadbayes.studies.report import embedded_png, frame_html, png_bytes, write_report
+
+    exe = _chromium()
+    rng = np.random.default_rng(0)
+    # 12 columns, long unbreakable labels: the IM study's Table I comparison at its widest.
+    wide = pd.DataFrame({"motor": ["small_industrial", "large_industrial", "krause_3hp"] * 3})
+    for c in ("coefficient_name", "gs", "ls", "gs_measured", "ls_measured", "kf_measured",
+              "true", "paper_gs", "paper_ls", "paper_kf", "paper_true"):  # fmt: skip
+        wide[c] = rng.normal(size=len(wide)) * 1e3 if c != "coefficient_name" else "b1"
+    fig = pyplot().figure(figsize=(6, 3))
+    fig.add_subplot().plot([0, 1], [0, 1])
+    pngs = {"line": png_bytes(fig)}
+    section = ("<section id='zip'><h2>A study</h2>" + frame_html(wide)
+               + embedded_png(pngs, "line", "a straight line") + "</section>")  # fmt: skip
+    path = write_report(tmp_path / "paper.html", [section], summary="<p>Headline.</p>")
+    b = Browser(exe, tmp_path / "profile")
+    try:
+        _open(b, path)
+        assert b.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
+        tables = b.evaluate(OVERFLOW_JS)
+        assert all(t["over"] <= 0 and t["right"] <= 0 for t in tables), tables
+        figs = b.evaluate(FIGURES_JS)
+        assert len(figs) == 1 and figs[0]["loaded"] and figs[0]["caption"] > 5
+        assert b.evaluate("document.querySelector('nav.contents a').getAttribute('href')") == (
+            "#zip"
+        )
+        b.send("Emulation.setEmulatedMedia", {"media": "print"})
+        b.send("Emulation.setDeviceMetricsOverride",
+               {"width": 688, "height": 1000, "deviceScaleFactor": 1, "mobile": False})  # fmt: skip
+        printed = b.evaluate(OVERFLOW_JS)
+        assert all(t["over"] <= 0 and t["right"] <= 0 for t in printed), printed
+    finally:
+        b.close()

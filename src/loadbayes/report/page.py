@@ -39,7 +39,8 @@ table { border-collapse: collapse; margin: .6rem 0 1rem; font-size: .86rem; }
 table.wide { width: 100%; }
 th, td { border-bottom: 1px solid #d0d7de; padding: .25rem .55rem; text-align: right;
          vertical-align: top; white-space: nowrap; }
-td.text, thead th { white-space: normal; overflow-wrap: break-word; }
+thead th { white-space: normal; overflow-wrap: break-word; }
+td.text { white-space: normal; overflow-wrap: anywhere; }
 th:first-child, td:first-child, td.text, th.text { text-align: left; }
 thead th { background: #f6f8fa; font-weight: 600; }
 td.flag { color: #a40e26; font-weight: 600; }
@@ -62,6 +63,7 @@ dl.settings dd { margin: 0; overflow-wrap: anywhere; }
   h2 { break-after: avoid; page-break-after: avoid; }
   table { font-size: 8pt; break-inside: auto; }
   th, td { padding: .15rem .3rem; }
+  table.wide { font-size: 7pt; }
   tr { break-inside: avoid; page-break-inside: avoid; }
   nav.contents ol { columns: 2; }
   a { color: inherit; }
