@@ -1,4 +1,4 @@
-"""``loadbayes fit zip``."""
+"""``loadbayes fit zip`` on one bus (hands over to :mod:`.fleet` with ``--by``)."""
 
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ from loadbayes.commands.output import (
     user_errors,
     write_outputs,
 )
+from loadbayes.commands.zip.fleet import fleet_options, run_fleet_command
 
 
 @click.command("zip")
@@ -77,6 +78,7 @@ from loadbayes.commands.output import (
     help="Normal-gamma prior (coefficient precision scaled by tau); needed by --scheme exact.",
 )
 @output_options
+@fleet_options
 @user_errors
 def fit_zip_cmd(
     data,
@@ -111,8 +113,16 @@ def fit_zip_cmd(
     plot_out,
     quiet,
     force,
+    **fleet,
 ):
-    """Posterior of the ZIP coefficients from a CSV or Parquet file of V, P (and Q)."""
+    """Posterior of the ZIP coefficients from a CSV or Parquet file of V, P (and Q).
+
+    With --by, fits every bus of a fleet (see docs/fleet.md) into one Parquet table.
+    """
+    if fleet["by"]:
+        return run_fleet_command(click.get_current_context().params)
+    if json_out is None:
+        raise click.UsageError("Missing option '--json'.")
     check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, [data], force)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if scheme == "exact" and not conjugate:
@@ -293,3 +303,7 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
     post.settings["flagged_rows"] = sorted({r for rows in by_channel.values() for r in rows})
     post.settings["flagged_are"] = "1-based data rows of the input (header excluded)"
     return post, model
+
+
+# --json is required for one bus only: a fleet writes --out instead.
+next(p for p in fit_zip_cmd.params if p.name == "json_out").required = False

@@ -1,0 +1,218 @@
+"""``loadbayes fit zip DATA --by BUS_COLUMN ...``: a whole fleet of buses in one run.
+
+The options live here and are attached to ``fit zip`` by :func:`fleet_options`;
+``fit zip`` hands over to :func:`run_fleet_command` when ``--by`` is given. The
+single-bus options that make sense for a fleet (columns, nominal values, bases, priors,
+sampler settings, ``--drop-invalid``, ``--quiet``, ``--force``) keep their meaning.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from loadbayes.commands.options import nominal
+from loadbayes.commands.output import Progress, UserError, check_outputs
+
+__all__ = ["fleet_options", "run_fleet_command"]
+
+#: Fleet defaults where the single-bus ones would be too costly for thousands of buses.
+FLEET_DRAWS = 2_500
+FLEET_BURN = 500
+
+
+def fleet_options(func):
+    """--by --class-col --out --pool --scheduler --workers --netcdf-dir."""
+    opts = [
+        click.option(
+            "--by",
+            metavar="COLUMN",
+            help="Fit a fleet: the column (or hive folder key) naming each row's bus. "
+            "DATA may then be a table, a folder of Parquet/CSV files, or a glob.",
+        ),
+        click.option(
+            "--class-col",
+            metavar="COLUMN",
+            help="Column (or hive folder key) of each bus's class, for --pool class.",
+        ),
+        click.option(
+            "--out",
+            "fleet_out",
+            type=click.Path(dir_okay=False),
+            help="Fleet result: Parquet table, a row per bus and parameter (needs --by).",
+        ),
+        click.option(
+            "--pool",
+            type=click.Choice(["none", "class"]),
+            default="none",
+            show_default=True,
+            help="Per-bus fits, or a hierarchical model pooled within each class.",
+        ),
+        click.option(
+            "--scheduler",
+            metavar="ADDRESS",
+            help="Run on an existing Dask cluster (tcp://host:8786).",
+        ),
+        click.option(
+            "--workers",
+            type=click.IntRange(min=1),
+            help="Run on a local Dask cluster of this many worker processes.",
+        ),
+        click.option(
+            "--netcdf-dir",
+            type=click.Path(file_okay=False),
+            help="Also write each bus's draws to DIR/<bus>.nc (--pool none).",
+        ),
+    ]
+    for opt in reversed(opts):
+        func = opt(func)
+    return func
+
+
+def _refuse_single_bus_options(p: dict[str, Any]) -> None:
+    for key, flag in (("json_out", "--json"), ("netcdf_out", "--netcdf"), ("plot_out", "--plot")):
+        if p.get(key):
+            raise UserError(f"{flag} is for one bus; a fleet writes --out (and --netcdf-dir)")
+    if p.get("scheme", "blocked") != "blocked":
+        raise UserError("a fleet is fitted with the blocked sampler; drop --scheme")
+    if p.get("likelihood", "normal") != "normal":
+        raise UserError("a fleet is fitted with the Gaussian likelihood; drop --likelihood")
+    if p.get("conjugate"):
+        raise UserError("--conjugate is not available for fleets")
+
+
+def run_fleet_command(params: dict[str, Any]) -> None:
+    """Run the fleet fit from the parsed options of ``fit zip`` (a dict by option name)."""
+    p = params
+    ctx = click.get_current_context()
+    _refuse_single_bus_options(p)
+    if not p.get("fleet_out"):
+        raise UserError("--by needs --out FILE.parquet for the fleet table")
+    if not str(p["fleet_out"]).lower().endswith((".parquet", ".pq")):
+        raise UserError(f"{p['fleet_out']}: --out must end in .parquet")
+    if p["pool"] == "class" and p.get("netcdf_dir"):
+        raise UserError("--netcdf-dir is for --pool none (pooled draws stay together)")
+    check_outputs({"--out": p["fleet_out"]}, [p["data"]], p["force"])
+    draws, burn = p["draws"], p["burn"]
+    src = click.core.ParameterSource.DEFAULT
+    if ctx.get_parameter_source("draws") == src:
+        draws = FLEET_DRAWS
+    if ctx.get_parameter_source("burn") == src:
+        burn = min(FLEET_BURN, draws - 1)
+    if burn >= draws:
+        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
+    p0, q0 = nominal(p["p0"], "--p0"), nominal(p["q0"], "--q0")
+    from loadbayes.commands.options import parse_coef_priors
+    from loadbayes.fit import zip_priors
+    from loadbayes.fleet.engine import Engine
+    from loadbayes.fleet.hierarchical import HierPrior
+    from loadbayes.fleet.partitions import ReadSpec
+    from loadbayes.fleet.perbus import SamplerSettings
+    from loadbayes.fleet.run import run_fleet
+    from loadbayes.fleet.summary import write_parquet
+
+    q_col = p["q_col"]
+    spec = ReadSpec(
+        by=p["by"],
+        class_col=p.get("class_col"),
+        v_col=p["v_col"],
+        p_col=p["p_col"],
+        q_col=None if q_col.lower() == "none" else q_col,
+        q_required=q_col not in ("q", "none"),
+        v_base=p["v_base"],
+        s_base=p["s_base"],
+        drop_invalid=p["drop_invalid"],
+        chunk_rows=p["chunk_rows"],
+    )
+    priors = zip_priors(
+        p0=p0,
+        q0=q0,
+        mean=p["prior_mean"],
+        sd=p["prior_sd"],
+        per_coef=parse_coef_priors(p["coef_priors"]),
+        shape=p["tau_shape"],
+        rate=p["tau_rate"],
+    )
+    sampler = SamplerSettings(
+        chains=p["chains"],
+        draws=draws,
+        burn=burn,
+        thin=p["thin"],
+        seed=p["seed"],
+        init=p["init"],
+        hdi_prob=p["hdi_prob"],
+    )
+    if p.get("netcdf_dir"):
+        from pathlib import Path
+
+        Path(p["netcdf_dir"]).mkdir(parents=True, exist_ok=True)
+    quiet = p["quiet"]
+    files = Progress("files", None, True)  # the bar that matters is over buses
+    buses: dict[str, Progress] = {}
+
+    def bus_progress(n: int) -> None:
+        if "bar" not in buses:
+            files.close()
+            buses["bar"] = Progress("buses", result_size["buses"], quiet)
+        buses["bar"](n)
+
+    result_size: dict[str, int] = {}
+
+    def file_progress(n: int) -> None:
+        files(n)
+
+    def stats_hook(stats) -> None:
+        result_size["buses"] = int(stats.buses.size)
+
+    try:
+        with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
+            res = run_fleet(
+                p["data"],
+                spec,
+                pool=p["pool"],
+                v0=p["v0"],
+                p0=p0,
+                q0=q0,
+                priors=priors,
+                hyper=HierPrior(tau_shape=p["tau_shape"], tau_rate=p["tau_rate"]),
+                sampler=sampler,
+                engine=engine,
+                netcdf_dir=p.get("netcdf_dir"),
+                force=p["force"],
+                progress_files=file_progress,
+                progress_buses=bus_progress,
+                on_stats=stats_hook,
+            )
+    finally:
+        files.close()
+        if "bar" in buses:
+            buses["bar"].close()
+    write_parquet(res.table, p["fleet_out"], force=p["force"])
+    _report(res, p["fleet_out"], quiet)
+
+
+def _report(res, out: str, quiet: bool) -> None:
+    t = res.table
+    bus_rows = t[t["level"] == "bus"]
+    failed = bus_rows[bus_rows["parameter"].isna()]
+    warned = bus_rows[(bus_rows["warnings"] != "") & bus_rows["parameter"].notna()]
+    n_bus = bus_rows["bus"].nunique()
+    if len(failed):
+        click.echo(
+            f"loadbayes: warning: {len(failed)} of {n_bus} buses not fitted "
+            f"(see the 'warnings' column), e.g. {failed['bus'].iloc[0]}: "
+            f"{failed['warnings'].iloc[0]}",
+            err=True,
+        )
+    if quiet:
+        return
+    click.echo(
+        f"{n_bus} buses from {res.files} files ({res.engine}); "
+        f"{n_bus - len(failed)} fitted, {warned['bus'].nunique()} with warnings -> {out}"
+    )
+    cls = t[(t["level"] == "class") & t["parameter"].isin(["a1", "a2", "a3"])]
+    if len(cls):
+        table = cls.pivot(index="class", columns="parameter", values="mean")
+        click.echo("class mean mix (P):")
+        click.echo(table.to_string(float_format=lambda x: f"{x:.3f}"))

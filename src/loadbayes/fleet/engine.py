@@ -1,0 +1,129 @@
+"""Where the fleet's tasks run: in this process, or on Dask workers.
+
+- neither ``scheduler`` nor ``workers``: in this process, one task after another (the
+  embedded default; Dask is not even imported);
+- ``workers=N``: a :class:`dask.distributed.LocalCluster` of ``N`` worker processes
+  (one thread each: the compiled kernels and NumPy already use the cores they are given),
+  started here and shut down at the end;
+- ``scheduler="tcp://host:8786"``: a :class:`dask.distributed.Client` connected to an
+  existing cluster.
+
+Every task is a pure function of its inputs and seeds, so the results do not depend on
+where or in what order tasks run. If a worker dies, Dask re-runs its unfinished tasks on
+another worker (up to ``distributed.scheduler.allowed-failures`` times); results are
+collected by task, in submission order, so a bus is neither lost nor counted twice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+__all__ = ["Engine"]
+
+
+class Engine:
+    """Run tasks in-process or on Dask; use as a context manager.
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of a running Dask scheduler.
+    workers : int, optional
+        Start a local cluster of this many worker processes.
+    client : dask.distributed.Client, optional
+        Use this client (tests share one cluster between runs); not closed at the end.
+    """
+
+    def __init__(
+        self, *, scheduler: str | None = None, workers: int | None = None, client: Any = None
+    ) -> None:
+        if scheduler and workers:
+            raise ValueError("give --scheduler or --workers, not both")
+        if workers is not None and workers < 1:
+            raise ValueError(f"--workers must be at least 1, got {workers}")
+        self.scheduler = scheduler
+        self.workers = workers
+        self.client = client
+        self._own: list[Any] = []
+
+    @property
+    def name(self) -> str:
+        """Where tasks run, in words (recorded with the results)."""
+        if self.client is not None:
+            return f"dask ({len(self.client.scheduler_info()['workers'])} workers)"
+        return "in-process"
+
+    def __enter__(self) -> Engine:
+        if self.client is not None or not (self.scheduler or self.workers):
+            return self
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:  # pragma: no cover - the cluster extra is missing
+            raise ValueError(
+                "--workers and --scheduler need Dask: pip install 'loadbayes[cluster]'"
+            ) from None
+        if self.scheduler:
+            try:
+                self.client = Client(self.scheduler, timeout="20s")
+            except OSError as exc:
+                raise ValueError(
+                    f"cannot reach the Dask scheduler {self.scheduler}: {exc}"
+                ) from None
+        else:
+            cluster = LocalCluster(
+                n_workers=self.workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",
+            )
+            self._own.append(cluster)
+            self.client = Client(cluster)
+        self._own.insert(0, self.client)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for obj in self._own:
+            obj.close()
+        if self._own:
+            self.client = None
+        self._own = []
+
+    def map(
+        self,
+        func: Callable[..., Any],
+        items: Sequence[Any],
+        *args: Any,
+        done: Callable[[int, Any], None] | None = None,
+        **kwargs: Any,
+    ) -> list[Any]:
+        """``[func(item, *args, **kwargs) for item in items]``, on the engine.
+
+        ``done(i, result)`` is called as each task finishes (for a progress bar). The
+        first task error is raised here, as it was raised in the task.
+        """
+        if self.client is None:
+            out = []
+            for i, item in enumerate(items):
+                out.append(func(item, *args, **kwargs))
+                if done is not None:
+                    done(i, out[-1])
+            return out
+        from dask.distributed import as_completed
+
+        # Large shared arguments go to the workers once, not once per task.
+        shared = [self.client.scatter(a, broadcast=True) for a in args]
+        kw = {k: self.client.scatter(v, broadcast=True) for k, v in kwargs.items()}
+        futures = [self.client.submit(func, item, *shared, pure=False, **kw) for item in items]
+        index = {f.key: i for i, f in enumerate(futures)}
+        results: list[Any] = [None] * len(futures)
+        try:
+            for fut in as_completed(futures):
+                i = index[fut.key]
+                results[i] = fut.result()
+                if done is not None:
+                    done(i, results[i])
+        finally:
+            for f in futures:
+                f.release()
+        return results

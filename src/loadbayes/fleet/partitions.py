@@ -1,0 +1,278 @@
+"""Find a fleet's input files and read them as chunks of rows tagged with their bus.
+
+Inputs (``loadbayes fit zip DATA --by bus_id``):
+
+- one CSV or Parquet table with a bus column;
+- a folder, searched recursively, of Parquet and CSV files, including hive-partitioned
+  layouts such as ``bus_id=17/part-0.parquet`` (the bus, and a class, may then come
+  from the folder name rather than a column);
+- a glob pattern such as ``'meters/*.csv'``.
+
+Each file is one partition of the map-reduce. The numeric columns are read and checked
+by :func:`loadbayes.io.tables.iter_chunks` (so a malformed file is refused by name,
+column and row as everywhere in loadbayes); the bus and class columns, which may be
+text, are read alongside with Arrow, in step with the same rows.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+
+from loadbayes.io.errors import DataError
+from loadbayes.io.tables import CSV_SUFFIXES, PARQUET_SUFFIXES, iter_chunks
+
+_HEADER_BYTES = 1 << 20
+
+__all__ = ["BusChunk", "Partition", "ReadSpec", "find_partitions", "read_partition"]
+
+
+@dataclass(frozen=True)
+class Partition:
+    """One input file, and the ``key=value`` pairs of its hive folders."""
+
+    path: str
+    hive: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ReadSpec:
+    """Which columns to read and how (the options of ``fit zip``)."""
+
+    by: str = "bus_id"
+    class_col: str | None = None
+    v_col: str = "v"
+    p_col: str = "p"
+    q_col: str | None = "q"
+    q_required: bool = False
+    v_base: float | None = None
+    s_base: float | None = None
+    drop_invalid: bool = False
+    chunk_rows: int = 1 << 18
+
+
+@dataclass(frozen=True)
+class BusChunk:
+    """Consecutive valid rows of one file, with the bus (and class) of each row."""
+
+    cols: dict[str, np.ndarray]  # "v", "p", maybe "q", in per unit
+    bus: pa.Array  # strings
+    cls: pa.Array | None  # strings, or None without a class column
+    rows: np.ndarray  # 1-based data rows of the file
+    n_dropped: int
+
+
+def _is_data_file(name: str) -> bool:
+    low = name.lower()
+    return low.endswith(CSV_SUFFIXES + PARQUET_SUFFIXES) and not Path(name).name.startswith(
+        (".", "_")
+    )
+
+
+def _hive(path: Path, root: Path) -> dict[str, str]:
+    out = {}
+    for part in path.relative_to(root).parts[:-1]:
+        key, sep, value = part.partition("=")
+        if sep:
+            out[key] = value
+    return out
+
+
+def find_partitions(data: str) -> list[Partition]:
+    """List the input files of a fleet, sorted by path (the order does not matter).
+
+    Parameters
+    ----------
+    data : str
+        A file, a folder (searched recursively; hidden and ``_``-prefixed files such as
+        ``_SUCCESS`` are skipped) or a glob pattern.
+
+    Returns
+    -------
+    list of Partition
+
+    Raises
+    ------
+    DataError
+        If nothing readable is found.
+    """
+    p = Path(data)
+    if p.is_dir():
+        files = sorted(f for f in p.rglob("*") if f.is_file() and _is_data_file(f.name))
+        if not files:
+            raise DataError("no CSV or Parquet files in this folder", data)
+        return [Partition(str(f), _hive(f, p)) for f in files]
+    if p.is_file():
+        return [Partition(str(p))]
+    if any(c in data for c in "*?["):
+        files = sorted(f for f in glob.glob(data, recursive=True) if _is_data_file(f))
+        if not files:
+            raise DataError("no CSV or Parquet files match this pattern", data)
+        return [Partition(f) for f in files]
+    raise DataError("no such file or folder", data)
+
+
+def _label_batches(part: Partition, col: str, name: str) -> Iterator[pa.Array] | None:
+    """Batches of one text-like column as strings, or None if the file lacks it."""
+    path = part.path
+    if path.lower().endswith(PARQUET_SUFFIXES):
+        try:
+            pf = pq.ParquetFile(path, pre_buffer=False)
+        except (OSError, pa.ArrowException):
+            return None  # iter_chunks reports the unreadable file by name
+        if col not in pf.schema_arrow.names:
+            pf.close()
+            return None
+
+        def parquet_batches() -> Iterator[pa.Array]:
+            with pf:
+                for batch in pf.iter_batches(batch_size=1 << 16, columns=[col]):
+                    yield pc.cast(batch.column(0), pa.string())
+
+        return parquet_batches()
+    try:
+        with pa.input_stream(path, compression="detect") as fh:
+            head = fh.read(_HEADER_BYTES)
+    except (OSError, pa.ArrowException):
+        return None
+    first = head.split(b"\n", 1)[0].decode("utf-8-sig", "replace").rstrip("\r")
+    sep = next((c for c in ",\t;" if c in first), ",")
+    import csv
+
+    header = next(csv.reader([first], delimiter=sep), [])
+    if col not in header:
+        return None
+
+    def csv_batches() -> Iterator[pa.Array]:
+        reader = pacsv.open_csv(
+            pa.input_stream(path, compression="detect"),
+            read_options=pacsv.ReadOptions(block_size=1 << 20),
+            parse_options=pacsv.ParseOptions(delimiter=sep),
+            convert_options=pacsv.ConvertOptions(
+                include_columns=[col],
+                column_types={col: pa.string()},
+                strings_can_be_null=True,
+            ),
+        )
+        for batch in reader:
+            yield batch.column(0)
+
+    return csv_batches()
+
+
+class _Aligned:
+    """Hands out the labels of consecutive rows, whatever the batches they came in."""
+
+    def __init__(self, batches: Iterator[pa.Array], name: str, col: str) -> None:
+        self.batches = batches
+        self.buf: list[pa.Array] = []
+        self.have = 0
+        self.name, self.col = name, col
+
+    def take(self, n: int, first_row: int) -> pa.Array:
+        while self.have < n:
+            try:
+                arr = next(self.batches)
+            except StopIteration:
+                raise DataError(
+                    "fewer rows in this column than in the numeric ones",
+                    self.name,
+                    self.col,
+                    first_row + self.have,
+                ) from None
+            except (pa.ArrowException, OSError) as err:
+                msg = str(err).splitlines()[0] if str(err) else type(err).__name__
+                raise DataError(f"cannot read: {msg}", self.name, self.col) from None
+            self.buf.append(arr)
+            self.have += len(arr)
+        joined = pa.concat_arrays(self.buf) if len(self.buf) > 1 else self.buf[0]
+        out, rest = joined.slice(0, n), joined.slice(n)
+        self.buf = [rest] if len(rest) else []
+        self.have = len(rest)
+        nulls = out.null_count
+        if nulls:
+            i = int(np.flatnonzero(out.is_null().to_numpy(zero_copy_only=False))[0])
+            raise DataError("missing value", self.name, self.col, first_row + i)
+        return out
+
+
+def _labels(part: Partition, col: str | None, name: str, what: str) -> _Aligned | str | None:
+    """Labels from a column, else a constant from a hive folder, else None."""
+    if col is None:
+        return None
+    batches = _label_batches(part, col, name)
+    if batches is not None:
+        return _Aligned(batches, name, col)
+    if col in part.hive:
+        return part.hive[col]
+    if what == "bus":
+        raise DataError(
+            f"no column {col!r} and no folder named {col}=...; --by names the bus column",
+            name,
+        )
+    raise DataError(f"no column {col!r} and no folder named {col}=... (--class-col)", name)
+
+
+def read_partition(part: Partition, spec: ReadSpec) -> Iterator[BusChunk]:
+    """Read one file in chunks of valid rows, each row tagged with its bus and class.
+
+    Raises
+    ------
+    DataError
+        Naming the file, and the column and row where there is one, for any input
+        :func:`loadbayes.io.tables.iter_chunks` refuses, a missing bus column, or a
+        missing bus id.
+    """
+    name = part.path
+    bus_src = _labels(part, spec.by, name, "bus")
+    cls_src = _labels(part, spec.class_col, name, "class")
+    optional = [spec.q_col] if spec.q_col and not spec.q_required else []
+    required = [spec.v_col, spec.p_col] + ([spec.q_col] if spec.q_col and spec.q_required else [])
+    for chunk in iter_chunks(
+        name,
+        required,
+        optional=optional,
+        positive=[spec.v_col],
+        chunk_rows=spec.chunk_rows,
+        drop_invalid=spec.drop_invalid,
+    ):
+        cols = {"v": chunk.data[spec.v_col], "p": chunk.data[spec.p_col]}
+        if spec.q_col and spec.q_col in chunk.data:
+            cols["q"] = chunk.data[spec.q_col]
+        if spec.v_base is not None:
+            cols["v"] = cols["v"] / spec.v_base
+        if spec.s_base is not None:
+            for key in ("p", "q"):
+                if key in cols:
+                    cols[key] = cols[key] / spec.s_base
+        labels = []
+        for src in (bus_src, cls_src):
+            if src is None:
+                labels.append(None)
+            elif isinstance(src, str):
+                labels.append(pa.array([src] * chunk.n_rows, pa.string()))
+            else:
+                arr = src.take(chunk.n_rows_read, chunk.start_row)
+                if chunk.n_dropped:
+                    keep = np.ones(chunk.n_rows_read, bool)
+                    keep[chunk.dropped_rows - chunk.start_row] = False
+                    arr = arr.filter(pa.array(keep))
+                labels.append(arr)
+        yield BusChunk(cols, labels[0], labels[1], chunk.rows, chunk.n_dropped)
+
+
+def display(path: str) -> str:
+    """The file name as shown in messages (relative to the working folder if inside it)."""
+    try:
+        return os.path.relpath(path)
+    except ValueError:  # another drive
+        return path

@@ -1,0 +1,218 @@
+"""The fleet pipeline: find files -> statistics map-reduce -> per-bus or pooled fits -> table."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+
+from loadbayes.core.priors import BlockPrior
+from loadbayes.fleet import hierarchical as hier
+from loadbayes.fleet.engine import Engine
+from loadbayes.fleet.partitions import Partition, ReadSpec, find_partitions
+from loadbayes.fleet.perbus import SamplerSettings, fit_buses
+from loadbayes.fleet.stats import FleetStats, finish, merge, partition_stats
+from loadbayes.fleet.summary import concat
+from loadbayes.io.errors import DataError
+from loadbayes.models.zip import ZIPModel
+
+__all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "run_fleet"]
+
+#: Buses fitted per task: large enough to amortise a task, small enough for memory
+#: (4 chains x 2,500 draws x 8 parameters x 8 bytes = 640 kB per bus). Each bus's
+#: summary is computed on its own series, so results do not depend on the batches.
+BATCH_BUSES = 256
+
+
+@dataclass
+class FleetResult:
+    """The fleet table and what produced it."""
+
+    table: pd.DataFrame
+    stats: FleetStats
+    files: int
+    engine: str
+
+
+def _has_column(part: Partition, col: str) -> bool:
+    if part.path.lower().endswith((".parquet", ".pq")):
+        try:
+            return col in pq.ParquetFile(part.path).schema_arrow.names
+        except Exception:  # noqa: BLE001 - the reader reports an unreadable file by name
+            return False
+    import csv
+    import gzip
+
+    opener = gzip.open if part.path.lower().endswith(".gz") else open
+    try:
+        with opener(part.path, "rt", encoding="utf-8-sig", errors="replace") as fh:
+            line = fh.readline().rstrip("\r\n")
+    except OSError:
+        return False
+    sep = next((c for c in ",\t;" if c in line), ",")
+    return col in next(csv.reader([line], delimiter=sep), [])
+
+
+def fleet_statistics(
+    data: str,
+    spec: ReadSpec,
+    *,
+    v0: float = 1.0,
+    p0: float | str = 1.0,
+    q0: float | str = 1.0,
+    engine: Engine | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[FleetStats, ZIPModel, int]:
+    """The map-reduce: exact per-bus statistics of every file under ``data``.
+
+    Returns the statistics, the model (with Q if the first file has the Q column) and
+    the number of files.
+    """
+    parts = find_partitions(data)
+    with_q = bool(spec.q_col) and (spec.q_required or _has_column(parts[0], spec.q_col))
+    model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q=with_q)  # type: ignore[arg-type]
+    eng = engine or Engine()
+    partials = eng.map(
+        partition_stats,
+        parts,
+        spec,
+        model,
+        done=(lambda i, r: progress(1)) if progress else None,
+    )
+    merged = merge(partials)
+    if not merged.buses.size:
+        raise DataError("no valid rows in any file", data)
+    return finish(merged), model, len(parts)
+
+
+def run_fleet(
+    data: str,
+    spec: ReadSpec,
+    *,
+    pool: str = "none",
+    v0: float = 1.0,
+    p0: float | str = 1.0,
+    q0: float | str = 1.0,
+    priors: Mapping[str, BlockPrior] | None = None,
+    hyper: hier.HierPrior | None = None,
+    sampler: SamplerSettings | None = None,
+    engine: Engine | None = None,
+    netcdf_dir: str | None = None,
+    force: bool = False,
+    progress_files: Callable[[int], None] | None = None,
+    progress_buses: Callable[[int], None] | None = None,
+    on_stats: Callable[[FleetStats], None] | None = None,
+    batch_buses: int = BATCH_BUSES,
+) -> FleetResult:
+    """Fit ZIP to every bus of a fleet.
+
+    Parameters
+    ----------
+    data : str
+        A table with a bus column, a folder of files (hive layouts included) or a glob.
+    spec : ReadSpec
+        Bus, class and measurement columns, units, invalid rows.
+    pool : {"none", "class"}
+        Independent per-bus fits, or the hierarchical model pooled within classes.
+    v0, p0, q0 : float or "auto"
+        Nominal values (pooling needs known ``p0``, ``q0``).
+    priors : mapping, optional
+        Block priors of the per-bus fits (default: the model's weak priors).
+    hyper : HierPrior, optional
+        Hyperpriors of the pooled model.
+    sampler : SamplerSettings, optional
+    engine : Engine, optional
+        Where to run (default in-process); entered by the caller.
+    netcdf_dir : str, optional
+        Per-bus NetCDF files (``--pool none`` only).
+    force : bool
+        Overwrite NetCDF files.
+    progress_files, progress_buses : callable, optional
+        Called with counts of files read and buses fitted.
+    on_stats : callable, optional
+        Called with the statistics once the map-reduce is done (before the fits).
+    batch_buses : int
+        Buses per fitting task (results do not depend on it).
+
+    Returns
+    -------
+    FleetResult
+    """
+    if pool not in ("none", "class"):
+        raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
+    eng = engine or Engine()
+    stats, model, files = fleet_statistics(
+        data, spec, v0=v0, p0=p0, q0=q0, engine=eng, progress=progress_files
+    )
+    if on_stats is not None:
+        on_stats(stats)
+    table = fit_fleet(
+        stats,
+        model,
+        pool=pool,
+        priors=priors,
+        hyper=hyper,
+        sampler=sampler,
+        engine=eng,
+        netcdf_dir=netcdf_dir,
+        force=force,
+        progress_buses=progress_buses,
+        batch_buses=batch_buses,
+    )
+    return FleetResult(table, stats, files, eng.name)
+
+
+def fit_fleet(
+    stats: FleetStats,
+    model: ZIPModel,
+    *,
+    pool: str = "none",
+    priors: Mapping[str, BlockPrior] | None = None,
+    hyper: hier.HierPrior | None = None,
+    sampler: SamplerSettings | None = None,
+    engine: Engine | None = None,
+    netcdf_dir: str | None = None,
+    force: bool = False,
+    progress_buses: Callable[[int], None] | None = None,
+    batch_buses: int = BATCH_BUSES,
+) -> pd.DataFrame:
+    """The fits of :func:`run_fleet` from statistics already computed (same options)."""
+    if pool not in ("none", "class"):
+        raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
+    eng = engine or Engine()
+    sampler = sampler or SamplerSettings()
+    if pool == "none":
+        nb = stats.buses.size
+        step = int(batch_buses)
+        batches = [np.arange(b0, min(b0 + step, nb)) for b0 in range(0, nb, step)]
+        frames = eng.map(
+            _fit_batch,
+            batches,
+            stats,
+            model,
+            dict(priors or model.default_priors()),
+            sampler,
+            netcdf_dir,
+            force,
+            done=(lambda i, r: progress_buses(len(batches[i]))) if progress_buses else None,
+        )
+    else:
+        if netcdf_dir:
+            raise ValueError("--netcdf-dir is for --pool none (pooled draws stay together)")
+        data_h, failed = hier.prepare(stats, model)
+        if not data_h.buses.size:
+            frames = [failed]
+        else:
+            seeds = hier.chain_seeds(sampler.seed, sampler.chains)
+            chains = eng.map(hier.run_chain, seeds, data_h, hyper or hier.HierPrior(), sampler)
+            frames = [hier.summarize_chains(data_h, chains, sampler), failed]
+        if progress_buses:
+            progress_buses(stats.buses.size)
+    return concat(frames)
+
+
+def _fit_batch(idx, stats, model, priors, sampler, netcdf_dir, force):
+    return fit_buses(stats.subset(idx), model, priors, sampler, netcdf_dir=netcdf_dir, force=force)

@@ -1,0 +1,49 @@
+"""``loadbayes fit zip DATA --by ...`` through the CLI (in-process engine)."""
+
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from loadbayes.cli import main
+from loadbayes.fleet.generate import fleet_truth, write_fleet
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(scope="module")
+def hive(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("meters")
+    write_fleet(fleet_truth(9, seed=4, rows=(20, 400)), folder, layout="hive")
+    return folder
+
+
+def _run(*args):
+    return CliRunner().invoke(main, ["fit", "zip", *map(str, args)])
+
+
+def test_fleet_table_from_a_hive_folder(hive, tmp_path):
+    out = tmp_path / "fleet.parquet"
+    res = _run(hive, "--by", "bus_id", "--class-col", "customer_class", "--out", out,
+               "--pool", "class", "--draws", "300", "--burn", "100", "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    t = pd.read_parquet(out)
+    assert set(t.level) == {"bus", "class"}
+    assert t[t.level == "bus"].bus.nunique() == 9
+    again = _run(hive, "--by", "bus_id", "--out", out, "--quiet")
+    assert again.exit_code == 2 and "exists; use --force" in again.stderr
+
+
+def test_fleet_refuses_single_bus_outputs_and_bad_data_in_one_line(hive, tmp_path):
+    res = _run(
+        hive, "--by", "bus_id", "--json", tmp_path / "x.json", "--out", tmp_path / "f.parquet"
+    )  # noqa: E501
+    assert res.exit_code == 2 and "--json is for one bus" in res.stderr
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "a.csv").write_text("bus_id,v,p,q\nb1,1.0,1.0,1.0\nb1,x,1.0,1.0\n")
+    res = _run(bad, "--by", "bus_id", "--out", tmp_path / "f.parquet")
+    assert res.exit_code == 2
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1 and "a.csv" in line and "row 2" in line
+    res = _run(hive, "--out", tmp_path / "f.parquet")  # one bus needs --json
+    assert res.exit_code == 2 and "--json" in res.output

@@ -1,0 +1,69 @@
+"""The fleet on a real Dask LocalCluster: same bits as in-process, and a killed worker."""
+
+import os
+
+import pandas as pd
+import pytest
+
+from loadbayes.fleet.engine import Engine
+from loadbayes.fleet.generate import fleet_truth, write_fleet
+from loadbayes.fleet.partitions import ReadSpec
+from loadbayes.fleet.perbus import SamplerSettings
+from loadbayes.fleet.run import run_fleet
+
+pytestmark = pytest.mark.integration
+distributed = pytest.importorskip("dask.distributed")
+
+SAMPLER = SamplerSettings(draws=400, burn=100)
+SPEC = ReadSpec(class_col="customer_class")
+
+
+@pytest.fixture(scope="module")
+def client():
+    # One cluster for the module: starting one costs seconds.
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster,
+        distributed.Client(cluster) as c,
+    ):
+        yield c
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fleet")
+    write_fleet(fleet_truth(24, seed=3, rows=(20, 1500)), folder, layout="files", buses_per_file=3)
+    return str(folder)
+
+
+@pytest.mark.parametrize("pool", ["none", "class"])
+def test_cluster_result_is_bit_identical_to_in_process(client, fleet, pool):
+    here = run_fleet(fleet, SPEC, pool=pool, sampler=SAMPLER, batch_buses=5).table
+    with Engine(client=client) as eng:
+        there = run_fleet(fleet, SPEC, pool=pool, sampler=SAMPLER, engine=eng, batch_buses=5)
+    assert there.engine.startswith("dask")
+    pd.testing.assert_frame_equal(here, there.table, check_exact=True)
+
+
+def test_a_killed_worker_loses_and_duplicates_no_bus(client, fleet):
+    here = run_fleet(fleet, SPEC, sampler=SAMPLER, batch_buses=2).table
+    killed = []
+
+    def kill_one(n):
+        if not killed:
+            victim = sorted(client.scheduler_info()["workers"])[0]
+            killed.append(victim)
+            try:  # the worker dies mid-call: the call itself fails
+                client.run(os._exit, 1, workers=[victim], wait=False)
+            except Exception:  # noqa: BLE001
+                pass
+
+    with Engine(client=client) as eng:
+        there = run_fleet(
+            fleet, SPEC, sampler=SAMPLER, engine=eng, batch_buses=2, progress_files=kill_one
+        ).table
+    assert killed
+    pd.testing.assert_frame_equal(here, there, check_exact=True)
+    assert there.groupby(["bus", "parameter"]).size().max() == 1
+    client.wait_for_workers(2, timeout=60)
