@@ -382,7 +382,8 @@ class Posterior:
 
         path = Path(path)
         with atomic_write(path, force=force) as tmp:
-            self.to_arviz(pointwise=pointwise).to_netcdf(str(tmp))
+            idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
+            idata.to_netcdf(str(tmp))
         return path
 
     @classmethod

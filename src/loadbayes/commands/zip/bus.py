@@ -121,6 +121,9 @@ def fit_zip_cmd(
     """
     if fleet["by"]:
         return run_fleet_command(click.get_current_context().params)
+    if fleet.get("fleet_out"):
+        raise click.UsageError("--out is for a fleet (with --by); one bus writes --json, "
+                               "--netcdf, --plot or just the table")  # fmt: skip
     check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, [data], force)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if scheme == "exact" and not conjugate:
