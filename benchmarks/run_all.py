@@ -34,6 +34,7 @@ SCRIPTS = [
     ("bench_stream.py", "stream"),
     ("bench_powerflow.py", "powerflow"),
     ("bench_im.py", "im"),
+    ("bench_composite.py", "composite"),
 ]
 
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import click
 
+from loadbayes.commands import andes_sim as _andes_sim
+from loadbayes.commands import composite as _composite
 from loadbayes.commands import example as _example
 from loadbayes.commands import exp as _exp
 from loadbayes.commands import export as _export
@@ -56,7 +58,9 @@ def track() -> None:
 fit.add_command(_zip.fit_zip_cmd)
 fit.add_command(_exp.fit_exp_cmd)
 fit.add_command(_im.fit_im_cmd)
+fit.add_command(_composite.fit_composite_cmd)
 simulate.add_command(_simulate.simulate_im_cmd)
+simulate.add_command(_andes_sim.simulate_andes_cmd)
 track.add_command(_track.track_zip_cmd)
 reproduce.add_command(_reproduce.reproduce_zip_cmd)
 reproduce.add_command(_reproduce.reproduce_im_cmd)

@@ -1,5 +1,6 @@
 """``loadbayes fit zip DATA --by ...`` through the CLI (in-process engine)."""
 
+import numpy as np
 import pandas as pd
 import pytest
 from click.testing import CliRunner
@@ -47,3 +48,24 @@ def test_fleet_refuses_single_bus_outputs_and_bad_data_in_one_line(hive, tmp_pat
     assert len(line.splitlines()) == 1 and "a.csv" in line and "row 2" in line
     res = _run(hive, "--out", tmp_path / "f.parquet")  # one bus needs --json
     assert res.exit_code == 2 and "--json" in res.output
+
+
+def test_a_bus_in_kv_gets_a_warning_row_and_the_others_are_fitted(tmp_path):
+    """Issue 14 for fleets: a bus whose V is in kV is refused by name, per bus."""
+    rng = np.random.default_rng(5)
+    frames = []
+    for bus, scale in (("ok", 1.0), ("kv", 12.47)):
+        v = rng.uniform(0.92, 1.06, 200)
+        p = 0.3 * v**2 + 0.2 * v + 0.5 + rng.normal(0, 0.01, v.size)
+        frames.append(pd.DataFrame({"bus_id": bus, "v": v * scale, "p": p}))
+    src = tmp_path / "two.csv"
+    pd.concat(frames).to_csv(src, index=False)
+    out = tmp_path / "fleet.parquet"
+    res = _run(src, "--by", "bus_id", "--q-col", "none", "--out", out,
+               "--draws", "300", "--burn", "100", "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    table = pd.read_parquet(out)
+    kv = table[table["bus"] == "kv"]
+    assert len(kv) == 1 and "not per unit" in kv["warnings"].iloc[0]
+    assert "--v-base 12.47" in kv["warnings"].iloc[0]
+    assert (table[table["bus"] == "ok"]["parameter"] == "a1").any()

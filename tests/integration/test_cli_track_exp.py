@@ -93,7 +93,7 @@ def test_track_zip_stdin_window_p_only(tmp_path):
     [
         (["--forgetting", "0.9", "--window", "5"], ["only one"]),
         (["--forgetting", "1.5"], ["--forgetting"]),
-        (["--p0", "auto"], ["--p0"]),
+        (["--p0", "0"], ["--p0"]),  # 'auto' is accepted since issue 14
         (["--out", "bus.csv", "--force"], ["bus.csv"]),
     ],
     ids=["two-memories", "bad-forgetting", "auto-p0", "out-is-input"],
@@ -125,7 +125,8 @@ def test_fit_exp_json(tmp_path):
     assert res.returncode == 0, res.stderr
     d = json.loads((tmp_path / "e.json").read_text())
     assert d["model"] == "exp" and d["n"] == 300 and d["scheme"] == "metropolis-within-gibbs"
-    assert set(d["parameters"]) == {"np", "kpf", "nq", "kqf", "tau_p", "tau_q"}
+    # P0, Q0 not given: estimated (issue 14)
+    assert set(d["parameters"]) == {"np", "kpf", "nq", "kqf", "tau_p", "tau_q", "p0", "q0"}
     # a ZIP load of mostly constant power has a small exponent near V = 1
     assert 0.2 < d["parameters"]["np"]["mean"] < 1.5
     assert (tmp_path / "e.png").stat().st_size > 0

@@ -69,7 +69,11 @@ def test_fit_writes_json_netcdf_plot(tmp_path):
     assert res.returncode == 0, res.stderr
     d = json.loads((tmp_path / "o.json").read_text())
     assert d["model"] == "zip" and d["n"] == 300 and d["scheme"] == "blocked"
-    assert set(d["parameters"]) == {"a1", "a2", "a3", "a4", "a5", "a6", "tau_p", "tau_q"}
+    # P0, Q0 not given: estimated (issue 14), so they are parameters too
+    assert set(d["parameters"]) == {"a1", "a2", "a3", "a4", "a5", "a6", "tau_p", "tau_q"} | {
+        "p0",
+        "q0",
+    }
     assert d["settings"]["seed"] == 0 and d["loadbayes_version"]
     a = {k: v["mean"] for k, v in d["parameters"].items()}
     assert a["a1"] + a["a2"] + a["a3"] == pytest.approx(1.0)
@@ -218,7 +222,8 @@ def test_exact_scheme_and_informative_prior(tmp_path):
     )
     assert res.returncode == 0, res.stderr
     res = run(
-        "fit", "zip", "bus.csv", *FAST, "--prior", "a1=0.3,0.001", "--json", "p.json", cwd=tmp_path
-    )
+        "fit", "zip", "bus.csv", *FAST, "--prior", "a1=0.3,0.001", "--p0", "1", "--q0", "1",
+        "--json", "p.json", cwd=tmp_path,
+    )  # fmt: skip
     d = json.loads((tmp_path / "p.json").read_text())
     assert d["parameters"]["a1"]["mean"] == pytest.approx(0.3, abs=0.005)

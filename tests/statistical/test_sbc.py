@@ -44,7 +44,7 @@ SEED = 20_180_406  # Talts et al., arXiv v1
 
 @pytest.mark.parametrize("name", sorted(REGISTRY))
 def test_ranks_of_the_truth_are_uniform(name):
-    res = run_sbc(REGISTRY[name], REPLICATIONS, seed=SEED)
+    res = run_sbc(REGISTRY[name], REGISTRY[name].ci_replications or REPLICATIONS, seed=SEED)
     pvalues = res.pvalues()
     assert res.passes(ALPHA), (name, pvalues)
     lag1 = np.median(res.lag1, axis=0)

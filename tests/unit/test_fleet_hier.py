@@ -78,3 +78,39 @@ def test_inverse_wishart_draws_have_the_right_mean():
     want = psi / (nu - d - 1)
     se = draws.std(axis=0) / np.sqrt(draws.shape[0])
     assert np.all(np.abs(draws.mean(axis=0) - want) < 5 * se)
+
+
+def test_auto_nominal_power_becomes_each_bus_own_per_unit_exactly():
+    """With --p0/--q0 auto the pooled model uses r = P / P0_hat - 1 per bus (P0_hat by LS)."""
+    from loadbayes.core.stats import gram_of
+    from loadbayes.fleet.stats import FleetStats
+    from loadbayes.models.zip import ZIPModel
+
+    rng = np.random.default_rng(7)
+    auto, known, levels = ZIPModel(p0="auto", q0="auto"), [], []
+    grams, lo, hi = [], [], []
+    for scale in (3.0, 0.2):
+        v = rng.uniform(0.9, 1.1, 300)
+        x = v
+        p = scale * (0.3 * x**2 + 0.2 * x + 0.5) + rng.normal(0, 0.01 * scale, v.size)
+        q = scale * 0.4 * (0.5 * x**2 + 0.1 * x + 0.4) + rng.normal(0, 0.01, v.size)
+        g = gram_of(auto.rows({"v": v, "p": p, "q": q}), auto.gram_columns)
+        grams.append(g.matrix)
+        lo.append(g.col_min)
+        hi.append(g.col_max)
+        design = np.column_stack([np.ones_like(x), (x - 1) * (x + 1), x - 1])
+        lp = np.linalg.lstsq(design, p, rcond=None)[0][0]
+        lq = np.linalg.lstsq(design, q, rcond=None)[0][0]
+        levels.append((lp, lq))
+        one = ZIPModel(p0=lp, q0=lq)
+        known.append(gram_of(one.rows({"v": v, "p": p, "q": q}), one.gram_columns))
+    stats = FleetStats(
+        auto.gram_columns, np.array(["a", "b"], dtype=object), np.array([None, None]),
+        np.stack(grams), np.array([300, 300]), np.stack(lo), np.stack(hi),
+        np.array([False, False]),
+    )  # fmt: skip
+    out, notes = H._known_nominal(stats, auto)
+    assert out.names == known[0].names
+    for b in range(2):
+        np.testing.assert_allclose(out.gram[b], known[b].matrix, rtol=1e-9, atol=1e-9)
+        assert f"p0 = {levels[b][0]:.6g}" in notes[b][0]

@@ -338,6 +338,7 @@ def simulate(
     motor: MotorParams | str,
     *,
     disturbance: Disturbance | None = None,
+    angle: Disturbance | None = None,
     t_end_s: float = 3.0,
     dt_s: float = 1e-3,
     f_nominal_hz: float | None = None,
@@ -360,6 +361,12 @@ def simulate(
         Parameters, or a key of ``MOTORS``.
     disturbance : Disturbance, optional
         ``V(t)``; defaults to :func:`default_disturbance`. ``V(0)`` sets the steady state.
+    angle : Disturbance, optional
+        Terminal-voltage angle ``theta(t)`` in rad (a :class:`Disturbance` whose values are
+        angles), measured in a frame turning at the nominal frequency, as a network
+        simulator's bus angle is. The motor then sees ``Ud + j Uq = V e^{j (theta(t) -
+        theta(0))}``: a constant angle changes nothing, a moving one is a frequency
+        deviation. Default: no angle, ``Uq = 0`` throughout.
     t_end_s, dt_s : float
         Record length and sample spacing (s); samples at ``k dt_s``, ``k = 0..n-1``.
     f_nominal_hz : float, optional
@@ -400,7 +407,18 @@ def simulate(
     n = int(math.floor(t_end_s / dt_s + 1e-9)) + 1
     t = dt_s * np.arange(n)
     states = np.empty((3, n))
-    edges = sorted({0.0, t[-1], *(b for b in disturbance.breakpoints if 0.0 < b < t[-1])})
+    cuts = disturbance.breakpoints + (() if angle is None else angle.breakpoints)
+    edges = sorted({0.0, t[-1], *(b for b in cuts if 0.0 < b < t[-1])})
+    theta0 = 0.0 if angle is None else float(angle(0.0))
+
+    def terminal(tt: ArrayLike, left: bool = False) -> tuple[NDArray, NDArray]:
+        # (Ud, Uq) of V e^{j (theta - theta0)}; without an angle, Uq = 0 (as before).
+        v = disturbance.left_limit(tt) if left else disturbance(tt)
+        if angle is None:
+            return v, np.zeros_like(v)
+        th = (angle.left_limit(tt) if left else angle(tt)) - theta0
+        return v * np.cos(th), v * np.sin(th)
+
     y = op.state
 
     states[:, 0] = y
@@ -408,8 +426,8 @@ def simulate(
         # Inside (a, b) V is smooth; at b itself the solver must see V(b-), not a step's
         # new value, or the last step of each segment would straddle the jump.
         def rhs(tt: float, yy: NDArray[np.float64], b: float = b) -> NDArray[np.float64]:
-            v = disturbance.left_limit(tt) if tt >= b else disturbance(tt)
-            return derivatives(yy, v, 0.0, params, t0=op.t0)
+            ud, uq = terminal(tt, left=tt >= b)
+            return derivatives(yy, ud, uq, params, t0=op.t0)
 
         inside = np.flatnonzero((t > a) & (t <= b))
         t_eval = np.append(t[inside], b) if inside.size == 0 or t[inside[-1]] < b else t[inside]
@@ -421,7 +439,7 @@ def simulate(
         states[:, inside] = sol.y[:, : inside.size]
         y = sol.y[:, -1]
 
-    ud, uq = disturbance(t), np.zeros(n)
+    ud, uq = terminal(t)
     ed, eq, w = states
     id_, iq = currents(ud, uq, ed, eq, params)
     ded, deq, dw = derivatives(states, ud, uq, params, t0=op.t0)
@@ -452,6 +470,7 @@ def simulate(
             "steady_state": op.to_dict(),
             "loading": loading,
             "disturbance": disturbance.info,
+            "angle": None if angle is None else angle.info,
             "noise": noise,
             "noise_on_regressors": noise_on_regressors,
             "noise_sd": sds,

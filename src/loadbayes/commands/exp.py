@@ -8,8 +8,12 @@ import click
 import numpy as np
 
 from loadbayes.commands.options import (
+    OneLineCommand,
+    accept_units_option,
     data_options,
+    distinct_columns,
     nominal,
+    nominal_note,
     nominal_options,
     output_options,
     sampler_options,
@@ -18,16 +22,21 @@ from loadbayes.commands.options import (
 from loadbayes.commands.output import (
     Progress,
     UserError,
+    check_cost,
     check_outputs,
     estimate_rows,
     user_errors,
     write_outputs,
 )
 
+#: Parameters stored per draw, at most: np, nq, kpf, kqf, tau_p, tau_q, p0, q0.
+N_PARAMS = 8
 
-@click.command("exp")
+
+@click.command("exp", cls=OneLineCommand)
 @click.argument("data", type=str)
 @data_options()
+@accept_units_option
 @click.option("--f-col", default=None, help="Frequency column (fits kpf, kqf); none by default.")
 @click.option("--f0", type=float, default=60.0, show_default=True, help="Nominal frequency.")
 @nominal_options()
@@ -75,6 +84,7 @@ def fit_exp_cmd(
     tau_rate,
     drop_invalid,
     chunk_rows,
+    accept_units,
     json_out,
     netcdf_out,
     plot_out,
@@ -82,7 +92,14 @@ def fit_exp_cmd(
     force,
 ):
     """Posterior of the exponential load model P = P0 (V/V0)^np [(1 + kpf df)]."""
-    check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, [data], force)
+    check_outputs(
+        {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out},
+        [data],
+        force,
+        stdout_ok=("--json",),
+    )
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col)
+    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
@@ -94,6 +111,12 @@ def fit_exp_cmd(
         raise click.BadParameter(
             f"{exponent_prior!r}: expected MEAN,SD with SD > 0", param_hint="--exponent-prior"
         ) from None
+    check_cost(
+        chains=chains, draws=draws, burn=burn, thin=thin, n_params=N_PARAMS,
+        netcdf_out=netcdf_out, quiet=quiet,
+    )  # fmt: skip
+    if note and not quiet:
+        click.echo(f"loadbayes: note: {note}", err=True)
     from loadbayes.core.priors import BlockPrior
     from loadbayes.fit import fit_exp
     from loadbayes.io.errors import DataError
@@ -141,10 +164,16 @@ def fit_exp_cmd(
             priors[block.name] = BlockPrior.weak(
                 block.k, mean=means, sd=sds, shape=tau_shape, rate=tau_rate
             )
-    warnings = []
+    from loadbayes.fit.zip import data_checks
+
+    names = {"v": v_col, "p": p_col, "q": q_name, "f": f_col}
+    # The exponential model is near the ZIP one at V0 (P = P0 at V = V0): the same check.
+    warnings = data_checks(
+        pc.cols, path=data, names=names, accept_units=accept_units,
+        v0=v0, p0=p0_val, q0=q0_val, v_base=v_base, s_base=s_base,
+    )  # fmt: skip
     if pc.n_dropped:
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
-    names = {"v": v_col, "p": p_col, "q": q_name, "f": f_col}
     try:
         post = fit_exp(
             pc.cols,
@@ -183,4 +212,5 @@ def fit_exp_cmd(
         plot_out=plot_out,
         force=force,
         quiet=quiet,
+        prior_sd={"np": e_sd, "nq": e_sd},
     )

@@ -6,10 +6,18 @@ import json
 
 import click
 
-from loadbayes.commands.options import output_options, parse_coef_priors, sampler_options
+from loadbayes.commands.options import (
+    OneLineCommand,
+    accept_units_option,
+    check_prior_sd,
+    output_options,
+    parse_coef_priors,
+    sampler_options,
+)
 from loadbayes.commands.output import (
     Progress,
     UserError,
+    check_cost,
     check_outputs,
     estimate_rows,
     sidecar,
@@ -30,8 +38,13 @@ def _f_hz_fromsidecar(data: str) -> float | None:
     return value if value > 0 else None
 
 
-@click.command("im")
+#: Parameters stored per draw: 5 coefficients, 3 noise precisions, 9 physical parameters.
+N_PARAMS = 17
+
+
+@click.command("im", cls=OneLineCommand)
 @click.argument("data", type=str)
+@accept_units_option
 @click.option("--t0", type=float, help="Load torque T0 (p.u.) [from the first sample].")
 @click.option(
     "--f-hz",
@@ -101,6 +114,7 @@ def fit_im_cmd(
     conjugate,
     drop_invalid,
     chunk_rows,
+    accept_units,
     json_out,
     netcdf_out,
     plot_out,
@@ -114,7 +128,13 @@ def fit_im_cmd(
     """
     side = sidecar(data)
     inputs = [data] + ([str(side)] if side is not None and side.exists() else [])
-    check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, inputs, force)
+    check_outputs(
+        {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out},
+        inputs,
+        force,
+        stdout_ok=("--json",),
+    )
+    check_prior_sd(prior_sd, "--prior-sd")
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     if t0 is not None and not (t0 > 0 and t0 != float("inf")):
@@ -126,6 +146,10 @@ def fit_im_cmd(
     per_coef = parse_coef_priors(coef_priors)
     if f_hz is None:
         f_hz = _f_hz_fromsidecar(data) or 60.0
+    check_cost(
+        chains=chains, draws=draws, burn=burn, thin=thin, n_params=N_PARAMS,
+        netcdf_out=netcdf_out, quiet=quiet,
+    )  # fmt: skip
 
     from loadbayes.fit import fit_im_file, im_priors
 
@@ -148,6 +172,7 @@ def fit_im_cmd(
             drop_invalid=drop_invalid,
             chunk_rows=chunk_rows,
             progress=progress,
+            accept_units=accept_units,
             scheme=scheme,
             draws=draws,
             burn=burn,
@@ -167,4 +192,5 @@ def fit_im_cmd(
         plot_out=plot_out,
         force=force,
         quiet=quiet,
+        prior_sd={n: per_coef.get(n, (prior_mean, prior_sd))[1] for n in model.free},
     )

@@ -2,7 +2,72 @@
 
 from __future__ import annotations
 
+import math
+
 import click
+
+
+class OneLineCommand(click.Command):
+    """A command whose usage errors are one line, ``loadbayes: error: ...``, exit 2.
+
+    click prints a bad option value as three lines (usage, hint, error); the rest of
+    loadbayes' errors are one line, so these are too. Use as ``@click.command(cls=...)``.
+    """
+
+    def _one_line(self, exc: click.UsageError):
+        from loadbayes.commands.output import UserError
+
+        msg = exc.format_message()  # click names the option in it
+        where = exc.ctx.command_path if exc.ctx is not None else f"loadbayes ... {self.name}"
+        return UserError(f"{msg.rstrip('.')} (see '{where} --help')")
+
+    def make_context(self, info_name, args, parent=None, **extra):  # noqa: D102
+        from loadbayes.commands.output import install_signal_handlers, restore_signal_handlers
+
+        # As early as a command of ours runs: a signal from here on gets its one line.
+        install_signal_handlers()
+        try:
+            return super().make_context(info_name, args, parent=parent, **extra)
+        except click.UsageError as exc:
+            restore_signal_handlers()
+            raise self._one_line(exc) from None
+        except BaseException:
+            restore_signal_handlers()
+            raise
+
+    def invoke(self, ctx):  # noqa: D102
+        from loadbayes.commands.output import restore_signal_handlers
+
+        try:
+            return super().invoke(ctx)
+        except click.UsageError as exc:
+            raise self._one_line(exc) from None
+        finally:
+            restore_signal_handlers()
+
+
+def distinct_columns(**cols: str | None) -> None:
+    """Refuse one data column given to two options (``--p-col v``)."""
+    from loadbayes.commands.output import UserError
+
+    seen: dict[str, str] = {}
+    for opt, col in cols.items():
+        if not col or col.lower() == "none":
+            continue
+        flag = "--" + opt.replace("_", "-")
+        if col in seen:
+            raise UserError(f"{flag} {col}: column '{col}' is already {seen[col]}")
+        seen[col] = flag
+
+
+def accept_units_option(func):
+    """--accept-units: fit data that do not look like per unit (warn instead of refuse)."""
+    return click.option(
+        "--accept-units",
+        is_flag=True,
+        help="Fit even when the data do not look like per unit of the nominal point "
+        "(the unit check then warns instead of refusing).",
+    )(func)
 
 
 def sampler_options(func):
@@ -128,16 +193,16 @@ def nominal_options(*, auto: bool = True):
             ),
             click.option(
                 "--p0",
-                default="1.0" if auto else 1.0,
-                show_default=True,
-                help="Nominal P" + tail,
+                default=None if auto else 1.0,
+                show_default=not auto,
+                help="Nominal P" + tail + (" [auto: estimated, and said so]" if auto else ""),
                 **kind,
             ),
             click.option(
                 "--q0",
-                default="1.0" if auto else 1.0,
-                show_default=True,
-                help="Nominal Q" + tail,
+                default=None if auto else 1.0,
+                show_default=not auto,
+                help="Nominal Q" + tail + (" [auto: estimated, and said so]" if auto else ""),
                 **kind,
             ),
         ]
@@ -171,8 +236,9 @@ def tau_prior_options(func):
     return func
 
 
-def nominal(value: str, name: str) -> float | str:
-    if value.strip().lower() == "auto":
+def nominal(value: str | None, name: str) -> float | str:
+    """A nominal power from its option: a non-zero number, or "auto" (also when absent)."""
+    if value is None or value.strip().lower() == "auto":
         return "auto"
     try:
         out = float(value)
@@ -185,7 +251,34 @@ def nominal(value: str, name: str) -> float | str:
     return out
 
 
+def nominal_note(p0: str | None, q0: str | None, *, with_q: bool = True) -> str | None:
+    """The line that says P0 / Q0 were not given and are estimated, or None."""
+    missing = [n for n, v in (("P0", p0), ("Q0", q0)) if v is None and (n == "P0" or with_q)]
+    if not missing:
+        return None
+    return (
+        f"{' and '.join(missing)} not given (--p0, --q0): estimated from the data (auto) "
+        "rather than assumed to be 1 per unit of the base"
+    )
+
+
+#: A prior sd below this overflows its precision 1/sd^2 (and pins the coefficient).
+MIN_PRIOR_SD = 1e-100
+
+
+def check_prior_sd(sd: float, option: str) -> float:
+    """Refuse a prior sd whose precision 1/sd^2 is not a finite number."""
+    if not (sd >= MIN_PRIOR_SD and math.isfinite(sd)):
+        raise click.BadParameter(
+            f"{sd:g} is not a usable prior sd (its precision 1/sd^2 overflows; "
+            f"use at least {MIN_PRIOR_SD:g}, or a fixed value through the data)",
+            param_hint=option,
+        )
+    return sd
+
+
 def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    """``NAME=MEAN,SD`` items of --prior as a mapping; a repeated name is an error."""
     out = {}
     for item in items:
         try:
@@ -200,5 +293,12 @@ def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
             raise click.BadParameter(
                 f"{item!r}: SD must be positive, MEAN finite", param_hint="--prior"
             )
-        out[name.strip()] = (mean, sd)
+        check_prior_sd(sd, "--prior")
+        key = name.strip()
+        if key in out:
+            raise click.BadParameter(
+                f"{key} given twice ({key}={out[key][0]:g},{out[key][1]:g} and {item})",
+                param_hint="--prior",
+            )
+        out[key] = (mean, sd)
     return out

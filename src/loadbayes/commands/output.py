@@ -1,15 +1,36 @@
-"""What every command does with its outputs: one-line errors, output checks, progress, writing."""
+"""What every command does with its outputs: one-line errors, output checks, progress, writing.
+
+A run is one transaction: every output path and format is checked before any work
+(:func:`check_outputs`), the cost of the draws is said before it is paid
+(:func:`check_cost`), outputs are written to temporary files and renamed together at the
+end (:func:`write_outputs`, :class:`loadbayes.io.transaction.OutputSet`), and SIGINT or
+SIGTERM at any moment ends the run with one line, exit 130 or 143, and either every
+output or none (:func:`user_errors`).
+"""
 
 from __future__ import annotations
 
 import functools
+import json
+import os
+import shutil
+import signal
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
 import click
 
 EXIT_DATA = 2
+EXIT_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+#: Figure formats matplotlib writes (checked before any work, not after the fit).
+PLOT_FORMATS = ("png", "svg", "svgz", "pdf", "eps", "ps", "jpg", "jpeg", "tif", "tiff", "webp")
+#: Memory above this share of the available memory is refused before sampling.
+MEMORY_SHARE = 0.8
+#: Above these, a line on stderr says what the run will take.
+NOTICE_BYTES = 500 * 2**20
 
 
 class UserError(click.ClickException):
@@ -21,33 +42,124 @@ class UserError(click.ClickException):
         click.echo(f"loadbayes: error: {self.format_message()}", err=True)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so every clean-up path that handles one handles both."""
+
+
+_STOP: dict[str, Any] = {"signal": None, "outputs": None, "committed": False}
+
+
+def _on_signal(signum, frame) -> None:
+    # The first signal stops the run; later ones are ignored so that the clean-up
+    # (removing temporary files) is not itself interrupted.
+    if _STOP["signal"] is not None:
+        return
+    _STOP["signal"] = signum
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def install_signal_handlers() -> None:
+    """SIGINT and SIGTERM raise in the main thread (no-op elsewhere, or if installed)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGINT) is _on_signal:
+        return
+    _STOP.update(signal=None, outputs=None, committed=False)
+    _STOP["previous"] = {s: signal.getsignal(s) for s in EXIT_SIGNAL}
+    for s in EXIT_SIGNAL:
+        signal.signal(s, _on_signal)
+
+
+def restore_signal_handlers() -> None:
+    """Put back the handlers :func:`install_signal_handlers` found.
+
+    A command run in-process (by a test or a notebook) leaves the process as it was.
+    """
+    import threading
+
+    previous = _STOP.pop("previous", None)
+    if previous is None or threading.current_thread() is not threading.main_thread():
+        return
+    for s, h in previous.items():
+        signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def stop_if_signalled() -> None:
+    """Raise if a signal arrived whose exception a library swallowed (HDF5 writes do)."""
+    sig = _STOP["signal"]
+    if sig is not None:
+        raise Terminated() if sig == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _speak(message: str) -> None:
+    """One warning line per library warning, in loadbayes' voice (never a raw warning)."""
+    click.echo(f"loadbayes: warning: {message}", err=True)
+
+
 def user_errors(func):
-    """Turn the library's user-facing exceptions into one-line errors with exit code 2."""
+    """Run a command as one transaction: one-line errors (exit 2), signals (130, 143).
+
+    Library warnings are caught and said once each, in one line; SIGINT and SIGTERM
+    stop the run with one line saying what was written (all outputs or none).
+    """
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         from loadbayes.io.errors import DataError
 
+        install_signal_handlers()
         try:
-            return func(*args, **kwargs)
+            with warnings.catch_warnings(record=True) as caught:
+                try:
+                    return func(*args, **kwargs)
+                finally:
+                    seen = set()
+                    for w in caught:
+                        text = (str(w.message).strip().splitlines() or [""])[0]
+                        origin = (w.filename or "").replace("\\", "/").split("/site-packages/")[-1]
+                        origin = origin.split("/")[0] if origin else "python"
+                        line = f"{text} (from {origin})"
+                        if line not in seen:
+                            seen.add(line)
+                            _speak(line)
         except DataError as exc:
             raise UserError(str(exc)) from None
         except (FileExistsError, ValueError) as exc:
             raise UserError(str(exc)) from None
+        except OSError as exc:
+            raise UserError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")) from None
         except KeyboardInterrupt as exc:
-            done = getattr(exc, "written", [])
-            if done:
-                msg = f"interrupted; only {', '.join(done)} written (complete), the rest not"
+            sig = _STOP["signal"] or signal.SIGINT
+            what = "terminated (SIGTERM)" if sig == signal.SIGTERM else "interrupted"
+            if _STOP["committed"] or getattr(_STOP.get("outputs"), "committed", False):
+                msg = f"{what} after every output was written"
             else:
-                msg = "interrupted; no output was written"
+                msg = f"{what}; no output was written"
+            del exc
             click.echo(f"loadbayes: {msg}", err=True)
-            sys.exit(130)
+            sys.exit(EXIT_SIGNAL.get(sig, 130))
+        finally:
+            restore_signal_handlers()
 
     return wrapper
 
 
-def check_outputs(outputs: dict[str, str | None], inputs: list[str], force: bool) -> None:
-    """Refuse before any work: an existing output without --force, or an output = input."""
+def check_outputs(
+    outputs: dict[str, str | None],
+    inputs: list[str],
+    force: bool,
+    *,
+    stdout_ok: tuple[str, ...] = (),
+    plots: tuple[str, ...] = ("--plot",),
+) -> None:
+    """Refuse before any work: a path that cannot be written, or a format that cannot.
+
+    An existing output without --force, an output that is an input or given twice, a
+    directory, a missing folder, an unsupported figure format (options in ``plots``), or
+    ``-`` (standard output) for an option not in ``stdout_ok``.
+    """
     seen: dict[Path, str] = {}
 
     def resolve(path: str, what: str) -> Path:
@@ -60,7 +172,18 @@ def check_outputs(outputs: dict[str, str | None], inputs: list[str], force: bool
     for opt, path in outputs.items():
         if not path:
             continue
+        if path == "-":
+            if opt not in stdout_ok:
+                raise UserError(f"{opt} -: standard output is only for --json")
+            continue
         p = Path(path)
+        if opt in plots:
+            fmt = p.suffix.lstrip(".").lower()
+            if fmt not in PLOT_FORMATS:
+                raise UserError(
+                    f"{path}: {opt} format '{fmt or '(no extension)'}' is not supported; "
+                    f"use one of {', '.join(PLOT_FORMATS[:4])} (by extension)"
+                )
         rp = resolve(path, opt)
         if rp in ins:
             raise UserError(f"{path}: {opt} would overwrite the input data")
@@ -73,17 +196,112 @@ def check_outputs(outputs: dict[str, str | None], inputs: list[str], force: bool
             raise UserError(f"{path}: exists; use --force to overwrite")
         if not p.parent.exists():
             raise UserError(f"{path}: folder {p.parent} does not exist")
+        if not os.access(p.parent, os.W_OK):
+            raise UserError(f"{path}: folder {p.parent} is not writable")
+
+
+def _mib(n: float) -> str:
+    for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n / 2**10:.3g} KiB"
+
+
+def _available_memory() -> int | None:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError):
+        pass
+    return None
+
+
+def check_cost(
+    *,
+    chains: int,
+    draws: int,
+    burn: int,
+    thin: int,
+    n_params: int,
+    netcdf_out: str | None = None,
+    quiet: bool = False,
+) -> dict[str, int]:
+    """Say what the draws will cost before sampling; refuse what cannot fit.
+
+    Parameters
+    ----------
+    chains, draws, burn, thin : int
+        The sampler settings (``draws`` includes the burn-in).
+    n_params : int
+        Parameters stored per draw (raw and reported, an upper bound).
+    netcdf_out : str, optional
+        Where the draws will be written (its folder's free space is checked).
+    quiet : bool
+        No notice on stderr.
+
+    Returns
+    -------
+    dict
+        ``kept``, ``memory`` and ``netcdf`` (bytes).
+
+    Notes
+    -----
+    The kept draws take ``chains x kept x n_params x 8`` bytes; the summary (ArviZ's
+    rank-normalised R-hat and ESS) and the conversion to InferenceData hold about three
+    more copies, so the peak is estimated at 4 times that (measured: 1.7 GB for
+    ``--draws 2000000`` of a ZIP fit with Q, 4 times its 481 MB NetCDF).
+    """
+    kept = max((draws - burn) // thin, 0)
+    if kept < 4:
+        raise UserError(
+            f"--draws {draws} --burn {burn} --thin {thin} keep {kept} draw(s) per chain; "
+            "R-hat and ESS need at least 4 (100 or more for a reliable summary)"
+        )
+    netcdf = chains * kept * n_params * 8
+    memory = 4 * netcdf
+    avail = _available_memory()
+    if avail is not None and memory > MEMORY_SHARE * avail:
+        raise UserError(
+            f"{chains} chains x {kept} kept draws x {n_params} parameters need about "
+            f"{_mib(memory)} of memory, more than the {_mib(avail)} available; lower "
+            "--draws or raise --thin"
+        )
+    if netcdf_out and netcdf_out != "-":
+        folder = Path(netcdf_out).parent
+        try:
+            free = shutil.disk_usage(folder).free
+        except OSError:
+            free = None
+        if free is not None and netcdf > free:
+            raise UserError(
+                f"{netcdf_out}: the draws take about {_mib(netcdf)}, more than the "
+                f"{_mib(free)} free in {folder}; lower --draws or raise --thin"
+            )
+    if not quiet and memory > NOTICE_BYTES:
+        disk = f", NetCDF about {_mib(netcdf)}" if netcdf_out else ""
+        click.echo(
+            f"loadbayes: note: {chains} x {kept} kept draws x {n_params} parameters: about "
+            f"{_mib(memory)} of memory{disk}",
+            err=True,
+        )
+    return {"kept": kept, "memory": memory, "netcdf": netcdf}
 
 
 class Progress:
-    """A progress bar on stderr (a no-op with --quiet); a plain count when the total is unknown."""
+    """A progress bar on a terminal's stderr; nothing otherwise (nor with --quiet).
+
+    Only a person watching a terminal needs it: in a pipe or a log it would put lines
+    before a one-line error.
+    """
 
     def __init__(self, label: str, total: int | None, quiet: bool) -> None:
         self.bar = None
         self.label = label
         self.count = 0
-        self.quiet = quiet
-        if not quiet and total:
+        self.quiet = quiet or not _isatty(sys.stderr)
+        if not self.quiet and total:
             self.bar = click.progressbar(
                 length=total, label=label, file=sys.stderr, show_pos=True, show_eta=False
             )
@@ -98,11 +316,16 @@ class Progress:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
-            if not sys.stderr.isatty():
-                click.echo("", err=True)
         elif not self.quiet and self.count:
             click.echo(f"{self.label}: {self.count} rows", err=True)
         self.quiet = True
+
+
+def _isatty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
 
 
 def estimate_rows(path: str) -> int | None:
@@ -125,36 +348,57 @@ def estimate_rows(path: str) -> int | None:
         return None
 
 
-def write_outputs(post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet):
-    """Write the JSON, NetCDF and figure (each optional); print the table unless quiet."""
+def write_outputs(
+    post, *, model, hdi_prob, json_out, netcdf_out, plot_out, force, quiet, prior_sd=None
+):
+    """Write the JSON, NetCDF and figure as one transaction; print the table unless quiet.
+
+    The warnings are completed first (:func:`loadbayes.diagnostics.fit_warnings`: R-hat,
+    ESS, identifiability with what is determined, dominant priors). Every file goes to a
+    temporary beside its target; they are renamed together only when all are written.
+    ``json_out == "-"`` prints the JSON on standard output (the table then goes to
+    stderr).
+    """
+    from loadbayes.diagnostics import fit_warnings
+    from loadbayes.io.transaction import OutputSet
     from loadbayes.report.text import summary_table
 
     if not quiet:
         click.echo("loadbayes: summarising the draws (R-hat, ESS)...", err=True)
     table = post.summary(hdi_prob=hdi_prob)
-    written: list[str] = []
-    try:
-        if json_out:
-            post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
-            written.append(str(json_out))
+    fit_warnings(post, table, hdi_prob=hdi_prob, prior_sd=prior_sd)
+    targets = {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}
+    files = {k: v for k, v in targets.items() if v and v != "-"}
+    stop_if_signalled()
+    with OutputSet(files, force=force) as out:
+        _STOP["outputs"] = out
+        # The JSON as Posterior.to_json writes it, but straight into the set's temporary.
+        text = json.dumps(post.to_dict(hdi_prob=hdi_prob, summary=table), indent=2,
+                          allow_nan=False)  # fmt: skip
+        if json_out and json_out != "-":
+            out.temp("--json").write_text(text + "\n", encoding="utf-8")
+        stop_if_signalled()
         if netcdf_out:
             if not quiet:
                 click.echo(f"loadbayes: writing {netcdf_out} (draws, predictions)...", err=True)
-            post.to_netcdf(netcdf_out, force=force)
-            written.append(str(netcdf_out))
+            post.to_netcdf(out.temp("--netcdf"), force=True)
+            # netCDF/HDF5 may swallow the KeyboardInterrupt raised inside its C calls.
+            stop_if_signalled()
         if plot_out:
             from loadbayes.plots import plot_fit, save_figure
 
-            save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), plot_out, force=force)
-            written.append(str(plot_out))
-    except KeyboardInterrupt as exc:
-        # Each file is atomic; say truthfully which ones were completed before the stop.
-        exc.written = written  # type: ignore[attr-defined]
-        raise
+            save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), out.temp("--plot"),
+                        force=True)  # fmt: skip
+            stop_if_signalled()
+        out.commit()
+        _STOP["committed"] = True
+    if json_out == "-":
+        click.echo(text)
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        click.echo(summary_table(post, hdi_prob=hdi_prob, summary=table))
+        # The 80-column table of loadbayes.report.text (stderr when the JSON is on stdout).
+        click.echo(summary_table(post, hdi_prob=hdi_prob, summary=table), err=json_out == "-")
 
 
 def sidecar(path: str) -> Path | None:

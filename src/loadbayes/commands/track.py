@@ -5,14 +5,29 @@ from __future__ import annotations
 import click
 import numpy as np
 
-from loadbayes.commands.options import data_options, nominal_options
-from loadbayes.commands.output import Progress, UserError, check_outputs, estimate_rows, user_errors
+from loadbayes.commands.options import (
+    OneLineCommand,
+    accept_units_option,
+    data_options,
+    distinct_columns,
+    nominal,
+    nominal_note,
+    nominal_options,
+)
+from loadbayes.commands.output import (
+    Progress,
+    UserError,
+    check_outputs,
+    estimate_rows,
+    stop_if_signalled,
+    user_errors,
+)
 
 TRUTH_COLUMNS = tuple(f"a{i}_true" for i in range(1, 7))
 _PLOT_MAX_POINTS = 20_000
 
 
-@click.command("zip")
+@click.command("zip", cls=OneLineCommand)
 @click.argument("data", type=str)
 @click.option(
     "--out",
@@ -48,7 +63,8 @@ _PLOT_MAX_POINTS = 20_000
     show_default=True,
     help="Time column, copied to the output when present (else the row number).",
 )
-@nominal_options(auto=False)
+@nominal_options()
+@accept_units_option
 @click.option(
     "--prob",
     type=click.FloatRange(0, 1, min_open=True, max_open=True),
@@ -99,6 +115,7 @@ def track_zip_cmd(
     noise_sd,
     drop_invalid,
     chunk_rows,
+    accept_units,
     plot_out,
     quiet,
     force,
@@ -116,17 +133,20 @@ def track_zip_cmd(
         raise UserError(f"--forgetting must be in (0, 1], got {forgetting}")
     if window is None and drift is None and forgetting is None:
         forgetting = 0.999
-    for name, val in (("--v0", v0), ("--p0", p0), ("--q0", q0)):
-        if not np.isfinite(val) or val == 0 or (name == "--v0" and val <= 0):
-            raise UserError(f"{name} must be a finite non-zero number, got {val}")
+    if not (np.isfinite(v0) and v0 > 0):
+        raise UserError(f"--v0 must be a finite positive number, got {v0}")
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col)
+    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
+    p0, q0 = nominal(p0, "--p0"), nominal(q0, "--q0")
     if not str(out).lower().endswith((".csv", ".txt")):
         raise UserError(f"{out}: --out must be a .csv or .txt file")
 
     import pandas as pd
 
     from loadbayes.inference.online import OnlinePrior, OnlineTracker
-    from loadbayes.io.atomic import atomic_write
+    from loadbayes.io.transaction import OutputSet
     from loadbayes.measurements import power_chunks
+    from loadbayes.units import check_power_units, level_at_nominal, refuse
 
     q_name = None if q_col.lower() == "none" else q_col
     contrasts = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, -1.0]])
@@ -136,26 +156,62 @@ def track_zip_cmd(
     progress = Progress("tracking", estimate_rows(data), quiet)
     n_total = n_dropped = 0
     has_t = None
+    files = {"--out": out} | ({"--plot": plot_out} if plot_out else {})
+    names = {"v": v_col, "p": p_col, "q": q_name}
+    unit_notes: list[str] = []
     try:
-        with atomic_write(out, force=force, mode="w") as fh:
+        with (
+            OutputSet(files, force=force) as outputs,
+            open(outputs.temp("--out"), "w", encoding="utf-8", newline="") as fh,
+        ):
             first = True
-            for part in power_chunks(
-                data,
-                v_col=v_col,
-                p_col=p_col,
-                q_col=q_name,
-                q_required=q_col not in ("q", "none"),
-                t_col=t_col,
-                extra=TRUTH_COLUMNS if plot_out else (),
-                v_base=v_base,
-                s_base=s_base,
-                drop_invalid=drop_invalid,
-                chunk_rows=chunk_rows,
-            ):
+            parts, head = _head(
+                power_chunks(
+                    data,
+                    v_col=v_col,
+                    p_col=p_col,
+                    q_col=q_name,
+                    q_required=q_col not in ("q", "none"),
+                    t_col=t_col,
+                    extra=TRUTH_COLUMNS if plot_out else (),
+                    v_base=v_base,
+                    s_base=s_base,
+                    drop_invalid=drop_invalid,
+                    chunk_rows=chunk_rows,
+                )
+            )
+            for part in parts:
                 n_dropped += part.n_dropped
                 n = part.rows.size
-                if first:
+                if not trackers and n:
                     has_t = "t" in part.cols
+                    c = head
+                    problems = check_power_units(
+                        c["v"], c["p"], c.get("q"), v0=v0, p0=p0, q0=q0,
+                        v_base=v_base, s_base=s_base,
+                    )  # fmt: skip
+                    if not accept_units:
+                        refuse(problems, path=str(data), names=names)
+                    unit_notes = [f"units: {pr}" for pr in problems]
+                    # 'auto' here: P0 (Q0) from the first AUTO_ROWS rows (whatever the
+                    # chunking), then held fixed: the tracker's shares are linear only
+                    # for a known nominal power.
+                    x = c["v"] / v0
+                    nom = {ch: level_at_nominal(x, c[ch]) for ch in ("p", "q") if ch in c}
+                    if p0 == "auto":
+                        p0 = nom["p"]
+                    if q0 == "auto" and "q" in c:
+                        q0 = nom["q"]
+                    if note and not quiet:
+                        est = ", ".join(
+                            f"{k.upper()}0 = {v:.5g}" for k, v in (("p", p0), ("q", q0))
+                            if k in c and isinstance(v, float)
+                        )  # fmt: skip
+                        click.echo(
+                            f"loadbayes: note: {note}: {est} from the first {c['v'].size} rows "
+                            "(at V = V0, by least squares), then held fixed",
+                            err=True,
+                        )
                     channels = [("p", p0, ("a1", "a2", "a3"))]
                     if "q" in part.cols:
                         channels.append(("q", q0, ("a4", "a5", "a6")))
@@ -173,6 +229,7 @@ def track_zip_cmd(
                         )
                 if n == 0:
                     continue
+                stop_if_signalled()
                 x = part.cols["v"] / v0
                 dx = x - 1.0
                 z = np.column_stack([dx * (x + 1.0), dx])
@@ -198,18 +255,24 @@ def track_zip_cmd(
                 from loadbayes.io.errors import DataError
 
                 raise DataError("no valid rows", path=str(data))
+            fh.flush()
+            if plot_out:
+                _plot(pd.concat(keep_plot, ignore_index=True), outputs.temp("--plot"), has_t,
+                      prob, t_col)  # fmt: skip
+            stop_if_signalled()
+            outputs.commit()
     finally:
         progress.close()
     if n_total == 0:
         raise UserError(f"{data}: no valid rows")
+    for w in unit_notes:
+        click.echo(f"loadbayes: warning: {w}", err=True)
     if n_dropped:
         click.echo(
             f"loadbayes: warning: {n_dropped} rows with invalid values were dropped "
             "(--drop-invalid)",
             err=True,
         )
-    if plot_out:
-        _plot(pd.concat(keep_plot, ignore_index=True), plot_out, force, has_t, prob, t_col)
     if not quiet:
         memory = (
             f"window {window}"
@@ -221,7 +284,27 @@ def track_zip_cmd(
         click.echo(f"tracked {n_total} samples ({memory}) into {out}", err=True)
 
 
-def _plot(df, path, force, has_t, prob, t_col) -> None:
+#: Rows that fix an ``auto`` nominal power and the unit check, whatever the chunking.
+AUTO_ROWS = 10_000
+
+
+def _head(chunks):
+    """The chunks again, and the first AUTO_ROWS rows of V, P, Q gathered from them."""
+    import itertools
+
+    it = iter(chunks)
+    buffered, got = [], 0
+    for part in it:
+        buffered.append(part)
+        got += part.rows.size
+        if got >= AUTO_ROWS:
+            break
+    keys = buffered[0].cols if buffered else {}
+    head = {k: np.concatenate([b.cols[k] for b in buffered])[:AUTO_ROWS] for k in keys}
+    return itertools.chain(buffered, it), head
+
+
+def _plot(df, path, has_t, prob, t_col) -> None:
     from loadbayes.plots import pyplot, save_figure
 
     plt = pyplot()
@@ -246,4 +329,4 @@ def _plot(df, path, force, has_t, prob, t_col) -> None:
     axes[0, 0].legend(fontsize=7, ncol=3)
     axes[-1, 0].set_xlabel(t_col if has_t else "row")
     fig.tight_layout()
-    save_figure(fig, path, force=force)
+    save_figure(fig, path, force=True)  # a temporary of the run's output set

@@ -245,6 +245,7 @@ def fit_zip_file(
     drop_invalid: bool = False,
     chunk_rows: int = CHUNK_ROWS,
     progress: Callable[[int], None] | None = None,
+    accept_units: bool = False,
     **sampler: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
@@ -268,12 +269,21 @@ def fit_zip_file(
         Rows read at a time.
     progress : callable, optional
         Called with the number of rows of each chunk.
+    accept_units : bool
+        Fit data that do not look like per unit of the nominal point (a warning instead
+        of a :class:`DataError`; see :mod:`loadbayes.units`).
     **sampler
         ``scheme``, ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
     Returns
     -------
     (Posterior, ZIPModel)
+
+    Notes
+    -----
+    The unit check and the check for noise on V look at the first chunk only (up to
+    ``chunk_rows`` rows), before the rest of the file is read: a unit mix-up is a
+    property of the whole file, and a refusal should not wait for the last row.
     """
     from loadbayes.io.errors import DataError
     from loadbayes.io.tables import iter_chunks
@@ -286,6 +296,7 @@ def fit_zip_file(
     optional = [q_col] if q_col and not q_required else []
     required = [v_col, p_col] + ([q_col] if q_col and q_required else [])
     state: dict[str, Any] = {"dropped": 0}
+    names = {"v": v_col, "p": p_col, "q": q_col}
     keep_obs: dict[str, list[np.ndarray]] = {"v": [], "p": [], "q": []}
 
     def chunks():
@@ -310,6 +321,12 @@ def fit_zip_file(
                         cols[key] = cols[key] / ss
             if "model" not in state:
                 state["model"] = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
+            if "first_warnings" not in state and cols["v"].size:
+                # the first chunk with rows (one whose rows were all dropped says nothing)
+                state["first_warnings"] = data_checks(
+                    cols, path=path, names=names, accept_units=accept_units,
+                    v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base,
+                )  # fmt: skip
             if sum(a.size for a in keep_obs["v"]) <= MAX_OBSERVED:
                 for k, a in cols.items():
                     keep_obs[k].append(a)
@@ -327,7 +344,7 @@ def fit_zip_file(
         if progress is not None:
             progress(rows.shape[0])
     gram = acc.result()
-    warnings = []
+    warnings = list(state.get("first_warnings", []))
     if state["dropped"]:
         warnings.append(
             f"{state['dropped']} rows with invalid values were dropped (--drop-invalid)"
@@ -358,6 +375,19 @@ def fit_zip_file(
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
         raise DataError(exc.message, path=str(path), column=column, row=exc.row) from None
     return post, model
+
+
+def data_checks(cols, *, path, names, accept_units, **nominal) -> list[str]:
+    """The unit check (refuse, or warn with ``accept_units``) and the V-noise check."""
+    from loadbayes.diagnostics import voltage_noise_warning
+    from loadbayes.units import check_power_units, refuse
+
+    problems = check_power_units(cols["v"], cols.get("p"), cols.get("q"), **nominal)
+    if not accept_units:
+        refuse(problems, path=str(path), names=names)
+    out = [f"units: {pr}" for pr in problems]
+    noise = voltage_noise_warning(cols["v"])
+    return out + ([noise] if noise else [])
 
 
 def _chain_first(first, rest):

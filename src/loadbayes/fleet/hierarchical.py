@@ -115,6 +115,53 @@ class HierData:
     warnings: list[str]
 
 
+def _known_nominal(stats: FleetStats, model: ZIPModel) -> tuple[FleetStats, dict[int, list[str]]]:
+    """Per-bus statistics in per unit of each bus's own P0 (Q0) when they are ``auto``.
+
+    The pooled model is on the shares, so every bus needs a nominal power. With ``auto``
+    each bus's P0 is its least-squares level at V0 (the coefficient of the constant in
+    ``P = P0 + d1 (x^2 - 1) + d2 (x - 1)``), held fixed: its uncertainty is not carried
+    into the pooled posterior (it is small next to the shares' wherever V moved, since
+    P0 is an interpolation to V0, not an extrapolation). The Gram entries of
+    ``r = P / P0 - 1`` follow exactly from those of ``P``: ``z'r = z'P / P0 - z'1`` and
+    ``r'r = P'P / P0^2 - 2 1'P / P0 + n``.
+    """
+    chans = [("p", model.p0)] + ([("q", model.q0)] if model.with_q else [])
+    if all(nom != "auto" for _, nom in chans):
+        return stats, {}
+    names = list(stats.names)
+    one, z1, z2 = (names.index(c) for c in ("1", "z1", "z2"))
+    g = stats.gram.copy()
+    lo, hi = stats.col_min.copy(), stats.col_max.copy()
+    notes: dict[int, list[str]] = {}
+    new_names = list(names)
+    for ch, nom in chans:
+        j = names.index(ch if nom == "auto" else f"r{ch}")
+        if nom != "auto":
+            continue
+        for b in range(stats.buses.size):
+            a = g[b][np.ix_([one, z1, z2], [one, z1, z2])]
+            rhs = g[b][[one, z1, z2], j]
+            coef = np.linalg.lstsq(a, rhs, rcond=None)[0] if stats.n[b] else np.zeros(3)
+            level = float(coef[0]) if abs(coef[0]) > 0 else float(rhs[0] / max(stats.n[b], 1))
+            if not (np.isfinite(level) and level != 0):
+                level = 1.0
+            pp, p1 = g[b, j, j], g[b, one, j]
+            row = g[b, :, j] / level - g[b, :, one]
+            g[b, :, j] = row
+            g[b, j, :] = row
+            g[b, j, j] = pp / level**2 - 2.0 * p1 / level + stats.n[b]
+            ends = sorted((lo[b, j] / level - 1.0, hi[b, j] / level - 1.0))
+            lo[b, j], hi[b, j] = ends
+            notes.setdefault(b, []).append(f"{ch}0 = {level:.6g} estimated (least squares at V0)")
+        new_names[j] = f"r{ch}"
+    out = FleetStats(
+        tuple(new_names), stats.buses, stats.classes, g, stats.n, lo, hi, stats.bad,
+        stats.n_dropped,
+    )  # fmt: skip
+    return out, notes
+
+
 def prepare(stats: FleetStats, model: ZIPModel) -> tuple[HierData, pd.DataFrame]:
     """Split the fleet into buses to pool and warning rows for buses that cannot be.
 
@@ -122,8 +169,9 @@ def prepare(stats: FleetStats, model: ZIPModel) -> tuple[HierData, pd.DataFrame]
     a warning (its coefficients then come from its class). Rows beyond that are refused
     for the same reasons as a single-bus fit (:meth:`ZIPModel.check`).
     """
-    if "auto" in (model.p0, model.q0 if model.with_q else 1.0):
-        raise ValueError("--pool class needs known nominal powers (--p0/--q0, not 'auto')")
+    stats, nominal_notes = _known_nominal(stats, model)
+    if nominal_notes:
+        model = ZIPModel(v0=model.v0, p0=1.0, q0=1.0, with_q=model.with_q)
     iz = stats.names.index("z2")
     keep, warn, failed = [], [], []
     for i in range(stats.buses.size):
@@ -143,7 +191,7 @@ def prepare(stats: FleetStats, model: ZIPModel) -> tuple[HierData, pd.DataFrame]
                 failed.append((i, f"not fitted: {exc.message}"))
                 continue
         keep.append(i)
-        warn.append(" | ".join(w))
+        warn.append(" | ".join(w + nominal_notes.get(i, [])))
     idx = np.array(keep, dtype=np.int64)
     g = stats.gram[idx]
     ix = [stats.names.index(c) for c in ("z1", "z2")]

@@ -106,6 +106,7 @@ def run_fleet(
     progress_buses: Callable[[int], None] | None = None,
     on_stats: Callable[[FleetStats], None] | None = None,
     batch_buses: int = BATCH_BUSES,
+    accept_units: bool = False,
 ) -> FleetResult:
     """Fit ZIP to every bus of a fleet.
 
@@ -134,6 +135,8 @@ def run_fleet(
         Called with counts of files read and buses fitted.
     on_stats : callable, optional
         Called with the statistics once the map-reduce is done (before the fits).
+    accept_units : bool
+        Fit buses whose data do not look per unit instead of refusing them.
     batch_buses : int
         Buses per fitting task (results do not depend on it).
 
@@ -161,6 +164,7 @@ def run_fleet(
         force=force,
         progress_buses=progress_buses,
         batch_buses=batch_buses,
+        accept_units=accept_units,
     )
     return FleetResult(table, stats, files, eng.name)
 
@@ -178,12 +182,50 @@ def fit_fleet(
     force: bool = False,
     progress_buses: Callable[[int], None] | None = None,
     batch_buses: int = BATCH_BUSES,
+    accept_units: bool = False,
 ) -> pd.DataFrame:
-    """The fits of :func:`run_fleet` from statistics already computed (same options)."""
+    """The fits of :func:`run_fleet` from statistics already computed (same options).
+
+    Buses whose data do not look per unit (:func:`loadbayes.units.check_gram_units`)
+    get a warning row instead of a fit, unless ``accept_units``.
+    """
     if pool not in ("none", "class"):
         raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
     eng = engine or Engine()
     sampler = sampler or SamplerSettings()
+    refused = None
+    if not accept_units:
+        stats, refused = _refuse_unit_errors(stats, model)
+    frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
+                   progress_buses, batch_buses)  # fmt: skip
+    return concat(list(frames) + ([refused] if refused is not None else []))
+
+
+def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
+    """Buses whose data do not look per unit get a warning row instead of a fit."""
+    from loadbayes.fleet.summary import failed_rows
+    from loadbayes.units import check_gram_units
+
+    nominal = {"p": model.p0, **({"q": model.q0} if model.with_q else {})}
+    bad, reasons = [], []
+    for i in range(stats.buses.size):
+        if stats.bad[i] or stats.n[i] < 3:
+            continue  # refused with their own reasons by the fits
+        problems = check_gram_units(stats.bus_gram(i), v0=model.v0, nominal=nominal)
+        if problems:
+            bad.append(i)
+            reasons.append("not fitted: " + "; ".join(problems) + " (or --accept-units)")
+    if not bad:
+        return stats, None
+    keep = np.setdiff1d(np.arange(stats.buses.size), bad)
+    idx = np.asarray(bad)
+    rows = failed_rows(stats.buses[idx], stats.classes[idx], stats.n[idx], reasons)
+    return stats.subset(keep), rows
+
+
+def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
+          progress_buses, batch_buses):  # fmt: skip
+    """The per-bus or pooled fits of the buses that passed the checks (frames)."""
     if pool == "none":
         nb = stats.buses.size
         step = int(batch_buses)
@@ -211,7 +253,7 @@ def fit_fleet(
             frames = [hier.summarize_chains(data_h, chains, sampler), failed]
         if progress_buses:
             progress_buses(stats.buses.size)
-    return concat(frames)
+    return frames
 
 
 def _fit_batch(idx, stats, model, priors, sampler, netcdf_dir, force):

@@ -73,6 +73,8 @@ class SamplerUnderTest:
         Draws ``fit`` returns per parameter (``L`` in Talts et al.).
     notes : str
         Design, prior and thinning, for the report.
+    ci_replications : int, optional
+        Replications the CI test runs, when fewer than its default (an expensive fit).
     """
 
     name: str
@@ -82,6 +84,9 @@ class SamplerUnderTest:
     fit: Callable[[Any, int], Draws]
     kept: int
     notes: str = ""
+    #: Replications in CI when the default would exceed the test-time budget (None:
+    #: the test's default).
+    ci_replications: int | None = None
 
 
 # --------------------------------------------------------------------------- running

@@ -5,8 +5,13 @@ from __future__ import annotations
 import click
 
 from loadbayes.commands.options import (
+    OneLineCommand,
+    accept_units_option,
+    check_prior_sd,
     data_options,
+    distinct_columns,
     nominal,
+    nominal_note,
     nominal_options,
     output_options,
     parse_coef_priors,
@@ -16,6 +21,7 @@ from loadbayes.commands.options import (
 from loadbayes.commands.output import (
     Progress,
     UserError,
+    check_cost,
     check_outputs,
     estimate_rows,
     user_errors,
@@ -23,10 +29,14 @@ from loadbayes.commands.output import (
 )
 from loadbayes.commands.zip.fleet import fleet_options, run_fleet_command
 
+#: Parameters stored per draw and channel: three shares, tau, P0 (auto); Student-t adds nu.
+PER_CHANNEL = 5
 
-@click.command("zip")
+
+@click.command("zip", cls=OneLineCommand)
 @click.argument("data", type=str)
 @data_options()
+@accept_units_option
 @nominal_options()
 @click.option(
     "--scheme",
@@ -108,6 +118,7 @@ def fit_zip_cmd(
     conjugate,
     drop_invalid,
     chunk_rows,
+    accept_units,
     json_out,
     netcdf_out,
     plot_out,
@@ -124,13 +135,27 @@ def fit_zip_cmd(
     if fleet.get("fleet_out"):
         raise click.UsageError("--out is for a fleet (with --by); one bus writes --json, "
                                "--netcdf, --plot or just the table")  # fmt: skip
-    check_outputs({"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}, [data], force)
+    check_outputs(
+        {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out},
+        [data],
+        force,
+        stdout_ok=("--json",),
+    )
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col)
+    check_prior_sd(prior_sd, "--prior-sd")
+    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if scheme == "exact" and not conjugate:
         raise UserError("--scheme exact needs the conjugate prior: add --conjugate")
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     per_coef = parse_coef_priors(coef_priors)
+    for ch, val, names in (("p", p0_val, ("a1", "a2")), ("q", q0_val, ("a4", "a5"))):
+        if val == "auto" and any(n in per_coef for n in names):
+            raise UserError(
+                f"--prior on {'/'.join(n for n in names if n in per_coef)} needs a known "
+                f"nominal power: give --{ch}0 (e.g. --{ch}0 1 for data in per unit of it)"
+            )
     nu_val = _parse_nu(nu)
     if likelihood == "student-t" and scheme != "blocked":
         raise UserError(
@@ -139,6 +164,21 @@ def fit_zip_cmd(
         )
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
+    check_cost(
+        chains=chains, draws=draws, burn=burn, thin=thin,
+        n_params=PER_CHANNEL * (1 if q_col.lower() == "none" else 2)
+        + (1 if likelihood == "student-t" else 0),
+        netcdf_out=netcdf_out, quiet=quiet,
+    )  # fmt: skip
+    if note and not quiet:
+        click.echo(f"loadbayes: note: {note}", err=True)
+    # The priors the user set on shares sampled directly: said if the data add nothing.
+    prior_sds = {
+        n: per_coef.get(n, (prior_mean, prior_sd))[1]
+        for ch, val, names in (("p", p0_val, ("a1", "a2")), ("q", q0_val, ("a4", "a5")))
+        if val != "auto"
+        for n in names
+    }
 
     from loadbayes.fit import fit_zip_file, zip_priors
 
@@ -168,6 +208,7 @@ def fit_zip_cmd(
             drop_invalid=drop_invalid,
             chunk_rows=chunk_rows,
             quiet=quiet,
+            accept_units=accept_units,
             sampler={
                 "draws": draws,
                 "burn": burn,
@@ -193,6 +234,7 @@ def fit_zip_cmd(
             plot_out=plot_out,
             force=force,
             quiet=quiet,
+            prior_sd=prior_sds,
         )
         return
     progress = Progress("reading", estimate_rows(data), quiet)
@@ -219,6 +261,7 @@ def fit_zip_cmd(
             drop_invalid=drop_invalid,
             chunk_rows=chunk_rows,
             progress=progress,
+            accept_units=accept_units,
         )
     finally:
         progress.close()
@@ -231,6 +274,7 @@ def fit_zip_cmd(
         plot_out=plot_out,
         force=force,
         quiet=quiet,
+        prior_sd=prior_sds,
     )
 
 
@@ -250,7 +294,7 @@ def _parse_nu(value: str) -> float | str:
 
 
 def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base, priors,
-                   drop_invalid, chunk_rows, quiet, sampler):  # fmt: skip
+                   drop_invalid, chunk_rows, quiet, accept_units, sampler):  # fmt: skip
     """Read the file into memory and fit the Student-t ZIP; flagged samples as file rows."""
     from loadbayes.fit import accumulate, fit_robust
     from loadbayes.fit.core import MAX_OBSERVED
@@ -268,9 +312,14 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
         )  # fmt: skip
     finally:
         progress.close()
+    from loadbayes.fit.zip import data_checks
+
     model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in pc.cols)
     names = {"v": v_col, "p": p_col, "q": q_name}
-    warnings = []
+    warnings = data_checks(
+        pc.cols, path=data, names=names, accept_units=accept_units,
+        v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base,
+    )  # fmt: skip
     if pc.n_dropped:
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
     try:

@@ -180,6 +180,7 @@ def run_fleet_command(params: dict[str, Any]) -> None:
                 engine=engine,
                 netcdf_dir=p.get("netcdf_dir"),
                 force=p["force"],
+                accept_units=bool(p.get("accept_units")),
                 progress_files=file_progress,
                 progress_buses=bus_progress,
                 on_stats=stats_hook,

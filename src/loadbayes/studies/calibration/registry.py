@@ -23,6 +23,9 @@ given the coefficients, with one noise precision per block as the model has it.
 Student-t: ZIP P on the bus-18 band with t noise (nu fixed at 4, or drawn from the
 sampler's own prior on nu). Online: the tracker's last posterior, exact, over a sliding
 window, and with random-walk drift (then the truth is the end of the simulated walk).
+Composite: ``studies/calibration/composite_sbc.py`` (a short sag, the motor's scale-free
+coordinates, the seven linear coefficients and the noise precisions drawn from the fit's
+prior); 200 replications in CI (each fit runs a few thousand ODE solves).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.studies.calibration.composite_sbc import composite_sampler
 from loadbayes.testing.sbc import SamplerUnderTest, draw_block_prior
 
 __all__ = [
@@ -614,6 +618,16 @@ def _entries() -> list[SamplerUnderTest]:
             "integrated out) from its Gamma(2, 0.1) prior on [1, 1000]; 199 draws, thin 10",
             thin=10,
             kept=199,
+        ),
+        composite_sampler(
+            "composite-mwg",
+            thin=40,
+            kept=59,
+            burn=600,
+            ci_replications=200,
+            notes="composite ZIP + motor (adaptive Metropolis on the motor's scale-free "
+            "coordinates with the linear block integrated out, then beta and tau exact); "
+            "a 35% sag, 1.5 s at 30 samples/s; 59 draws one in 40 after 600",
         ),
         online_sampler(
             "online-exact",

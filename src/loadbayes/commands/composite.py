@@ -1,0 +1,258 @@
+"""``loadbayes fit composite FILES...``: ZIP + induction motor from terminal recordings.
+
+A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
+registers it under ``fit``. Heavy imports stay inside the function.
+"""
+
+from __future__ import annotations
+
+import math
+
+import click
+
+from loadbayes.commands.output import UserError, check_outputs, user_errors
+
+__all__ = ["fit_composite_cmd"]
+
+#: ``--prior`` names -> the sampled log-parameter they set.
+_PRIOR_NAMES = {
+    "rs": "log_rs",
+    "x_prime": "log_x_prime",
+    "dx": "log_dx",
+    "t_prime_s": "log_t_prime",
+    "h_s": "log_h",
+    "t0": "log_t0",
+}
+
+
+def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    out = {}
+    for item in items:
+        try:
+            name, rest = item.split("=", 1)
+            med_s, sd_s = rest.split(",", 1)
+            med, sd = float(med_s), float(sd_s)
+        except ValueError:
+            raise click.BadParameter(
+                f"{item!r}: expected NAME=MEDIAN,SD_LOG such as h_s=0.7,0.3",
+                param_hint="--prior",
+            ) from None
+        name = name.strip()
+        if name not in _PRIOR_NAMES:
+            raise click.BadParameter(
+                f"{item!r}: NAME must be one of {', '.join(_PRIOR_NAMES)}", param_hint="--prior"
+            )
+        if not (med > 0 and math.isfinite(med) and sd > 0 and math.isfinite(sd)):
+            raise click.BadParameter(
+                f"{item!r}: MEDIAN and SD_LOG must be positive and finite", param_hint="--prior"
+            )
+        out[_PRIOR_NAMES[name]] = (math.log(med), sd)
+    return out
+
+
+def _parse_torque(text: str) -> tuple[float, float, float]:
+    try:
+        a, b, c = (float(x) for x in text.split(","))
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected A,B,C", param_hint="--torque") from None
+    if not all(math.isfinite(x) for x in (a, b, c)) or abs(a + b + c - 1) > 1e-9:
+        raise click.BadParameter(f"{text!r}: A + B + C must be 1", param_hint="--torque")
+    return a, b, c
+
+
+@click.command("composite")
+@click.argument("files", nargs=-1, required=True, type=str)
+@click.option("--t-col", default="t_s", show_default=True, help="Time column (s).")
+@click.option("--v-col", default="v", show_default=True, help="Voltage-magnitude column.")
+@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
+@click.option("--q-col", default="q", show_default=True, help="Reactive-power column.")
+@click.option("--f-col", default=None, help="Frequency column in Hz [default: f if present].")
+@click.option(
+    "--angle-col", default=None, help="Voltage-angle column in rad [default: angle_rad if present]."
+)
+@click.option(
+    "--event-col", default="event", show_default=True, help="Event-id column (if present)."
+)
+@click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
+@click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
+@click.option(
+    "--f-hz",
+    type=click.FloatRange(min=0, min_open=True),
+    default=60.0,
+    show_default=True,
+    help="Nominal frequency (the motor's time base).",
+)
+@click.option(
+    "--torque",
+    default="1,0,0",
+    show_default=True,
+    metavar="A,B,C",
+    help="Load torque T0 (A w^2 + B w + C).",
+)
+@click.option(
+    "--prior",
+    "priors",
+    multiple=True,
+    metavar="NAME=MEDIAN,SD_LOG",
+    help="Log-normal prior of rs, x_prime, dx, t_prime_s, h_s or t0 (repeatable).",
+)
+@click.option(
+    "--draws",
+    type=click.IntRange(min=2),
+    default=10_000,
+    show_default=True,
+    help="Iterations per chain, burn-in included.",
+)
+@click.option(
+    "--burn",
+    type=click.IntRange(min=1),
+    default=3000,
+    show_default=True,
+    help="Burn-in (the proposal adapts during it, then freezes).",
+)
+@click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True)
+@click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option(
+    "--hdi-prob",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.95,
+    show_default=True,
+)
+@click.option(
+    "--json", "json_out", type=click.Path(dir_okay=False), required=True, help="Summary JSON."
+)
+@click.option("--netcdf", "netcdf_out", type=click.Path(dir_okay=False), help="All draws.")
+@click.option("--plot", "plot_out", type=click.Path(dir_okay=False), help="Figure.")
+@click.option(
+    "--baseline-json",
+    "baseline_out",
+    type=click.Path(dir_okay=False),
+    help="The NLS baseline (Gaussian approximation) in the same JSON contract.",
+)
+@click.option("--quiet", is_flag=True, help="No table on stdout.")
+@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
+@user_errors
+def fit_composite_cmd(
+    files,
+    t_col,
+    v_col,
+    p_col,
+    q_col,
+    f_col,
+    angle_col,
+    event_col,
+    v_base,
+    s_base,
+    f_hz,
+    torque,
+    priors,
+    draws,
+    burn,
+    chains,
+    thin,
+    seed,
+    hdi_prob,
+    json_out,
+    netcdf_out,
+    plot_out,
+    baseline_out,
+    quiet,
+    force,
+):
+    """Posterior of a composite load (ZIP + induction motor) from disturbance recordings.
+
+    Each FILE holds columns t_s, v, p, q (per unit, or with --v-base/--s-base), optionally
+    f (Hz) or angle_rad, and optionally an event column. All events are fitted jointly:
+    one motor, each event its own operating point and mix.
+    """
+    outputs = {
+        "--json": json_out,
+        "--netcdf": netcdf_out,
+        "--plot": plot_out,
+        "--baseline-json": baseline_out,
+    }
+    check_outputs(outputs, list(files), force)
+    if burn >= draws:
+        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
+    torque_abc = _parse_torque(torque)
+    prior_items = _parse_priors(priors)
+
+    import numpy as np
+
+    from loadbayes.event_files import read_events
+    from loadbayes.fit.composite import fit_composite, predictive_band
+    from loadbayes.fit.composite_problem import CompositePrior
+    from loadbayes.models.composite import THETA_NAMES
+
+    events = read_events(
+        list(files),
+        t_col=t_col,
+        v_col=v_col,
+        p_col=p_col,
+        q_col=q_col,
+        f_col=f_col,
+        angle_col=angle_col,
+        event_col=event_col,
+        v_base=v_base,
+        s_base=s_base,
+        f_hz=f_hz,
+    )
+    prior = CompositePrior.default(events)
+    if prior_items:
+        mean, sd = prior.theta_mean.copy(), prior.theta_sd.copy()
+        for name, (m, s) in prior_items.items():
+            i = THETA_NAMES.index(name)
+            mean[i], sd[i] = m, s
+        prior = CompositePrior(mean, sd, prior.beta_sd, prior.tau_shape, prior.tau_rate)
+    if not quiet:
+        n = sum(e.n for e in events)
+        click.echo(
+            f"fitting {len(events)} event(s), {n} samples: NLS start, then sampling", err=True
+        )
+    fit = fit_composite(
+        events,
+        prior=prior,
+        f_hz=f_hz,
+        torque=torque_abc,
+        draws=draws,
+        burn=burn,
+        thin=thin,
+        chains=chains,
+        seed=seed,
+        settings={"files": list(files)},
+    )
+    post = fit.posterior
+    table = post.summary(hdi_prob=hdi_prob)
+    written: list[str] = []
+    try:
+        post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
+        written.append(str(json_out))
+        if baseline_out:
+            fit.baseline.to_json(baseline_out, hdi_prob=hdi_prob, force=force)
+            written.append(str(baseline_out))
+        if netcdf_out:
+            post.to_netcdf(netcdf_out, force=force)
+            written.append(str(netcdf_out))
+        if plot_out:
+            from loadbayes.plots import save_figure
+            from loadbayes.plots_composite import plot_composite
+
+            bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=seed)
+            fig = plot_composite(post, events, bands, baseline=fit.baseline)
+            save_figure(fig, plot_out, force=force)
+            written.append(str(plot_out))
+    except KeyboardInterrupt as exc:
+        exc.written = written  # type: ignore[attr-defined]
+        raise
+    for w in post.warnings:
+        click.echo(f"loadbayes: warning: {w}", err=True)
+    if not quiet:
+        names = ["p0", "q0", "f_m", "a1", "a2", "a3", "a4", "a5", "a6"]
+        names += ["rs", "x_prime", "x_open", "t_prime_s", "h_s", "t0", "mva_m", "q_c"]
+        cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
+        click.echo(f"composite posterior, {post.method}, {len(events)} event(s)")
+        click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"))
+        click.echo(post.extra_json["identifiability"]["summary"])
+        acc = np.round(post.settings["acceptance"], 3).tolist()
+        click.echo(f"Metropolis acceptance per chain: {acc}")

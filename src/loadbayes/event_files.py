@@ -1,0 +1,205 @@
+"""Read recorded disturbance events (t, V, P, Q [, f or angle] [, event]) and check them.
+
+One file is one event, or several when it has an event column. Bad input raises
+:class:`~loadbayes.io.errors.DataError` naming the file, the column and the row: a time
+that does not increase, a gap in the sampling, an event too short for the motor's time
+constants, a voltage that never changes, too few samples.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from loadbayes.io.errors import DataError
+from loadbayes.models.composite import Event
+
+__all__ = ["MIN_DV", "MIN_SAMPLES", "MIN_SPAN_S", "MAX_GAP", "events_from_arrays", "read_events"]
+
+#: Shortest event (s): about twice the typical motor's T' (0.5 s), so that the flux
+#: transient is seen settling; a record shorter than that cannot inform T'.
+MIN_SPAN_S = 1.0
+#: Fewest samples per event.
+MIN_SAMPLES = 20
+#: Smallest voltage excursion (max - min, as a fraction of the first sample's voltage):
+#: below it the motor's response is lost in the noise and nothing dynamic is identified.
+MIN_DV = 0.01
+#: A sampling interval larger than this multiple of the median interval is a gap.
+MAX_GAP = 2.5
+
+
+def events_from_arrays(
+    cols: dict[str, np.ndarray],
+    rows: np.ndarray,
+    *,
+    path: str,
+    names: dict[str, str],
+    f_hz: float = 60.0,
+) -> list[Event]:
+    """Split and check in-memory columns ``t, v, p, q`` [``f``, ``angle``, ``event``].
+
+    Parameters
+    ----------
+    cols : dict of str to ndarray
+        Per-unit columns keyed ``t, v, p, q`` and optionally ``f`` (Hz), ``angle`` (rad),
+        ``event`` (any numbers: one event per distinct value, in order of appearance).
+    rows : ndarray of int
+        The 1-based data row of each sample in the file (for error messages).
+    path : str
+        The file, for error messages.
+    names : dict of str to str
+        The user's column names for ``t, v, p, q, f, angle, event``.
+    f_hz : float
+        Nominal frequency: the frame an ``f`` column's angle is integrated against.
+
+    Returns
+    -------
+    list of Event
+    """
+    if "t" not in cols:
+        raise DataError("missing column (the event's sample times in seconds)", path, names["t"])
+    if "event" in cols:
+        ids, first = np.unique(cols["event"], return_index=True)
+        order = ids[np.argsort(first)]
+        groups = [(f"{path}[event={_fmt(i)}]", cols["event"] == i) for i in order]
+    else:
+        groups = [(path, np.ones(rows.size, dtype=bool))]
+    out = []
+    for label, mask in groups:
+        sub = {k: v[mask] for k, v in cols.items()}
+        out.append(_check(sub, rows[mask], path=path, label=label, names=names, f_hz=f_hz))
+    return out
+
+
+def _fmt(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() else f"{x:g}"
+
+
+def _check(cols, rows, *, path, label, names, f_hz) -> Event:
+    t, v = cols["t"], cols["v"]
+    where = f"{path}" if label == path else label
+    if t.size < MIN_SAMPLES:
+        raise DataError(
+            f"{where}: only {t.size} samples; an event needs at least {MIN_SAMPLES}",
+            path,
+            names["t"],
+            int(rows[-1]) if rows.size else None,
+        )
+    dt = np.diff(t)
+    bad = np.flatnonzero(~(dt > 0))
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise DataError(
+            f"time does not increase (t = {t[k]:g} s after {t[k - 1]:g} s)"
+            + ("" if label == path else f" in {label}"),
+            path,
+            names["t"],
+            int(rows[k]),
+        )
+    step = float(np.median(dt))
+    gaps = np.flatnonzero(dt > MAX_GAP * step)
+    if gaps.size:
+        k = int(gaps[0]) + 1
+        raise DataError(
+            f"gap of {dt[k - 1]:g} s in the sampling (median interval {step:g} s); split the "
+            "record into events at the gap, or fill it",
+            path,
+            names["t"],
+            int(rows[k]),
+        )
+    span = float(t[-1] - t[0])
+    if span < MIN_SPAN_S:
+        raise DataError(
+            f"{where}: the event lasts {span:g} s, shorter than the motor's time constants "
+            f"(at least {MIN_SPAN_S:g} s is needed to see the flux transient settle)",
+            path,
+            names["t"],
+            int(rows[-1]),
+        )
+    v0 = float(v[0])
+    dv = float(np.max(v) - np.min(v)) / v0
+    if dv < MIN_DV:
+        raise DataError(
+            f"{where}: the voltage never changes by more than {100 * MIN_DV:g}% "
+            f"(range {100 * dv:.3g}%): there is no disturbance to identify the motor from",
+            path,
+            names["v"],
+            int(rows[int(np.argmax(np.abs(v - v0)))]),
+        )
+    delta = None
+    if "angle" in cols:
+        delta = np.unwrap(cols["angle"])
+    elif "f" in cols:
+        f = cols["f"]
+        if not np.all(np.abs(f / f_hz - 1) < 0.2):
+            k = int(np.flatnonzero(~(np.abs(f / f_hz - 1) < 0.2))[0])
+            raise DataError(
+                f"frequency {f[k]:g} Hz is more than 20% off the nominal {f_hz:g} Hz "
+                "(is the column in Hz, and --f-hz right?)",
+                path,
+                names["f"],
+                int(rows[k]),
+            )
+        # The voltage angle in the frame rotating at f_hz: the integral of 2 pi (f - f_hz).
+        w = 2 * math.pi * (f - f_hz)
+        delta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)])
+    return Event(t - t[0], v, cols["p"], cols["q"], delta, label)
+
+
+def read_events(
+    paths: Sequence[str],
+    *,
+    t_col: str = "t_s",
+    v_col: str = "v",
+    p_col: str = "p",
+    q_col: str = "q",
+    f_col: str | None = None,
+    angle_col: str | None = None,
+    event_col: str = "event",
+    v_base: float | None = None,
+    s_base: float | None = None,
+    f_hz: float = 60.0,
+) -> list[Event]:
+    """Read every file's events (CSV or Parquet; columns as named, per unit after bases).
+
+    ``f_col`` and ``angle_col`` default to ``f`` and ``angle_rad`` when present (the angle
+    wins when both are); ``event_col`` is used when present.
+    """
+    from loadbayes.measurements import read_power_columns
+
+    out: list[Event] = []
+    for path in paths:
+        extra = tuple(c for c in (f_col or "f", angle_col or "angle_rad", event_col) if c)
+        pc = read_power_columns(
+            path,
+            v_col=v_col,
+            p_col=p_col,
+            q_col=q_col,
+            q_required=True,
+            t_col=t_col,
+            extra=extra,
+            v_base=v_base,
+            s_base=s_base,
+        )
+        cols = dict(pc.cols)
+        f_name, a_name = f_col or "f", angle_col or "angle_rad"
+        for want, given, key in ((f_col, f_name, "f"), (angle_col, a_name, "angle")):
+            if given in pc.extra:
+                cols[key] = pc.extra[given]
+            elif want:
+                raise DataError("missing column", str(path), want)
+        if event_col in pc.extra:
+            cols["event"] = pc.extra[event_col]
+        names = {
+            "t": t_col,
+            "v": v_col,
+            "p": p_col,
+            "q": q_col,
+            "f": f_name,
+            "angle": a_name,
+            "event": event_col,
+        }
+        out += events_from_arrays(cols, pc.rows, path=str(path), names=names, f_hz=f_hz)
+    return out

@@ -1,0 +1,177 @@
+"""Export a fitted ZIP or composite load as an ANDES case (xlsx or json, ANDES's own writers).
+
+The case (:mod:`loadbayes.cases.andes_case`) is the load on its bus behind a stand-in
+network (an infinite bus and two lines) whose source voltage puts the load bus at ``v0``:
+
+- the static part as a ``PQ`` (its power at ``v0``) replaced in the time domain by a
+  ``ZIP`` with ``kpz, kpi, kpp = 100 (a1, a2, a3)`` and ``kqz, kqi, kqp = 100 (a4, a5, a6)``;
+  ANDES refers the shares to the power-flow voltage, which is ``v0`` here;
+- for ``model="composite"`` the motor as a ``Motor3`` on its own rating
+  ``Sn = mva_m * base_mva``, load torque ``c1, c2, c3`` on the system base
+  (docs/andes.md), and, when ``q_c`` is not zero, a ``Shunt`` with ``b = q_c / v0^2``.
+
+Copy the load bus's devices into your own network, or run the case as it is with a
+``Fault`` added at the network bus. ANDES 2.0 starts ``Motor3`` at standstill in its
+power flow and diverges for a running motor; call
+:func:`loadbayes.cases.andes_motor3.solve_power_flow` instead of ``PFlow.run``. The
+posterior summary and these notes go to a sidecar ``<case file name>.summary.txt``.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from loadbayes.io.atomic import atomic_write
+
+__all__ = ["FORMAT", "SUFFIXES", "write"]
+
+FORMAT = "andes"
+SUFFIXES: tuple[str, ...] = (".xlsx", ".json")
+
+_MODELS = ("zip", "composite")
+
+
+def _values_with_power(values: Mapping[str, float], options: Mapping[str, Any]) -> dict:
+    out = dict(values)
+    base = float(options.get("base_mva", 100.0))
+    for key, option in (("p0", "p_mw"), ("q0", "q_mvar")):
+        if key not in out:
+            if option not in options:
+                raise ValueError(
+                    f"the posterior has no '{key}'; give the load's power as the option "
+                    f"'{option}' (MW or Mvar at v0)"
+                )
+            out[key] = float(options[option]) / base
+    return out
+
+
+def _sidecar(out: Path) -> Path:
+    # Named after the whole file name, so an .xlsx and a .json export never share one.
+    return out.with_name(out.name + ".summary.txt")
+
+
+def write(
+    values: Mapping[str, float],
+    out: Path,
+    *,
+    model: str,
+    header: Sequence[str],
+    options: Mapping[str, Any],
+) -> list[Path]:
+    """Write one parameter set as an ANDES case, and its summary as a sidecar.
+
+    Parameters
+    ----------
+    values : mapping
+        One parameter set (naming contract): ``a1..a6``, ``p0``, ``q0``, optional ``v0``
+        and ``q_c``; for ``"composite"`` also ``f_m, rs, xs, xm, rr, xr, h_s, t0`` and
+        optional ``a, b, c, f_hz``.
+    out : Path
+        The case file; its suffix (``.xlsx`` or ``.json``) picks ANDES's writer.
+    model : {"zip", "composite"}
+        The fitted model. ``"exponential"`` is refused: ANDES has no exponential static
+        load.
+    header : sequence of str
+        Lines of the posterior summary, written to the sidecar.
+    options : mapping
+        ``base_mva`` (default 100), ``bus`` (load bus idx, default 3), ``z_src`` (source
+        impedance, complex, default 0.01 + 0.1j), ``p_mw``/``q_mvar`` when ``values`` has
+        no ``p0``/``q0``.
+
+    Returns
+    -------
+    list of Path
+        The case file and the sidecar, each written atomically (the caller has checked
+        ``--force``, so existing files are replaced).
+
+    Raises
+    ------
+    ValueError
+        For another model or suffix, missing or inconsistent values.
+    """
+    if model not in _MODELS:
+        hint = " (ANDES has no exponential static load)" if model == "exponential" else ""
+        raise ValueError(f"ANDES export takes model 'zip' or 'composite', not {model!r}{hint}")
+    out = Path(out)
+    if out.suffix.lower() not in SUFFIXES:
+        raise ValueError(f"ANDES export writes {' or '.join(SUFFIXES)}, not '{out.suffix}'")
+
+    from loadbayes.cases.andes_case import CompositeCase
+
+    base = float(options.get("base_mva", 100.0))
+    z_src = complex(options.get("z_src", complex(0.01, 0.1)))
+    case = CompositeCase.from_values(
+        _values_with_power(values, options),
+        with_motor=model == "composite",
+        base_mva=base,
+        z_src=z_src,
+    )
+    bus = int(options.get("bus", 3))
+    system, devices = _build(case, bus)
+    with atomic_write(out, force=True) as tmp:
+        _write_case(system, Path(tmp))
+    sidecar = _sidecar(out)
+    with atomic_write(sidecar, force=True, mode="w") as fh:
+        fh.write(_summary(header, values, case, devices, out, model))
+    return [out, sidecar]
+
+
+def _build(case: Any, bus: int) -> tuple[Any, dict[str, Any]]:
+    import andes
+
+    from loadbayes.cases.andes_case import add_composite
+    from loadbayes.cases.andes_motor3 import andes_quiet
+
+    with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
+        system = andes.System(no_output=True, default_config=True, output_path=tmp)
+        ids = add_composite(system, case, load_bus=bus)
+    return system, ids
+
+
+def _write_case(system: Any, path: Path) -> None:
+    from andes.io import json as andes_json
+    from andes.io import xlsx as andes_xlsx
+
+    from loadbayes.cases.andes_motor3 import andes_quiet
+
+    writer = andes_xlsx if path.suffix.lower() == ".xlsx" else andes_json
+    with andes_quiet():
+        ok = writer.write(system, str(path), overwrite=True)
+    if not ok:
+        raise RuntimeError(f"ANDES did not write {path}")
+
+
+def _summary(header, values, case, devices, out: Path, model: str) -> str:
+    lines = [f"# loadbayes export to ANDES: {out.name} ({model})", "#"]
+    lines += [f"# {line}" for line in header]
+    lines += ["#", "# Parameter set exported (naming contract, system p.u.):"]
+    lines += [f"#   {k} = {float(v):.10g}" for k, v in sorted(values.items())]
+    lines += [
+        "#",
+        f"# Load bus idx {devices['load_bus']} at v0 = {case.v0:.6g} p.u.; network bus idx "
+        f"{devices['net_bus']} (put a Fault there); base {case.base_mva:g} MVA.",
+        f"# PQ 1 (static part at v0): p0 = {case.static_pq.real:.10g}, "
+        f"q0 = {case.static_pq.imag:.10g}; ZIP 1 replaces it in the time domain.",
+    ]
+    if case.motor is not None:
+        fields = ", ".join(f"{k}={v:.6g}" for k, v in case.motor3().items())
+        lines += [
+            f"# Motor3 1: {fields}",
+            f"#   mva_m = {case.mva_m:.10g} (system p.u.), t0 = {case.t0:.10g} (own base); "
+            "c1..c3 are on the system base (docs/andes.md).",
+        ]
+    if devices["shunt"] is not None:
+        lines.append(f"# Shunt 1: b = {case.q_c / case.v0**2:.10g} (q_c = {case.q_c:.10g} at v0)")
+    lines += [
+        "#",
+        "# ANDES 2.0's power flow starts Motor3 at standstill and diverges for a running",
+        "# motor. Run it with:",
+        "#   ss = andes.load(path, setup=False); ss.add('Fault', {...}); ss.setup()",
+        "#   from loadbayes.cases.andes_motor3 import solve_power_flow; solve_power_flow(ss)",
+        "#   ss.TDS.run()",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,334 @@
+"""Do the data look like per unit? The check every reader of V, P, Q runs before a fit.
+
+A load model is fitted in per unit of its nominal point: ``x = V / V0`` near 1, and
+``P / P0`` (``Q / Q0``) near 1 at ``V = V0`` when the nominal power is given. Data in kV,
+MW or kvar without the matching base give a fit that runs, converges and means nothing
+(the ZIP constraint ``a1 + a2 + a3 = 1`` then holds far from every sample). These
+functions look at the arrays, say what they saw, and name the option that fixes it.
+
+They take plain arrays and return a list of :class:`UnitProblem` (empty when the data
+look right), so a fleet (per bus) or a recording reader calls them the same way as
+``fit zip``; :func:`refuse` turns the problems into one :class:`DataError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from loadbayes.io.errors import DataError
+
+__all__ = [
+    "UnitProblem",
+    "check_gram_units",
+    "check_motor_units",
+    "check_power_units",
+    "level_at_nominal",
+    "refuse",
+]
+
+#: ``median(V / V0)`` outside this range is not per unit of V0.
+V_RANGE = (0.7, 1.3)
+#: ``P / P0`` at ``V = V0`` (from the data) outside this range: P0 is not the power at V0.
+NOMINAL_RANGE = (1 / 1.5, 1.5)
+#: With ``auto`` nominal power, powers above this are not per unit of any sensible base
+#: (and the weak prior of P0, sd 1e4, would no longer be weak).
+AUTO_MAX = 1e3
+#: The option that accepts unusual data.
+ACCEPT = "--accept-units"
+
+# Common nominal voltages (kV and V) offered as the --v-base a median is close to.
+_STANDARD_V = (
+    0.12, 0.208, 0.22, 0.23, 0.24, 0.4, 0.415, 0.48, 0.6, 2.4, 3.3, 4.16, 6.6, 10, 11,
+    12.47, 12.66, 13.2, 13.8, 20, 22, 24.9, 33, 34.5, 66, 69, 110, 115, 132, 138, 220,
+    230, 345, 380, 400, 500, 765, 120, 208, 240, 415, 480, 690,
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class UnitProblem:
+    """What looks wrong with one column, and which option fixes it.
+
+    Attributes
+    ----------
+    column : str
+        ``"v"``, ``"p"`` or ``"q"`` (or a motor column).
+    seen : str
+        What the data show, in numbers.
+    fix : str
+        The option(s) that fix it.
+    """
+
+    column: str
+    seen: str
+    fix: str
+
+    def __str__(self) -> str:
+        return f"{self.seen}; {self.fix} (or {ACCEPT} if the data are right)"
+
+
+def _suggest_base(raw_median: float) -> str:
+    """``--v-base X`` for the data's median V: a standard voltage when one is close."""
+    near = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median / s)))
+    if abs(raw_median / near - 1) < 0.08:
+        return f"--v-base {near:g}"
+    line = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median * np.sqrt(3) / s)))
+    if abs(raw_median * np.sqrt(3) / line - 1) < 0.05:
+        return (
+            f"--v-base {raw_median:.4g} (line-to-neutral data of a {line:g} system: "
+            f"{line:g}/sqrt(3))"
+        )
+    return f"--v-base {raw_median:.4g}"
+
+
+def level_at_nominal(x: np.ndarray, y: np.ndarray) -> float:
+    """``y`` at ``x = 1`` by least squares on (1, x^2 - 1, x - 1): the ZIP model's own form.
+
+    Parameters
+    ----------
+    x : ndarray
+        Voltage in per unit of V0.
+    y : ndarray
+        Power (any units).
+
+    Returns
+    -------
+    float
+        The fitted power at ``V = V0`` (the median of ``y`` when V has no spread).
+    """
+    dx = x - 1.0
+    with np.errstate(all="ignore"):
+        a = np.column_stack([np.ones_like(x), dx * (x + 1.0), dx])
+    with np.errstate(all="ignore"):  # an absurd value is refused elsewhere by name
+        if not np.isfinite(a).all() or np.ptp(x) < 1e-9:
+            return float(np.median(y))  # no usable spread: the level at the V there is
+        coef, *_ = np.linalg.lstsq(a, y, rcond=1e-10)
+    return float(coef[0])
+
+
+def check_power_units(
+    v: np.ndarray,
+    p: np.ndarray | None = None,
+    q: np.ndarray | None = None,
+    *,
+    v0: float = 1.0,
+    p0: float | str = 1.0,
+    q0: float | str = 1.0,
+    v_base: float | None = None,
+    s_base: float | None = None,
+) -> list[UnitProblem]:
+    """Problems with the units of V, P, Q as a ZIP or exponential model sees them.
+
+    Parameters
+    ----------
+    v, p, q : ndarray
+        Voltage and powers after the bases (``V / v_base``, ``P / s_base``); ``p`` or
+        ``q`` may be None.
+    v0, p0, q0 : float or "auto"
+        The nominal point the model uses, in the same units.
+    v_base, s_base : float, optional
+        The bases already applied (to suggest a better one in the data's own units).
+
+    Returns
+    -------
+    list of UnitProblem
+        Empty when the data look like per unit of the nominal point.
+
+    Notes
+    -----
+    Three checks, each a factor of about 1.5 wide so that a genuine sag record or a
+    load off its rating passes: the median of ``V / V0`` lies in ``[0.7, 1.3]``; with a
+    given P0, the power at ``V = V0`` (the intercept of the model's own least-squares
+    form ``y = c + d1 (x^2 - 1) + d2 (x - 1)``) is within ``[1/1.5, 1.5]`` of P0; with
+    ``auto``, ``|P|`` has a median below 1e3 (beyond, the data are in W or kW).
+    """
+    v = np.asarray(v, dtype=float)
+    ok = np.isfinite(v)
+    out: list[UnitProblem] = []
+    if not ok.any():
+        return out
+    x = v[ok] / v0
+    med = float(np.median(x))
+    if not V_RANGE[0] <= med <= V_RANGE[1]:
+        raw = med * v0 * (v_base or 1.0)
+        given = f" with --v-base {v_base:g}" if v_base else ""
+        v0_txt = f" and --v0 {v0:g}" if v0 != 1.0 else ""
+        out.append(
+            UnitProblem(
+                "v",
+                f"V / V0 has median {med:.4g}{given}{v0_txt}, not about 1: the voltage is "
+                "not per unit",
+                f"give the system's nominal voltage in the data's units with --v-base (V's "
+                f"median is {raw:.4g}: {_suggest_base(raw)} if that is near nominal)",
+            )
+        )
+        return out  # the power checks need a per-unit x
+    for ch, y, nom, opt in (("p", p, p0, "--p0"), ("q", q, q0, "--q0")):
+        if y is None:
+            continue
+        y = np.asarray(y, dtype=float)[ok]
+        fin = np.isfinite(y)
+        if fin.sum() < 3:
+            continue
+        if nom == "auto":
+            big = float(np.median(np.abs(y[fin])))
+            if big > AUTO_MAX:
+                out.append(
+                    UnitProblem(
+                        ch,
+                        f"{ch.upper()} has median magnitude {big:.4g}: not per unit of any "
+                        "sensible power base",
+                        f"give the power base in the data's units with --s-base (e.g. "
+                        f"--s-base {10 ** np.floor(np.log10(big)):g})",
+                    )
+                )
+            continue
+        level = level_at_nominal(x[fin], y[fin] / float(nom))
+        if not NOMINAL_RANGE[0] <= level <= NOMINAL_RANGE[1]:
+            raw = level * float(nom) * (s_base or 1.0)
+            out.append(
+                UnitProblem(
+                    ch,
+                    f"{ch.upper()} / {ch.upper()}0 is about {level:.4g} at V = V0 (from the "
+                    f"data), not 1: {opt} {nom:g} is not the load's {ch.upper()} at V0 "
+                    f"(the data say about {raw:.4g} in their own units)",
+                    f"let loadbayes estimate it with {opt} auto, or give the right {opt} "
+                    "(with --s-base for data in MW, kW or kvar)",
+                )
+            )
+    return out
+
+
+#: Plausible per-unit magnitudes of the motor's states: (column(s), low, high, what).
+_MOTOR = (
+    (("ud", "uq"), 0.3, 1.5, "terminal voltage |u|"),
+    (("w",), 0.5, 1.5, "rotor speed w"),
+    (("id", "iq"), 0.0, 10.0, "stator current |i|"),
+    (("ed", "eq"), 0.0, 3.0, "internal voltage |e|"),
+)
+
+
+def check_motor_units(cols: Mapping[str, np.ndarray]) -> list[UnitProblem]:
+    """Problems with the units of an induction motor's states (``fit im``'s columns).
+
+    Parameters
+    ----------
+    cols : mapping
+        Arrays ``ud, uq, w, id, iq, ed, eq`` (those present are checked).
+
+    Returns
+    -------
+    list of UnitProblem
+        Empty when the medians look like per unit: ``|u|`` in [0.3, 1.5], ``w`` in
+        [0.5, 1.5], ``|i|`` below 10, ``|e|`` below 3.
+    """
+    out = []
+    for names, lo, hi, what in _MOTOR:
+        if not all(n in cols for n in names):
+            continue
+        mag = np.sqrt(sum(np.asarray(cols[n], dtype=float) ** 2 for n in names))
+        mag = mag[np.isfinite(mag)]
+        if mag.size == 0:
+            continue
+        med = float(np.median(mag))
+        if not lo <= med <= hi:
+            hint = (
+                " (rad/s or rpm?)"
+                if names == ("w",) and med > hi
+                else " (V, kV or A?)"
+                if med > hi
+                else ""
+            )
+            out.append(
+                UnitProblem(
+                    "/".join(names),
+                    f"{what} has median {med:.4g}{hint}: not per unit",
+                    "convert the recording to per unit of the motor's base (fit im reads "
+                    "per-unit states and derivatives per second)",
+                )
+            )
+    return out
+
+
+def refuse(
+    problems: list[UnitProblem],
+    *,
+    path: str | None = None,
+    names: Mapping[str, str | None] | None = None,
+) -> None:
+    """Raise one :class:`DataError` for the first problem, naming the user's column.
+
+    Parameters
+    ----------
+    problems : list of UnitProblem
+        From :func:`check_power_units` or :func:`check_motor_units`; nothing happens
+        when it is empty.
+    path : str, optional
+        The file, for the message.
+    names : mapping, optional
+        The user's column names (``{"v": "V_kV", ...}``).
+
+    Raises
+    ------
+    DataError
+        When ``problems`` is not empty.
+    """
+    if not problems:
+        return
+    first = problems[0]
+    column = (names or {}).get(first.column) or first.column
+    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+    raise DataError(str(first) + more, path=path, column=column)
+
+
+def check_gram_units(gram, *, v0: float, nominal: Mapping[str, object]) -> list[str]:
+    """The unit check of one bus from its ZIP Gram matrix alone (fleets keep no rows).
+
+    Parameters
+    ----------
+    gram : loadbayes.core.stats.Gram
+        Columns of :class:`~loadbayes.models.zip.ZIPModel`: ``z1, z2, 1`` and ``rp``/``p``
+        (``rq``/``q``).
+    v0 : float
+        Nominal voltage of the model.
+    nominal : mapping
+        ``{"p": P0 or "auto", "q": ...}`` for the channels present.
+
+    Returns
+    -------
+    list of str
+        Plain-words problems (empty when the bus looks per unit). The mean stands in for
+        the median of :func:`check_power_units`.
+    """
+    names = list(gram.names)
+    n = max(int(gram.n), 1)
+    one = names.index("1")
+    x_mean = 1.0 + float(gram.matrix[names.index("z2"), one]) / n
+    out = []
+    if not (V_RANGE[0] <= x_mean <= V_RANGE[1]):
+        out.append(
+            f"voltage averages {x_mean:.4g} times v0 ({x_mean * v0:.4g}): not per unit "
+            f"({_suggest_base(x_mean * v0)})"
+        )
+        return out
+    idx = [names.index(c) for c in ("1", "z1", "z2")]
+    a = gram.matrix[np.ix_(idx, idx)]
+    for ch, nom in nominal.items():
+        col = ch if nom == "auto" else f"r{ch}"
+        if col not in names:
+            continue
+        coef = np.linalg.lstsq(a, gram.matrix[idx, names.index(col)], rcond=None)[0]
+        level = float(coef[0])
+        if nom == "auto" and abs(level) > AUTO_MAX:
+            out.append(
+                f"{ch.upper()} at V0 is about {level:.4g}: not per unit of any sensible base "
+                "(give --s-base)"
+            )
+        elif nom != "auto" and not (NOMINAL_RANGE[0] <= 1.0 + level <= NOMINAL_RANGE[1]):
+            out.append(
+                f"{ch.upper()} at V0 is {1.0 + level:.3g} times the given {ch}0: "
+                f"not the power at V0 (give --{ch}0 auto, or --s-base)"
+            )
+    return out

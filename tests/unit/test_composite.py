@@ -1,0 +1,126 @@
+"""The composite model's physics, its linear block and the NLS start."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.cases.motor_sim import MOTORS
+from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, nls, theta_of
+from loadbayes.models.composite import (
+    SCALE_FREE_MATRIX,
+    composition,
+    design,
+    motor_physical,
+    motor_response,
+    predict,
+)
+
+
+def _theta(name, t0=0.6):
+    m = MOTORS[name]
+    return np.log([m.rs, m.xp, m.x - m.xp, m.tp_s, m.h_s, t0])
+
+
+def _beta(truth):
+    pz = truth["p0"] * (1 - truth["f_m"])
+    return np.array(
+        [pz * truth["a1"], pz * truth["a2"], pz * truth["a3"]]
+        + [truth["q0"] * truth[a] for a in ("a4", "a5", "a6")]
+        + [truth["f_m"] * truth["p0"]]
+    )
+
+
+@pytest.mark.parametrize("name", sorted(MOTORS))
+def test_model_reproduces_the_scipy_simulation(name):
+    # The independent generator (solve_ivp) and the model (compiled kernel) agree.
+    ev, truth = simulate_event(name, depth=0.4, noise=0.0, zip_p=(0.6, -0.3, 0.7), t_end_s=2.0)
+    p, q = predict(ev, _theta(name), _beta(truth))
+    assert np.max(np.abs(p - truth["p_clean"])) < 1e-4
+    assert np.max(np.abs(q - truth["q_clean"])) < 1e-4
+
+
+def test_composition_inverts_the_truth():
+    ev, truth = simulate_event("large_industrial", depth=0.3, noise=0.0, zip_q=(1.2, -0.5, 0.3))
+    pm, qm = motor_response(ev, _theta("large_industrial"))
+    comp = composition(_beta(truth), pm[0], qm[0])
+    for k in ("p0", "q0", "a1", "a2", "a3", "a4", "a5", "a6", "f_m", "mva_m", "q_c"):
+        assert comp[k] == pytest.approx(truth[k], rel=1e-9, abs=1e-12), k
+
+
+def test_a_change_of_motor_base_leaves_p_and_q_unchanged():
+    # The symmetry the scale-free coordinates rest on: Z * k, T0 / k, H / k.
+    ev, _ = simulate_event("small_industrial", depth=0.35, noise=0.0)
+    th = _theta("small_industrial")
+    k = np.log(2.7)
+    th2 = th + np.array([k, k, k, 0.0, -k, -k])
+    p1, q1 = motor_response(ev, th)
+    p2, q2 = motor_response(ev, th2)
+    np.testing.assert_allclose(p1, 2.7 * p2, rtol=1e-9)
+    np.testing.assert_allclose(q1, 2.7 * q2, rtol=1e-9)
+    z1, z2 = design(ev, p1, q1), design(ev, p2, q2)
+    np.testing.assert_allclose(z1[0], z2[0], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(z1[1], z2[1], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(SCALE_FREE_MATRIX[:5] @ th, SCALE_FREE_MATRIX[:5] @ th2, atol=1e-12)
+
+
+def test_theta_of_inverts_the_scale_free_map():
+    th = _theta("krause_2250hp", t0=0.45)
+    u = (SCALE_FREE_MATRIX @ th)[:5]
+    np.testing.assert_allclose(theta_of(u, np.log(0.45)), th, atol=1e-12)
+
+
+def test_closure_recovers_a_krause_motor():
+    m = MOTORS["krause_3hp"]  # Xs = Xr: the closure is exact
+    phys = motor_physical(_theta("krause_3hp"), f_hz=60.0)
+    for k in ("rs", "xs", "xm", "rr", "xr", "h_s"):
+        assert phys[k] == pytest.approx(getattr(m, k), rel=1e-9), k
+    assert phys["t_prime_s"] == pytest.approx(m.tp_s)
+
+
+def test_prior_conditional_of_t0_is_the_gaussian_conditional():
+    prior = CompositePrior.default([simulate_event(noise=0.0)[0]])
+    rng = np.random.default_rng(3)
+    th = prior.theta_mean + prior.theta_sd * rng.standard_normal((20000, 6))
+    u = th @ SCALE_FREE_MATRIX.T
+    # Regress log T0 on u by least squares: must match the closed-form gain and sd.
+    x = np.column_stack([np.ones(len(u)), u[:, :5]])
+    coef, res, *_ = np.linalg.lstsq(x, u[:, 5], rcond=None)
+    _, _, gain, sd = prior.scale_free()
+    np.testing.assert_allclose(coef[1:], gain, atol=0.02)
+    assert np.sqrt(res[0] / len(u)) == pytest.approx(sd, rel=0.03)
+
+
+def test_nls_recovers_the_motor_share_and_the_ratio_b2():
+    ev, truth = simulate_event("small_industrial", depth=0.4, noise=0.002, seed=4)
+    prob = CompositeProblem([ev], CompositePrior.default([ev]))
+    res = nls(prob)
+    th = theta_of(res.u, np.log(0.6))
+    pm, qm = motor_response(ev, th)
+    comp = composition(res.betas[0], pm[0], qm[0])
+    assert comp["f_m"] == pytest.approx(truth["f_m"], abs=0.02)
+    assert comp["p0"] == pytest.approx(truth["p0"], abs=0.002)
+    # (X - X') / T' is what the flux transient shows (b2 of the regression form).
+    assert np.exp(th[2] - th[3]) == pytest.approx(
+        (truth["x_open"] - truth["x_prime"]) / truth["t_prime_s"], rel=0.15
+    )
+    assert np.all(res.sigma < 0.003)
+
+
+def test_compiled_collapsed_density_equals_the_python_path():
+    evs = [
+        simulate_event("small_industrial", depth=d, seed=i, t_end_s=1.5)[0]
+        for i, d in enumerate((0.3, 0.5))
+    ]
+    prob = CompositeProblem(evs, CompositePrior.default(evs))
+    u = (SCALE_FREE_MATRIX @ _theta("small_industrial"))[:5]
+    tau = np.array([9000.0, 11000.0])
+    lp, sums = prob.collapsed(u, tau)
+    want = prob.log_collapsed(prob.sums(u), u, tau)
+    assert lp == pytest.approx(want, rel=1e-10)
+    np.testing.assert_allclose(sums[1].ztz, prob.sums(u)[1].ztz, rtol=1e-12)
+    # No steady state (a motor loaded past its breakdown torque): -inf, no sums.
+    bad = u.copy()
+    bad[1] += 3.0  # X' T0 twenty times larger
+    assert prob.collapsed(bad, tau) == (-np.inf, None)
