@@ -27,8 +27,8 @@ def quick_start(tmp_path_factory):
     root = tmp_path_factory.mktemp("quick")
     with open(root / "bus.csv", "w") as fh:
         assert run("example", "zip", cwd=root, stdout=fh).returncode == 0
-    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--q0", "0.4",
-              *FAST, "--netcdf", "fit.nc", cwd=root)  # fmt: skip
+    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1",
+              "--q0", "0.4", *FAST, "--netcdf", "fit.nc", cwd=root)  # fmt: skip
     assert res.returncode == 0, res.stderr
     return root, res
 

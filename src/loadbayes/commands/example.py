@@ -16,7 +16,7 @@ def example_cmd(name):
     zip: a day of 1-minute samples at an 11 kV bus, columns time, v (kV), p (MW),
     q (Mvar); a ZIP load with shares a1..a3 = 0.30, 0.25, 0.45 and a4..a6 = 0.60, 0.10,
     0.30 at 5 MW and 2 Mvar. Fit it with ``loadbayes fit zip bus.csv --v-base 11
-    --s-base 5 --q0 0.4``.
+    --s-base 5 --p0 1 --q0 0.4``.
     """
     from importlib.resources import files
 
