@@ -15,10 +15,12 @@ import click
 
 from loadbayes.commands import andes_sim as _andes_sim
 from loadbayes.commands import composite as _composite
+from loadbayes.commands import example as _example
 from loadbayes.commands import exp as _exp
 from loadbayes.commands import export as _export
 from loadbayes.commands import im as _im
 from loadbayes.commands import recordings as _recordings
+from loadbayes.commands import report as _report
 from loadbayes.commands import reproduce as _reproduce
 from loadbayes.commands import simulate as _simulate
 from loadbayes.commands import track as _track
@@ -66,3 +68,5 @@ reproduce.add_command(_reproduce.reproduce_all_cmd)
 main.add_command(_recordings.read_group)
 main.add_command(_recordings.events_cmd)
 main.add_command(_export.export_cmd)
+main.add_command(_report.report_cmd)
+main.add_command(_example.example_cmd)

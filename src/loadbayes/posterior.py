@@ -18,7 +18,20 @@ import pandas as pd
 
 from loadbayes._version import __version__
 
-__all__ = ["Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws"]
+__all__ = ["FitWarning", "Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws"]
+
+#: Observed inputs kept in the ``constant_data`` group (the measured P, Q are observed data).
+_INPUTS = ("v", "f", "t", "ud", "uq", "ed", "eq", "w", "id", "iq", "ded", "deq", "dw", "t_s")
+
+
+class FitWarning(UserWarning):
+    """A warning about the data or a fit (narrow voltage band, coefficients not separable...).
+
+    The Python API (:func:`loadbayes.fit_zip`, :func:`loadbayes.fit_exp`,
+    :func:`loadbayes.fit_im`) issues each of :attr:`Posterior.warnings` as one of these;
+    silence them with ``warnings.simplefilter("ignore", FitWarning)``.
+    """
+
 
 #: |posterior correlation| above which two coefficients are reported as not separable.
 IDENTIFIABILITY_CORR = 0.99
@@ -144,6 +157,68 @@ class Posterior:
             f"chains={self.n_chains}, draws={self.n_draws}, parameters={self.names})"
         )
 
+    def predict(
+        self,
+        v: Any,
+        *,
+        f: Any = None,
+        hdi_prob: float = 0.95,
+        kind: str = "mean",
+        rng: np.random.Generator | int | None = 0,
+    ) -> pd.DataFrame:
+        """Posterior band of P(V) (and Q(V)) in the data's units (ZIP and exponential fits).
+
+        Parameters
+        ----------
+        v : array_like
+            Voltages in the units of the data fitted (the bases are applied here).
+        f : array_like or float, optional
+            Frequency (exponential fits with frequency); nominal by default.
+        hdi_prob : float
+            Probability of the central band.
+        kind : {"mean", "observation"}
+            Band of the load curve, or of a new noisy measurement (ZIP).
+        rng : Generator or int, optional
+            For thinning the draws (and the observation noise).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``v``, ``p_mean``, ``p_low``, ``p_high`` (and q), in the data's units.
+        """
+        from loadbayes.predictive import model_of
+
+        model = model_of(self)
+        if model is None:
+            raise ValueError(f"a {self.model!r} fit has no P(V) curve to predict")
+        vb = float(self.settings.get("v_base") or 1.0)
+        sb = float(self.settings.get("s_base") or 1.0)
+        v = np.asarray(v, dtype=float)
+        kw: dict[str, Any] = {"hdi_prob": hdi_prob, "rng": rng}
+        if self.model == "zip":
+            kw["kind"] = kind
+        elif f is not None:
+            kw["f"] = f
+        out = model.predict(self.draws, v / vb, **kw)
+        out["v"] = v
+        for col in out.columns:
+            if col != "v":
+                out[col] = out[col] * sb
+        return out
+
+    def warn(self, stacklevel: int = 2) -> None:
+        """Issue each of :attr:`warnings` as a :class:`FitWarning` (the Python API does)."""
+        import warnings as _w
+
+        for text in self.warnings:
+            _w.warn(text, FitWarning, stacklevel=stacklevel + 1)
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: what was fitted, the headline table and the warnings."""
+        from loadbayes.report.text import summary_html
+
+        return summary_html(self)
+
     def mean(self) -> dict[str, float]:
         """Posterior mean of every parameter."""
         return {k: float(v.mean()) for k, v in self.draws.items()}
@@ -213,9 +288,28 @@ class Posterior:
         return df.loc[names]
 
     # --------------------------------------------------------------- export
-    def to_arviz(self):
-        """Return an :class:`arviz.InferenceData` (posterior, observed and constant data)."""
+    def to_arviz(self, *, pointwise: bool = True):
+        """Return an :class:`arviz.InferenceData` that every ArviZ function accepts.
+
+        Groups: ``posterior``, ``observed_data`` (the measured P, Q), ``constant_data``
+        (the inputs V, f, t and the Gram matrix), and, for models with a density of P
+        (ZIP, exponential), ``posterior_predictive``, ``log_likelihood`` and
+        ``sample_stats`` (``lp``, the log-likelihood of each draw), so that ``az.loo``
+        and ``az.plot_ppc`` work (:mod:`loadbayes.predictive`). The pointwise groups are
+        (chain, draw, sample) arrays: when all draws would make them too large, every
+        group holds the same evenly thinned draws (attribute ``draws_thinned``), since
+        ``az.loo`` takes its relative efficiency from the posterior's ESS. Units,
+        bases, columns and timestamps are attributes of the variables and of the file.
+
+        Parameters
+        ----------
+        pointwise : bool
+            Add the pointwise groups; ``False`` keeps every draw and no predictions.
+        """
         az = _arviz()
+        from loadbayes.predictive import channel_units
+        from loadbayes.predictive import pointwise as _pointwise
+
         attrs = {
             "loadbayes_version": __version__,
             "model": self.model,
@@ -225,20 +319,71 @@ class Posterior:
             "settings": json.dumps(self.settings, default=_json_default),
             "warnings": json.dumps(self.warnings),
         }
-        return az.from_dict(
-            posterior=self.draws,
-            observed_data=self.observed or None,
-            constant_data=self.constant or None,
+        units = channel_units(self)
+        for key in ("data", "v_base", "s_base", "time_start", "time_end", "time_column"):
+            if self.settings.get(key) is not None:
+                attrs[key] = str(self.settings[key])
+        measured = {k: v for k, v in self.observed.items() if k in ("p", "q")}
+        inputs = {k: v for k, v in self.observed.items() if k not in measured}
+        n_obs = {np.asarray(v).size for v in self.observed.values()}
+        dims: dict[str, list[str]] = {}
+        coords: dict[str, Any] = {}
+        if len(n_obs) == 1:
+            dims = {k: ["sample"] for k in self.observed}
+            coords["sample"] = np.arange(1, n_obs.pop() + 1)
+        pw = _pointwise(self) if pointwise and measured else None
+        draws = self.draws
+        extra: dict[str, Any] = {}
+        if pw is not None:
+            if pw.draw_index.size < self.n_draws:
+                # One consistent sample for every ArviZ function: az.loo takes its
+                # relative efficiency from the posterior group's ESS, which must count
+                # the same draws as the log-likelihood (JSON summaries use all draws).
+                draws = {k: v[:, pw.draw_index] for k, v in self.draws.items()}
+                coords["draw"] = pw.draw_index
+                attrs["draws_thinned"] = (
+                    f"{pw.draw_index.size} of the {self.n_draws} kept draws per chain, evenly "
+                    "spaced, so that the pointwise groups stay small; to_netcdf(pointwise="
+                    "False) keeps every draw"
+                )
+            total = sum(a.sum(axis=2, dtype=float) for a in pw.log_likelihood.values())
+            extra = {
+                "posterior_predictive": pw.predictive,
+                "log_likelihood": pw.log_likelihood,
+                "sample_stats": {"lp": total},
+            }
+            dims.update({k: ["sample"] for k in pw.log_likelihood})
+        idata = az.from_dict(
+            posterior=draws,
+            observed_data=measured or None,
+            constant_data={**inputs, **self.constant} or None,
+            dims=dims or None,
+            coords=coords or None,
             attrs=attrs,
+            **extra,
         )
+        for group in ("observed_data", "constant_data", "posterior_predictive"):
+            if group in idata.groups():
+                ds = getattr(idata, group)
+                for name in ds.data_vars:
+                    if name in units:
+                        ds[name].attrs["units"] = units[name]
+        for group in idata.groups():
+            getattr(idata, group).attrs.update(attrs)
+        if "sample_stats" in idata.groups():
+            idata.sample_stats["lp"].attrs["description"] = (
+                "log-likelihood of the measured P (and Q) at each kept draw"
+            )
+        return idata
 
-    def to_netcdf(self, path: str | Path, *, force: bool = False) -> Path:
-        """Write the ArviZ NetCDF file atomically (no overwrite without ``force``)."""
+    def to_netcdf(self, path: str | Path, *, force: bool = False, pointwise: bool = True) -> Path:
+        """Write :meth:`to_arviz` as NetCDF, atomically (no overwrite without ``force``)."""
         from loadbayes.io.atomic import atomic_write
 
         path = Path(path)
         with atomic_write(path, force=force) as tmp:
-            self.to_arviz().to_netcdf(str(tmp))
+            idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
+            idata.to_netcdf(str(tmp))
         return path
 
     @classmethod
@@ -258,6 +403,12 @@ class Posterior:
             if "constant_data" in idata.groups()
             else None
         )
+        if constant:
+            # Inputs (V, f, t) live in constant_data so that plot_ppc sees only P and Q.
+            observed = {
+                **{k: constant.pop(k) for k in _INPUTS if k in constant},
+                **(observed or {}),
+            }
         return cls(
             draws,
             model=str(attrs.get("model", "unknown")),
@@ -266,7 +417,10 @@ class Posterior:
             free=json.loads(attrs.get("free", "null")),
             observed=observed,
             constant=constant,
-            settings=json.loads(attrs.get("settings", "{}")),
+            settings={
+                **json.loads(attrs.get("settings", "{}")),
+                **({"draws_thinned": attrs["draws_thinned"]} if "draws_thinned" in attrs else {}),
+            },
             warnings=json.loads(attrs.get("warnings", "[]")),
         )
 

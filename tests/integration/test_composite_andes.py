@@ -4,11 +4,12 @@ ANDES (a ZIP load and a ``Motor3`` through a fault, docs/andes.md) writes the te
 ``t_s, v, p, q, f`` with noise; ``loadbayes fit composite`` must cover ANDES's own
 parameters. Only quantities both conventions define alike are compared: the motor's
 share ``f_m``, its transient time constant T', the static P shares (by their intervals)
-and the operating point ``p0, q0`` (within the two simulators' agreement). The reactive split differs by convention (loadbayes sizes a shunt to
-the motor's initial Q, the ANDES case has none), and the motor's per-unit impedances sit
-on a base the data cannot fix (docs/composite.md).
+and the operating point ``p0, q0`` (within the two simulators' agreement). The reactive
+split differs by convention (loadbayes sizes a shunt to the motor's initial Q, the ANDES
+case has none), and the motor's per-unit impedances sit on a base the data cannot fix
+(docs/composite.md).
 
-False-alarm rate: five 99% intervals, at most 6% if the sampler is calibrated (a fixed
+False-alarm rate: five 99% intervals, at most 5% if the sampler is calibrated (a fixed
 seed makes the outcome deterministic; this is the chance such a seed fails).
 """
 

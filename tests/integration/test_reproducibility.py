@@ -283,7 +283,15 @@ def test_a_result_can_be_rerun_from_its_own_json(options, runner, tmp_path):
         doc["settings"]
     )
     again = _rerun(doc, tmp_path)
-    _same(again, Posterior.from_netcdf(tmp_path / "o.nc"))
+    # The NetCDF keeps evenly thinned draws when its pointwise groups would be large (their
+    # indices are its draw coordinate): the rerun must give those draws bit for bit.
+    from loadbayes.posterior import _arviz
+
+    kept = _arviz().from_netcdf(str(tmp_path / "o.nc")).posterior.draw.to_numpy()
+    saved = Posterior.from_netcdf(tmp_path / "o.nc")
+    assert again.names == saved.names
+    for k in again.names:
+        np.testing.assert_array_equal(again[k][:, kept], saved[k], err_msg=k)
     assert again.to_dict(hdi_prob=doc["hdi_prob"])["parameters"] == doc["parameters"]
 
 

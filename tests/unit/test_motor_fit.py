@@ -151,11 +151,12 @@ def test_check_refuses_a_steady_record_and_too_few_rows() -> None:
 
 def test_fit_im_refuses_bad_input(noisy) -> None:
     cols = _cols(noisy)
-    with pytest.raises(DataError, match="missing column"):
+    # The CLI's messages: the column, and the 1-based row of the first bad value.
+    with pytest.raises(DataError, match="column 'dw': not found"):
         fit_im({k: v for k, v in cols.items() if k != "dw"}, **FAST)
     bad = dict(cols, ed=cols["ed"].copy())
     bad["ed"][5] = np.nan
-    with pytest.raises(DataError, match="NaN"):
+    with pytest.raises(DataError, match="column 'ed', row 6: missing value"):
         fit_im(bad, **FAST)
     with pytest.raises(ValueError, match="exact"):
         fit_im(cols, scheme="exact", **FAST)

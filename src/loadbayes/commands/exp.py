@@ -192,6 +192,7 @@ def fit_exp_cmd(
             init=init,
             seed=seed,
             warnings=warnings,
+            warn=False,
             settings={
                 "data": str(data),
                 "columns": names,

@@ -116,14 +116,15 @@ def output_options(func):
             "--json",
             "json_out",
             type=click.Path(dir_okay=False),
-            required=True,
-            help="Summary in the loadbayes JSON contract.",
+            required=False,
+            help="Summary in the loadbayes JSON contract (optional: the table goes to stdout).",
         ),
         click.option(
             "--netcdf",
             "netcdf_out",
             type=click.Path(dir_okay=False),
-            help="All draws as an ArviZ InferenceData NetCDF file.",
+            help="Draws, predictions and log-likelihood as an ArviZ NetCDF file "
+            "(draws thinned evenly when large; docs/getting_started.md).",
         ),
         click.option(
             "--plot",

@@ -361,7 +361,10 @@ def write_outputs(
     """
     from loadbayes.diagnostics import fit_warnings
     from loadbayes.io.transaction import OutputSet
+    from loadbayes.report.text import summary_table
 
+    if not quiet:
+        click.echo("loadbayes: summarising the draws (R-hat, ESS)...", err=True)
     table = post.summary(hdi_prob=hdi_prob)
     fit_warnings(post, table, hdi_prob=hdi_prob, prior_sd=prior_sd)
     targets = {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}
@@ -372,10 +375,12 @@ def write_outputs(
         # The JSON as Posterior.to_json writes it, but straight into the set's temporary.
         text = json.dumps(post.to_dict(hdi_prob=hdi_prob, summary=table), indent=2,
                           allow_nan=False)  # fmt: skip
-        if json_out != "-":
+        if json_out and json_out != "-":
             out.temp("--json").write_text(text + "\n", encoding="utf-8")
         stop_if_signalled()
         if netcdf_out:
+            if not quiet:
+                click.echo(f"loadbayes: writing {netcdf_out} (draws, predictions)...", err=True)
             post.to_netcdf(out.temp("--netcdf"), force=True)
             # netCDF/HDF5 may swallow the KeyboardInterrupt raised inside its C calls.
             stop_if_signalled()
@@ -392,11 +397,8 @@ def write_outputs(
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
-        to_err = json_out == "-"
-        click.echo(f"{post.model} posterior, {post.method}, n = {post.settings.get('n')}",
-                   err=to_err)  # fmt: skip
-        click.echo(table[cols].to_string(float_format=lambda x: f"{x:.5g}"), err=to_err)
+        # The 80-column table of loadbayes.report.text (stderr when the JSON is on stdout).
+        click.echo(summary_table(post, hdi_prob=hdi_prob, summary=table), err=json_out == "-")
 
 
 def sidecar(path: str) -> Path | None:

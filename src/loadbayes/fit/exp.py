@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.core import accumulate, as_columns, fit, fit_gram
+from loadbayes.fit.core import accumulate, fit, fit_gram
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 
@@ -17,14 +17,23 @@ __all__ = ["fit_exp"]
 def fit_exp(
     data: Any,
     *,
+    v_col: str = "v",
+    p_col: str = "p",
+    q_col: str | None = "q",
+    f_col: str | None = "f",
+    t_col: str | None = None,
     v0: float = 1.0,
     p0: Nominal = 1.0,
     q0: Nominal = 1.0,
+    v_base: float | None = None,
+    s_base: float | None = None,
     with_q: bool | None = None,
     with_f: bool | None = None,
     f0: float = 60.0,
     noise: Noise = "additive",
+    units: Mapping[str, str] | None = None,
     priors: Mapping[str, Any] | None = None,
+    drop_invalid: bool = False,
     chains: int = 4,
     draws: int = 40_000,
     burn: int = 5_000,
@@ -33,34 +42,52 @@ def fit_exp(
     seed: int = 0,
     settings: Mapping[str, Any] | None = None,
     warnings: list[str] | None = None,
+    warn: bool = True,
 ):
-    """Posterior of the exponential load model from in-memory measurements.
+    """Posterior of the exponential load model: the Python twin of ``loadbayes fit exp``.
 
     Parameters
     ----------
-    data : mapping or DataFrame
-        Columns ``v``, ``p``, and ``q`` (reactive power) and ``f`` (frequency) when
-        present; per unit or any units consistent with ``v0``, ``p0``, ``q0``, ``f0``.
+    data : str, path, DataFrame or mapping
+        A CSV or Parquet file, or a table in memory; other columns are ignored.
+    v_col, p_col, q_col, f_col : str
+        Column names. Q and f are used when present under their default names ``q`` and
+        ``f``; named otherwise they are required; ``None`` leaves them out.
+    t_col : str, optional
+        Timestamp column (or a DataFrame's DatetimeIndex), recorded, not fitted.
     v0, p0, q0 : float or "auto"
-        Nominal values (``auto`` estimates P0 / Q0).
+        Nominal values (``auto`` estimates P0 / Q0), in per unit when bases are given.
+    v_base, s_base : float, optional
+        Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
     with_q, with_f : bool, optional
-        Fit Q / the frequency coefficients; by default when the column is present.
+        ``False`` leaves Q / the frequency coefficients out even when the column is there.
     f0 : float
         Nominal frequency (``df = (f - f0) / f0``).
     noise : {"additive", "multiplicative"}
         Noise model and sampler (module notes).
+    units : mapping, optional
+        Units of the data's columns (``{"v": "kV", "p": "MW"}``), for reports.
     priors : mapping, optional
         Per channel: :class:`ExpPriors` (additive) or :class:`BlockPrior` of the
         log-linear block (multiplicative); weak defaults otherwise.
+    drop_invalid : bool
+        Drop rows with NaN, inf or non-positive voltage instead of refusing the data.
     chains, draws, burn, thin, init, seed
         Sampler settings; ``draws`` includes burn-in.
     settings, warnings
         Recorded with the result.
+    warn : bool
+        Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
 
     Returns
     -------
     Posterior
         Draws of np (nq), kpf (kqf) with frequency, p0 (q0) with auto, tau_p (tau_q).
+
+    Raises
+    ------
+    DataError, OptionError
+        Bad data (file or ``data``, column, row) or options, in one line.
 
     Examples
     --------
@@ -72,19 +99,101 @@ def fit_exp(
     >>> round(post.mean()["np"], 1)
     1.5
     """
-    cols = as_columns(data)
-    for c in ("v", "p"):
-        if c not in cols:
-            raise DataError(f"missing column '{c}'")
-    if with_q is None:
-        with_q = "q" in cols
-    if with_f is None:
-        with_f = "f" in cols
-    if with_f and "f" not in cols:
+    from loadbayes.fit.frame import is_path, read_frame
+    from loadbayes.fit.zip import check_bases, check_sampler
+
+    check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
+    check_bases(v_base, s_base)
+    if with_q is False:
+        q_col = None
+    if with_f is False:
+        f_col = None
+    q_req = q_col is not None and q_col != "q"
+    f_req = (f_col is not None and f_col != "f") or bool(with_f)
+    if with_f and f_col is None:
         raise DataError("frequency dependence needs a column 'f'")
-    if burn >= draws:
-        raise ValueError(f"burn-in ({burn}) must be smaller than the draws ({draws})")
-    model = ExponentialModel(v0=v0, p0=p0, q0=q0, with_q=with_q, with_f=with_f, f0=f0, noise=noise)
+    required = [v_col, p_col] + ([q_col] if q_req else []) + ([f_col] if f_req else [])
+    optional = ([q_col] if q_col and not q_req else []) + ([f_col] if f_col and not f_req else [])
+    warn_list = list(warnings or [])
+    base = dict(settings or {})
+    if is_path(data):
+        from loadbayes.measurements import read_power_columns
+
+        pc = read_power_columns(
+            str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_req,
+            f_col=f_col if f_req else None, extra=(f_col,) if f_col and not f_req else (),
+            v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+        )  # fmt: skip
+        cols, rows, dropped = dict(pc.cols), pc.rows, pc.n_dropped
+        if f_col and f_col in pc.extra:
+            cols["f"] = pc.extra[f_col]
+        base.setdefault("data", str(data))
+    else:
+        table = read_frame(data, required, optional=optional, positive=[v_col],
+                           drop_invalid=drop_invalid, t_col=t_col)  # fmt: skip
+        d, rows, dropped = table.data, table.rows, table.n_dropped
+        cols = {"v": d[v_col] / (v_base or 1.0), "p": d[p_col] / (s_base or 1.0)}
+        if q_col and q_col in d:
+            cols["q"] = d[q_col] / (s_base or 1.0)
+        if f_col and f_col in d:
+            cols["f"] = d[f_col]
+        base.update(table.time)
+        base.setdefault("data", "DataFrame" if hasattr(data, "iloc") else "mapping")
+    if dropped and not warnings:
+        warn_list.append(f"{dropped} rows with invalid values were dropped (drop_invalid=True)")
+    base.setdefault("columns", {"v": v_col, "p": p_col, "q": q_col, "f": f_col})
+    base.setdefault("v_base", v_base)
+    base.setdefault("s_base", s_base)
+    base["units"] = dict(units or base.get("units") or {})
+    base.setdefault("n_dropped", dropped)
+    with_q = "q" in cols
+    with_f = "f" in cols
+    try:
+        post = _fit_exp_columns(
+            cols, v0=v0, p0=p0, q0=q0, with_q=with_q, with_f=with_f, f0=f0, noise=noise,
+            priors=priors, chains=chains, draws=draws, burn=burn, thin=thin, init=init,
+            seed=seed, settings=base, warnings=warn_list,
+        )  # fmt: skip
+    except DataError as exc:
+        from loadbayes.measurements import relocate
+
+        names = {"v": v_col, "p": p_col, "q": q_col, "f": f_col}
+        where = str(data) if is_path(data) else "data"
+        raise relocate(exc, where, rows, names) from None
+    if warn:
+        post.warn(stacklevel=2)
+    return post
+
+
+def _fit_exp_columns(
+    cols: dict[str, np.ndarray],
+    *,
+    v0: float,
+    p0: Nominal,
+    q0: Nominal,
+    with_q: bool,
+    with_f: bool,
+    f0: float,
+    noise: Noise,
+    priors: Mapping[str, Any] | None,
+    chains: int,
+    draws: int,
+    burn: int,
+    thin: int,
+    init: str,
+    seed: int,
+    settings: Mapping[str, Any],
+    warnings: list[str],
+):
+    """The fit itself, on checked columns in per unit."""
+    from loadbayes.io.errors import OptionError
+
+    try:
+        model = ExponentialModel(
+            v0=v0, p0=p0, q0=q0, with_q=with_q, with_f=with_f, f0=f0, noise=noise
+        )
+    except ValueError as exc:
+        raise OptionError(str(exc)) from None
     v = cols["v"]
     if v.size and not np.all(v > 0):
         i = int(np.flatnonzero(~(v > 0))[0])

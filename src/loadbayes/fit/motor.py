@@ -13,7 +13,6 @@ from loadbayes.fit.core import (
     CHUNK_ROWS,
     MAX_OBSERVED,
     accumulate,
-    as_columns,
     prior_settings,
 )
 from loadbayes.inference.gibbs import Scheme
@@ -189,14 +188,17 @@ def fit_im(
     thin: int = 1,
     init: str = "prior",
     seed: int = 0,
+    drop_invalid: bool = False,
+    warn: bool = True,
 ) -> Posterior:
-    """Posterior of the induction-motor coefficients from in-memory measurements.
+    """Posterior of the induction-motor coefficients: the Python twin of ``loadbayes fit im``.
 
     Parameters
     ----------
-    data : mapping or DataFrame
-        Columns ``ud, uq, ed, eq, w, id, iq, ded, deq, dw`` (per unit; derivatives per
-        second), e.g. from :func:`loadbayes.cases.motor_sim.simulate`.
+    data : str, path, DataFrame or mapping
+        A CSV or Parquet file, or a table in memory, with columns ``ud, uq, ed, eq, w,
+        id, iq, ded, deq, dw`` (per unit; derivatives per second), e.g. from
+        :func:`loadbayes.cases.motor_sim.simulate`; other columns are ignored.
     t0 : float, optional
         Load-torque coefficient T0; by default from the first sample, taken as a steady
         state (:class:`loadbayes.models.motor_fit.InductionMotorModel`).
@@ -212,12 +214,21 @@ def fit_im(
         weak defaults otherwise (:func:`im_priors`).
     scheme, chains, draws, burn, thin, init, seed
         Sampler settings; ``draws`` counts iterations including burn-in (the paper's M).
+    drop_invalid : bool
+        Drop rows with NaN or inf instead of refusing the data.
+    warn : bool
+        Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
 
     Returns
     -------
     Posterior
         Draws of b1, b2, b3, ab, ac, tau_e, tau_w, tau_i and the physical rs, xp, x,
         tp_s, h_s, xs, xm, xr, rr (Xs = Xr closure).
+
+    Raises
+    ------
+    DataError, OptionError
+        Bad data (file or ``data``, column, row) or options, in one line, as the CLI.
 
     Examples
     --------
@@ -227,34 +238,53 @@ def fit_im(
     >>> round(post.mean()["b3"], 2)  # doctest: +SKIP
     -0.71
     """
-    from loadbayes.io.errors import DataError
+    from loadbayes.fit.frame import is_path, read_frame
+    from loadbayes.fit.zip import check_sampler
+    from loadbayes.io.errors import DataError, OptionError
+    from loadbayes.measurements import relocate
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
-    cols = as_columns(data)
-    missing = [c for c in DATA_COLUMNS[1:] if c not in cols]
-    if missing:
-        raise DataError(f"missing column(s) {', '.join(missing)}")
-    n = len(cols["ud"])
-    if n == 0:
-        raise DataError("no rows")
-    model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
-    gram = accumulate(model, [cols])
-    observed = {k: cols[k] for k in DATA_COLUMNS if k in cols} if n <= MAX_OBSERVED else None
-    post, _ = _fit_im_gram(
-        model,
-        gram,
-        model.first_row(cols),
-        t0=t0,
-        priors=priors,
-        scheme=scheme,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
-        observed=observed,
-    )
+    check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
+    sampler = dict(scheme=scheme, chains=chains, draws=draws, burn=burn, thin=thin, init=init,
+                   seed=seed)  # fmt: skip
+    if is_path(data):
+        post, _ = fit_im_file(str(data), t0=t0, f_hz=f_hz, currents=currents, priors=priors,
+                              drop_invalid=drop_invalid, **sampler)  # fmt: skip
+        if warn:
+            post.warn(stacklevel=2)
+        return post
+    table = read_frame(data, list(DATA_COLUMNS[1:]), optional=[DATA_COLUMNS[0]],
+                       drop_invalid=drop_invalid)  # fmt: skip
+    cols = table.data
+    try:
+        model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
+    except ValueError as exc:
+        raise OptionError(str(exc)) from None
+    warnings = []
+    if table.n_dropped:
+        warnings.append(f"{table.n_dropped} rows with invalid values were dropped")
+    n = table.rows.size
+    try:
+        gram = accumulate(model, [cols])
+        observed = {k: cols[k] for k in DATA_COLUMNS if k in cols} if n <= MAX_OBSERVED else None
+        post, _ = _fit_im_gram(
+            model,
+            gram,
+            model.first_row(cols),
+            t0=t0,
+            priors=priors,
+            observed=observed,
+            settings={
+                "data": "DataFrame" if hasattr(data, "iloc") else "mapping",
+                "n_dropped": table.n_dropped,
+            },  # fmt: skip
+            warnings=warnings,
+            **sampler,
+        )
+    except DataError as exc:
+        raise relocate(exc, "data", table.rows, {}) from None
+    if warn:
+        post.warn(stacklevel=2)
     return post
 
 

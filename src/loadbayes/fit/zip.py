@@ -9,21 +9,30 @@ import numpy as np
 
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import GramAccumulator
-from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, as_columns, fit_gram
+from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, fit_gram
 from loadbayes.inference.gibbs import Scheme
+from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
 
-__all__ = ["fit_zip", "fit_zip_file", "zip_priors"]
+__all__ = ["check_bases", "check_sampler", "fit_zip", "fit_zip_file", "zip_priors"]
 
 
 def fit_zip(
     data: Any,
     *,
+    v_col: str = "v",
+    p_col: str = "p",
+    q_col: str | None = "q",
+    t_col: str | None = None,
     v0: float = 1.0,
     p0: float | str = 1.0,
     q0: float | str = 1.0,
+    v_base: float | None = None,
+    s_base: float | None = None,
     with_q: bool | None = None,
+    units: Mapping[str, str] | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
+    drop_invalid: bool = False,
     scheme: Scheme = "blocked",
     chains: int = 4,
     draws: int = 40_000,
@@ -31,28 +40,55 @@ def fit_zip(
     thin: int = 1,
     init: str = "prior",
     seed: int = 0,
+    warn: bool = True,
 ) -> Posterior:
-    """Posterior of the ZIP coefficients from in-memory measurements.
+    """Posterior of the ZIP coefficients: the Python twin of ``loadbayes fit zip``.
 
     Parameters
     ----------
-    data : mapping or DataFrame
-        Columns ``v`` and ``p``, and ``q`` for reactive power; per unit (or any units
-        consistent with ``v0``, ``p0``, ``q0``).
+    data : str, path, DataFrame or mapping
+        A CSV or Parquet file (read in chunks, as the CLI does), or a table in memory;
+        columns other than the ones named below (a timestamp, a label) are ignored.
+    v_col, p_col, q_col : str
+        Column names (the CLI's ``--v-col`` ...). ``q_col=None`` fits P only; the default
+        ``"q"`` is used when present, a Q column named otherwise is required.
+    t_col : str, optional
+        Timestamp column of a DataFrame (or its DatetimeIndex): its first and last values
+        are recorded with the result, it is not fitted.
     v0, p0, q0 : float or "auto"
-        Nominal values (see :class:`loadbayes.models.zip.ZIPModel`).
+        Nominal values, in per unit when bases are given, else in the data's units.
+    v_base, s_base : float, optional
+        Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
     with_q : bool, optional
-        Fit Q; by default when ``data`` has a ``q`` column.
+        ``False`` fits P only even when there is a Q column.
+    units : mapping, optional
+        Units of the data's columns, e.g. ``{"v": "kV", "p": "MW", "q": "Mvar"}``: kept
+        with the result and written on the report's axes.
     priors : mapping, optional
-        ``{"p": BlockPrior, "q": BlockPrior}``; weak defaults otherwise.
+        ``{"p": BlockPrior, "q": BlockPrior}`` (see :func:`zip_priors`); weak otherwise.
+    drop_invalid : bool
+        Drop rows with NaN, inf or non-positive voltage instead of refusing the data.
     scheme, chains, draws, burn, thin, init, seed
         Sampler settings (:func:`loadbayes.inference.gibbs.sample_block`); ``draws``
         counts iterations including burn-in, as the paper's M.
+    warn : bool
+        Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
 
     Returns
     -------
     Posterior
         Draws of a1, a2, a3 (a4, a5, a6), tau_p (tau_q), and p0 / q0 when ``auto``.
+        :meth:`~loadbayes.posterior.Posterior.predict` takes voltages in the data's
+        units and returns powers in the data's units.
+
+    Raises
+    ------
+    DataError
+        Bad data, in one line naming the file (``data`` for a table in memory), the
+        column and the row: the CLI's messages.
+    OptionError
+        Bad options (a non-positive base, burn-in not below the draws ...). Both are
+        :class:`~loadbayes.io.errors.LoadbayesError` (a ``ValueError``).
 
     Examples
     --------
@@ -65,32 +101,89 @@ def fit_zip(
     >>> round(post.mean()["a1"] + post.mean()["a2"] + post.mean()["a3"], 12)
     1.0
     """
+    from loadbayes.fit.frame import is_path, read_frame
+    from loadbayes.io.errors import DataError
     from loadbayes.models.zip import ZIPModel
 
-    cols = as_columns(data)
-    if with_q is None:
-        with_q = "q" in cols
-    model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q=with_q)  # type: ignore[arg-type]
-    gram = accumulate(model, [cols])
-    observed = (
-        {k: cols[k] for k in ("v", "p", "q") if k in cols and (k != "q" or with_q)}
-        if gram.n <= MAX_OBSERVED
-        else None
-    )
-    return fit_gram(
-        model,
-        gram,
-        priors=priors or model.default_priors(),
-        scheme=scheme,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
-        observed=observed,
-        settings={"v0": v0, "p0": p0, "q0": q0 if with_q else None},
-    )
+    check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
+    check_bases(v_base, s_base)
+    if with_q is False:
+        q_col = None
+    q_required = q_col is not None and q_col != "q"
+    sampler = dict(scheme=scheme, chains=chains, draws=draws, burn=burn, thin=thin, init=init,
+                   seed=seed)  # fmt: skip
+    if is_path(data):
+        post, _ = fit_zip_file(
+            str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v0=v0,
+            p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
+            drop_invalid=drop_invalid, **sampler,
+        )  # fmt: skip
+        post.settings["units"] = dict(units or {})
+    else:
+        table = read_frame(
+            data,
+            [v_col, p_col] + ([q_col] if q_required and q_col else []),
+            optional=[q_col] if q_col and not q_required else [],
+            positive=[v_col],
+            drop_invalid=drop_invalid,
+            t_col=t_col,
+        )
+        cols = {"v": table.data[v_col] / (v_base or 1.0), "p": table.data[p_col] / (s_base or 1.0)}
+        if q_col and q_col in table.data:
+            cols["q"] = table.data[q_col] / (s_base or 1.0)
+        model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
+        warnings = []
+        if table.n_dropped:
+            warnings.append(
+                f"{table.n_dropped} rows with invalid values were dropped (drop_invalid=True)"
+            )
+        try:
+            gram = accumulate(model, [cols])
+            post = fit_gram(
+                model,
+                gram,
+                priors=priors or model.default_priors(),
+                observed=cols if gram.n <= MAX_OBSERVED else None,
+                settings={
+                    "data": "DataFrame" if hasattr(data, "iloc") else "mapping",
+                    "columns": {"v": v_col, "p": p_col, "q": q_col if model.with_q else None},
+                    "v0": v0,
+                    "p0": p0,
+                    "q0": q0 if model.with_q else None,
+                    "v_base": v_base,
+                    "s_base": s_base,
+                    "units": dict(units or {}),
+                    "n_dropped": table.n_dropped,
+                    **table.time,
+                },
+                warnings=warnings,
+                **sampler,
+            )
+        except DataError as exc:
+            from loadbayes.measurements import relocate
+
+            names = {"v": v_col, "p": p_col, "q": q_col}
+            raise relocate(exc, "data", table.rows, names) from None
+    if warn:
+        post.warn(stacklevel=2)
+    return post
+
+
+def check_sampler(*, draws: int, burn: int, chains: int, thin: int) -> None:
+    """The CLI's checks of the sampler settings, as ``OptionError`` in one line."""
+    for name, value, low in (("draws", draws, 1), ("chains", chains, 1), ("thin", thin, 1),
+                             ("burn", burn, 0)):  # fmt: skip
+        if int(value) != value or value < low:
+            raise OptionError(f"{name} must be an integer >= {low}, got {value!r}")
+    if burn >= draws:
+        raise OptionError(f"burn ({burn}) must be smaller than draws ({draws})")
+
+
+def check_bases(v_base: float | None, s_base: float | None) -> None:
+    """Bases must be positive and finite (``OptionError`` in one line)."""
+    for name, base in (("v_base", v_base), ("s_base", s_base)):
+        if base is not None and not (np.isfinite(base) and base > 0):
+            raise OptionError(f"{name} must be positive, got {base}")
 
 
 def zip_priors(

@@ -1,11 +1,24 @@
-"""The one error type for bad input data."""
+"""The errors a user meets: bad data (file, column, row) and bad options, in one line.
+
+Both derive from :class:`LoadbayesError` (a ``ValueError``): ``except LoadbayesError``
+catches every mistake of input that the fit entry points (``fit_zip``, ``fit_exp``,
+``fit_im``) and the CLI report.
+"""
 
 from __future__ import annotations
 
-__all__ = ["DataError"]
+__all__ = ["DataError", "LoadbayesError", "OptionError"]
 
 
-class DataError(ValueError):
+class LoadbayesError(ValueError):
+    """A mistake in what the user gave (data or options); ``str(err)`` is one line."""
+
+
+class OptionError(LoadbayesError):
+    """A bad option value (a non-positive base, burn-in not below the draws ...)."""
+
+
+class DataError(LoadbayesError):
     """Bad input data, located by file, column and row.
 
     ``str(err)`` is one line, e.g. ``bus18.csv: column 'v', row 17: non-numeric value

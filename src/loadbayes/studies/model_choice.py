@@ -227,8 +227,15 @@ def verdict(table: pd.DataFrame) -> str:
         z = float(table.loc[other, "z"])
         diff = float(table.loc[other, "elpd_diff"])
         num = f"ELPD difference {diff:.1f}, {z:.1f} standard errors"
-        if diff < SMALL_ELPD or z < UNDECIDED_SE:
+        if z < UNDECIDED_SE:
             parts.append(f"the data cannot tell {best} and {other} apart ({num})")
+        elif diff < SMALL_ELPD:
+            # Many standard errors but a fraction of a few nats: precise, and too small to
+            # matter (the LOO FAQ's rule) -- not "cannot tell apart", which z contradicts.
+            parts.append(
+                f"{best} and {other} fit about equally well ({num}: a difference under "
+                f"{SMALL_ELPD:g}, too small to matter whatever its standard error)"
+            )
         elif z >= DECISIVE_SE:
             parts.append(f"the data clearly support {best} over {other} ({num})")
         else:
@@ -256,8 +263,11 @@ def compare_zip_exp(
         cols["f"] = np.asarray(data["f"], float)
     kw = {"draws": draws, "burn": burn, "chains": chains, "seed": seed}
     posts = {
-        "zip": fit_zip(cols, v0=v0, p0=p0, with_q=False, **kw),
-        "exponential": fit_exp(cols, v0=v0, p0=p0, with_q=False, noise=exp_noise, **kw),
+        # The study records each fit's warnings itself; no Python warnings on the way.
+        "zip": fit_zip(cols, v0=v0, p0=p0, with_q=False, warn=False, **kw),
+        "exponential": fit_exp(
+            cols, v0=v0, p0=p0, with_q=False, noise=exp_noise, warn=False, **kw
+        ),  # fmt: skip
     }
     if student_t:
         from loadbayes.fit import fit_robust

@@ -132,8 +132,9 @@ def fit_zip_cmd(
     """
     if fleet["by"]:
         return run_fleet_command(click.get_current_context().params)
-    if json_out is None:
-        raise click.UsageError("Missing option '--json'.")
+    if fleet.get("fleet_out"):
+        raise click.UsageError("--out is for a fleet (with --by); one bus writes --json, "
+                               "--netcdf, --plot or just the table")  # fmt: skip
     check_outputs(
         {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out},
         [data],
@@ -354,5 +355,5 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
     return post, model
 
 
-# --json is required for one bus only: a fleet writes --out instead.
+# --json is optional (the table goes to stdout); a fleet writes --out instead.
 next(p for p in fit_zip_cmd.params if p.name == "json_out").required = False

@@ -350,6 +350,7 @@ def im_sampler(
             t0=attrs["t0"],
             f_hz=attrs["f_nominal_hz"],
             currents=currents,
+            warn=False,  # SBC runs thousands of fits; their warnings are not the point
             priors=None if default_priors else priors(),
             scheme=scheme,  # type: ignore[arg-type]
             chains=1,

@@ -37,8 +37,10 @@ def _fit_all(params: MotorParams, df: pd.DataFrame, sampler: dict, seed: int) ->
     cols = _columns(df)
     f = params.f_hz
     fits = {
-        "gs": fit_im(cols, f_hz=f, currents="modelled", seed=seed, **sampler),
-        "gs_measured": fit_im(cols, f_hz=f, currents="measured", seed=seed, **sampler),
+        "gs": fit_im(cols, f_hz=f, currents="modelled", seed=seed, warn=False, **sampler),
+        "gs_measured": fit_im(
+            cols, f_hz=f, currents="measured", seed=seed, warn=False, **sampler
+        ),  # fmt: skip
     }
     coupled = InductionMotorModel(f_hz=f)
     fits["ls"] = coupled_least_squares(
@@ -147,7 +149,8 @@ def _eiv(name, *, noise, seed, t_end_s, dt_s, sampler) -> pd.DataFrame:
             noise_on_regressors=on_regressors,
         )
         for currents in ("modelled", "measured"):
-            post = fit_im(_columns(df), f_hz=params.f_hz, currents=currents, seed=seed, **sampler)
+            post = fit_im(_columns(df), f_hz=params.f_hz, currents=currents, seed=seed,
+                          warn=False, **sampler)  # fmt: skip
             mean = post.mean()
             row = {
                 "motor": name,

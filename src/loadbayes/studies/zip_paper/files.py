@@ -99,7 +99,8 @@ def write(study: ZipStudy, root: str | Path, *, force: bool = False) -> list[Pat
     write_text(path, _experiments_csv(study), force)
     written.append(path)
     written.append(study.fits["gs"].to_json(d / "summary.json", force=force))
-    written.append(study.fits["gs"].to_netcdf(d / "posterior.nc", force=force))
+    # Every draw (the study compares them); no pointwise groups, which would thin them.
+    written.append(study.fits["gs"].to_netcdf(d / "posterior.nc", force=force, pointwise=False))
     info = {
         "settings": study.settings,
         "timings_s": study.timings,

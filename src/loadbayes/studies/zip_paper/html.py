@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 from loadbayes.studies.report import bullet_list, embedded_png, frame_html, png_bytes
 from loadbayes.studies.zip_paper.charts import figures
-from loadbayes.studies.zip_paper.study import TRUE_ZIP, ZipStudy
+from loadbayes.studies.zip_paper.study import TABLE2_ROWS, TRUE_ZIP, ZipStudy
 from loadbayes.studies.zip_paper.tables import (
     comparison,
     needed_n,
@@ -74,6 +74,9 @@ def html_section(study: ZipStudy, pngs: Mapping[str, bytes] | None = None) -> st
             "a3_err",
         ]
     ].reset_index()
+    t2_show["true value outside the 95% interval"] = [
+        _misses(study, key) for key in _keys(t2_show["method"])
+    ]
     comp = comparison(study)
     comp_show = comp[
         ["label", "voltage_error_pct", "power_error_pct", "a1", "a1_sd", "a2", "a2_sd", "a3"]
@@ -97,7 +100,10 @@ def html_section(study: ZipStudy, pngs: Mapping[str, bytes] | None = None) -> st
         "V<sub>true,i</sub>| / V<sub>true,i</sub>, power_error_pct likewise with the active "
         "power of the bus-18 load; <i>true</i> is the power flow with the true ZIP load, "
         "<i>est</i> the one with the estimated ZIP load (P and Q shares) on the same "
-        "experiment. a<sub>k</sub>_err = estimate - truth.</p>",
+        "experiment. a<sub>k</sub>_err = estimate - truth. The last column names the "
+        f"shares whose true value ({', '.join(f'{t:g}' for t in TRUE_ZIP)}) lies outside "
+        "the estimator's central 95% interval: an estimate that disagrees with the truth "
+        "beyond its own uncertainty.</p>",
         frame_html(t2_show),
         "<h3>What differs from the paper</h3>",
         bullet_list(_sentences(study)),
@@ -125,3 +131,24 @@ def html_section(study: ZipStudy, pngs: Mapping[str, bytes] | None = None) -> st
         "</section>",
     ]
     return "\n".join(parts)
+
+
+def _keys(labels) -> list[str]:
+    """Method keys of Table II's row labels (GS -> gs)."""
+    inverse = {v: k for k, v in TABLE2_ROWS.items()}
+    return [inverse.get(str(lab), str(lab)) for lab in labels]
+
+
+def _misses(study: ZipStudy, key: str) -> str:
+    """The shares a1..a3 whose true value lies outside the 95% central interval of ``key``."""
+    import numpy as np
+
+    post = study.fits.get(key)
+    if post is None:
+        return "n/a"
+    out = []
+    for name, true in zip(("a1", "a2", "a3"), TRUE_ZIP, strict=True):
+        lo, hi = np.quantile(post.draws[name], [0.025, 0.975])
+        if not lo <= true <= hi:
+            out.append(f"{name} (true {true:g}, interval {lo:.3g} to {hi:.3g})")
+    return "; ".join(out) if out else "none"

@@ -1,0 +1,7 @@
+"""Reports of any fit: a self-contained HTML page, the terminal table, the notebook view.
+
+``text.py`` formats numbers and tables, ``figures.py`` draws a fit's figures as inline
+images, ``page.py`` assembles the page (summary first, contents, captioned figures) and
+``fit_report.py`` builds the report of one fit. Nothing here imports
+:mod:`loadbayes.studies`; the paper's report is built on these pieces.
+"""

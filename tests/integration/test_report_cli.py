@@ -1,0 +1,117 @@
+"""The quick start and ``loadbayes report`` end to end, as a newcomer runs them (issue 15)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.integration
+
+EXE = [sys.executable, "-m", "loadbayes"]
+FAST = ["--draws", "1200", "--burn", "200", "--chains", "2"]
+
+
+def run(*args, cwd, stdout=None):
+    return subprocess.run([*EXE, *map(str, args)], cwd=cwd, capture_output=stdout is None,
+                          stdout=stdout, text=True, timeout=300)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def quick_start(tmp_path_factory):
+    """`loadbayes example zip > bus.csv` then a fit with no --json at all."""
+    root = tmp_path_factory.mktemp("quick")
+    with open(root / "bus.csv", "w") as fh:
+        assert run("example", "zip", cwd=root, stdout=fh).returncode == 0
+    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1",
+              "--q0", "0.4", *FAST, "--netcdf", "fit.nc", cwd=root)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    return root, res
+
+
+def test_the_example_fits_as_written_and_prints_an_80_column_table(quick_start):
+    root, res = quick_start
+    lines = res.stdout.splitlines()
+    assert lines[0].startswith("zip posterior from bus.csv")
+    assert max(len(line) for line in lines) <= 80, res.stdout
+    rows = {line.split()[0]: line.split() for line in lines[2:]}
+    assert set(rows) == {"a1", "a2", "a3", "a4", "a5", "a6", "tau_p", "tau_q"}
+    # The shipped example's true shares (data/README.md) lie in their intervals.
+    for name, true in (("a1", 0.30), ("a3", 0.45), ("a4", 0.60), ("a6", 0.30)):
+        low, high = float(rows[name][3]), float(rows[name][4])
+        assert low <= true <= high, (name, rows[name])
+    # Three significant digits, no exponent: '0.268', not '0.26812' or '2.68e-01'.
+    assert re.fullmatch(r"-?\d\.\d{3}", rows["a1"][1])
+    assert "summarising the draws" in res.stderr
+    assert not (root / "post.json").exists()
+
+
+def test_report_from_netcdf_has_summary_figures_and_truth_flags(quick_start):
+    root, _ = quick_start
+    res = run("report", "fit.nc", "--out", "r.html", "--truth", "a1=0.9", "--truth", "a4=0.6",
+              cwd=root)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    html = (root / "r.html").read_text()
+    assert (
+        html.index("id='summary'") < html.index("class='contents'") < html.index("id='parameters'")
+    )
+    assert html.count("<figure>") >= 4
+    assert html.count("<figure>") == html.count("<figcaption>Figure ") == html.count(" alt='")
+    assert not re.search(r"(src|href)=['\"]?(https?:)?//", html)  # nothing fetched
+    # a1 = 0.9 is far outside its interval: flagged in the summary; a4 = 0.6 is not.
+    assert "1 of 2 true values lie outside their 95% interval: a1." in html
+    assert html.count("OUTSIDE the interval") == 1
+    assert "Warnings (" in html or "No warnings" in html
+
+
+def test_report_from_json_says_where_the_figures_are(quick_start, tmp_path):
+    root, _ = quick_start
+    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", *FAST, "--quiet",
+              "--json", tmp_path / "fit.json", cwd=root)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    res = run("report", tmp_path / "fit.json", "--out", tmp_path / "r.html", "--quiet", cwd=root)
+    assert res.returncode == 0 and res.stderr == "", res.stderr
+    html = (tmp_path / "r.html").read_text()
+    assert "<img" not in html and "--netcdf fit.nc" in html and "a6" in html
+
+
+def test_report_errors_are_one_line_with_exit_2(quick_start, tmp_path):
+    root, _ = quick_start
+    (tmp_path / "r.html").write_text("old")
+    res = run("report", "fit.nc", "--out", tmp_path / "r.html", cwd=root)
+    assert res.returncode == 2 and "exists; use --force" in res.stderr
+    for bad, why in (("missing.nc", "file not found"), ("bus.csv", "not a JSON result")):
+        res = run("report", bad, "--out", tmp_path / "x.html", cwd=root)
+        assert res.returncode == 2 and why in res.stderr, res.stderr
+        assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
+    res = run("report", "fit.nc", "--out", tmp_path / "x.html", "--truth", "zz=1", cwd=root)
+    assert res.returncode == 2 and "zz" in res.stderr
+
+
+def test_reports_of_an_exponential_and_a_motor_fit(tmp_path):
+    from loadbayes.cases.motor_sim import simulate
+    from loadbayes.fit import fit_exp, fit_im
+    from loadbayes.posterior import FitWarning
+    from loadbayes.report.fit_report import write_report
+
+    rng = np.random.default_rng(5)
+    v = rng.uniform(0.85, 1.05, 300)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitWarning)
+        exp = fit_exp({"v": v, "p": v**1.3 + rng.normal(0, 0.01, v.size)}, draws=800, burn=200,
+                      chains=2)  # fmt: skip
+        im = fit_im(simulate("krause_3hp", noise=0.02, seed=1, t_end_s=1.0), draws=800,
+                    burn=200, chains=2)  # fmt: skip
+    for name, post in (("exp", exp), ("im", im)):
+        nc = post.to_netcdf(tmp_path / f"{name}.nc")
+        html = write_report(nc, tmp_path / f"{name}.html").read_text()
+        assert html.count("<figure>") >= 3, name
+        if name == "im":
+            assert "ac" in html and "third-order induction motor" in html
+            assert "Load curves" not in html  # no P(V) for the motor's states
+        else:
+            assert "Load curves" in html and "exponent of P" in html

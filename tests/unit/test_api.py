@@ -1,0 +1,133 @@
+"""The Python API has the CLI's options, checks and one-line errors (issue 15)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from loadbayes.fit import fit_exp, fit_zip
+from loadbayes.io.errors import DataError, LoadbayesError, OptionError
+from loadbayes.posterior import FitWarning
+
+FAST = {"draws": 600, "burn": 100, "chains": 2, "seed": 1}
+
+
+def _bus(n=400, seed=0):
+    """A bus in kV / MW / Mvar with a timestamp column: ZIP (0.3, 0.25, 0.45) at 11 kV, 5 MW."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.88, 1.08, n)
+    return pd.DataFrame(
+        {
+            "stamp": pd.date_range("2026-01-01", periods=n, freq="min"),
+            "V_kV": 11 * x,
+            "P_MW": 5 * (0.3 * x**2 + 0.25 * x + 0.45) + rng.normal(0, 0.01, n),
+            "Q_Mvar": 2 * (0.6 * x**2 + 0.1 * x + 0.3) + rng.normal(0, 0.01, n),
+        }
+    )
+
+
+def _fit(data, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitWarning)
+        return fit_zip(data, **{**FAST, **kw})
+
+
+NAMES = {"v_col": "V_kV", "p_col": "P_MW", "q_col": "Q_Mvar", "v_base": 11.0, "s_base": 5.0}
+
+
+def test_column_names_bases_and_an_unused_timestamp_column():
+    post = _fit(_bus(), t_col="stamp", q0=0.4, **NAMES)
+    m = post.mean()
+    # 400 samples at 0.01 MW noise pin the shares within a few hundredths.
+    assert abs(m["a1"] - 0.3) < 0.1 and abs(m["a3"] - 0.45) < 0.1
+    assert abs(m["a4"] - 0.6) < 0.1
+    assert post.settings["columns"] == {"v": "V_kV", "p": "P_MW", "q": "Q_Mvar"}
+    assert post.settings["time_start"] == "2026-01-01 00:00:00"
+    assert post.settings["time_end"].startswith("2026-01-01 06:39")
+
+
+def test_predict_takes_and_returns_the_data_units():
+    post = _fit(_bus(), q0=0.4, **NAMES)
+    pred = post.predict([9.9, 11.0, 12.0])
+    assert list(pred["v"]) == [9.9, 11.0, 12.0]
+    # At V = v_base the ZIP curve is P0 = 1 p.u. = 5 MW exactly, Q0 = 0.4 p.u. = 2 Mvar.
+    assert pred["p_mean"].iloc[1] == pytest.approx(5.0, abs=1e-9)
+    assert pred["q_mean"].iloc[1] == pytest.approx(2.0, abs=1e-9)
+    assert 4.2 < pred["p_mean"].iloc[0] < 4.8  # 0.9 p.u.: 5 * 0.9**~1 ~ 4.5 MW
+
+
+def test_a_file_is_fitted_like_the_cli_does(tmp_path):
+    df = _bus()
+    df.to_csv(tmp_path / "bus.csv", index=False)
+    from_file = _fit(str(tmp_path / "bus.csv"), q0=0.4, **NAMES)
+    from_frame = _fit(df, q0=0.4, **NAMES)
+    # Same data, same seed: the same draws whether read from the file or the DataFrame
+    # (CSV keeps 17 significant digits, so the statistics agree to rounding).
+    np.testing.assert_allclose(from_file["a1"], from_frame["a1"], rtol=1e-9, atol=1e-9)
+    assert from_file.settings["data"].endswith("bus.csv")
+
+
+def test_the_same_one_line_errors_as_the_cli(tmp_path):
+    df = _bus(20)
+    df.loc[6, "V_kV"] = -1.0
+    df.to_csv(tmp_path / "bad.csv", index=False)
+    with pytest.raises(DataError) as in_file:
+        _fit(str(tmp_path / "bad.csv"), **NAMES)
+    with pytest.raises(DataError) as in_memory:
+        _fit(df, **NAMES)
+    # Row 7 (1-based, header excluded) in both, the same words; a CSV cell is quoted as
+    # written ('-1.0'), a number in memory is shown as the number.
+    same = str(in_memory.value).removeprefix("data: ")
+    assert str(in_file.value).replace("'-1.0'", "-1.0").endswith(same)
+    assert "column 'V_kV', row 7" in str(in_memory.value)
+    assert "\n" not in str(in_memory.value)
+
+
+def test_a_missing_column_names_the_columns_there():
+    with pytest.raises(DataError, match=r"column 'v': not found; the columns are .*'V_kV'"):
+        _fit(_bus(10))
+
+
+def test_errors_are_one_documented_type():
+    with pytest.raises(LoadbayesError):
+        _fit(_bus(10))
+    with pytest.raises(OptionError, match="burn"):
+        _fit(_bus(10), draws=100, burn=100, **{k: v for k, v in NAMES.items()})
+    with pytest.raises(OptionError, match="v_base"):
+        _fit(_bus(10), **{**NAMES, "v_base": -1.0})
+    with pytest.raises(LoadbayesError, match="DataFrame"):
+        _fit(42)
+
+
+def test_fit_warnings_are_python_warnings_too():
+    x = np.linspace(0.999, 1.001, 50)  # a band far too narrow to separate a1 from a2
+    rng = np.random.default_rng(0)
+    data = {"v": x, "p": 0.3 * x**2 + 0.2 * x + 0.5 + rng.normal(0, 1e-3, x.size)}
+    with pytest.warns(FitWarning, match="cannot be told apart"):
+        post = fit_zip(data, **FAST)
+    assert post.warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fit_zip(data, warn=False, **FAST)  # and silent on request
+
+
+def test_exp_has_the_same_options():
+    df = _bus()
+    x = df["V_kV"] / 11
+    df["P_MW"] = 5 * x**1.4 + np.random.default_rng(3).normal(0, 0.01, len(df))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitWarning)
+        post = fit_exp(df, v_col="V_kV", p_col="P_MW", q_col=None, v_base=11, s_base=5,
+                       **FAST)  # fmt: skip
+    assert abs(post.mean()["np"] - 1.4) < 0.1
+    assert post.predict([11.0])["p_mean"].iloc[0] == pytest.approx(5.0, rel=1e-9)
+
+
+def test_repr_html_is_a_table_with_the_warnings():
+    post = _fit(_bus(), q0=0.4, **NAMES)
+    text = post._repr_html_()
+    assert text.startswith("<div") and "<table>" in text and "a1" in text
+    assert ("Warnings" in text) == bool(post.warnings)
