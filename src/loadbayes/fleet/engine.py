@@ -22,6 +22,10 @@ from typing import Any
 __all__ = ["Engine"]
 
 
+#: Times a task lost with a dying worker is submitted again before giving up.
+_ATTEMPTS = 3
+
+
 class Engine:
     """Run tasks in-process or on Dask; use as a context manager.
 
@@ -109,21 +113,49 @@ class Engine:
                 if done is not None:
                     done(i, out[-1])
             return out
+        results: list[Any] = [None] * len(items)
+        todo = list(range(len(items)))
+        for _ in range(_ATTEMPTS):
+            todo = self._run(func, items, todo, args, kwargs, results, done)
+            if not todo:
+                break
+        else:
+            raise RuntimeError(
+                f"{len(todo)} tasks lost their workers {_ATTEMPTS} times in a row; "
+                "the cluster is not stable enough to finish"
+            )
+        return results
+
+    def _run(self, func, items, todo, args, kwargs, results, done) -> list[int]:
+        """Submit the items ``todo``; return those lost with a worker (to run again).
+
+        A worker that dies takes its scattered copies and running tasks with it; the
+        scheduler then cancels the tasks that needed them ("lost dependencies"). Those are
+        submitted again with freshly scattered arguments; every result is stored by its
+        item's index, so nothing is lost or counted twice.
+        """
         from dask.distributed import as_completed
+        from distributed.client import FutureCancelledError
+        from distributed.scheduler import KilledWorker
 
         # Large shared arguments go to the workers once, not once per task.
-        shared = [self.client.scatter(a, broadcast=True) for a in args]
-        kw = {k: self.client.scatter(v, broadcast=True) for k, v in kwargs.items()}
-        futures = [self.client.submit(func, item, *shared, pure=False, **kw) for item in items]
-        index = {f.key: i for i, f in enumerate(futures)}
-        results: list[Any] = [None] * len(futures)
+        # Fresh keys (hash=False): a copy lost with a worker is not confused with a new one.
+        shared = [self.client.scatter(a, broadcast=True, hash=False) for a in args]
+        kw = {k: self.client.scatter(v, broadcast=True, hash=False) for k, v in kwargs.items()}
+        futures = [self.client.submit(func, items[i], *shared, pure=False, **kw) for i in todo]
+        index = {f.key: i for f, i in zip(futures, todo, strict=True)}
+        lost: list[int] = []
         try:
             for fut in as_completed(futures):
                 i = index[fut.key]
-                results[i] = fut.result()
+                try:
+                    results[i] = fut.result()
+                except (FutureCancelledError, KilledWorker):
+                    lost.append(i)
+                    continue
                 if done is not None:
                     done(i, results[i])
         finally:
             for f in futures:
                 f.release()
-        return results
+        return sorted(lost)
