@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.core import accumulate, fit, fit_gram
+from loadbayes.fit.core import MAX_OBSERVED, fit
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 
@@ -199,35 +199,18 @@ def _fit_exp_columns(
         i = int(np.flatnonzero(~(v > 0))[0])
         raise DataError(f"voltage must be positive, got {v[i]:g}", column="v", row=i + 1)
     keep = ["v", "p"] + (["q"] if with_q else []) + (["f"] if with_f else [])
-    observed = {k: cols[k] for k in keep} if v.size <= 200_000 else None
+    observed = {k: cols[k] for k in keep} if v.size <= MAX_OBSERVED else None
     base = dict(settings or {})
     base.update(v0=v0, p0=p0, q0=q0 if with_q else None, f0=f0 if with_f else None, noise=noise)
-    if noise == "multiplicative":
-        gram = accumulate(model, [cols])
-        post = fit_gram(
-            model,
-            gram,
-            priors=priors or model.default_priors(),
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,
-            seed=seed,
-            observed=observed,
-            settings=base,
-            warnings=warnings or (),
-        )
-        post.settings["scheme"] = "blocked (log-linear)"
-        return post
     warn = list(warnings or [])
-    span = float(np.ptp(v) / v0)
-    if span < 0.02:
+    if noise == "additive" and (span := float(np.ptp(v) / v0)) < 0.02:
         warn.append(
             f"voltage spans only {100 * span:.2g}% of v0: the exponent is poorly determined "
             "on so narrow a band."
         )
-    return fit(
+    # One driver for both forms: the model's pieces (log-linear blocks or power-law
+    # blocks) pick the sampler.
+    post = fit(
         model,
         cols,
         priors=priors,
@@ -235,8 +218,12 @@ def _fit_exp_columns(
         draws=draws,
         burn=burn,
         thin=thin,
+        init=init,
         seed=seed,
         observed=observed,
         settings=base,
         warnings=warn,
     )
+    if noise == "multiplicative":
+        post.settings["scheme"] = "blocked (log-linear)"
+    return post
