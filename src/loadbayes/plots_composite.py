@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -14,6 +15,14 @@ from loadbayes.posterior import Posterior
 __all__ = ["plot_composite"]
 
 _PAIRS = (("f_m", "t_prime_s"), ("x_prime", "h_s"), ("t_prime_s", "x_open"))
+#: Axis labels with units (the motor's impedances are on its own base, docs/composite.md).
+_LABELS = {
+    "f_m": "motor share of P0, f_m",
+    "t_prime_s": "T' (s)",
+    "x_prime": "X' (p.u., motor base)",
+    "h_s": "H (s, motor base)",
+    "x_open": "X (p.u., motor base)",
+}
 
 
 def plot_composite(
@@ -48,12 +57,17 @@ def plot_composite(
     """
     plt = pyplot()
     n_ev = min(len(events), max_events)
-    ncol = max(n_ev, len(_PAIRS))
-    fig, axes = plt.subplots(3, ncol, figsize=(4.0 * ncol, 9.0), squeeze=False)
+    n_pair = len(_PAIRS)
+    # A grid fine enough for both rows: each event's traces and each pair plot span
+    # equal widths, so no panel is left empty whatever the number of events.
+    ncol = math.lcm(n_ev, n_pair)
+    fig = plt.figure(figsize=(4.0 * max(n_ev, n_pair), 9.0))
+    grid = fig.add_gridspec(3, ncol)
+    w_ev, w_pair = ncol // n_ev, ncol // n_pair
     for k in range(n_ev):
         ev, band = events[k], bands[k]
         for row, ch in ((0, "p"), (1, "q")):
-            ax = axes[row, k]
+            ax = fig.add_subplot(grid[row, k * w_ev : (k + 1) * w_ev])
             ax.plot(ev.t, getattr(ev, ch), ".", ms=2.5, color="0.4", label="measured")
             ax.fill_between(ev.t, band[f"{ch}_lo"], band[f"{ch}_hi"], color="C0", alpha=0.35)
             ax.plot(ev.t, band[f"{ch}_mid"], color="C0", lw=1.0, label="posterior (95% band)")
@@ -62,11 +76,8 @@ def plot_composite(
             ax.set_title(ev.name[-40:], fontsize=8)
             if k == 0 and row == 0:
                 ax.legend(fontsize=7)
-    for k in range(n_ev, ncol):
-        axes[0, k].axis("off")
-        axes[1, k].axis("off")
     for k, (a, b) in enumerate(_PAIRS):
-        ax = axes[2, k]
+        ax = fig.add_subplot(grid[2, k * w_pair : (k + 1) * w_pair])
         x, y = post.draws[a].ravel(), post.draws[b].ravel()
         step = max(1, x.size // 2000)
         ax.plot(x[::step], y[::step], ".", ms=1.5, alpha=0.4, color="C0", label="posterior")
@@ -76,11 +87,14 @@ def plot_composite(
             ax.plot(xb[::sb], yb[::sb], ".", ms=1.5, alpha=0.3, color="C1", label="NLS (Gauss)")
         if truth is not None and a in truth and b in truth:
             ax.plot([truth[a]], [truth[b]], "k*", ms=10, label="truth")
-        ax.set_xlabel(a)
-        ax.set_ylabel(b)
+        ax.set_xlabel(_LABELS.get(a, a))
+        ax.set_ylabel(_LABELS.get(b, b))
         if k == 0:
-            ax.legend(fontsize=7, markerscale=4)
-    for k in range(len(_PAIRS), ncol):
-        axes[2, k].axis("off")
+            leg = ax.legend(fontsize=7)
+            # Enlarge the scatter's dots in the legend only (a markerscale would also
+            # blow up the truth's star).
+            for handle in leg.legend_handles:
+                if handle.get_marker() == ".":
+                    handle.set_markersize(8)
     fig.tight_layout()
     return fig

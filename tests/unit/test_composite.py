@@ -124,3 +124,28 @@ def test_compiled_collapsed_density_equals_the_python_path():
     bad = u.copy()
     bad[1] += 3.0  # X' T0 twenty times larger
     assert prob.collapsed(bad, tau) == (-np.inf, None)
+
+
+@pytest.mark.parametrize("n_events", [1, 2])
+def test_the_figure_has_no_empty_panel(n_events):
+    # One P and one Q panel per event plus three pair plots, each with something drawn:
+    # the grid once left blank axes beside a single event.
+    from loadbayes.fit.composite import fit_composite, predictive_band
+    from loadbayes.plots import pyplot
+    from loadbayes.plots_composite import plot_composite
+
+    evs = [
+        simulate_event("small_industrial", depth=d, t_end_s=1.5, fs=30, seed=k)[0]
+        for k, d in enumerate((0.3, 0.45)[:n_events])
+    ]
+    fit = fit_composite(evs, draws=120, burn=60, chains=1, seed=0)
+    fig = plot_composite(
+        fit.posterior, evs, predictive_band(fit.posterior, evs), baseline=fit.baseline
+    )
+    try:
+        assert len(fig.axes) == 2 * n_events + 3
+        for ax in fig.axes:
+            assert ax.axison and (ax.lines or ax.collections), ax.get_title()
+        assert fig.axes[-3].get_xlabel() == "motor share of P0, f_m"
+    finally:
+        pyplot().close(fig)
