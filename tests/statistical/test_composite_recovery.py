@@ -1,16 +1,22 @@
-"""Recovery of the composite load on simulated events (a CI-sized version of the check).
+"""Recovery of the composite load on 200 simulated events: 95% interval coverage.
 
-The full check (``python -m loadbayes.studies.calibration.composite_recovery --events 200``, in
-``make validate``) fits 200 events; CI fits 12 (the test-time budget) with the same
-generator and settings: the four library motors x sags of 15, 30 and 50%, held
-0.1-0.5 s, ZIP mixes with negative shares, noise 0.5-2%.
+The generator and the quantities are those of ``make validate``
+(``python -m loadbayes.studies.calibration.composite_recovery --events 200``): the four
+library motors x sags of 15, 30 and 50%, held 0.1-0.5 s, ZIP mixes with negative shares,
+noise 0.5-2% of |S0|, simulated by SciPy (DOP853) independently of the fit's kernel.
+CI uses shorter records and chains (``CI_SETTINGS``: 2 s at 30 samples/s, 2 chains x
+1,000 iterations, 400 burn-in), about 0.8 s of CPU an event; ``make validate`` runs
+2.5 s records at 60/s with longer chains.
 
-False-alarm rates (if every interval covered with probability 0.95 independently):
-per quantity, 4 or more misses in 12 has probability 0.0022 (checked for f_m, T', p0,
-q0: at most 0.9% together); the pooled coverage of the 17 quantities below 0.85 has
-probability below 1e-6 under independence (the quantities of one event are correlated,
-which makes it larger, though still small: at most 3 events fully missed would be
-needed). The runs are deterministic (fixed seeds).
+False-alarm rates, if each quantity's interval covered independently with probability
+0.95 (the runs are deterministic: fixed seeds):
+- too few hits: 23 or more misses of 200 for one quantity has probability 1.9e-4; over
+  the 17 quantities at most 0.33%;
+- too many hits (intervals too wide) for the 9 quantities the event determines (the
+  operating point, the ZIP shares, the motor share): at most 1 miss of 200 has
+  probability 4.0e-4; together at most 0.36%.
+The quantities on the motor's base symmetry (X', H, Rs, T0, the rating) are left to
+over-cover: their intervals are the prior's width along the symmetry (docs/composite.md).
 """
 
 from __future__ import annotations
@@ -18,25 +24,41 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loadbayes.studies.calibration.composite_recovery import run_recovery
+from loadbayes.studies.calibration.composite_recovery import CI_SETTINGS, run_recovery
 
 pytestmark = pytest.mark.statistical
+
+N_EVENTS = 200
+DETERMINED = ("p0", "q0", "a1", "a2", "a3", "a4", "a5", "a6", "f_m")
 
 
 @pytest.fixture(scope="module")
 def recovery():
-    return run_recovery(12, seed=2026, draws=1600, burn=700, t_end_s=2.0)
+    return run_recovery(N_EVENTS, seed=2026, workers=2, **CI_SETTINGS)
 
 
-@pytest.mark.parametrize("name", ["f_m", "t_prime_s", "p0", "q0"])
-def test_intervals_cover_the_key_quantities(recovery, name):
-    misses = len(recovery["hits"][name]) - sum(recovery["hits"][name])
-    assert misses <= 3, (name, recovery["hits"][name])
+def test_every_interval_covers_at_the_nominal_rate(recovery):
+    misses = {k: N_EVENTS - sum(v) for k, v in recovery["hits"].items()}
+    assert all(len(v) == N_EVENTS for v in recovery["hits"].values())
+    too_few = {k: m for k, m in misses.items() if m >= 23}
+    assert not too_few, (too_few, recovery["coverage"])
 
 
-def test_pooled_coverage(recovery):
-    pooled = np.mean([h for v in recovery["hits"].values() for h in v])
-    assert pooled >= 0.85, recovery["coverage"]
+def test_the_determined_quantities_are_not_over_covered(recovery):
+    misses = {k: N_EVENTS - sum(recovery["hits"][k]) for k in DETERMINED}
+    assert min(misses.values()) >= 2, misses
+
+
+def test_the_motor_share_narrows_with_the_depth_of_the_sag(recovery):
+    # Physics, not calibration: a deeper sag moves the motor further from its operating
+    # point, so its share of the load is better determined. Medians over ~67 events
+    # per depth; observed 0.089, 0.039, 0.017.
+    sd = {
+        d: np.median([c["f_m_sd"] for c in recovery["contraction"] if c["depth"] == d])
+        for d in (0.15, 0.3, 0.5)
+    }
+    assert sd[0.15] > 1.5 * sd[0.3], sd
+    assert sd[0.3] > 1.5 * sd[0.5], sd
 
 
 @pytest.mark.parametrize("motor", ["small_industrial", "large_industrial"])

@@ -22,12 +22,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import time
 from typing import Any
 
 import numpy as np
 
-__all__ = ["CHECKED", "recovery_cases", "run_recovery"]
+__all__ = ["CHECKED", "CI_SETTINGS", "fit_case", "recovery_cases", "run_recovery"]
 
 #: Quantities whose 95% interval is checked against the truth.
 CHECKED: tuple[str, ...] = (
@@ -49,6 +51,9 @@ CHECKED: tuple[str, ...] = (
     "mva_m",
     "q_c",
 )
+#: Settings of the CI test (tests/statistical/test_composite_recovery.py): short records
+#: at 30 samples/s and short chains, so that 200 events fit in the test-time budget.
+CI_SETTINGS: dict[str, Any] = {"t_end_s": 2.0, "fs": 30.0, "draws": 1000, "burn": 400, "chains": 2}
 _MOTORS = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
 _DEPTHS = (0.15, 0.3, 0.5)
 
@@ -78,6 +83,61 @@ def recovery_cases(n: int, *, seed: int = 0) -> list[dict[str, Any]]:
     return out
 
 
+def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[str, Any]:
+    """Simulate one case, fit it, and return its interval hits and contraction.
+
+    A module-level function (not a closure) so that a process pool can run it.
+    """
+    import arviz as az
+
+    from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.fit.composite import fit_composite
+
+    cpu = time.process_time()
+    ev, truth = simulate_event(
+        case["motor"],
+        depth=case["depth"],
+        start_s=0.5,
+        duration_s=case["duration_s"],
+        recovery_s=case["recovery_s"],
+        t_end_s=settings["t_end_s"],
+        fs=settings["fs"],
+        t0=case["t0"],
+        f_m=case["f_m"],
+        q0=case["q0"],
+        zip_p=case["zip_p"],
+        zip_q=case["zip_q"],
+        noise=case["noise"],
+        seed=case["seed"],
+    )
+    fit = fit_composite(
+        [ev],
+        draws=settings["draws"],
+        burn=settings["burn"],
+        chains=settings["chains"],
+        seed=seed,
+        workers=1,
+    )
+    post = fit.posterior
+    prob = settings["prob"]
+    lo_q, hi_q = 50 * (1 - prob), 50 * (1 + prob)
+    hits = {}
+    for k in CHECKED:
+        lo, hi = np.percentile(post.draws[k], [lo_q, hi_q])
+        hits[k] = bool(lo <= truth[k] <= hi)
+    prior_sd_tp = float(fit.problem.prior.theta_sd[3])
+    return {
+        "hits": hits,
+        "contraction": {
+            "depth": case["depth"],
+            "f_m_sd": float(np.std(post.draws["f_m"])),
+            "log_t_prime_sd_over_prior": float(np.std(post.draws["log_t_prime"])) / prior_sd_tp,
+        },
+        "r_hat_log_t_prime": float(az.rhat(post.draws["log_t_prime"])),
+        "cpu_s": time.process_time() - cpu,
+    }
+
+
 def run_recovery(
     n_events: int,
     *,
@@ -88,65 +148,66 @@ def run_recovery(
     burn: int = 1000,
     chains: int = 2,
     prob: float = 0.95,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Fit ``n_events`` simulated events and count interval coverage per quantity.
+
+    Parameters
+    ----------
+    n_events : int
+        Events (cases from :func:`recovery_cases`).
+    seed : int
+        Root seed: the cases' and the fits' (event ``i`` is fitted with ``seed + i``).
+    t_end_s, fs : float
+        Record length (s) and sampling rate (1/s) of every event.
+    draws, burn, chains : int
+        Sampler settings of each fit.
+    prob : float
+        Central interval checked.
+    workers : int
+        Processes fitting events side by side (each fit uses one thread); the results
+        do not depend on it.
 
     Returns
     -------
     dict
         ``coverage`` (fraction of events whose central ``prob`` interval holds the truth,
         per quantity), ``hits`` (per event and quantity), ``contraction`` (per event: the
-        posterior sd of f_m and of log T' over its prior sd), ``cases``, ``r_hat_max``.
+        posterior sd of f_m and of log T' over its prior sd), ``cases``, ``r_hat_log_t_prime``,
+        ``cpu_s`` (per event).
     """
-    from loadbayes.cases.composite_sim import simulate_event
-    from loadbayes.fit.composite import fit_composite
-
     cases = recovery_cases(n_events, seed=seed)
-    hits = {k: [] for k in CHECKED}
-    contraction, rhat = [], []
-    lo_q, hi_q = 50 * (1 - prob), 50 * (1 + prob)
-    for i, case in enumerate(cases):
-        ev, truth = simulate_event(
-            case["motor"],
-            depth=case["depth"],
-            start_s=0.5,
-            duration_s=case["duration_s"],
-            recovery_s=case["recovery_s"],
-            t_end_s=t_end_s,
-            fs=fs,
-            t0=case["t0"],
-            f_m=case["f_m"],
-            q0=case["q0"],
-            zip_p=case["zip_p"],
-            zip_q=case["zip_q"],
-            noise=case["noise"],
-            seed=case["seed"],
-        )
-        fit = fit_composite([ev], draws=draws, burn=burn, chains=chains, seed=seed + i)
-        post = fit.posterior
-        for k in CHECKED:
-            lo, hi = np.percentile(post.draws[k], [lo_q, hi_q])
-            hits[k].append(bool(lo <= truth[k] <= hi))
-        prior_sd_tp = float(fit.problem.prior.theta_sd[3])
-        contraction.append(
-            {
-                "depth": case["depth"],
-                "f_m_sd": float(np.std(post.draws["f_m"])),
-                "log_t_prime_sd_over_prior": float(np.std(post.draws["log_t_prime"])) / prior_sd_tp,
-            }
-        )
-        import arviz as az
+    settings = {
+        "t_end_s": t_end_s,
+        "fs": fs,
+        "draws": draws,
+        "burn": burn,
+        "chains": chains,
+        "prob": prob,
+    }
+    seeds = [seed + i for i in range(n_events)]
+    if workers > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
 
-        rhat.append(float(az.rhat(post.draws["log_t_prime"])))
+        # forkserver, not fork: the caller may hold threads (a test runner, a Dask
+        # client) and forking a threaded process can deadlock.
+        ctx = multiprocessing.get_context("forkserver")
+        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+            per = list(pool.map(fit_case, cases, [settings] * n_events, seeds))
+    else:
+        per = [fit_case(c, settings, s) for c, s in zip(cases, seeds, strict=True)]
+    hits = {k: [r["hits"][k] for r in per] for k in CHECKED}
     return {
         "events": n_events,
         "prob": prob,
         "coverage": {k: float(np.mean(v)) for k, v in hits.items()},
         "hits": hits,
-        "contraction": contraction,
-        "r_hat_log_t_prime": rhat,
+        "contraction": [r["contraction"] for r in per],
+        "r_hat_log_t_prime": [r["r_hat_log_t_prime"] for r in per],
+        "cpu_s": [r["cpu_s"] for r in per],
         "cases": cases,
-        "settings": {"t_end_s": t_end_s, "fs": fs, "draws": draws, "burn": burn, "chains": chains},
+        "settings": settings,
     }
 
 
@@ -156,8 +217,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--events", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--output", required=True)
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--ci", action="store_true", help="the CI test's shorter settings")
     args = ap.parse_args(argv)
-    res = run_recovery(args.events, seed=args.seed)
+    res = run_recovery(
+        args.events, seed=args.seed, workers=args.workers, **(CI_SETTINGS if args.ci else {})
+    )
     with open(args.output, "w") as fh:
         json.dump(res, fh, indent=1)
     for k, v in res["coverage"].items():
