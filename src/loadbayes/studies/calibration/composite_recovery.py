@@ -94,21 +94,14 @@ def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[
     from loadbayes.fit.composite import fit_composite
 
     cpu = time.process_time()
+    drawn = ("depth", "duration_s", "recovery_s", "t0", "f_m", "q0", "zip_p", "zip_q", "noise")
     ev, truth = simulate_event(
         case["motor"],
-        depth=case["depth"],
         start_s=0.5,
-        duration_s=case["duration_s"],
-        recovery_s=case["recovery_s"],
         t_end_s=settings["t_end_s"],
         fs=settings["fs"],
-        t0=case["t0"],
-        f_m=case["f_m"],
-        q0=case["q0"],
-        zip_p=case["zip_p"],
-        zip_q=case["zip_q"],
-        noise=case["noise"],
         seed=case["seed"],
+        **{k: case[k] for k in drawn},
     )
     fit = fit_composite(
         [ev],
