@@ -128,10 +128,11 @@ def _check(cols, rows, *, path, label, names, f_hz) -> Event:
             names["v"],
             int(rows[int(np.argmax(np.abs(v - v0)))]),
         )
-    delta = None
+    delta, source = None, ""
     if "angle" in cols:
-        delta = np.unwrap(cols["angle"])
+        delta, source = np.unwrap(cols["angle"]), "angle"
     elif "f" in cols:
+        source = "frequency"
         f = cols["f"]
         if not np.all(np.abs(f / f_hz - 1) < 0.2):
             k = int(np.flatnonzero(~(np.abs(f / f_hz - 1) < 0.2))[0])
@@ -145,7 +146,7 @@ def _check(cols, rows, *, path, label, names, f_hz) -> Event:
         # The voltage angle in the frame rotating at f_hz: the integral of 2 pi (f - f_hz).
         w = 2 * math.pi * (f - f_hz)
         delta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)])
-    return Event(t - t[0], v, cols["p"], cols["q"], delta, label)
+    return Event(t - t[0], v, cols["p"], cols["q"], delta, label, source)
 
 
 def read_events(

@@ -28,7 +28,7 @@ def test_writes_an_event_and_the_truth(tmp_path):
     res = _run(tmp_path, *args, "--sag-depth", "0.3", "--noise", "0.01", "--seed", "3")
     assert res.exit_code == 0, res.output
     table = pd.read_csv(out)
-    assert list(table.columns) == ["t_s", "v", "p", "q", "f"]
+    assert list(table.columns) == ["t_s", "v", "angle_rad", "p", "q", "f"]
     assert np.allclose(np.diff(table["t_s"]), 1 / 60) and table["t_s"].iloc[-1] == 1.2
     meta = json.loads(out.with_suffix(".json").read_text())
     assert CONTRACT <= set(meta["truth"])

@@ -50,8 +50,12 @@ def test_read_events_fit_recovers_the_zip(tmp_path, revision, fmt):
     assert res.returncode == 0, res.stderr
     assert "v base 230 kV" in res.stderr
     rec = pd.read_parquet(tmp_path / "rec.parquet")
-    assert list(rec.columns) == ["t_s", "v", "p", "q", "f"]
+    assert list(rec.columns) == ["t_s", "v", "angle_rad", "p", "q", "f"]
     assert len(rec) == 450  # 9 s of 50 Hz cycles
+    # The angle in the frame rotating at the nominal 50 Hz turns at 2 pi (50.2 - 50):
+    # what fit composite integrates f into when there is no angle.
+    turn = np.diff(rec["angle_rad"].to_numpy()) / np.diff(rec["t_s"].to_numpy())
+    assert np.median(turn) == pytest.approx(2 * np.pi * 0.2, rel=1e-3)
     # Off nominal with a harmonic: within 2e-4 Hz, except a few mHz in the cycles that
     # straddle an abrupt (one-cycle) sag edge, where the window sees two phasors.
     err = np.abs(rec["f"].to_numpy() - 50.2)
@@ -62,6 +66,7 @@ def test_read_events_fit_recovers_the_zip(tmp_path, revision, fmt):
     index = pd.read_csv(tmp_path / "ev" / "events.csv")
     assert list(index["file"]) == ["event_001.csv", "event_002.csv"]
     assert index["depth"].to_numpy() == pytest.approx([0.4, 0.3], abs=2e-3)
+    assert "angle_rad" in pd.read_csv(tmp_path / "ev" / "event_001.csv").columns
     res = run("fit", "zip", "ev/event_001.csv", "--p0", "auto", "--q0", "auto", *FAST,
               "--json", "post.json", cwd=tmp_path)  # fmt: skip
     assert res.returncode == 0, res.stderr

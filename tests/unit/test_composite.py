@@ -16,6 +16,7 @@ from loadbayes.models.composite import (
     motor_response,
     predict,
 )
+from loadbayes.models.composite_steps import EPS_FRACTION
 
 
 def _theta(name, t0=0.6):
@@ -34,11 +35,42 @@ def _beta(truth):
 
 @pytest.mark.parametrize("name", sorted(MOTORS))
 def test_model_reproduces_the_scipy_simulation(name):
-    # The independent generator (solve_ivp) and the model (compiled kernel) agree.
-    ev, truth = simulate_event(name, depth=0.4, noise=0.0, zip_p=(0.6, -0.3, 0.7), t_end_s=2.0)
+    # The independent generator (solve_ivp) and the model (compiled kernel) agree, both
+    # driven by the straight line through the samples (the fit's steps=False reading).
+    ev, truth = simulate_event(
+        name, depth=0.4, noise=0.0, zip_p=(0.6, -0.3, 0.7), t_end_s=2.0, step=False
+    )
     p, q = predict(ev, _theta(name), _beta(truth))
     assert np.max(np.abs(p - truth["p_clean"])) < 1e-4
     assert np.max(np.abs(q - truth["q_clean"])) < 1e-4
+
+
+@pytest.mark.parametrize("name", sorted(MOTORS))
+@pytest.mark.parametrize("frac", [0.0, 0.4, 0.93])
+def test_a_step_inside_a_sample_interval_is_reproduced_where_it_fell(name, frac):
+    # SciPy driven by the continuous sag (a step at start_s, between two samples) against
+    # the fit's model with the step placed at the same instant by its fraction phi.
+    fs, k = 60.0, 30
+    start = (k + frac) / fs
+    ev, truth = simulate_event(
+        name, depth=0.4, noise=0.0, start_s=start + 1e-9, t_end_s=1.5, fs=fs, recovery_s=0.0
+    )
+    prob = CompositeProblem([ev], CompositePrior.default([ev]))
+    assert prob.n_steps == 2 and prob.grid.k_of.tolist()[0] == k
+    eps = EPS_FRACTION
+    phis = [((t - left) / w - 1.5 * eps) / (1 - 3 * eps) for t, left, w in zip(
+        (truth["t_step0"], truth["t_step1"]), prob.grid.left, prob.grid.width, strict=True
+    )]  # fmt: skip
+    phis = np.clip(phis, 1e-9, 1 - 1e-9)
+    u = np.concatenate([SCALE_FREE_MATRIX[:5] @ _theta(name), np.log(phis) - np.log1p(-phis)])
+    (pm, qm), = prob.responses(u)
+    zp, zq = design(ev, pm, qm)
+    assert np.max(np.abs(zp @ _beta(truth) - truth["p_clean"])) < 1e-4
+    assert np.max(np.abs(zq @ _beta(truth) - truth["q_clean"])) < 1e-4
+    # The straight-line reading of the same samples misses by far more (why steps exist).
+    p_lin, _ = predict(ev, _theta(name), _beta(truth))
+    if name != "krause_2250hp" or frac < 0.9:
+        assert np.max(np.abs(p_lin - truth["p_clean"])) > 1e-3
 
 
 def test_composition_inverts_the_truth():
@@ -96,7 +128,7 @@ def test_nls_recovers_the_motor_share_and_the_ratio_b2():
     ev, truth = simulate_event("small_industrial", depth=0.4, noise=0.002, seed=4)
     prob = CompositeProblem([ev], CompositePrior.default([ev]))
     res = nls(prob)
-    th = theta_of(res.u, np.log(0.6))
+    th = theta_of(res.u[:5], np.log(0.6))
     pm, qm = motor_response(ev, th)
     comp = composition(res.betas[0], pm[0], qm[0])
     assert comp["f_m"] == pytest.approx(truth["f_m"], abs=0.02)

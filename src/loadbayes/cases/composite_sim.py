@@ -4,10 +4,13 @@ The motor is integrated by :func:`loadbayes.cases.motor_sim.simulate` (SciPy's
 ``solve_ivp``, DOP853, tight tolerances), independent of the compiled kernel the fit
 uses: this is the "truth" the kernel and the fit are checked against.
 
-The recorded voltage is what the fit sees: samples ``V_k`` at ``fs`` per second. The
-motor is driven by the piecewise-linear voltage through those samples (a step of the sag
-is a ramp over one sample interval), which is the model's own reading of a sampled
-voltage; a recording cannot say more about what happened between two samples.
+The motor is driven by the continuous-time voltage: a step down at ``start_s`` (wherever
+that falls between two samples, as a fault does), held, then a linear recovery (or a
+step back). The recording is its samples ``V_k`` at ``fs`` per second, right-continuous
+at the step (a sample at the step's instant reads the sag). The fit models such a step
+at an unknown instant inside its sample interval (models/composite_steps.py); with
+``step=False`` the motor is instead driven by the straight line through the samples,
+which is the fit's reading with ``steps=False``.
 
 Noise: independent normal on P and Q, sd ``noise * |S0|`` with ``|S0| = sqrt(p0^2 + q0^2)``
 (one level for both channels, a fraction of the load's apparent power).
@@ -21,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.cases.motor_sim import MOTORS, Disturbance, simulate
+from loadbayes.cases.motor_sim import MOTORS, Disturbance, sag, simulate
 from loadbayes.models.composite import Event
 from loadbayes.models.motor import MotorParams
 
@@ -70,6 +73,7 @@ def simulate_event(
     noise: float = 0.01,
     seed: int = 0,
     name: str = "",
+    step: bool = True,
 ) -> tuple[Event, dict[str, Any]]:
     """Simulate one sag at a composite load.
 
@@ -99,6 +103,9 @@ def simulate_event(
         Seed of the noise.
     name : str
         Label of the event.
+    step : bool
+        Drive the motor with the continuous-time sag (a step at ``start_s``); False:
+        with the straight line through the samples.
 
     Returns
     -------
@@ -114,13 +121,17 @@ def simulate_event(
     v = sag_samples(
         t, depth=depth, start_s=start_s, duration_s=duration_s, recovery_s=recovery_s, v0=v0
     )
-    # The interpolant bends at every sample where the slope changes: restart there.
-    slope = np.diff(v)
-    kinks = t[1:-1][np.abs(np.diff(slope)) > 1e-12]
-    dist = Disturbance(t.copy(), v.copy(), tuple(float(k) for k in kinks if k > 0), {})
-    dist = replace(
-        dist, info={"kind": "sampled sag", "depth": depth, "fs": fs, "recovery_s": recovery_s}
-    )
+    if step:
+        dist = sag(depth, start_s, duration_s, recovery_s, v0_pu=v0)
+        v = dist(t)  # the same samples as sag_samples, from the profile itself
+    else:
+        # The interpolant bends at every sample where the slope changes: restart there.
+        slope = np.diff(v)
+        kinks = t[1:-1][np.abs(np.diff(slope)) > 1e-12]
+        dist = Disturbance(t.copy(), v.copy(), tuple(float(k) for k in kinks if k > 0), {})
+        dist = replace(
+            dist, info={"kind": "sampled sag", "depth": depth, "fs": fs, "recovery_s": recovery_s}
+        )
     rec = simulate(params, disturbance=dist, t_end_s=t[-1], dt_s=dt, t0=t0, noise=0.0, seed=0)
     p_m = rec["p"].to_numpy()
     q_m = rec["q"].to_numpy()
@@ -161,4 +172,8 @@ def simulate_event(
         "p_clean": p,
         "q_clean": q,
     }
+    if step:  # the instants the fit reports as t_step0, t_step1 (an abrupt return)
+        truth["t_step0"] = float(start_s)
+        if recovery_s == 0:
+            truth["t_step1"] = float(start_s + duration_s)
     return Event(t, v, p_obs, q_obs, None, name or f"sag{depth:g}"), truth

@@ -9,7 +9,9 @@ import click
 from loadbayes.commands.output import UserError, check_outputs, user_errors
 
 MOTOR_NAMES = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
-COLUMNS = ("t_s", "v", "p", "q", "f")
+#: What a PMU at the load bus records: the angle too, so that a fit sees the phase jumps
+#: of the fault (a frequency column cannot hold them; fit/composite_checks.py).
+COLUMNS = ("t_s", "v", "angle_rad", "p", "q", "f")
 
 
 def _triple(text: str, name: str) -> tuple[float, float, float]:
@@ -86,7 +88,7 @@ def simulate_andes_cmd(
 ) -> None:  # fmt: skip
     """Simulate a ZIP + induction-motor load through a fault in ANDES (independent simulator).
 
-    Writes OUT with columns t_s, v, p, q, f (system p.u., Hz) for ``loadbayes fit
+    Writes OUT with columns t_s, v, angle_rad, p, q, f (system p.u., rad, Hz) for ``loadbayes fit
     composite``, and a JSON sidecar (OUT with .json) with the truth in the composite
     naming contract (docs/andes.md). Needs the optional 'andes' extra.
     """
@@ -139,7 +141,14 @@ def simulate_andes_cmd(
         "simulator": event.settings["simulator"],
         "truth": event.truth,
         "settings": event.settings,
-        "columns": {"t_s": "s", "v": "p.u.", "p": "p.u. system", "q": "p.u. system", "f": "Hz"},
+        "columns": {
+            "t_s": "s",
+            "v": "p.u.",
+            "angle_rad": "rad",
+            "p": "p.u. system",
+            "q": "p.u. system",
+            "f": "Hz",
+        },
         "rate_hz": rate,
         "noise": {"fraction_of_rms": noise, "sd": sds, "seed": seed, "on": ["p", "q"]},
     }

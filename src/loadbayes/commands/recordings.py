@@ -86,7 +86,16 @@ def read_comtrade_cmd(cfg, out, voltage, current, side, v_base, s_base, quiet, f
     sb = s_base * 1e6 if s_base else float(np.hypot(c["p"][0], c["q"][0]))
     if not (vb > 0 and sb > 0):
         raise UserError(f"{cfg}: the first cycle has no voltage or power; give --v-base/--s-base")
-    table = {"t_s": c["t_s"], "v": c["v"] / vb, "p": c["p"] / sb, "q": c["q"] / sb, "f": c["f"]}
+    # The positive-sequence angle (DFT at the nominal frequency: already in the frame
+    # rotating at f0) keeps the phase jumps of a fault, which f cannot hold.
+    table = {
+        "t_s": c["t_s"],
+        "v": c["v"] / vb,
+        "angle_rad": np.unwrap(np.angle(c["v1"])),
+        "p": c["p"] / sb,
+        "q": c["q"] / sb,
+        "f": c["f"],
+    }
     _write(table, out, force)
     if not quiet:
         resampled = "" if rate == w.rate_hz else f", resampled to {rate:g}"
@@ -184,7 +193,7 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     if not folder.parent.exists():
         raise UserError(f"{out}: folder {folder.parent} does not exist")
     # v may be 0 (an interruption in a long record): not refused here.
-    data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["f", "rocof"])
+    data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["angle_rad", "f", "rocof"])
     try:
         events = find_sags(
             data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,

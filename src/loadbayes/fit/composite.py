@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.fit.composite_checks import sampling_warnings
 from loadbayes.fit.composite_problem import (
     CompositePrior,
     CompositeProblem,
@@ -92,7 +93,11 @@ def _motor_p0_q0(problem: CompositeProblem, theta: np.ndarray) -> tuple[np.ndarr
 
 
 def named_draws(
-    problem: CompositeProblem, theta: np.ndarray, betas: np.ndarray, tau: np.ndarray
+    problem: CompositeProblem,
+    theta: np.ndarray,
+    betas: np.ndarray,
+    tau: np.ndarray,
+    phi: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Draws named as the contract says, from the sampled blocks.
 
@@ -106,6 +111,10 @@ def named_draws(
         Linear coefficients of every event.
     tau : ndarray, shape (chain, draw, 2)
         Noise precisions of P and Q.
+    phi : ndarray, shape (chain, draw, steps), optional
+        Fractions of the step intervals (``models/composite_steps.py``): reported as
+        each step's instant ``t_step{j}`` (s, on the event's clock; ``j`` counts the
+        event's steps).
 
     Returns
     -------
@@ -134,7 +143,24 @@ def named_draws(
     out["tau_p"], out["tau_q"] = tau[..., 0], tau[..., 1]
     for i, name in enumerate(THETA_NAMES):
         out[name] = theta[..., i]
+    if phi is not None and phi.shape[-1]:
+        out.update(step_draws(problem, phi))
     return out
+
+
+def step_names(problem: CompositeProblem) -> list[str]:
+    """Names of the steps' instants: ``t_step{j}`` in event 0, ``t_step{j}_e{k}`` in k."""
+    g, names = problem.grid, []
+    for i, k in enumerate(g.event_of):
+        j = int(np.sum(g.event_of[:i] == k))
+        names.append(f"t_step{j}" + ("" if k == 0 else f"_e{k}"))
+    return names
+
+
+def step_draws(problem: CompositeProblem, phi: np.ndarray) -> dict[str, np.ndarray]:
+    """Each step's instant (s) from draws of its fraction of the interval."""
+    times = problem.grid.step_time(phi)
+    return {n: times[..., i] for i, n in enumerate(step_names(problem))}
 
 
 def identifiability(
@@ -243,12 +269,13 @@ def _baseline(problem: CompositeProblem, start: NLSResult, chains: int, draws: i
     rng = np.random.default_rng(seed)
     mean = np.concatenate([start.u, start.betas.ravel()])
     x = gaussian_draws(mean, start.cov, chains, draws, rng)
+    d = problem.dim
     u = x[..., :5]
     log_t0 = np.array([problem.prior.draw_log_t0(ui, rng) for ui in u.reshape(-1, 5)])
     theta = theta_of(u, log_t0.reshape(chains, draws))
-    betas = x[..., 5:].reshape(chains, draws, n_ev, 7)
+    betas = x[..., d:].reshape(chains, draws, n_ev, 7)
     tau = np.broadcast_to(1.0 / start.sigma**2, (chains, draws, 2)).copy()
-    return named_draws(problem, theta, betas, tau)
+    return named_draws(problem, theta, betas, tau, problem.phi(x[..., :d]))
 
 
 def fit_composite(
@@ -264,6 +291,7 @@ def fit_composite(
     seed: int = 0,
     workers: int | None = None,
     h_max: float = H_MAX_S,
+    steps: bool = True,
     settings: dict[str, Any] | None = None,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -282,6 +310,10 @@ def fit_composite(
         Sampler settings (see :func:`loadbayes.fit.composite_problem.sample`).
     h_max : float
         RK4 sub-step of the motor kernel (s).
+    steps : bool
+        Model each voltage step between two samples as a step at an unknown instant
+        inside its interval (``models/composite_steps.py``); False reads it as a ramp
+        across the interval (the plain linear interpolation).
     settings : dict, optional
         Extra provenance stored in the result.
 
@@ -294,7 +326,9 @@ def fit_composite(
     if not events:
         raise ValueError("no events to fit")
     prior = prior or CompositePrior.default(events)
-    problem = CompositeProblem(events, prior, f_hz=f_hz, torque=tuple(torque), h_max=h_max)
+    problem = CompositeProblem(
+        events, prior, f_hz=f_hz, torque=tuple(torque), h_max=h_max, steps=steps
+    )
     t0 = time.perf_counter()
     start = nls(problem)
     t1 = time.perf_counter()
@@ -312,22 +346,42 @@ def fit_composite(
     theta = np.stack([r.theta for r in res])
     betas = np.stack([r.beta for r in res])
     tau = np.stack([r.tau for r in res])
-    draws_named = named_draws(problem, theta, betas, tau)
+    phi = np.stack([r.phi for r in res]) if problem.n_steps else None
+    draws_named = named_draws(problem, theta, betas, tau, phi)
     common = {
         "n": int(sum(e.n for e in events)),
         "events": [
-            {"name": e.name, "n": e.n, "t_span_s": float(e.t[-1] - e.t[0]), "v0": e.v0}
+            {
+                "name": e.name,
+                "n": e.n,
+                "t_span_s": float(e.t[-1] - e.t[0]),
+                "v0": e.v0,
+                "angle_from": e.angle_from or None,
+            }
             for e in events
         ],
         "f_hz": f_hz,
         "torque": list(torque),
         "prior": prior.to_dict(),
         "h_max_s": h_max,
+        "steps": {
+            "modelled": bool(steps),
+            "intervals": [
+                {"event": int(e), "k": int(k), "t_s": float(t), "dt_s": float(w)}
+                for e, k, t, w in zip(
+                    problem.grid.event_of,
+                    problem.grid.k_of,
+                    problem.grid.left,
+                    problem.grid.width,
+                    strict=True,
+                )
+            ],
+        },
         "shunt": "q_c = mva_m * q_m(0): the motor's initial Q compensated at v0",
         "closure": "xs = xr",
         **(settings or {}),
     }
-    free = ["f_m", "t_prime_s", "x_prime", "x_open", "h_s", "rs", "t0"]
+    free = ["f_m", "t_prime_s", "x_prime", "x_open", "h_s", "rs", "t0", *step_names(problem)]
     coefficients = [
         n
         for n in draws_named
@@ -363,6 +417,7 @@ def fit_composite(
             + "; ".join(ident["what_would_help"])
             + " would help."
         )
+    post.warnings.extend(sampling_warnings(events, draws_named["t_prime_s"], steps_modelled=steps))
     if chains > 1:
         import warnings as _w
 
@@ -390,7 +445,8 @@ def fit_composite(
             "nls_seconds": start.seconds,
             "nls_nfev": start.nfev,
             "residual_sd": start.sigma.tolist(),
-            "estimate_u": dict(zip(SCALE_FREE_NAMES, start.u.tolist(), strict=True)),
+            "estimate_u": dict(zip(SCALE_FREE_NAMES, start.u[:5].tolist(), strict=True)),
+            "estimate_step_fraction": problem.phi(start.u).tolist(),
         },
     )
     return CompositeFit(post, baseline, problem, start, {"nls": t1 - t0, "sampler": t2 - t1})

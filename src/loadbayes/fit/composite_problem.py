@@ -41,6 +41,7 @@ from loadbayes.models.composite import (
     design,
     motor_response,
 )
+from loadbayes.models.composite_steps import StepGrid
 from loadbayes.models.motor_kernel import H_MAX_S, _integrate
 
 __all__ = [
@@ -169,6 +170,7 @@ class CompositeProblem:
     f_hz: float = 60.0
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0)
     h_max: float = H_MAX_S
+    steps: bool = True
     evaluations: int = field(default=0, init=False)
 
     def __post_init__(self) -> None:
@@ -176,17 +178,53 @@ class CompositeProblem:
         self.p0 = 1.0 / self.prior.beta_sd**2
         ev = self.events
         self._starts = np.cumsum([0] + [e.n for e in ev]).astype(np.int64)
-        self._t = np.concatenate([e.t for e in ev])
-        self._v = np.concatenate([e.v for e in ev])
-        self._delta = np.concatenate(
-            [np.zeros(e.n) if e.delta is None else e.delta - e.delta[0] for e in ev]
-        )
+        deltas = [np.zeros(e.n) if e.delta is None else e.delta - e.delta[0] for e in ev]
+        # The kernel's input: the samples plus two virtual knots in every step interval
+        # (models/composite_steps.py); the likelihood sees the real samples only.
+        self.grid = StepGrid.build([e.t for e in ev], [e.v for e in ev], deltas, detect=self.steps)
+        self._real = np.concatenate(
+            [
+                self.grid.real[self._starts[k] : self._starts[k + 1]] - self.grid.starts[k]
+                for k in range(len(ev))
+            ]
+        ).astype(np.int64)
         self._x = np.concatenate([e.x for e in ev])
         self._p = np.concatenate([e.p for e in ev])
         self._q = np.concatenate([e.q for e in ev])
         self._n = np.array([[e.n, e.n] for e in ev], dtype=float)
         mean_u, cov_u, _, _ = self.prior.scale_free()
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
+
+    @property
+    def n_steps(self) -> int:
+        """Step intervals over all events: each adds ``logit(phi)`` to the sampled vector."""
+        return self.grid.n_steps
+
+    @property
+    def dim(self) -> int:
+        """Length of the sampled vector: five scale-free motor coordinates, then the steps."""
+        return 5 + self.grid.n_steps
+
+    def step_prior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and sd of a Gaussian stand-in for the steps' prior (for NLS and its start).
+
+        The prior is uniform on each ``phi``: ``logit(phi)`` is standard logistic, whose
+        sd is ``pi / sqrt(3)``.
+        """
+        k = self.grid.n_steps
+        return np.zeros(k), np.full(k, math.pi / math.sqrt(3.0))
+
+    def phi(self, u: np.ndarray) -> np.ndarray:
+        """The steps' fractions of their intervals from the sampled vector(s).
+
+        A motor-only vector (five entries) puts every step mid-interval.
+        """
+        u = np.asarray(u, dtype=float)
+        if u.shape[-1] == 5 and self.n_steps:
+            return np.full(u.shape[:-1] + (self.n_steps,), 0.5)
+        if u.shape[-1] != self.dim:
+            raise ValueError(f"expected {self.dim} sampled coordinates, got {u.shape[-1]}")
+        return 1.0 / (1.0 + np.exp(-u[..., 5:]))
 
     def collapsed(self, u: np.ndarray, tau: np.ndarray) -> tuple[float, list[GroupSums] | None]:
         """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
@@ -200,13 +238,16 @@ class CompositeProblem:
         if not np.all(np.isfinite(u)):
             return -math.inf, None
         a, b, c = self.torque
+        u = np.asarray(u, dtype=float)
         try:
             lp = _collapsed(
-                np.asarray(u, dtype=float),
+                u[:5],
                 np.asarray(tau, dtype=float),
-                self._t,
-                self._v,
-                self._delta,
+                self.grid.times(self.phi(u)),
+                self.grid.v,
+                self.grid.delta,
+                self.grid.starts,
+                self._real,
                 self._x,
                 self._p,
                 self._q,
@@ -231,6 +272,7 @@ class CompositeProblem:
             return -math.inf, None
         if not math.isfinite(lp):
             return -math.inf, None
+        lp += _log_logistic(u[5:])
         return lp, [GroupSums(ztz[e], zty[e], yty[e], self._n[e]) for e in range(n_ev)]
 
     def responses(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
@@ -240,13 +282,18 @@ class CompositeProblem:
         divided by the base ratio, which the linear block's ``p_m0`` absorbs exactly.
         """
         self.evaluations += 1
-        theta = theta_of(u, 0.0)
+        u = np.asarray(u, dtype=float)
+        theta = theta_of(u[:5], 0.0)
+        t_aug, g = self.grid.times(self.phi(u)), self.grid
         out = []
-        for ev in self.events:
-            r = motor_response(ev, theta, f_hz=self.f_hz, torque=self.torque, h_max=self.h_max)
+        for k in range(len(self.events)):
+            s0, s1 = g.starts[k], g.starts[k + 1]
+            aug = Event(t_aug[s0:s1], g.v[s0:s1], g.v[s0:s1], g.v[s0:s1], g.delta[s0:s1])
+            r = motor_response(aug, theta, f_hz=self.f_hz, torque=self.torque, h_max=self.h_max)
             if r is None:
                 return None
-            out.append(r)
+            real = self._real[self._starts[k] : self._starts[k + 1]]
+            out.append((r[0][real], r[1][real]))
         return out
 
     def sums(self, u: np.ndarray) -> list[GroupSums] | None:
@@ -266,7 +313,7 @@ class CompositeProblem:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
         if sums is None or not np.all(np.isfinite(u)):
             return -math.inf
-        out = self.prior.log_u(u)
+        out = self.prior.log_u(u[:5]) + _log_logistic(u[5:])
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=_POS)
         return out
@@ -279,6 +326,8 @@ def _collapsed(  # pragma: no cover - compiled
     t,
     v,
     delta,
+    starts_aug,
+    real,
     x,
     p,
     q,
@@ -308,12 +357,13 @@ def _collapsed(  # pragma: no cover - compiled
     lp = -0.5 * (d @ (prec_u @ d))
     for e in range(starts.size - 1):
         s0, s1 = starts[e], starts[e + 1]
-        m = s1 - s0
+        a0, a1 = starts_aug[e], starts_aug[e + 1]
+        m = a1 - a0
         pm, qm, states = np.empty(m), np.empty(m), np.empty((3, m))
         ok = _integrate(
-            t[s0:s1],
-            v[s0:s1],
-            delta[s0:s1],
+            t[a0:a1],
+            v[a0:a1],
+            delta[a0:a1],
             rs,
             xp,
             dx,
@@ -331,10 +381,20 @@ def _collapsed(  # pragma: no cover - compiled
         )
         if not ok:
             return -math.inf
+        if m != s1 - s0:  # outputs at the virtual knots are not data
+            pm, qm = pm[real[s0:s1]], qm[real[s0:s1]]
         zz, zy, yy = _design_sums(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1])
         ztz[e], zty[e], yty[e] = zz, zy, yy
         lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
     return lp
+
+
+def _log_logistic(z: np.ndarray) -> float:
+    # Log density of logit(phi) for phi uniform on (0, 1): -z - 2 log(1 + e^-z), stable.
+    z = np.asarray(z, dtype=float)
+    if z.size == 0:
+        return 0.0
+    return float(np.sum(-np.abs(z) - 2.0 * np.log1p(np.exp(-np.abs(z)))))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -365,7 +425,7 @@ def _design_sums(x, pm, qm, p, q):  # pragma: no cover - compiled
 class NLSResult:
     """The least-squares point estimate and its Gaussian approximation."""
 
-    u: np.ndarray  # (5,) scale-free motor coordinates
+    u: np.ndarray  # (5 + steps,) scale-free motor coordinates, then logit(phi) of each step
     betas: np.ndarray  # (events, 7)
     sigma: np.ndarray  # (2,) residual sd of P and Q
     cov: np.ndarray  # covariance of (u, betas.ravel())
@@ -413,12 +473,20 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     the Gauss-Newton one of ``(u, every event's beta)`` with the prior's precision added.
     """
     t_start = time.perf_counter()
-    mean_u, cov_u, _, _ = problem.prior.scale_free()
+    mean_m, cov_m, _, _ = problem.prior.scale_free()
+    # The steps' fractions join the motor's coordinates, with a Gaussian stand-in for
+    # their uniform prior (the same spread) as Tikhonov rows.
+    mean_s, sd_s = problem.step_prior()
+    mean_u = np.concatenate([mean_m, mean_s])
+    cov_u = np.zeros((problem.dim, problem.dim))
+    cov_u[:5, :5] = cov_m
+    cov_u[5:, 5:] = np.diag(sd_s**2)
     sd_u = np.sqrt(np.diag(cov_u))
     white = np.linalg.inv(np.linalg.cholesky(cov_u))
     lo, hi = mean_u - 6 * sd_u, mean_u + 6 * sd_u
-    starts = list(starts) if starts is not None else [mean_u, *_library_starts()]
-    n_res = 2 * sum(e.n for e in problem.events) + 5
+    starts = list(starts) if starts is not None else [mean_m, *_library_starts()]
+    starts = [np.concatenate([np.asarray(x0)[:5], mean_s]) for x0 in starts]
+    n_res = 2 * sum(e.n for e in problem.events) + problem.dim
     nfev = 0
 
     def run(w, x0, max_nfev=None):
@@ -479,10 +547,11 @@ def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
         return np.concatenate(parts)
 
     n_ev = len(problem.events)
-    k = 5 + 7 * n_ev
+    d = problem.dim
+    k = d + 7 * n_ev
     r0 = full(u, betas)
     jac = np.zeros((r0.size, k))
-    for i in range(5):
+    for i in range(d):
         h = 1e-5
         up, um = u.copy(), u.copy()
         up[i] += h
@@ -495,14 +564,14 @@ def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
     for e, (ev, (pm, qm)) in enumerate(zip(problem.events, resp, strict=True)):
         zp, zq = design(ev, pm, qm)
         n = ev.n
-        jac[row : row + n, 5 + 7 * e : 12 + 7 * e] = -w[0] * zp
-        jac[row + n : row + 2 * n, 5 + 7 * e : 12 + 7 * e] = -w[1] * zq
+        jac[row : row + n, d + 7 * e : d + 7 + 7 * e] = -w[0] * zp
+        jac[row + n : row + 2 * n, d + 7 * e : d + 7 + 7 * e] = -w[1] * zq
         row += 2 * n
     # The prior's precision (as in the penalised fit): a direction the data do not see
     # gets the prior's spread, not an infinite variance.
     prec = jac.T @ jac
-    prec[:5, :5] += prec_u
-    prec[5:, 5:] += np.diag(np.tile(problem.p0, n_ev))
+    prec[:d, :d] += prec_u
+    prec[d:, d:] += np.diag(np.tile(problem.p0, n_ev))
     return np.linalg.inv(prec)
 
 
@@ -515,6 +584,7 @@ class ChainResult:
     beta: np.ndarray  # (kept, events, 7)
     tau: np.ndarray  # (kept, 2)
     acceptance: float
+    phi: np.ndarray | None = None  # (kept, steps) fractions of the step intervals
 
 
 def sample(
@@ -560,18 +630,19 @@ def sample(
     if not 0 <= burn < draws:
         raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
     prior = problem.prior
-    lap = start.cov[:5, :5]
+    d = problem.dim
+    lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
     kept_idx = range(burn, draws, thin)
-    root = np.linalg.cholesky(lap + 1e-12 * np.eye(5))
+    root = np.linalg.cholesky(lap + 1e-12 * np.eye(d))
 
     def chain(index: int, rng: np.random.Generator) -> ChainResult:
         am = AdaptiveMetropolis(lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
         u, sums = start.u, None
         for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(5)
+            cand = start.u + dispersion * root @ rng.standard_normal(d)
             sums = problem.sums(cand)
             if sums is not None:
                 u = cand
@@ -580,6 +651,7 @@ def sample(
             u, sums = start.u, problem.sums(start.u)
         tau = tau0.copy()
         th_out = np.empty((len(kept_idx), 6))
+        phi_out = np.empty((len(kept_idx), d - 5))
         b_out = np.empty((len(kept_idx), len(problem.events), 7))
         t_out = np.empty((len(kept_idx), 2))
         j = 0
@@ -593,11 +665,12 @@ def sample(
             betas = [draw_beta(s, tau, problem.m0, problem.p0, rng, positive=_POS) for s in sums]
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
             tau = draw_tau(ssr, n_tot, prior.tau_shape, prior.tau_rate, rng)
-            log_t0 = prior.draw_log_t0(u, rng)
+            log_t0 = prior.draw_log_t0(u[:5], rng)
             if it >= burn and (it - burn) % thin == 0:
-                th_out[j] = theta_of(u, log_t0)
+                th_out[j] = theta_of(u[:5], log_t0)
+                phi_out[j] = problem.phi(u)
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
-        return ChainResult(th_out, b_out, t_out, am.acceptance)
+        return ChainResult(th_out, b_out, t_out, am.acceptance, phi_out)
 
     return run_chains(chain, chains, seed=seed, workers=workers)

@@ -90,6 +90,10 @@ class Event:
         Voltage angle (rad) relative to a frame rotating at the nominal frequency.
     name : str
         Label (the file, or the file and event id).
+    angle_from : str
+        Where ``delta`` came from: ``"angle"`` (a recorded angle), ``"frequency"``
+        (integrated from a frequency column, which cannot hold a phase jump) or ``""``
+        (none, or set by the caller).
     """
 
     t: NDArray[np.float64]
@@ -98,6 +102,7 @@ class Event:
     q: NDArray[np.float64]
     delta: NDArray[np.float64] | None = None
     name: str = ""
+    angle_from: str = ""
 
     @property
     def v0(self) -> float:

@@ -175,7 +175,8 @@ class PmuRecord:
     Parameters
     ----------
     data : dict of str to numpy.ndarray
-        ``t_s`` (s from the first sample), ``v``, ``p``, ``q`` (p.u.), and ``f`` (Hz)
+        ``t_s`` (s from the first sample), ``v``, ``p``, ``q`` (p.u.), ``angle_rad`` (the
+        positive-sequence voltage angle, unwrapped), and ``f`` (Hz)
         and ``rocof`` (Hz/s) when mapped.
     start : str
         First timestamp, ISO 8601 in UTC.
@@ -236,7 +237,7 @@ def _times(df, m: PmuMap, name: str) -> np.ndarray:
 
 
 def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
-    """Read a PMU phasor CSV into per-unit ``t_s, v, p, q[, f, rocof]``.
+    """Read a PMU phasor CSV into per-unit ``t_s, v, angle_rad, p, q[, f, rocof]``.
 
     Parameters
     ----------
@@ -334,6 +335,9 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     data = {
         "t_s": (t_ns - t_ns[0]) / 1e9,
         "v": np.abs(v1) / v_base,
+        # A PMU's angle is referred to a UTC-locked cosine at the nominal frequency: the
+        # frame the composite fit wants (it keeps a fault's phase jumps, f cannot).
+        "angle_rad": np.unwrap(np.angle(v1)),
         "p": s.real / s_base,
         "q": s.imag / s_base,
         **extra,

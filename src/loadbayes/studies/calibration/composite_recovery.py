@@ -50,6 +50,7 @@ CHECKED: tuple[str, ...] = (
     "t0",
     "mva_m",
     "q_c",
+    "t_step0",
 )
 #: Settings of the CI test (tests/statistical/test_composite_recovery.py): short records
 #: at 30 samples/s and short chains, so that 200 events fit in the test-time budget.
@@ -70,6 +71,8 @@ def recovery_cases(n: int, *, seed: int = 0) -> list[dict[str, Any]]:
                 "motor": _MOTORS[i % 4],
                 "depth": _DEPTHS[(i // 4) % 3],
                 "duration_s": float(rng.uniform(0.1, 0.5)),
+                # The fault's instant, anywhere inside a sample interval (the fit places it).
+                "start_s": float(0.5 + rng.uniform(0.0, 0.05)),
                 "recovery_s": float(rng.uniform(0.1, 0.4)),
                 "noise": float(rng.uniform(0.005, 0.02)),
                 "f_m": float(rng.uniform(0.3, 0.7)),
@@ -94,10 +97,10 @@ def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[
     from loadbayes.fit.composite import fit_composite
 
     cpu = time.process_time()
-    drawn = ("depth", "duration_s", "recovery_s", "t0", "f_m", "q0", "zip_p", "zip_q", "noise")
+    drawn = ("depth", "start_s", "duration_s", "recovery_s", "t0", "f_m", "q0", "zip_p")
+    drawn += ("zip_q", "noise")
     ev, truth = simulate_event(
         case["motor"],
-        start_s=0.5,
         t_end_s=settings["t_end_s"],
         fs=settings["fs"],
         seed=case["seed"],

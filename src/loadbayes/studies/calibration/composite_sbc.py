@@ -6,8 +6,10 @@ from the prior of :class:`~loadbayes.fit.composite_problem.CompositePrior` (the 
 THETA_PRIOR; draws with no stable steady state are redrawn, which is the prior the
 sampler sees, since it gives them zero density), ``log T0`` from its prior given them,
 the seven linear coefficients from their normal prior (sd 1, ``p_m0`` truncated to > 0)
-and the noise precisions from Gamma(10, 10 * 0.02^2) (a noise sd near 2%). The data are
-the model's own P and Q (the compiled kernel) plus normal noise. The fit is the
+and the noise precisions from Gamma(10, 10 * 0.02^2) (a noise sd near 2%). The sag's
+step is placed at a fraction ``step_phi`` of its sample interval drawn uniformly (the
+fit's prior, models/composite_steps.py). The data are the model's own P and Q (the
+compiled kernel) plus normal noise. The fit is the
 package's path (NLS start, then :func:`~loadbayes.fit.composite_problem.sample`), one chain
 thinned to near independence.
 """
@@ -36,6 +38,7 @@ PARAMETERS: tuple[str, ...] = (
     "f_m",
     "tau_p",
     "tau_q",
+    "step_phi",
 )
 _TAU = (10.0, 10.0 * 0.02**2)
 
@@ -72,18 +75,19 @@ def composite_sampler(
 ) -> SamplerUnderTest:
     """The composite Metropolis-within-Gibbs sampler as SBC sees it (module docstring)."""
     from loadbayes.fit.composite_problem import CompositeProblem, nls, sample
-    from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, predict
+    from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, design
 
     event = _event()
     prior = _prior(event)
     problem = CompositeProblem([event], prior)
+    assert problem.n_steps == 1, "the SBC event has one step (into the sag)"
     mean_u, cov_u, _, _ = prior.scale_free()
     root_u = np.linalg.cholesky(cov_u)
 
     def draw_prior(rng: np.random.Generator) -> dict[str, float]:
         while True:
             u = mean_u + root_u @ rng.standard_normal(5)
-            if problem.responses(u) is not None:
+            if problem.responses(np.r_[u, 0.0]) is not None:
                 break
         log_t0 = prior.draw_log_t0(u, rng)
         beta = rng.standard_normal(7)
@@ -94,15 +98,20 @@ def composite_sampler(
         out.update(dict(zip(BETA_NAMES, beta.tolist(), strict=True)))
         out["f_m"] = beta[6] / (beta[0] + beta[1] + beta[2] + beta[6])
         out["tau_p"], out["tau_q"] = float(tau[0]), float(tau[1])
+        out["step_phi"] = float(rng.uniform())
         return out
 
     def simulate(theta: Mapping[str, float], rng: np.random.Generator):
-        from loadbayes.fit.composite_problem import theta_of
         from loadbayes.models.composite import Event
 
-        u = np.array([theta[n] for n in PARAMETERS[:5]])
+        phi = theta["step_phi"]
+        u = np.array([theta[n] for n in PARAMETERS[:5]] + [np.log(phi / (1 - phi))])
         beta = np.array([theta[n] for n in BETA_NAMES])
-        p, q = predict(event, theta_of(u, theta["log_t0"]), beta)
+        # The motor's columns on the base T0 = 1 with the step placed: the design's
+        # motor columns are normalised by p_m(0), so the base does not matter.
+        pm, qm = problem.responses(u)[0]
+        zp, zq = design(event, pm, qm)
+        p, q = zp @ beta, zq @ beta
         p = p + rng.standard_normal(p.size) / np.sqrt(theta["tau_p"])
         q = q + rng.standard_normal(q.size) / np.sqrt(theta["tau_q"])
         return Event(event.t, event.v, p, q, None, "sbc")
@@ -110,7 +119,7 @@ def composite_sampler(
     def fit(data, seed: int) -> dict[str, np.ndarray]:
         prob = CompositeProblem([data], prior)
         # One NLS start (the prior median): the chain's burn-in does the rest.
-        start = nls(prob, starts=[mean_u])
+        start = nls(prob, starts=[mean_u])  # (the step starts mid-interval)
         res = sample(
             prob,
             start=start,
@@ -127,6 +136,7 @@ def composite_sampler(
         out.update({n: b[:, i] for i, n in enumerate(BETA_NAMES)})
         out["f_m"] = b[:, 6] / (b[:, 0] + b[:, 1] + b[:, 2] + b[:, 6])
         out["tau_p"], out["tau_q"] = res.tau[:, 0], res.tau[:, 1]
+        out["step_phi"] = res.phi[:, 0]
         return out
 
     return SamplerUnderTest(

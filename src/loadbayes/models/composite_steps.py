@@ -1,0 +1,161 @@
+"""Switching steps between samples: where, inside a sample interval, a fault's step fell.
+
+A recorder samples the voltage; a fault (or its clearing) steps it at an instant that
+falls somewhere inside one sample interval. Driving the motor with the straight line
+between the two samples (what the kernel does elsewhere) reads the step as a ramp over
+the whole interval: the motor's flux decays meanwhile, and where T' spans only a few
+intervals that misreading biases T' and the reactances (measured on ANDES events, see
+docs/composite.md, "Steps between samples"). So each such interval gets a step at an
+unknown fraction ``phi`` of the interval, a parameter of the fit.
+
+The step is put into the kernel's input as two **virtual knots** inside the interval:
+``(t_k + a, V_k)`` and ``(t_k + a + eps, V_k+1)`` with ``a = dt (eps_f + phi (1 - 3 eps_f))``,
+``eps = eps_f dt``: the voltage holds ``V_k`` until the step, ramps over ``eps`` (a
+hundred-thousandth of the interval), then holds ``V_k+1``. The angle does the same. The model's
+outputs at the virtual knots are not data: only the real samples enter the likelihood.
+
+A **step interval** is one where ``|V_k+1 - V_k| > JUMP v0`` and the change is more than
+``RATIO`` times that of both neighbouring intervals: a discontinuity, not a fast ramp
+(the first interval of a linear recovery has a neighbour changing as much).
+
+Physics only: no sampling here. ``phi`` is sampled as ``logit(phi)`` with a uniform prior
+on ``phi`` (fit/composite_problem.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["EPS_FRACTION", "JUMP", "RATIO", "StepGrid", "fill_times", "step_intervals"]
+
+#: A change within one interval above this fraction of ``v0`` can be a step.
+JUMP = 0.05
+#: ... if it is more than this many times the change over either neighbouring interval.
+RATIO = 3.0
+#: Width of the virtual ramp, as a fraction of the interval.
+EPS_FRACTION = 1e-5
+
+
+def step_intervals(v: NDArray[np.float64], *, jump: float = JUMP, ratio: float = RATIO):
+    """Indices ``k`` of the step intervals ``(t_k, t_k+1)`` of one voltage record."""
+    v = np.asarray(v, dtype=float)
+    dv = np.abs(np.diff(v))
+    if dv.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    before = np.concatenate([[0.0], dv[:-1]])
+    after = np.concatenate([dv[1:], [0.0]])
+    hit = (dv > jump * abs(v[0])) & (dv > ratio * before) & (dv > ratio * after)
+    return np.flatnonzero(hit).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class StepGrid:
+    """Events' samples with two virtual knots in every step interval, concatenated.
+
+    Attributes
+    ----------
+    t, v, delta : ndarray
+        The augmented input (times of the virtual knots at ``phi = 1/2``).
+    starts : ndarray of int
+        Start of each event in the augmented arrays (and the end, last).
+    real : ndarray of int
+        Positions of the real samples in the augmented arrays, event after event.
+    pos : ndarray of int
+        Position of each step's first virtual knot (the second follows it).
+    left, width : ndarray
+        ``t_k`` and ``t_k+1 - t_k`` of each step interval.
+    event_of, k_of : ndarray of int
+        Each step's event and interval index ``k`` in that event.
+    """
+
+    t: NDArray[np.float64]
+    v: NDArray[np.float64]
+    delta: NDArray[np.float64]
+    starts: NDArray[np.int64]
+    real: NDArray[np.int64]
+    pos: NDArray[np.int64]
+    left: NDArray[np.float64]
+    width: NDArray[np.float64]
+    event_of: NDArray[np.int64]
+    k_of: NDArray[np.int64]
+
+    @property
+    def n_steps(self) -> int:
+        """Number of step intervals over all events."""
+        return int(self.pos.size)
+
+    @classmethod
+    def build(
+        cls,
+        ts: Sequence[NDArray[np.float64]],
+        vs: Sequence[NDArray[np.float64]],
+        deltas: Sequence[NDArray[np.float64]],
+        *,
+        detect: bool = True,
+    ) -> StepGrid:
+        """Augment each event's ``t, v, delta`` (``detect=False``: no steps, real only)."""
+        t_out, v_out, d_out, real, pos, left, width, ev_of, k_of = ([] for _ in range(9))
+        starts, offset = [0], 0
+        for e, (t, v, d) in enumerate(zip(ts, vs, deltas, strict=True)):
+            ks = step_intervals(v) if detect else np.zeros(0, dtype=np.int64)
+            n = t.size
+            # Each real sample k moves right by 2 for every step interval before it.
+            shift = np.searchsorted(ks, np.arange(n), side="left") * 2
+            idx = np.arange(n) + shift
+            m = n + 2 * ks.size
+            ta, va, da = np.empty(m), np.empty(m), np.empty(m)
+            ta[idx], va[idx], da[idx] = t, v, d
+            for k in ks:
+                p = idx[k] + 1
+                va[p], va[p + 1] = v[k], v[k + 1]
+                da[p], da[p + 1] = d[k], d[k + 1]
+                pos.append(offset + p)
+                left.append(t[k])
+                width.append(t[k + 1] - t[k])
+                ev_of.append(e)
+                k_of.append(k)
+            t_out.append(ta)
+            v_out.append(va)
+            d_out.append(da)
+            real.append(offset + idx)
+            offset += m
+            starts.append(offset)
+        grid = cls(
+            np.concatenate(t_out),
+            np.concatenate(v_out),
+            np.concatenate(d_out),
+            np.array(starts, dtype=np.int64),
+            np.concatenate(real).astype(np.int64),
+            np.array(pos, dtype=np.int64),
+            np.array(left, dtype=float),
+            np.array(width, dtype=float),
+            np.array(ev_of, dtype=np.int64),
+            np.array(k_of, dtype=np.int64),
+        )
+        fill_times(grid.t, grid.pos, grid.left, grid.width, np.full(grid.n_steps, 0.5))
+        return grid
+
+    def times(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A copy of the augmented times with the steps at fractions ``phi``."""
+        t = self.t.copy()
+        fill_times(t, self.pos, self.left, self.width, np.asarray(phi, dtype=float))
+        return t
+
+    def step_time(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The instant of each step (s, the event's own clock), vectorised over draws."""
+        return self.left + self.width * (EPS_FRACTION * 1.5 + phi * (1 - 3 * EPS_FRACTION))
+
+
+@numba.njit(cache=True, nogil=True)
+def fill_times(t, pos, left, width, phi):  # pragma: no cover - compiled
+    """Put each step's two virtual knots at fraction ``phi`` of its interval (in place)."""
+    for j in range(pos.size):
+        eps = EPS_FRACTION * width[j]
+        a = left[j] + eps + phi[j] * (width[j] - 3.0 * eps)
+        t[pos[j]] = a
+        t[pos[j] + 1] = a + eps
