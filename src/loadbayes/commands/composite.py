@@ -90,6 +90,13 @@ def _parse_torque(text: str) -> tuple[float, float, float]:
     help="Load torque T0 (A w^2 + B w + C).",
 )
 @click.option(
+    "--steps/--no-steps",
+    default=True,
+    show_default=True,
+    help="Place each voltage step (a fault, its clearing) at an estimated instant inside "
+    "its sample interval; --no-steps reads it as a ramp across the interval.",
+)
+@click.option(
     "--prior",
     "priors",
     multiple=True,
@@ -146,6 +153,7 @@ def fit_composite_cmd(
     s_base,
     f_hz,
     torque,
+    steps,
     priors,
     draws,
     burn,
@@ -215,6 +223,7 @@ def fit_composite_cmd(
         prior=prior,
         f_hz=f_hz,
         torque=torque_abc,
+        steps=steps,
         draws=draws,
         burn=burn,
         thin=thin,

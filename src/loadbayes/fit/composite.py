@@ -478,7 +478,8 @@ def predictive_band(
     Returns, per event, ``p_lo, p_mid, p_hi, q_lo, q_mid, q_hi`` (the ``prob`` central
     interval and the median over ``n_draws`` posterior draws).
     """
-    from loadbayes.models.composite import predict
+    from loadbayes.models.composite import design, motor_response
+    from loadbayes.models.composite_steps import StepGrid
 
     rng = np.random.default_rng(seed)
     theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
@@ -486,12 +487,21 @@ def predictive_band(
     out = []
     for k, ev in enumerate(events):
         beta = beta_from_named(post.draws, k).reshape(-1, 7)
+        # The steps where each draw put them (none when the fit read them as ramps).
+        sfx = "" if k == 0 else f"_e{k}"
+        delta = np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]
+        grid = StepGrid.build([ev.t], [ev.v], [delta], detect=f"t_step0{sfx}" in post.draws)
+        names = [f"t_step{j}{sfx}" for j in range(grid.n_steps)]
+        times = np.stack([post.draws[n].ravel() for n in names], -1) if names else None
         ps, qs = [], []
         for i in pick:
-            r = predict(ev, theta[i], beta[i], f_hz=f_hz, torque=torque)
+            t_aug = grid.times(grid.phi_of(times[i])) if names else grid.t
+            aug = Event(t_aug, grid.v, grid.v, grid.v, grid.delta)
+            r = motor_response(aug, theta[i], f_hz=f_hz, torque=torque)
             if r is not None:
-                ps.append(r[0])
-                qs.append(r[1])
+                zp, zq = design(ev, r[0][grid.real], r[1][grid.real])
+                ps.append(zp @ beta[i])
+                qs.append(zq @ beta[i])
         lo, hi = 50 * (1 - prob), 50 * (1 + prob)
         band = {}
         for name, arr in (("p", np.array(ps)), ("q", np.array(qs))):

@@ -65,6 +65,9 @@ THETA_PRIOR: dict[str, tuple[float, float]] = {
     "log_t0": (math.log(0.6), 0.5),
 }
 _POS = BETA_NAMES.index("p_m0")
+#: Sd of the Gaussian stand-in for a step fraction's uniform prior in the NLS start and
+#: its Laplace covariance: wide, so that the data alone place the step.
+STEP_PRIOR_SD = 10.0
 _T = SCALE_FREE_MATRIX
 _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
 _T_INV5 = np.ascontiguousarray(_T_INV[:, :5])
@@ -197,7 +200,7 @@ class CompositeProblem:
 
     @property
     def n_steps(self) -> int:
-        """Step intervals over all events: each adds ``logit(phi)`` to the sampled vector."""
+        """Step intervals over all events: each adds its ``phi`` to the sampled vector."""
         return self.grid.n_steps
 
     @property
@@ -205,17 +208,8 @@ class CompositeProblem:
         """Length of the sampled vector: five scale-free motor coordinates, then the steps."""
         return 5 + self.grid.n_steps
 
-    def step_prior(self) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and sd of a Gaussian stand-in for the steps' prior (for NLS and its start).
-
-        The prior is uniform on each ``phi``: ``logit(phi)`` is standard logistic, whose
-        sd is ``pi / sqrt(3)``.
-        """
-        k = self.grid.n_steps
-        return np.zeros(k), np.full(k, math.pi / math.sqrt(3.0))
-
     def phi(self, u: np.ndarray) -> np.ndarray:
-        """The steps' fractions of their intervals from the sampled vector(s).
+        """The steps' fractions of their intervals (sampled as they are, in [0, 1]).
 
         A motor-only vector (five entries) puts every step mid-interval.
         """
@@ -224,7 +218,18 @@ class CompositeProblem:
             return np.full(u.shape[:-1] + (self.n_steps,), 0.5)
         if u.shape[-1] != self.dim:
             raise ValueError(f"expected {self.dim} sampled coordinates, got {u.shape[-1]}")
-        return 1.0 / (1.0 + np.exp(-u[..., 5:]))
+        return u[..., 5:]
+
+    def in_support(self, u: np.ndarray) -> bool:
+        """Whether every step's fraction lies in [0, 1] (the prior is uniform there).
+
+        The fractions are sampled directly, and a proposal outside is rejected (zero
+        density): a valid Metropolis move even with a correlated proposal, and it keeps
+        a step at an interval's very edge (a fault at a sample instant, as simulators
+        put it) reachable, where a logit would send it to infinity.
+        """
+        phi = np.asarray(u, dtype=float)[5:]
+        return bool(np.all((phi >= 0.0) & (phi <= 1.0)))
 
     def collapsed(self, u: np.ndarray, tau: np.ndarray) -> tuple[float, list[GroupSums] | None]:
         """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
@@ -235,7 +240,7 @@ class CompositeProblem:
         self.evaluations += 1
         n_ev = len(self.events)
         ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
-        if not np.all(np.isfinite(u)):
+        if not np.all(np.isfinite(u)) or not self.in_support(u):
             return -math.inf, None
         a, b, c = self.torque
         u = np.asarray(u, dtype=float)
@@ -272,7 +277,6 @@ class CompositeProblem:
             return -math.inf, None
         if not math.isfinite(lp):
             return -math.inf, None
-        lp += _log_logistic(u[5:])
         return lp, [GroupSums(ztz[e], zty[e], yty[e], self._n[e]) for e in range(n_ev)]
 
     def responses(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
@@ -283,6 +287,8 @@ class CompositeProblem:
         """
         self.evaluations += 1
         u = np.asarray(u, dtype=float)
+        if u.size > 5 and not self.in_support(u):
+            return None
         theta = theta_of(u[:5], 0.0)
         t_aug, g = self.grid.times(self.phi(u)), self.grid
         out = []
@@ -313,7 +319,9 @@ class CompositeProblem:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
         if sums is None or not np.all(np.isfinite(u)):
             return -math.inf
-        out = self.prior.log_u(u[:5]) + _log_logistic(u[5:])
+        if u.size > 5 and not self.in_support(u):
+            return -math.inf
+        out = self.prior.log_u(u[:5])
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=_POS)
         return out
@@ -389,14 +397,6 @@ def _collapsed(  # pragma: no cover - compiled
     return lp
 
 
-def _log_logistic(z: np.ndarray) -> float:
-    # Log density of logit(phi) for phi uniform on (0, 1): -z - 2 log(1 + e^-z), stable.
-    z = np.asarray(z, dtype=float)
-    if z.size == 0:
-        return 0.0
-    return float(np.sum(-np.abs(z) - 2.0 * np.log1p(np.exp(-np.abs(z)))))
-
-
 @numba.njit(cache=True, nogil=True)
 def _design_sums(x, pm, qm, p, q):  # pragma: no cover - compiled
     ztz = np.zeros((2, 7, 7))
@@ -425,7 +425,7 @@ def _design_sums(x, pm, qm, p, q):  # pragma: no cover - compiled
 class NLSResult:
     """The least-squares point estimate and its Gaussian approximation."""
 
-    u: np.ndarray  # (5 + steps,) scale-free motor coordinates, then logit(phi) of each step
+    u: np.ndarray  # (5 + steps,) scale-free motor coordinates, then each step's fraction phi
     betas: np.ndarray  # (events, 7)
     sigma: np.ndarray  # (2,) residual sd of P and Q
     cov: np.ndarray  # covariance of (u, betas.ravel())
@@ -474,16 +474,20 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     """
     t_start = time.perf_counter()
     mean_m, cov_m, _, _ = problem.prior.scale_free()
-    # The steps' fractions join the motor's coordinates, with a Gaussian stand-in for
-    # their uniform prior (the same spread) as Tikhonov rows.
-    mean_s, sd_s = problem.step_prior()
+    # The steps' fractions join the motor's coordinates, bounded to [0, 1] (their
+    # uniform prior) and started mid-interval; a Tikhonov row of sd 10 (a negligible
+    # pull) keeps the whitening square.
+    k = problem.n_steps
+    mean_s = np.full(k, 0.5)
     mean_u = np.concatenate([mean_m, mean_s])
     cov_u = np.zeros((problem.dim, problem.dim))
     cov_u[:5, :5] = cov_m
-    cov_u[5:, 5:] = np.diag(sd_s**2)
+    cov_u[5:, 5:] = np.eye(k) * STEP_PRIOR_SD**2
     sd_u = np.sqrt(np.diag(cov_u))
     white = np.linalg.inv(np.linalg.cholesky(cov_u))
     lo, hi = mean_u - 6 * sd_u, mean_u + 6 * sd_u
+    lo[5:], hi[5:] = 0.0, 1.0
+    sd_u[5:] = 0.2
     starts = list(starts) if starts is not None else [mean_m, *_library_starts()]
     starts = [np.concatenate([np.asarray(x0)[:5], mean_s]) for x0 in starts]
     n_res = 2 * sum(e.n for e in problem.events) + problem.dim
@@ -633,6 +637,11 @@ def sample(
     d = problem.dim
     lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
+    # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
+    # start its proposal at the support's scale instead (the adaptation takes over).
+    shrink = np.ones(d)
+    shrink[5:] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[5:]))
+    lap = lap * np.outer(shrink, shrink)
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
     kept_idx = range(burn, draws, thin)

@@ -18,8 +18,8 @@ A **step interval** is one where ``|V_k+1 - V_k| > JUMP v0`` and the change is m
 ``RATIO`` times that of both neighbouring intervals: a discontinuity, not a fast ramp
 (the first interval of a linear recovery has a neighbour changing as much).
 
-Physics only: no sampling here. ``phi`` is sampled as ``logit(phi)`` with a uniform prior
-on ``phi`` (fit/composite_problem.py).
+Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
+(fit/composite_problem.py).
 """
 
 from __future__ import annotations
@@ -31,7 +31,14 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EPS_FRACTION", "JUMP", "RATIO", "StepGrid", "fill_times", "step_intervals"]
+__all__ = [
+    "EPS_FRACTION",
+    "JUMP",
+    "RATIO",
+    "StepGrid",
+    "fill_times",
+    "step_intervals",
+]
 
 #: A change within one interval above this fraction of ``v0`` can be a step.
 JUMP = 0.05
@@ -149,6 +156,11 @@ class StepGrid:
     def step_time(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
         """The instant of each step (s, the event's own clock), vectorised over draws."""
         return self.left + self.width * (EPS_FRACTION * 1.5 + phi * (1 - 3 * EPS_FRACTION))
+
+    def phi_of(self, times: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Inverse of :meth:`step_time`: each step's fraction from its instant."""
+        frac = (np.asarray(times, dtype=float) - self.left) / self.width
+        return np.clip((frac - 1.5 * EPS_FRACTION) / (1 - 3 * EPS_FRACTION), 0.0, 1.0)
 
 
 @numba.njit(cache=True, nogil=True)

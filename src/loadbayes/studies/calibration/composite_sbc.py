@@ -87,7 +87,7 @@ def composite_sampler(
     def draw_prior(rng: np.random.Generator) -> dict[str, float]:
         while True:
             u = mean_u + root_u @ rng.standard_normal(5)
-            if problem.responses(np.r_[u, 0.0]) is not None:
+            if problem.responses(np.r_[u, 0.5]) is not None:
                 break
         log_t0 = prior.draw_log_t0(u, rng)
         beta = rng.standard_normal(7)
@@ -105,7 +105,7 @@ def composite_sampler(
         from loadbayes.models.composite import Event
 
         phi = theta["step_phi"]
-        u = np.array([theta[n] for n in PARAMETERS[:5]] + [np.log(phi / (1 - phi))])
+        u = np.array([theta[n] for n in PARAMETERS[:5]] + [phi])
         beta = np.array([theta[n] for n in BETA_NAMES])
         # The motor's columns on the base T0 = 1 with the step placed: the design's
         # motor columns are normalised by p_m(0), so the base does not matter.
