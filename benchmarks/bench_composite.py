@@ -73,12 +73,12 @@ def _ess_rhat(draws: dict[str, np.ndarray]) -> tuple[float, float, str]:
     return float(s["ess_bulk"].min()), float(s["r_hat"].max()), str(worst)
 
 
-def run_loadbayes(fs, t_end, draws, burn, seed=0):
+def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am"):
     from loadbayes.fit.composite import fit_composite
 
     ev, truth = _event(fs, t_end)
     t0 = time.perf_counter()
-    fit = fit_composite([ev], draws=draws, burn=burn, chains=4, seed=seed)
+    fit = fit_composite([ev], draws=draws, burn=burn, chains=4, seed=seed, move=move)
     wall = time.perf_counter() - t0
     ess, rhat, worst = _ess_rhat(fit.posterior.draws)
     post_mean = fit.posterior.mean()
@@ -87,7 +87,8 @@ def run_loadbayes(fs, t_end, draws, burn, seed=0):
         k: float(fit.baseline.mean()[k] - truth[k]) for k in TRUTH_KEYS if k in fit.baseline.draws
     }
     return {
-        "sampler": "loadbayes-mwg",
+        "sampler": f"loadbayes-{move}",
+        "move": move,
         "fs": fs,
         "n": ev.n,
         "settings": f"4 chains x {draws} (burn {burn})",
@@ -98,6 +99,9 @@ def run_loadbayes(fs, t_end, draws, burn, seed=0):
         "max_r_hat": rhat,
         "ess_per_s": ess / wall,
         "acceptance": float(np.mean(fit.posterior.settings["acceptance"])),
+        "evaluations_per_iteration": float(
+            np.mean(fit.posterior.settings["evaluations_per_iteration"])
+        ),
         "errors": {k: float(post_mean[k] - truth[k]) for k in TRUTH_KEYS},
         "nls_errors": nls_err,
         "nls_nfev": nls_mean.get("nls_nfev"),

@@ -24,6 +24,7 @@ import numba
 import numpy as np
 from scipy import optimize
 
+from loadbayes.fit.composite_sums import _design_sums_into, design_sums, x_sums
 from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     GroupSums,
@@ -33,6 +34,7 @@ from loadbayes.inference.condlinear import (
     log_marginal_arrays,
     residual_ss,
 )
+from loadbayes.inference.factor_slice import FactorSlice
 from loadbayes.models.composite import (
     BETA_NAMES,
     SCALE_FREE_MATRIX,
@@ -41,11 +43,13 @@ from loadbayes.models.composite import (
     design,
     motor_response,
 )
-from loadbayes.models.motor_kernel import H_MAX_S, _integrate
+from loadbayes.models.motor_kernel import H_MAX_S, _integrate, step_size
 
 __all__ = [
     "CompositePrior",
     "CompositeProblem",
+    "DEFAULT_MOVE",
+    "MOVES",
     "NLSResult",
     "THETA_PRIOR",
     "nls",
@@ -187,6 +191,8 @@ class CompositeProblem:
         self._n = np.array([[e.n, e.n] for e in ev], dtype=float)
         mean_u, cov_u, _, _ = self.prior.scale_free()
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
+        # The design's voltage-only sums do not depend on the motor: once per problem.
+        self._xsums = np.stack([x_sums(e.x, e.p, e.q) for e in ev])
 
     def collapsed(self, u: np.ndarray, tau: np.ndarray) -> tuple[float, list[GroupSums] | None]:
         """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
@@ -203,6 +209,7 @@ class CompositeProblem:
         try:
             lp = _collapsed(
                 np.asarray(u, dtype=float),
+                np.exp(theta_of(u, 0.0)),
                 np.asarray(tau, dtype=float),
                 self._t,
                 self._v,
@@ -223,6 +230,7 @@ class CompositeProblem:
                 float(b),
                 float(c),
                 float(self.h_max),
+                self._xsums,
                 ztz,
                 zty,
                 yty,
@@ -257,8 +265,10 @@ class CompositeProblem:
         out = []
         for ev, (pm, qm) in zip(self.events, resp, strict=True):
             # Compiled sums of the two designs (models.composite.design), without forming
-            # them: the sampler needs only Z'Z, Z'y and y'y.
-            ztz, zty, yty = _design_sums(ev.x, pm, qm, ev.p, ev.q)
+            # them: the sampler needs only Z'Z, Z'y and y'y. The same arithmetic as
+            # _collapsed (the log marginal is ill-conditioned in Z'Z: the columns x^2, x,
+            # 1 are nearly collinear, so a different summation order moves it by ~1e-8).
+            ztz, zty, yty = design_sums(ev.x, pm, qm, ev.p, ev.q)
             out.append(GroupSums(ztz, zty, yty, np.array([ev.n, ev.n], dtype=float)))
         return out
 
@@ -275,6 +285,7 @@ class CompositeProblem:
 @numba.njit(cache=True, nogil=True)
 def _collapsed(  # pragma: no cover - compiled
     u,
+    params,
     tau,
     t,
     v,
@@ -295,15 +306,16 @@ def _collapsed(  # pragma: no cover - compiled
     b,
     c,
     h_max,
+    xsums,
     ztz,
     zty,
     yty,
 ):
-    # theta on the base where T0 = 1 (log T0 = 0): the scale-free map's inverse.
-    th = t_inv @ u
-    rs, xp, dx = math.exp(th[0]), math.exp(th[1]), math.exp(th[2])
-    tp, h, t0 = math.exp(th[3]), math.exp(th[4]), math.exp(th[5])
-    hm = min(h_max, tp / 40.0)
+    # The motor on the base where T0 = 1 (log T0 = 0), exponentiated by the caller with
+    # NumPy as motor_response does: the log marginal is so ill-conditioned in the design
+    # (a one-ulp change of H moves it by ~1e-6) that both paths must agree to the bit.
+    rs, xp, dx, tp, h, t0 = params[0], params[1], params[2], params[3], params[4], params[5]
+    hm = step_size(tp, h_max)
     d = u - mean_u
     lp = -0.5 * (d @ (prec_u @ d))
     for e in range(starts.size - 1):
@@ -331,8 +343,8 @@ def _collapsed(  # pragma: no cover - compiled
         )
         if not ok:
             return -math.inf
-        zz, zy, yy = _design_sums(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1])
-        ztz[e], zty[e], yty[e] = zz, zy, yy
+        _design_sums_into(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1], xsums[e], ztz[e], zty[e], yty[e])
+        zz, zy, yy = ztz[e], zty[e], yty[e]
         lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
     return lp
 
@@ -507,6 +519,12 @@ def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------- sampler
+#: The u-moves :func:`sample` offers (both physics-free, same ``step`` interface).
+MOVES = {"am": AdaptiveMetropolis, "slice": FactorSlice}
+#: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
+DEFAULT_MOVE = "am"
+
+
 @dataclass
 class ChainResult:
     """One chain's kept draws and acceptance."""
@@ -515,6 +533,7 @@ class ChainResult:
     beta: np.ndarray  # (kept, events, 7)
     tau: np.ndarray  # (kept, 2)
     acceptance: float
+    evaluations_per_iteration: float = 1.0  # collapsed-density evaluations of the u-move
 
 
 def sample(
@@ -528,6 +547,7 @@ def sample(
     seed: int = 0,
     workers: int | None = None,
     dispersion: float = 2.0,
+    move: str = DEFAULT_MOVE,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -552,6 +572,10 @@ def sample(
         Threads for the chains.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
+    move : {"am", "slice"}
+        The u-move (:data:`MOVES`): adaptive Metropolis, or factor slice sampling in
+        the eigenbasis of the covariance learned in burn-in (docs/composite.md, "Why
+        this move").
 
     Returns
     -------
@@ -559,19 +583,22 @@ def sample(
     """
     if not 0 <= burn < draws:
         raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
+    if move not in MOVES:
+        raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
     prior = problem.prior
-    lap = start.cov[:5, :5]
+    lap = start.cov[: start.u.size, : start.u.size]
     lap = (lap + lap.T) / 2
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
     kept_idx = range(burn, draws, thin)
-    root = np.linalg.cholesky(lap + 1e-12 * np.eye(5))
+    dim = start.u.size
+    root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
 
     def chain(index: int, rng: np.random.Generator) -> ChainResult:
-        am = AdaptiveMetropolis(lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
+        am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
         u, sums = start.u, None
         for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(5)
+            cand = start.u + dispersion * root @ rng.standard_normal(dim)
             sums = problem.sums(cand)
             if sums is not None:
                 u = cand
@@ -598,6 +625,6 @@ def sample(
                 th_out[j] = theta_of(u, log_t0)
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
-        return ChainResult(th_out, b_out, t_out, am.acceptance)
+        return ChainResult(th_out, b_out, t_out, am.acceptance, am.evaluations_per_step)
 
     return run_chains(chain, chains, seed=seed, workers=workers)

@@ -17,8 +17,9 @@ the electrical torque reaches the load torque).
 Accuracy (``tests/unit/test_motor_kernel.py``): against ``scipy.integrate.solve_ivp``
 (DOP853, ``rtol=1e-10``) driven by the same piecewise-linear voltage, on every motor of
 ``cases.motor_sim.MOTORS`` and sags of 10-60%, the largest error in P and Q is below
-``1e-4`` p.u. on the motor's base with the default ``h_max = 2 ms`` (measured: below
-3e-5 for krause_3hp, whose T' = 0.087 s is the shortest, and 1e-7 for the others).
+``1e-4`` p.u. on the motor's base with the default step ``min(5 ms, T'/50)``
+(measured: 4.4e-5 for krause_3hp, whose T' = 0.087 s is the shortest, at most 5.2e-6 for
+the others).
 """
 
 from __future__ import annotations
@@ -29,12 +30,23 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["H_MAX_S", "integrate", "steady_slip", "steady_state"]
+__all__ = ["H_MAX_S", "TP_STEPS", "integrate", "steady_slip", "steady_state", "step_size"]
 
-#: Default largest RK4 sub-step (s). The fastest motor of the library (krause_3hp,
-#: T' = 0.087 s) keeps RK4's error in P and Q below 3e-5 p.u. at this step (1e-7 for the
-#: others); :func:`loadbayes.models.composite.motor_response` also caps it at T'/40.
-H_MAX_S = 2e-3
+#: Default largest RK4 sub-step (s), capped at ``T' / TP_STEPS`` by :func:`step_size`.
+#: Measured against DOP853 on the library motors, sags of 10-60% at 60 samples/s
+#: (tests/unit/test_motor_kernel.py): largest error in P, Q with this rule 4.4e-5 p.u. for
+#: krause_3hp (T' = 0.087 s, so its step is T'/50 = 1.7 ms), at most 5.2e-6 for the
+#: others (5 ms applies; at 8 ms krause_2250hp reaches 9e-5, at 2 ms the others 2e-7).
+H_MAX_S = 5e-3
+#: Sub-steps per T' at least: RK4's error grows as (h / T')^4, so a fast motor (as a
+#: sampler may propose) gets a finer step. At T'/40, krause_3hp's error reaches 1.1e-4.
+TP_STEPS = 50.0
+
+
+@numba.njit(cache=True, nogil=True)
+def step_size(tp_s, h_max):  # pragma: no cover - compiled
+    """The largest RK4 sub-step (s) for a motor of transient time constant ``tp_s``."""
+    return min(h_max, tp_s / TP_STEPS)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -114,6 +126,13 @@ def _integrate(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q, sta
     if not math.isfinite(ed):
         return False
     den = rs * rs + xp * xp
+    # Without an angle U is real: skip the six cos/sin per sub-step (a third of the
+    # kernel's time at one sub-step per sample). The same arithmetic otherwise.
+    has_angle = False
+    for k in range(n):
+        if delta[k] != 0.0:
+            has_angle = True
+            break
     for k in range(n):
         if k > 0:
             span = t[k] - t[k - 1]
@@ -132,9 +151,12 @@ def _integrate(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q, sta
                 da = a0 + fr0 * (a1 - a0)
                 dm = a0 + frm * (a1 - a0)
                 db = a0 + fr1 * (a1 - a0)
-                uda, uqa = va * math.cos(da), va * math.sin(da)
-                udm, uqm = vm * math.cos(dm), vm * math.sin(dm)
-                udb, uqb = vb * math.cos(db), vb * math.sin(db)
+                if has_angle:
+                    uda, uqa = va * math.cos(da), va * math.sin(da)
+                    udm, uqm = vm * math.cos(dm), vm * math.sin(dm)
+                    udb, uqb = vb * math.cos(db), vb * math.sin(db)
+                else:
+                    uda, uqa, udm, uqm, udb, uqb = va, 0.0, vm, 0.0, vb, 0.0
                 k1 = _rhs(ed, eq, w, uda, uqa, rs, xp, dx, tp, h, wb, t0, a, b, c)
                 k2 = _rhs(
                     ed + 0.5 * hs * k1[0],
@@ -242,7 +264,7 @@ def integrate(
     torque : tuple of float
         ``(A, B, C)`` of ``Tm = T0 (A w^2 + B w + C)``.
     h_max : float
-        Largest RK4 sub-step (s).
+        Largest RK4 sub-step (s); the step used is :func:`step_size` ``(tp_s, h_max)``.
 
     Returns
     -------
@@ -273,7 +295,7 @@ def integrate(
         a,
         b,
         c,
-        float(h_max),
+        float(step_size(float(tp_s), float(h_max))),
         p,
         q,
         states,
