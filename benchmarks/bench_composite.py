@@ -15,7 +15,10 @@ Timed, in the same run:
   (scale-free motor coordinates, the seven linear coefficients, log tau_p, log tau_q;
   the same priors), with the motor integrated by ``scipy.integrate.solve_ivp``
   (DOP853, rtol 1e-6, atol 1e-9) inside each log-density call, for 150 s of wall time
-  (or 2,000 steps);
+  (or 2,000 steps): far too short for its ESS, so also
+- emcee on the same posterior with the compiled kernel inside, 6,000 steps, for its
+  integrated autocorrelation time; emcee + solve_ivp's ESS/s is then 32 walkers /
+  (tau x its seconds per step), the number the 100x target is judged on;
 - the NLS baseline alone (time, and its error against the truth).
 
 ESS is ArviZ's bulk ESS, the minimum over the reported parameters (constants left out;
@@ -110,7 +113,7 @@ def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am"):
     }
 
 
-def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
+def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
     import emcee
     from scipy.integrate import solve_ivp
 
@@ -144,6 +147,16 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
             return None
         i_d, iq = currents(ev.v, 0.0, sol.y[0], sol.y[1], m)
         return power(ev.v, 0.0, i_d, iq)
+
+    if motor == "kernel":
+        # The same posterior with the package's compiled kernel inside (it agrees with
+        # DOP853 to 1e-4 p.u.): cheap enough to run emcee long enough to measure its
+        # autocorrelation time, which is a property of the posterior and the stretch
+        # move, not of the ODE solver.
+        from loadbayes.models.composite import motor_response
+
+        def motor_pq(u):  # noqa: F811 - replaces the solve_ivp version
+            return motor_response(ev, theta_of(u, 0.0))
 
     def logp(x):
         u, beta, ltau = x[:5], x[5:12], x[12:]
@@ -201,14 +214,28 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
         ess, rhat, worst = _ess_rhat(named)
     except Exception:  # too few steps for ArviZ's diagnostics
         ess, rhat, worst = math.nan, math.nan, "n/a"
-    # With a few steps per walker ArviZ's ESS is unreliable (or undefined): bound it by
-    # the number of kept draws, which no sampler can beat. The ratio is then a lower bound.
+    # A second estimate: emcee's own integrated autocorrelation time (tol=0: the run is
+    # far shorter than the 50 tau emcee asks for), max over the 14 coordinates. On a
+    # short run tau is underestimated, so this ESS leans high.
     kept = walkers * (steps - steps // 2)
+    try:
+        tau_int = float(np.max(sampler.get_autocorr_time(discard=steps // 2, tol=0)))
+        ess_tau = kept / tau_int
+    except Exception:  # too few steps even for that
+        tau_int, ess_tau = math.nan, math.nan
+    # With a few steps per walker ArviZ's ESS is unreliable (or undefined): bound it by
+    # the number of kept draws, which no sampler can beat. (ess_tau is kept for the
+    # record only: on a run shorter than 50 tau emcee's tau is far too small; measured
+    # 5 steps on 50 against 219 on 3,000.)
     ess_bound = min(ess, kept) if math.isfinite(ess) else float(kept)
     return {
-        "sampler": "emcee-solve_ivp",
+        "sampler": f"emcee-{motor}",
         "steps_done": steps,
         "ess_upper_bound": ess_bound,
+        "ess_arviz": ess,
+        "autocorr_time_max": tau_int,
+        "ess_autocorr": ess_tau,
+        "kept_draws": kept,
         "fs": fs,
         "n": ev.n,
         "settings": f"32 walkers x {steps} (discard {steps // 2})",
@@ -221,6 +248,18 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf):
         "log_prob_evals": walkers * steps,
         "s_per_eval": wall / (walkers * steps),
     }
+
+
+def _stationary_rate(em: dict, ek: dict) -> None:
+    # emcee + solve_ivp's ESS/s in its stationary phase: walkers / (tau * seconds per
+    # step), tau measured on the long run with the kernel (a property of the posterior and
+    # the stretch move), seconds per step on the solve_ivp run. Kind to emcee: its
+    # burn-in is not charged (loadbayes' is), and tau from 3,000 kept steps (~14 tau,
+    # R-hat 1.3) is if anything too small.
+    tau = ek["autocorr_time_max"]
+    em["ess_per_s_from_long_tau"] = (
+        32.0 / (tau * em["wall_s"] / em["steps_done"]) if math.isfinite(tau) else math.nan
+    )
 
 
 def _line(r) -> str:
@@ -255,11 +294,15 @@ def main(argv=None) -> int:
             print(_line(rows[-1]), flush=True)
     rows.append(run_emcee(60.0, t_end, steps, seconds=30.0 if args.quick else 150.0))
     print(_line(rows[-1]), flush=True)
+    long_steps = 100 if args.quick else 6000
+    rows.append(run_emcee(60.0, t_end, long_steps, seconds=600.0, motor="kernel"))
+    print(_line(rows[-1]), flush=True)
     from loadbayes.fit.composite_problem import DEFAULT_MOVE
 
     default = [r for r in rows if r.get("move") == DEFAULT_MOVE]
-    lb, em = default[0], rows[-1]
-    ratio = lb["ess_per_s"] / em["ess_per_s"] if em["ess_per_s"] > 0 else math.inf
+    lb, em, ek = default[0], rows[-2], rows[-1]
+    _stationary_rate(em, ek)
+    ratio = lb["ess_per_s"] / em["ess_per_s_from_long_tau"]
     targets = []
     for r in default:
         ok = r["max_r_hat"] < 1.01 and r["min_ess_bulk"] >= 400 and r["wall_s"] < 30
@@ -275,9 +318,13 @@ def main(argv=None) -> int:
     targets.append(
         {
             "target": "ESS/s >= 100x emcee (32 walkers, solve_ivp inside), same run",
-            "measured": f"at least {ratio:,.0f}x ({lb['ess_per_s']:.3g} vs at most "
-            f"{em['ess_per_s']:.3g} ESS/s; emcee: {em['steps_done']} steps per walker in "
-            f"{em['wall_s']:.0f} s, R-hat {em['max_r_hat']:.3g})",
+            "measured": f"{ratio:,.0f}x ({lb['ess_per_s']:.3g} vs "
+            f"{em['ess_per_s_from_long_tau']:.3g} ESS/s = 32 walkers / (tau "
+            f"{ek['autocorr_time_max']:.0f} steps, from {ek['steps_done']} steps with the "
+            f"kernel, x {em['wall_s'] / em['steps_done']:.2f} s per step with solve_ivp); "
+            f"by the short run's ArviZ ESS {lb['ess_per_s'] / em['ess_per_s']:,.0f}x (emcee "
+            f"{em['steps_done']} steps per walker in {em['wall_s']:.0f} s, R-hat "
+            f"{em['max_r_hat']:.3g}))",
             "met": bool(ratio >= 100),
         }
     )
@@ -307,10 +354,17 @@ def main(argv=None) -> int:
         "notes": [
             "Errors are posterior (or NLS) mean minus truth; the NLS is penalised by the "
             "prior (its Tikhonov rows), as the sampler's start.",
-            "emcee's ESS is on walkers treated as chains after discarding the first half, "
-            "bounded above by the number of kept draws (with a few steps per walker "
-            "ArviZ's estimate is meaningless); its ESS/s is therefore an upper bound and "
-            "the ratio a lower bound.",
+            "emcee's ESS/s for the target: 32 walkers / (tau x seconds per step), tau = "
+            "emcee's integrated autocorrelation time (max over the 14 coordinates) from "
+            "the emcee-kernel row (the same posterior with the compiled kernel inside, "
+            "6,000 steps, the first half discarded), seconds per step from the "
+            "emcee-solve_ivp row. Its burn-in is not charged and tau from ~14 tau of "
+            "kept steps is if anything too small: emcee's rate leans high, the ratio low.",
+            "emcee-solve_ivp's own ess_per_s: ArviZ's bulk ESS on its walkers as chains "
+            "after discarding the first half, bounded by the kept draws; with R-hat ~3 "
+            "it is not a converged estimate. Its ess_autocorr (emcee's tau with tol=0 "
+            "on 50 steps, ~5 steps) is far too small a tau and is kept for the record "
+            "only. The hard bound (every kept draw independent) is kept_draws / wall_s.",
             "loadbayes' ESS: ArviZ bulk ESS over the 4 chains' kept draws, minimum over "
             "every reported parameter (constants left out); wall time from the call of "
             "fit_composite (NLS start included) to its return (naming, diagnostics and "
