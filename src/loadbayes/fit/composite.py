@@ -20,6 +20,7 @@ import numpy as np
 
 from loadbayes.fit.composite_checks import sampling_warnings
 from loadbayes.fit.composite_problem import (
+    DEFAULT_MOVE,
     CompositePrior,
     CompositeProblem,
     NLSResult,
@@ -57,6 +58,8 @@ _PLAIN = {
     "log_t_prime": "transient time constant T'",
     "log_h_over_t0": "inertia H",
 }
+_METHOD = {"am": "mwg-adaptive-metropolis", "slice": "mwg-factor-slice"}
+_MOVE_NAME = {"am": "adaptive Metropolis", "slice": "factor slice sampling"}
 #: Posterior sd / prior sd (on the log scale) above which a parameter is "prior-driven",
 #: and below which it is "determined by the data".
 PRIOR_DRIVEN, DETERMINED = 0.7, 0.3
@@ -293,6 +296,7 @@ def fit_composite(
     h_max: float = H_MAX_S,
     steps: bool = True,
     settings: dict[str, Any] | None = None,
+    move: str = DEFAULT_MOVE,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
 
@@ -316,6 +320,8 @@ def fit_composite(
         across the interval (the plain linear interpolation).
     settings : dict, optional
         Extra provenance stored in the result.
+    move : str
+        The sampler's u-move (:data:`~loadbayes.fit.composite_problem.MOVES`).
 
     Returns
     -------
@@ -341,6 +347,7 @@ def fit_composite(
         chains=chains,
         seed=seed,
         workers=workers,
+        move=move,
     )
     t2 = time.perf_counter()
     theta = np.stack([r.theta for r in res])
@@ -390,7 +397,7 @@ def fit_composite(
     post = Posterior(
         draws_named,
         model="composite",
-        method="mwg-adaptive-metropolis",
+        method=_METHOD[move],
         coefficients=coefficients,
         free=free,
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},
@@ -400,9 +407,11 @@ def fit_composite(
             "burn": burn,
             "thin": thin,
             "seed": seed,
-            "scheme": "metropolis-within-gibbs (adaptive Metropolis on theta, beta "
+            "scheme": f"metropolis-within-gibbs ({_MOVE_NAME[move]} on theta, beta "
             "integrated out; beta and tau exact)",
+            "move": move,
             "acceptance": [r.acceptance for r in res],
+            "evaluations_per_iteration": [r.evaluations_per_iteration for r in res],
             "seconds": {"nls": t1 - t0, "sampler": t2 - t1},
         },
     )

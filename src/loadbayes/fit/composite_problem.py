@@ -24,6 +24,7 @@ import numba
 import numpy as np
 from scipy import optimize
 
+from loadbayes.fit.composite_sums import _design_sums_into, design_sums, x_sums
 from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     GroupSums,
@@ -33,6 +34,7 @@ from loadbayes.inference.condlinear import (
     log_marginal_arrays,
     residual_ss,
 )
+from loadbayes.inference.factor_slice import FactorSlice
 from loadbayes.models.composite import (
     BETA_NAMES,
     SCALE_FREE_MATRIX,
@@ -42,11 +44,13 @@ from loadbayes.models.composite import (
     motor_response,
 )
 from loadbayes.models.composite_steps import StepGrid
-from loadbayes.models.motor_kernel import H_MAX_S, _integrate
+from loadbayes.models.motor_kernel import H_MAX_S, _integrate, step_size
 
 __all__ = [
     "CompositePrior",
     "CompositeProblem",
+    "DEFAULT_MOVE",
+    "MOVES",
     "NLSResult",
     "THETA_PRIOR",
     "nls",
@@ -197,6 +201,8 @@ class CompositeProblem:
         self._n = np.array([[e.n, e.n] for e in ev], dtype=float)
         mean_u, cov_u, _, _ = self.prior.scale_free()
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
+        # The design's voltage-only sums do not depend on the motor: once per problem.
+        self._xsums = np.stack([x_sums(e.x, e.p, e.q) for e in ev])
 
     @property
     def n_steps(self) -> int:
@@ -247,6 +253,7 @@ class CompositeProblem:
         try:
             lp = _collapsed(
                 u[:5],
+                np.exp(theta_of(u[:5], 0.0)),
                 np.asarray(tau, dtype=float),
                 self.grid.times(self.phi(u)),
                 self.grid.v,
@@ -269,6 +276,7 @@ class CompositeProblem:
                 float(b),
                 float(c),
                 float(self.h_max),
+                self._xsums,
                 ztz,
                 zty,
                 yty,
@@ -310,8 +318,10 @@ class CompositeProblem:
         out = []
         for ev, (pm, qm) in zip(self.events, resp, strict=True):
             # Compiled sums of the two designs (models.composite.design), without forming
-            # them: the sampler needs only Z'Z, Z'y and y'y.
-            ztz, zty, yty = _design_sums(ev.x, pm, qm, ev.p, ev.q)
+            # them: the sampler needs only Z'Z, Z'y and y'y. The same arithmetic as
+            # _collapsed (the log marginal is ill-conditioned in Z'Z: the columns x^2, x,
+            # 1 are nearly collinear, so a different summation order moves it by ~1e-8).
+            ztz, zty, yty = design_sums(ev.x, pm, qm, ev.p, ev.q)
             out.append(GroupSums(ztz, zty, yty, np.array([ev.n, ev.n], dtype=float)))
         return out
 
@@ -330,6 +340,7 @@ class CompositeProblem:
 @numba.njit(cache=True, nogil=True)
 def _collapsed(  # pragma: no cover - compiled
     u,
+    params,
     tau,
     t,
     v,
@@ -352,15 +363,16 @@ def _collapsed(  # pragma: no cover - compiled
     b,
     c,
     h_max,
+    xsums,
     ztz,
     zty,
     yty,
 ):
-    # theta on the base where T0 = 1 (log T0 = 0): the scale-free map's inverse.
-    th = t_inv @ u
-    rs, xp, dx = math.exp(th[0]), math.exp(th[1]), math.exp(th[2])
-    tp, h, t0 = math.exp(th[3]), math.exp(th[4]), math.exp(th[5])
-    hm = min(h_max, tp / 40.0)
+    # The motor on the base where T0 = 1 (log T0 = 0), exponentiated by the caller with
+    # NumPy as motor_response does: the log marginal is so ill-conditioned in the design
+    # (a one-ulp change of H moves it by ~1e-6) that both paths must agree to the bit.
+    rs, xp, dx, tp, h, t0 = params[0], params[1], params[2], params[3], params[4], params[5]
+    hm = step_size(tp, h_max)
     d = u - mean_u
     lp = -0.5 * (d @ (prec_u @ d))
     for e in range(starts.size - 1):
@@ -391,8 +403,8 @@ def _collapsed(  # pragma: no cover - compiled
             return -math.inf
         if m != s1 - s0:  # outputs at the virtual knots are not data
             pm, qm = pm[real[s0:s1]], qm[real[s0:s1]]
-        zz, zy, yy = _design_sums(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1])
-        ztz[e], zty[e], yty[e] = zz, zy, yy
+        _design_sums_into(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1], xsums[e], ztz[e], zty[e], yty[e])
+        zz, zy, yy = ztz[e], zty[e], yty[e]
         lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
     return lp
 
@@ -490,36 +502,75 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     sd_u[5:] = 0.2
     starts = list(starts) if starts is not None else [mean_m, *_library_starts()]
     starts = [np.concatenate([np.asarray(x0)[:5], mean_s]) for x0 in starts]
-    n_res = 2 * sum(e.n for e in problem.events) + problem.dim
     nfev = 0
 
-    def run(w, x0, max_nfev=None):
+    def run(w, x0, max_nfev=None, prob=problem):
+        # The coarse copy may have no steps (d = 5): the prior's whitening is block
+        # diagonal (motor, steps), so its leading block serves.
+        d = prob.dim
+        n_res = 2 * sum(e.n for e in prob.events) + d
+        m, wh, lo_d, hi_d = mean_u[:d], white[:d, :d], lo[:d], hi[:d]
+
         def fun(u):
-            out = _project(problem, u, w)
+            out = _project(prob, u, w)
             if out is None:
                 return np.full(n_res, 1e3)
-            return np.concatenate([out[0], white @ (u - mean_u)])
+            return np.concatenate([out[0], wh @ (u - m)])
 
-        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-        return optimize.least_squares(fun, x0, bounds=(lo, hi), x_scale=sd_u, max_nfev=max_nfev)
+        x0 = np.clip(np.asarray(x0)[:d], lo_d + 1e-9, hi_d - 1e-9)
+        return optimize.least_squares(
+            fun, x0, bounds=(lo_d, hi_d), x_scale=sd_u[:d], max_nfev=max_nfev
+        )
 
-    w = 1.0 / _static_sigmas(problem)
+    # The multi-start search on a copy thinned to at most ~COARSE_FS samples/s: which
+    # start wins and roughly where it ends does not need 960 samples/s (at that rate the
+    # search took 7 of the 8 s of the fit); the final fit below uses every sample.
+    coarse = _thinned(problem)
+    w = 1.0 / _static_sigmas(coarse)
     best = None
     for x0 in starts:
-        sol = run(w, x0, max_nfev=60)
+        sol = run(w, x0, max_nfev=60, prob=coarse)
         nfev += sol.nfev
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
-    _, betas = _project(problem, best.x, w)
-    w = 1.0 / _sigmas(problem, best.x, betas)
-    sol = run(w, best.x)
+    x_best = np.concatenate([best.x[:5], mean_s]) if best.x.size < problem.dim else best.x
+    if coarse is not problem:
+        w = 1.0 / _static_sigmas(problem)
+    _, betas = _project(problem, x_best, w)
+    w = 1.0 / _sigmas(problem, x_best, betas)
+    sol = run(w, x_best)
     nfev += sol.nfev
     u = sol.x
     _, betas = _project(problem, u, w)
     sig = _sigmas(problem, u, betas)
     cov = _gauss_newton_cov(problem, u, betas, 1.0 / sig, np.linalg.inv(cov_u))
     return NLSResult(u, betas, sig, cov, float(sol.cost), time.perf_counter() - t_start, int(nfev))
+
+
+#: Sample rate (per s) above which the NLS's multi-start search runs on thinned events.
+COARSE_FS = 120.0
+
+
+def _thinned(problem: CompositeProblem) -> CompositeProblem:
+    # Every k-th sample, k = floor(COARSE_FS^-1 / median dt); the problem itself if k = 1.
+    events = []
+    for e in problem.events:
+        k = max(1, int(1.0 / (COARSE_FS * float(np.median(np.diff(e.t))))))
+        d = None if e.delta is None else e.delta[::k]
+        events.append(Event(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
+    if all(a.n == b.n for a, b in zip(events, problem.events, strict=True)):
+        return problem
+    # Without steps: the search only needs where the motor's coordinates roughly are
+    # (a thinned record's intervals are not the record's); the final fit places them.
+    return CompositeProblem(
+        events,
+        problem.prior,
+        f_hz=problem.f_hz,
+        torque=problem.torque,
+        h_max=problem.h_max,
+        steps=False,
+    )
 
 
 def _static_sigmas(problem) -> np.ndarray:
@@ -580,6 +631,12 @@ def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------- sampler
+#: The u-moves :func:`sample` offers (both physics-free, same ``step`` interface).
+MOVES = {"am": AdaptiveMetropolis, "slice": FactorSlice}
+#: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
+DEFAULT_MOVE = "am"
+
+
 @dataclass
 class ChainResult:
     """One chain's kept draws and acceptance."""
@@ -589,6 +646,7 @@ class ChainResult:
     tau: np.ndarray  # (kept, 2)
     acceptance: float
     phi: np.ndarray | None = None  # (kept, steps) fractions of the step intervals
+    evaluations_per_iteration: float = 1.0  # collapsed-density evaluations of the u-move
 
 
 def sample(
@@ -602,6 +660,7 @@ def sample(
     seed: int = 0,
     workers: int | None = None,
     dispersion: float = 2.0,
+    move: str = DEFAULT_MOVE,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -626,6 +685,10 @@ def sample(
         Threads for the chains.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
+    move : {"am", "slice"}
+        The u-move (:data:`MOVES`): adaptive Metropolis, or factor slice sampling in
+        the eigenbasis of the covariance learned in burn-in (docs/composite.md, "Why
+        this move").
 
     Returns
     -------
@@ -633,8 +696,10 @@ def sample(
     """
     if not 0 <= burn < draws:
         raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
+    if move not in MOVES:
+        raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
     prior = problem.prior
-    d = problem.dim
+    d = dim = problem.dim
     lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
     # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
@@ -645,13 +710,13 @@ def sample(
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
     kept_idx = range(burn, draws, thin)
-    root = np.linalg.cholesky(lap + 1e-12 * np.eye(d))
+    root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
 
     def chain(index: int, rng: np.random.Generator) -> ChainResult:
-        am = AdaptiveMetropolis(lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
+        am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
         u, sums = start.u, None
         for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(d)
+            cand = start.u + dispersion * root @ rng.standard_normal(dim)
             sums = problem.sums(cand)
             if sums is not None:
                 u = cand
@@ -680,6 +745,13 @@ def sample(
                 phi_out[j] = problem.phi(u)
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
-        return ChainResult(th_out, b_out, t_out, am.acceptance, phi_out)
+        return ChainResult(
+            th_out,
+            b_out,
+            t_out,
+            am.acceptance,
+            phi=phi_out,
+            evaluations_per_iteration=am.evaluations_per_step,
+        )
 
     return run_chains(chain, chains, seed=seed, workers=workers)

@@ -133,6 +133,11 @@ class AdaptiveMetropolis:
         """Acceptance rate so far."""
         return self.accepted / max(self.proposed, 1)
 
+    @property
+    def evaluations_per_step(self) -> float:
+        """Density evaluations per :meth:`step`: one."""
+        return 1.0
+
 
 def run_chains(
     chain: Callable[[int, np.random.Generator], Any],

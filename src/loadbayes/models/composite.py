@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from loadbayes.models.motor_kernel import H_MAX_S, integrate
+from loadbayes.models.motor_kernel import H_MAX_S, integrate, step_size
 
 __all__ = [
     "BETA_NAMES",
@@ -147,7 +147,7 @@ def motor_response(
     """
     rs, xp, dx, tp, h, t0 = np.exp(np.asarray(theta, dtype=float))
     # RK4's error grows as (h / T')^4: a fast motor proposed by a sampler gets a finer step.
-    h_max = min(h_max, tp / 40.0)
+    h_max = step_size(tp, h_max)
     out = integrate(
         event.t,
         event.v,

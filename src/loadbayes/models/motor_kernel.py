@@ -17,8 +17,9 @@ the electrical torque reaches the load torque).
 Accuracy (``tests/unit/test_motor_kernel.py``): against ``scipy.integrate.solve_ivp``
 (DOP853, ``rtol=1e-10``) driven by the same piecewise-linear voltage, on every motor of
 ``cases.motor_sim.MOTORS`` and sags of 10-60%, the largest error in P and Q is below
-``1e-4`` p.u. on the motor's base with the default ``h_max = 2 ms`` (measured: below
-3e-5 for krause_3hp, whose T' = 0.087 s is the shortest, and 1e-7 for the others).
+``1e-4`` p.u. on the motor's base with the default step ``min(5 ms, T'/50)``
+(measured: 4.4e-5 for krause_3hp, whose T' = 0.087 s is the shortest, at most 5.2e-6 for
+the others).
 """
 
 from __future__ import annotations
@@ -29,12 +30,41 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["H_MAX_S", "integrate", "steady_slip", "steady_state"]
+__all__ = ["H_MAX_S", "TP_STEPS", "integrate", "steady_slip", "steady_state", "step_size"]
 
-#: Default largest RK4 sub-step (s). The fastest motor of the library (krause_3hp,
-#: T' = 0.087 s) keeps RK4's error in P and Q below 3e-5 p.u. at this step (1e-7 for the
-#: others); :func:`loadbayes.models.composite.motor_response` also caps it at T'/40.
-H_MAX_S = 2e-3
+#: Default largest RK4 sub-step (s), capped at ``T' / TP_STEPS`` by :func:`step_size`.
+#: Measured against DOP853 on the library motors, sags of 10-60% at 60 samples/s
+#: (tests/unit/test_motor_kernel.py): largest error in P, Q with this rule 4.4e-5 p.u. for
+#: krause_3hp (T' = 0.087 s, so its step is T'/50 = 1.7 ms), at most 5.2e-6 for the
+#: others (5 ms applies; at 8 ms krause_2250hp reaches 9e-5, at 2 ms the others 2e-7).
+H_MAX_S = 5e-3
+#: Sub-steps per T' at least: RK4's error grows as (h / T')^4, so a fast motor (as a
+#: sampler may propose) gets a finer step. At T'/40, krause_3hp's error reaches 1.1e-4.
+TP_STEPS = 50.0
+#: Largest deviation (p.u. of V, rad of angle) of a sample from the straight line through
+#: its neighbours for one RK4 step to span several samples (when they are closer than the
+#: step). Tiny on purpose: at 1e-5 an angle swing of 0.2 rad at 0.8 Hz sampled at 960/s
+#: merges, and the error against DOP853 grows from 1e-7 to 4e-5 p.u. So in practice a
+#: piecewise-linear input (flat stretches and ramps, as simulated events) is integrated
+#: in steps of up to ``h_max``, and a recorded one with noise sample by sample, as before.
+LINEAR_TOL = 1e-7
+#: Largest change of V (p.u.) or angle (rad) per RK4 sub-step. Without it a 60% sag
+#: edge inside one sample at 960/s puts krause_3hp 1.3e-4 off DOP853 (7.7e-6 with it).
+DV_STEP = 0.1
+#: After a step of the input (more than ``STEP_JUMP`` p.u. or rad within one interval),
+#: the flux's fast mode, of time constant ``T' X' / X``, rings: for ``FAST_SPAN`` of
+#: those time constants the sub-step is at most ``1 / FAST_STEPS`` of it. Without this a
+#: true step placed inside a 60/s interval (models/composite_steps.py) put krause_3hp
+#: (T' X' / X = 5 ms) 1.9e-4 off DOP853.
+STEP_JUMP = 0.02
+FAST_SPAN = 5.0
+FAST_STEPS = 10.0
+
+
+@numba.njit(cache=True, nogil=True)
+def step_size(tp_s, h_max):  # pragma: no cover - compiled
+    """The largest RK4 sub-step (s) for a motor of transient time constant ``tp_s``."""
+    return min(h_max, tp_s / TP_STEPS)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -107,6 +137,88 @@ def _rhs(ed, eq, w, ud, uq, rs, xp, dx, tp, h, wb, t0, a, b, c):  # pragma: no c
 
 
 @numba.njit(cache=True, nogil=True)
+def _u(vv, dd, has_angle):  # pragma: no cover - compiled
+    # Without an angle U is real: no cos/sin.
+    if has_angle:
+        return vv * math.cos(dd), vv * math.sin(dd)
+    return vv, 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _rk4(ed, eq, w, ua, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c):  # pragma: no cover
+    # One classical RK4 step; ua, um, ub: (Ud, Uq) at the start, middle and end.
+    k1 = _rhs(ed, eq, w, ua[0], ua[1], rs, xp, dx, tp, h, wb, t0, a, b, c)
+    k2 = _rhs(
+        ed + 0.5 * hs * k1[0],
+        eq + 0.5 * hs * k1[1],
+        w + 0.5 * hs * k1[2],
+        um[0],
+        um[1],
+        rs,
+        xp,
+        dx,
+        tp,
+        h,
+        wb,
+        t0,
+        a,
+        b,
+        c,
+    )
+    k3 = _rhs(
+        ed + 0.5 * hs * k2[0],
+        eq + 0.5 * hs * k2[1],
+        w + 0.5 * hs * k2[2],
+        um[0],
+        um[1],
+        rs,
+        xp,
+        dx,
+        tp,
+        h,
+        wb,
+        t0,
+        a,
+        b,
+        c,
+    )
+    k4 = _rhs(
+        ed + hs * k3[0],
+        eq + hs * k3[1],
+        w + hs * k3[2],
+        ub[0],
+        ub[1],
+        rs,
+        xp,
+        dx,
+        tp,
+        h,
+        wb,
+        t0,
+        a,
+        b,
+        c,
+    )
+    ed += hs / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+    eq += hs / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+    w += hs / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+    return ed, eq, w, k1
+
+
+@numba.njit(cache=True, nogil=True)
+def _on_chord(t, v, delta, k, j):  # pragma: no cover - compiled
+    # Whether the samples strictly between k and j lie on the straight line from k to j
+    # (then the piecewise-linear input is one linear piece over [t_k, t_j]).
+    for i in range(k + 1, j):
+        fr = (t[i] - t[k]) / (t[j] - t[k])
+        if abs(v[i] - (v[k] + fr * (v[j] - v[k]))) > LINEAR_TOL:
+            return False
+        if abs(delta[i] - (delta[k] + fr * (delta[j] - delta[k]))) > LINEAR_TOL:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
 def _integrate(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q, states):
     # pragma: no cover - compiled
     n = t.size
@@ -114,95 +226,75 @@ def _integrate(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q, sta
     if not math.isfinite(ed):
         return False
     den = rs * rs + xp * xp
+    has_angle = False
     for k in range(n):
-        if k > 0:
-            span = t[k] - t[k - 1]
-            m = max(1, int(math.ceil(span / h_max - 1e-9)))
+        if delta[k] != 0.0:
+            has_angle = True
+            break
+    states[0, 0], states[1, 0], states[2, 0] = ed, eq, w
+    tau_fast = tp * xp / (xp + dx)
+    fine_until = -math.inf
+    k = 0
+    while k < n - 1:
+        # Samples closer than the step: one RK4 step over several of them where the input
+        # is one linear piece there (a sampled sag's corners are never inside a step), the
+        # states between by cubic Hermite interpolation (smooth states, O(h^4) error).
+        j = k + 1
+        fine = t[k] < fine_until
+        while (
+            not fine
+            and j + 1 < n
+            and t[j + 1] - t[k] <= h_max * (1.0 + 1e-9)
+            and _on_chord(t, v, delta, k, j + 1)
+        ):
+            j += 1
+        if j > k + 1:
+            span = t[j] - t[k]
+            ua = _u(v[k], delta[k], has_angle)
+            ub = _u(v[j], delta[j], has_angle)
+            um = _u(0.5 * (v[k] + v[j]), 0.5 * (delta[k] + delta[j]), has_angle)
+            e0, q0_, w0 = ed, eq, w
+            ed, eq, w, f0 = _rk4(ed, eq, w, ua, ub, um, span, rs, xp, dx, tp, h, wb, t0, a, b, c)
+            f1 = _rhs(ed, eq, w, ub[0], ub[1], rs, xp, dx, tp, h, wb, t0, a, b, c)
+            for i in range(k + 1, j):
+                s = (t[i] - t[k]) / span
+                h00 = (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s)
+                h10 = s * (1.0 - s) * (1.0 - s) * span
+                h01 = s * s * (3.0 - 2.0 * s)
+                h11 = s * s * (s - 1.0) * span
+                states[0, i] = h00 * e0 + h10 * f0[0] + h01 * ed + h11 * f1[0]
+                states[1, i] = h00 * q0_ + h10 * f0[1] + h01 * eq + h11 * f1[1]
+                states[2, i] = h00 * w0 + h10 * f0[2] + h01 * w + h11 * f1[2]
+        else:
+            # One interval in ceil(dt / h_max) equal sub-steps, V and angle linear inside.
+            span = t[j] - t[k]
+            # A fast input (a sag's edge within one sample at a high rate) gets more: RK4's
+            # error follows the input's change per step as well as h / T'.
+            jump = max(abs(v[j] - v[k]), abs(delta[j] - delta[k]))
+            h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
+            m = max(1, int(math.ceil(span / h_k - 1e-9)), int(math.ceil(jump / DV_STEP)))
+            if jump > STEP_JUMP:
+                fine_until = t[j] + FAST_SPAN * tau_fast
             hs = span / m
-            v0, v1 = v[k - 1], v[k]
-            a0, a1 = delta[k - 1], delta[k]
-            for j in range(m):
-                # Linear V and angle inside the interval; RK4 needs them at 0, 1/2, 1.
-                fr0 = j / m
-                frm = (j + 0.5) / m
-                fr1 = (j + 1.0) / m
-                va = v0 + fr0 * (v1 - v0)
-                vm = v0 + frm * (v1 - v0)
-                vb = v0 + fr1 * (v1 - v0)
-                da = a0 + fr0 * (a1 - a0)
-                dm = a0 + frm * (a1 - a0)
-                db = a0 + fr1 * (a1 - a0)
-                uda, uqa = va * math.cos(da), va * math.sin(da)
-                udm, uqm = vm * math.cos(dm), vm * math.sin(dm)
-                udb, uqb = vb * math.cos(db), vb * math.sin(db)
-                k1 = _rhs(ed, eq, w, uda, uqa, rs, xp, dx, tp, h, wb, t0, a, b, c)
-                k2 = _rhs(
-                    ed + 0.5 * hs * k1[0],
-                    eq + 0.5 * hs * k1[1],
-                    w + 0.5 * hs * k1[2],
-                    udm,
-                    uqm,
-                    rs,
-                    xp,
-                    dx,
-                    tp,
-                    h,
-                    wb,
-                    t0,
-                    a,
-                    b,
-                    c,
-                )
-                k3 = _rhs(
-                    ed + 0.5 * hs * k2[0],
-                    eq + 0.5 * hs * k2[1],
-                    w + 0.5 * hs * k2[2],
-                    udm,
-                    uqm,
-                    rs,
-                    xp,
-                    dx,
-                    tp,
-                    h,
-                    wb,
-                    t0,
-                    a,
-                    b,
-                    c,
-                )
-                k4 = _rhs(
-                    ed + hs * k3[0],
-                    eq + hs * k3[1],
-                    w + hs * k3[2],
-                    udb,
-                    uqb,
-                    rs,
-                    xp,
-                    dx,
-                    tp,
-                    h,
-                    wb,
-                    t0,
-                    a,
-                    b,
-                    c,
-                )
-                ed += hs / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-                eq += hs / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-                w += hs / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-            if not (math.isfinite(ed) and math.isfinite(eq) and math.isfinite(w)):
-                return False
-        ud = v[k] * math.cos(delta[k])
-        uq = v[k] * math.sin(delta[k])
-        dd = ud - ed
-        dq = uq - eq
+            for r in range(m):
+                fa, fm, fb = r / m, (r + 0.5) / m, (r + 1.0) / m
+                ua = _u(v[k] + fa * (v[j] - v[k]), delta[k] + fa * (delta[j] - delta[k]), has_angle)
+                um = _u(v[k] + fm * (v[j] - v[k]), delta[k] + fm * (delta[j] - delta[k]), has_angle)
+                ub = _u(v[k] + fb * (v[j] - v[k]), delta[k] + fb * (delta[j] - delta[k]), has_angle)
+                ed, eq, w, _ = _rk4(ed, eq, w, ua, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c)
+        if not (math.isfinite(ed) and math.isfinite(eq) and math.isfinite(w)):
+            return False
+        states[0, j], states[1, j], states[2, j] = ed, eq, w
+        k = j
+    for i in range(n):
+        # The algebraic output exactly at every sample, from the states and the sampled U.
+        ud, uq = _u(v[i], delta[i], has_angle)
+        dd = ud - states[0, i]
+        dq = uq - states[1, i]
         id_ = (rs * dd + xp * dq) / den
         iq = (rs * dq - xp * dd) / den
-        p[k] = ud * id_ + uq * iq
-        q[k] = uq * id_ - ud * iq
-        states[0, k] = ed
-        states[1, k] = eq
-        states[2, k] = w
+        p[i] = ud * id_ + uq * iq
+        q[i] = uq * id_ - ud * iq
     return True
 
 
@@ -242,7 +334,7 @@ def integrate(
     torque : tuple of float
         ``(A, B, C)`` of ``Tm = T0 (A w^2 + B w + C)``.
     h_max : float
-        Largest RK4 sub-step (s).
+        Largest RK4 sub-step (s); the step used is :func:`step_size` ``(tp_s, h_max)``.
 
     Returns
     -------
@@ -273,7 +365,7 @@ def integrate(
         a,
         b,
         c,
-        float(h_max),
+        float(step_size(float(tp_s), float(h_max))),
         p,
         q,
         states,

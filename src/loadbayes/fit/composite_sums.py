@@ -1,0 +1,95 @@
+"""The composite design's sufficient sums, with the motor-free part computed once.
+
+The linear block of docs/composite.md has, per sample, the design rows
+``zp = [x^2, x, 1, 0, 0, 0, a]`` and ``zq = [0, 0, 0, x^2, x, 1, b]`` with
+``a = p_m / p_m(0)`` and ``b = (q_m - q_m(0) x^2) / p_m(0)``. Of the sums ``Z'Z``, ``Z'y``
+and ``y'y`` only the ones involving ``a`` or ``b`` change with the motor: ten running
+sums per sample instead of the ~200 products of the full 7 x 7 outer products, which at
+960 samples/s cost as much as the ODE itself. The rest (powers of ``x``, ``x^k p``,
+``x^k q``, ``p^2``, ``q^2``) is computed once per event by :func:`x_sums`.
+
+``a`` and ``b`` are formed per sample (not expanded into sums of ``q_m x^2`` etc.): ``b``
+is the small difference of two O(1) terms, and expanding ``sum b^2`` would cancel.
+The result equals the direct sums to rounding (tests/unit/test_composite_speed.py).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["design_sums", "x_sums"]
+
+
+@numba.njit(cache=True, nogil=True)
+def x_sums(x, p, q):  # pragma: no cover - compiled
+    """Motor-free sums: ``[S0..S4, sum p x^{2,1,0}, sum q x^{2,1,0}, sum p^2, sum q^2]``."""
+    out = np.zeros(13)
+    for i in range(x.size):
+        xi = x[i]
+        pw = 1.0
+        for k in range(5):
+            out[k] += pw
+            pw *= xi
+        x2 = xi * xi
+        out[5] += p[i] * x2
+        out[6] += p[i] * xi
+        out[7] += p[i]
+        out[8] += q[i] * x2
+        out[9] += q[i] * xi
+        out[10] += q[i]
+        out[11] += p[i] * p[i]
+        out[12] += q[i] * q[i]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _design_sums_into(x, pm, qm, p, q, xs, ztz, zty, yty):  # pragma: no cover - compiled
+    # ztz (2, 7, 7), zty (2, 7), yty (2,) are overwritten.
+    pm0, qm0 = pm[0], qm[0]
+    sa = np.zeros(5)  # sum a x^2, a x, a, a^2, a p
+    sb = np.zeros(5)  # sum b x^2, b x, b, b^2, b q
+    for i in range(x.size):
+        xi = x[i]
+        x2 = xi * xi
+        a = pm[i] / pm0
+        b = (qm[i] - qm0 * x2) / pm0
+        sa[0] += a * x2
+        sa[1] += a * xi
+        sa[2] += a
+        sa[3] += a * a
+        sa[4] += a * p[i]
+        sb[0] += b * x2
+        sb[1] += b * xi
+        sb[2] += b
+        sb[3] += b * b
+        sb[4] += b * q[i]
+    ztz[:] = 0.0
+    zty[:] = 0.0
+    # The voltage block [x^2, x, 1] x [x^2, x, 1]: S4 S3 S2 / S3 S2 S1 / S2 S1 S0.
+    for g in range(2):
+        off = 3 * g
+        for r in range(3):
+            for c in range(3):
+                ztz[g, off + r, off + c] = xs[4 - r - c]
+            zty[g, off + r] = xs[5 + 3 * g + r]
+    for r in range(3):
+        ztz[0, r, 6] = sa[r]
+        ztz[0, 6, r] = sa[r]
+        ztz[1, 3 + r, 6] = sb[r]
+        ztz[1, 6, 3 + r] = sb[r]
+    ztz[0, 6, 6] = sa[3]
+    ztz[1, 6, 6] = sb[3]
+    zty[0, 6] = sa[4]
+    zty[1, 6] = sb[4]
+    yty[0] = xs[11]
+    yty[1] = xs[12]
+
+
+def design_sums(
+    x: np.ndarray, pm: np.ndarray, qm: np.ndarray, p: np.ndarray, q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Z'Z`` (2, 7, 7), ``Z'y`` (2, 7), ``y'y`` (2,) of one event's P and Q designs."""
+    ztz, zty, yty = np.zeros((2, 7, 7)), np.zeros((2, 7)), np.zeros(2)
+    _design_sums_into(x, pm, qm, p, q, x_sums(x, p, q), ztz, zty, yty)
+    return ztz, zty, yty

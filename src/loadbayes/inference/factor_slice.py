@@ -1,0 +1,176 @@
+"""Factor slice sampling for a block of Metropolis-within-Gibbs.
+
+Knows no physics: a block is a vector ``x`` and a log-density callable, as for
+:class:`~loadbayes.inference.adaptive_metropolis.AdaptiveMetropolis` (same ``step``
+signature, so a sampler can take either).
+
+Tibbits, Groendyke, Haran and Liechty (2014), "Automated factor slice sampling", JCGS
+23(2): one univariate slice-sampling update (Neal 2003, stepping out then shrinkage)
+along each eigenvector of the block's covariance, in random order, with an initial
+interval of ``width`` times the sd along that eigenvector. Slice sampling adapts its
+move to the local width of the density along each direction (a curved ridge that is
+narrow here and wide there), where a random-walk proposal has one fixed scale; the
+price is several density evaluations per direction.
+
+The covariance is learned from the chain's own draws **during burn-in only** (as for the
+adaptive Metropolis) and then frozen, and so is the width factor, tuned by the
+Robbins-Monro recursion of Tibbits et al. towards equal numbers of expansions and
+contractions (their "1/2 rule"); the kept draws come from a fixed slice-sampling kernel,
+which leaves the target invariant for any fixed directions and widths.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+__all__ = ["FactorSlice"]
+
+
+class FactorSlice:
+    """Slice sampling along the eigenvectors of a covariance learned during burn-in.
+
+    Parameters
+    ----------
+    cov0 : ndarray, shape (d, d)
+        Initial covariance (e.g. a Laplace approximation).
+    adapt_until : int
+        Iterations during which the covariance and width adapt (the burn-in).
+    adapt_start : int
+        Iterations with ``cov0`` before the empirical covariance takes over.
+    width : float
+        Initial interval, in sds along each eigenvector.
+    max_steps : int
+        Largest number of stepping-out expansions on each side.
+    """
+
+    def __init__(
+        self,
+        cov0: np.ndarray,
+        *,
+        adapt_until: int,
+        adapt_start: int = 100,
+        width: float = 2.5,
+        max_steps: int = 10,
+    ) -> None:
+        cov0 = np.atleast_2d(np.asarray(cov0, dtype=float))
+        self.d = cov0.shape[0]
+        self.cov = (cov0 + cov0.T) / 2
+        self.log_width = math.log(width)
+        self.adapt_until = int(adapt_until)
+        self.adapt_start = int(adapt_start)
+        self.max_steps = int(max_steps)
+        self._n = 0
+        self._mean = np.zeros(self.d)
+        self._m2 = np.zeros((self.d, self.d))
+        self._dirs = self._factor(self.cov)
+        self.evaluations = 0
+        self.sweeps = 0
+        self._expansions = 0
+        self._contractions = 0
+
+    @staticmethod
+    def _factor(cov: np.ndarray) -> np.ndarray:
+        # Columns: eigenvectors scaled by their sds.
+        w, v = np.linalg.eigh(cov)
+        return v * np.sqrt(np.clip(w, 1e-14 * max(w.max(), 1e-300), None))
+
+    def step(
+        self,
+        x: np.ndarray,
+        logp_x: float,
+        logp: Callable[[np.ndarray], tuple[float, Any]],
+        rng: np.random.Generator,
+        iteration: int,
+        aux: Any = None,
+    ) -> tuple[np.ndarray, float, Any, bool]:
+        """One sweep: a slice update along every eigen-direction, in random order.
+
+        Parameters
+        ----------
+        x : ndarray
+            Current block.
+        logp_x : float
+            ``logp(x)`` at the current state (finite).
+        logp : callable
+            ``logp(x) -> (log density, aux)``; ``aux`` travels with the state.
+        rng : numpy.random.Generator
+            The chain's generator.
+        iteration : int
+            Zero-based iteration number (adapts while ``iteration < adapt_until``).
+        aux : any
+            The current state's ``aux``.
+
+        Returns
+        -------
+        (x, logp_x, aux, moved)
+            ``moved`` is always True (a slice update always moves, if only a little).
+        """
+        w0 = math.exp(self.log_width)
+        exp0, con0 = self._expansions, self._contractions
+        for j in rng.permutation(self.d):
+            x, logp_x, aux = self._update(x, logp_x, aux, self._dirs[:, j], w0, logp, rng)
+        self.sweeps += 1
+        if iteration < self.adapt_until:
+            self._adapt(x, exp0, con0, iteration)
+        return x, logp_x, aux, True
+
+    def _update(self, x, logp_x, aux, direction, width, logp, rng):
+        def at(t):
+            self.evaluations += 1
+            return logp(x + t * direction)
+
+        level = logp_x - rng.exponential()
+        left = -width * rng.uniform()
+        right = left + width
+        # Stepping out (Neal 2003, fig. 3): the step budget split at random between sides.
+        j = int(rng.integers(self.max_steps))
+        k = self.max_steps - 1 - j
+        while j > 0 and at(left)[0] > level:
+            left -= width
+            j -= 1
+            self._expansions += 1
+        while k > 0 and at(right)[0] > level:
+            right += width
+            k -= 1
+            self._expansions += 1
+        while True:
+            t = rng.uniform(left, right)
+            lp, aux_t = at(t)
+            if lp > level:
+                return x + t * direction, lp, aux_t
+            self._contractions += 1
+            if t < 0.0:
+                left = t
+            else:
+                right = t
+            if right - left < 1e-12 * width:  # cannot happen for a finite logp_x > level
+                return x, logp_x, aux
+
+    def _adapt(self, x: np.ndarray, exp0: int, con0: int, iteration: int) -> None:
+        # Tibbits et al.'s rule: expansions mean the interval was too narrow, contractions
+        # that it was too wide; balance them.
+        ne, nc = self._expansions - exp0, self._contractions - con0
+        if ne + nc > 0:
+            self.log_width += (ne / (ne + nc) - 0.5) / math.sqrt(iteration + 1.0)
+        self._n += 1
+        delta = x - self._mean
+        self._mean += delta / self._n
+        self._m2 += np.outer(delta, x - self._mean)
+        if self._n >= self.adapt_start and self._n % 20 == 0:
+            emp = self._m2 / (self._n - 1)
+            self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
+            self._dirs = self._factor(self.cov)
+
+    @property
+    def acceptance(self) -> float:
+        """1.0: a slice update always moves (for the same report as a Metropolis move)."""
+        return 1.0
+
+    @property
+    def evaluations_per_step(self) -> float:
+        """Density evaluations per sweep so far (the cost of one :meth:`step`)."""
+        return self.evaluations / max(self.sweeps, 1)
