@@ -265,6 +265,8 @@ def fit_composite(
     workers: int | None = None,
     h_max: float = H_MAX_S,
     settings: dict[str, Any] | None = None,
+    likelihood: str = "normal",
+    nu: float | str = "auto",
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
 
@@ -284,6 +286,10 @@ def fit_composite(
         RK4 sub-step of the motor kernel (s).
     settings : dict, optional
         Extra provenance stored in the result.
+    likelihood : {"normal", "student-t"}
+        Noise on P and Q; Student-t adds latent weights (fit.composite_robust).
+    nu : float or "auto"
+        Student-t degrees of freedom, fixed or sampled (one per channel).
 
     Returns
     -------
@@ -298,6 +304,13 @@ def fit_composite(
     t0 = time.perf_counter()
     start = nls(problem)
     t1 = time.perf_counter()
+    student_t = None
+    if likelihood == "student-t":
+        from loadbayes.fit.composite_robust import StudentT
+
+        student_t = StudentT(nu=nu)
+    elif likelihood != "normal":
+        raise ValueError(f"likelihood must be 'normal' or 'student-t', got {likelihood!r}")
     res = sample(
         problem,
         start=start,
@@ -307,6 +320,7 @@ def fit_composite(
         chains=chains,
         seed=seed,
         workers=workers,
+        student_t=student_t,
     )
     t2 = time.perf_counter()
     theta = np.stack([r.theta for r in res])
@@ -333,10 +347,17 @@ def fit_composite(
         for n in draws_named
         if not n.startswith("tau") and n not in ("a", "b", "c", "f_hz") and not n.startswith("v0")
     ]
+    robust_settings, constant, robust_warn = {}, {}, []
+    if student_t is not None:
+        from loadbayes.fit.composite_robust import robust_outputs
+
+        robust_settings, constant, robust_warn = robust_outputs(problem, res, nu, draws_named)
     post = Posterior(
         draws_named,
         model="composite",
-        method="mwg-adaptive-metropolis",
+        method="mwg-adaptive-metropolis" + ("-student-t" if student_t else ""),
+        constant=constant,
+        warnings=robust_warn,
         coefficients=coefficients,
         free=free,
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},
@@ -350,6 +371,8 @@ def fit_composite(
             "integrated out; beta and tau exact)",
             "acceptance": [r.acceptance for r in res],
             "seconds": {"nls": t1 - t0, "sampler": t2 - t1},
+            "likelihood": likelihood,
+            **robust_settings,
         },
     )
     ident = identifiability(theta, draws_named["f_m"], prior, len(events))

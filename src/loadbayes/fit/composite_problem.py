@@ -515,6 +515,10 @@ class ChainResult:
     beta: np.ndarray  # (kept, events, 7)
     tau: np.ndarray  # (kept, 2)
     acceptance: float
+    # Student-t only (fit.composite_robust): nu draws (kept, 2), mean weights (2, n).
+    nu: np.ndarray | None = None
+    weight: np.ndarray | None = None
+    nu_acceptance: float | None = None
 
 
 def sample(
@@ -528,6 +532,7 @@ def sample(
     seed: int = 0,
     workers: int | None = None,
     dispersion: float = 2.0,
+    student_t: Any = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -552,6 +557,8 @@ def sample(
         Threads for the chains.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
+    student_t : loadbayes.fit.composite_robust.StudentT, optional
+        Student-t noise (a weights step each iteration); Gaussian noise when None.
 
     Returns
     -------
@@ -583,14 +590,23 @@ def sample(
         b_out = np.empty((len(kept_idx), len(problem.events), 7))
         t_out = np.empty((len(kept_idx), 2))
         j = 0
+        # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
+        wt = None if student_t is None else student_t.chain(problem, u, tau, len(kept_idx))
+        if wt is not None:
+            sums = wt.sums
         for it in range(draws):
-            lp = problem.log_collapsed(sums, u, tau)
+            if wt is None:
+                lp = problem.log_collapsed(sums, u, tau)
 
-            def logp(x, tau=tau):
-                return problem.collapsed(x, tau)
+                def logp(x, tau=tau):
+                    return problem.collapsed(x, tau)
 
+            else:
+                lp, logp = wt.current(u, tau), wt.logp(tau)
             u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
             betas = [draw_beta(s, tau, problem.m0, problem.p0, rng, positive=_POS) for s in sums]
+            if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
+                sums = wt.update(sums, betas, tau, rng, it >= burn and (it - burn) % thin == 0)
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
             tau = draw_tau(ssr, n_tot, prior.tau_shape, prior.tau_rate, rng)
             log_t0 = prior.draw_log_t0(u, rng)
@@ -598,6 +614,8 @@ def sample(
                 th_out[j] = theta_of(u, log_t0)
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
+        if wt is not None:
+            return ChainResult(th_out, b_out, t_out, am.acceptance, *wt.result())
         return ChainResult(th_out, b_out, t_out, am.acceptance)
 
     return run_chains(chain, chains, seed=seed, workers=workers)
