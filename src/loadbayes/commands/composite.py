@@ -60,6 +60,21 @@ def _parse_torque(text: str) -> tuple[float, float, float]:
     return a, b, c
 
 
+def _parse_nu(value: str) -> float | str:
+    # As fit zip's --nu (a command module does not import another one).
+    if value.strip().lower() == "auto":
+        return "auto"
+    try:
+        out = float(value)
+    except ValueError:
+        raise click.BadParameter(
+            f"{value!r} is neither a number nor 'auto'", param_hint="--nu"
+        ) from None
+    if not (out > 0 and math.isfinite(out)):
+        raise click.BadParameter("must be a positive finite number or 'auto'", param_hint="--nu")
+    return out
+
+
 @click.command("composite")
 @click.argument("files", nargs=-1, required=True, type=str)
 @click.option("--t-col", default="t_s", show_default=True, help="Time column (s).")
@@ -88,6 +103,21 @@ def _parse_torque(text: str) -> tuple[float, float, float]:
     show_default=True,
     metavar="A,B,C",
     help="Load torque T0 (A w^2 + B w + C).",
+)
+@click.option(
+    "--likelihood",
+    type=click.Choice(["normal", "student-t"]),
+    default="normal",
+    show_default=True,
+    help="Gaussian noise on P and Q, or Student-t noise that discounts bad samples "
+    "and lists them under 'flagged' in the JSON.",
+)
+@click.option(
+    "--nu",
+    default="auto",
+    show_default=True,
+    metavar="VALUE|auto",
+    help="Student-t degrees of freedom: a number, or 'auto' to sample them.",
 )
 @click.option(
     "--prior",
@@ -146,6 +176,8 @@ def fit_composite_cmd(
     s_base,
     f_hz,
     torque,
+    likelihood,
+    nu,
     priors,
     draws,
     burn,
@@ -176,6 +208,9 @@ def fit_composite_cmd(
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     torque_abc = _parse_torque(torque)
+    nu_value = _parse_nu(nu)
+    if likelihood != "student-t" and nu != "auto":
+        raise UserError("--nu needs --likelihood student-t")
     prior_items = _parse_priors(priors)
 
     import numpy as np
@@ -221,6 +256,8 @@ def fit_composite_cmd(
         chains=chains,
         seed=seed,
         settings={"files": list(files)},
+        likelihood=likelihood,
+        nu=nu_value,
     )
     post = fit.posterior
     table = post.summary(hdi_prob=hdi_prob)
