@@ -50,7 +50,9 @@ def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _parse_torque(text: str) -> tuple[float, float, float]:
+def _parse_torque(text: str) -> tuple[float, float, float] | str:
+    if text.strip().lower() == "estimate":
+        return "estimate"
     try:
         a, b, c = (float(x) for x in text.split(","))
     except ValueError:
@@ -101,8 +103,9 @@ def _parse_nu(value: str) -> float | str:
     "--torque",
     default="1,0,0",
     show_default=True,
-    metavar="A,B,C",
-    help="Load torque T0 (A w^2 + B w + C).",
+    metavar="A,B,C|estimate",
+    help="Load torque T0 (A w^2 + B w + C), A + B + C = 1; or 'estimate' (a uniform "
+    "Dirichlet prior on A, B, C).",
 )
 @click.option(
     "--likelihood",

@@ -74,16 +74,20 @@ class CompositeFit:
     seconds: dict[str, float]
 
 
-def _motor_p0_q0(problem: CompositeProblem, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    # The motor's own-base P, Q at each event's first sample, per draw.
+def _motor_p0_q0(
+    problem: CompositeProblem, theta: np.ndarray, abc: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    # The motor's own-base P, Q at each event's first sample, per draw (and per-draw
+    # torque shares when they are estimated).
     flat = theta.reshape(-1, 6)
     e = np.exp(flat)
     wb = 2.0 * math.pi * problem.f_hz
-    a, b, c = problem.torque
+    abc_flat = None if abc is None else abc.reshape(-1, 3)
     n_ev = len(problem.events)
     pm0 = np.full((flat.shape[0], n_ev), np.nan)
     qm0 = np.full((flat.shape[0], n_ev), np.nan)
     for i, (rs, xp, dx, tp, _h, t0) in enumerate(e):
+        a, b, c = problem.torque if abc_flat is None else abc_flat[i]
         for k, ev in enumerate(problem.events):
             out = steady_state(rs, xp, dx, tp, wb, ev.v0, t0, a, b, c)
             pm0[i, k], qm0[i, k] = out[3], out[4]
@@ -92,7 +96,11 @@ def _motor_p0_q0(problem: CompositeProblem, theta: np.ndarray) -> tuple[np.ndarr
 
 
 def named_draws(
-    problem: CompositeProblem, theta: np.ndarray, betas: np.ndarray, tau: np.ndarray
+    problem: CompositeProblem,
+    theta: np.ndarray,
+    betas: np.ndarray,
+    tau: np.ndarray,
+    abc: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Draws named as the contract says, from the sampled blocks.
 
@@ -106,12 +114,14 @@ def named_draws(
         Linear coefficients of every event.
     tau : ndarray, shape (chain, draw, 2)
         Noise precisions of P and Q.
+    abc : ndarray, shape (chain, draw, 3), optional
+        Draws of the torque shares when estimated (else ``problem.torque``).
 
     Returns
     -------
     dict of str to ndarray (chain, draw)
     """
-    pm0, qm0 = _motor_p0_q0(problem, theta)
+    pm0, qm0 = _motor_p0_q0(problem, theta, abc)
     phys = motor_physical(theta, f_hz=problem.f_hz)
     shape = theta.shape[:-1]
     out: dict[str, np.ndarray] = {}
@@ -125,8 +135,8 @@ def named_draws(
             out[f"{name}{sfx}"] = comp[name]
     for name in ("rs", "xs", "xm", "rr", "xr", "h_s"):
         out[name] = phys[name]
-    for name, val in zip(("a", "b", "c"), problem.torque, strict=True):
-        out[name] = np.full(shape, float(val))
+    for i, (name, val) in enumerate(zip(("a", "b", "c"), problem.torque, strict=True)):
+        out[name] = np.full(shape, float(val)) if abc is None else abc[..., i]
     out["t0"] = phys["t0"]
     for name in ("x_prime", "x_open", "t_prime_s"):
         out[name] = phys[name]
@@ -256,7 +266,7 @@ def fit_composite(
     *,
     prior: CompositePrior | None = None,
     f_hz: float = 60.0,
-    torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
+    torque: tuple[float, float, float] | str = (1.0, 0.0, 0.0),
     draws: int = 10_000,
     burn: int = 3000,
     thin: int = 1,
@@ -278,8 +288,9 @@ def fit_composite(
         Default :meth:`CompositePrior.default`.
     f_hz : float
         Nominal frequency (the motor's time base).
-    torque : tuple of float
-        ``(A, B, C)``, fixed.
+    torque : tuple of float or "estimate"
+        ``(A, B, C)``, fixed, or ``"estimate"``: a Dirichlet(1, 1, 1) prior
+        (fit.composite_torque).
     draws, burn, thin, chains, seed, workers
         Sampler settings (see :func:`loadbayes.fit.composite_problem.sample`).
     h_max : float
@@ -300,10 +311,23 @@ def fit_composite(
     if not events:
         raise ValueError("no events to fit")
     prior = prior or CompositePrior.default(events)
-    problem = CompositeProblem(events, prior, f_hz=f_hz, torque=tuple(torque), h_max=h_max)
+    estimate = isinstance(torque, str)
+    if estimate and torque != "estimate":
+        raise ValueError(f"torque must be (A, B, C) or 'estimate', got {torque!r}")
+    if estimate and likelihood != "normal":
+        raise ValueError("torque='estimate' with a Student-t likelihood is not implemented")
+    # Estimated shares: NLS (the start) at the prior's centre A = B = C = 1/3.
+    fixed = (1 / 3, 1 / 3, 1 / 3) if estimate else tuple(torque)
+    problem = CompositeProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max)
     t0 = time.perf_counter()
     start = nls(problem)
     t1 = time.perf_counter()
+    sampled, sample_start = problem, start
+    if estimate:
+        from loadbayes.fit import composite_torque as ct
+
+        sampled = ct.TorqueProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max)
+        sample_start = ct.extend_start(start, np.zeros(2))
     student_t = None
     if likelihood == "student-t":
         from loadbayes.fit.composite_robust import StudentT
@@ -312,8 +336,8 @@ def fit_composite(
     elif likelihood != "normal":
         raise ValueError(f"likelihood must be 'normal' or 'student-t', got {likelihood!r}")
     res = sample(
-        problem,
-        start=start,
+        sampled,
+        start=sample_start,
         draws=draws,
         burn=burn,
         thin=thin,
@@ -326,7 +350,15 @@ def fit_composite(
     theta = np.stack([r.theta for r in res])
     betas = np.stack([r.beta for r in res])
     tau = np.stack([r.tau for r in res])
-    draws_named = named_draws(problem, theta, betas, tau)
+    abc = None
+    if estimate:
+        z = np.stack([r.u_extra for r in res])
+        abc = np.apply_along_axis(lambda x: np.array(ct.shares(x)), -1, z)
+        draws_named = named_draws(problem, theta, betas, tau, abc)
+        for i, name in enumerate(("log_a_over_c", "log_b_over_c")):
+            draws_named[name] = z[..., i]
+    else:
+        draws_named = named_draws(problem, theta, betas, tau)
     common = {
         "n": int(sum(e.n for e in events)),
         "events": [
@@ -334,7 +366,10 @@ def fit_composite(
             for e in events
         ],
         "f_hz": f_hz,
-        "torque": list(torque),
+        "torque": "estimate" if estimate else list(torque),
+        "torque_prior": "Dirichlet(1, 1, 1) on (a, b, c), sampled in log(a/c), log(b/c)"
+        if estimate
+        else None,
         "prior": prior.to_dict(),
         "h_max_s": h_max,
         "shunt": "q_c = mva_m * q_m(0): the motor's initial Q compensated at v0",
@@ -376,6 +411,9 @@ def fit_composite(
         },
     )
     ident = identifiability(theta, draws_named["f_m"], prior, len(events))
+    if abc is not None:
+        ident["torque"] = ct.torque_identifiability(abc)
+        ident["summary"] += " " + ident["torque"]["summary"]
     post.extra_json["identifiability"] = ident
     weak = [n for n, p in ident["parameters"].items() if p["verdict"] == "prior-driven"]
     if weak:
@@ -449,13 +487,19 @@ def predictive_band(
 
     rng = np.random.default_rng(seed)
     theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
+    # The draws carry the torque shares (constants unless they were estimated).
+    abc = (
+        np.stack([post.draws[n] for n in ("a", "b", "c")], -1).reshape(-1, 3)
+        if all(n in post.draws for n in ("a", "b", "c"))
+        else np.tile(np.asarray(torque, dtype=float), (theta.shape[0], 1))
+    )
     pick = rng.choice(theta.shape[0], size=min(n_draws, theta.shape[0]), replace=False)
     out = []
     for k, ev in enumerate(events):
         beta = beta_from_named(post.draws, k).reshape(-1, 7)
         ps, qs = [], []
         for i in pick:
-            r = predict(ev, theta[i], beta[i], f_hz=f_hz, torque=torque)
+            r = predict(ev, theta[i], beta[i], f_hz=f_hz, torque=tuple(abc[i]))
             if r is not None:
                 ps.append(r[0])
                 qs.append(r[1])

@@ -188,18 +188,21 @@ class CompositeProblem:
         mean_u, cov_u, _, _ = self.prior.scale_free()
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
 
-    def collapsed(self, u: np.ndarray, tau: np.ndarray) -> tuple[float, list[GroupSums] | None]:
+    def collapsed(
+        self, u: np.ndarray, tau: np.ndarray, torque: tuple[float, float, float] | None = None
+    ) -> tuple[float, list[GroupSums] | None]:
         """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
 
         The same value as :meth:`log_collapsed` of :meth:`sums` (tested); ``(-inf, None)``
-        when the motor has no steady state or the linear block is singular.
+        when the motor has no steady state or the linear block is singular. ``torque``
+        overrides ``self.torque`` for this call (estimated shares, fit.composite_torque).
         """
         self.evaluations += 1
         n_ev = len(self.events)
         ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
         if not np.all(np.isfinite(u)):
             return -math.inf, None
-        a, b, c = self.torque
+        a, b, c = self.torque if torque is None else torque
         try:
             lp = _collapsed(
                 np.asarray(u, dtype=float),
@@ -233,7 +236,9 @@ class CompositeProblem:
             return -math.inf, None
         return lp, [GroupSums(ztz[e], zty[e], yty[e], self._n[e]) for e in range(n_ev)]
 
-    def responses(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    def responses(
+        self, u: np.ndarray, torque: tuple[float, float, float] | None = None
+    ) -> list[tuple[np.ndarray, np.ndarray]] | None:
         """The motor's P, Q in every event for scale-free ``u`` (None if no steady state).
 
         Simulated on the base where ``T0 = 1``; P and Q on any other base are these
@@ -243,15 +248,18 @@ class CompositeProblem:
         theta = theta_of(u, 0.0)
         out = []
         for ev in self.events:
-            r = motor_response(ev, theta, f_hz=self.f_hz, torque=self.torque, h_max=self.h_max)
+            tq = self.torque if torque is None else torque
+            r = motor_response(ev, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max)
             if r is None:
                 return None
             out.append(r)
         return out
 
-    def sums(self, u: np.ndarray) -> list[GroupSums] | None:
+    def sums(
+        self, u: np.ndarray, torque: tuple[float, float, float] | None = None
+    ) -> list[GroupSums] | None:
         """Each event's sufficient sums for the linear block (None if infeasible)."""
-        resp = self.responses(u)
+        resp = self.responses(u, torque)
         if resp is None:
             return None
         out = []
@@ -515,6 +523,8 @@ class ChainResult:
     beta: np.ndarray  # (kept, events, 7)
     tau: np.ndarray  # (kept, 2)
     acceptance: float
+    # Coordinates of u beyond the motor's five (estimated torque shares), (kept, d - 5).
+    u_extra: np.ndarray | None = None
     # Student-t only (fit.composite_robust): nu draws (kept, 2), mean weights (2, n).
     nu: np.ndarray | None = None
     weight: np.ndarray | None = None
@@ -567,18 +577,19 @@ def sample(
     if not 0 <= burn < draws:
         raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
     prior = problem.prior
-    lap = start.cov[:5, :5]
+    dim = start.u.size  # 5, or more when the problem samples extra coordinates (torque)
+    lap = start.cov[:dim, :dim]
     lap = (lap + lap.T) / 2
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
     kept_idx = range(burn, draws, thin)
-    root = np.linalg.cholesky(lap + 1e-12 * np.eye(5))
+    root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
 
     def chain(index: int, rng: np.random.Generator) -> ChainResult:
         am = AdaptiveMetropolis(lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
         u, sums = start.u, None
         for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(5)
+            cand = start.u + dispersion * root @ rng.standard_normal(dim)
             sums = problem.sums(cand)
             if sums is not None:
                 u = cand
@@ -589,6 +600,7 @@ def sample(
         th_out = np.empty((len(kept_idx), 6))
         b_out = np.empty((len(kept_idx), len(problem.events), 7))
         t_out = np.empty((len(kept_idx), 2))
+        x_out = np.empty((len(kept_idx), dim - 5))
         j = 0
         # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
         wt = None if student_t is None else student_t.chain(problem, u, tau, len(kept_idx))
@@ -609,13 +621,14 @@ def sample(
                 sums = wt.update(sums, betas, tau, rng, it >= burn and (it - burn) % thin == 0)
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
             tau = draw_tau(ssr, n_tot, prior.tau_shape, prior.tau_rate, rng)
-            log_t0 = prior.draw_log_t0(u, rng)
+            log_t0 = prior.draw_log_t0(u[:5], rng)
             if it >= burn and (it - burn) % thin == 0:
-                th_out[j] = theta_of(u, log_t0)
+                th_out[j], x_out[j] = theta_of(u[:5], log_t0), u[5:]
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
+        extra = x_out if dim > 5 else None
         if wt is not None:
-            return ChainResult(th_out, b_out, t_out, am.acceptance, *wt.result())
-        return ChainResult(th_out, b_out, t_out, am.acceptance)
+            return ChainResult(th_out, b_out, t_out, am.acceptance, extra, *wt.result())
+        return ChainResult(th_out, b_out, t_out, am.acceptance, extra)
 
     return run_chains(chain, chains, seed=seed, workers=workers)
