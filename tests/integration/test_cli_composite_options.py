@@ -1,4 +1,4 @@
-"""``loadbayes fit composite --likelihood student-t``: the JSON's names, bad --nu."""
+"""``fit composite --likelihood student-t`` and ``--torque estimate``: JSON, bad values."""
 
 from __future__ import annotations
 
@@ -56,3 +56,23 @@ def test_bad_nu_exits_2(tmp_path, extra):
     res = _run(tmp_path / "sag.csv", "--json", tmp_path / "o.json", *extra, *SHORT)
     assert res.exit_code == 2, res.output
     assert "Traceback" not in res.output
+
+
+def test_torque_estimate_reports_shares_with_their_spread(tmp_path):
+    _csv(tmp_path / "sag.csv")
+    out = tmp_path / "comp.json"
+    res = _run(tmp_path / "sag.csv", "--json", out, "--torque", "estimate", *SHORT)
+    assert res.exit_code == 0, res.output
+    d = json.loads(out.read_text())
+    for name in ("a", "b", "c"):
+        assert d["parameters"][name]["sd"] > 0
+    assert d["settings"]["torque"] == "estimate"
+    assert "torque" in d["identifiability"]
+
+
+@pytest.mark.parametrize("bad", ["1,1", "x", "0.5,0.5,0.5", "estimate,1"])
+def test_bad_torque_exits_2(tmp_path, bad):
+    _csv(tmp_path / "sag.csv")
+    res = _run(tmp_path / "sag.csv", "--json", tmp_path / "o.json", "--torque", bad, *SHORT)
+    assert res.exit_code == 2, res.output
+    assert "--torque" in res.output and "Traceback" not in res.output
