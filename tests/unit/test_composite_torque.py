@@ -58,3 +58,14 @@ def test_torque_problem_is_the_fixed_problem_at_its_shares_plus_the_prior():
     fixed = CompositeProblem([ev], prior, torque=shares(z))
     assert lp == pytest.approx(fixed.collapsed(u5, tau)[0] + log_prior_z(z), rel=1e-12)
     np.testing.assert_allclose(sums[0].ztz, fixed.sums(u5)[0].ztz, rtol=1e-12)
+
+
+def test_student_t_weights_and_estimated_shares_combine():
+    from loadbayes.fit.composite_robust import collapsed_weighted
+
+    ev, _ = simulate_event("small_industrial", depth=0.35, noise=0.01, t_end_s=1.5, fs=30.0)
+    pb = TorqueProblem([ev], CompositePrior.default([ev]))
+    u = np.concatenate([(SCALE_FREE_MATRIX @ _theta("small_industrial"))[:5], [0.3, -1.0]])
+    tau = np.array([1e3, 2e3])
+    lp = collapsed_weighted(pb, u, tau, np.ones((2, ev.n)))[0]
+    assert lp == pytest.approx(pb.collapsed(u, tau)[0], rel=1e-12)

@@ -314,8 +314,6 @@ def fit_composite(
     estimate = isinstance(torque, str)
     if estimate and torque != "estimate":
         raise ValueError(f"torque must be (A, B, C) or 'estimate', got {torque!r}")
-    if estimate and likelihood != "normal":
-        raise ValueError("torque='estimate' with a Student-t likelihood is not implemented")
     # Estimated shares: NLS (the start) at the prior's centre A = B = C = 1/3.
     fixed = (1 / 3, 1 / 3, 1 / 3) if estimate else tuple(torque)
     problem = CompositeProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max)

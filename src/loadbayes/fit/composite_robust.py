@@ -76,10 +76,17 @@ def collapsed_weighted(
     n_ev = len(problem.events)
     if not np.all(np.isfinite(u)):
         return -math.inf, None
+    u = np.asarray(u, dtype=float)
+    a, b, c = problem.torque
+    extra = 0.0
+    if u.size > 5:  # estimated torque shares (fit.composite_torque): u = (motor, z)
+        from loadbayes.fit.composite_torque import log_prior_z, shares
+
+        (a, b, c), extra = shares(u[5:]), log_prior_z(u[5:])
+        u = u[:5]
     ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
     n = problem._t.size
     pm, qm = np.empty(n), np.empty(n)
-    a, b, c = problem.torque
     try:
         lp = _collapsed_w(
             np.asarray(u, dtype=float), np.asarray(tau, dtype=float), problem._t,
@@ -92,6 +99,7 @@ def collapsed_weighted(
         return -math.inf, None
     if not math.isfinite(lp):
         return -math.inf, None
+    lp += extra
     out = WeightedSums(GroupSums(ztz[e], zty[e], yty[e], problem._n[e]) for e in range(n_ev))
     out.pm, out.qm = pm, qm
     return lp, out
@@ -198,7 +206,11 @@ class StudentTChain:
     def current(self, u: np.ndarray, tau: np.ndarray) -> float:
         """The collapsed log-density at ``u`` from the stored sums (no ODE solve)."""
         p = self.problem
-        out = p.prior.log_u(u) + 0.5 * float(np.sum(np.log(self.lam)))
+        out = p.prior.log_u(u[:5]) + 0.5 * float(np.sum(np.log(self.lam)))
+        if u.size > 5:  # estimated torque shares
+            from loadbayes.fit.composite_torque import log_prior_z
+
+            out += log_prior_z(u[5:])
         for s in self.sums:
             out += float(log_marginal_arrays(s.ztz, s.zty, s.yty, s.n, tau, p.m0, p.p0, _POS))
         return out
