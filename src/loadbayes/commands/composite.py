@@ -290,6 +290,8 @@ def fit_composite_cmd(
     if not quiet:
         names = ["p0", "q0", "f_m", "a1", "a2", "a3", "a4", "a5", "a6"]
         names += ["rs", "x_prime", "x_open", "t_prime_s", "h_s", "t0", "mva_m", "q_c"]
+        names += [n for n in ("a", "b", "c") if torque_abc == "estimate"]
+        names += [n for n in ("nu_p", "nu_q") if n in post.draws]
         cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
         click.echo(f"composite posterior, {post.method}, {len(events)} event(s)")
         click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"))

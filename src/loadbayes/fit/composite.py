@@ -429,7 +429,8 @@ def fit_composite(
 
         with _w.catch_warnings():
             _w.simplefilter("ignore")
-            rhat = {n: float(_arviz().rhat(draws_named[n])) for n in THETA_NAMES[:5]}
+            watch = list(THETA_NAMES[:5]) + (["log_a_over_c", "log_b_over_c"] if estimate else [])
+            rhat = {n: float(_arviz().rhat(draws_named[n])) for n in watch}
         slow = [n for n, r in rhat.items() if not r < 1.01]
         if slow:
             post.warnings.append(
