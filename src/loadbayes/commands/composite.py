@@ -50,7 +50,9 @@ def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
     return out
 
 
-def _parse_torque(text: str) -> tuple[float, float, float]:
+def _parse_torque(text: str) -> tuple[float, float, float] | str:
+    if text.strip().lower() == "estimate":
+        return "estimate"
     try:
         a, b, c = (float(x) for x in text.split(","))
     except ValueError:
@@ -58,6 +60,21 @@ def _parse_torque(text: str) -> tuple[float, float, float]:
     if not all(math.isfinite(x) for x in (a, b, c)) or abs(a + b + c - 1) > 1e-9:
         raise click.BadParameter(f"{text!r}: A + B + C must be 1", param_hint="--torque")
     return a, b, c
+
+
+def _parse_nu(value: str) -> float | str:
+    # As fit zip's --nu (a command module does not import another one).
+    if value.strip().lower() == "auto":
+        return "auto"
+    try:
+        out = float(value)
+    except ValueError:
+        raise click.BadParameter(
+            f"{value!r} is neither a number nor 'auto'", param_hint="--nu"
+        ) from None
+    if not (out > 0 and math.isfinite(out)):
+        raise click.BadParameter("must be a positive finite number or 'auto'", param_hint="--nu")
+    return out
 
 
 @click.command("composite")
@@ -86,8 +103,24 @@ def _parse_torque(text: str) -> tuple[float, float, float]:
     "--torque",
     default="1,0,0",
     show_default=True,
-    metavar="A,B,C",
-    help="Load torque T0 (A w^2 + B w + C).",
+    metavar="A,B,C|estimate",
+    help="Load torque T0 (A w^2 + B w + C), A + B + C = 1; or 'estimate' (a uniform "
+    "Dirichlet prior on A, B, C).",
+)
+@click.option(
+    "--likelihood",
+    type=click.Choice(["normal", "student-t"]),
+    default="normal",
+    show_default=True,
+    help="Gaussian noise on P and Q, or Student-t noise that discounts bad samples "
+    "and lists them under 'flagged' in the JSON.",
+)
+@click.option(
+    "--nu",
+    default="auto",
+    show_default=True,
+    metavar="VALUE|auto",
+    help="Student-t degrees of freedom: a number, or 'auto' to sample them.",
 )
 @click.option(
     "--steps/--no-steps",
@@ -154,6 +187,8 @@ def fit_composite_cmd(
     f_hz,
     torque,
     steps,
+    likelihood,
+    nu,
     priors,
     draws,
     burn,
@@ -184,6 +219,9 @@ def fit_composite_cmd(
     if burn >= draws:
         raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     torque_abc = _parse_torque(torque)
+    nu_value = _parse_nu(nu)
+    if likelihood != "student-t" and nu != "auto":
+        raise UserError("--nu needs --likelihood student-t")
     prior_items = _parse_priors(priors)
 
     import numpy as np
@@ -230,6 +268,8 @@ def fit_composite_cmd(
         chains=chains,
         seed=seed,
         settings={"files": list(files)},
+        likelihood=likelihood,
+        nu=nu_value,
     )
     post = fit.posterior
     table = post.summary(hdi_prob=hdi_prob)
@@ -259,6 +299,8 @@ def fit_composite_cmd(
     if not quiet:
         names = ["p0", "q0", "f_m", "a1", "a2", "a3", "a4", "a5", "a6"]
         names += ["rs", "x_prime", "x_open", "t_prime_s", "h_s", "t0", "mva_m", "q_c"]
+        names += [n for n in ("a", "b", "c") if torque_abc == "estimate"]
+        names += [n for n in ("nu_p", "nu_q") if n in post.draws]
         cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
         click.echo(f"composite posterior, {post.method}, {len(events)} event(s)")
         click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"))

@@ -78,16 +78,20 @@ class CompositeFit:
     seconds: dict[str, float]
 
 
-def _motor_p0_q0(problem: CompositeProblem, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    # The motor's own-base P, Q at each event's first sample, per draw.
+def _motor_p0_q0(
+    problem: CompositeProblem, theta: np.ndarray, abc: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    # The motor's own-base P, Q at each event's first sample, per draw (and per-draw
+    # torque shares when they are estimated).
     flat = theta.reshape(-1, 6)
     e = np.exp(flat)
     wb = 2.0 * math.pi * problem.f_hz
-    a, b, c = problem.torque
+    abc_flat = None if abc is None else abc.reshape(-1, 3)
     n_ev = len(problem.events)
     pm0 = np.full((flat.shape[0], n_ev), np.nan)
     qm0 = np.full((flat.shape[0], n_ev), np.nan)
     for i, (rs, xp, dx, tp, _h, t0) in enumerate(e):
+        a, b, c = problem.torque if abc_flat is None else abc_flat[i]
         for k, ev in enumerate(problem.events):
             out = steady_state(rs, xp, dx, tp, wb, ev.v0, t0, a, b, c)
             pm0[i, k], qm0[i, k] = out[3], out[4]
@@ -101,6 +105,7 @@ def named_draws(
     betas: np.ndarray,
     tau: np.ndarray,
     phi: np.ndarray | None = None,
+    abc: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Draws named as the contract says, from the sampled blocks.
 
@@ -118,12 +123,14 @@ def named_draws(
         Fractions of the step intervals (``models/composite_steps.py``): reported as
         each step's instant ``t_step{j}`` (s, on the event's clock; ``j`` counts the
         event's steps).
+    abc : ndarray, shape (chain, draw, 3), optional
+        Draws of the torque shares when estimated (else ``problem.torque``).
 
     Returns
     -------
     dict of str to ndarray (chain, draw)
     """
-    pm0, qm0 = _motor_p0_q0(problem, theta)
+    pm0, qm0 = _motor_p0_q0(problem, theta, abc)
     phys = motor_physical(theta, f_hz=problem.f_hz)
     shape = theta.shape[:-1]
     out: dict[str, np.ndarray] = {}
@@ -137,8 +144,8 @@ def named_draws(
             out[f"{name}{sfx}"] = comp[name]
     for name in ("rs", "xs", "xm", "rr", "xr", "h_s"):
         out[name] = phys[name]
-    for name, val in zip(("a", "b", "c"), problem.torque, strict=True):
-        out[name] = np.full(shape, float(val))
+    for i, (name, val) in enumerate(zip(("a", "b", "c"), problem.torque, strict=True)):
+        out[name] = np.full(shape, float(val)) if abc is None else abc[..., i]
     out["t0"] = phys["t0"]
     for name in ("x_prime", "x_open", "t_prime_s"):
         out[name] = phys[name]
@@ -278,7 +285,7 @@ def _baseline(problem: CompositeProblem, start: NLSResult, chains: int, draws: i
     theta = theta_of(u, log_t0.reshape(chains, draws))
     betas = x[..., d:].reshape(chains, draws, n_ev, 7)
     tau = np.broadcast_to(1.0 / start.sigma**2, (chains, draws, 2)).copy()
-    return named_draws(problem, theta, betas, tau, problem.phi(x[..., :d]))
+    return named_draws(problem, theta, betas, tau, phi=problem.phi(x[..., :d]))
 
 
 def fit_composite(
@@ -286,7 +293,7 @@ def fit_composite(
     *,
     prior: CompositePrior | None = None,
     f_hz: float = 60.0,
-    torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
+    torque: tuple[float, float, float] | str = (1.0, 0.0, 0.0),
     draws: int = 10_000,
     burn: int = 3000,
     thin: int = 1,
@@ -297,6 +304,8 @@ def fit_composite(
     steps: bool = True,
     settings: dict[str, Any] | None = None,
     move: str = DEFAULT_MOVE,
+    likelihood: str = "normal",
+    nu: float | str = "auto",
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
 
@@ -308,8 +317,9 @@ def fit_composite(
         Default :meth:`CompositePrior.default`.
     f_hz : float
         Nominal frequency (the motor's time base).
-    torque : tuple of float
-        ``(A, B, C)``, fixed.
+    torque : tuple of float or "estimate"
+        ``(A, B, C)``, fixed, or ``"estimate"``: a Dirichlet(1, 1, 1) prior
+        (fit.composite_torque).
     draws, burn, thin, chains, seed, workers
         Sampler settings (see :func:`loadbayes.fit.composite_problem.sample`).
     h_max : float
@@ -322,6 +332,10 @@ def fit_composite(
         Extra provenance stored in the result.
     move : str
         The sampler's u-move (:data:`~loadbayes.fit.composite_problem.MOVES`).
+    likelihood : {"normal", "student-t"}
+        Noise on P and Q; Student-t adds latent weights (fit.composite_robust).
+    nu : float or "auto"
+        Student-t degrees of freedom, fixed or sampled (one per channel).
 
     Returns
     -------
@@ -332,15 +346,31 @@ def fit_composite(
     if not events:
         raise ValueError("no events to fit")
     prior = prior or CompositePrior.default(events)
-    problem = CompositeProblem(
-        events, prior, f_hz=f_hz, torque=tuple(torque), h_max=h_max, steps=steps
-    )
+    estimate = isinstance(torque, str)
+    if estimate and torque != "estimate":
+        raise ValueError(f"torque must be (A, B, C) or 'estimate', got {torque!r}")
+    # Estimated shares: NLS (the start) at the prior's centre A = B = C = 1/3.
+    fixed = (1 / 3, 1 / 3, 1 / 3) if estimate else tuple(torque)
+    problem = CompositeProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps)
     t0 = time.perf_counter()
     start = nls(problem)
     t1 = time.perf_counter()
+    sampled, sample_start = problem, start
+    if estimate:
+        from loadbayes.fit import composite_torque as ct
+
+        sampled = ct.TorqueProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps)
+        sample_start = ct.extend_start(start, np.zeros(2))
+    student_t = None
+    if likelihood == "student-t":
+        from loadbayes.fit.composite_robust import StudentT
+
+        student_t = StudentT(nu=nu)
+    elif likelihood != "normal":
+        raise ValueError(f"likelihood must be 'normal' or 'student-t', got {likelihood!r}")
     res = sample(
-        problem,
-        start=start,
+        sampled,
+        start=sample_start,
         draws=draws,
         burn=burn,
         thin=thin,
@@ -348,13 +378,22 @@ def fit_composite(
         seed=seed,
         workers=workers,
         move=move,
+        student_t=student_t,
     )
     t2 = time.perf_counter()
     theta = np.stack([r.theta for r in res])
     betas = np.stack([r.beta for r in res])
     tau = np.stack([r.tau for r in res])
     phi = np.stack([r.phi for r in res]) if problem.n_steps else None
-    draws_named = named_draws(problem, theta, betas, tau, phi)
+    abc = None
+    if estimate:
+        z = np.stack([r.u_extra for r in res])
+        abc = np.apply_along_axis(lambda x: np.array(ct.shares(x)), -1, z)
+        draws_named = named_draws(problem, theta, betas, tau, phi=phi, abc=abc)
+        for i, name in enumerate(("log_a_over_c", "log_b_over_c")):
+            draws_named[name] = z[..., i]
+    else:
+        draws_named = named_draws(problem, theta, betas, tau, phi=phi)
     common = {
         "n": int(sum(e.n for e in events)),
         "events": [
@@ -368,7 +407,10 @@ def fit_composite(
             for e in events
         ],
         "f_hz": f_hz,
-        "torque": list(torque),
+        "torque": "estimate" if estimate else list(torque),
+        "torque_prior": "Dirichlet(1, 1, 1) on (a, b, c), sampled in log(a/c), log(b/c)"
+        if estimate
+        else None,
         "prior": prior.to_dict(),
         "h_max_s": h_max,
         "steps": {
@@ -394,10 +436,17 @@ def fit_composite(
         for n in draws_named
         if not n.startswith("tau") and n not in ("a", "b", "c", "f_hz") and not n.startswith("v0")
     ]
+    robust_settings, constant, robust_warn = {}, {}, []
+    if student_t is not None:
+        from loadbayes.fit.composite_robust import robust_outputs
+
+        robust_settings, constant, robust_warn = robust_outputs(problem, res, nu, draws_named)
     post = Posterior(
         draws_named,
         model="composite",
-        method=_METHOD[move],
+        method=_METHOD[move] + ("-student-t" if student_t else ""),
+        constant=constant,
+        warnings=robust_warn,
         coefficients=coefficients,
         free=free,
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},
@@ -413,9 +462,14 @@ def fit_composite(
             "acceptance": [r.acceptance for r in res],
             "evaluations_per_iteration": [r.evaluations_per_iteration for r in res],
             "seconds": {"nls": t1 - t0, "sampler": t2 - t1},
+            "likelihood": likelihood,
+            **robust_settings,
         },
     )
     ident = identifiability(theta, draws_named["f_m"], prior, len(events))
+    if abc is not None:
+        ident["torque"] = ct.torque_identifiability(abc)
+        ident["summary"] += " " + ident["torque"]["summary"]
     post.extra_json["identifiability"] = ident
     weak = [n for n, p in ident["parameters"].items() if p["verdict"] == "prior-driven"]
     if weak:
@@ -434,7 +488,8 @@ def fit_composite(
 
         with _w.catch_warnings():
             _w.simplefilter("ignore")
-            rhat = {n: float(_arviz().rhat(draws_named[n])) for n in THETA_NAMES[:5]}
+            watch = list(THETA_NAMES[:5]) + (["log_a_over_c", "log_b_over_c"] if estimate else [])
+            rhat = {n: float(_arviz().rhat(draws_named[n])) for n in watch}
         slow = [n for n, r in rhat.items() if not r < 1.01]
         if slow:
             post.warnings.append(
@@ -492,6 +547,12 @@ def predictive_band(
 
     rng = np.random.default_rng(seed)
     theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
+    # The draws carry the torque shares (constants unless they were estimated).
+    abc = (
+        np.stack([post.draws[n] for n in ("a", "b", "c")], -1).reshape(-1, 3)
+        if all(n in post.draws for n in ("a", "b", "c"))
+        else np.tile(np.asarray(torque, dtype=float), (theta.shape[0], 1))
+    )
     pick = rng.choice(theta.shape[0], size=min(n_draws, theta.shape[0]), replace=False)
     out = []
     for k, ev in enumerate(events):
@@ -506,7 +567,7 @@ def predictive_band(
         for i in pick:
             t_aug = grid.times(grid.phi_of(times[i])) if names else grid.t
             aug = Event(t_aug, grid.v, grid.v, grid.v, grid.delta)
-            r = motor_response(aug, theta[i], f_hz=f_hz, torque=torque)
+            r = motor_response(aug, theta[i], f_hz=f_hz, torque=tuple(abc[i]))
             if r is not None:
                 zp, zq = design(ev, r[0][grid.real], r[1][grid.real])
                 ps.append(zp @ beta[i])

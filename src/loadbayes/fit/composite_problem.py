@@ -222,9 +222,11 @@ class CompositeProblem:
         u = np.asarray(u, dtype=float)
         if u.shape[-1] == 5 and self.n_steps:
             return np.full(u.shape[:-1] + (self.n_steps,), 0.5)
-        if u.shape[-1] != self.dim:
-            raise ValueError(f"expected {self.dim} sampled coordinates, got {u.shape[-1]}")
-        return u[..., 5:]
+        if u.shape[-1] < 5 + self.n_steps:
+            raise ValueError(
+                f"expected at least {5 + self.n_steps} sampled coordinates, got {u.shape[-1]}"
+            )
+        return u[..., 5 : 5 + self.n_steps]
 
     def in_support(self, u: np.ndarray) -> bool:
         """Whether every step's fraction lies in [0, 1] (the prior is uniform there).
@@ -234,21 +236,24 @@ class CompositeProblem:
         a step at an interval's very edge (a fault at a sample instant, as simulators
         put it) reachable, where a logit would send it to infinity.
         """
-        phi = np.asarray(u, dtype=float)[5:]
+        phi = np.asarray(u, dtype=float)[5 : 5 + self.n_steps]
         return bool(np.all((phi >= 0.0) & (phi <= 1.0)))
 
-    def collapsed(self, u: np.ndarray, tau: np.ndarray) -> tuple[float, list[GroupSums] | None]:
+    def collapsed(
+        self, u: np.ndarray, tau: np.ndarray, torque: tuple[float, float, float] | None = None
+    ) -> tuple[float, list[GroupSums] | None]:
         """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
 
         The same value as :meth:`log_collapsed` of :meth:`sums` (tested); ``(-inf, None)``
-        when the motor has no steady state or the linear block is singular.
+        when the motor has no steady state or the linear block is singular. ``torque``
+        overrides ``self.torque`` for this call (estimated shares, fit.composite_torque).
         """
         self.evaluations += 1
         n_ev = len(self.events)
         ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
         if not np.all(np.isfinite(u)) or not self.in_support(u):
             return -math.inf, None
-        a, b, c = self.torque
+        a, b, c = self.torque if torque is None else torque
         u = np.asarray(u, dtype=float)
         try:
             lp = _collapsed(
@@ -287,7 +292,9 @@ class CompositeProblem:
             return -math.inf, None
         return lp, [GroupSums(ztz[e], zty[e], yty[e], self._n[e]) for e in range(n_ev)]
 
-    def responses(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    def responses(
+        self, u: np.ndarray, torque: tuple[float, float, float] | None = None
+    ) -> list[tuple[np.ndarray, np.ndarray]] | None:
         """The motor's P, Q in every event for scale-free ``u`` (None if no steady state).
 
         Simulated on the base where ``T0 = 1``; P and Q on any other base are these
@@ -300,19 +307,22 @@ class CompositeProblem:
         theta = theta_of(u[:5], 0.0)
         t_aug, g = self.grid.times(self.phi(u)), self.grid
         out = []
+        tq = self.torque if torque is None else torque
         for k in range(len(self.events)):
             s0, s1 = g.starts[k], g.starts[k + 1]
             aug = Event(t_aug[s0:s1], g.v[s0:s1], g.v[s0:s1], g.v[s0:s1], g.delta[s0:s1])
-            r = motor_response(aug, theta, f_hz=self.f_hz, torque=self.torque, h_max=self.h_max)
+            r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max)
             if r is None:
                 return None
             real = self._real[self._starts[k] : self._starts[k + 1]]
             out.append((r[0][real], r[1][real]))
         return out
 
-    def sums(self, u: np.ndarray) -> list[GroupSums] | None:
+    def sums(
+        self, u: np.ndarray, torque: tuple[float, float, float] | None = None
+    ) -> list[GroupSums] | None:
         """Each event's sufficient sums for the linear block (None if infeasible)."""
-        resp = self.responses(u)
+        resp = self.responses(u, torque)
         if resp is None:
             return None
         out = []
@@ -647,6 +657,12 @@ class ChainResult:
     acceptance: float
     phi: np.ndarray | None = None  # (kept, steps) fractions of the step intervals
     evaluations_per_iteration: float = 1.0  # collapsed-density evaluations of the u-move
+    # Coordinates of u after the motor's five and the steps (estimated torque shares).
+    u_extra: np.ndarray | None = None
+    # Student-t only (fit.composite_robust): nu draws (kept, 2), mean weights (2, n).
+    nu: np.ndarray | None = None
+    weight: np.ndarray | None = None
+    nu_acceptance: float | None = None
 
 
 def sample(
@@ -661,6 +677,7 @@ def sample(
     workers: int | None = None,
     dispersion: float = 2.0,
     move: str = DEFAULT_MOVE,
+    student_t: Any = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -689,6 +706,8 @@ def sample(
         The u-move (:data:`MOVES`): adaptive Metropolis, or factor slice sampling in
         the eigenbasis of the covariance learned in burn-in (docs/composite.md, "Why
         this move").
+    student_t : loadbayes.fit.composite_robust.StudentT, optional
+        Student-t noise (a weights step each iteration); Gaussian noise when None.
 
     Returns
     -------
@@ -699,7 +718,9 @@ def sample(
     if move not in MOVES:
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
     prior = problem.prior
+    # The motor's five, the steps' fractions, then any extra coordinates (torque shares).
     d = dim = problem.dim
+    n_base = 5 + problem.n_steps
     lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
     # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
@@ -725,26 +746,40 @@ def sample(
             u, sums = start.u, problem.sums(start.u)
         tau = tau0.copy()
         th_out = np.empty((len(kept_idx), 6))
-        phi_out = np.empty((len(kept_idx), d - 5))
+        phi_out = np.empty((len(kept_idx), problem.n_steps))
         b_out = np.empty((len(kept_idx), len(problem.events), 7))
         t_out = np.empty((len(kept_idx), 2))
+        x_out = np.empty((len(kept_idx), dim - n_base))
         j = 0
+        # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
+        wt = None if student_t is None else student_t.chain(problem, u, tau, len(kept_idx))
+        if wt is not None:
+            sums = wt.sums
         for it in range(draws):
-            lp = problem.log_collapsed(sums, u, tau)
+            if wt is None:
+                lp = problem.log_collapsed(sums, u, tau)
 
-            def logp(x, tau=tau):
-                return problem.collapsed(x, tau)
+                def logp(x, tau=tau):
+                    return problem.collapsed(x, tau)
 
+            else:
+                lp, logp = wt.current(u, tau), wt.logp(tau)
             u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
             betas = [draw_beta(s, tau, problem.m0, problem.p0, rng, positive=_POS) for s in sums]
+            if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
+                sums = wt.update(sums, betas, tau, rng, it >= burn and (it - burn) % thin == 0)
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
             tau = draw_tau(ssr, n_tot, prior.tau_shape, prior.tau_rate, rng)
             log_t0 = prior.draw_log_t0(u[:5], rng)
             if it >= burn and (it - burn) % thin == 0:
                 th_out[j] = theta_of(u[:5], log_t0)
                 phi_out[j] = problem.phi(u)
+                x_out[j] = u[n_base:]
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
+        robust = {}
+        if wt is not None:
+            robust = dict(zip(("nu", "weight", "nu_acceptance"), wt.result(), strict=True))
         return ChainResult(
             th_out,
             b_out,
@@ -752,6 +787,8 @@ def sample(
             am.acceptance,
             phi=phi_out,
             evaluations_per_iteration=am.evaluations_per_step,
+            u_extra=x_out if dim > n_base else None,
+            **robust,
         )
 
     return run_chains(chain, chains, seed=seed, workers=workers)
