@@ -22,7 +22,7 @@ def _interval(post, name):
 
 
 def _fit(ev, likelihood):
-    return fit_composite([ev], draws=1500, burn=600, chains=2, seed=1, likelihood=likelihood)
+    return fit_composite([ev], draws=4000, burn=1500, chains=2, seed=1, likelihood=likelihood)
 
 
 def test_spikes_bias_the_gaussian_fit_and_the_student_t_fit_covers_the_truth():
@@ -34,15 +34,18 @@ def test_spikes_bias_the_gaussian_fit_and_the_student_t_fit_covers_the_truth():
     ev.q[spikes] -= 0.6
     gauss = _fit(ev, "normal").posterior
     robust = _fit(ev, "student-t").posterior
-    lo, hi = _interval(gauss, "f_m")
-    # Fixed seeds, so the outcome is deterministic; measured: Gaussian 0.172-0.444,
-    # Student-t 0.395-0.545 (truth 0.5). Over six other noise seeds with these short runs
-    # the Gaussian interval missed 6/6 and the Student-t intervals of f_m and T' missed
-    # 3/12 (unconverged short runs: at 2 x 8,000 iterations they covered), so another
-    # seed would fail this test with probability about 1/4 (docs/composite.md, Checks).
-    assert not lo <= truth["f_m"] <= hi, (lo, hi)
-    lo, hi = _interval(robust, "f_m")
-    assert lo <= truth["f_m"] <= hi, (lo, hi)
+    # Fixed seeds, so the outcome is deterministic. Measured (truth f_m 0.5): Gaussian
+    # median 0.378, 95% interval 0.188-0.571 (the spikes inflate its noise, so the
+    # interval is wide enough to hold the truth while the estimate is pulled off);
+    # Student-t median 0.469, 0.423-0.505. An earlier version asserted that the
+    # Gaussian interval misses: it did at 2 x 1,500 iterations and did not once the
+    # model placed the sag's step (its chains disagreed); the bias and the lost
+    # precision are what the spikes do whatever the run length.
+    g_lo, g_mid, g_hi = np.percentile(gauss.draws["f_m"], [2.5, 50, 97.5])
+    r_lo, r_mid, r_hi = np.percentile(robust.draws["f_m"], [2.5, 50, 97.5])
+    assert r_lo <= truth["f_m"] <= r_hi, (r_lo, r_hi)
+    assert abs(g_mid - truth["f_m"]) > 2 * abs(r_mid - truth["f_m"]), (g_mid, r_mid)
+    assert g_hi - g_lo > 2 * (r_hi - r_lo), (g_lo, g_hi, r_lo, r_hi)
     lo, hi = _interval(robust, "t_prime_s")
     assert lo <= truth["t_prime_s"] <= hi, (lo, hi)
     flagged = robust.settings["flagged"]
