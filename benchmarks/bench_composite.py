@@ -181,7 +181,7 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
 
     from loadbayes.fit.composite_problem import CompositeProblem, nls
 
-    start = nls(CompositeProblem([ev], prior))
+    start = nls(CompositeProblem([ev], prior, steps=False))  # emcee's (ramp) posterior
     centre = np.concatenate([start.u, start.betas[0], np.log(1 / start.sigma**2)])
     cov = np.zeros((14, 14))
     cov[:12, :12] = start.cov
@@ -280,10 +280,10 @@ def main(argv=None) -> int:
     ap.add_argument("--slice", action="store_true", help="Also the factor slice move.")
     args = ap.parse_args(argv)
     t_end = 3.0 if args.quick else 10.0
-    # The default move at the package's default sizes (fit_composite: 10,000 iterations,
-    # 3,000 burn-in); factor slice costs ~20 density evaluations per iteration, so fewer
+    # The default move at the package's default sizes (fit_composite: 16,000 iterations,
+    # 4,000 burn-in); factor slice costs ~20 density evaluations per iteration, so fewer
     # of its iterations take about as long.
-    sizes = {"am": (10_000, 3000), "slice": (2500, 700)}
+    sizes = {"am": (16_000, 4000), "slice": (2500, 700)}
     if args.quick:
         sizes = {"am": (600, 300), "slice": (150, 60)}
     if not args.slice:

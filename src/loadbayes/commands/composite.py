@@ -139,14 +139,14 @@ def _parse_nu(value: str) -> float | str:
 @click.option(
     "--draws",
     type=click.IntRange(min=2),
-    default=10_000,
+    default=16_000,
     show_default=True,
     help="Iterations per chain, burn-in included.",
 )
 @click.option(
     "--burn",
     type=click.IntRange(min=1),
-    default=3000,
+    default=4000,
     show_default=True,
     help="Burn-in (the proposal adapts during it, then freezes).",
 )
