@@ -179,7 +179,8 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
         out += float(np.sum(prior.tau_shape * ltau - prior.tau_rate * tau))
         return out
 
-    from loadbayes.fit.composite_problem import CompositeProblem, nls
+    from loadbayes.fit.composite_nls import nls
+    from loadbayes.fit.composite_problem import CompositeProblem
 
     start = nls(CompositeProblem([ev], prior, steps=False))  # emcee's (ramp) posterior
     centre = np.concatenate([start.u, start.betas[0], np.log(1 / start.sigma**2)])
@@ -307,7 +308,7 @@ def main(argv=None) -> int:
     long_steps = 100 if args.quick else 6000
     rows.append(run_emcee(60.0, t_end, long_steps, seconds=600.0, motor="kernel"))
     print(_line(rows[-1]), flush=True)
-    from loadbayes.fit.composite_problem import DEFAULT_MOVE
+    from loadbayes.fit.composite_sampler import DEFAULT_MOVE
 
     default = [r for r in rows if r.get("move") == DEFAULT_MOVE and r.get("steps")]
     same = [r for r in rows if r.get("steps") is False][0]

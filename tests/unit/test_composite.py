@@ -7,7 +7,8 @@ import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
 from loadbayes.cases.motor_sim import MOTORS
-from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, nls, theta_of
+from loadbayes.fit.composite_nls import nls
+from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, theta_of
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
     composition,

@@ -8,14 +8,9 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.fit.composite_problem import (
-    MOVES,
-    CompositePrior,
-    CompositeProblem,
-    _design_sums,
-    nls,
-    sample,
-)
+from loadbayes.fit.composite_nls import nls
+from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, _design_sums
+from loadbayes.fit.composite_sampler import MOVES, sample
 from loadbayes.fit.composite_sums import design_sums
 from loadbayes.inference.adaptive_metropolis import run_chains
 from loadbayes.inference.factor_slice import FactorSlice

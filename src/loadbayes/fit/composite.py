@@ -19,15 +19,9 @@ from typing import Any
 import numpy as np
 
 from loadbayes.fit.composite_checks import sampling_warnings
-from loadbayes.fit.composite_problem import (
-    DEFAULT_MOVE,
-    CompositePrior,
-    CompositeProblem,
-    NLSResult,
-    nls,
-    sample,
-    theta_of,
-)
+from loadbayes.fit.composite_nls import NLSResult, nls
+from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, theta_of
+from loadbayes.fit.composite_sampler import DEFAULT_MOVE, sample
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
     SCALE_FREE_NAMES,
@@ -321,7 +315,7 @@ def fit_composite(
         ``(A, B, C)``, fixed, or ``"estimate"``: a Dirichlet(1, 1, 1) prior
         (fit.composite_torque).
     draws, burn, thin, chains, seed, workers
-        Sampler settings (see :func:`loadbayes.fit.composite_problem.sample`).
+        Sampler settings (see :func:`loadbayes.fit.composite_sampler.sample`).
     h_max : float
         RK4 sub-step of the motor kernel (s).
     steps : bool
@@ -331,7 +325,7 @@ def fit_composite(
     settings : dict, optional
         Extra provenance stored in the result.
     move : str
-        The sampler's u-move (:data:`~loadbayes.fit.composite_problem.MOVES`).
+        The sampler's u-move (:data:`~loadbayes.fit.composite_sampler.MOVES`).
     likelihood : {"normal", "student-t"}
         Noise on P and Q; Student-t adds latent weights (fit.composite_robust).
     nu : float or "auto"

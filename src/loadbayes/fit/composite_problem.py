@@ -1,10 +1,10 @@
-"""The composite load's inference problem: prior, collapsed log-density, NLS, the sampler.
+"""The composite load's inference problem: its prior and its collapsed log-density.
 
-Data -> :func:`nls` (``scipy.optimize.least_squares`` on the same model, variable
-projection: the linear coefficients solved inside) -> :func:`sample` (Metropolis-within-
-Gibbs: an adaptive-Metropolis block on the motor's six log-parameters with the linear
-coefficients integrated out, then the linear coefficients and the noise precisions
-drawn exactly) -> :class:`~loadbayes.posterior.Posterior` named as docs/composite.md.
+:class:`CompositeProblem` holds the events (with the virtual knots of their steps
+between samples, models/composite_steps.py) and evaluates ``log p(u) + sum_e log p(y_e |
+u, tau)`` with every event's linear coefficients integrated out, in one compiled call.
+The NLS start is :mod:`loadbayes.fit.composite_nls`, the sampler
+:mod:`loadbayes.fit.composite_sampler`, the driver :mod:`loadbayes.fit.composite`.
 
 Several events share the motor (``THETA_NAMES``) and the noise precisions; each event
 has its own seven linear coefficients (its own operating point, ZIP mix and motor
@@ -15,48 +15,30 @@ the suffix ``_e{k}``.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numba
 import numpy as np
-from scipy import optimize
 
 from loadbayes.fit.composite_sums import _design_sums_into, design_sums, x_sums
-from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     GroupSums,
-    draw_beta,
-    draw_tau,
     log_marginal,
     log_marginal_arrays,
-    residual_ss,
 )
-from loadbayes.inference.factor_slice import FactorSlice
 from loadbayes.models.composite import (
     BETA_NAMES,
     SCALE_FREE_MATRIX,
     THETA_NAMES,
     Event,
-    design,
     motor_response,
 )
 from loadbayes.models.composite_steps import StepGrid
 from loadbayes.models.motor_kernel import H_MAX_S, _integrate, step_size
 
-__all__ = [
-    "CompositePrior",
-    "CompositeProblem",
-    "DEFAULT_MOVE",
-    "MOVES",
-    "NLSResult",
-    "THETA_PRIOR",
-    "nls",
-    "sample",
-    "theta_of",
-]
+__all__ = ["CompositePrior", "CompositeProblem", "THETA_PRIOR", "theta_of"]
 
 #: Default prior of the motor's log-parameters: (median, sd of the log). Centred on the
 #: library's typical motors (models/motor.md) with a wide spread: a factor e^sd either way.
@@ -440,355 +422,3 @@ def _design_sums(x, pm, qm, p, q):  # pragma: no cover - compiled
         yty[0] += p[i] * p[i]
         yty[1] += q[i] * q[i]
     return ztz, zty, yty
-
-
-# ------------------------------------------------------------------------- NLS
-@dataclass
-class NLSResult:
-    """The least-squares point estimate and its Gaussian approximation."""
-
-    u: np.ndarray  # (5 + steps,) scale-free motor coordinates, then each step's fraction phi
-    betas: np.ndarray  # (events, 7)
-    sigma: np.ndarray  # (2,) residual sd of P and Q
-    cov: np.ndarray  # covariance of (u, betas.ravel())
-    cost: float
-    seconds: float
-    nfev: int
-
-
-def _library_starts() -> list[np.ndarray]:
-    from loadbayes.cases.motor_sim import MOTORS
-
-    starts = []
-    for m in MOTORS.values():
-        starts.append((_T @ np.log([m.rs, m.xp, m.x - m.xp, m.tp_s, m.h_s, 0.6]))[:5])
-    return starts
-
-
-def _project(problem: CompositeProblem, u: np.ndarray, w: np.ndarray):
-    resp = problem.responses(u)
-    if resp is None:
-        return None
-    res, betas = [], []
-    for ev, (pm, qm) in zip(problem.events, resp, strict=True):
-        zp, zq = design(ev, pm, qm)
-        z = np.vstack([w[0] * zp, w[1] * zq])
-        y = np.concatenate([w[0] * ev.p, w[1] * ev.q])
-        # A whisper of the prior keeps the projection defined when a column vanishes.
-        ridge = np.sqrt(problem.p0)
-        beta = np.linalg.lstsq(np.vstack([z, np.diag(ridge)]), np.append(y, 0 * ridge), None)[0]
-        res.append(y - z @ beta)
-        betas.append(beta)
-    return np.concatenate(res), np.array(betas)
-
-
-def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None) -> NLSResult:
-    """Penalised nonlinear least squares of the composite model (variable projection).
-
-    The motor's five scale-free coordinates are found by ``scipy.optimize.least_squares``
-    from the prior median and each library motor (the best start is kept); the linear
-    coefficients are solved inside each residual evaluation. The residuals are P and Q
-    divided by their noise sds (first guessed from a static ZIP fit, then re-estimated
-    once), plus the prior of ``u`` as whitened Tikhonov rows: without them a shallow
-    event lets the estimate run off along directions the data do not see (this is the
-    MAP of ``u`` with beta profiled out, the usual regularised NLS). The covariance is
-    the Gauss-Newton one of ``(u, every event's beta)`` with the prior's precision added.
-    """
-    t_start = time.perf_counter()
-    mean_m, cov_m, _, _ = problem.prior.scale_free()
-    # The steps' fractions join the motor's coordinates, bounded to [0, 1] (their
-    # uniform prior) and started mid-interval; a Tikhonov row of sd 10 (a negligible
-    # pull) keeps the whitening square.
-    k = problem.n_steps
-    mean_s = np.full(k, 0.5)
-    mean_u = np.concatenate([mean_m, mean_s])
-    cov_u = np.zeros((problem.dim, problem.dim))
-    cov_u[:5, :5] = cov_m
-    cov_u[5:, 5:] = np.eye(k) * STEP_PRIOR_SD**2
-    sd_u = np.sqrt(np.diag(cov_u))
-    white = np.linalg.inv(np.linalg.cholesky(cov_u))
-    lo, hi = mean_u - 6 * sd_u, mean_u + 6 * sd_u
-    lo[5:], hi[5:] = 0.0, 1.0
-    sd_u[5:] = 0.2
-    starts = list(starts) if starts is not None else [mean_m, *_library_starts()]
-    starts = [np.concatenate([np.asarray(x0)[:5], mean_s]) for x0 in starts]
-    nfev = 0
-
-    def run(w, x0, max_nfev=None, prob=problem):
-        # The coarse copy may have no steps (d = 5): the prior's whitening is block
-        # diagonal (motor, steps), so its leading block serves.
-        d = prob.dim
-        n_res = 2 * sum(e.n for e in prob.events) + d
-        m, wh, lo_d, hi_d = mean_u[:d], white[:d, :d], lo[:d], hi[:d]
-
-        def fun(u):
-            out = _project(prob, u, w)
-            if out is None:
-                return np.full(n_res, 1e3)
-            return np.concatenate([out[0], wh @ (u - m)])
-
-        x0 = np.clip(np.asarray(x0)[:d], lo_d + 1e-9, hi_d - 1e-9)
-        return optimize.least_squares(
-            fun, x0, bounds=(lo_d, hi_d), x_scale=sd_u[:d], max_nfev=max_nfev
-        )
-
-    # The multi-start search on a copy thinned to at most ~COARSE_FS samples/s: which
-    # start wins and roughly where it ends does not need 960 samples/s (at that rate the
-    # search took 7 of the 8 s of the fit); the final fit below uses every sample.
-    coarse = _thinned(problem)
-    w = 1.0 / _static_sigmas(coarse)
-    best = None
-    for x0 in starts:
-        sol = run(w, x0, max_nfev=60, prob=coarse)
-        nfev += sol.nfev
-        if best is None or sol.cost < best.cost:
-            best = sol
-    assert best is not None
-    x_best = np.concatenate([best.x[:5], mean_s]) if best.x.size < problem.dim else best.x
-    if coarse is not problem:
-        w = 1.0 / _static_sigmas(problem)
-    _, betas = _project(problem, x_best, w)
-    w = 1.0 / _sigmas(problem, x_best, betas)
-    sol = run(w, x_best)
-    nfev += sol.nfev
-    u = sol.x
-    _, betas = _project(problem, u, w)
-    sig = _sigmas(problem, u, betas)
-    cov = _gauss_newton_cov(problem, u, betas, 1.0 / sig, np.linalg.inv(cov_u))
-    return NLSResult(u, betas, sig, cov, float(sol.cost), time.perf_counter() - t_start, int(nfev))
-
-
-#: Sample rate (per s) above which the NLS's multi-start search runs on thinned events.
-COARSE_FS = 120.0
-
-
-def _thinned(problem: CompositeProblem) -> CompositeProblem:
-    # Every k-th sample, k = floor(COARSE_FS^-1 / median dt); the problem itself if k = 1.
-    events = []
-    for e in problem.events:
-        k = max(1, int(1.0 / (COARSE_FS * float(np.median(np.diff(e.t))))))
-        d = None if e.delta is None else e.delta[::k]
-        events.append(Event(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
-    if all(a.n == b.n for a, b in zip(events, problem.events, strict=True)):
-        return problem
-    # Without steps: the search only needs where the motor's coordinates roughly are
-    # (a thinned record's intervals are not the record's); the final fit places them.
-    return CompositeProblem(
-        events,
-        problem.prior,
-        f_hz=problem.f_hz,
-        torque=problem.torque,
-        h_max=problem.h_max,
-        steps=False,
-    )
-
-
-def _static_sigmas(problem) -> np.ndarray:
-    # Residual sds of a static ZIP fit (no motor): an upper bound of the noise.
-    ssr, n = np.zeros(2), 0
-    for ev in problem.events:
-        z = np.stack([ev.x**2, ev.x, np.ones(ev.n)], axis=1)
-        for g, y in enumerate((ev.p, ev.q)):
-            r = y - z @ np.linalg.lstsq(z, y, None)[0]
-            ssr[g] += r @ r
-        n += ev.n
-    return np.sqrt(np.maximum(ssr / n, 1e-30))
-
-
-def _sigmas(problem, u, betas) -> np.ndarray:
-    sums = problem.sums(u)
-    ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
-    n = sum(e.n for e in problem.events)
-    return np.sqrt(np.maximum(ssr / n, 1e-30))
-
-
-def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
-    def full(uu, bs):
-        resp = problem.responses(uu)
-        parts = []
-        for ev, (pm, qm), b in zip(problem.events, resp, bs, strict=True):
-            zp, zq = design(ev, pm, qm)
-            parts += [w[0] * (ev.p - zp @ b), w[1] * (ev.q - zq @ b)]
-        return np.concatenate(parts)
-
-    n_ev = len(problem.events)
-    d = problem.dim
-    k = d + 7 * n_ev
-    r0 = full(u, betas)
-    jac = np.zeros((r0.size, k))
-    for i in range(d):
-        h = 1e-5
-        up, um = u.copy(), u.copy()
-        up[i] += h
-        um[i] -= h
-        if problem.responses(up) is None or problem.responses(um) is None:
-            continue
-        jac[:, i] = (full(up, betas) - full(um, betas)) / (2 * h)
-    resp = problem.responses(u)
-    row = 0
-    for e, (ev, (pm, qm)) in enumerate(zip(problem.events, resp, strict=True)):
-        zp, zq = design(ev, pm, qm)
-        n = ev.n
-        jac[row : row + n, d + 7 * e : d + 7 + 7 * e] = -w[0] * zp
-        jac[row + n : row + 2 * n, d + 7 * e : d + 7 + 7 * e] = -w[1] * zq
-        row += 2 * n
-    # The prior's precision (as in the penalised fit): a direction the data do not see
-    # gets the prior's spread, not an infinite variance.
-    prec = jac.T @ jac
-    prec[:d, :d] += prec_u
-    prec[d:, d:] += np.diag(np.tile(problem.p0, n_ev))
-    return np.linalg.inv(prec)
-
-
-# ----------------------------------------------------------------------- sampler
-#: The u-moves :func:`sample` offers (both physics-free, same ``step`` interface).
-MOVES = {"am": AdaptiveMetropolis, "slice": FactorSlice}
-#: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
-DEFAULT_MOVE = "am"
-
-
-@dataclass
-class ChainResult:
-    """One chain's kept draws and acceptance."""
-
-    theta: np.ndarray  # (kept, 6) THETA_NAMES
-    beta: np.ndarray  # (kept, events, 7)
-    tau: np.ndarray  # (kept, 2)
-    acceptance: float
-    phi: np.ndarray | None = None  # (kept, steps) fractions of the step intervals
-    evaluations_per_iteration: float = 1.0  # collapsed-density evaluations of the u-move
-    # Coordinates of u after the motor's five and the steps (estimated torque shares).
-    u_extra: np.ndarray | None = None
-    # Student-t only (fit.composite_robust): nu draws (kept, 2), mean weights (2, n).
-    nu: np.ndarray | None = None
-    weight: np.ndarray | None = None
-    nu_acceptance: float | None = None
-
-
-def sample(
-    problem: CompositeProblem,
-    *,
-    start: NLSResult,
-    draws: int = 5000,
-    burn: int = 2000,
-    thin: int = 1,
-    chains: int = 4,
-    seed: int = 0,
-    workers: int | None = None,
-    dispersion: float = 2.0,
-    move: str = DEFAULT_MOVE,
-    student_t: Any = None,
-) -> list[ChainResult]:
-    """Metropolis-within-Gibbs for the composite model.
-
-    Each iteration: the scale-free motor coordinates ``u | tau`` by adaptive Metropolis
-    on the collapsed density (beta integrated out); every event's
-    ``beta | u, tau`` exactly; ``tau | u, beta`` (two gammas); ``log T0 | u`` from its
-    prior conditional (the likelihood does not depend on it). The proposal starts from
-    the Laplace covariance (the NLS one) and adapts during ``burn``, then freezes.
-    Chains start ``dispersion`` Laplace sds around the NLS estimate (for R-hat).
-
-    Parameters
-    ----------
-    problem : CompositeProblem
-        Data, prior, settings.
-    start : NLSResult
-        From :func:`nls`.
-    draws, burn, thin, chains : int
-        Iterations per chain including burn-in, burn-in, thinning, chains.
-    seed : int
-        Root seed (chain ``i`` uses child ``i`` of ``SeedSequence(seed)``).
-    workers : int, optional
-        Threads for the chains.
-    dispersion : float
-        Spread of the chains' starting points, in Laplace sds.
-    move : {"am", "slice"}
-        The u-move (:data:`MOVES`): adaptive Metropolis, or factor slice sampling in
-        the eigenbasis of the covariance learned in burn-in (docs/composite.md, "Why
-        this move").
-    student_t : loadbayes.fit.composite_robust.StudentT, optional
-        Student-t noise (a weights step each iteration); Gaussian noise when None.
-
-    Returns
-    -------
-    list of ChainResult
-    """
-    if not 0 <= burn < draws:
-        raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
-    if move not in MOVES:
-        raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
-    prior = problem.prior
-    # The motor's five, the steps' fractions, then any extra coordinates (torque shares).
-    d = dim = problem.dim
-    n_base = 5 + problem.n_steps
-    lap = start.cov[:d, :d]
-    lap = (lap + lap.T) / 2
-    # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
-    # start its proposal at the support's scale instead (the adaptation takes over).
-    shrink = np.ones(d)
-    shrink[5:] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[5:]))
-    lap = lap * np.outer(shrink, shrink)
-    tau0 = 1.0 / start.sigma**2
-    n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
-    kept_idx = range(burn, draws, thin)
-    root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
-
-    def chain(index: int, rng: np.random.Generator) -> ChainResult:
-        am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
-        u, sums = start.u, None
-        for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(dim)
-            sums = problem.sums(cand)
-            if sums is not None:
-                u = cand
-                break
-        if sums is None:
-            u, sums = start.u, problem.sums(start.u)
-        tau = tau0.copy()
-        th_out = np.empty((len(kept_idx), 6))
-        phi_out = np.empty((len(kept_idx), problem.n_steps))
-        b_out = np.empty((len(kept_idx), len(problem.events), 7))
-        t_out = np.empty((len(kept_idx), 2))
-        x_out = np.empty((len(kept_idx), dim - n_base))
-        j = 0
-        # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
-        wt = None if student_t is None else student_t.chain(problem, u, tau, len(kept_idx))
-        if wt is not None:
-            sums = wt.sums
-        for it in range(draws):
-            if wt is None:
-                lp = problem.log_collapsed(sums, u, tau)
-
-                def logp(x, tau=tau):
-                    return problem.collapsed(x, tau)
-
-            else:
-                lp, logp = wt.current(u, tau), wt.logp(tau)
-            u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
-            betas = [draw_beta(s, tau, problem.m0, problem.p0, rng, positive=_POS) for s in sums]
-            if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
-                sums = wt.update(sums, betas, tau, rng, it >= burn and (it - burn) % thin == 0)
-            ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
-            tau = draw_tau(ssr, n_tot, prior.tau_shape, prior.tau_rate, rng)
-            log_t0 = prior.draw_log_t0(u[:5], rng)
-            if it >= burn and (it - burn) % thin == 0:
-                th_out[j] = theta_of(u[:5], log_t0)
-                phi_out[j] = problem.phi(u)
-                x_out[j] = u[n_base:]
-                b_out[j], t_out[j] = np.array(betas), tau
-                j += 1
-        robust = {}
-        if wt is not None:
-            robust = dict(zip(("nu", "weight", "nu_acceptance"), wt.result(), strict=True))
-        return ChainResult(
-            th_out,
-            b_out,
-            t_out,
-            am.acceptance,
-            phi=phi_out,
-            evaluations_per_iteration=am.evaluations_per_step,
-            u_extra=x_out if dim > n_base else None,
-            **robust,
-        )
-
-    return run_chains(chain, chains, seed=seed, workers=workers)

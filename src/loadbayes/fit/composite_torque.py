@@ -27,7 +27,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from loadbayes.fit.composite_problem import CompositeProblem, NLSResult
+from loadbayes.fit.composite_nls import NLSResult
+from loadbayes.fit.composite_problem import CompositeProblem
 
 __all__ = [
     "ALPHA",

@@ -10,7 +10,7 @@ and the noise precisions from Gamma(10, 10 * 0.02^2) (a noise sd near 2%). The s
 step is placed at a fraction ``step_phi`` of its sample interval drawn uniformly (the
 fit's prior, models/composite_steps.py). The data are the model's own P and Q (the
 compiled kernel) plus normal noise. The fit is the
-package's path (NLS start, then :func:`~loadbayes.fit.composite_problem.sample`), one chain
+package's path (NLS start, then :func:`~loadbayes.fit.composite_sampler.sample`), one chain
 thinned to near independence.
 """
 
@@ -74,7 +74,9 @@ def composite_sampler(
     ci_replications: int | None = None,
 ) -> SamplerUnderTest:
     """The composite Metropolis-within-Gibbs sampler as SBC sees it (module docstring)."""
-    from loadbayes.fit.composite_problem import CompositeProblem, nls, sample
+    from loadbayes.fit.composite_nls import nls
+    from loadbayes.fit.composite_problem import CompositeProblem
+    from loadbayes.fit.composite_sampler import sample
     from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, design
 
     event = _event()
