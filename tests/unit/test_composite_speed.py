@@ -9,7 +9,8 @@ import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
 from loadbayes.fit.composite_nls import nls
-from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, _design_sums
+from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem
+from loadbayes.fit.composite_robust import _weighted_sums
 from loadbayes.fit.composite_sampler import MOVES, sample
 from loadbayes.fit.composite_sums import design_sums
 from loadbayes.inference.adaptive_metropolis import run_chains
@@ -23,7 +24,11 @@ def test_compact_design_sums_equal_the_direct_ones():
     x = 1.0 - 0.3 * rng.uniform(size=n)
     pm, qm = 0.6 + 0.1 * rng.normal(size=n), 0.4 + 0.1 * rng.normal(size=n)
     p, q = rng.normal(size=n), rng.normal(size=n)
-    pairs = zip(design_sums(x, pm, qm, p, q), _design_sums(x, pm, qm, p, q), strict=True)
+    # The direct sums: every sample's 7 x 7 outer product (the Student-t kernel's, unit
+    # weights).
+    ones = np.ones_like(x)
+    direct = _weighted_sums(x, pm, qm, p, q, ones, ones)
+    pairs = zip(design_sums(x, pm, qm, p, q), direct, strict=True)
     for fast, direct in pairs:
         np.testing.assert_allclose(fast, direct, rtol=1e-12, atol=1e-12 * np.abs(direct).max())
 

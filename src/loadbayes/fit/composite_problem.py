@@ -399,26 +399,3 @@ def _collapsed(  # pragma: no cover - compiled
         zz, zy, yy = ztz[e], zty[e], yty[e]
         lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
     return lp
-
-
-@numba.njit(cache=True, nogil=True)
-def _design_sums(x, pm, qm, p, q):  # pragma: no cover - compiled
-    ztz = np.zeros((2, 7, 7))
-    zty = np.zeros((2, 7))
-    yty = np.zeros(2)
-    pm0, qm0 = pm[0], qm[0]
-    zp = np.zeros(7)
-    zq = np.zeros(7)
-    for i in range(x.size):
-        x2 = x[i] * x[i]
-        zp[0], zp[1], zp[2], zp[6] = x2, x[i], 1.0, pm[i] / pm0
-        zq[3], zq[4], zq[5], zq[6] = x2, x[i], 1.0, (qm[i] - qm0 * x2) / pm0
-        for a in range(7):
-            zty[0, a] += zp[a] * p[i]
-            zty[1, a] += zq[a] * q[i]
-            for b in range(7):
-                ztz[0, a, b] += zp[a] * zp[b]
-                ztz[1, a, b] += zq[a] * zq[b]
-        yty[0] += p[i] * p[i]
-        yty[1] += q[i] * q[i]
-    return ztz, zty, yty

@@ -147,7 +147,7 @@ def _collapsed_w(  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _weighted_sums(x, pm, qm, p, q, wp, wq):  # pragma: no cover - compiled
-    # composite_problem._design_sums with each sample's weight (models.composite.design).
+    # Z'WZ, Z'Wy, y'Wy of the two designs (models.composite.design), each sample weighted.
     ztz = np.zeros((2, 7, 7))
     zty = np.zeros((2, 7))
     yty = np.zeros(2)

@@ -24,7 +24,43 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AdaptiveMetropolis", "run_chains"]
+__all__ = ["AdaptiveMetropolis", "RunningCovariance", "run_chains", "scaled_eigenvectors"]
+
+
+def scaled_eigenvectors(cov: np.ndarray) -> np.ndarray:
+    """Columns: the eigenvectors of ``cov`` scaled by their sds (a square root of it)."""
+    w, v = np.linalg.eigh(cov)
+    return v * np.sqrt(np.clip(w, 1e-14 * max(w.max(), 1e-300), None))
+
+
+class RunningCovariance:
+    """A chain's running covariance (Welford), refreshed every 20 draws after a start.
+
+    The covariance the adaptive moves learn in burn-in: until ``adapt_start`` draws it is
+    ``cov0``; then the empirical one plus a little of the previous diagonal, which keeps
+    it non-singular.
+    """
+
+    def __init__(self, cov0: np.ndarray, adapt_start: int) -> None:
+        cov0 = np.atleast_2d(np.asarray(cov0, dtype=float))
+        self.d = cov0.shape[0]
+        self.cov = (cov0 + cov0.T) / 2
+        self.adapt_start = int(adapt_start)
+        self._n = 0
+        self._mean = np.zeros(self.d)
+        self._m2 = np.zeros((self.d, self.d))
+
+    def update(self, x: np.ndarray) -> bool:
+        """Add a draw; True when the covariance was refreshed."""
+        self._n += 1
+        delta = x - self._mean
+        self._mean += delta / self._n
+        self._m2 += np.outer(delta, x - self._mean)
+        if self._n >= self.adapt_start and self._n % 20 == 0:
+            emp = self._m2 / (self._n - 1)
+            self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
+            return True
+        return False
 
 
 class AdaptiveMetropolis:
@@ -50,24 +86,16 @@ class AdaptiveMetropolis:
         adapt_start: int = 100,
         target: float = 0.234,
     ) -> None:
-        cov0 = np.atleast_2d(np.asarray(cov0, dtype=float))
-        self.d = cov0.shape[0]
-        self.cov = (cov0 + cov0.T) / 2
+        self._running = RunningCovariance(cov0, adapt_start)
+        self.d = self._running.d
+        self.cov = self._running.cov
         self.log_scale = math.log(2.38**2 / self.d)
         self.adapt_until = int(adapt_until)
         self.adapt_start = int(adapt_start)
         self.target = float(target)
-        self._n = 0
-        self._mean = np.zeros(self.d)
-        self._m2 = np.zeros((self.d, self.d))
-        self._chol = self._factor(self.cov)
+        self._chol = scaled_eigenvectors(self.cov)
         self.accepted = 0
         self.proposed = 0
-
-    @staticmethod
-    def _factor(cov: np.ndarray) -> np.ndarray:
-        w, v = np.linalg.eigh(cov)
-        return v * np.sqrt(np.clip(w, 1e-14 * max(w.max(), 1e-300), None))
 
     def step(
         self,
@@ -118,15 +146,9 @@ class AdaptiveMetropolis:
     def _adapt(self, x: np.ndarray, alpha: float, iteration: int) -> None:
         # Robbins-Monro on the log scale, step size decaying as 1/sqrt(t).
         self.log_scale += (alpha - self.target) / math.sqrt(iteration + 1.0)
-        self._n += 1
-        delta = x - self._mean
-        self._mean += delta / self._n
-        self._m2 += np.outer(delta, x - self._mean)
-        if self._n >= self.adapt_start and self._n % 20 == 0:
-            emp = self._m2 / (self._n - 1)
-            # A little of the initial covariance keeps the proposal non-singular.
-            self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
-            self._chol = self._factor(self.cov)
+        if self._running.update(x):
+            self.cov = self._running.cov
+            self._chol = scaled_eigenvectors(self.cov)
 
     @property
     def acceptance(self) -> float:

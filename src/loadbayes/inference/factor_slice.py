@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.inference.adaptive_metropolis import RunningCovariance, scaled_eigenvectors
+
 __all__ = ["FactorSlice"]
 
 
@@ -56,27 +58,18 @@ class FactorSlice:
         width: float = 2.5,
         max_steps: int = 10,
     ) -> None:
-        cov0 = np.atleast_2d(np.asarray(cov0, dtype=float))
-        self.d = cov0.shape[0]
-        self.cov = (cov0 + cov0.T) / 2
+        self._running = RunningCovariance(cov0, adapt_start)
+        self.d = self._running.d
+        self.cov = self._running.cov
         self.log_width = math.log(width)
         self.adapt_until = int(adapt_until)
         self.adapt_start = int(adapt_start)
         self.max_steps = int(max_steps)
-        self._n = 0
-        self._mean = np.zeros(self.d)
-        self._m2 = np.zeros((self.d, self.d))
-        self._dirs = self._factor(self.cov)
+        self._dirs = scaled_eigenvectors(self.cov)
         self.evaluations = 0
         self.sweeps = 0
         self._expansions = 0
         self._contractions = 0
-
-    @staticmethod
-    def _factor(cov: np.ndarray) -> np.ndarray:
-        # Columns: eigenvectors scaled by their sds.
-        w, v = np.linalg.eigh(cov)
-        return v * np.sqrt(np.clip(w, 1e-14 * max(w.max(), 1e-300), None))
 
     def step(
         self,
@@ -156,14 +149,9 @@ class FactorSlice:
         ne, nc = self._expansions - exp0, self._contractions - con0
         if ne + nc > 0:
             self.log_width += (ne / (ne + nc) - 0.5) / math.sqrt(iteration + 1.0)
-        self._n += 1
-        delta = x - self._mean
-        self._mean += delta / self._n
-        self._m2 += np.outer(delta, x - self._mean)
-        if self._n >= self.adapt_start and self._n % 20 == 0:
-            emp = self._m2 / (self._n - 1)
-            self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
-            self._dirs = self._factor(self.cov)
+        if self._running.update(x):
+            self.cov = self._running.cov
+            self._dirs = scaled_eigenvectors(self.cov)
 
     @property
     def acceptance(self) -> float:
