@@ -58,6 +58,17 @@ def _on_signal(signum, frame) -> None:
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
+def _unraisable(hook_args) -> None:
+    # A signal that lands while Python runs a callback whose exceptions it cannot raise
+    # (a weakref finaliser during garbage collection) makes it print "Exception ignored
+    # in ..." and a traceback, then go on. The run still stops: the signal is recorded,
+    # and stop_if_signalled raises it at the next check (before anything is committed).
+    # So that exception is said by the usual one line, not as a traceback.
+    if issubclass(hook_args.exc_type, KeyboardInterrupt) and _STOP["signal"] is not None:
+        return
+    _STOP.get("previous_unraisable", sys.__unraisablehook__)(hook_args)
+
+
 def install_signal_handlers() -> None:
     """SIGINT and SIGTERM raise in the main thread (no-op elsewhere, or if installed)."""
     import threading
@@ -70,6 +81,8 @@ def install_signal_handlers() -> None:
     _STOP["previous"] = {s: signal.getsignal(s) for s in EXIT_SIGNAL}
     for s in EXIT_SIGNAL:
         signal.signal(s, _on_signal)
+    _STOP["previous_unraisable"] = sys.unraisablehook
+    sys.unraisablehook = _unraisable
 
 
 def restore_signal_handlers() -> None:
@@ -84,6 +97,7 @@ def restore_signal_handlers() -> None:
         return
     for s, h in previous.items():
         signal.signal(s, h if h is not None else signal.SIG_DFL)
+    sys.unraisablehook = _STOP.pop("previous_unraisable", sys.__unraisablehook__)
 
 
 def stop_if_signalled() -> None:
