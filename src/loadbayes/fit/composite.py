@@ -560,10 +560,10 @@ def predictive_band(
         ps, qs = [], []
         for i in pick:
             t_aug = grid.times(grid.phi_of(times[i])) if names else grid.t
-            aug = Event(t_aug, grid.v, grid.v, grid.v, grid.delta)
+            aug, real = grid.motor_input(0, t_aug)
             r = motor_response(aug, theta[i], f_hz=f_hz, torque=tuple(abc[i]))
             if r is not None:
-                zp, zq = design(ev, r[0][grid.real], r[1][grid.real])
+                zp, zq = design(ev, r[0][real], r[1][real])
                 ps.append(zp @ beta[i])
                 qs.append(zq @ beta[i])
         lo, hi = 50 * (1 - prob), 50 * (1 + prob)

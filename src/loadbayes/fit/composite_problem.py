@@ -171,12 +171,9 @@ class CompositeProblem:
         # The kernel's input: the samples plus two virtual knots in every step interval
         # (models/composite_steps.py); the likelihood sees the real samples only.
         self.grid = StepGrid.build([e.t for e in ev], [e.v for e in ev], deltas, detect=self.steps)
-        self._real = np.concatenate(
-            [
-                self.grid.real[self._starts[k] : self._starts[k + 1]] - self.grid.starts[k]
-                for k in range(len(ev))
-            ]
-        ).astype(np.int64)
+        self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
+            np.int64
+        )
         self._x = np.concatenate([e.x for e in ev])
         self._p = np.concatenate([e.p for e in ev])
         self._q = np.concatenate([e.q for e in ev])
@@ -287,16 +284,14 @@ class CompositeProblem:
         if u.size > 5 and not self.in_support(u):
             return None
         theta = theta_of(u[:5], 0.0)
-        t_aug, g = self.grid.times(self.phi(u)), self.grid
+        t_aug = self.grid.times(self.phi(u))
         out = []
         tq = self.torque if torque is None else torque
         for k in range(len(self.events)):
-            s0, s1 = g.starts[k], g.starts[k + 1]
-            aug = Event(t_aug[s0:s1], g.v[s0:s1], g.v[s0:s1], g.v[s0:s1], g.delta[s0:s1])
+            aug, real = self.grid.motor_input(k, t_aug)
             r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max)
             if r is None:
                 return None
-            real = self._real[self._starts[k] : self._starts[k + 1]]
             out.append((r[0][real], r[1][real]))
         return out
 

@@ -153,6 +153,26 @@ class StepGrid:
         fill_times(t, self.pos, self.left, self.width, np.asarray(phi, dtype=float))
         return t
 
+    def real_local(self, k: int) -> NDArray[np.int64]:
+        """Positions of event ``k``'s real samples within its own augmented arrays."""
+        per_event = np.diff(self.starts) - 2 * np.bincount(
+            self.event_of, minlength=self.starts.size - 1
+        )
+        r0 = int(np.sum(per_event[:k]))
+        return self.real[r0 : r0 + per_event[k]] - self.starts[k]
+
+    def motor_input(self, k: int, t: NDArray[np.float64]):
+        """Event ``k``'s augmented input (times ``t`` from :meth:`times`) and its real samples.
+
+        Returns an :class:`~loadbayes.models.composite.Event` to drive the motor with and
+        the positions of the real samples in it (the likelihood's only).
+        """
+        from loadbayes.models.composite import Event
+
+        s0, s1 = self.starts[k], self.starts[k + 1]
+        v = self.v[s0:s1]
+        return Event(t[s0:s1], v, v, v, self.delta[s0:s1]), self.real_local(k)
+
     def step_time(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
         """The instant of each step (s, the event's own clock), vectorised over draws."""
         return self.left + self.width * (EPS_FRACTION * 1.5 + phi * (1 - 3 * EPS_FRACTION))
