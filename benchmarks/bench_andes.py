@@ -1,16 +1,16 @@
 """Benchmark: the package's composite load against ANDES, over the motor library and sags.
 
 For each motor of the library, sag depth and motor share, one ANDES event
-(``loadbayes.cases.andes_sim.simulate``: a fault at the network bus, 1.3 s) is reproduced
+(``loadbayes.cases.andes.sim.simulate``: a fault at the network bus, 1.3 s) is reproduced
 by the package's motor simulator driven by ANDES's load-bus voltage
-(``loadbayes.cases.andes_compare``). Recorded per event: the achieved sag depth, ANDES's
+(``loadbayes.cases.andes.compare``). Recorded per event: the achieved sag depth, ANDES's
 step, the largest error of the motor's P, Q (on its rating), of the static part and of the
 total (system p.u.), the same without the bus angle (the convention that matters most),
 and the CPU time of the ANDES runs and of the reproduction.
 
 Then the same on a bus of two cases ANDES ships (Kundur's two-area system, bus 7; the
 IEEE 14-bus system, bus 9), with their machines swinging
-(``loadbayes.cases.andes_grid``).
+(``loadbayes.cases.andes.grid``).
 
 Writes ``benchmarks/results/andes.json`` and prints a table. Needs the ``andes`` extra.
 
@@ -35,9 +35,9 @@ CASES = (("kundur/kundur_full.xlsx", 7), ("ieee14/ieee14_full.xlsx", 9))
 
 def one(motor: str, depth: float, f_m: float, case: tuple | None = None) -> dict:
     """One event and its reproduction (``case``: an ANDES case and bus, else built-in)."""
-    from loadbayes.cases.andes_compare import max_errors, reproduce
-    from loadbayes.cases.andes_grid import simulate_in_case
-    from loadbayes.cases.andes_sim import simulate
+    from loadbayes.cases.andes.compare import max_errors, reproduce
+    from loadbayes.cases.andes.grid import simulate_in_case
+    from loadbayes.cases.andes.sim import simulate
 
     t = time.process_time()
     kw = {"sag_depth": depth, "f_m": f_m, "fault_start_s": 0.3, "t_end_s": 1.3}

@@ -81,7 +81,7 @@ def _ess_rhat(draws: dict[str, np.ndarray]) -> tuple[float, float, str]:
 
 
 def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True):
-    from loadbayes.fit.composite import fit_composite
+    from loadbayes.fit.composite.driver import fit_composite
 
     ev, truth = _event(fs, t_end)
     t0 = time.perf_counter()
@@ -120,8 +120,8 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
     import emcee
     from scipy.integrate import solve_ivp
 
-    from loadbayes.fit.composite import named_draws
-    from loadbayes.fit.composite_problem import CompositePrior, theta_of
+    from loadbayes.fit.composite.driver import named_draws
+    from loadbayes.fit.composite.problem import CompositePrior, theta_of
     from loadbayes.models.composite import design
     from loadbayes.models.motor import MotorParams, currents, derivatives, power
     from loadbayes.models.motor import steady_state as ss
@@ -179,8 +179,8 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
         out += float(np.sum(prior.tau_shape * ltau - prior.tau_rate * tau))
         return out
 
-    from loadbayes.fit.composite_nls import nls
-    from loadbayes.fit.composite_problem import CompositeProblem
+    from loadbayes.fit.composite.nls import nls
+    from loadbayes.fit.composite.problem import CompositeProblem
 
     start = nls(CompositeProblem([ev], prior, steps=False))  # emcee's (ramp) posterior
     centre = np.concatenate([start.u, start.betas[0], np.log(1 / start.sigma**2)])
@@ -308,7 +308,7 @@ def main(argv=None) -> int:
     long_steps = 100 if args.quick else 6000
     rows.append(run_emcee(60.0, t_end, long_steps, seconds=600.0, motor="kernel"))
     print(_line(rows[-1]), flush=True)
-    from loadbayes.fit.composite_sampler import DEFAULT_MOVE
+    from loadbayes.fit.composite.sampler import DEFAULT_MOVE
 
     default = [r for r in rows if r.get("move") == DEFAULT_MOVE and r.get("steps")]
     same = [r for r in rows if r.get("steps") is False][0]

@@ -2,7 +2,7 @@
 
 Each event is simulated once by ANDES (module-scoped fixture, 2-10 s of CPU each) and
 then reproduced by the package's own motor simulator, driven by ANDES's terminal voltage
-(magnitude and angle), at ANDES's time points (loadbayes.cases.andes_compare). Every
+(magnitude and angle), at ANDES's time points (loadbayes.cases.andes.compare). Every
 convention in docs/andes.md is proved by one assertion here: a wrong time base, inertia,
 torque map, base or frame makes one of them fail (the negative controls show by how much).
 
@@ -28,10 +28,10 @@ import pytest
 
 pytest.importorskip("andes", reason="ANDES is in the optional 'andes' extra")
 
-from loadbayes.cases.andes_compare import max_errors, reproduce  # noqa: E402
-from loadbayes.cases.andes_sim import simulate  # noqa: E402
-from loadbayes.cases.motor_sim import MOTORS  # noqa: E402
+from loadbayes.cases.andes.compare import max_errors, reproduce  # noqa: E402
+from loadbayes.cases.andes.sim import simulate  # noqa: E402
 from loadbayes.models.motor import steady_state  # noqa: E402
+from loadbayes.models.motor_library import MOTORS  # noqa: E402
 
 pytestmark = pytest.mark.integration
 
@@ -151,7 +151,7 @@ def test_in_a_multimachine_case_where_the_bus_angle_swings():
     # feels; the package follows ANDES there too, and without the angle it cannot.
     import andes
 
-    from loadbayes.cases.andes_grid import simulate_in_case
+    from loadbayes.cases.andes.grid import simulate_in_case
 
     case = andes.get_case("kundur/kundur_full.xlsx")
     ev = simulate_in_case(case, 7, sag_depth=0.3, fault_start_s=0.3, t_end_s=1.2)

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
-from loadbayes.cases.motor_sim import MOTORS
+from loadbayes.models.motor_library import MOTORS
 
 pytestmark = pytest.mark.integration
 

@@ -1,6 +1,6 @@
 """Round trip of the ANDES export: write a case, load it in ANDES, fault it, compare P, Q.
 
-The case written by ``loadbayes.export.andes.write`` is read back by ANDES's own reader,
+The case written by ``loadbayes.export.andes.writer.write`` is read back by ANDES's own reader,
 a three-phase fault is added at its network bus, and ANDES's load P, Q (from the feeder
 current) are compared with the package's prediction for the same parameter values
 (:func:`loadbayes.cases.composite_reference.predict`, driven by ANDES's bus voltage).
@@ -18,11 +18,11 @@ pytest.importorskip("andes", reason="ANDES is in the optional 'andes' extra")
 
 import andes  # noqa: E402
 
-from loadbayes.cases.andes_motor3 import andes_quiet  # noqa: E402
-from loadbayes.cases.andes_run import run_tds  # noqa: E402
 from loadbayes.cases.composite_reference import predict  # noqa: E402
-from loadbayes.cases.motor_sim import MOTORS  # noqa: E402
 from loadbayes.export import andes as export  # noqa: E402
+from loadbayes.export.andes.conventions import andes_quiet  # noqa: E402
+from loadbayes.export.andes.run import run_tds  # noqa: E402
+from loadbayes.models.motor_library import MOTORS  # noqa: E402
 
 pytestmark = pytest.mark.integration
 

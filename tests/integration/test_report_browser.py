@@ -275,7 +275,7 @@ def test_paper_report_pieces_fit_the_screen_and_the_page(tmp_path):
     import numpy as np
     import pandas as pd
 
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
     from loadbayes.studies.report import embedded_png, frame_html, png_bytes, write_report
 
     exe = _chromium()

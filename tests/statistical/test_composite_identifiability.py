@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.fit.composite import fit_composite
+from loadbayes.fit.composite.driver import fit_composite
 
 pytestmark = pytest.mark.statistical
 

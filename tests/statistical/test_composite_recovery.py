@@ -62,9 +62,9 @@ def test_the_motor_share_and_t_prime_contract_on_a_30_percent_sag(motor):
     # shrinks log T' well inside its prior (sd ratio < 0.5: the 95% interval of T' is
     # less than half as wide as the prior's on the log scale).
     from loadbayes.cases.composite_sim import simulate_event
-    from loadbayes.fit.composite import fit_composite
+    from loadbayes.fit.composite.driver import fit_composite
 
-    # The bound on f_m is the fit's own "well determined" (sd < 0.1, fit/composite.py).
+    # The bound on f_m is the fit's own "well determined" (sd < 0.1, fit/composite/driver.py).
     # Measured with 4 x 6,000 iterations on small_industrial: sd 0.054 with the fault's
     # step placed (its instant unknown), 0.037 with the step read as a ramp (the model
     # that does not know the instant is over-confident about f_m).

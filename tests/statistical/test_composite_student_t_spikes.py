@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.fit.composite import fit_composite
+from loadbayes.fit.composite.driver import fit_composite
 
 pytestmark = pytest.mark.statistical
 

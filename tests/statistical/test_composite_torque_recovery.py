@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.cases.motor_sim import MOTORS
-from loadbayes.fit.composite import fit_composite
+from loadbayes.fit.composite.driver import fit_composite
+from loadbayes.models.motor_library import MOTORS
 
 pytestmark = pytest.mark.statistical
 

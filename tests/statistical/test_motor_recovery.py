@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loadbayes.cases.motor_sim import MOTORS, simulate
+from loadbayes.cases.motor_sim import simulate
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import accumulate, fit_im
@@ -37,6 +37,7 @@ from loadbayes.inference.bilinear import sample_bilinear
 from loadbayes.inference.gibbs import sample_block
 from loadbayes.models.motor import COEFFICIENT_NAMES, inverse
 from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
+from loadbayes.models.motor_library import MOTORS
 from loadbayes.posterior import Posterior
 
 pytestmark = pytest.mark.statistical

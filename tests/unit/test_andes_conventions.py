@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 
 from loadbayes.cases import motor_sim
-from loadbayes.cases.andes_case import CompositeCase
-from loadbayes.cases.andes_motor3 import (
+from loadbayes.cases.composite_reference import predict
+from loadbayes.export.andes.case import CompositeCase
+from loadbayes.export.andes.conventions import (
     motor3_fields,
     motor_from_motor3,
     torque_from_andes,
     torque_to_andes,
     zip_fields,
 )
-from loadbayes.cases.composite_reference import predict
-from loadbayes.cases.motor_sim import MOTORS
+from loadbayes.models.motor_library import MOTORS
 
 SMALL = MOTORS["small_industrial"]
 

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.cases.motor_sim import MOTORS
-from loadbayes.fit.composite_nls import nls
-from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, theta_of
+from loadbayes.fit.composite.nls import nls
+from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem, theta_of
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
     composition,
@@ -18,6 +17,7 @@ from loadbayes.models.composite import (
     predict,
 )
 from loadbayes.models.composite_steps import EPS_FRACTION
+from loadbayes.models.motor_library import MOTORS
 
 
 def _theta(name, t0=0.6):
@@ -163,9 +163,9 @@ def test_compiled_collapsed_density_equals_the_python_path():
 def test_the_figure_has_no_empty_panel(n_events):
     # One P and one Q panel per event plus three pair plots, each with something drawn:
     # the grid once left blank axes beside a single event.
-    from loadbayes.fit.composite import fit_composite, predictive_band
-    from loadbayes.plots import pyplot
-    from loadbayes.plots_composite import plot_composite
+    from loadbayes.fit.composite.driver import fit_composite, predictive_band
+    from loadbayes.plots.composite import plot_composite
+    from loadbayes.plots.fit import pyplot
 
     evs = [
         simulate_event("small_industrial", depth=d, t_end_s=1.5, fs=30, seed=k)[0]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from loadbayes.fit.composite_checks import jumps, sampling_warnings
+from loadbayes.fit.composite.checks import jumps, sampling_warnings
 from loadbayes.models.composite import Event
 
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.fit.composite_nls import nls
-from loadbayes.fit.composite_problem import _POS, CompositePrior, CompositeProblem
-from loadbayes.fit.composite_robust import StudentT, collapsed_weighted
-from loadbayes.fit.composite_sampler import sample
+from loadbayes.fit.composite.nls import nls
+from loadbayes.fit.composite.problem import _POS, CompositePrior, CompositeProblem
+from loadbayes.fit.composite.robust import StudentT, collapsed_weighted
+from loadbayes.fit.composite.sampler import sample
 from loadbayes.inference.condlinear import GroupSums, log_marginal
 from loadbayes.inference.student_weights import draw_weights
 from loadbayes.models.composite import design

@@ -9,10 +9,10 @@ import pytest
 from scipy import stats
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.cases.motor_sim import MOTORS
-from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem
-from loadbayes.fit.composite_torque import TorqueProblem, log_prior_z, shares
+from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem
+from loadbayes.fit.composite.torque import TorqueProblem, log_prior_z, shares
 from loadbayes.models.composite import SCALE_FREE_MATRIX, design, motor_response
+from loadbayes.models.motor_library import MOTORS
 
 
 def _theta(name, t0=0.6):
@@ -61,7 +61,7 @@ def test_torque_problem_is_the_fixed_problem_at_its_shares_plus_the_prior():
 
 
 def test_student_t_weights_and_estimated_shares_combine():
-    from loadbayes.fit.composite_robust import collapsed_weighted
+    from loadbayes.fit.composite.robust import collapsed_weighted
 
     ev, _ = simulate_event("small_industrial", depth=0.35, noise=0.01, t_end_s=1.5, fs=30.0)
     pb = TorqueProblem([ev], CompositePrior.default([ev]))

@@ -8,13 +8,14 @@ import pytest
 
 from loadbayes.baselines.kalman import kalman
 from loadbayes.baselines.least_squares import coupled_least_squares, least_squares
-from loadbayes.cases.motor_sim import MOTORS, constant, simulate, write_csv
+from loadbayes.cases.motor_sim import constant, simulate, write_csv
 from loadbayes.core.priors import BlockPrior
 from loadbayes.fit import accumulate, fit_im, fit_im_file, im_priors
 from loadbayes.inference.bilinear import bilinear_least_squares, sample_bilinear
 from loadbayes.io.errors import DataError
 from loadbayes.models.motor import COEFFICIENT_NAMES
 from loadbayes.models.motor_fit import DATA_COLUMNS, PHYSICAL_NAMES, InductionMotorModel
+from loadbayes.models.motor_library import MOTORS
 
 MOTOR_NAMES = sorted(MOTORS)
 FAST = {"draws": 600, "burn": 100, "chains": 2}

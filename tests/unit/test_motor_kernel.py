@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from loadbayes.cases.motor_sim import MOTORS
 from loadbayes.models.motor import currents, derivatives, power, steady_state
 from loadbayes.models.motor_kernel import integrate
 from loadbayes.models.motor_kernel import steady_state as kernel_steady_state
+from loadbayes.models.motor_library import MOTORS
 
 #: The stated accuracy of the kernel (docs/composite.md): P, Q on the motor's base.
 TOL_PU = 1e-4

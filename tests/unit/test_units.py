@@ -9,7 +9,12 @@ import pandas as pd
 import pytest
 
 from loadbayes.io.errors import DataError
-from loadbayes.units import check_motor_units, check_power_units, level_at_nominal, refuse
+from loadbayes.measurements.units import (
+    check_motor_units,
+    check_power_units,
+    level_at_nominal,
+    refuse,
+)
 
 DATA = Path(__file__).parents[1] / "data"
 

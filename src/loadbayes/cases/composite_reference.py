@@ -26,23 +26,10 @@ from numpy.typing import ArrayLike
 
 from loadbayes.cases.motor_sim import Disturbance
 from loadbayes.cases.motor_sim import simulate as simulate_motor
-from loadbayes.models.motor import MotorParams, steady_state
+from loadbayes.models.motor import steady_state
+from loadbayes.models.motor_library import motor_from_values
 
-__all__ = ["motor_from_values", "predict", "profile"]
-
-MOTOR_FIELDS = ("rs", "xs", "xm", "rr", "xr", "h_s")
-
-
-def motor_from_values(values: Mapping[str, float]) -> MotorParams:
-    """``MotorParams`` from a parameter set (``a, b, c`` default to 1, 0, 0; ``f_hz`` 60)."""
-    return MotorParams(
-        **{k: float(values[k]) for k in MOTOR_FIELDS},
-        a=float(values.get("a", 1.0)),
-        b=float(values.get("b", 0.0)),
-        c=float(values.get("c", 0.0)),
-        f_hz=float(values.get("f_hz", 60.0)),
-        name="composite",
-    )
+__all__ = ["predict", "profile"]
 
 
 def profile(t: ArrayLike, values: ArrayLike, *, kind: str) -> Disturbance:

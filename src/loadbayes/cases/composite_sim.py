@@ -24,9 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.cases.motor_sim import MOTORS, Disturbance, sag, simulate
+from loadbayes.cases.motor_sim import Disturbance, sag, simulate
 from loadbayes.models.composite import Event
 from loadbayes.models.motor import MotorParams
+from loadbayes.models.motor_library import MOTORS
 
 __all__ = ["simulate_event", "sag_samples"]
 

@@ -10,7 +10,7 @@ from loadbayes.commands.output import UserError, check_outputs, user_errors
 
 MOTOR_NAMES = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
 #: What a PMU at the load bus records: the angle too, so that a fit sees the phase jumps
-#: of the fault (a frequency column cannot hold them; fit/composite_checks.py).
+#: of the fault (a frequency column cannot hold them; fit/composite/checks.py).
 COLUMNS = ("t_s", "v", "angle_rad", "p", "q", "f")
 
 
@@ -29,7 +29,7 @@ def _in_case(case_file: str, bus: str, motor: str, q_c: float, common: dict):
         raise UserError("--q-c is not supported with --case")
     import andes
 
-    from loadbayes.cases.andes_grid import simulate_in_case
+    from loadbayes.cases.andes.grid import simulate_in_case
 
     path = Path(case_file)
     if not path.is_file():
@@ -114,8 +114,8 @@ def simulate_andes_cmd(
 
     if importlib.util.find_spec("andes") is None:
         raise UserError("ANDES is not installed; install the 'andes' extra (pip install andes)")
-    from loadbayes.cases import andes_sim
-    from loadbayes.cases.motor_sim import MOTORS
+    from loadbayes.cases.andes import sim as andes_sim
+    from loadbayes.models.motor_library import MOTORS
 
     step = min(andes_sim.default_step(MOTORS[motor]), 1.0 / rate)
     common = {

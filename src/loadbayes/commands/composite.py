@@ -226,9 +226,9 @@ def fit_composite_cmd(
 
     import numpy as np
 
-    from loadbayes.event_files import read_events
-    from loadbayes.fit.composite import fit_composite, predictive_band
-    from loadbayes.fit.composite_problem import CompositePrior
+    from loadbayes.fit.composite.driver import fit_composite, predictive_band
+    from loadbayes.fit.composite.problem import CompositePrior
+    from loadbayes.measurements.events import read_events
     from loadbayes.models.composite import THETA_NAMES
 
     events = read_events(
@@ -284,8 +284,8 @@ def fit_composite_cmd(
             post.to_netcdf(netcdf_out, force=force)
             written.append(str(netcdf_out))
         if plot_out:
-            from loadbayes.plots import save_figure
-            from loadbayes.plots_composite import plot_composite
+            from loadbayes.plots.composite import plot_composite
+            from loadbayes.plots.fit import save_figure
 
             bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=seed)
             fig = plot_composite(post, events, bands, baseline=fit.baseline)

@@ -120,7 +120,7 @@ def fit_exp_cmd(
     from loadbayes.core.priors import BlockPrior
     from loadbayes.fit import fit_exp
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements import read_power_columns, relocate
+    from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.models.exponential import ExponentialModel, ExpPriors
 
     q_name = None if q_col.lower() == "none" else q_col

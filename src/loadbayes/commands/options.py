@@ -144,7 +144,7 @@ def data_options(*, chunk_rows: int = 1 << 18, q_help: str | None = None):
     """--v-col --p-col --q-col --v-base --s-base --drop-invalid --chunk-rows.
 
     The columns of V, P, Q in a table and the bases that turn them into per unit; read by
-    :func:`loadbayes.measurements.power_chunks`.
+    :func:`loadbayes.measurements.columns.power_chunks`.
     """
 
     def deco(func):

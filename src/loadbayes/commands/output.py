@@ -399,7 +399,7 @@ def write_outputs(
             # netCDF/HDF5 may swallow the KeyboardInterrupt raised inside its C calls.
             stop_if_signalled()
         if plot_out:
-            from loadbayes.plots import plot_fit, save_figure
+            from loadbayes.plots.fit import plot_fit, save_figure
 
             save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), out.temp("--plot"),
                         force=True)  # fmt: skip

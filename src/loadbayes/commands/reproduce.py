@@ -189,7 +189,7 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     After the paper's two studies come the ones that go past it: bad data (Student-t),
     time-varying loads (online tracking), and the choice between ZIP and exponential.
     """
-    from loadbayes.cases.motor_sim import MOTORS
+    from loadbayes.models.motor_library import MOTORS
     from loadbayes.studies import im_paper as im_study
     from loadbayes.studies import zip_paper as zip_study
     from loadbayes.studies.report import write_report

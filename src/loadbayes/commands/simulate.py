@@ -187,8 +187,9 @@ def simulate_im_cmd(
     check_outputs({"--out": out, "--out (settings)": str(sidecar(out))}, inputs, force)
 
     from loadbayes.cases import motor_sim
+    from loadbayes.models.motor_library import MOTORS
 
-    params = _load_params(params_file) if params_file else motor_sim.MOTORS[motor or MOTOR_NAMES[0]]
+    params = _load_params(params_file) if params_file else MOTORS[motor or MOTOR_NAMES[0]]
     dist = _disturbance(
         disturbance,
         depth=depth,

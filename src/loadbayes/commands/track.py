@@ -145,8 +145,8 @@ def track_zip_cmd(
 
     from loadbayes.inference.online import OnlinePrior, OnlineTracker
     from loadbayes.io.transaction import OutputSet
-    from loadbayes.measurements import power_chunks
-    from loadbayes.units import check_power_units, level_at_nominal, refuse
+    from loadbayes.measurements.columns import power_chunks
+    from loadbayes.measurements.units import check_power_units, level_at_nominal, refuse
 
     q_name = None if q_col.lower() == "none" else q_col
     contrasts = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, -1.0]])
@@ -305,7 +305,7 @@ def _head(chunks):
 
 
 def _plot(df, path, has_t, prob, t_col) -> None:
-    from loadbayes.plots import pyplot, save_figure
+    from loadbayes.plots.fit import pyplot, save_figure
 
     plt = pyplot()
     step = max(len(df) // _PLOT_MAX_POINTS, 1)

@@ -23,7 +23,7 @@ __all__ = ["FORMATS", "MODELS", "check_model", "get"]
 FORMATS = {
     "pandapower": "loadbayes.export.pandapower",
     "psse": "loadbayes.export.psse",
-    "andes": "loadbayes.export.andes",
+    "andes": "loadbayes.export.andes.writer",
 }
 
 #: Models the exports take.

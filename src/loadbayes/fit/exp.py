@@ -99,8 +99,8 @@ def fit_exp(
     >>> round(post.mean()["np"], 1)
     1.5
     """
-    from loadbayes.fit.frame import is_path, read_frame
     from loadbayes.fit.zip import check_bases, check_sampler
+    from loadbayes.measurements.frame import is_path, read_frame
 
     check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
     check_bases(v_base, s_base)
@@ -117,7 +117,7 @@ def fit_exp(
     warn_list = list(warnings or [])
     base = dict(settings or {})
     if is_path(data):
-        from loadbayes.measurements import read_power_columns
+        from loadbayes.measurements.columns import read_power_columns
 
         pc = read_power_columns(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_req,
@@ -155,7 +155,7 @@ def fit_exp(
             seed=seed, settings=base, warnings=warn_list,
         )  # fmt: skip
     except DataError as exc:
-        from loadbayes.measurements import relocate
+        from loadbayes.measurements.columns import relocate
 
         names = {"v": v_col, "p": p_col, "q": q_col, "f": f_col}
         where = str(data) if is_path(data) else "data"

@@ -238,10 +238,10 @@ def fit_im(
     >>> round(post.mean()["b3"], 2)  # doctest: +SKIP
     -0.71
     """
-    from loadbayes.fit.frame import is_path, read_frame
     from loadbayes.fit.zip import check_sampler
     from loadbayes.io.errors import DataError, OptionError
-    from loadbayes.measurements import relocate
+    from loadbayes.measurements.columns import relocate
+    from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
     check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
@@ -318,7 +318,7 @@ def fit_im_file(
         Called with the number of rows of each chunk.
     accept_units : bool
         Fit states that do not look like per unit (a warning instead of an error; see
-        :func:`loadbayes.units.check_motor_units`).
+        :func:`loadbayes.measurements.units.check_motor_units`).
     **sampler
         ``scheme``, ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -443,7 +443,7 @@ def steady_start_problem(data: Mapping[str, np.ndarray], *, head: int = 5) -> st
 
 def _first_chunk_checks(data, *, path, t0, accept_units, row) -> list[str]:
     from loadbayes.io.errors import DataError
-    from loadbayes.units import check_motor_units, refuse
+    from loadbayes.measurements.units import check_motor_units, refuse
 
     problems = check_motor_units(data)
     if not accept_units:

@@ -101,8 +101,8 @@ def fit_zip(
     >>> round(post.mean()["a1"] + post.mean()["a2"] + post.mean()["a3"], 12)
     1.0
     """
-    from loadbayes.fit.frame import is_path, read_frame
     from loadbayes.io.errors import DataError
+    from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.zip import ZIPModel
 
     check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
@@ -160,7 +160,7 @@ def fit_zip(
                 **sampler,
             )
         except DataError as exc:
-            from loadbayes.measurements import relocate
+            from loadbayes.measurements.columns import relocate
 
             names = {"v": v_col, "p": p_col, "q": q_col}
             raise relocate(exc, "data", table.rows, names) from None
@@ -271,7 +271,7 @@ def fit_zip_file(
         Called with the number of rows of each chunk.
     accept_units : bool
         Fit data that do not look like per unit of the nominal point (a warning instead
-        of a :class:`DataError`; see :mod:`loadbayes.units`).
+        of a :class:`DataError`; see :mod:`loadbayes.measurements.units`).
     **sampler
         ``scheme``, ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -380,7 +380,7 @@ def fit_zip_file(
 def data_checks(cols, *, path, names, accept_units, **nominal) -> list[str]:
     """The unit check (refuse, or warn with ``accept_units``) and the V-noise check."""
     from loadbayes.diagnostics import voltage_noise_warning
-    from loadbayes.units import check_power_units, refuse
+    from loadbayes.measurements.units import check_power_units, refuse
 
     problems = check_power_units(cols["v"], cols.get("p"), cols.get("q"), **nominal)
     if not accept_units:

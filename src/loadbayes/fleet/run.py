@@ -186,7 +186,7 @@ def fit_fleet(
 ) -> pd.DataFrame:
     """The fits of :func:`run_fleet` from statistics already computed (same options).
 
-    Buses whose data do not look per unit (:func:`loadbayes.units.check_gram_units`)
+    Buses whose data do not look per unit (:func:`loadbayes.measurements.units.check_gram_units`)
     get a warning row instead of a fit, unless ``accept_units``.
     """
     if pool not in ("none", "class"):
@@ -204,7 +204,7 @@ def fit_fleet(
 def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
     """Buses whose data do not look per unit get a warning row instead of a fit."""
     from loadbayes.fleet.summary import failed_rows
-    from loadbayes.units import check_gram_units
+    from loadbayes.measurements.units import check_gram_units
 
     nominal = {"p": model.p0, **({"q": model.q0} if model.with_q else {})}
     bad, reasons = [], []

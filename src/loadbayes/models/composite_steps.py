@@ -19,7 +19,7 @@ A **step interval** is one where ``|V_k+1 - V_k| > JUMP v0`` and the change is m
 (the first interval of a linear recovery has a neighbour changing as much).
 
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
-(fit/composite_problem.py).
+(fit/composite/problem.py).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ the electrical torque reaches the load torque).
 
 Accuracy (``tests/unit/test_motor_kernel.py``): against ``scipy.integrate.solve_ivp``
 (DOP853, ``rtol=1e-10``) driven by the same piecewise-linear voltage, on every motor of
-``cases.motor_sim.MOTORS`` and sags of 10-60%, the largest error in P and Q is below
+``models.motor_library.MOTORS`` and sags of 10-60%, the largest error in P and Q is below
 ``1e-4`` p.u. on the motor's base with the default step ``min(5 ms, T'/50)``
 (measured: 4.4e-5 for krause_3hp, whose T' = 0.087 s is the shortest, at most 5.2e-6 for
 the others).

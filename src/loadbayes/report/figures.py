@@ -1,7 +1,7 @@
 """A fit's figures for the report, as PNG bytes with their captions and alt texts.
 
 Each function returns a :class:`Figure` (or None when the fit has nothing to show), drawn
-with the panels of :mod:`loadbayes.plots`, so the report and ``--plot`` agree.
+with the panels of :mod:`loadbayes.plots.fit`, so the report and ``--plot`` agree.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ class Figure:
 
 def png(fig: Any) -> bytes:
     """The figure as PNG bytes (and closed)."""
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight")
@@ -41,7 +41,7 @@ def png(fig: Any) -> bytes:
 
 def curves_figure(post: Any, *, hdi_prob: float = 0.95) -> Figure | None:
     """P(V) and Q(V) in the data's units, with the data and both bands."""
-    from loadbayes.plots import draw_curve, pyplot
+    from loadbayes.plots.fit import draw_curve, pyplot
     from loadbayes.predictive import data_units, model_of
 
     chans = [c for c in ("p", "q") if c in post.observed and f"tau_{c}" in post.draws]
@@ -71,7 +71,7 @@ def marginals_figure(
     post: Any, *, hdi_prob: float = 0.95, truth: Mapping[str, float] | None = None
 ) -> Figure | None:
     """The marginal posterior of every coefficient (derived ones included)."""
-    from loadbayes.plots import draw_marginal, pyplot
+    from loadbayes.plots.fit import draw_marginal, pyplot
 
     names = [n for n in post.coefficients if n in post.draws]
     if not names:
@@ -97,7 +97,7 @@ def marginals_figure(
 
 def pairs_figure(post: Any, *, k: int = 3) -> Figure | None:
     """Joint draws of the ``k`` most correlated pairs of free coefficients."""
-    from loadbayes.plots import correlated_pairs, draw_pair, pyplot
+    from loadbayes.plots.fit import correlated_pairs, draw_pair, pyplot
 
     # The most correlated pair always; others only when they are correlated at all.
     pairs = [pr for i, pr in enumerate(correlated_pairs(post, k)) if i == 0 or abs(pr[2]) > 0.3]
@@ -120,7 +120,7 @@ def pairs_figure(post: Any, *, k: int = 3) -> Figure | None:
 
 def traces_figure(post: Any, *, max_params: int = 6) -> Figure | None:
     """Thinned traces of the free coefficients, one line per chain."""
-    from loadbayes.plots import draw_trace, pyplot
+    from loadbayes.plots.fit import draw_trace, pyplot
 
     names = [n for n in (post.free or post.coefficients) if n in post.draws][:max_params]
     if not names:

@@ -6,7 +6,7 @@ Protocol (every number is measured by :func:`run`):
   (P: 0.4, 0.2, 0.4; Q: 0.5, 0.2, 0.3), two sags of 30% and 45% held 0.2 s with a 0.3 s
   recovery, 3 s at 60 samples/s, noise 1% of |S0| (SciPy's DOP853 as the truth,
   :mod:`loadbayes.cases.composite_sim`);
-* fit: :func:`loadbayes.fit.composite.fit_composite` on both events jointly (the motor
+* fit: :func:`loadbayes.fit.composite.driver.fit_composite` on both events jointly (the motor
   shared), 4 chains, default priors; the NLS baseline (penalised least squares with
   its Gaussian approximation) beside it;
 * table: truth, posterior mean and 95% interval, NLS estimate and its sd, for the
@@ -43,8 +43,8 @@ class CompositeStudy:
 def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
     """Simulate the two events, fit them, and tabulate against the truth and the NLS."""
     from loadbayes.cases.composite_sim import simulate_event
-    from loadbayes.fit.composite import fit_composite, predictive_band
-    from loadbayes.plots_composite import plot_composite
+    from loadbayes.fit.composite.driver import fit_composite, predictive_band
+    from loadbayes.plots.composite import plot_composite
 
     events, truth = [], None
     for k, depth in enumerate((0.3, 0.45)):

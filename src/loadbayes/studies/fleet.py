@@ -87,7 +87,7 @@ def run(*, quick: bool = True, seed: int = 0) -> FleetStudy:
 def figures(study: FleetStudy) -> list[Any]:
     """Class mixes against the truth, and shrinkage against samples per bus."""
     from loadbayes.fleet.generate import CLASS_MIXES
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     plt = pyplot()
     cls = study.pooled[study.pooled.level == "class"]

@@ -59,7 +59,7 @@ _TOC_BEGIN, _TOC_END = "<!-- contents -->", "<!-- /contents -->"
 
 def figure_html(fig: Any, caption: str = "", *, dpi: int = 100) -> str:
     """Embed a matplotlib figure as a base64 PNG ``<figure>`` (and close the figure)."""
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
@@ -173,7 +173,7 @@ def update_section(path: str | Path, section: str, *, mark: str) -> Path:
 # and write their folders; each was copied in both before.
 def png_bytes(fig: Any) -> bytes:
     """A matplotlib figure as PNG bytes at 100 dpi (and close the figure)."""
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")

@@ -282,7 +282,7 @@ def text_table(study: TrackingStudy) -> str:
 
 def figure(study: TrackingStudy):
     """Tracks of a1 and a3 at 1% noise, prediction-tuned, with 95% bands, and the truth."""
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     plt = pyplot()
     tr = study.tracks.get("_truth")

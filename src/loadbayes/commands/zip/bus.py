@@ -299,7 +299,7 @@ def _fit_student_t(data, *, nu, v_col, p_col, q_col, v0, p0, q0, v_base, s_base,
     from loadbayes.fit import accumulate, fit_robust
     from loadbayes.fit.core import MAX_OBSERVED
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements import read_power_columns, relocate
+    from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.models.zip import ZIPModel
 
     q_name = None if q_col.lower() == "none" else q_col

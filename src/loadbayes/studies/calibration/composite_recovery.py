@@ -4,7 +4,7 @@ Events are simulated by :func:`loadbayes.cases.composite_sim.simulate_event` (Sc
 DOP853 on the library motors, independent of the compiled kernel the fit uses), with
 the settings of issue 11: the four library motors, ZIP mixes with negative shares, sags
 of 15, 30 and 50% held 0.1-0.5 s, noise 0.5-2% of |S0|. Each is fitted by
-:func:`loadbayes.fit.composite.fit_composite` and the 95% central interval of every
+:func:`loadbayes.fit.composite.driver.fit_composite` and the 95% central interval of every
 reported quantity is checked against the truth.
 
 The truths are not drawn from the fit's prior (they are fixed library motors), so the
@@ -94,7 +94,7 @@ def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[
     import arviz as az
 
     from loadbayes.cases.composite_sim import simulate_event
-    from loadbayes.fit.composite import fit_composite
+    from loadbayes.fit.composite.driver import fit_composite
 
     cpu = time.process_time()
     drawn = ("depth", "start_s", "duration_s", "recovery_s", "t0", "f_m", "q0", "zip_p")

@@ -2,7 +2,7 @@
 
 Design: one fixed voltage record (a 35% sag at 0.3 s for 0.2 s with a 0.2 s recovery,
 1.5 s at 30 samples per second: 46 samples), the motor's scale-free coordinates drawn
-from the prior of :class:`~loadbayes.fit.composite_problem.CompositePrior` (the default
+from the prior of :class:`~loadbayes.fit.composite.problem.CompositePrior` (the default
 THETA_PRIOR; draws with no stable steady state are redrawn, which is the prior the
 sampler sees, since it gives them zero density), ``log T0`` from its prior given them,
 the seven linear coefficients from their normal prior (sd 1, ``p_m0`` truncated to > 0)
@@ -10,7 +10,7 @@ and the noise precisions from Gamma(10, 10 * 0.02^2) (a noise sd near 2%). The s
 step is placed at a fraction ``step_phi`` of its sample interval drawn uniformly (the
 fit's prior, models/composite_steps.py). The data are the model's own P and Q (the
 compiled kernel) plus normal noise. The fit is the
-package's path (NLS start, then :func:`~loadbayes.fit.composite_sampler.sample`), one chain
+package's path (NLS start, then :func:`~loadbayes.fit.composite.sampler.sample`), one chain
 thinned to near independence.
 """
 
@@ -53,7 +53,7 @@ def _event():
 
 
 def _prior(event):
-    from loadbayes.fit.composite_problem import THETA_PRIOR, CompositePrior
+    from loadbayes.fit.composite.problem import THETA_PRIOR, CompositePrior
     from loadbayes.models.composite import THETA_NAMES
 
     return CompositePrior(
@@ -74,9 +74,9 @@ def composite_sampler(
     ci_replications: int | None = None,
 ) -> SamplerUnderTest:
     """The composite Metropolis-within-Gibbs sampler as SBC sees it (module docstring)."""
-    from loadbayes.fit.composite_nls import nls
-    from loadbayes.fit.composite_problem import CompositeProblem
-    from loadbayes.fit.composite_sampler import sample
+    from loadbayes.fit.composite.nls import nls
+    from loadbayes.fit.composite.problem import CompositeProblem
+    from loadbayes.fit.composite.sampler import sample
     from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, design
 
     event = _event()

@@ -1,6 +1,6 @@
 """The paper's induction-motor study: Table I, Table III, Fig. 6 and the physical parameters.
 
-For each documented motor (:data:`loadbayes.cases.motor_sim.MOTORS`) one record is
+For each documented motor (:data:`loadbayes.models.motor_library.MOTORS`) one record is
 simulated (default: a 25% sag at 0.5 s for 150 ms, 3 s at 1 ms = 3001 samples, noise sd
 5% of each target channel's RMS, on the targets only as in the paper) and fitted five
 ways on the same data:

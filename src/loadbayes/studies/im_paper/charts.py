@@ -17,7 +17,7 @@ from loadbayes.studies.im_paper.tables import physical_table
 
 def figures(study: ImStudy) -> dict[str, Any]:
     """Matplotlib figures: ``fig6_coefficients``, ``physical``, and ``eiv``."""
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     plt = pyplot()
     out = {}

@@ -71,7 +71,7 @@ def run(
     Parameters
     ----------
     motors : sequence of str, optional
-        Keys of :data:`loadbayes.cases.motor_sim.MOTORS`; all by default.
+        Keys of :data:`loadbayes.models.motor_library.MOTORS`; all by default.
     noise : float
         Noise sd as a fraction of each target channel's RMS (the paper's 5%).
     seed : int
@@ -92,7 +92,8 @@ def run(
     -------
     ImStudy
     """
-    from loadbayes.cases.motor_sim import MOTORS, default_disturbance, simulate
+    from loadbayes.cases.motor_sim import default_disturbance, simulate
+    from loadbayes.models.motor_library import MOTORS
 
     motors = list(motors or MOTORS)
     unknown = [m for m in motors if m not in MOTORS]
@@ -133,8 +134,9 @@ def run(
 
 
 def _eiv(name, *, noise, seed, t_end_s, dt_s, sampler) -> pd.DataFrame:
-    from loadbayes.cases.motor_sim import MOTORS, simulate
+    from loadbayes.cases.motor_sim import simulate
     from loadbayes.fit import fit_im
+    from loadbayes.models.motor_library import MOTORS
 
     params = MOTORS[name]
     truth = params.coefficients()

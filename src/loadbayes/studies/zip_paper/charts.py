@@ -23,7 +23,7 @@ def figures(study: ZipStudy) -> dict[str, Any]:
     ``fig2_posterior``, ``fig3_voltage``, ``fig4_dv_dp``, ``fig5_burn_in``,
     ``fig8_errors``, ``pair_a1_a2``, ``sweep``.
     """
-    from loadbayes.plots import pyplot
+    from loadbayes.plots.fit import pyplot
 
     plt = pyplot()
     out: dict[str, Any] = {}

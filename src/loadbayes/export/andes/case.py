@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.cases.andes_motor3 import motor3_fields, zip_fields
-from loadbayes.cases.composite_reference import motor_from_values
+from loadbayes.export.andes.conventions import motor3_fields, zip_fields
 from loadbayes.models.motor import MotorParams, steady_state
+from loadbayes.models.motor_library import motor_from_values
 
 __all__ = ["VN_KV", "Z_FEED", "CompositeCase", "add_composite"]
 
@@ -119,7 +119,7 @@ class CompositeCase:
         return self.v0 + (self.z_src + Z_FEED) * current
 
     def motor3(self) -> dict[str, float]:
-        """``Motor3`` parameters (:func:`loadbayes.cases.andes_motor3.motor3_fields`)."""
+        """``Motor3`` parameters (:func:`loadbayes.export.andes.conventions.motor3_fields`)."""
         if self.motor is None:
             raise ValueError("a ZIP-only case has no motor")
         return motor3_fields(

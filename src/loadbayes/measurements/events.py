@@ -168,7 +168,7 @@ def read_events(
     ``f_col`` and ``angle_col`` default to ``f`` and ``angle_rad`` when present (the angle
     wins when both are); ``event_col`` is used when present.
     """
-    from loadbayes.measurements import read_power_columns
+    from loadbayes.measurements.columns import read_power_columns
 
     out: list[Event] = []
     for path in paths:

@@ -3,7 +3,7 @@
 The scale-mixture form (:mod:`loadbayes.inference.student_weights`): sample ``k`` of
 channel ``g`` (P or Q) has a latent weight ``lambda_gk ~ Gamma(nu_g/2, rate nu_g/2)`` and
 noise ``N(0, 1/(tau_g lambda_gk))``. Given the weights the model is the Gaussian one with
-weighted sums, so the sampler of :mod:`loadbayes.fit.composite_problem` keeps its
+weighted sums, so the sampler of :mod:`loadbayes.fit.composite.problem` keeps its
 structure and gains one step:
 
 1. ``u | tau, lambda``: adaptive Metropolis on the collapsed density computed from
@@ -27,7 +27,7 @@ from typing import Literal
 import numba
 import numpy as np
 
-from loadbayes.fit.composite_problem import _POS, CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
 from loadbayes.inference.condlinear import GroupSums, log_marginal_arrays
 from loadbayes.inference.student_weights import draw_weights, step_nu
 from loadbayes.models.motor_kernel import _integrate, step_size
@@ -81,7 +81,7 @@ def collapsed_weighted(
     extra = 0.0
     n_base = 5 + problem.n_steps
     if u.size > n_base:  # estimated torque shares (fit.composite_torque): u = (.., z)
-        from loadbayes.fit.composite_torque import log_prior_z, shares
+        from loadbayes.fit.composite.torque import log_prior_z, shares
 
         (a, b, c), extra = shares(u[n_base:]), log_prior_z(u[n_base:])
         u = u[:n_base]
@@ -219,7 +219,7 @@ class StudentTChain:
         out = p.prior.log_u(u[:5]) + 0.5 * float(np.sum(np.log(self.lam)))
         n_base = 5 + p.n_steps
         if u.size > n_base:  # estimated torque shares
-            from loadbayes.fit.composite_torque import log_prior_z
+            from loadbayes.fit.composite.torque import log_prior_z
 
             out += log_prior_z(u[n_base:])
         for s in self.sums:

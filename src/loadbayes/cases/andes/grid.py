@@ -1,6 +1,6 @@
 """A composite load added to a bus of any ANDES case (``kundur/kundur_full.xlsx``, ...).
 
-The same event as :func:`loadbayes.cases.andes_sim.simulate` (a ``PQ`` replaced by a
+The same event as :func:`loadbayes.cases.andes.sim.simulate` (a ``PQ`` replaced by a
 ``ZIP``, a ``Motor3``, a ``BusFreq``, a three-phase ``Fault``), but on a bus of a case
 file with its own generators, controls and loads, so the bus's frequency and angle move
 as the machines swing. The load's P, Q are the ``ZIP``'s own equation plus the motor's
@@ -18,12 +18,13 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from loadbayes.cases.andes_case import CompositeCase
-from loadbayes.cases.andes_motor3 import andes_quiet, zip_fields
-from loadbayes.cases.andes_run import run_tds
-from loadbayes.cases.andes_sim import AndesEvent, achieved_depth, default_step, event_from_run
-from loadbayes.cases.motor_sim import DEFAULT_T0, MOTORS
+from loadbayes.cases.andes.sim import AndesEvent, achieved_depth, default_step, event_from_run
+from loadbayes.cases.motor_sim import DEFAULT_T0
+from loadbayes.export.andes.case import CompositeCase
+from loadbayes.export.andes.conventions import andes_quiet, zip_fields
+from loadbayes.export.andes.run import run_tds
 from loadbayes.models.motor import MotorParams
+from loadbayes.models.motor_library import MOTORS
 
 __all__ = ["simulate_in_case"]
 
@@ -96,7 +97,7 @@ def simulate_in_case(
     bus : idx
         The bus that gets the load (its ANDES idx).
     motor, f_m, p0, q0, zip_p, zip_q, t0, sag_depth, fault_start_s, fault_s, t_end_s, step_s
-        As in :func:`loadbayes.cases.andes_sim.simulate` (``p0, q0`` at the bus's
+        As in :func:`loadbayes.cases.andes.sim.simulate` (``p0, q0`` at the bus's
         ``v0`` in the case data).
     xf : float, optional
         First fault reactance tried (system p.u.); default from an assumed source
@@ -107,7 +108,7 @@ def simulate_in_case(
     Returns
     -------
     AndesEvent
-        As :func:`~loadbayes.cases.andes_sim.simulate`; ``settings`` names the case and bus.
+        As :func:`~loadbayes.cases.andes.sim.simulate`; ``settings`` names the case and bus.
     """
     params = MOTORS[motor] if isinstance(motor, str) else motor
     if not (0 < sag_depth < 1 and 0 < fault_start_s and fault_s > 0):

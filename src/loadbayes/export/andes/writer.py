@@ -1,6 +1,6 @@
 """Export a fitted ZIP or composite load as an ANDES case (xlsx or json, ANDES's own writers).
 
-The case (:mod:`loadbayes.cases.andes_case`) is the load on its bus behind a stand-in
+The case (:mod:`loadbayes.export.andes.case`) is the load on its bus behind a stand-in
 network (an infinite bus and two lines) whose source voltage puts the load bus at ``v0``:
 
 - the static part as a ``PQ`` (its power at ``v0``) replaced in the time domain by a
@@ -13,7 +13,7 @@ network (an infinite bus and two lines) whose source voltage puts the load bus a
 Copy the load bus's devices into your own network, or run the case as it is with a
 ``Fault`` added at the network bus. ANDES 2.0 starts ``Motor3`` at standstill in its
 power flow and diverges for a running motor; call
-:func:`loadbayes.cases.andes_motor3.solve_power_flow` instead of ``PFlow.run``. The
+:func:`loadbayes.export.andes.conventions.solve_power_flow` instead of ``PFlow.run``. The
 posterior summary and these notes go to a sidecar ``<case file name>.summary.txt``.
 """
 
@@ -99,7 +99,7 @@ def write(
     if out.suffix.lower() not in SUFFIXES:
         raise ValueError(f"ANDES export writes {' or '.join(SUFFIXES)}, not '{out.suffix}'")
 
-    from loadbayes.cases.andes_case import CompositeCase
+    from loadbayes.export.andes.case import CompositeCase
 
     base = float(options.get("base_mva", 100.0))
     z_src = complex(options.get("z_src", complex(0.01, 0.1)))
@@ -122,8 +122,8 @@ def write(
 def _build(case: Any, bus: int) -> tuple[Any, dict[str, Any]]:
     import andes
 
-    from loadbayes.cases.andes_case import add_composite
-    from loadbayes.cases.andes_motor3 import andes_quiet
+    from loadbayes.export.andes.case import add_composite
+    from loadbayes.export.andes.conventions import andes_quiet
 
     with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
         system = andes.System(no_output=True, default_config=True, output_path=tmp)
@@ -135,7 +135,7 @@ def _write_case(system: Any, path: Path) -> None:
     from andes.io import json as andes_json
     from andes.io import xlsx as andes_xlsx
 
-    from loadbayes.cases.andes_motor3 import andes_quiet
+    from loadbayes.export.andes.conventions import andes_quiet
 
     writer = andes_xlsx if path.suffix.lower() == ".xlsx" else andes_json
     with andes_quiet():
@@ -170,7 +170,7 @@ def _summary(header, values, case, devices, out: Path, model: str) -> str:
         "# ANDES 2.0's power flow starts Motor3 at standstill and diverges for a running",
         "# motor. Run it with:",
         "#   ss = andes.load(path, setup=False); ss.add('Fault', {...}); ss.setup()",
-        "#   from loadbayes.cases.andes_motor3 import solve_power_flow; solve_power_flow(ss)",
+        "#   from loadbayes.export.andes.conventions import solve_power_flow; solve_power_flow(ss)",
         "#   ss.TDS.run()",
         "",
     ]

@@ -2,7 +2,7 @@
 
 :func:`fit_composite` runs the penalised NLS (the start and the point-estimate baseline,
 returned as a :class:`~loadbayes.posterior.Posterior` of its Gaussian approximation),
-then the Metropolis-within-Gibbs sampler of :mod:`loadbayes.fit.composite_problem`, and
+then the Metropolis-within-Gibbs sampler of :mod:`loadbayes.fit.composite.problem`, and
 names the draws as docs/composite.md (the shared naming contract) says. It also writes
 the plain-words identifiability section: which motor parameters the events determine,
 which stay close to their prior, which lie on a ridge, and what would help.
@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.composite_checks import sampling_warnings
-from loadbayes.fit.composite_nls import NLSResult, nls
-from loadbayes.fit.composite_problem import CompositePrior, CompositeProblem, theta_of
-from loadbayes.fit.composite_sampler import DEFAULT_MOVE, sample
+from loadbayes.fit.composite.checks import sampling_warnings
+from loadbayes.fit.composite.nls import NLSResult, nls
+from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem, theta_of
+from loadbayes.fit.composite.sampler import DEFAULT_MOVE, sample
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
     SCALE_FREE_NAMES,
@@ -315,7 +315,7 @@ def fit_composite(
         ``(A, B, C)``, fixed, or ``"estimate"``: a Dirichlet(1, 1, 1) prior
         (fit.composite_torque).
     draws, burn, thin, chains, seed, workers
-        Sampler settings (see :func:`loadbayes.fit.composite_sampler.sample`).
+        Sampler settings (see :func:`loadbayes.fit.composite.sampler.sample`).
     h_max : float
         RK4 sub-step of the motor kernel (s).
     steps : bool
@@ -325,7 +325,7 @@ def fit_composite(
     settings : dict, optional
         Extra provenance stored in the result.
     move : str
-        The sampler's u-move (:data:`~loadbayes.fit.composite_sampler.MOVES`).
+        The sampler's u-move (:data:`~loadbayes.fit.composite.sampler.MOVES`).
     likelihood : {"normal", "student-t"}
         Noise on P and Q; Student-t adds latent weights (fit.composite_robust).
     nu : float or "auto"
@@ -351,13 +351,13 @@ def fit_composite(
     t1 = time.perf_counter()
     sampled, sample_start = problem, start
     if estimate:
-        from loadbayes.fit import composite_torque as ct
+        from loadbayes.fit.composite import torque as ct
 
         sampled = ct.TorqueProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps)
         sample_start = ct.extend_start(start, np.zeros(2))
     student_t = None
     if likelihood == "student-t":
-        from loadbayes.fit.composite_robust import StudentT
+        from loadbayes.fit.composite.robust import StudentT
 
         student_t = StudentT(nu=nu)
     elif likelihood != "normal":
@@ -432,7 +432,7 @@ def fit_composite(
     ]
     robust_settings, constant, robust_warn = {}, {}, []
     if student_t is not None:
-        from loadbayes.fit.composite_robust import robust_outputs
+        from loadbayes.fit.composite.robust import robust_outputs
 
         robust_settings, constant, robust_warn = robust_outputs(problem, res, nu, draws_named)
     post = Posterior(

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from loadbayes.cases.andes_sim import AndesEvent
+from loadbayes.cases.andes.sim import AndesEvent
 from loadbayes.cases.composite_reference import predict
 
 __all__ = ["COMPARED", "max_errors", "reproduce"]
@@ -38,7 +38,7 @@ def reproduce(
     Parameters
     ----------
     event : AndesEvent
-        From :func:`loadbayes.cases.andes_sim.simulate`.
+        From :func:`loadbayes.cases.andes.sim.simulate`.
     overrides : mapping, optional
         Parameter values replacing the truth's (for negative controls).
     use_angle : bool

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from loadbayes.fit.composite_problem import _T, STEP_PRIOR_SD, CompositeProblem
+from loadbayes.fit.composite.problem import _T, STEP_PRIOR_SD, CompositeProblem
 from loadbayes.inference.condlinear import (
     residual_ss,
 )
@@ -42,7 +42,7 @@ class NLSResult:
 
 
 def _library_starts() -> list[np.ndarray]:
-    from loadbayes.cases.motor_sim import MOTORS
+    from loadbayes.models.motor_library import MOTORS
 
     starts = []
     for m in MOTORS.values():

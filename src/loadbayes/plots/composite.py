@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.models.composite import Event
-from loadbayes.plots import pyplot
+from loadbayes.plots.fit import pyplot
 from loadbayes.posterior import Posterior
 
 __all__ = ["plot_composite"]
@@ -43,7 +43,7 @@ def plot_composite(
     events : sequence of Event
         The recordings fitted.
     bands : sequence of mapping
-        From :func:`loadbayes.fit.composite.predictive_band`, one per event.
+        From :func:`loadbayes.fit.composite.driver.predictive_band`, one per event.
     baseline : Posterior, optional
         The NLS baseline's Gaussian draws, shown beside the posterior in the pair plots.
     truth : mapping, optional

@@ -1,6 +1,6 @@
 """ANDES as the independent simulator: a ZIP load and a ``Motor3`` on one bus, under a fault.
 
-The case is :mod:`loadbayes.cases.andes_case` (infinite bus, network bus, load bus; the
+The case is :mod:`loadbayes.export.andes.case` (infinite bus, network bus, load bus; the
 power flow puts the load bus at ``v0`` with the motor drawing the share ``f_m`` of
 ``p0``), plus a ``BusFreq`` at the load bus and a three-phase ``Fault`` at the network bus
 whose reactance ``xf`` is found by a few short runs so that the deepest load-bus voltage
@@ -29,11 +29,12 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from loadbayes.cases.andes_case import Z_FEED, CompositeCase, add_composite
-from loadbayes.cases.andes_motor3 import andes_quiet
-from loadbayes.cases.andes_run import run_tds
-from loadbayes.cases.motor_sim import DEFAULT_T0, MOTORS
+from loadbayes.cases.motor_sim import DEFAULT_T0
+from loadbayes.export.andes.case import Z_FEED, CompositeCase, add_composite
+from loadbayes.export.andes.conventions import andes_quiet
+from loadbayes.export.andes.run import run_tds
 from loadbayes.models.motor import MotorParams, steady_state
+from loadbayes.models.motor_library import MOTORS
 
 __all__ = [
     "AndesEvent",
@@ -196,7 +197,7 @@ def simulate(
     Parameters
     ----------
     motor : MotorParams or str
-        The motor (own base) or a key of :data:`loadbayes.cases.motor_sim.MOTORS`.
+        The motor (own base) or a key of :data:`loadbayes.models.motor_library.MOTORS`.
     f_m : float
         Motor's share of the initial active power, in (0, 1].
     p0, q0 : float

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.composite_nls import NLSResult
-from loadbayes.fit.composite_problem import _POS, CompositeProblem, theta_of
+from loadbayes.fit.composite.nls import NLSResult
+from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
 from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     draw_beta,
@@ -91,7 +91,7 @@ def sample(
         The u-move (:data:`MOVES`): adaptive Metropolis, or factor slice sampling in
         the eigenbasis of the covariance learned in burn-in (docs/composite.md, "Why
         this move").
-    student_t : loadbayes.fit.composite_robust.StudentT, optional
+    student_t : loadbayes.fit.composite.robust.StudentT, optional
         Student-t noise (a weights step each iteration); Gaussian noise when None.
 
     Returns

@@ -27,8 +27,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from loadbayes.fit.composite_nls import NLSResult
-from loadbayes.fit.composite_problem import CompositeProblem
+from loadbayes.fit.composite.nls import NLSResult
+from loadbayes.fit.composite.problem import CompositeProblem
 
 __all__ = [
     "ALPHA",

@@ -1,7 +1,7 @@
 """Run an ANDES system with a composite load: power flow, time domain, the load's record.
 
-:func:`run_tds` is shared by the harness (:mod:`loadbayes.cases.andes_sim`), a load in
-another case (:mod:`loadbayes.cases.andes_grid`) and the export's round trip.
+:func:`run_tds` is shared by the harness (:mod:`loadbayes.cases.andes.sim`), a load in
+another case (:mod:`loadbayes.cases.andes.grid`) and the export's round trip.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from loadbayes.cases.andes_motor3 import andes_quiet, solve_power_flow
+from loadbayes.export.andes.conventions import andes_quiet, solve_power_flow
 
 __all__ = ["TDS_TOL", "run_tds"]
 
@@ -37,7 +37,7 @@ def run_tds(
     ----------
     system : andes.System
         Set up, not yet solved; its load bus is fed by one line from ``net_bus`` (no
-        line charging), as in :mod:`loadbayes.cases.andes_case` or an exported case.
+        line charging), as in :mod:`loadbayes.export.andes.case` or an exported case.
     load_bus, net_bus : idx
         The load bus and the bus feeding it. With ``net_bus=None`` (a load bus inside a
         meshed network) the static part's P, Q are read from the ``ZIP`` device's own

@@ -3,8 +3,8 @@
 :class:`CompositeProblem` holds the events (with the virtual knots of their steps
 between samples, models/composite_steps.py) and evaluates ``log p(u) + sum_e log p(y_e |
 u, tau)`` with every event's linear coefficients integrated out, in one compiled call.
-The NLS start is :mod:`loadbayes.fit.composite_nls`, the sampler
-:mod:`loadbayes.fit.composite_sampler`, the driver :mod:`loadbayes.fit.composite`.
+The NLS start is :mod:`loadbayes.fit.composite.nls`, the sampler
+:mod:`loadbayes.fit.composite.sampler`, the driver :mod:`loadbayes.fit.composite.driver`.
 
 Several events share the motor (``THETA_NAMES``) and the noise precisions; each event
 has its own seven linear coefficients (its own operating point, ZIP mix and motor
@@ -22,7 +22,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from loadbayes.fit.composite_sums import _design_sums_into, design_sums, x_sums
+from loadbayes.fit.composite.sums import _design_sums_into, design_sums, x_sums
 from loadbayes.inference.condlinear import (
     GroupSums,
     log_marginal,

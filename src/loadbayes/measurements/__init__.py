@@ -1,0 +1,6 @@
+"""Measurements in: the readers of V, P, Q (f, t), events, and the per-unit checks.
+
+``columns`` (the reader of a table's columns, with bases and row numbers for errors),
+``frame`` (the Python API's in-memory tables), ``events`` (the event files of the
+composite fit), ``units`` (per-unit checks on plain arrays).
+"""
