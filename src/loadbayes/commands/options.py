@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import click
+
+#: Keys of :data:`loadbayes.models.motor_library.MOTORS` (a unit test keeps them equal;
+#: spelled here so that ``--help`` does not import the models).
+MOTOR_NAMES = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
+
+_SAMPLER_KEYS = ("draws", "burn", "chains", "thin", "seed", "init", "hdi_prob")
 
 
 class OneLineCommand(click.Command):
@@ -302,3 +309,125 @@ def parse_coef_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
             )
         out[key] = (mean, sd)
     return out
+
+
+def sampler_settings(
+    *,
+    draws: int = 40_000,
+    burn: int = 5_000,
+    init: bool = True,
+    draws_help: str = "Iterations per chain including burn-in (the paper's M).",
+    burn_help: str = "Leading iterations discarded (the paper's m).",
+    draws_min: int = 1,
+    burn_min: int = 0,
+):
+    """--draws --burn --chains --thin --seed [--init] --hdi-prob, built into one object.
+
+    The command receives ``sampler``, a checked
+    :class:`~loadbayes.core.settings.SamplerSettings`, instead of the loose options; a
+    burn-in not below the draws is one line naming both options.
+    """
+
+    def deco(func):
+        @functools.wraps(func)
+        def wrapper(*args, **kwargs):
+            from loadbayes.commands.output import UserError
+            from loadbayes.core.settings import SamplerSettings
+
+            values = {k: kwargs.pop(k) for k in _SAMPLER_KEYS if k in kwargs}
+            if values["burn"] >= values["draws"]:
+                raise UserError(
+                    f"--burn ({values['burn']}) must be smaller than --draws ({values['draws']})"
+                )
+            kwargs["sampler"] = SamplerSettings(**values)
+            return func(*args, **kwargs)
+
+        opts = [
+            click.option(
+                "--draws",
+                type=click.IntRange(min=draws_min),
+                default=draws,
+                show_default=True,
+                help=draws_help,
+            ),
+            click.option(
+                "--burn",
+                type=click.IntRange(min=burn_min),
+                default=burn,
+                show_default=True,
+                help=burn_help,
+            ),
+            click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True),
+            click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True),
+            click.option("--seed", type=int, default=0, show_default=True),
+        ]
+        if init:
+            opts.append(
+                click.option(
+                    "--init",
+                    type=click.Choice(["prior", "dispersed"]),
+                    default="prior",
+                    show_default=True,
+                    help="Start from a prior draw (the paper) or scattered around LS.",
+                )
+            )
+        opts.append(
+            click.option(
+                "--hdi-prob",
+                type=click.FloatRange(0, 1, min_open=True, max_open=True),
+                default=0.95,
+                show_default=True,
+            )
+        )
+        for opt in reversed(opts):
+            wrapper = opt(wrapper)
+        return wrapper
+
+    return deco
+
+
+def parse_nu(value: str) -> float | str:
+    """``--nu``: a positive finite number, or ``"auto"`` (sampled)."""
+    if value.strip().lower() == "auto":
+        return "auto"
+    try:
+        out = float(value)
+    except ValueError:
+        raise click.BadParameter(
+            f"{value!r} is neither a number nor 'auto'", param_hint="--nu"
+        ) from None
+    if not (out > 0 and math.isfinite(out)):
+        raise click.BadParameter("must be a positive finite number or 'auto'", param_hint="--nu")
+    return out
+
+
+def likelihood_options(
+    *,
+    likelihood_help: str = "Gaussian noise (the paper's), or Student-t noise that discounts "
+    "bad samples and lists them under 'flagged' in the JSON.",
+    nu_help: str = "Student-t degrees of freedom: a number, or 'auto' to sample them.",
+):
+    """--likelihood normal|student-t and --nu VALUE|auto (parse ``nu`` with :func:`parse_nu`)."""
+
+    def deco(func):
+        opts = [
+            click.option(
+                "--likelihood",
+                type=click.Choice(["normal", "student-t"]),
+                default="normal",
+                show_default=True,
+                help=likelihood_help,
+            ),
+            click.option(
+                "--nu",
+                default="auto",
+                show_default=True,
+                metavar="VALUE|auto",
+                help=nu_help,
+            ),
+        ]
+        for opt in reversed(opts):
+            func = opt(func)
+        return func
+
+    return deco

@@ -1,5 +1,8 @@
 """Threads and per-chain random generators: the one copy every sampler uses.
 
+:func:`run_chains` runs one closure per chain on its own generator; :func:`run_threads`
+runs a list of callables (row blocks of a compiled kernel).
+
 Chains and row blocks run in plain threads because the compiled kernels release the GIL;
 each chain draws from its own generator spawned from the caller's seed, so the draws do
 not depend on the number of threads.
@@ -10,10 +13,13 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 import numpy as np
 
-__all__ = ["chain_generators", "num_threads", "run_threads"]
+T = TypeVar("T")
+
+__all__ = ["chain_generators", "num_threads", "run_chains", "run_threads"]
 
 
 def num_threads() -> int:
@@ -66,3 +72,48 @@ def chain_generators(
         return list(rng.spawn(chains))
     seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
     return [np.random.default_rng(s) for s in seq.spawn(chains)]
+
+
+def run_chains(
+    chain: Callable[[int, np.random.Generator], T],
+    generators: Sequence[np.random.Generator],
+    *,
+    workers: int | None = None,
+) -> list[T]:
+    """Run ``chain(i, generators[i])`` for every chain, in up to ``workers`` threads.
+
+    The one chain runner of every sampler. Each chain draws only from its own generator,
+    so the results do not depend on the number of threads. Threads are plain (joined
+    before returning, none left running at exit); chain ``i`` runs in thread
+    ``i % workers``, the first in the caller's thread.
+
+    Parameters
+    ----------
+    chain : callable
+        ``chain(index, rng) -> result``.
+    generators : sequence of Generator
+        One per chain (:func:`chain_generators`).
+    workers : int, optional
+        Threads; default ``min(chains, num_threads())``. 1 runs every chain here.
+
+    Returns
+    -------
+    list
+        The results, in chain order.
+    """
+    n = len(generators)
+    workers = min(n, num_threads()) if workers is None else max(1, min(int(workers), n))
+    out: list = [None] * n
+
+    def lane(k: int) -> Callable[[], None]:
+        def run() -> None:
+            for i in range(k, n, workers):
+                out[i] = chain(i, generators[i])
+
+        return run
+
+    if workers <= 1:
+        lane(0)()
+    else:
+        run_threads([lane(k) for k in range(workers)])
+    return out
