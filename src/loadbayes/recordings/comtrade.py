@@ -18,10 +18,28 @@ So the ``.cfg`` is parsed first, line by line, with every field checked
 reads it. Any problem is a
 :class:`~loadbayes.io.errors.DataError` naming the file and the line (``.cfg``), line
 (ASCII ``.dat``) or record (binary ``.dat``). Units ``V``/``kV``/``A``/``kA`` (and
-``mV``, ``MV``, ``mA``) are converted to volts and amperes. Per-channel time skews
-(microseconds) are not applied: at 1 us they turn a 50 Hz phasor by 0.02 degrees.
-Records with several sampling rates or time stamps only are returned as sampled, marked
-not uniform, for :func:`~loadbayes.recordings.phasors.to_cycle_grid` to resample.
+``mV``, ``MV``, ``mA``) are converted to volts and amperes.
+
+What a real recorder file adds, and how it is read:
+
+- **Text encoding**: the ``.cfg`` is decoded as given (``encoding=``) or detected
+  (UTF-8, GB18030 when the text holds CJK characters, else Latin-1).
+- **Channels** are chosen by name, by 1-based number, or by bay (``bay=``: the three
+  phase channels whose bay field ``ccbm`` or name holds the text). A bay without voltage
+  channels (a transformer's currents) takes the first three-phase voltage of the file,
+  the bus's, and says so in ``Waveforms.channels``.
+- **Several sample rates** (the ``.cfg``'s rate table): each run of samples is a
+  :class:`Segment`, ``"waveform"`` when it holds 8 or more samples per nominal cycle,
+  ``"amplitude"`` otherwise (a recorder's slow segments hold one magnitude per phase and
+  cycle, not waveform samples: :mod:`~loadbayes.recordings.record` keeps them as
+  magnitudes and invents no P or Q from them).
+- **Time**: the ``.dat`` time stamps (times ``timemult``) are used when they increase
+  strictly; the rate table's nominal times otherwise. The stamps are the recorder's
+  clock for each sample, and frequency-tracking recorders sample a fixed number of times
+  per *actual* cycle, which the nominal rate table cannot say; the largest difference
+  between the two is kept in ``Waveforms.clock_note``.
+- **Per-channel skews** (microseconds) are returned in ``Waveforms.skew_s`` and applied
+  by the phasor estimator (a skew of s seconds turns a phasor by 2 pi f0 s).
 """
 
 from __future__ import annotations
@@ -36,11 +54,35 @@ import numpy as np
 from loadbayes.io.errors import DataError
 from loadbayes.recordings.comtrade_cfg import AnalogChannel, CfgInfo, parse_cfg
 
-__all__ = ["AnalogChannel", "CfgInfo", "Waveforms", "parse_cfg", "read_comtrade"]
+__all__ = ["AnalogChannel", "CfgInfo", "Segment", "Waveforms", "parse_cfg", "read_comtrade"]
+
+#: Fewest samples per nominal cycle for a segment to be read as waveform samples.
+MIN_WAVEFORM_PER_CYCLE = 8
 
 _UNIT_SCALE = {"V": 1.0, "kV": 1e3, "KV": 1e3, "MV": 1e6, "mV": 1e-3,
                "A": 1.0, "kA": 1e3, "KA": 1e3, "mA": 1e-3}  # fmt: skip
 _PHASES = (("A", "B", "C"), ("R", "S", "T"), ("L1", "L2", "L3"), ("1", "2", "3"))
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One run of samples at one rate of the ``.cfg``'s rate table.
+
+    Parameters
+    ----------
+    start, stop : int
+        Sample indices ``[start, stop)`` (0-based) of the record.
+    rate_hz : float
+        The rate table's rate (Hz; 0 when the file has time stamps only).
+    kind : {"waveform", "amplitude"}
+        Waveform samples (8 or more per nominal cycle), or one magnitude per phase and
+        cycle (a recorder's slow segment).
+    """
+
+    start: int
+    stop: int
+    rate_hz: float
+    kind: str
 
 
 @dataclass(frozen=True)
@@ -65,6 +107,16 @@ class Waveforms:
         Whether the samples are evenly spaced at ``rate_hz`` (records with several
         rates, or time stamps only, are not: resample them with
         :func:`loadbayes.recordings.phasors.to_cycle_grid`).
+    segments : tuple of Segment
+        The runs of samples at one rate (one segment for a one-rate file).
+    skew_s : numpy.ndarray or None
+        Per-channel time skews (s), shape (2, 3): voltages, currents.
+    station, trigger, encoding : str
+        Station name, trigger time stamp and the ``.cfg``'s text encoding.
+    clock_note : str
+        Which times were used (time stamps or rate table) and how far they disagree.
+    choice : str
+        How the channels were chosen (named, by bay, found by unit and phase).
     """
 
     t_s: np.ndarray
@@ -75,6 +127,13 @@ class Waveforms:
     start: str
     channels: dict[str, str]
     uniform: bool = True
+    segments: tuple[Segment, ...] = ()
+    skew_s: np.ndarray | None = None
+    station: str = ""
+    trigger: str = ""
+    encoding: str = ""
+    clock_note: str = ""
+    choice: str = ""
 
 
 # ----------------------------------------------------------------------- the .dat
@@ -181,34 +240,87 @@ def _phase_key(ch: AnalogChannel) -> str | None:
     return None
 
 
-def _pick(info: CfgInfo, names: list[str] | None, kind: str) -> list[AnalogChannel]:
-    by_name = {ch.name: ch for ch in info.analog}
+def _by_spec(info: CfgInfo, spec: str, kind: str) -> AnalogChannel:
+    """A channel by name (``ch_id``) or by its 1-based number."""
+    for ch in info.analog:
+        if ch.name == spec:
+            return ch
+    if spec.strip().isdigit():
+        for ch in info.analog:
+            if ch.n == int(spec):
+                return ch
+        raise DataError(
+            f"no analog channel number {spec} (channels 1 to {len(info.analog)}; --{kind})",
+            info.path,
+        )
+    raise DataError(
+        f"no analog channel {spec!r} (channels: {', '.join(ch.name for ch in info.analog)})",
+        info.path,
+    )
+
+
+def _trios(chans: list[AnalogChannel]) -> list[list[AnalogChannel]]:
+    """Three-phase sets, in file order: per bay (``ccbm``) a, b, c channels."""
+    groups: dict[str, dict[str, AnalogChannel]] = {}
+    for ch in chans:
+        key = _phase_key(ch)
+        if key is not None:
+            groups.setdefault(ch.ccbm.strip(), {}).setdefault(key, ch)
+    out = [[g["a"], g["b"], g["c"]] for g in groups.values() if len(g) == 3]
+    if not out:  # no bay fields: the first a, b, c of the file
+        found: dict[str, AnalogChannel] = {}
+        for ch in chans:
+            key = _phase_key(ch)
+            if key is not None and key not in found:
+                found[key] = ch
+        if len(found) == 3:
+            out = [[found["a"], found["b"], found["c"]]]
+    return out
+
+
+def _bays(info: CfgInfo) -> list[str]:
+    return list(dict.fromkeys(ch.ccbm.strip() for ch in info.analog if ch.ccbm.strip()))
+
+
+def _pick(
+    info: CfgInfo, names: list[str] | None, kind: str, bay: str | None = None
+) -> tuple[list[AnalogChannel], str]:
+    """Three phase channels and how they were chosen."""
     if names is not None:
         if len(names) != 3:
             raise DataError(f"--{kind} takes three channel names, got {len(names)}", info.path)
-        out = []
-        for nm in names:
-            if nm not in by_name:
-                raise DataError(
-                    f"no analog channel {nm!r} (channels: {', '.join(by_name)})", info.path
-                )
-            out.append(by_name[nm])
-        return out
+        return [_by_spec(info, nm, kind) for nm in names], "named"
     base = "V" if kind == "voltage" else "A"
     cands = [ch for ch in info.analog if ch.unit.strip().upper().endswith(base)]
     cands = [ch for ch in cands if _unit_factor(ch.unit) is not None]
-    found: dict[str, AnalogChannel] = {}
-    for ch in cands:
-        key = _phase_key(ch)
-        if key is not None and key not in found:
-            found[key] = ch
-    if len(found) != 3:
+    how = "found by unit and phase"
+    if bay is not None:
+        in_bay = [ch for ch in cands if bay.lower() in (ch.ccbm + " " + ch.name).lower()]
+        if in_bay:
+            cands, how = in_bay, f"bay {bay!r}"
+        elif kind == "current":
+            raise DataError(
+                f"bay {bay!r} has no current channels (bays: {', '.join(_bays(info))})",
+                info.path,
+            )
+        else:
+            how = f"bay {bay!r} has no voltage channels: the first three-phase voltage"
+    trios = _trios(cands)
+    if not trios:
         raise DataError(
             f"cannot tell which three channels are the phase {kind}s; name them with "
-            f"--{kind} A,B,C (analog channels: {', '.join(by_name)})",
+            f"--{kind} A,B,C (names or 1-based numbers; analog channels: "
+            f"{', '.join(ch.name for ch in info.analog)})",
             info.path,
         )
-    return [found["a"], found["b"], found["c"]]
+    if kind == "current" and bay is None and len(trios) > 1:
+        raise DataError(
+            f"{len(trios)} three-phase current sets ("
+            + "; ".join(t[0].ccbm.strip() or t[0].name for t in trios)
+            + "): choose one with --bay TEXT or --current A,B,C",
+            info.path,
+        )
+    return trios[0], how
 
 
 def _unit_factor(unit: str) -> float | None:
@@ -236,12 +348,79 @@ def _scale(ch: AnalogChannel, values: np.ndarray, side: str, path: str) -> np.nd
     return values * factor
 
 
+def _stamps(info: CfgInfo, dat: Path) -> np.ndarray | None:
+    """The ``.dat``'s own time stamps (s), or None where they are missing."""
+    n = info.n_samples
+    if info.format == "ASCII":
+        try:
+            cells = [ln.split(b",", 2)[1] for ln in dat.read_bytes().splitlines()[:n]]
+            if any(not c.strip() for c in cells):
+                return None
+            stamps = np.array([float(c) for c in cells])
+        except (IndexError, ValueError):
+            return None
+    else:
+        rec = np.frombuffer(dat.read_bytes(), dtype=np.uint8, count=n * info.record_bytes)
+        stamps = rec.reshape(n, info.record_bytes)[:, 4:8].copy().view("<u4").ravel()
+        if np.any(stamps == 0xFFFFFFFF):
+            return None
+        stamps = stamps.astype(float)
+    return stamps * info.timemult * 1e-6
+
+
+def _times(info: CfgInfo, dat: Path, table: np.ndarray) -> tuple[np.ndarray, str]:
+    """Sample times: the time stamps when they increase and differ from the rate table by
+    more than their resolution and less than 5% of the record's length; else the table
+    (exact, where the stamps are rounded to whole units). See the module docstring.
+    """
+    stamps = _stamps(info, dat)
+    if stamps is None:
+        return table, "times from the rate table (the .dat has no time stamps)"
+    stamps = stamps - stamps[0]
+    if not np.all(np.diff(stamps) > 0):
+        return table, "times from the rate table (the .dat's time stamps do not increase)"
+    has_table = all(r > 0 for r, _ in info.rates)
+    if not has_table:
+        return stamps, "times from the .dat's time stamps (no rate table)"
+    gap = float(np.max(np.abs(stamps - (table - table[0]))))
+    span = float(table[-1] - table[0]) or 1.0
+    if gap <= 1.01e-6 * info.timemult:  # agree to the stamps' resolution: the table is exact
+        return table, "times from the rate table (the time stamps agree to their resolution)"
+    if gap > 0.05 * span:
+        return table, (
+            f"times from the rate table (the .dat's time stamps differ by up to {gap:.4g} s)"
+        )
+    return stamps, (
+        f"times from the .dat's time stamps (the recorder's clock; they differ from the "
+        f"nominal rate table by up to {gap * 1e3:.3g} ms)"
+    )
+
+
+def _segments(info: CfgInfo, t: np.ndarray) -> tuple[Segment, ...]:
+    out, start = [], 0
+    for rate, end in info.rates:
+        stop = min(end, t.size)
+        if stop <= start:
+            continue
+        if rate > 0:
+            per_cycle = rate / info.f_nominal
+        else:
+            span = np.diff(t[start:stop])
+            per_cycle = 1.0 / (float(np.median(span)) * info.f_nominal) if span.size else 0.0
+        kind = "waveform" if per_cycle >= MIN_WAVEFORM_PER_CYCLE - 1e-9 else "amplitude"
+        out.append(Segment(start, stop, float(rate), kind))
+        start = stop
+    return tuple(out)
+
+
 def read_comtrade(
     cfg_path: str | os.PathLike[str],
     *,
     voltage: list[str] | None = None,
     current: list[str] | None = None,
+    bay: str | None = None,
     side: str = "primary",
+    encoding: str | None = None,
 ) -> Waveforms:
     """Read three-phase voltages and currents from a COMTRADE record.
 
@@ -250,17 +429,23 @@ def read_comtrade(
     cfg_path : str or os.PathLike
         The ``.cfg``; the ``.dat`` beside it has the same stem.
     voltage, current : list of str, optional
-        Names (``ch_id``) of the phase a, b, c channels. By default they are found from
-        the unit (V or A, with a k/M/m prefix) and the phase field or name suffix
-        (A/B/C, R/S/T, L1/L2/L3).
+        Names (``ch_id``) or 1-based numbers of the phase a, b, c channels. By default
+        they are found from the unit (V or A, with a k/M/m prefix) and the phase field or
+        name suffix (A/B/C, R/S/T, L1/L2/L3); several current sets need ``bay``.
+    bay : str, optional
+        Take the three phase channels of the bay whose ``ccbm`` field or channel name
+        holds this text; a bay without voltages takes the first three-phase voltage.
     side : {"primary", "secondary"}
         Scale the values to the transformer's primary or secondary side with the
         ``.cfg``'s ratio (1999 and later).
+    encoding : str, optional
+        The ``.cfg``'s text encoding; detected by default.
 
     Returns
     -------
     Waveforms
-        Times and phase waveforms (V, A), as sampled (see ``Waveforms.uniform``).
+        Times and phase waveforms (V, A), as sampled (see ``Waveforms.uniform`` and
+        ``Waveforms.segments``).
 
     Raises
     ------
@@ -271,19 +456,22 @@ def read_comtrade(
     if side not in ("primary", "secondary"):
         raise ValueError(f"side must be 'primary' or 'secondary', not {side!r}")
     cfg = Path(cfg_path)
-    info = parse_cfg(cfg)
+    info = parse_cfg(cfg, encoding=encoding)
     dat = _find_dat(cfg)
     if dat is None:
         raise DataError(f"data file {cfg.with_suffix('.dat').name} not found beside it", info.path)
     _check_dat(info, dat)
-    vch = _pick(info, voltage, "voltage")
-    ich = _pick(info, current, "current")
+    vch, vhow = _pick(info, voltage, "voltage", bay)
+    ich, ihow = _pick(info, current, "current", bay)
     t, analog = _load_samples(info, cfg, dat)
     t = t[: info.n_samples]
     dt = np.diff(t)
     if dt.size == 0 or not np.all(dt > 0):
         k = int(np.argmax(dt <= 0)) if dt.size else 0
         raise DataError(f"sample {k + 2}: sample times are not increasing", str(dat))
+    t, clock = _times(info, dat, t)
+    dt = np.diff(t)
+    segments = _segments(info, t)
     # One rate: the .cfg's rate is exact (the times are rounded to the time base).
     # Several rates, or time stamps only (rate 0): sampled unevenly, resampled later.
     one_rate = len(info.rates) == 1 and info.rates[0][0] > 0
@@ -314,4 +502,11 @@ def read_comtrade(
         uniform=uniform,
         start=info.start,
         channels=names,
+        segments=segments,
+        skew_s=np.array([[ch.skew * 1e-6 for ch in vch], [ch.skew * 1e-6 for ch in ich]]),
+        station=info.station,
+        trigger=info.trigger,
+        encoding=info.encoding,
+        clock_note=clock,
+        choice=f"voltages: {vhow}; currents: {ihow}",
     )

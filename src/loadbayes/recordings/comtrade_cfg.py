@@ -15,7 +15,7 @@ from pathlib import Path
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["FORMATS", "REVISIONS", "AnalogChannel", "CfgInfo", "parse_cfg"]
+__all__ = ["ENCODINGS", "FORMATS", "REVISIONS", "AnalogChannel", "CfgInfo", "parse_cfg"]
 
 REVISIONS = ("1991", "1999", "2001", "2013")
 FORMATS = {"ASCII": 0, "BINARY": 2, "BINARY32": 4, "FLOAT32": 4}  # bytes per analog value
@@ -39,6 +39,8 @@ class AnalogChannel:
         ``"P"`` if ``a, b`` give primary values, ``"S"`` if secondary.
     line : int
         Line of the ``.cfg`` (1-based), for error messages.
+    ccbm : str
+        The circuit component being monitored (the bay, e.g. a transformer's breaker).
     """
 
     n: int
@@ -52,6 +54,7 @@ class AnalogChannel:
     secondary: float
     pors: str
     line: int
+    ccbm: str = ""
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,10 @@ class CfgInfo:
     text : str
         The ``.cfg`` as checked, time stamps normalised (a missing fraction of a second
         written as ``.0``), for the ``comtrade`` package to read.
+    trigger : str
+        Trigger time stamp as written.
+    encoding : str
+        The text encoding the ``.cfg`` was read with (given, or detected).
     """
 
     path: str
@@ -101,6 +108,8 @@ class CfgInfo:
     start: str
     lines: dict[str, int] = field(default_factory=dict)
     text: str = ""
+    trigger: str = ""
+    encoding: str = ""
 
     @property
     def n_samples(self) -> int:
@@ -166,20 +175,54 @@ def _stamp(cells: list[str], line: int, path: str) -> str:
     return f"{date},{time}"
 
 
-def _decode(raw: bytes) -> str:
+#: Encodings tried in turn when none is given: UTF-8 (with or without a BOM), then the
+#: Chinese national standard GB18030 (a superset of GBK and GB2312, what State Grid
+#: recorders write), kept only when the text holds CJK characters, then Latin-1, which
+#: decodes any byte (Western recorders' Windows code pages).
+ENCODINGS = ("utf-8-sig", "gb18030", "latin-1")
+
+
+def _has_cjk(text: str) -> bool:
+    return any("\u4e00" <= ch <= "\u9fff" or "\u3000" <= ch <= "\u303f" for ch in text)
+
+
+def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
+    """The text and the encoding it was read with (``encoding``, or detected)."""
+    if encoding is not None:
+        try:
+            return raw.decode(encoding), encoding
+        except LookupError:
+            raise DataError(f"unknown text encoding {encoding!r}", path) from None
+        except UnicodeDecodeError as exc:
+            line = raw[: exc.start].count(b"\n") + 1
+            raise DataError(
+                f"line {line}: not {encoding} text (byte {exc.start + 1}); give another "
+                "--encoding or none to detect it",
+                path,
+            ) from None
     try:
-        return raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig"), "utf-8"
     except UnicodeDecodeError:
-        return raw.decode("latin-1")  # older recorders write Windows code pages
+        pass
+    try:
+        text = raw.decode("gb18030")
+        if _has_cjk(text):
+            return text, "gb18030"
+    except UnicodeDecodeError:
+        pass
+    return raw.decode("latin-1"), "latin-1"
 
 
-def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
+def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> CfgInfo:
     """Parse and check a COMTRADE ``.cfg`` file, field by field.
 
     Parameters
     ----------
     path : str or os.PathLike
         The ``.cfg`` file.
+    encoding : str, optional
+        Its text encoding (any Python codec name: ``"gb18030"``, ``"utf-8"``,
+        ``"latin-1"``, ...); by default detected (:data:`ENCODINGS`).
 
     Returns
     -------
@@ -198,7 +241,7 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
         raise DataError("file not found" if not p.exists() else "not a file", name)
     if p.suffix.lower() != ".cfg":
         raise DataError("expected a COMTRADE .cfg file", name)
-    text = _decode(p.read_bytes())
+    text, used = _decode(p.read_bytes(), encoding, name)
     if "\0" in text:
         raise DataError("line 1: NUL bytes: a binary file, not a .cfg?", name)
     rd = _Lines(text, name)
@@ -266,7 +309,9 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
             if primary <= 0 or secondary <= 0:
                 raise DataError(f"line {ln}: primary and secondary must be > 0", name)
         analog.append(
-            AnalogChannel(int(f[0]), f[1], f[2], f[4], a, b, skew, primary, secondary, pors, ln)
+            AnalogChannel(
+                int(f[0]), f[1], f[2], f[4], a, b, skew, primary, secondary, pors, ln, f[3]
+            )
         )
     for k in range(n_d):
         f, ln = rd.next(f"status channel {k + 1} of {n_d}")
@@ -339,4 +384,6 @@ def parse_cfg(path: str | os.PathLike[str]) -> CfgInfo:
         start=",".join(start_cells),
         lines={"counts": ln_counts, "rates": ln_rates, "format": ln_ft},
         text="\n".join(rd.lines) + "\n",
+        trigger=",".join(trig_cells),
+        encoding=used,
     )

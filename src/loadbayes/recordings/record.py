@@ -1,0 +1,232 @@
+"""A disturbance record as a table: sequence phasors, positive-sequence power, magnitudes.
+
+One row per phasor estimate of a waveform segment, and one row per sample of an
+amplitude segment (a recorder's slow run that holds one magnitude per phase and cycle).
+
+Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fit.fit_phasors`:
+
+- ``v``, ``angle_rad``: the positive-sequence voltage ``V1 = (Va + a Vb + a^2 Vc) / 3``,
+  per unit of the phase base, and its angle in the frame rotating at the nominal
+  frequency;
+- ``p``, ``q``: the positive-sequence power ``3 V1 conj(I1)``, per unit of the 3-phase
+  base. This is what the composite fit takes: its model is a positive-sequence model;
+- ``p_total``, ``q_total``: the three-phase power ``sum_k Vk conj(Ik)`` (what the load
+  draws in all sequences); it differs from ``p, q`` by ``3 (V2 conj(I2) + V0 conj(I0))``;
+- ``v2``: the negative-sequence share ``|V2| / |V1|`` of the voltage; ``unbalanced`` is
+  true where it exceeds :data:`UNBALANCE_LIMIT`: there the negative-sequence power, which
+  the positive-sequence model does not describe, is part of what the load draws;
+- ``f``: frequency (Hz) from the turn of ``V1`` between neighbouring estimates;
+- ``residual``: the worst voltage channel's relative misfit in the window; ``straddle``
+  is true where it exceeds :data:`STRADDLE_LIMIT` (a window across a step, which no
+  phasor describes);
+- ``va, vb, vc, ia, ib, ic``: per-phase RMS magnitudes (per unit).
+
+Amplitude rows (``kind = "amplitude"``) hold only ``va .. ic`` (RMS, per unit; whether
+the recorder wrote peak or RMS values is decided by comparing the first amplitude sample
+with the neighbouring waveform window, and said in the metadata). No phasor, P or Q is
+invented for them: those columns are NaN.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from loadbayes.recordings.comtrade import Waveforms
+from loadbayes.recordings.phasor_fit import fit_phasors
+
+__all__ = ["STRADDLE_LIMIT", "UNBALANCE_LIMIT", "RecordTable", "record_table"]
+
+#: Negative-sequence voltage share above which a sample is flagged ``unbalanced``.
+UNBALANCE_LIMIT = 0.05
+#: Relative misfit of a window above which it is flagged as straddling a step.
+STRADDLE_LIMIT = 0.02
+
+_A = np.exp(2j * np.pi / 3)
+COLUMNS = (
+    "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
+    "unbalanced", "residual", "straddle", "va", "vb", "vc", "ia", "ib", "ic",
+    "segment", "kind",
+)  # fmt: skip
+
+
+@dataclass
+class RecordTable:
+    """The table (a dict of equal-length arrays) and what was decided reading it."""
+
+    columns: dict[str, np.ndarray]
+    v_base_kv: float
+    s_base_mva: float
+    notes: list[str] = field(default_factory=list)
+    amplitude: str = ""
+
+    @property
+    def rows(self) -> int:
+        """Rows of the table."""
+        return int(self.columns["t_s"].size)
+
+
+def _sequences(ph: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zero, positive and negative sequence of phases (3, m)."""
+    zero = ph.sum(axis=0) / 3.0
+    pos = (ph[0] + _A * ph[1] + _A**2 * ph[2]) / 3.0
+    neg = (ph[0] + _A**2 * ph[1] + _A * ph[2]) / 3.0
+    return zero, pos, neg
+
+
+def _empty(m: int) -> dict[str, np.ndarray]:
+    out = {c: np.full(m, np.nan) for c in COLUMNS}
+    out["unbalanced"] = np.zeros(m, dtype=bool)
+    out["straddle"] = np.zeros(m, dtype=bool)
+    out["segment"] = np.zeros(m, dtype=np.int64)
+    out["kind"] = np.full(m, "phasor", dtype=object)
+    return out
+
+
+def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: bool) -> dict[str, np.ndarray]:
+    sl = slice(seg.start, seg.stop)
+    skew = None if w.skew_s is None else np.concatenate([w.skew_s[0], w.skew_s[1]])
+    fit = fit_phasors(
+        w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
+        per_cycle=per_cycle, dc=dc, skew_s=skew,
+    )  # fmt: skip
+    vph, iph = fit.x[:3], fit.x[3:]
+    _, v1, v2 = _sequences(vph)
+    _, i1, i2 = _sequences(iph)
+    m = fit.t_s.size
+    out = _empty(m)
+    s1 = 3.0 * v1 * np.conj(i1)
+    st = np.sum(vph * np.conj(iph), axis=0)
+    turn = np.angle(v1[1:] * np.conj(v1[:-1])) / (2 * np.pi * np.diff(fit.t_s)) if m > 1 else []
+    f = w.f_nominal + np.concatenate([turn[:1], turn]) if m > 1 else np.full(m, fit.f_hz)
+    if m > 2:
+        f[1:-1] = 0.5 * (f[1:-1] + f[2:])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out.update(
+            t_s=fit.t_s, v=np.abs(v1), angle_rad=np.angle(v1), p=s1.real, q=s1.imag, f=f,
+            p_total=st.real, q_total=st.imag, v2=np.abs(v2) / np.abs(v1),
+            i2=np.abs(i2) / np.abs(i1), residual=fit.residual[:3].max(axis=0),
+            va=np.abs(vph[0]), vb=np.abs(vph[1]), vc=np.abs(vph[2]),
+            ia=np.abs(iph[0]), ib=np.abs(iph[1]), ic=np.abs(iph[2]),
+        )  # fmt: skip
+    out["angle_rad"] = np.unwrap(out["angle_rad"])
+    return out
+
+
+def _amplitude_rows(w: Waveforms, seg, scale: float) -> dict[str, np.ndarray]:
+    sl = slice(seg.start, seg.stop)
+    m = seg.stop - seg.start
+    out = _empty(m)
+    out["t_s"] = w.t_s[sl]
+    out["kind"] = np.full(m, "amplitude", dtype=object)
+    for k, ph in enumerate("abc"):
+        out[f"v{ph}"] = np.abs(w.v[k, sl]) / scale
+        out[f"i{ph}"] = np.abs(w.i[k, sl]) / scale
+    return out
+
+
+def _amplitude_scale(w: Waveforms, parts: list[tuple]) -> tuple[float, str]:
+    """Whether amplitude samples are peak (divide by sqrt 2) or RMS values: the amplitude
+    sample next to a waveform segment against that segment's nearest phasor.
+    """
+    for k, (seg, _) in enumerate(parts):
+        if seg.kind != "amplitude":
+            continue
+        if k > 0 and parts[k - 1][0].kind == "waveform":
+            rows, j, sample = parts[k - 1][1], -1, seg.start
+        elif k + 1 < len(parts) and parts[k + 1][0].kind == "waveform":
+            rows, j, sample = parts[k + 1][1], 0, seg.stop - 1
+        else:
+            continue
+        rms = float(np.mean([rows[c][j] for c in ("va", "vb", "vc")]))
+        ratio = float(np.mean(np.abs(w.v[:, sample]))) / rms
+        said = f"(amplitude sample / RMS of the neighbouring waveform cycle = {ratio:.3f})"
+        if abs(ratio - math.sqrt(2)) < 0.1:
+            return math.sqrt(2), f"amplitude segments hold peak values {said}: divided by sqrt 2"
+        if abs(ratio - 1.0) < 0.1:
+            return 1.0, f"amplitude segments hold RMS values {said}"
+        return math.sqrt(2), f"amplitude segments: peak or RMS cannot be told {said}; read as peak"
+    return math.sqrt(2), "amplitude segments read as peak values (no waveform beside them)"
+
+
+def record_table(
+    w: Waveforms,
+    *,
+    per_cycle: int = 1,
+    dc: bool = True,
+    v_base_kv: float | None = None,
+    s_base_mva: float | None = None,
+) -> RecordTable:
+    """The record's table: phasor rows of its waveform segments, magnitude rows of the rest.
+
+    Parameters
+    ----------
+    w : Waveforms
+        From :func:`~loadbayes.recordings.comtrade.read_comtrade`.
+    per_cycle : int, default 1
+        Phasor estimates per nominal cycle in waveform segments.
+    dc : bool, default True
+        Remove the decaying DC offset in each window (see
+        :mod:`~loadbayes.recordings.phasor_fit`).
+    v_base_kv, s_base_mva : float, optional
+        Line-to-line voltage base (kV) and three-phase power base (MVA); by default the
+        first phasor row's ``sqrt(3) |V1|`` and ``|S1|``.
+
+    Returns
+    -------
+    RecordTable
+
+    Raises
+    ------
+    ValueError
+        If the record has no waveform segment, or the first row has no voltage or power
+        and no base is given.
+    """
+    segs = w.segments or ()
+    if not segs:
+        from loadbayes.recordings.comtrade import Segment
+
+        segs = (Segment(0, w.t_s.size, w.rate_hz, "waveform"),)
+    if not any(s.kind == "waveform" for s in segs):
+        raise ValueError("the record has no waveform segment (only magnitudes): no phasors")
+    parts = [
+        (seg, _waveform_rows(w, seg, per_cycle, dc) if seg.kind == "waveform" else None)
+        for seg in segs
+    ]
+    notes = [w.clock_note] if w.clock_note else []
+    scale, amp_note = 1.0, ""
+    if any(s.kind == "amplitude" for s in segs):
+        scale, amp_note = _amplitude_scale(w, parts)
+        notes.append(amp_note)
+    parts = [(s, r if r is not None else _amplitude_rows(w, s, scale)) for s, r in parts]
+    first = next(r for s, r in parts if s.kind == "waveform")
+    vb = v_base_kv * 1e3 / math.sqrt(3) if v_base_kv else float(first["v"][0])
+    sb = s_base_mva * 1e6 if s_base_mva else float(np.hypot(first["p"][0], first["q"][0]))
+    if not (vb > 0 and sb > 0 and math.isfinite(vb) and math.isfinite(sb)):
+        raise ValueError("the first cycle has no voltage or power: give the bases")
+    ib = sb / (3.0 * vb)
+    cols: dict[str, list] = {c: [] for c in COLUMNS}
+    for k, (_, rows) in enumerate(parts):
+        rows = dict(rows)
+        rows["segment"] = np.full(rows["t_s"].size, k, dtype=np.int64)
+        for c in ("v", "va", "vb", "vc"):
+            rows[c] = rows[c] / vb
+        for c in ("ia", "ib", "ic"):
+            rows[c] = rows[c] / ib
+        for c in ("p", "q", "p_total", "q_total"):
+            rows[c] = rows[c] / sb
+        rows["unbalanced"] = np.nan_to_num(rows["v2"], nan=0.0) > UNBALANCE_LIMIT
+        rows["straddle"] = np.nan_to_num(rows["residual"], nan=0.0) > STRADDLE_LIMIT
+        for c in COLUMNS:
+            cols[c].append(rows[c])
+    table = {c: np.concatenate(v) for c, v in cols.items()}
+    n_unb = int(table["unbalanced"].sum())
+    if n_unb:
+        notes.append(
+            f"{n_unb} phasor rows have a negative-sequence voltage above "
+            f"{UNBALANCE_LIMIT:.0%} of the positive (column 'unbalanced'): an unbalanced "
+            "fault; p and q are positive-sequence power, p_total and q_total all sequences"
+        )
+    return RecordTable(table, vb * math.sqrt(3) / 1e3, sb / 1e6, notes, amp_note)
