@@ -19,7 +19,7 @@ pytest.importorskip("andes", reason="ANDES is in the optional 'andes' extra")
 import andes  # noqa: E402
 
 from loadbayes.cases.composite_reference import predict  # noqa: E402
-from loadbayes.export import andes as export  # noqa: E402
+from loadbayes.export.andes import writer as export  # noqa: E402
 from loadbayes.export.andes.conventions import andes_quiet  # noqa: E402
 from loadbayes.export.andes.run import run_tds  # noqa: E402
 from loadbayes.models.motor_library import MOTORS  # noqa: E402
