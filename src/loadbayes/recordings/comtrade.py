@@ -369,9 +369,11 @@ def _stamps(info: CfgInfo, dat: Path) -> np.ndarray | None:
 
 
 def _times(info: CfgInfo, dat: Path, table: np.ndarray) -> tuple[np.ndarray, str]:
-    """Sample times: the time stamps when they increase and differ from the rate table by
-    more than their resolution and less than 5% of the record's length; else the table
-    (exact, where the stamps are rounded to whole units). See the module docstring.
+    """Sample times, and which were used.
+
+    The time stamps when they increase and differ from the rate table by more than their
+    resolution and less than 5% of the record's length; else the table (exact, where the
+    stamps are rounded to whole units). See the module docstring.
     """
     stamps = _stamps(info, dat)
     if stamps is None:

@@ -10,17 +10,33 @@ Method. In each window of one nominal cycle ``T = 1 / f0``, centred at ``c``, ev
 channel is fitted by least squares with::
 
     x(t) = sqrt(2) Re{X exp(j (w0 c + w (t - c)))}          fundamental at w = 2 pi f
-         + d0 + d1 u + d2 u^2,  u = (t - c) / T             offset and its decay
-         + sum_h (a_h cos(h w t) + b_h sin(h w t)),  h = 2..H   harmonics
+         + d0 + sum_h (a_h cos(h w t) + b_h sin(h w t)),  h = 2..H   offset, harmonics
 
-``X`` is then the RMS phasor at the window's centre in the frame that rotates at the
-nominal frequency (the angle convention of the composite fit's ``angle_rad``), at any
-sample times (non-uniform stamps need no resampling). The quadratic in ``u`` takes a
-decaying exponential to within ``(T/tau)^3 / 48`` of its size over the window
-(tau = 20 ms: 2%, 50 ms: 0.1% of the offset); the harmonic columns (up to the 7th, fewer
-when the window holds few samples) keep harmonics out of the DC terms. ``w`` is the
-segment's frequency, the median of a first pass at ``f0``, so an off-nominal system
-(59.98 Hz) does not turn every phasor by ``2 pi (f - f0) t``.
+``X`` is the RMS phasor at the window's centre in the frame that rotates at the nominal
+frequency (the angle convention of the composite fit's ``angle_rad``), at any sample
+times (non-uniform stamps need no resampling). On whole cycles of evenly spaced samples
+at ``f0`` this is the one-cycle DFT exactly (the offset and the harmonics are orthogonal
+to the fundamental). ``w`` is the segment's frequency, the median of a first pass at
+``f0``, so an off-nominal system (59.98 Hz) does not turn every phasor by
+``2 pi (f - f0) t``.
+
+A decaying offset is not orthogonal to the fundamental over one cycle; nor, with
+harmonics present, can it be fitted there without a large cost: a ramp over one cycle is
+almost in the span of the harmonics' sines (its Fourier series), so decay columns in the
+window multiply the phasor's noise by 10-30 (measured: 1% white noise, 5% third and 3%
+fifth harmonic). The estimator therefore tests each channel's window for a decaying
+offset (an F-test of an offset ramp and curvature, false-alarm rate :data:`DECAY_ALPHA`)
+and, where one is found, takes the phasor of the *mimic-filtered* window instead
+(``y[n] = (1 + k) x[n] - k x[n-1]``, ``k = tau / dt``, tau one cycle by default; the
+filter's gain at the fundamental divided out). The filter removes an offset of time
+constant tau exactly and others mostly, and keeps the DFT's exact rejection of
+harmonics. Measured (64 samples per cycle, an 80% offset, 1% noise, with and without
+harmonics, window centred 1.5 cycles after the step): phasor error 0.004-0.006 for time
+constants of 20, 50 and 200 ms, against 0.016-0.042 for the plain DFT; in steady state
+the filter doubles the phasor's noise (0.0035 against 0.0018), which is why it is used
+only where the test finds an offset. The State Grid record's transformer currents are
+quantised to about 3% of their peak: the test leaves their steady-state windows to the
+DFT, and finds the offset after each fault.
 
 Windows advance by ``T / per_cycle``: with ``per_cycle > 1`` neighbouring estimates share
 samples, so their noise is correlated (two windows overlapping by a fraction ``r`` of a
@@ -42,6 +58,8 @@ __all__ = ["PhasorFit", "fit_phasors", "max_harmonic"]
 
 #: Highest harmonic modelled in a window (fewer when the window holds few samples).
 HARMONICS = 7
+#: False-alarm rate of the test that adds the decay columns to a channel's window.
+DECAY_ALPHA = 1e-3
 
 
 @dataclass(frozen=True)
@@ -58,12 +76,19 @@ class PhasorFit:
         Relative RMS misfit per channel and window, shape (channels, m).
     f_hz : float
         The frequency the fundamental was fitted at.
+    decay : numpy.ndarray
+        Where a decaying offset was found and the mimic filter used, shape (channels, m).
+    share : numpy.ndarray
+        The fundamental's share of the window's mean square, shape (channels, m): about 1
+        for a waveform, about 0 for samples that are not one (magnitudes).
     """
 
     t_s: np.ndarray
     x: np.ndarray
     residual: np.ndarray
     f_hz: float
+    decay: np.ndarray
+    share: np.ndarray
 
 
 def max_harmonic(samples: int) -> int:
@@ -79,34 +104,83 @@ def _centres(t: np.ndarray, period: float, per_cycle: int) -> np.ndarray:
     return first + hop * np.arange(int(np.floor((last - first) / hop + 1e-9)) + 1)
 
 
-def _one_pass(t, x, centres, period, w, w0, dc, skew):
+def _lstsq(a: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients (p, k) and residual sums of squares (k,) of y (m, k) on a (m, p)."""
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return coef, np.sum((y - a @ coef) ** 2, axis=0)
+
+
+def _mimic(t: np.ndarray, x: np.ndarray, tau: float, w0: float) -> tuple[np.ndarray, complex]:
+    """The mimic filter and its gain at the fundamental (divided out of the phasor).
+
+    ``y[n] = (1 + k) x[n] - k x[n-1]``, ``k = tau / dt``: a decaying offset of time
+    constant ``tau`` is removed exactly, others mostly.
+    """
+    dt = np.diff(t)
+    k = tau / dt
+    y = np.empty_like(x)
+    y[:, 1:] = (1.0 + k) * x[:, 1:] - k * x[:, :-1]
+    y[:, 0] = y[:, 1]
+    kd = tau / float(np.median(dt))
+    return y, complex((1.0 + kd) - kd * np.exp(-1j * w0 * float(np.median(dt))))
+
+
+def _one_pass(t, x, centres, period, w, w0, dc, skew, tau):
     k = x.shape[0]
     out = np.empty((k, centres.size), dtype=complex)
     res = np.empty((k, centres.size))
+    share = np.empty((k, centres.size))
+    decay = np.zeros((k, centres.size), dtype=bool)
     dt = np.median(np.diff(t))
+    if dc != "off":
+        y, gain = _mimic(t, x, tau, w)
     for j, c in enumerate(centres):
         lo = np.searchsorted(t, c - 0.5 * period - 1e-6 * dt)
         hi = np.searchsorted(t, c + 0.5 * period - 1e-6 * dt)
-        tt, xx = t[lo:hi], x[:, lo:hi]
+        tt, xx = t[lo:hi], x[:, lo:hi].T
         m = tt.size
         phase = w0 * c + w * (tt - c)
-        cols = [np.cos(phase), np.sin(phase)]
-        if dc:
-            u = (tt - c) / period
-            cols += [np.ones(m), u, u * u]
+        cols = [np.cos(phase), np.sin(phase), np.ones(m)]
         for h in range(2, max_harmonic(m) + 1):
             cols += [np.cos(h * w * tt), np.sin(h * w * tt)]
         a = np.column_stack(cols)
-        coef, *_ = np.linalg.lstsq(a, xx.T, rcond=None)
-        fit = a @ coef
-        rms = np.sqrt(np.mean(xx * xx, axis=1))
+        coef, rss = _lstsq(a, xx)
+        phasor = (coef[0] - 1j * coef[1]) / np.sqrt(2.0)
+        if dc != "off" and lo > 0:
+            u = (tt - c) / period
+            b = np.column_stack([a, u, u * u])
+            _, rss_b = _lstsq(b, xx)
+            dof = m - b.shape[1]
+            if dc == "on":
+                use = np.ones(k, dtype=bool)
+            elif dof < 1:
+                use = np.zeros(k, dtype=bool)
+            else:  # F-test of a decaying offset, false-alarm rate DECAY_ALPHA
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    f_stat = 0.5 * (rss - rss_b) / (rss_b / dof)
+                use = f_stat > _f_critical(dof)
+            if use.any():
+                coef_m, _ = _lstsq(a, y[:, lo:hi].T)
+                mimic = (coef_m[0] - 1j * coef_m[1]) / np.sqrt(2.0) / gain
+                phasor = np.where(use, mimic, phasor)
+                rss = np.where(use, np.minimum(rss, rss_b), rss)
+                decay[:, j] = use
         with np.errstate(invalid="ignore", divide="ignore"):
-            res[:, j] = np.sqrt(np.mean((xx - fit.T) ** 2, axis=1)) / rms
-        # x = sqrt(2) Re{X e^{j phase}} = sqrt(2) (Re X cos - Im X sin)
-        out[:, j] = (coef[0] - 1j * coef[1]) / np.sqrt(2.0)
+            res[:, j] = np.sqrt(rss / np.sum(xx * xx, axis=0))
+            share[:, j] = np.abs(phasor) ** 2 / np.mean(xx * xx, axis=0)
+        out[:, j] = phasor
     if skew is not None:
         out *= np.exp(-1j * w0 * np.asarray(skew, dtype=float))[:, None]
-    return out, np.nan_to_num(res, nan=0.0)
+    return out, np.nan_to_num(res, nan=0.0), decay, np.nan_to_num(share, nan=0.0)
+
+
+def _f_critical(dof: int) -> float:
+    """The F(2, dof) value exceeded with probability DECAY_ALPHA.
+
+    With two numerator degrees of freedom the survival function is closed-form,
+    ``P(F > x) = (1 + 2 x / dof)^(-dof / 2)``, so no statistics library is needed.
+    """
+    return 0.5 * dof * (DECAY_ALPHA ** (-2.0 / dof) - 1.0)
 
 
 def fit_phasors(
@@ -115,9 +189,10 @@ def fit_phasors(
     *,
     f0: float,
     per_cycle: int = 1,
-    dc: bool = True,
+    dc: str = "auto",
     skew_s: np.ndarray | None = None,
     reference: int = 0,
+    mimic_tau_s: float | None = None,
 ) -> PhasorFit:
     """RMS phasors of every channel over sliding one-cycle windows.
 
@@ -131,12 +206,17 @@ def fit_phasors(
         Nominal frequency (Hz).
     per_cycle : int, default 1
         Estimates per nominal cycle (windows advance by ``1 / (f0 per_cycle)``).
-    dc : bool, default True
-        Fit and remove an offset with a quadratic decay in each window.
+    dc : {"auto", "on", "off"}
+        The mimic filter against a decaying offset: where an F-test finds one (false-alarm
+        rate :data:`DECAY_ALPHA` per channel and window), in every window but a segment's
+        first, or never (a constant offset is always fitted: being orthogonal to the
+        fundamental over a whole cycle, it costs nothing).
     skew_s : numpy.ndarray, optional
         Per-channel time skews (s): channel k was sampled ``skew_s[k]`` after the stamp.
     reference : int, default 0
         Channel whose phasor's turn gives the segment's frequency.
+    mimic_tau_s : float, optional
+        Time constant of the mimic filter (s); one nominal cycle by default.
 
     Returns
     -------
@@ -161,7 +241,12 @@ def fit_phasors(
     if centres.size == 0:
         raise ValueError(f"the record is shorter than one {f0:g} Hz cycle")
     w0 = 2.0 * np.pi * f0
-    first, res_first = _one_pass(t, x, centres, period, w0, w0, dc, None)
+    if dc not in ("auto", "on", "off"):
+        raise ValueError(f"dc must be 'auto', 'on' or 'off', got {dc!r}")
+    tau = period if mimic_tau_s is None else float(mimic_tau_s)
+    first, res_first, dec_first, share_first = _one_pass(
+        t, x, centres, period, w0, w0, dc, None, tau
+    )
     w = w0
     if centres.size >= 3:
         turn = np.angle(first[reference, 1:] * np.conj(first[reference, :-1]))
@@ -170,6 +255,6 @@ def fit_phasors(
         if abs(f_med - f0) < 0.05 * f0:  # a plausible system frequency
             w = 2.0 * np.pi * f_med
     if w == w0 and skew_s is None:
-        return PhasorFit(centres, first, res_first, f0)
-    out, res = _one_pass(t, x, centres, period, w, w0, dc, skew_s)
-    return PhasorFit(centres, out, res, w / (2.0 * np.pi))
+        return PhasorFit(centres, first, res_first, f0, dec_first, share_first)
+    out, res, dec, share = _one_pass(t, x, centres, period, w, w0, dc, skew_s, tau)
+    return PhasorFit(centres, out, res, w / (2.0 * np.pi), dec, share)

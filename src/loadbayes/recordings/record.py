@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from loadbayes.io.errors import DataError
 from loadbayes.recordings.comtrade import Waveforms
 from loadbayes.recordings.phasor_fit import fit_phasors
 
@@ -43,6 +44,9 @@ __all__ = ["STRADDLE_LIMIT", "UNBALANCE_LIMIT", "RecordTable", "record_table"]
 UNBALANCE_LIMIT = 0.05
 #: Relative misfit of a window above which it is flagged as straddling a step.
 STRADDLE_LIMIT = 0.02
+#: Median share of the fundamental in a waveform segment's voltage windows below which
+#: the segment holds no waveform (magnitudes mislabelled as waveform samples).
+MIN_SHARE = 0.5
 
 _A = np.exp(2j * np.pi / 3)
 COLUMNS = (
@@ -85,7 +89,7 @@ def _empty(m: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: bool) -> dict[str, np.ndarray]:
+def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.ndarray]:
     sl = slice(seg.start, seg.stop)
     skew = None if w.skew_s is None else np.concatenate([w.skew_s[0], w.skew_s[1]])
     fit = fit_phasors(
@@ -108,6 +112,7 @@ def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: bool) -> dict[str, np.
             t_s=fit.t_s, v=np.abs(v1), angle_rad=np.angle(v1), p=s1.real, q=s1.imag, f=f,
             p_total=st.real, q_total=st.imag, v2=np.abs(v2) / np.abs(v1),
             i2=np.abs(i2) / np.abs(i1), residual=fit.residual[:3].max(axis=0),
+            _share=fit.share[:3].min(axis=0),
             va=np.abs(vph[0]), vb=np.abs(vph[1]), vc=np.abs(vph[2]),
             ia=np.abs(iph[0]), ib=np.abs(iph[1]), ic=np.abs(iph[2]),
         )  # fmt: skip
@@ -128,8 +133,10 @@ def _amplitude_rows(w: Waveforms, seg, scale: float) -> dict[str, np.ndarray]:
 
 
 def _amplitude_scale(w: Waveforms, parts: list[tuple]) -> tuple[float, str]:
-    """Whether amplitude samples are peak (divide by sqrt 2) or RMS values: the amplitude
-    sample next to a waveform segment against that segment's nearest phasor.
+    """Whether amplitude samples are peak (divide by sqrt 2) or RMS values.
+
+    Decided by the amplitude sample next to a waveform segment against that segment's
+    nearest phasor.
     """
     for k, (seg, _) in enumerate(parts):
         if seg.kind != "amplitude":
@@ -155,9 +162,10 @@ def record_table(
     w: Waveforms,
     *,
     per_cycle: int = 1,
-    dc: bool = True,
+    dc: str = "auto",
     v_base_kv: float | None = None,
     s_base_mva: float | None = None,
+    source: str = "",
 ) -> RecordTable:
     """The record's table: phasor rows of its waveform segments, magnitude rows of the rest.
 
@@ -167,12 +175,14 @@ def record_table(
         From :func:`~loadbayes.recordings.comtrade.read_comtrade`.
     per_cycle : int, default 1
         Phasor estimates per nominal cycle in waveform segments.
-    dc : bool, default True
-        Remove the decaying DC offset in each window (see
+    dc : {"auto", "on", "off"}
+        The decaying DC offset's columns in each window (see
         :mod:`~loadbayes.recordings.phasor_fit`).
     v_base_kv, s_base_mva : float, optional
         Line-to-line voltage base (kV) and three-phase power base (MVA); by default the
         first phasor row's ``sqrt(3) |V1|`` and ``|S1|``.
+    source : str
+        The file, for error messages.
 
     Returns
     -------
@@ -180,6 +190,8 @@ def record_table(
 
     Raises
     ------
+    DataError
+        If a segment labelled as waveform holds no waveform at the nominal frequency.
     ValueError
         If the record has no waveform segment, or the first row has no voltage or power
         and no base is given.
@@ -195,6 +207,15 @@ def record_table(
         (seg, _waveform_rows(w, seg, per_cycle, dc) if seg.kind == "waveform" else None)
         for seg in segs
     ]
+    for k, (seg, rows) in enumerate(parts):
+        if rows is not None and (share := float(np.median(rows.pop("_share")))) < MIN_SHARE:
+            raise DataError(
+                f"samples {seg.start + 1}-{seg.stop}: the rate table says {seg.rate_hz:g} "
+                f"samples/s (segment {k + 1}), but the {w.f_nominal:g} Hz fundamental "
+                f"holds only {share:.0%} of their power: not waveform samples (an "
+                "amplitude segment labelled as waveform?)",
+                source,
+            )
     notes = [w.clock_note] if w.clock_note else []
     scale, amp_note = 1.0, ""
     if any(s.kind == "amplitude" for s in segs):
