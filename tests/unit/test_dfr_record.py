@@ -277,3 +277,24 @@ def test_the_decay_test_threshold_is_the_f_distribution_quantile():
 
     for dof in (1, 3, 10, 47, 500):
         assert _f_critical(dof) == pytest.approx(f_dist.isf(DECAY_ALPHA, 2, dof), rel=1e-10)
+
+
+@needs_real
+def test_both_faults_are_found_one_event_per_waveform_window():
+    from loadbayes.recordings.record import phasor_rows, sags_by_segment
+
+    rec = record_table(read_comtrade(REAL, bay="2号主变"), per_cycle=4)
+    rows = phasor_rows(rec.columns)
+    events = sags_by_segment(rows, pre_s=0.5, post_s=2.0)
+    # The fault at 0.2 s and the reclose onto it about 1.125 s later (README), each cut
+    # inside its own waveform window although pre_s and post_s reach past them.
+    assert [ev.index for ev in events] == [1, 2]
+    assert events[0].sag_start_s == pytest.approx(0.21, abs=0.02)
+    assert events[1].sag_start_s - events[0].sag_start_s == pytest.approx(1.125, abs=0.02)
+    for ev, seg in zip(events, (0, 2), strict=True):
+        assert set(rows["segment"][ev.start : ev.stop]) == {seg}
+        assert 0.10 < ev.depth < 0.16
+        # Each starts in steady state: 0.1 s of rows before the sag, balanced.
+        before = rows["t_s"][ev.start : ev.stop] < ev.sag_start_s - 0.02
+        assert np.ptp(rows["t_s"][ev.start : ev.stop][before]) > 0.1
+        assert rows["v2"][ev.start : ev.stop][before].max() < 0.02

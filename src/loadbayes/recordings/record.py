@@ -251,3 +251,46 @@ def record_table(
             "fault; p and q are positive-sequence power, p_total and q_total all sequences"
         )
     return RecordTable(table, vb * math.sqrt(3) / 1e3, sb / 1e6, notes, amp_note)
+
+
+def phasor_rows(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The rows that hold phasors (a record's waveform segments), every column kept."""
+    if "kind" not in columns:
+        return dict(columns)
+    keep = np.asarray(columns["kind"]) == "phasor"
+    return {k: np.asarray(v)[keep] for k, v in columns.items()}
+
+
+def sags_by_segment(columns: dict[str, np.ndarray], **settings) -> list:
+    """The sags of each segment found separately, their windows kept inside it.
+
+    A recorder keeps waveforms only around each fault; a window that ran past a segment's
+    end would join two recordings across a gap, and two faults a second apart would be
+    merged into one event. So :func:`~loadbayes.recordings.events.find_sags` runs on each
+    segment's rows alone (``settings`` are its keywords), and the windows' rows are
+    shifted back to the whole table and renumbered in time order.
+    """
+    from dataclasses import replace
+
+    from loadbayes.recordings.events import find_sags
+
+    t = np.asarray(columns["t_s"], dtype=float)
+    v = np.asarray(columns["v"], dtype=float)
+    segment = np.asarray(columns.get("segment", np.zeros(t.size, dtype=np.int64)))
+    v_ref = settings.pop("v_ref", None)
+    out: list = []
+    for k in dict.fromkeys(segment.tolist()):
+        rows = np.flatnonzero(segment == k)
+        if rows.size < 2:
+            continue
+        ref = float(np.median(v[rows])) if v_ref is None else v_ref
+        for ev in find_sags(t[rows], v[rows], v_ref=ref, **settings):
+            out.append(
+                replace(
+                    ev,
+                    index=len(out) + 1,
+                    start=int(rows[ev.start]),
+                    stop=int(rows[ev.stop - 1]) + 1,
+                )  # fmt: skip
+            )
+    return out
