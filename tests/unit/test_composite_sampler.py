@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
+from loadbayes.core.parallel import chain_generators, run_chains
+from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.condlinear import GroupSums, draw_beta, log_marginal
 
 
@@ -75,7 +76,7 @@ def test_adaptive_metropolis_finds_a_correlated_gaussian():
                 out.append(x)
         return np.array(out), am.acceptance
 
-    res = run_chains(chain, 2, seed=7, workers=1)
+    res = run_chains(chain, chain_generators(7, 2), workers=1)
     x = np.concatenate([r[0] for r in res])
     # 40,000 correlated draws (ESS ~ 4000): 0.15 in the mean is > 5 Monte Carlo sds.
     np.testing.assert_allclose(x.mean(0), mean, atol=0.15)
@@ -87,6 +88,6 @@ def test_chains_are_reproducible_whatever_the_workers():
     def chain(i, rng):
         return rng.standard_normal(3)
 
-    a = run_chains(chain, 4, seed=11, workers=1)
-    b = run_chains(chain, 4, seed=11, workers=3)
+    a = run_chains(chain, chain_generators(11, 4), workers=1)
+    b = run_chains(chain, chain_generators(11, 4), workers=3)
     np.testing.assert_array_equal(np.array(a), np.array(b))

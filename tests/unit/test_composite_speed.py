@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.fit.composite.nls import nls
 from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem
 from loadbayes.fit.composite.robust import _weighted_sums
 from loadbayes.fit.composite.sampler import MOVES, sample
 from loadbayes.fit.composite.sums import design_sums
-from loadbayes.inference.adaptive_metropolis import run_chains
 from loadbayes.inference.factor_slice import FactorSlice
 from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS, step_size
 
@@ -58,7 +58,7 @@ def test_factor_slice_finds_a_correlated_gaussian():
                 out.append(x)
         return np.array(out), fs.evaluations_per_step
 
-    res = run_chains(chain, 2, seed=5, workers=1)
+    res = run_chains(chain, chain_generators(5, 2), workers=1)
     x = np.concatenate([r[0] for r in res])
     # 8,000 draws, ESS ~ 5,000 (measured; slice sweeps are nearly independent here): 0.1
     # in the mean is > 5 Monte Carlo sds (false alarm < 1e-6), 0.15 in the covariance too.

@@ -1,4 +1,4 @@
-"""Adaptive Metropolis for a block of Metropolis-within-Gibbs, and a chain runner.
+"""Adaptive Metropolis for a block of Metropolis-within-Gibbs.
 
 Knows no physics: a block is a vector ``x`` and a log-density callable.
 
@@ -10,21 +10,18 @@ acceptance rate of 0.234 by a Robbins-Monro recursion. Both are learned **only d
 burn-in** and then frozen, so the kept draws come from a fixed, valid Metropolis kernel
 (no diminishing-adaptation argument needed).
 
-:func:`run_chains` runs independent chains in threads (the compiled likelihood kernels
-release the GIL), chain ``i`` on child ``i`` of ``SeedSequence(seed)``: the same seed gives
-the same draws whatever the number of workers.
+Chains run through :func:`loadbayes.core.parallel.run_chains`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 
-__all__ = ["AdaptiveMetropolis", "RunningCovariance", "run_chains", "scaled_eigenvectors"]
+__all__ = ["AdaptiveMetropolis", "RunningCovariance", "scaled_eigenvectors"]
 
 
 def scaled_eigenvectors(cov: np.ndarray) -> np.ndarray:
@@ -159,40 +156,3 @@ class AdaptiveMetropolis:
     def evaluations_per_step(self) -> float:
         """Density evaluations per :meth:`step`: one."""
         return 1.0
-
-
-def run_chains(
-    chain: Callable[[int, np.random.Generator], Any],
-    chains: int,
-    *,
-    seed: int | np.random.SeedSequence | None,
-    workers: int | None = None,
-) -> list[Any]:
-    """Run ``chain(i, rng)`` for ``i = 0..chains-1``, in threads, with per-chain seeds.
-
-    Parameters
-    ----------
-    chain : callable
-        ``chain(index, rng) -> result``.
-    chains : int
-        Number of chains.
-    seed : int, SeedSequence or None
-        Root seed; chain ``i`` uses ``default_rng(SeedSequence(seed).spawn(chains)[i])``.
-    workers : int, optional
-        Threads (default ``min(chains, os.cpu_count())``); 1 runs in the caller's thread.
-
-    Returns
-    -------
-    list
-        The results, in chain order.
-    """
-    import os
-
-    seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-    gens = [np.random.default_rng(s) for s in seq.spawn(chains)]
-    workers = min(chains, os.cpu_count() or 1) if workers is None else max(1, int(workers))
-    if workers == 1 or chains == 1:
-        return [chain(i, g) for i, g in enumerate(gens)]
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(chain, i, g) for i, g in enumerate(gens)]
-        return [f.result() for f in futures]

@@ -15,14 +15,13 @@ This module knows no physics: the exponential load model builds the blocks
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 from numba import njit
 
 from loadbayes.core.blocks import PowerLawBlock
-from loadbayes.core.parallel import chain_generators, num_threads
+from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
 
 __all__ = ["sample_power_law"]
@@ -301,8 +300,7 @@ def sample_power_law(
     out_t = np.empty((chains, kept))
     acc = np.zeros((chains, 2))
 
-    def run(c: int) -> bool:
-        gen = gens[c]
+    def run(c: int, gen: np.random.Generator) -> bool:
         # The start is scattered around the NLS fit whatever ``init`` says: a prior
         # draw of an exponent (sd 10) is too far out for a step scaled to the posterior.
         th0 = th_hat + 3.0 * se * gen.standard_normal()
@@ -332,10 +330,5 @@ def sample_power_law(
         )
 
     workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
-    if workers > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(run, range(chains)))
-    else:
-        for c in range(chains):
-            run(c)
+    run_chains(run, gens, workers=workers)
     return out_th, out_c, out_t, float(acc[:, 0].sum() / max(acc[:, 1].sum(), 1))

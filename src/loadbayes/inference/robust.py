@@ -46,14 +46,13 @@ among bad data; ``c = 4``, 0.01% and 0.14%.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numba import njit
 
-from loadbayes.core.parallel import chain_generators, num_threads
+from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
 
 __all__ = [
@@ -370,8 +369,7 @@ def sample_student_t(
     wsum = np.zeros((chains, n))
     acc = np.zeros((chains, 2))
 
-    def run(c: int) -> bool:
-        gen = gens[c]
+    def run(c: int, gen: np.random.Generator) -> bool:
         b, tau = _start(z, r, prior, gen, init)
         if nu_fixed > 0:
             nu0 = nu_fixed
@@ -385,11 +383,7 @@ def sample_student_t(
         )  # fmt: skip
 
     workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
-    if workers > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            ok = list(pool.map(run, range(chains)))
-    else:
-        ok = [run(c) for c in range(chains)]
+    ok = run_chains(run, gens, workers=workers)
     if not all(ok):
         raise ValueError(
             "the posterior precision of the coefficients is not positive definite: the "

@@ -14,9 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
-from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
+from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.condlinear import (
     draw_beta,
     draw_tau,
@@ -176,4 +177,4 @@ def sample(
             **robust,
         )
 
-    return run_chains(chain, chains, seed=seed, workers=workers)
+    return run_chains(chain, chain_generators(seed, chains), workers=workers)
