@@ -19,6 +19,7 @@ from numba import njit
 from loadbayes.core.blocks import BilinearStats
 from loadbayes.core.parallel import chain_generators
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import check_iterations
 
 
 @njit(cache=True, nogil=True)
@@ -263,8 +264,7 @@ def sample_bilinear(
             f"scheme {scheme!r} is not available for the coupled (bilinear) model; "
             "use 'blocked' or 'single-site'"
         )
-    if chains < 1 or draws < 1 or thin < 1 or burn < 0 or burn >= draws:
-        raise ValueError("need chains, draws, thin >= 1 and 0 <= burn < draws")
+    check_iterations(draws, burn, thin, chains)
     if init not in ("prior", "dispersed"):
         raise ValueError(f"init must be 'prior' or 'dispersed', got {init!r}")
     priors = [*prior_u, prior_v]

@@ -49,6 +49,7 @@ from numba import njit
 
 from loadbayes.core.parallel import chain_generators, num_threads, run_threads
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import check_iterations
 from loadbayes.core.stats import RegressionStats
 
 __all__ = ["SCHEMES", "BlockDraws", "sample_block", "chain_generators"]
@@ -300,10 +301,7 @@ def _n_kept(draws: int, burn: int, thin: int) -> int:
 def _check_settings(stats: RegressionStats, prior: BlockPrior, draws, burn, thin, chains):
     if prior.k != stats.k:
         raise ValueError(f"prior has {prior.k} coefficients, the data block {stats.k}")
-    if chains < 1 or draws < 1 or thin < 1 or burn < 0:
-        raise ValueError("chains, draws and thin must be >= 1 and burn >= 0")
-    if burn >= draws:
-        raise ValueError(f"burn-in ({burn}) must be smaller than the draws ({draws})")
+    check_iterations(draws, burn, thin, chains)
 
 
 def _posterior_shape(stats: RegressionStats, prior: BlockPrior) -> float:

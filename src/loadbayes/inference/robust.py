@@ -54,6 +54,7 @@ from numba import njit
 
 from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import check_iterations
 
 __all__ = [
     "FLAG_SIGMAS",
@@ -341,10 +342,7 @@ def sample_student_t(
         raise ValueError(f"prior has {prior.k} coefficients, the design {k}")
     if n <= k:
         raise ValueError(f"{n} samples for {k} coefficients and a noise scale: too few")
-    if chains < 1 or draws < 1 or thin < 1 or burn < 0:
-        raise ValueError("chains, draws and thin must be >= 1 and burn >= 0")
-    if burn >= draws:
-        raise ValueError(f"burn-in ({burn}) must be smaller than the draws ({draws})")
+    check_iterations(draws, burn, thin, chains)
     if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
         raise ValueError("z and r must be finite")
     lo, hi = (float(x) for x in nu_bounds)

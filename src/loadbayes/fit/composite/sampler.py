@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.parallel import chain_generators, run_chains
+from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
 from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis
@@ -99,8 +100,7 @@ def sample(
     -------
     list of ChainResult
     """
-    if not 0 <= burn < draws:
-        raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
+    check_iterations(draws, burn, thin, chains)
     if move not in MOVES:
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
     prior = problem.prior
