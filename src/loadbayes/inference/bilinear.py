@@ -20,6 +20,7 @@ from loadbayes.core.blocks import BilinearStats
 from loadbayes.core.parallel import chain_generators
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import check_iterations
+from loadbayes.inference.linalg import precision_draw
 
 
 @njit(cache=True, nogil=True)
@@ -34,30 +35,10 @@ def _gauss_draw(lam, lin, z, x, single):  # pragma: no cover - compiled
                     acc -= lam[j, i] * x[i]
             x[j] = acc / lam[j, j] + z[j] / np.sqrt(lam[j, j])
         return
-    chol = np.zeros((k, k))
-    for j in range(k):
-        s = lam[j, j]
-        for m in range(j):
-            s -= chol[j, m] * chol[j, m]
-        chol[j, j] = np.sqrt(s)
-        for i in range(j + 1, k):
-            acc = lam[i, j]
-            for m in range(j):
-                acc -= chol[i, m] * chol[j, m]
-            chol[i, j] = acc / chol[j, j]
-    y = np.empty(k)
-    for i in range(k):
-        acc = lin[i]
-        for m in range(i):
-            acc -= chol[i, m] * y[m]
-        y[i] = acc / chol[i, i]
-    for i in range(k):
-        y[i] += z[i]
-    for i in range(k - 1, -1, -1):
-        acc = y[i]
-        for m in range(i + 1, k):
-            acc -= chol[m, i] * x[m]
-        x[i] = acc / chol[i, i]
+    lo = np.empty((k, k))
+    w = np.empty(k)
+    if not precision_draw(lam, lin, z, lo, w, x):
+        x[:] = np.nan  # not positive definite: no draw (NaN, as a failed factor gives)
 
 
 @njit(cache=True, nogil=True)

@@ -60,6 +60,7 @@ import numpy as np
 from numba import njit
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.inference.linalg import cholesky
 
 __all__ = ["OnlinePrior", "OnlineTracker", "TrackResult", "track"]
 
@@ -204,18 +205,8 @@ def _inv_spd(a, out):  # pragma: no cover - compiled
         out[1, 0] = out[0, 1]
         return True
     lo = np.zeros((k, k))
-    for j in range(k):
-        s = a[j, j]
-        for p in range(j):
-            s -= lo[j, p] * lo[j, p]
-        if not s > 0.0:
-            return False
-        lo[j, j] = math.sqrt(s)
-        for i in range(j + 1, k):
-            s = a[i, j]
-            for p in range(j):
-                s -= lo[i, p] * lo[j, p]
-            lo[i, j] = s / lo[j, j]
+    if not cholesky(a, lo):
+        return False
     li = np.zeros((k, k))  # lo^-1, lower triangular
     for j in range(k):
         li[j, j] = 1.0 / lo[j, j]
