@@ -4,7 +4,8 @@ Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
 coordinates, the steps' fractions, any torque log-ratios) with the linear coefficients
 integrated out; each event's coefficients exactly; the noise precisions (and, with
 Student-t noise, the weights); ``log T0`` from its prior conditional. The moves are
-physics-free (:mod:`loadbayes.inference`); docs/composite.md, "The sampler".
+physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-moves
+:func:`sample` offers); docs/composite.md, "The sampler".
 """
 
 from __future__ import annotations
@@ -18,18 +19,15 @@ from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
-from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.condlinear import (
     draw_beta,
     draw_tau,
     residual_ss,
 )
-from loadbayes.inference.factor_slice import FactorSlice
+from loadbayes.inference.moves import MOVES
 
 __all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
 
-#: The u-moves :func:`sample` offers (both physics-free, same ``step`` interface).
-MOVES = {"am": AdaptiveMetropolis, "slice": FactorSlice}
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "am"
 
