@@ -48,6 +48,12 @@ the default prior guarantees, and below 3e-6 down to 0.05).
 
 State is carried between calls (:class:`OnlineTracker`), so a stream processed in chunks
 gives the same numbers as the whole series at once, to the last bit.
+
+Why one module of this length: one idea, the normal-gamma posterior carried in natural
+parameters through a stream. Its three modes share one compiled per-sample kernel
+(``_track_kernel``, which must stay one loop to be O(1) per sample without Python in
+it), the state the kernel reads and writes (:class:`OnlineTracker`) and its prior and
+output types; a split would separate the kernel from the state layout it depends on.
 """
 
 from __future__ import annotations
