@@ -1,4 +1,7 @@
-"""The sampler's parts on targets with known answers: linear block, adaptive Metropolis."""
+"""The sampler's parts on targets with known answers: linear block, chain seeds.
+
+The moves (adaptive Metropolis and the others) are checked in ``test_moves.py``.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
+from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.inference.condlinear import GroupSums, draw_beta, log_marginal
 
 
@@ -54,39 +57,10 @@ def test_truncated_log_marginal_and_draws_in_one_dimension():
     assert draws.mean() == pytest.approx(mean, abs=5 * draws.std() / math.sqrt(4000))
 
 
-def test_adaptive_metropolis_finds_a_correlated_gaussian():
-    cov = np.array([[1.0, 0.95, 0.0], [0.95, 1.0, 0.3], [0.0, 0.3, 2.0]])
-    prec = np.linalg.inv(cov)
-    mean = np.array([1.0, -2.0, 0.5])
-
-    def chain(i, rng):
-        am = AdaptiveMetropolis(np.eye(3), adapt_until=3000)
-        x = np.zeros(3)
-
-        def logp(v):
-            d = v - mean
-            return -0.5 * float(d @ prec @ d), None
-
-        lp = logp(x)[0]
-        out = []
-        for it in range(23000):
-            x, lp, _, _ = am.step(x, lp, logp, rng, it)
-            if it >= 3000:
-                out.append(x)
-        return np.array(out), am.acceptance
-
-    res = run_chains(chain, 2, seed=7, workers=1)
-    x = np.concatenate([r[0] for r in res])
-    # 40,000 correlated draws (ESS ~ 4000): 0.15 in the mean is > 5 Monte Carlo sds.
-    np.testing.assert_allclose(x.mean(0), mean, atol=0.15)
-    np.testing.assert_allclose(np.cov(x.T), cov, atol=0.2)
-    assert all(0.15 < r[1] < 0.4 for r in res)
-
-
 def test_chains_are_reproducible_whatever_the_workers():
     def chain(i, rng):
         return rng.standard_normal(3)
 
-    a = run_chains(chain, 4, seed=11, workers=1)
-    b = run_chains(chain, 4, seed=11, workers=3)
+    a = run_chains(chain, chain_generators(11, 4), workers=1)
+    b = run_chains(chain, chain_generators(11, 4), workers=3)
     np.testing.assert_array_equal(np.array(a), np.array(b))

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from loadbayes.inference.linalg import cholesky, precision_draw, solve_lower, solve_upper
+
 __all__ = ["_bus_sweep", "_class_sums", "_mu_terms"]
 
 _TAU_FLOOR = 1e-100  # a gamma draw can underflow to 0; keep the precision positive
@@ -28,7 +30,6 @@ def _bus_sweep(
     lm = np.empty((d, d))
     h = np.empty(d)
     w = np.empty(d)
-    y = np.empty(d)
     for b in range(nb):
         c = cls[b]
         for i in range(d):
@@ -41,30 +42,10 @@ def _bus_sweep(
                 h[2 * ch + i] += t * ztr[b, ch, i]
                 for j in range(2):
                     lm[2 * ch + i, 2 * ch + j] += t * ztz[b, i, j]
-        # Cholesky lm = R R' (lower R), in place in the lower triangle
-        for j in range(d):
-            s = lm[j, j]
-            for k in range(j):
-                s -= lm[j, k] * lm[j, k]
-            lm[j, j] = np.sqrt(s)
-            for i in range(j + 1, d):
-                s = lm[i, j]
-                for k in range(j):
-                    s -= lm[i, k] * lm[j, k]
-                lm[i, j] = s / lm[j, j]
-        # theta = R'^-1 (R^-1 h + z): mean L^-1 h, covariance L^-1
-        for i in range(d):
-            s = h[i]
-            for k in range(i):
-                s -= lm[i, k] * w[k]
-            w[i] = s / lm[i, i]
-        for i in range(d):
-            y[i] = w[i] + z[b, i]
-        for i in range(d - 1, -1, -1):
-            s = y[i]
-            for k in range(i + 1, d):
-                s -= lm[k, i] * theta[b, k]
-            theta[b, i] = s / lm[i, i]
+        # theta = R'^-1 (R^-1 h + z) with lm = R R' (factorised in place): mean L^-1 h,
+        # covariance L^-1; NaN if lm is not positive definite (as a failed factor gives)
+        if not precision_draw(lm, h, z[b], lm, w, theta[b]):
+            theta[b, :] = np.nan
         for ch in range(nch):
             e0 = theta[b, 2 * ch] - theta_ls[b, ch, 0]
             e1 = theta[b, 2 * ch + 1] - theta_ls[b, ch, 1]
@@ -102,14 +83,18 @@ def _mu_terms(cls, ztz, ztr, tau, sig_inv, prec, lin):  # pragma: no cover - com
                 u[2 * ch + i] = t * ztr[b, ch, i]
                 for j in range(2):
                     lm[2 * ch + i, 2 * ch + j] += t * ztz[b, i, j]
-        _cholesky(lm, d)
-        # inv = L^-1, column by column from the Cholesky factor
-        for j in range(d):
-            for i in range(d):
-                e[i] = 1.0 if i == j else 0.0
-            _chol_solve(lm, e, col, d)
-            for i in range(d):
-                inv[i, j] = col[i]
+        # inv = L^-1, column by column from the Cholesky factor (in place in lm); NaN if
+        # L is not positive definite (as a failed factor gives)
+        if cholesky(lm, lm):
+            for j in range(d):
+                for i in range(d):
+                    e[i] = 1.0 if i == j else 0.0
+                solve_lower(lm, e, col)
+                solve_upper(lm, col, col)
+                for i in range(d):
+                    inv[i, j] = col[i]
+        else:
+            inv[:] = np.nan
         # prec += S^-1 - M S^-1, lin += M u, with M = S^-1 A (S^-1 = sig_inv[c], A = inv)
         for i in range(d):
             for k in range(d):
@@ -126,36 +111,6 @@ def _mu_terms(cls, ztz, ztr, tau, sig_inv, prec, lin):  # pragma: no cover - com
                 for k in range(d):
                     acc += mrow[k] * sig_inv[c, k, j]
                 prec[c, i, j] += sig_inv[c, i, j] - acc
-
-
-@njit(cache=True, nogil=True)
-def _cholesky(lm, d):  # pragma: no cover - compiled
-    """In-place lower Cholesky factor ``lm = R R'`` of a small SPD matrix."""
-    for j in range(d):
-        s = lm[j, j]
-        for k in range(j):
-            s -= lm[j, k] * lm[j, k]
-        lm[j, j] = np.sqrt(s)
-        for i in range(j + 1, d):
-            s = lm[i, j]
-            for k in range(j):
-                s -= lm[i, k] * lm[j, k]
-            lm[i, j] = s / lm[j, j]
-
-
-@njit(cache=True, nogil=True)
-def _chol_solve(r, rhs, out, d):  # pragma: no cover - compiled
-    """Solve ``R R' x = rhs`` given the lower factor ``R``."""
-    for i in range(d):
-        s = rhs[i]
-        for k in range(i):
-            s -= r[i, k] * out[k]
-        out[i] = s / r[i, i]
-    for i in range(d - 1, -1, -1):
-        s = out[i]
-        for k in range(i + 1, d):
-            s -= r[k, i] * out[k]
-        out[i] = s / r[i, i]
 
 
 @njit(cache=True, nogil=True)

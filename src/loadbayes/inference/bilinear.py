@@ -19,6 +19,8 @@ from numba import njit
 from loadbayes.core.blocks import BilinearStats
 from loadbayes.core.parallel import chain_generators
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import check_iterations
+from loadbayes.inference.linalg import precision_draw
 
 
 @njit(cache=True, nogil=True)
@@ -33,30 +35,10 @@ def _gauss_draw(lam, lin, z, x, single):  # pragma: no cover - compiled
                     acc -= lam[j, i] * x[i]
             x[j] = acc / lam[j, j] + z[j] / np.sqrt(lam[j, j])
         return
-    chol = np.zeros((k, k))
-    for j in range(k):
-        s = lam[j, j]
-        for m in range(j):
-            s -= chol[j, m] * chol[j, m]
-        chol[j, j] = np.sqrt(s)
-        for i in range(j + 1, k):
-            acc = lam[i, j]
-            for m in range(j):
-                acc -= chol[i, m] * chol[j, m]
-            chol[i, j] = acc / chol[j, j]
-    y = np.empty(k)
-    for i in range(k):
-        acc = lin[i]
-        for m in range(i):
-            acc -= chol[i, m] * y[m]
-        y[i] = acc / chol[i, i]
-    for i in range(k):
-        y[i] += z[i]
-    for i in range(k - 1, -1, -1):
-        acc = y[i]
-        for m in range(i + 1, k):
-            acc -= chol[m, i] * x[m]
-        x[i] = acc / chol[i, i]
+    lo = np.empty((k, k))
+    w = np.empty(k)
+    if not precision_draw(lam, lin, z, lo, w, x):
+        x[:] = np.nan  # not positive definite: no draw (NaN, as a failed factor gives)
 
 
 @njit(cache=True, nogil=True)
@@ -263,8 +245,7 @@ def sample_bilinear(
             f"scheme {scheme!r} is not available for the coupled (bilinear) model; "
             "use 'blocked' or 'single-site'"
         )
-    if chains < 1 or draws < 1 or thin < 1 or burn < 0 or burn >= draws:
-        raise ValueError("need chains, draws, thin >= 1 and 0 <= burn < draws")
+    check_iterations(draws, burn, thin, chains)
     if init not in ("prior", "dispersed"):
         raise ValueError(f"init must be 'prior' or 'dispersed', got {init!r}")
     priors = [*prior_u, prior_v]

@@ -15,15 +15,15 @@ This module knows no physics: the exponential load model builds the blocks
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 from numba import njit
 
 from loadbayes.core.blocks import PowerLawBlock
-from loadbayes.core.parallel import chain_generators, num_threads
+from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
+from loadbayes.inference.linalg import cholesky, solve_lower, solve_upper
 
 __all__ = ["sample_power_law"]
 
@@ -65,27 +65,6 @@ def _sums(th, lx, u, y, o, g2u, g2u1, guy, out3):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _chol(a, lo):  # pragma: no cover - compiled
-    """Lower Cholesky factor of a small SPD matrix; False if not positive definite."""
-    k = a.shape[0]
-    for j in range(k):
-        s = a[j, j]
-        for p in range(j):
-            s -= lo[j, p] * lo[j, p]
-        if not s > 0.0:
-            return False
-        lo[j, j] = math.sqrt(s)
-        for i in range(j + 1, k):
-            s = a[i, j]
-            for p in range(j):
-                s -= lo[i, p] * lo[j, p]
-            lo[i, j] = s / lo[j, j]
-        for i in range(j):
-            lo[i, j] = 0.0
-    return True
-
-
-@njit(cache=True, nogil=True)
 def _collapsed(tau, o, y2, s3, g2u, g2u1, guy, pc, pcm, lam, h, lo, w):  # pragma: no cover
     """Log p(y | exponent, tau) up to a constant, with the linear block integrated out.
 
@@ -101,14 +80,11 @@ def _collapsed(tau, o, y2, s3, g2u, g2u1, guy, pc, pcm, lam, h, lo, w):  # pragm
         h[p] = pcm[p] + tau * (guy[p] - o * g2u1[p])
         for q in range(kc):
             lam[p, q] = pc[p, q] + tau * g2u[p, q]
-    if not _chol(lam, lo):
+    if not cholesky(lam, lo):
         return -np.inf
+    solve_lower(lo, h, w)
     logdet = 0.0
     for p in range(kc):
-        s = h[p]
-        for q in range(p):
-            s -= lo[p, q] * w[q]
-        w[p] = s / lo[p, p]
         logdet += math.log(lo[p, p])
     quad = 0.0
     for p in range(kc):
@@ -193,11 +169,7 @@ def _exp_chain(
         _collapsed(tau, o, y2, s3, g2u, g2u1, guy, pc, pcm, lam, h, lo, w)
         for p in range(kc):
             w[p] += gen.standard_normal()
-        for p in range(kc - 1, -1, -1):  # lo' c = w + z: c ~ N(lam^-1 h, lam^-1)
-            s = w[p]
-            for q in range(p + 1, kc):
-                s -= lo[q, p] * c[q]
-            c[p] = s / lo[p, p]
+        solve_upper(lo, w, c)  # lo' c = w + z: c ~ N(lam^-1 h, lam^-1)
         # tau | exponent, c
         tt = y2 - 2.0 * o * s3[0] + o * o * s3[1]
         ssr = tt
@@ -301,8 +273,7 @@ def sample_power_law(
     out_t = np.empty((chains, kept))
     acc = np.zeros((chains, 2))
 
-    def run(c: int) -> bool:
-        gen = gens[c]
+    def run(c: int, gen: np.random.Generator) -> bool:
         # The start is scattered around the NLS fit whatever ``init`` says: a prior
         # draw of an exponent (sd 10) is too far out for a step scaled to the posterior.
         th0 = th_hat + 3.0 * se * gen.standard_normal()
@@ -332,10 +303,5 @@ def sample_power_law(
         )
 
     workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
-    if workers > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(run, range(chains)))
-    else:
-        for c in range(chains):
-            run(c)
+    run_chains(run, gens, workers=workers)
     return out_th, out_c, out_t, float(acc[:, 0].sum() / max(acc[:, 1].sum(), 1))

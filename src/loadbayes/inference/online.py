@@ -48,6 +48,12 @@ the default prior guarantees, and below 3e-6 down to 0.05).
 
 State is carried between calls (:class:`OnlineTracker`), so a stream processed in chunks
 gives the same numbers as the whole series at once, to the last bit.
+
+Why one module of this length: one idea, the normal-gamma posterior carried in natural
+parameters through a stream. Its three modes share one compiled per-sample kernel
+(``_track_kernel``, which must stay one loop to be O(1) per sample without Python in
+it), the state the kernel reads and writes (:class:`OnlineTracker`) and its prior and
+output types; a split would separate the kernel from the state layout it depends on.
 """
 
 from __future__ import annotations
@@ -60,6 +66,7 @@ import numpy as np
 from numba import njit
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.inference.linalg import cholesky
 
 __all__ = ["OnlinePrior", "OnlineTracker", "TrackResult", "track"]
 
@@ -204,18 +211,8 @@ def _inv_spd(a, out):  # pragma: no cover - compiled
         out[1, 0] = out[0, 1]
         return True
     lo = np.zeros((k, k))
-    for j in range(k):
-        s = a[j, j]
-        for p in range(j):
-            s -= lo[j, p] * lo[j, p]
-        if not s > 0.0:
-            return False
-        lo[j, j] = math.sqrt(s)
-        for i in range(j + 1, k):
-            s = a[i, j]
-            for p in range(j):
-                s -= lo[i, p] * lo[j, p]
-            lo[i, j] = s / lo[j, j]
+    if not cholesky(a, lo):
+        return False
     li = np.zeros((k, k))  # lo^-1, lower triangular
     for j in range(k):
         li[j, j] = 1.0 / lo[j, j]

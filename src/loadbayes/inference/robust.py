@@ -46,15 +46,16 @@ among bad data; ``c = 4``, 0.01% and 0.14%.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numba import njit
 
-from loadbayes.core.parallel import chain_generators, num_threads
+from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import check_iterations
+from loadbayes.inference.linalg import precision_draw
 
 __all__ = [
     "FLAG_SIGMAS",
@@ -115,37 +116,6 @@ def flag_threshold(nu: np.ndarray | float, *, sigmas: float = FLAG_SIGMAS) -> fl
 
 # ----------------------------------------------------------------- compiled kernel
 @njit(cache=True, nogil=True)
-def _chol_solve_draw(lam, h, zs, out):  # pragma: no cover - compiled
-    """``out = lam^-1 h + U^-1 zs`` with ``lam = U'U`` (a draw from N(lam^-1 h, lam^-1))."""
-    k = h.shape[0]
-    u = np.zeros((k, k))
-    for j in range(k):  # upper Cholesky factor, lam = U'U
-        s = lam[j, j]
-        for p in range(j):
-            s -= u[p, j] * u[p, j]
-        if s <= 0.0:
-            return False
-        u[j, j] = math.sqrt(s)
-        for i in range(j + 1, k):
-            s = lam[j, i]
-            for p in range(j):
-                s -= u[p, j] * u[p, i]
-            u[j, i] = s / u[j, j]
-    y = np.empty(k)  # U'y = h
-    for i in range(k):
-        s = h[i]
-        for p in range(i):
-            s -= u[p, i] * y[p]
-        y[i] = s / u[i, i]
-    for i in range(k - 1, -1, -1):  # U out = y + zs  (mean U^-1 U'^-1 h, noise U^-1 zs)
-        s = y[i] + zs[i]
-        for p in range(i + 1, k):
-            s -= u[i, p] * out[p]
-        out[i] = s / u[i, i]
-    return True
-
-
-@njit(cache=True, nogil=True)
 def _t_loglik_nu(nu, tau, e2, n):  # pragma: no cover - compiled
     """The part of sum_i log t_nu(e_i; 0, 1/tau) that depends on nu."""
     acc = 0.0
@@ -175,8 +145,10 @@ def _student_t_chain(
                 zw[p, q] += z[i, p] * z[i, q]
     p0m = p0 @ m0
     lam = np.empty((k, k))
+    fac = np.empty((k, k))
     h = np.empty(k)
     zs = np.empty(k)
+    ws = np.empty(k)
     sample_nu = nu_fixed <= 0.0
     shape_tau = a0 + 0.5 * n + (0.5 * k if conj else 0.0)
     acc_win = 0
@@ -190,7 +162,7 @@ def _student_t_chain(
             for q in range(k):
                 lam[p, q] = s * p0[p, q] + tau * zw[p, q]
             zs[p] = gen.standard_normal()
-        if not _chol_solve_draw(lam, h, zs, b):
+        if not precision_draw(lam, h, zs, fac, ws, b):
             return False
         # residuals; tau | b, w
         q_w = 0.0
@@ -342,10 +314,7 @@ def sample_student_t(
         raise ValueError(f"prior has {prior.k} coefficients, the design {k}")
     if n <= k:
         raise ValueError(f"{n} samples for {k} coefficients and a noise scale: too few")
-    if chains < 1 or draws < 1 or thin < 1 or burn < 0:
-        raise ValueError("chains, draws and thin must be >= 1 and burn >= 0")
-    if burn >= draws:
-        raise ValueError(f"burn-in ({burn}) must be smaller than the draws ({draws})")
+    check_iterations(draws, burn, thin, chains)
     if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
         raise ValueError("z and r must be finite")
     lo, hi = (float(x) for x in nu_bounds)
@@ -370,8 +339,7 @@ def sample_student_t(
     wsum = np.zeros((chains, n))
     acc = np.zeros((chains, 2))
 
-    def run(c: int) -> bool:
-        gen = gens[c]
+    def run(c: int, gen: np.random.Generator) -> bool:
         b, tau = _start(z, r, prior, gen, init)
         if nu_fixed > 0:
             nu0 = nu_fixed
@@ -385,11 +353,7 @@ def sample_student_t(
         )  # fmt: skip
 
     workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
-    if workers > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            ok = list(pool.map(run, range(chains)))
-    else:
-        ok = [run(c) for c in range(chains)]
+    ok = run_chains(run, gens, workers=workers)
     if not all(ok):
         raise ValueError(
             "the posterior precision of the coefficients is not positive definite: the "

@@ -4,7 +4,8 @@ Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
 coordinates, the steps' fractions, any torque log-ratios) with the linear coefficients
 integrated out; each event's coefficients exactly; the noise precisions (and, with
 Student-t noise, the weights); ``log T0`` from its prior conditional. The moves are
-physics-free (:mod:`loadbayes.inference`); docs/composite.md, "The sampler".
+physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-moves
+:func:`sample` offers); docs/composite.md, "The sampler".
 """
 
 from __future__ import annotations
@@ -14,20 +15,19 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.parallel import chain_generators, run_chains
+from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
-from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     draw_beta,
     draw_tau,
     residual_ss,
 )
-from loadbayes.inference.factor_slice import FactorSlice
+from loadbayes.inference.moves import MOVES
 
 __all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
 
-#: The u-moves :func:`sample` offers (both physics-free, same ``step`` interface).
-MOVES = {"am": AdaptiveMetropolis, "slice": FactorSlice}
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "am"
 
@@ -98,8 +98,7 @@ def sample(
     -------
     list of ChainResult
     """
-    if not 0 <= burn < draws:
-        raise ValueError(f"need 0 <= burn < draws, got burn={burn}, draws={draws}")
+    check_iterations(draws, burn, thin, chains)
     if move not in MOVES:
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
     prior = problem.prior
@@ -176,4 +175,4 @@ def sample(
             **robust,
         )
 
-    return run_chains(chain, chains, seed=seed, workers=workers)
+    return run_chains(chain, chain_generators(seed, chains), workers=workers)

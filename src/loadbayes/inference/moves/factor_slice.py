@@ -1,8 +1,8 @@
 """Factor slice sampling for a block of Metropolis-within-Gibbs.
 
 Knows no physics: a block is a vector ``x`` and a log-density callable, as for
-:class:`~loadbayes.inference.adaptive_metropolis.AdaptiveMetropolis` (same ``step``
-signature, so a sampler can take either).
+:class:`~loadbayes.inference.moves.adaptive_metropolis.AdaptiveMetropolis` (both are
+:class:`~loadbayes.inference.moves.base.BlockMove`, so a sampler can take either).
 
 Tibbits, Groendyke, Haran and Liechty (2014), "Automated factor slice sampling", JCGS
 23(2): one univariate slice-sampling update (Neal 2003, stepping out then shrinkage)
@@ -27,12 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.inference.adaptive_metropolis import RunningCovariance, scaled_eigenvectors
+from loadbayes.inference.moves.base import BlockMove
 
 __all__ = ["FactorSlice"]
 
 
-class FactorSlice:
+class FactorSlice(BlockMove):
     """Slice sampling along the eigenvectors of a covariance learned during burn-in.
 
     Parameters
@@ -58,16 +58,9 @@ class FactorSlice:
         width: float = 2.5,
         max_steps: int = 10,
     ) -> None:
-        self._running = RunningCovariance(cov0, adapt_start)
-        self.d = self._running.d
-        self.cov = self._running.cov
+        super().__init__(cov0, adapt_until=adapt_until, adapt_start=adapt_start)
         self.log_width = math.log(width)
-        self.adapt_until = int(adapt_until)
-        self.adapt_start = int(adapt_start)
         self.max_steps = int(max_steps)
-        self._dirs = scaled_eigenvectors(self.cov)
-        self.evaluations = 0
-        self.sweeps = 0
         self._expansions = 0
         self._contractions = 0
 
@@ -105,8 +98,9 @@ class FactorSlice:
         w0 = math.exp(self.log_width)
         exp0, con0 = self._expansions, self._contractions
         for j in rng.permutation(self.d):
-            x, logp_x, aux = self._update(x, logp_x, aux, self._dirs[:, j], w0, logp, rng)
-        self.sweeps += 1
+            x, logp_x, aux = self._update(x, logp_x, aux, self._root[:, j], w0, logp, rng)
+        self.steps += 1
+        self.accepted += 1
         if iteration < self.adapt_until:
             self._adapt(x, exp0, con0, iteration)
         return x, logp_x, aux, True
@@ -149,16 +143,4 @@ class FactorSlice:
         ne, nc = self._expansions - exp0, self._contractions - con0
         if ne + nc > 0:
             self.log_width += (ne / (ne + nc) - 0.5) / math.sqrt(iteration + 1.0)
-        if self._running.update(x):
-            self.cov = self._running.cov
-            self._dirs = scaled_eigenvectors(self.cov)
-
-    @property
-    def acceptance(self) -> float:
-        """1.0: a slice update always moves (for the same report as a Metropolis move)."""
-        return 1.0
-
-    @property
-    def evaluations_per_step(self) -> float:
-        """Density evaluations per sweep so far (the cost of one :meth:`step`)."""
-        return self.evaluations / max(self.sweeps, 1)
+        self._learn(x)

@@ -1,0 +1,23 @@
+"""Block moves for Metropolis-within-Gibbs: physics-free, one per file, on one contract.
+
+:class:`~loadbayes.inference.moves.base.BlockMove` is the contract; :data:`MOVES` names
+the moves a sampler offers (a new move is one file here plus one line in it).
+"""
+
+from __future__ import annotations
+
+from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
+from loadbayes.inference.moves.base import BlockMove, RunningCovariance, scaled_eigenvectors
+from loadbayes.inference.moves.factor_slice import FactorSlice
+
+__all__ = [
+    "MOVES",
+    "AdaptiveMetropolis",
+    "BlockMove",
+    "FactorSlice",
+    "RunningCovariance",
+    "scaled_eigenvectors",
+]
+
+#: The moves by name (all physics-free, same ``step`` contract).
+MOVES: dict[str, type[BlockMove]] = {"am": AdaptiveMetropolis, "slice": FactorSlice}

@@ -1,0 +1,143 @@
+"""What a block move of Metropolis-within-Gibbs is: the contract the moves share.
+
+A move updates one block ``x`` (a vector) of a Metropolis-within-Gibbs sweep given a
+log-density callable, leaving that density invariant; it knows no physics. The moves
+here learn a covariance of the block from the chain's own draws **during burn-in only**
+(the first ``adapt_until`` iterations, with ``cov0`` for the first ``adapt_start``) and
+then freeze it, so the kept draws come from a fixed, valid kernel.
+
+:class:`BlockMove` holds what every move has: that adaptation window, the shared
+:class:`RunningCovariance` and its square root (:func:`scaled_eigenvectors`), and the
+counters behind :attr:`~BlockMove.acceptance` and :attr:`~BlockMove.evaluations_per_step`.
+A move supplies :meth:`~BlockMove.step`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+__all__ = ["BlockMove", "RunningCovariance", "scaled_eigenvectors"]
+
+
+def scaled_eigenvectors(cov: np.ndarray) -> np.ndarray:
+    """Columns: the eigenvectors of ``cov`` scaled by their sds (a square root of it)."""
+    w, v = np.linalg.eigh(cov)
+    return v * np.sqrt(np.clip(w, 1e-14 * max(w.max(), 1e-300), None))
+
+
+class RunningCovariance:
+    """A chain's running covariance (Welford), refreshed every 20 draws after a start.
+
+    The covariance the adaptive moves learn in burn-in: until ``adapt_start`` draws it is
+    ``cov0``; then the empirical one plus a little of the previous diagonal, which keeps
+    it non-singular.
+    """
+
+    def __init__(self, cov0: np.ndarray, adapt_start: int) -> None:
+        cov0 = np.atleast_2d(np.asarray(cov0, dtype=float))
+        self.d = cov0.shape[0]
+        self.cov = (cov0 + cov0.T) / 2
+        self.adapt_start = int(adapt_start)
+        self._n = 0
+        self._mean = np.zeros(self.d)
+        self._m2 = np.zeros((self.d, self.d))
+
+    def update(self, x: np.ndarray) -> bool:
+        """Add a draw; True when the covariance was refreshed."""
+        self._n += 1
+        delta = x - self._mean
+        self._mean += delta / self._n
+        self._m2 += np.outer(delta, x - self._mean)
+        if self._n >= self.adapt_start and self._n % 20 == 0:
+            emp = self._m2 / (self._n - 1)
+            self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
+            return True
+        return False
+
+
+class BlockMove:
+    """A move on one block, with a covariance learned during burn-in.
+
+    Parameters
+    ----------
+    cov0 : ndarray, shape (d, d)
+        Initial covariance (e.g. a Laplace approximation).
+    adapt_until : int
+        Iterations during which the move adapts (the burn-in).
+    adapt_start : int
+        Iterations with ``cov0`` before the empirical covariance takes over.
+
+    Attributes
+    ----------
+    d : int
+        Size of the block.
+    cov : ndarray, shape (d, d)
+        The covariance in use (``cov0``, then the learned one).
+    steps, accepted, evaluations : int
+        Calls of :meth:`step`, of them those that moved, and density evaluations.
+    """
+
+    def __init__(self, cov0: np.ndarray, *, adapt_until: int, adapt_start: int = 100) -> None:
+        self._running = RunningCovariance(cov0, adapt_start)
+        self.d = self._running.d
+        self.cov = self._running.cov
+        self.adapt_until = int(adapt_until)
+        self.adapt_start = int(adapt_start)
+        self._root = scaled_eigenvectors(self.cov)
+        self.steps = 0
+        self.accepted = 0
+        self.evaluations = 0
+
+    def step(
+        self,
+        x: np.ndarray,
+        logp_x: float,
+        logp: Callable[[np.ndarray], tuple[float, Any]],
+        rng: np.random.Generator,
+        iteration: int,
+        aux: Any = None,
+    ) -> tuple[np.ndarray, float, Any, bool]:
+        """One update of the block; adapts while ``iteration < adapt_until``.
+
+        Parameters
+        ----------
+        x : ndarray
+            Current block.
+        logp_x : float
+            ``logp(x)`` at the current state (recomputed by the caller when the other
+            blocks changed).
+        logp : callable
+            ``logp(x) -> (log density, aux)``; ``aux`` is carried along with the state
+            (e.g. a simulated trajectory) so it need not be recomputed. ``-inf`` outside
+            the support: such proposals are never accepted.
+        rng : numpy.random.Generator
+            The chain's generator.
+        iteration : int
+            Zero-based iteration number.
+        aux : any
+            The current state's ``aux``.
+
+        Returns
+        -------
+        (x, logp_x, aux, moved)
+        """
+        raise NotImplementedError
+
+    def _learn(self, x: np.ndarray) -> None:
+        """Feed a burn-in draw to the running covariance; refresh its root when it moved."""
+        if self._running.update(x):
+            self.cov = self._running.cov
+            self._root = scaled_eigenvectors(self.cov)
+
+    @property
+    def acceptance(self) -> float:
+        """Share of the steps that moved the block."""
+        return self.accepted / max(self.steps, 1)
+
+    @property
+    def evaluations_per_step(self) -> float:
+        """Density evaluations per :meth:`step` so far (the cost of one step)."""
+        return self.evaluations / max(self.steps, 1)
