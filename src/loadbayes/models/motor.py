@@ -43,6 +43,10 @@ Complex power into the motor ``S = U conj(I)``: ``P = Ud Id + Uq Iq`` and
 ``Q = Uq Id - Ud Iq``; a motoring machine has ``P > 0`` and ``Q > 0`` (it absorbs
 reactive power). The steady state puts the terminal voltage on the d axis:
 ``Ud = V``, ``Uq = 0``.
+
+Its length is one idea: the motor's equations, stated once here with their conventions
+(50 lines of docstring), the functions that evaluate them, and the steady state and its
+inverse that start every simulation and fit.
 """
 
 from __future__ import annotations
