@@ -3,6 +3,9 @@
 Gibbs samplers fill it with their chains; least squares and the Kalman filter fill it with
 draws from their Gaussian estimate (:meth:`Posterior.from_gaussian`), so that every
 comparison is one loop over the same summary, plots and exports.
+
+Its length is one idea: the one class :class:`Posterior`, with its summaries, its ArviZ
+view and its JSON and NetCDF round trips (as ArviZ keeps ``InferenceData`` in one module).
 """
 
 from __future__ import annotations

@@ -3,13 +3,31 @@
 Arrows point down only: commands -> studies -> fit / baselines -> models & inference ->
 core -> io. Models are physics (they never import a sampler, a driver or Posterior),
 samplers know no physics, and the library never imports the studies or the CLI.
+
+Three rules are written as functions over an import map (or over the click tree), so a
+test can run each of them on a planted violation as well as on the real code:
+
+- :func:`cases_importers`: only ``loadbayes.studies``, ``loadbayes.commands``,
+  ``loadbayes.testing`` (and ``loadbayes.cases`` itself) import ``loadbayes.cases``:
+  the synthetic data is never a dependency of the library.
+- :func:`cross_package_private_imports`: no ``_private`` name (dunders aside) is imported
+  from a module of another top-level package (``from loadbayes.x.y import _z`` in a
+  module outside ``loadbayes.x``). The modules of one top-level package are one unit and
+  may share private helpers (``io.csv_reader`` takes ``io.cells._Piece``); a top-level
+  module (``posterior``, ``cli``) is a package of its own. Only ``from ... import``
+  names are seen, not attribute access on an imported module.
+- :func:`commands_not_one_line`: every command reachable from ``loadbayes.cli.main``
+  (groups walked, the groups themselves not counted) is a
+  :class:`loadbayes.commands.options.OneLineCommand`, so its usage errors are one line.
 """
 
 from __future__ import annotations
 
 import ast
+import textwrap
 from pathlib import Path
 
+import click
 import pytest
 
 import loadbayes
@@ -17,34 +35,43 @@ import loadbayes
 SRC = Path(loadbayes.__file__).parent
 
 
-def _module_name(path: Path) -> str:
-    rel = path.relative_to(SRC.parent).with_suffix("")
+def _module_name(path: Path, root: Path) -> str:
+    rel = path.relative_to(root.parent).with_suffix("")
     parts = list(rel.parts)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(parts)
 
 
-def _imports() -> dict[str, set[str]]:
-    """Every ``loadbayes.*`` module each module imports, at any depth of the file."""
+def _scan(root: Path) -> tuple[dict[str, set[str]], dict[str, set[tuple[str, str]]]]:
+    """The import map of the package at ``root``, at any depth of each file.
+
+    Returns ``imports`` (each module -> the package's modules it imports) and ``names``
+    (each module -> the ``(module, name)`` pairs of its ``from <package>... import name``).
+    """
+    top = root.name
     out: dict[str, set[str]] = {}
-    for path in SRC.rglob("*.py"):
-        name = _module_name(path)
+    names: dict[str, set[tuple[str, str]]] = {}
+    for path in root.rglob("*.py"):
+        name = _module_name(path, root)
         found: set[str] = set()
+        pairs: set[tuple[str, str]] = set()
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                if node.module.startswith("loadbayes"):
+                if node.module == top or node.module.startswith(top + "."):
                     found.add(node.module)
                     for alias in node.names:  # "from loadbayes.x import y" may be a module
                         found.add(f"{node.module}.{alias.name}")
+                        pairs.add((node.module, alias.name))
             elif isinstance(node, ast.Import):
-                found.update(a.name for a in node.names if a.name.startswith("loadbayes"))
+                found.update(a.name for a in node.names if a.name.split(".")[0] == top)
         out[name] = found
+        names[name] = pairs
     modules = set(out)
-    return {k: {m for m in v if m in modules} for k, v in out.items()}
+    return {k: {m for m in v if m in modules} for k, v in out.items()}, names
 
 
-IMPORTS = _imports()
+IMPORTS, NAMES = _scan(SRC)
 
 
 def _under(module: str, *packages: str) -> bool:
@@ -147,3 +174,162 @@ def test_every_model_offers_the_interface():
         if model.pieces == "linear":
             assert isinstance(model, LinearModel), model
     assert callable(ExponentialModel().power_law_blocks)
+
+
+# --- Who may import the synthetic cases ----------------------------------------------
+
+CASES_USERS = ("loadbayes.studies", "loadbayes.commands", "loadbayes.testing", "loadbayes.cases")
+
+
+def cases_importers(imports: dict[str, set[str]]) -> set[str]:
+    """The edges ``module -> loadbayes.cases...`` whose module may not import the cases."""
+    return {
+        f"{mod} -> {dep}"
+        for mod, deps in imports.items()
+        if not _under(mod, *CASES_USERS)
+        for dep in deps
+        if _under(dep, "loadbayes.cases")
+    }
+
+
+def test_only_studies_commands_and_testing_import_the_cases():
+    assert not cases_importers(IMPORTS), sorted(cases_importers(IMPORTS))
+
+
+def _plant(tmp_path: Path, files: dict[str, str]) -> Path:
+    """Write a package ``loadbayes`` of ``{relative path: source}`` under tmp_path."""
+    root = tmp_path / "loadbayes"
+    for rel, source in files.items():
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(textwrap.dedent(source), encoding="utf-8")
+    return root
+
+
+def test_the_cases_rule_catches_a_planted_import(tmp_path):
+    root = _plant(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "cases/__init__.py": "",
+            "cases/sim.py": "MOTORS = {}\n",
+            "fit/__init__.py": "",
+            "fit/nls.py": "def f():\n    from loadbayes.cases.sim import MOTORS\n",
+            "export/__init__.py": "import loadbayes.cases.sim\n",
+            "studies/__init__.py": "from loadbayes.cases import sim\n",
+            "testing/__init__.py": "from loadbayes.cases.sim import MOTORS\n",
+        },
+    )
+    imports, _ = _scan(root)
+    assert cases_importers(imports) == {
+        "loadbayes.fit.nls -> loadbayes.cases.sim",
+        "loadbayes.export -> loadbayes.cases.sim",
+    }
+
+
+# --- No private name across a package line -------------------------------------------
+
+
+def _package(module: str) -> str:
+    """The top-level package a module belongs to: ``loadbayes.io.cells`` -> ``loadbayes.io``."""
+    return ".".join(module.split(".")[:2])
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def cross_package_private_imports(names: dict[str, set[tuple[str, str]]]) -> set[str]:
+    """The imports ``module -> source._name`` of a private name across a package line."""
+    return {
+        f"{mod} -> {source}.{name}"
+        for mod, pairs in names.items()
+        for source, name in pairs
+        if _private(name) and _package(source) != _package(mod)
+    }
+
+
+# The cross-package private imports left in files this branch does not own. Each is
+# being made public on another branch (the composite split: posterior._arviz and
+# motor_kernel._integrate); the lead empties this list at merge. An entry that no longer
+# occurs fails the test too, so the list can only shrink.
+ALLOWED_PRIVATE = {
+    "loadbayes.fit.composite.driver -> loadbayes.posterior._arviz",
+    "loadbayes.fit.composite.problem -> loadbayes.models.motor_kernel._integrate",
+    "loadbayes.fit.composite.robust -> loadbayes.models.motor_kernel._integrate",
+    "loadbayes.testing.geweke -> loadbayes.posterior._arviz",
+}
+
+
+def test_no_private_name_crosses_a_package_line():
+    found = cross_package_private_imports(NAMES)
+    assert found - ALLOWED_PRIVATE == set(), sorted(found - ALLOWED_PRIVATE)
+    assert ALLOWED_PRIVATE - found == set(), f"fixed, remove: {sorted(ALLOWED_PRIVATE - found)}"
+
+
+def test_the_private_name_rule_catches_a_planted_import(tmp_path):
+    root = _plant(
+        tmp_path,
+        {
+            "__init__.py": "from loadbayes._version import __version__\n",
+            "_version.py": "__version__ = '0'\n",
+            "posterior.py": "def _arviz():\n    pass\n",
+            "io/__init__.py": "",
+            "io/cells.py": "def _select():\n    pass\n",
+            "io/csv_reader.py": "from loadbayes.io.cells import _select\n",  # same package
+            "measurements/__init__.py": "",
+            "measurements/frame.py": "def f():\n    from loadbayes.io.cells import _select\n",
+            "fit/__init__.py": "from loadbayes.posterior import _arviz as arviz\n",
+            "cli.py": "from loadbayes import io as _io\n",  # a private alias is no import of one
+        },
+    )
+    _, names = _scan(root)
+    assert cross_package_private_imports(names) == {
+        "loadbayes.measurements.frame -> loadbayes.io.cells._select",
+        "loadbayes.fit -> loadbayes.posterior._arviz",
+    }
+
+
+# --- Every command prints its usage errors on one line -------------------------------
+
+
+def commands_not_one_line(group: click.Group, path: str = "loadbayes") -> list[str]:
+    """The command paths under ``group`` (groups walked) that are not a OneLineCommand."""
+    from loadbayes.commands.options import OneLineCommand
+
+    bad = []
+    for name, command in sorted(group.commands.items()):
+        where = f"{path} {name}"
+        if isinstance(command, click.Group):
+            bad += commands_not_one_line(command, where)
+        elif not isinstance(command, OneLineCommand):
+            bad.append(where)
+    return bad
+
+
+@pytest.mark.xfail(strict=True, reason="commands are converted on the h3/h2 branches")
+def test_every_command_is_a_one_line_command():
+    from loadbayes.cli import main
+
+    assert commands_not_one_line(main) == []
+
+
+def test_the_one_line_rule_catches_a_planted_command():
+    from loadbayes.commands.options import OneLineCommand
+
+    @click.group()
+    def top() -> None: ...
+
+    @top.group()
+    def fit() -> None: ...
+
+    @fit.command("zip", cls=OneLineCommand)
+    def good() -> None: ...
+
+    @fit.command("exp")
+    def plain() -> None: ...
+
+    @top.command("report", cls=OneLineCommand)
+    def also_good() -> None: ...
+
+    assert commands_not_one_line(top) == ["loadbayes fit exp"]

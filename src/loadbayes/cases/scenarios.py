@@ -244,7 +244,8 @@ def composition_path(t_h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @functools.lru_cache(maxsize=4)
-def _day_flows(n: int, seed: int, factor_range: tuple[float, float]) -> pd.DataFrame:
+def day_flows(n: int, seed: int, factor_range: tuple[float, float]) -> pd.DataFrame:
+    """The noiseless power flows of :func:`composition_day` (cached per process; do not mutate)."""
     from loadbayes.cases.ieee33 import N_FACTORS, Feeder33
 
     t_h = np.arange(n) * 24.0 / n
@@ -311,7 +312,7 @@ def composition_day(
         default), ``p_true_pu, q_true_pu``, ``a1_true .. a6_true`` and ``converged``;
         rows whose power flow failed are dropped (``attrs["n_failed"]``).
     """
-    flows = _day_flows(int(n), int(seed), tuple(float(x) for x in factor_range))
+    flows = day_flows(int(n), int(seed), tuple(float(x) for x in factor_range))
     return measure(flows, noise_sd=noise_sd, noise_seed=noise_seed)
 
 

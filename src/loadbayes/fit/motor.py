@@ -1,4 +1,9 @@
-"""Induction-motor fits from the motor's states (the paper's IM study)."""
+"""Induction-motor fits from the motor's states (the paper's IM study).
+
+Its length is one idea: the motor fit, through its entries (arrays with :func:`fit_im`,
+files read in chunks with :func:`fit_im_file`, both down to one Gram matrix), which
+share the priors and the checks, such as that a record starts in a steady state.
+"""
 
 from __future__ import annotations
 

@@ -41,6 +41,10 @@ mean. The metric matters: along the a1-a2 ridge a bus's data say little, and a m
 along it is no departure from them (a Euclidean ratio called data-rich buses 80%
 shrunk because of such moves). A bus whose own data cannot identify its coefficients
 (no voltage spread, as many distinct voltages as coefficients or fewer) has shrinkage 1.
+
+Its length is one idea: the pooled model's Gibbs sweep, derived above (50 lines
+of docstring), with the chains it runs and their summary; the compiled loops over
+buses are in :mod:`loadbayes.fleet.hier_kernels`.
 """
 
 from __future__ import annotations

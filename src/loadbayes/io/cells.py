@@ -49,7 +49,9 @@ class _Piece(NamedTuple):
     dropped: np.ndarray
 
 
-def _select(header: list[str], required: list[str], extra: list[str], name: str) -> dict[str, int]:
+def select_columns(
+    header: list[str], required: list[str], extra: list[str], name: str
+) -> dict[str, int]:
     """Map each requested column present to its position in the header."""
     present = {}
     for col in required + extra:
@@ -97,7 +99,7 @@ def _is_text(kind: pa.DataType) -> bool:
     )
 
 
-def _validate(
+def validate_batch(
     columns: Mapping[str, pa.Array],
     start: int,
     positive: frozenset[str],

@@ -16,7 +16,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from loadbayes.io.cells import _one_line, _Piece, _select, _show, _validate
+from loadbayes.io.cells import _one_line, _Piece, _show, select_columns, validate_batch
 from loadbayes.io.errors import DataError
 from loadbayes.io.sources import _open_binary
 
@@ -69,7 +69,7 @@ def _csv_pieces(
 ) -> Iterator[_Piece]:
     with _open_binary(path, name) as fh:
         header, sep = _read_header(fh, name)
-        present = _select(header, required, extra, name)
+        present = select_columns(header, required, extra, name)
         arrow_names = [f"f{i}" for i in range(len(header))]
         start = 1
         try:
@@ -96,7 +96,7 @@ def _csv_pieces(
                     break
                 if batch.num_rows:
                     columns = {c: batch.column(arrow_names[i]) for c, i in present.items()}
-                    yield _validate(columns, start, positive, drop_invalid, name)
+                    yield validate_batch(columns, start, positive, drop_invalid, name)
                     start += batch.num_rows
         except (pa.ArrowException, OSError, EOFError, zlib.error) as err:
             if isinstance(err, pa.ArrowInvalid) and "Empty CSV file" in str(err):

@@ -11,7 +11,14 @@ from collections.abc import Iterator
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from loadbayes.io.cells import _is_numeric, _is_text, _one_line, _Piece, _select, _validate
+from loadbayes.io.cells import (
+    _is_numeric,
+    _is_text,
+    _one_line,
+    _Piece,
+    select_columns,
+    validate_batch,
+)
 from loadbayes.io.errors import DataError
 from loadbayes.io.sources import _open_file
 
@@ -41,7 +48,7 @@ def _parquet_pieces(
         raise DataError(f"not a readable Parquet file: {_one_line(err)}", name) from None
     with parquet:
         schema = parquet.schema_arrow
-        present = _select(schema.names, required, extra, name)
+        present = select_columns(schema.names, required, extra, name)
         for col, i in present.items():
             _check_arrow_type(schema.field(i).type, name, col)
         start = 1
@@ -57,7 +64,7 @@ def _parquet_pieces(
                 ) from None
             if batch.num_rows:
                 columns = {col: batch.column(col) for col in present}
-                yield _validate(columns, start, positive, drop_invalid, name)
+                yield validate_batch(columns, start, positive, drop_invalid, name)
                 start += batch.num_rows
 
 

@@ -38,6 +38,9 @@ The work is split by job: :mod:`loadbayes.io.sources` (file types, opening),
 :mod:`loadbayes.io.csv_reader`, :mod:`loadbayes.io.parquet_reader`, and
 :mod:`loadbayes.io.cells` (cells to float64, the checks and the messages). This module
 holds the public functions and cuts the readers' pieces into chunks.
+
+Its length is one idea: the reading contract above, documented once, with the public
+read and write functions that keep it.
 """
 
 from __future__ import annotations

@@ -74,7 +74,7 @@ def read_frame(
     """
     import pyarrow as pa
 
-    from loadbayes.io.cells import _select, _validate
+    from loadbayes.io.cells import select_columns, validate_batch
     from loadbayes.io.errors import DataError
 
     if hasattr(data, "columns") and hasattr(data, "iloc"):
@@ -89,7 +89,7 @@ def read_frame(
             f"{type(data).__name__}",
             NAME,
         )
-    present = _select(header, list(required), [c for c in optional if c], NAME)
+    present = select_columns(header, list(required), [c for c in optional if c], NAME)
     arrays = {}
     for col in present:
         values = get[col]
@@ -105,7 +105,7 @@ def read_frame(
         raise DataError(f"columns differ in length ({', '.join(map(str, sorted(sizes)))})", NAME)
     if not sizes or sizes == {0}:
         raise DataError("no data rows", NAME)
-    piece = _validate(arrays, 1, frozenset(positive), drop_invalid, NAME)
+    piece = validate_batch(arrays, 1, frozenset(positive), drop_invalid, NAME)
     rows = np.delete(np.arange(1, piece.n_read + 1), piece.dropped - 1)
     if rows.size == 0:
         raise DataError(f"no valid rows: all {piece.n_read} data rows were dropped", NAME)

@@ -15,12 +15,18 @@ Likelihood pieces (a model offers one or more kinds; see docs/architecture.md):
     (:class:`~loadbayes.core.blocks.PowerLawBlock`), for Metropolis within Gibbs.
 ``bilinear_stats(gram)``
     Residuals bilinear in two coefficient blocks (:class:`~loadbayes.core.blocks.BilinearStats`).
-``log_density(theta, ...)`` (dynamic models)
-    A log-likelihood of nonlinear parameters for a Metropolis or slice move.
 
-Every model also has ``name``, ``coefficients`` (reported), ``free`` (checked pairwise for
-identifiability), ``default_priors()``, ``check(stats) -> warnings``, ``transform(draws)``
-and ``predict(draws, ...)``.
+Every model (:class:`LoadModel`) also has ``name``, ``pieces`` (which of the above it
+offers: ``"linear"``, ``"power-law"`` or ``"bilinear"``), ``coefficients`` (reported),
+``free`` (checked pairwise for identifiability), ``default_priors()``,
+``check(gram) -> warnings`` and ``transform(draws)``. The static models (ZIP,
+exponential) also have ``predict(draws, v, ...)``, which :meth:`Posterior.predict
+<loadbayes.posterior.Posterior.predict>` calls; the motor has none, so it is not part
+of the protocol.
+
+The composite load (:mod:`loadbayes.models.composite`) is not a :class:`LoadModel`: its
+response is an integrated ODE, and its collapsed log-density of the nonlinear parameters lives
+with its sampler in :mod:`loadbayes.fit.composite.problem`.
 """
 
 from __future__ import annotations
@@ -43,9 +49,17 @@ class LoadModel(Protocol):
     name: str
 
     @property
+    def pieces(self) -> str: ...  # noqa: D102
+
+    @property
     def coefficients(self) -> list[str]: ...  # noqa: D102
 
+    @property
+    def free(self) -> list[str]: ...  # noqa: D102
+
     def default_priors(self) -> Mapping[str, object]: ...  # noqa: D102
+
+    def check(self, gram: Gram) -> list[str]: ...  # noqa: D102
 
     def transform(self, draws: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]: ...  # noqa: D102
 

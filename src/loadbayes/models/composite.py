@@ -22,7 +22,7 @@ two design matrices, :func:`composition` maps ``beta`` to the named quantities
 
 Motor parametrisation: the dynamics depend on ``Rs, X', X - X', T', H`` and the loading
 ``T0`` only (``models/motor.py``); :data:`THETA_NAMES` are their logs. Physical reactances
-follow from the closure ``Xs = Xr`` (NOTES.md): ``Xm = sqrt(X (X - X'))``,
+follow from the closure ``Xs = Xr`` (docs/paper.md): ``Xm = sqrt(X (X - X'))``,
 ``Xs = Xr = X - Xm``, ``Rr = X / (wb T')``.
 """
 

@@ -32,7 +32,7 @@ Regression form (what the estimators use), with
     Id = ab (Ud - Ed') + ac (Uq - Eq')
     Iq = ab (Uq - Eq') - ac (Ud - Ed')
 
-Departures from the paper (see NOTES.md, "Slips in the paper"): the mechanical torque is
+Departures from the paper (see docs/paper.md, the numbered slips): the mechanical torque is
 ``A w^2 + B w + C`` (slip 3); the Iq equation has ``- ac (Ud - Ed')`` (slip 5); ``T0`` stays
 in the speed regressor (slip 6); the slip terms carry ``wb`` because time is in seconds.
 
@@ -43,6 +43,10 @@ Complex power into the motor ``S = U conj(I)``: ``P = Ud Id + Uq Iq`` and
 ``Q = Uq Id - Ud Iq``; a motoring machine has ``P > 0`` and ``Q > 0`` (it absorbs
 reactive power). The steady state puts the terminal voltage on the d axis:
 ``Ud = V``, ``Uq = 0``.
+
+Its length is one idea: the motor's equations, stated once here with their conventions
+(50 lines of docstring), the functions that evaluate them, and the steady state and its
+inverse that start every simulation and fit.
 """
 
 from __future__ import annotations
@@ -181,7 +185,7 @@ def currents(
     Notes
     -----
     ``I = (U - E') / (Rs + j X')``. The paper's Iq line has ``+ X' (Ud - Ed')``; the
-    division gives ``- X' (Ud - Ed')`` (NOTES.md, slip 5).
+    division gives ``- X' (Ud - Ed')`` (docs/paper.md, slip 5).
     """
     dd = np.asarray(ud, dtype=float) - np.asarray(ed, dtype=float)
     dq = np.asarray(uq, dtype=float) - np.asarray(eq, dtype=float)

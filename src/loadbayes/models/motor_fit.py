@@ -4,7 +4,8 @@ Physics, time base and sign conventions are those of :mod:`loadbayes.models.moto
 (seconds, ``wb = 2 pi f``; load convention). The five coefficients are
 ``b1 = -1/T'``, ``b2 = -(X - X')/T'``, ``b3 = -1/(2H)`` (1/s) and
 ``ab = Rs/(Rs^2 + X'^2)``, ``ac = X'/(Rs^2 + X'^2)`` (p.u.); the paper's section "IM Model"
-with its slips fixed (NOTES.md: the Iq sign, ``A w^2``, ``T0`` kept, ``y_Ed = dEd'/dt``).
+with its slips fixed (docs/paper.md, slips 3-6: ``A w^2``, ``y_Ed = dEd'/dt``, the Iq
+sign, ``T0`` kept).
 
 Two forms of the same five equations
 ------------------------------------

@@ -15,9 +15,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from loadbayes.cases.ieee33.draws import FACTOR_RANGE, Seed, _check_range, _draw, _streams
+from loadbayes.cases.ieee33.draws import (
+    FACTOR_RANGE,
+    Seed,
+    check_range,
+    draw_factors_from,
+    factor_streams,
+)
 from loadbayes.cases.ieee33.feeder import Feeder33
-from loadbayes.cases.ieee33.network import DEFAULT_ZIP, ZIP_BUS, Engine, _as_zip
+from loadbayes.cases.ieee33.network import DEFAULT_ZIP, ZIP_BUS, Engine, as_zip
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -90,15 +96,15 @@ def validate(
     ``|dV|`` about 1e-4 and ``|dP|`` about 1e-3. With draws this is a posterior-
     predictive check: ``m * n`` power flows, spread over ``workers``.
     """
-    factors = _draw(_streams(seed, rng)[0], n, factor_range)
+    factors = draw_factors_from(factor_streams(seed, rng)[0], n, factor_range)
     feeder = Feeder33(zip_p=zip_true, zip_q=zip_q_true, engine=engine)
     true = feeder.run_many(factors, workers=workers, progress=progress)
-    est_p = _as_zip(zip_est, "zip_est")
-    est_q = feeder.zip_q if zip_q_est is None else _as_zip(zip_q_est, "zip_q_est")
+    est_p = as_zip(zip_est, "zip_est")
+    est_q = feeder.zip_q if zip_q_est is None else as_zip(zip_q_est, "zip_q_est")
     attrs: dict[str, Any] = {
         "zip_true": feeder.zip_p.tolist(),
         "zip_q_true": feeder.zip_q.tolist(),
-        "factor_range": list(_check_range(factor_range)),
+        "factor_range": list(check_range(factor_range)),
         "seed": seed if isinstance(seed, int) and rng is None else None,
         "n_failed": int(n - true["converged"].sum()),
         "bus": ZIP_BUS + 1,

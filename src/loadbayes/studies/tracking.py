@@ -184,12 +184,12 @@ def run(*, quick: bool = True, seed: int = 0, progress: bool = False) -> Trackin
     progress : bool
         Print one line per noise level to stderr.
     """
-    from loadbayes.cases.scenarios import _day_flows, measure
+    from loadbayes.cases.scenarios import day_flows, measure
 
     t_start = time.perf_counter()
     n = 720 if quick else 2880
     noises = (0.01,) if quick else (0.001, 0.01, 0.1)
-    flows = _day_flows(n, int(seed), (0.1, 4.5))
+    flows = day_flows(n, int(seed), (0.1, 4.5))
     rows = []
     tracks: dict[str, dict[str, np.ndarray]] = {}
     for noise in noises:

@@ -22,7 +22,8 @@ FACTOR_RANGE = (0.1, 4.5)
 Seed = int | np.random.SeedSequence | None
 
 
-def _streams(seed: Seed, rng: np.random.Generator | None) -> list[np.random.Generator]:
+def factor_streams(seed: Seed, rng: np.random.Generator | None) -> list[np.random.Generator]:
+    """The two generators of one seed: ``[factors, noise]``."""
     # Separate streams for the load factors and the noise: the factors of a seed do not
     # depend on the noise settings, and draw_factors can rebuild them alone.
     if rng is not None:
@@ -63,15 +64,19 @@ def draw_factors(
     any ``noise_sd`` and ``workers``). Rows are drawn in order, so the
     first ``k`` rows do not depend on ``n``.
     """
-    return _draw(_streams(seed, rng)[0], n, factor_range)
+    return draw_factors_from(factor_streams(seed, rng)[0], n, factor_range)
 
 
-def _draw(gen: np.random.Generator, n: int, factor_range: tuple[float, float]) -> np.ndarray:
-    lo, hi = _check_range(factor_range)
+def draw_factors_from(
+    gen: np.random.Generator, n: int, factor_range: tuple[float, float]
+) -> np.ndarray:
+    """``n`` rows of load factors from the factor stream ``gen`` (see :func:`factor_streams`)."""
+    lo, hi = check_range(factor_range)
     return gen.uniform(lo, hi, size=(int(n), N_FACTORS))
 
 
-def _check_range(factor_range: tuple[float, float]) -> tuple[float, float]:
+def check_range(factor_range: tuple[float, float]) -> tuple[float, float]:
+    """``factor_range`` as two floats; raise ``ValueError`` unless ``0 <= low <= high``."""
     lo, hi = (float(b) for b in factor_range)
     if not 0.0 <= lo <= hi:
         raise ValueError(f"factor_range must satisfy 0 <= low <= high, got {factor_range}")
@@ -138,8 +143,8 @@ def generate_experiments(
         raise ValueError(f"n must be >= 1, got {n}")
     if noise_sd < 0 or noise_on_v < 0:
         raise ValueError("noise_sd and noise_on_v must be >= 0")
-    factor_rng, noise_rng = _streams(seed, rng)
-    factors = _draw(factor_rng, n, factor_range)
+    factor_rng, noise_rng = factor_streams(seed, rng)
+    factors = draw_factors_from(factor_rng, n, factor_range)
     # Noise for every row, converged or not, so it does not depend on failures.
     z = noise_rng.standard_normal((n, 3))
     feeder = Feeder33(zip_p=zip_p, zip_q=zip_q, engine=engine)
@@ -161,7 +166,7 @@ def generate_experiments(
         n_failed=int(n - res["converged"].sum()),
         zip_p=feeder.zip_p.tolist(),
         zip_q=feeder.zip_q.tolist(),
-        factor_range=list(_check_range(factor_range)),
+        factor_range=list(check_range(factor_range)),
         noise_sd=float(noise_sd),
         noise_on_v=float(noise_on_v),
         seed=seed if isinstance(seed, int) and rng is None else None,

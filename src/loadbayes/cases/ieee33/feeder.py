@@ -19,10 +19,10 @@ from loadbayes.cases.ieee33.network import (
     ZIP_BUS,
     BusSolution,
     Engine,
-    _as_zip,
     _case33bw,
     _pandapower,
     _per_row,
+    as_zip,
 )
 from loadbayes.cases.ieee33.parallel import solve_chunks
 
@@ -77,8 +77,8 @@ class Feeder33(PandapowerEngines, NewtonEngine):
     ) -> None:
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
-        self.zip_p = _as_zip(zip_p, "zip_p")
-        self.zip_q = _as_zip(zip_q, "zip_q")
+        self.zip_p = as_zip(zip_p, "zip_p")
+        self.zip_q = as_zip(zip_q, "zip_q")
         self.engine = engine
         self.tolerance_mva = float(tolerance_mva)
         self.max_iteration = int(max_iteration)
@@ -185,8 +185,8 @@ class Feeder33(PandapowerEngines, NewtonEngine):
             power flow did not converge.
         """
         f = self._check_factors(factors, ndim=1)
-        zp = self.zip_p if zip_p is None else _as_zip(zip_p, "zip_p")
-        zq = self.zip_q if zip_q is None else _as_zip(zip_q, "zip_q")
+        zp = self.zip_p if zip_p is None else as_zip(zip_p, "zip_p")
+        zq = self.zip_q if zip_q is None else as_zip(zip_q, "zip_q")
         if zp.ndim != 1 or zq.ndim != 1:
             raise ValueError("run takes one set of ZIP shares; use run_many for many")
         v, p, q, ok = self._solve(f, zp, zq)
@@ -231,8 +231,8 @@ class Feeder33(PandapowerEngines, NewtonEngine):
         """
         f = self._check_factors(factors, ndim=2)
         n = f.shape[0]
-        zp = _per_row(self.zip_p if zip_p is None else _as_zip(zip_p, "zip_p"), n, "zip_p")
-        zq = _per_row(self.zip_q if zip_q is None else _as_zip(zip_q, "zip_q"), n, "zip_q")
+        zp = _per_row(self.zip_p if zip_p is None else as_zip(zip_p, "zip_p"), n, "zip_p")
+        zq = _per_row(self.zip_q if zip_q is None else as_zip(zip_q, "zip_q"), n, "zip_q")
         out, ok = solve_chunks(self, f, zp, zq, workers=workers, progress=progress)
         return {
             "v_pu": out[:, 0],
@@ -274,11 +274,11 @@ class Feeder33(PandapowerEngines, NewtonEngine):
             As :meth:`run_many`, each of shape ``(m, n)``: row ``i`` is draw ``i``.
         """
         f = self._check_factors(factors, ndim=2)
-        zp = _as_zip(zip_p, "zip_p")
+        zp = as_zip(zip_p, "zip_p")
         if zp.ndim != 2:
             raise ValueError(f"zip_p: expected draws of shape (m, 2 | 3), got {zp.shape}")
         m, n = zp.shape[0], f.shape[0]
-        zq = self.zip_q if zip_q is None else _as_zip(zip_q, "zip_q")
+        zq = self.zip_q if zip_q is None else as_zip(zip_q, "zip_q")
         if zq.ndim == 2 and zq.shape[0] != m:
             raise ValueError(f"zip_q has {zq.shape[0]} draws, zip_p has {m}")
         zq = np.broadcast_to(zq, (m, 3))

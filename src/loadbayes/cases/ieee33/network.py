@@ -56,7 +56,7 @@ def _case33bw() -> Any:
     return copy.deepcopy(_pristine_case())
 
 
-def _as_zip(coeffs: ArrayLike, name: str = "zip") -> np.ndarray:
+def as_zip(coeffs: ArrayLike, name: str = "zip") -> np.ndarray:
     """Return ZIP shares as ``(..., 3)`` with ``a3 = 1 - a1 - a2``.
 
     Accepts ``(..., 2)`` (a1, a2) or ``(..., 3)`` (a1, a2, a3) whose rows sum to one.

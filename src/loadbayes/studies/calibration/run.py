@@ -19,6 +19,10 @@ Writes ``OUT/validation.json`` and ``OUT/validation.md``. Usage::
     python -m loadbayes.studies.calibration --out results/validation [--quick] [--jobs N]
 
 ``--quick`` runs every part at a tiny size (a smoke test of the script, not a result).
+
+Its length is one idea: the ``make validate`` run and its report, one short function per
+check listed above plus the report writer; the samplers under test are in
+:mod:`loadbayes.studies.calibration.registry`.
 """
 
 from __future__ import annotations

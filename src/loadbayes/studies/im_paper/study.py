@@ -15,7 +15,7 @@ import pandas as pd
 from loadbayes.models.motor import COEFFICIENT_NAMES, MotorParams
 from loadbayes.posterior import Posterior
 
-#: The paper's Table I: (real value, estimated mean, error %). Not physical (NOTES.md,
+#: The paper's Table I: (real value, estimated mean, error %). Not physical (docs/paper.md,
 #: slip 7): b1, b2, b3 must be negative for any motor under the paper's definitions.
 PAPER_TABLE1: dict[str, tuple[float, float, float]] = {
     "b1": (0.0077, 0.007683, 0.22),

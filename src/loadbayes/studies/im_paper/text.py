@@ -15,7 +15,7 @@ def _sentences(study: ImStudy, t1: pd.DataFrame, t3: pd.DataFrame, phys: pd.Data
     out = [
         "The paper's Table I lists b1 = 0.0077, b2 = 0.018 and b3 = 25, all positive; under "
         "its own definitions (b1 = -1/T', b2 = -(X - X')/T', b3 = -1/(2H)) they are negative "
-        "for every physical motor, so no motor matches that table (NOTES.md, slip 7). We "
+        "for every physical motor, so no motor matches that table (docs/paper.md, slip 7). We "
         "repeat its protocol (relative error of each coefficient at "
         f"{100 * study.settings['noise']:g}% noise) on documented motors and show the "
         "paper's numbers beside ours for reference only.",

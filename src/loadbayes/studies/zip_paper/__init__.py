@@ -1,7 +1,7 @@
 """The paper's ZIP study on the IEEE 33-bus feeder, reproduced with its baselines.
 
 What it does (the paper's section "Case Study: ZIP Model Identification" and
-"Benchmarks"; NOTES.md for what the paper leaves unsaid):
+"Benchmarks"; docs/paper.md for what the paper leaves unsaid):
 
 1. Data: ``N = max(n, largest sweep n)`` power flows of ``case33bw`` with the ZIP load
    (0.25, 0.25, 0.5) at bus 18 and every other load scaled by its own U[0.1, 4.5]
