@@ -226,10 +226,10 @@ def fit_composite_cmd(
 
     import numpy as np
 
-    from loadbayes.fit.composite.driver import fit_composite, predictive_band
-    from loadbayes.fit.composite.problem import CompositePrior
+    from loadbayes.fit.composite import fit_composite, predictive_band
     from loadbayes.measurements.events import read_events
     from loadbayes.models.composite import THETA_NAMES
+    from loadbayes.models.composite_prior import CompositePrior
 
     events = read_events(
         list(files),

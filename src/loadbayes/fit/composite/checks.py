@@ -23,10 +23,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from loadbayes.diagnostics import RHAT_MAX
 from loadbayes.models.composite import Event
 from loadbayes.models.composite_steps import step_intervals
 
-__all__ = ["T_PRIME_INTERVALS", "jumps", "sampling_warnings"]
+__all__ = ["T_PRIME_INTERVALS", "convergence_warnings", "jumps", "sampling_warnings"]
 
 #: T' shorter than this many sample intervals is where a misplaced step biases it.
 T_PRIME_INTERVALS = 10.0
@@ -85,3 +86,33 @@ def sampling_warnings(
             "the missing jump"
         )
     return out
+
+
+def convergence_warnings(
+    draws: dict[str, np.ndarray], names: Sequence[str], chains: int
+) -> list[str]:
+    """One warning naming the sampled coordinates whose R-hat is not below ``RHAT_MAX``.
+
+    Only the sampled coordinates are judged (the motor's five and any torque
+    log-ratios), and in the composite's own words: which ones, their R-hat, and that a
+    longer run (``--draws``, ``--burn``) is the remedy. Nothing for a single chain.
+    (:func:`loadbayes.diagnostics.sampler_warnings` judges every parameter of a summary
+    table, with ESS and kept-draw warnings besides, in other words.)
+    """
+    if chains < 2:
+        return []
+    import warnings
+
+    from loadbayes.posterior import import_arviz
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rhat = {n: float(import_arviz().rhat(draws[n])) for n in names}
+    slow = [n for n, r in rhat.items() if not r < RHAT_MAX]
+    if not slow:
+        return []
+    return [
+        "the chains have not converged for "
+        + ", ".join(f"{n} (R-hat {rhat[n]:.3f})" for n in slow)
+        + ": run longer (--draws, --burn)"
+    ]

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.fit.composite.nls import NLSResult
-from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.inference.adaptive_metropolis import AdaptiveMetropolis, run_chains
 from loadbayes.inference.condlinear import (
     draw_beta,
@@ -23,6 +23,7 @@ from loadbayes.inference.condlinear import (
     residual_ss,
 )
 from loadbayes.inference.factor_slice import FactorSlice
+from loadbayes.models.composite_prior import POSITIVE_BETA as _POS
 
 __all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
 

@@ -53,8 +53,8 @@ def _event():
 
 
 def _prior(event):
-    from loadbayes.fit.composite.problem import THETA_PRIOR, CompositePrior
     from loadbayes.models.composite import THETA_NAMES
+    from loadbayes.models.composite_prior import THETA_PRIOR, CompositePrior
 
     return CompositePrior(
         np.array([THETA_PRIOR[n][0] for n in THETA_NAMES]),
