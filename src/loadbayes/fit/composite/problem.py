@@ -31,7 +31,7 @@ from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
 from loadbayes.models.composite_steps import StepGrid
 from loadbayes.models.motor_kernel import H_MAX_S, integrate_into, step_size
 
-__all__ = ["CompositeProblem", "KernelResult", "theta_of"]
+__all__ = ["CompositeProblem", "KernelResult", "Samples", "theta_of"]
 
 _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
 
@@ -43,6 +43,31 @@ def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
         [u, np.expand_dims(np.asarray(log_t0, dtype=float) + 0 * u[..., 0], -1)], -1
     )
     return full @ _T_INV.T
+
+
+@dataclass(frozen=True)
+class Samples:
+    """The events' real samples concatenated (what the likelihood sees).
+
+    ``starts`` (events + 1): where each event's samples begin, then the total; ``x``
+    (``V / v0``), ``p``, ``q``: the samples; ``n`` (events, 2): each event's count, per
+    channel (P, Q).
+    """
+
+    starts: np.ndarray
+    x: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    n: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Samples over all events."""
+        return int(self.x.size)
+
+    def event(self, e: int) -> slice:
+        """The slice of event ``e``'s samples."""
+        return slice(self.starts[e], self.starts[e + 1])
 
 
 @dataclass
@@ -79,7 +104,6 @@ class CompositeProblem:
         self.m0 = np.zeros(7)
         self.p0 = 1.0 / self.prior.beta_sd**2
         ev = self.events
-        self._starts = np.cumsum([0] + [e.n for e in ev]).astype(np.int64)
         deltas = [np.zeros(e.n) if e.delta is None else e.delta - e.delta[0] for e in ev]
         # The kernel's input: the samples plus two virtual knots in every step interval
         # (models/composite_steps.py); the likelihood sees the real samples only.
@@ -87,10 +111,13 @@ class CompositeProblem:
         self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
             np.int64
         )
-        self._x = np.concatenate([e.x for e in ev])
-        self._p = np.concatenate([e.p for e in ev])
-        self._q = np.concatenate([e.q for e in ev])
-        self._n = np.array([[e.n, e.n] for e in ev], dtype=float)
+        self.samples = Samples(
+            np.cumsum([0] + [e.n for e in ev]).astype(np.int64),
+            np.concatenate([e.x for e in ev]),
+            np.concatenate([e.p for e in ev]),
+            np.concatenate([e.q for e in ev]),
+            np.array([[e.n, e.n] for e in ev], dtype=float),
+        )
         mean_u, cov_u, _, _ = self.prior.scale_free()
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
         # The design's voltage-only sums do not depend on the motor: once per problem.
@@ -150,7 +177,8 @@ class CompositeProblem:
             return None
         n_ev = len(self.events)
         ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
-        pm, qm = np.empty(self._x.size), np.empty(self._x.size)
+        d = self.samples
+        pm, qm = np.empty(d.size), np.empty(d.size)
         a, b, c = self.torque if torque is None else torque
         u = np.asarray(u, dtype=float)
         weighted = weights is not None
@@ -158,8 +186,8 @@ class CompositeProblem:
         try:
             lp = _collapsed(
                 u[:5], np.exp(theta_of(u[:5], 0.0)), np.asarray(tau, dtype=float),
-                g.times(self.phi(u)), g.v, g.delta, g.starts, self._real, self._x, self._p,
-                self._q, self._starts, self._n, self._mean_u, self._prec_u, self.m0, self.p0,
+                g.times(self.phi(u)), g.v, g.delta, g.starts, self._real, d.x, d.p, d.q,
+                d.starts, d.n, self._mean_u, self._prec_u, self.m0, self.p0,
                 POSITIVE_BETA, 2.0 * math.pi * self.f_hz, float(a), float(b), float(c),
                 float(self.h_max), self._xsums, weighted,
                 weights if weighted else _NO_WEIGHTS, pm, qm, ztz, zty, yty,
@@ -172,7 +200,9 @@ class CompositeProblem:
 
     def group_sums(self, k: KernelResult) -> list[GroupSums]:
         """The events' :class:`GroupSums` of one kernel call."""
-        return [GroupSums(k.ztz[e], k.zty[e], k.yty[e], self._n[e]) for e in range(len(k.ztz))]
+        return [
+            GroupSums(k.ztz[e], k.zty[e], k.yty[e], self.samples.n[e]) for e in range(len(k.ztz))
+        ]
 
     def collapsed(
         self, u: np.ndarray, tau: np.ndarray, torque: tuple[float, float, float] | None = None

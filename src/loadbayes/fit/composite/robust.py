@@ -107,17 +107,17 @@ def collapsed_weighted(
 
 def _residuals(problem: CompositeProblem, sums: WeightedSums, betas) -> np.ndarray:
     # (2, n) residuals of P and Q given the motor response and each event's beta.
-    s = problem._starts
-    x, pm, qm = problem._x, sums.pm, sums.qm
+    d = problem.samples
+    x, pm, qm = d.x, sums.pm, sums.qm
     out = np.empty((2, x.size))
     for e, beta in enumerate(betas):
-        sl = slice(s[e], s[e + 1])
+        sl = d.event(e)
         xe, pme, qme = x[sl], pm[sl], qm[sl]
         x2 = xe * xe
         fit_p = beta[0] * x2 + beta[1] * xe + beta[2] + beta[6] * pme / pme[0]
         fit_q = beta[3] * x2 + beta[4] * xe + beta[5] + beta[6] * (qme - qme[0] * x2) / pme[0]
-        out[0, sl] = problem._p[sl] - fit_p
-        out[1, sl] = problem._q[sl] - fit_q
+        out[0, sl] = d.p[sl] - fit_p
+        out[1, sl] = d.q[sl] - fit_q
     return out
 
 
@@ -131,7 +131,7 @@ class StudentTChain:
         self.fixed = spec.nu != "auto"
         nu0 = float(spec.nu) if self.fixed else spec.nu_start
         self.nu = np.array([nu0, nu0])
-        n = problem._x.size
+        n = problem.samples.size
         self.lam = np.ones((2, n))
         self.wsum = np.zeros((2, n))
         self.nu_out = np.empty((n_kept, 2))
@@ -181,15 +181,15 @@ class StudentTChain:
         if keep:
             self.nu_out[self.kept] = self.nu
             self.kept += 1
-        p = self.problem
+        d = self.problem.samples
         groups = []
-        for e in range(len(p.events)):
-            sl = slice(p._starts[e], p._starts[e + 1])
+        for e in range(len(self.problem.events)):
+            sl = d.event(e)
             zz, zy, yy = weighted_sums(
-                p._x[sl], sums.pm[sl], sums.qm[sl], p._p[sl], p._q[sl],
+                d.x[sl], sums.pm[sl], sums.qm[sl], d.p[sl], d.q[sl],
                 self.lam[0, sl], self.lam[1, sl],
             )  # fmt: skip
-            groups.append(GroupSums(zz, zy, yy, p._n[e]))
+            groups.append(GroupSums(zz, zy, yy, d.n[e]))
         self.sums = WeightedSums(groups, sums.pm, sums.qm)
         return self.sums
 
@@ -220,7 +220,7 @@ def robust_outputs(problem: CompositeProblem, res, nu, draws: dict[str, np.ndarr
         thr = flag_threshold(nus[..., g], sigmas=FLAG_SIGMAS)
         for e in range(len(problem.events)):
             sfx = "" if e == 0 else f"_e{e}"
-            w = weight[g, problem._starts[e] : problem._starts[e + 1]]
+            w = weight[g, problem.samples.event(e)]
             constant[f"weight_{ch}{sfx}"] = w
             flagged[f"{ch}{sfx}"] = np.flatnonzero(w < thr).tolist()
             n_flag += len(flagged[f"{ch}{sfx}"])
