@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, THETA_NAMES, Event
+from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, THETA_NAMES, EventRecord
 
 __all__ = ["POSITIVE_BETA", "STEP_PRIOR_SD", "THETA_PRIOR", "CompositePrior"]
 
@@ -62,7 +62,7 @@ class CompositePrior:
     tau_rate: float = 1e-9
 
     @classmethod
-    def default(cls, events: Sequence[Event], *, scale: float = 10.0) -> CompositePrior:
+    def default(cls, events: Sequence[EventRecord], *, scale: float = 10.0) -> CompositePrior:
         """Weak default: THETA_PRIOR, and ``beta_sd = scale * max |S|`` of the data."""
         s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
         return cls(

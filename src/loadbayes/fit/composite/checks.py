@@ -24,7 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.diagnostics import RHAT_MAX
-from loadbayes.models.composite import Event
+from loadbayes.models.composite import EventRecord
 from loadbayes.models.composite_steps import step_intervals
 
 __all__ = ["T_PRIME_INTERVALS", "convergence_warnings", "jumps", "sampling_warnings"]
@@ -33,19 +33,19 @@ __all__ = ["T_PRIME_INTERVALS", "convergence_warnings", "jumps", "sampling_warni
 T_PRIME_INTERVALS = 10.0
 
 
-def jumps(event: Event) -> np.ndarray:
+def jumps(event: EventRecord) -> np.ndarray:
     """Indices ``k`` of the step intervals ``(t_k, t_k+1)`` (models/composite_steps.py)."""
     return step_intervals(event.v)
 
 
 def sampling_warnings(
-    events: Sequence[Event], t_prime_s: np.ndarray, *, steps_modelled: bool = False
+    events: Sequence[EventRecord], t_prime_s: np.ndarray, *, steps_modelled: bool = False
 ) -> list[str]:
     """Plain-words warnings about steps between samples and angles read from frequency.
 
     Parameters
     ----------
-    events : sequence of Event
+    events : sequence of EventRecord
         The recordings fitted.
     t_prime_s : ndarray
         Posterior draws of the motor's T' (s).

@@ -43,7 +43,7 @@ from loadbayes.fit.composite.provenance import (
 from loadbayes.fit.composite.robust import StudentT, robust_outputs
 from loadbayes.fit.composite.sampler import DEFAULT_MOVE, sample
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
-from loadbayes.models.composite import THETA_NAMES, Event
+from loadbayes.models.composite import THETA_NAMES, EventRecord
 from loadbayes.models.composite_prior import CompositePrior
 from loadbayes.models.motor_kernel import H_MAX_S
 from loadbayes.posterior import Posterior, gaussian_draws
@@ -96,7 +96,7 @@ def _student_t(likelihood: str, nu: float | str) -> StudentT | None:
 
 
 def fit_composite(
-    events: Sequence[Event],
+    events: Sequence[EventRecord],
     *,
     sampler: SamplerSettings | None = None,
     prior: CompositePrior | None = None,
@@ -115,7 +115,7 @@ def fit_composite(
 
     Parameters
     ----------
-    events : sequence of Event
+    events : sequence of EventRecord
         Recordings (each its own operating point; the motor is shared).
     sampler : SamplerSettings, optional
         Draws, burn-in, chains, thinning, seed and threads; default

@@ -22,7 +22,7 @@ from loadbayes.inference.condlinear import (
 )
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
-    Event,
+    EventRecord,
     design,
 )
 from loadbayes.models.composite_prior import STEP_PRIOR_SD
@@ -157,7 +157,7 @@ def _thinned(problem: CompositeProblem) -> CompositeProblem:
     for e in problem.events:
         k = max(1, int(1.0 / (COARSE_FS * float(np.median(np.diff(e.t))))))
         d = None if e.delta is None else e.delta[::k]
-        events.append(Event(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
+        events.append(EventRecord(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
     if all(a.n == b.n for a, b in zip(events, problem.events, strict=True)):
         return problem
     # Without steps: the search only needs where the motor's coordinates roughly are

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.fit.composite.naming import beta_from_named, event_suffix
-from loadbayes.models.composite import THETA_NAMES, Event, design, motor_response
+from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_response
 from loadbayes.models.composite_steps import StepGrid
 from loadbayes.posterior import Posterior
 
@@ -16,7 +16,7 @@ __all__ = ["predictive_band"]
 
 def predictive_band(
     post: Posterior,
-    events: Sequence[Event],
+    events: Sequence[EventRecord],
     *,
     f_hz: float = 60.0,
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0),

@@ -26,7 +26,7 @@ from loadbayes.inference.condlinear import (
     log_marginal,
     log_marginal_arrays,
 )
-from loadbayes.models.composite import SCALE_FREE_MATRIX, Event, motor_response
+from loadbayes.models.composite import SCALE_FREE_MATRIX, EventRecord, motor_response
 from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
 from loadbayes.models.composite_steps import StepGrid
 from loadbayes.models.motor_kernel import H_MAX_S, integrate_into, step_size
@@ -92,7 +92,7 @@ class KernelResult:
 class CompositeProblem:
     """Events, prior and settings: the log-densities the samplers and NLS use."""
 
-    events: list[Event]
+    events: list[EventRecord]
     prior: CompositePrior
     f_hz: float = 60.0
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0)
