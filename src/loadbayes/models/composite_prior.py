@@ -20,7 +20,8 @@ from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, THETA_NAME
 __all__ = ["POSITIVE_BETA", "STEP_PRIOR_SD", "THETA_PRIOR", "CompositePrior"]
 
 #: Default prior of the motor's log-parameters: (median, sd of the log). Centred on the
-#: library's typical motors (models/motor.md) with a wide spread: a factor e^sd either way.
+#: library's typical motors (docs/motor.md, "The documented motors";
+#: models/motor_library.py) with a wide spread: a factor e^sd either way.
 THETA_PRIOR: dict[str, tuple[float, float]] = {
     "log_rs": (math.log(0.02), 1.0),
     "log_x_prime": (math.log(0.15), 0.7),
