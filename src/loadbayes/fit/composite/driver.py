@@ -207,13 +207,16 @@ def fit_composite(
         ident["summary"] += " " + ident["torque"]["summary"]
     post.extra_json["identifiability"] = ident
     weak = prior_driven_warning(ident)
-    post.warnings.extend([weak] if weak else [])
+    if weak:
+        post.warnings.append(weak)
     post.warnings.extend(sampling_warnings(events, draws_named["t_prime_s"], steps_modelled=steps))
     watch = _WATCH + (_WATCH_TORQUE if estimate else ())
     post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))
-    kept = max((run.draws - run.burn) // run.thin, 1)
+    # Baseline draws per chain: (draws - burn) // thin, at least one (not run.kept, which
+    # rounds up: the baseline's size has always been this).
+    n_baseline = max((run.draws - run.burn) // run.thin, 1)
     baseline = Posterior(
-        _baseline_draws(problem, start, run.chains, kept, run.seed),
+        _baseline_draws(problem, start, run.chains, n_baseline, run.seed),
         model="composite",
         method="nls-penalised",
         coefficients=coefficients,
