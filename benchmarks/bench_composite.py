@@ -120,9 +120,10 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
     import emcee
     from scipy.integrate import solve_ivp
 
-    from loadbayes.fit.composite.driver import named_draws
-    from loadbayes.fit.composite.problem import CompositePrior, theta_of
+    from loadbayes.fit.composite.naming import named_draws
+    from loadbayes.fit.composite.problem import theta_of
     from loadbayes.models.composite import design
+    from loadbayes.models.composite_prior import CompositePrior
     from loadbayes.models.motor import MotorParams, currents, derivatives, power
     from loadbayes.models.motor import steady_state as ss
 

@@ -21,7 +21,7 @@ import pandas as pd
 
 from loadbayes._version import __version__
 
-__all__ = ["FitWarning", "Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws"]
+__all__ = ["FitWarning", "Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws", "import_arviz"]
 
 #: Observed inputs kept in the ``constant_data`` group (the measured P, Q are observed data).
 _INPUTS = ("v", "f", "t", "ud", "uq", "ed", "eq", "w", "id", "iq", "ded", "deq", "dw", "t_s")
@@ -55,7 +55,8 @@ def gaussian_draws(
     return mean + rng.standard_normal((chains, draws, mean.size)) @ root.T
 
 
-def _arviz():
+def import_arviz():
+    """The ``arviz`` module, imported without its "ArviZ is undergoing" FutureWarning."""
     import warnings
 
     with warnings.catch_warnings():
@@ -63,6 +64,10 @@ def _arviz():
         import arviz
 
     return arviz
+
+
+#: The name the tests import.
+_arviz = import_arviz
 
 
 def _finite_or_none(x: Any) -> Any:
@@ -278,7 +283,7 @@ class Posterior:
         """
         if not 0 < hdi_prob < 1:
             raise ValueError(f"hdi_prob must be in (0, 1), got {hdi_prob}")
-        az = _arviz()
+        az = import_arviz()
         names = list(var_names or self.names)
         import warnings
 
@@ -309,7 +314,7 @@ class Posterior:
         pointwise : bool
             Add the pointwise groups; ``False`` keeps every draw and no predictions.
         """
-        az = _arviz()
+        az = import_arviz()
         from loadbayes.predictive import channel_units
         from loadbayes.predictive import pointwise as _pointwise
 
@@ -430,7 +435,7 @@ class Posterior:
     @classmethod
     def from_netcdf(cls, path: str | Path) -> Posterior:
         """Read a file written by :meth:`to_netcdf`."""
-        az = _arviz()
+        az = import_arviz()
         idata = az.from_netcdf(str(path))
         out = cls.from_arviz(idata)
         idata.close() if hasattr(idata, "close") else None

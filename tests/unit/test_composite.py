@@ -7,7 +7,7 @@ import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
 from loadbayes.fit.composite.nls import nls
-from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
     composition,
@@ -16,6 +16,7 @@ from loadbayes.models.composite import (
     motor_response,
     predict,
 )
+from loadbayes.models.composite_prior import CompositePrior
 from loadbayes.models.composite_steps import EPS_FRACTION
 from loadbayes.models.motor_library import MOTORS
 
@@ -163,7 +164,7 @@ def test_compiled_collapsed_density_equals_the_python_path():
 def test_the_figure_has_no_empty_panel(n_events):
     # One P and one Q panel per event plus three pair plots, each with something drawn:
     # the grid once left blank axes beside a single event.
-    from loadbayes.fit.composite.driver import fit_composite, predictive_band
+    from loadbayes.fit.composite import fit_composite, predictive_band
     from loadbayes.plots.composite import plot_composite
     from loadbayes.plots.fit import pyplot
 

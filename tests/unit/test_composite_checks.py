@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from loadbayes.fit.composite.checks import jumps, sampling_warnings
-from loadbayes.models.composite import Event
+from loadbayes.models.composite import EventRecord
 
 
 def _event(fs=120.0, depth=0.3, angle_from="", smooth=False):
@@ -15,7 +15,7 @@ def _event(fs=120.0, depth=0.3, angle_from="", smooth=False):
     else:
         v = np.where((t > 0.5) & (t <= 0.7), 1.0 - depth, 1.0)
     z = np.zeros_like(t)
-    return Event(t, v, z + 1.0, z + 0.3, None if not angle_from else z, "ev", angle_from)
+    return EventRecord(t, v, z + 1.0, z + 0.3, None if not angle_from else z, "ev", angle_from)
 
 
 def test_jumps_are_the_intervals_with_a_switching_step():

@@ -12,10 +12,11 @@ import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
 from loadbayes.fit.composite.nls import nls
-from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem
-from loadbayes.fit.composite.robust import _weighted_sums
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.sampler import MOVES, sample
 from loadbayes.fit.composite.sums import design_sums
+from loadbayes.fit.composite.sums import weighted_sums as _weighted_sums
+from loadbayes.models.composite_prior import CompositePrior
 from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS, step_size
 
 

@@ -7,12 +7,14 @@ import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
 from loadbayes.fit.composite.nls import nls
-from loadbayes.fit.composite.problem import _POS, CompositePrior, CompositeProblem
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.robust import StudentT, collapsed_weighted
 from loadbayes.fit.composite.sampler import sample
 from loadbayes.inference.condlinear import GroupSums, log_marginal
 from loadbayes.inference.student_weights import draw_weights
 from loadbayes.models.composite import design
+from loadbayes.models.composite_prior import POSITIVE_BETA as _POS
+from loadbayes.models.composite_prior import CompositePrior
 
 
 def _problem():

@@ -9,9 +9,10 @@ import pytest
 from scipy import stats
 
 from loadbayes.cases.composite_sim import simulate_event
-from loadbayes.fit.composite.problem import CompositePrior, CompositeProblem
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.torque import TorqueProblem, log_prior_z, shares
 from loadbayes.models.composite import SCALE_FREE_MATRIX, design, motor_response
+from loadbayes.models.composite_prior import CompositePrior
 from loadbayes.models.motor_library import MOTORS
 
 

@@ -249,22 +249,9 @@ def cross_package_private_imports(names: dict[str, set[tuple[str, str]]]) -> set
     }
 
 
-# The cross-package private imports left in files this branch does not own. Each is
-# being made public on another branch (the composite split: posterior._arviz and
-# motor_kernel._integrate); the lead empties this list at merge. An entry that no longer
-# occurs fails the test too, so the list can only shrink.
-ALLOWED_PRIVATE = {
-    "loadbayes.fit.composite.driver -> loadbayes.posterior._arviz",
-    "loadbayes.fit.composite.problem -> loadbayes.models.motor_kernel._integrate",
-    "loadbayes.fit.composite.robust -> loadbayes.models.motor_kernel._integrate",
-    "loadbayes.testing.geweke -> loadbayes.posterior._arviz",
-}
-
-
 def test_no_private_name_crosses_a_package_line():
     found = cross_package_private_imports(NAMES)
-    assert found - ALLOWED_PRIVATE == set(), sorted(found - ALLOWED_PRIVATE)
-    assert ALLOWED_PRIVATE - found == set(), f"fixed, remove: {sorted(ALLOWED_PRIVATE - found)}"
+    assert not found, sorted(found)
 
 
 def test_the_private_name_rule_catches_a_planted_import(tmp_path):

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.cases.motor_sim import Disturbance, sag, simulate
-from loadbayes.models.composite import Event
+from loadbayes.models.composite import EventRecord
 from loadbayes.models.motor import MotorParams
 from loadbayes.models.motor_library import MOTORS
 
@@ -75,7 +75,7 @@ def simulate_event(
     seed: int = 0,
     name: str = "",
     step: bool = True,
-) -> tuple[Event, dict[str, Any]]:
+) -> tuple[EventRecord, dict[str, Any]]:
     """Simulate one sag at a composite load.
 
     Parameters
@@ -110,7 +110,7 @@ def simulate_event(
 
     Returns
     -------
-    (Event, dict)
+    (EventRecord, dict)
         The noisy event and the truth, named as the fit reports it (docs/composite.md).
     """
     params = MOTORS[motor] if isinstance(motor, str) else motor
@@ -177,4 +177,4 @@ def simulate_event(
         truth["t_step0"] = float(start_s)
         if recovery_s == 0:
             truth["t_step1"] = float(start_s + duration_s)
-    return Event(t, v, p_obs, q_obs, None, name or f"sag{depth:g}"), truth
+    return EventRecord(t, v, p_obs, q_obs, None, name or f"sag{depth:g}"), truth

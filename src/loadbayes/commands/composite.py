@@ -10,6 +10,12 @@ import math
 
 import click
 
+from loadbayes.commands.options import (
+    OneLineCommand,
+    likelihood_options,
+    parse_nu,
+    sampler_settings,
+)
 from loadbayes.commands.output import UserError, check_outputs, user_errors
 
 __all__ = ["fit_composite_cmd"]
@@ -62,22 +68,7 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     return a, b, c
 
 
-def _parse_nu(value: str) -> float | str:
-    # As fit zip's --nu (a command module does not import another one).
-    if value.strip().lower() == "auto":
-        return "auto"
-    try:
-        out = float(value)
-    except ValueError:
-        raise click.BadParameter(
-            f"{value!r} is neither a number nor 'auto'", param_hint="--nu"
-        ) from None
-    if not (out > 0 and math.isfinite(out)):
-        raise click.BadParameter("must be a positive finite number or 'auto'", param_hint="--nu")
-    return out
-
-
-@click.command("composite")
+@click.command("composite", cls=OneLineCommand)
 @click.argument("files", nargs=-1, required=True, type=str)
 @click.option("--t-col", default="t_s", show_default=True, help="Time column (s).")
 @click.option("--v-col", default="v", show_default=True, help="Voltage-magnitude column.")
@@ -107,20 +98,10 @@ def _parse_nu(value: str) -> float | str:
     help="Load torque T0 (A w^2 + B w + C), A + B + C = 1; or 'estimate' (a uniform "
     "Dirichlet prior on A, B, C).",
 )
-@click.option(
-    "--likelihood",
-    type=click.Choice(["normal", "student-t"]),
-    default="normal",
-    show_default=True,
-    help="Gaussian noise on P and Q, or Student-t noise that discounts bad samples "
+@likelihood_options(
+    likelihood_help="Gaussian noise on P and Q, or Student-t noise that discounts bad samples "
     "and lists them under 'flagged' in the JSON.",
-)
-@click.option(
-    "--nu",
-    default="auto",
-    show_default=True,
-    metavar="VALUE|auto",
-    help="Student-t degrees of freedom: a number, or 'auto' to sample them.",
+    nu_help="Student-t degrees of freedom: a number, or 'auto' to sample them.",
 )
 @click.option(
     "--steps/--no-steps",
@@ -136,28 +117,14 @@ def _parse_nu(value: str) -> float | str:
     metavar="NAME=MEDIAN,SD_LOG",
     help="Log-normal prior of rs, x_prime, dx, t_prime_s, h_s or t0 (repeatable).",
 )
-@click.option(
-    "--draws",
-    type=click.IntRange(min=2),
-    default=16_000,
-    show_default=True,
-    help="Iterations per chain, burn-in included.",
-)
-@click.option(
-    "--burn",
-    type=click.IntRange(min=1),
-    default=4000,
-    show_default=True,
-    help="Burn-in (the proposal adapts during it, then freezes).",
-)
-@click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True)
-@click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True)
-@click.option("--seed", type=int, default=0, show_default=True)
-@click.option(
-    "--hdi-prob",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
-    default=0.95,
-    show_default=True,
+@sampler_settings(
+    draws=16_000,
+    burn=4_000,
+    init=False,
+    draws_min=2,
+    burn_min=1,
+    draws_help="Iterations per chain, burn-in included.",
+    burn_help="Burn-in (the proposal adapts during it, then freezes).",
 )
 @click.option(
     "--json", "json_out", type=click.Path(dir_okay=False), required=True, help="Summary JSON."
@@ -190,12 +157,7 @@ def fit_composite_cmd(
     likelihood,
     nu,
     priors,
-    draws,
-    burn,
-    chains,
-    thin,
-    seed,
-    hdi_prob,
+    sampler,
     json_out,
     netcdf_out,
     plot_out,
@@ -216,20 +178,18 @@ def fit_composite_cmd(
         "--baseline-json": baseline_out,
     }
     check_outputs(outputs, list(files), force)
-    if burn >= draws:
-        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     torque_abc = _parse_torque(torque)
-    nu_value = _parse_nu(nu)
+    nu_value = parse_nu(nu)
     if likelihood != "student-t" and nu != "auto":
         raise UserError("--nu needs --likelihood student-t")
     prior_items = _parse_priors(priors)
 
     import numpy as np
 
-    from loadbayes.fit.composite.driver import fit_composite, predictive_band
-    from loadbayes.fit.composite.problem import CompositePrior
+    from loadbayes.fit.composite import fit_composite, predictive_band
     from loadbayes.measurements.events import read_events
     from loadbayes.models.composite import THETA_NAMES
+    from loadbayes.models.composite_prior import CompositePrior
 
     events = read_events(
         list(files),
@@ -262,23 +222,19 @@ def fit_composite_cmd(
         f_hz=f_hz,
         torque=torque_abc,
         steps=steps,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        chains=chains,
-        seed=seed,
+        sampler=sampler,
         settings={"files": list(files)},
         likelihood=likelihood,
         nu=nu_value,
     )
     post = fit.posterior
-    table = post.summary(hdi_prob=hdi_prob)
+    table = post.summary(hdi_prob=sampler.hdi_prob)
     written: list[str] = []
     try:
-        post.to_json(json_out, hdi_prob=hdi_prob, force=force, summary=table)
+        post.to_json(json_out, hdi_prob=sampler.hdi_prob, force=force, summary=table)
         written.append(str(json_out))
         if baseline_out:
-            fit.baseline.to_json(baseline_out, hdi_prob=hdi_prob, force=force)
+            fit.baseline.to_json(baseline_out, hdi_prob=sampler.hdi_prob, force=force)
             written.append(str(baseline_out))
         if netcdf_out:
             post.to_netcdf(netcdf_out, force=force)
@@ -287,7 +243,7 @@ def fit_composite_cmd(
             from loadbayes.plots.composite import plot_composite
             from loadbayes.plots.fit import save_figure
 
-            bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=seed)
+            bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=sampler.seed)
             fig = plot_composite(post, events, bands, baseline=fit.baseline)
             save_figure(fig, plot_out, force=force)
             written.append(str(plot_out))

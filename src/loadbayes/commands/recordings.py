@@ -195,29 +195,29 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     # v may be 0 (an interruption in a long record): not refused here.
     data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["angle_rad", "f", "rocof"])
     try:
-        events = find_sags(
+        windows = find_sags(
             data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,
             min_duration_s=min_duration, pre_s=pre, post_s=post, v_ref=v_ref,
         )  # fmt: skip
     except ValueError as exc:
         raise UserError(f"{record}: {exc}") from None
-    names = [folder / f"event_{ev.index:03d}.{fmt}" for ev in events]
+    names = [folder / f"event_{ev.index:03d}.{fmt}" for ev in windows]
     index = folder / "events.csv"
     for path in [*names, index]:
         if path.exists() and not force:
             raise UserError(f"{path}: exists; use --force to overwrite")
     folder.mkdir(exist_ok=True)
-    for path, table in zip(names, cut_events(data, events), strict=True):
+    for path, table in zip(names, cut_events(data, windows), strict=True):
         write_table(table, path, force=force)
-    rows = [ev.as_row() | {"file": p.name} for ev, p in zip(events, names, strict=True)]
+    rows = [ev.as_row() | {"file": p.name} for ev, p in zip(windows, names, strict=True)]
     cols = ["index", "file", "start", "stop", "sag_start_s", "recovery_s", "duration_s",
             "v_min", "depth", "recovered", "n_sags"]  # fmt: skip
     import pandas as pd
 
     write_table(pd.DataFrame(rows, columns=cols), index, force=force)
     if not quiet:
-        click.echo(f"{record}: {len(events)} event(s) written to {out}", err=True)
-        for ev in events:
+        click.echo(f"{record}: {len(windows)} event(s) written to {out}", err=True)
+        for ev in windows:
             rec = f"recovered at {ev.recovery_s:.4g} s" if ev.recovered else "not recovered"
             click.echo(
                 f"  event {ev.index}: sag at {ev.sag_start_s:.4g} s, depth {ev.depth:.3f}, "

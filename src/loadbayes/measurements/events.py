@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.io.errors import DataError
-from loadbayes.models.composite import Event
+from loadbayes.models.composite import EventRecord
 
 __all__ = ["MIN_DV", "MIN_SAMPLES", "MIN_SPAN_S", "MAX_GAP", "events_from_arrays", "read_events"]
 
@@ -37,7 +37,7 @@ def events_from_arrays(
     path: str,
     names: dict[str, str],
     f_hz: float = 60.0,
-) -> list[Event]:
+) -> list[EventRecord]:
     """Split and check in-memory columns ``t, v, p, q`` [``f``, ``angle``, ``event``].
 
     Parameters
@@ -56,7 +56,7 @@ def events_from_arrays(
 
     Returns
     -------
-    list of Event
+    list of EventRecord
     """
     if "t" not in cols:
         raise DataError("missing column (the event's sample times in seconds)", path, names["t"])
@@ -77,7 +77,7 @@ def _fmt(x: float) -> str:
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
-def _check(cols, rows, *, path, label, names, f_hz) -> Event:
+def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
     t, v = cols["t"], cols["v"]
     where = f"{path}" if label == path else label
     if t.size < MIN_SAMPLES:
@@ -146,7 +146,7 @@ def _check(cols, rows, *, path, label, names, f_hz) -> Event:
         # The voltage angle in the frame rotating at f_hz: the integral of 2 pi (f - f_hz).
         w = 2 * math.pi * (f - f_hz)
         delta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)])
-    return Event(t - t[0], v, cols["p"], cols["q"], delta, label, source)
+    return EventRecord(t - t[0], v, cols["p"], cols["q"], delta, label, source)
 
 
 def read_events(
@@ -162,7 +162,7 @@ def read_events(
     v_base: float | None = None,
     s_base: float | None = None,
     f_hz: float = 60.0,
-) -> list[Event]:
+) -> list[EventRecord]:
     """Read every file's events (CSV or Parquet; columns as named, per unit after bases).
 
     ``f_col`` and ``angle_col`` default to ``f`` and ``angle_rad`` when present (the angle
@@ -170,7 +170,7 @@ def read_events(
     """
     from loadbayes.measurements.columns import read_power_columns
 
-    out: list[Event] = []
+    out: list[EventRecord] = []
     for path in paths:
         extra = tuple(c for c in (f_col or "f", angle_col or "angle_rad", event_col) if c)
         pc = read_power_columns(

@@ -41,7 +41,7 @@ __all__ = [
     "SCALE_FREE_MATRIX",
     "SCALE_FREE_NAMES",
     "THETA_NAMES",
-    "Event",
+    "EventRecord",
     "composition",
     "design",
     "motor_physical",
@@ -78,8 +78,12 @@ SCALE_FREE_MATRIX = np.array(
 
 
 @dataclass(frozen=True, eq=False)
-class Event:
+class EventRecord:
     """One recorded disturbance at the load bus (all system p.u.; times in s).
+
+    The record of one event: the samples the composite fit is given (an "event" in the
+    CLI, the JSON and :func:`~loadbayes.measurements.events.read_events`), as opposed to
+    :class:`~loadbayes.recordings.events.SagWindow`, where a sag lies in a long record.
 
     Parameters
     ----------
@@ -121,7 +125,7 @@ class Event:
 
 
 def motor_response(
-    event: Event,
+    event: EventRecord,
     theta: NDArray[np.float64],
     *,
     f_hz: float = 60.0,
@@ -132,7 +136,7 @@ def motor_response(
 
     Parameters
     ----------
-    event : Event
+    event : EventRecord
         The recording (its V and angle drive the motor).
     theta : ndarray, shape (6,)
         Values of :data:`THETA_NAMES`.
@@ -166,7 +170,7 @@ def motor_response(
 
 
 def design(
-    event: Event, p_m: NDArray[np.float64], q_m: NDArray[np.float64]
+    event: EventRecord, p_m: NDArray[np.float64], q_m: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Design matrices of P and Q on ``beta`` (:data:`BETA_NAMES`), each shaped (n, 7)."""
     x = event.x
@@ -259,7 +263,7 @@ def motor_physical(theta: NDArray[np.float64], *, f_hz: float = 60.0) -> dict[st
 
 
 def predict(
-    event: Event,
+    event: EventRecord,
     theta: NDArray[np.float64],
     beta: NDArray[np.float64],
     *,

@@ -164,14 +164,14 @@ class StepGrid:
     def motor_input(self, k: int, t: NDArray[np.float64]):
         """Event ``k``'s augmented input (times ``t`` from :meth:`times`) and its real samples.
 
-        Returns an :class:`~loadbayes.models.composite.Event` to drive the motor with and
+        Returns an :class:`~loadbayes.models.composite.EventRecord` to drive the motor with and
         the positions of the real samples in it (the likelihood's only).
         """
-        from loadbayes.models.composite import Event
+        from loadbayes.models.composite import EventRecord
 
         s0, s1 = self.starts[k], self.starts[k + 1]
         v = self.v[s0:s1]
-        return Event(t[s0:s1], v, v, v, self.delta[s0:s1]), self.real_local(k)
+        return EventRecord(t[s0:s1], v, v, v, self.delta[s0:s1]), self.real_local(k)
 
     def step_time(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
         """The instant of each step (s, the event's own clock), vectorised over draws."""

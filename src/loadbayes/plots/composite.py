@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.composite import Event
+from loadbayes.models.composite import EventRecord
 from loadbayes.plots.fit import pyplot
 from loadbayes.posterior import Posterior
 
@@ -27,7 +27,7 @@ _LABELS = {
 
 def plot_composite(
     post: Posterior,
-    events: Sequence[Event],
+    events: Sequence[EventRecord],
     bands: Sequence[Mapping[str, np.ndarray]],
     *,
     baseline: Posterior | None = None,
@@ -40,7 +40,7 @@ def plot_composite(
     ----------
     post : Posterior
         The composite posterior.
-    events : sequence of Event
+    events : sequence of EventRecord
         The recordings fitted.
     bands : sequence of mapping
         From :func:`loadbayes.fit.composite.driver.predictive_band`, one per event.

@@ -19,12 +19,12 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Event", "cut_events", "find_sags"]
+__all__ = ["SagWindow", "cut_events", "find_sags"]
 
 
 @dataclass(frozen=True)
-class Event:
-    """One sag and the window cut around it.
+class SagWindow:
+    """One sag and the window cut around it (where it lies in the record, not its samples).
 
     Parameters
     ----------
@@ -79,7 +79,7 @@ def find_sags(
     pre_s: float = 0.5,
     post_s: float = 2.0,
     v_ref: float | None = None,
-) -> list[Event]:
+) -> list[SagWindow]:
     """Find the voltage sags of a record.
 
     Parameters
@@ -101,7 +101,7 @@ def find_sags(
 
     Returns
     -------
-    list of Event
+    list of SagWindow
         In time order; overlapping windows merged.
 
     Raises
@@ -153,7 +153,7 @@ def find_sags(
         _, b, recovered = group[-1]
         vmin = float(np.min(v[lo:hi]))
         out.append(
-            Event(
+            SagWindow(
                 index=k,
                 start=lo,
                 stop=hi,
@@ -170,7 +170,7 @@ def find_sags(
 
 
 def cut_events(
-    data: Mapping[str, np.ndarray], events: list[Event], *, t_col: str = "t_s"
+    data: Mapping[str, np.ndarray], events: list[SagWindow], *, t_col: str = "t_s"
 ) -> list[dict[str, np.ndarray]]:
     """Cut each event's window out of the record, its time counted from its first sample.
 
@@ -178,7 +178,7 @@ def cut_events(
     ----------
     data : mapping of str to numpy.ndarray
         The record's columns, all the same length.
-    events : list of Event
+    events : list of SagWindow
         From :func:`find_sags`.
     t_col : str, default "t_s"
         The time column, rebased to 0 at each event's first sample.

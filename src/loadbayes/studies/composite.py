@@ -43,7 +43,7 @@ class CompositeStudy:
 def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
     """Simulate the two events, fit them, and tabulate against the truth and the NLS."""
     from loadbayes.cases.composite_sim import simulate_event
-    from loadbayes.fit.composite.driver import fit_composite, predictive_band
+    from loadbayes.fit.composite import fit_composite, predictive_band
     from loadbayes.plots.composite import plot_composite
 
     events, truth = [], None

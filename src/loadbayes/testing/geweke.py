@@ -344,9 +344,9 @@ def run_geweke(
         n,
     )
 
-    from loadbayes.posterior import _arviz
+    from loadbayes.posterior import import_arviz
 
-    az = _arviz()
+    az = import_arviz()
     table = {}
     for key, mc in g_mc.items():
         sc = g_sc[key].reshape(chains, steps)

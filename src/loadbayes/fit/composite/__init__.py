@@ -3,10 +3,14 @@
 One idea a module: ``problem`` (the collapsed log-density of the motor given the events),
 ``sums`` (its design sums), ``robust`` (the Student-t weights), ``torque`` (estimated
 torque shares), ``nls`` (the multi-start least-squares start), ``sampler`` (the
-Metropolis-within-Gibbs chains), ``checks`` (what an event must hold), and ``driver``
-(:func:`fit_composite`: problem, start, chains, posterior).
+Metropolis-within-Gibbs chains), ``checks`` (what an event must hold, and the chains'
+convergence), ``naming`` (the named draws of the JSON contract), ``identifiability``
+(the plain-words report), ``provenance`` (the settings recorded), ``predictive`` (the
+posterior band of P and Q) and ``driver`` (:func:`fit_composite`: problem, start,
+chains, posterior). The prior is the model's: ``loadbayes.models.composite_prior``.
 """
 
-from loadbayes.fit.composite.driver import fit_composite
+from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS, CompositeFit, fit_composite
+from loadbayes.fit.composite.predictive import predictive_band
 
-__all__ = ["fit_composite"]
+__all__ = ["COMPOSITE_DEFAULTS", "CompositeFit", "fit_composite", "predictive_band"]

@@ -23,28 +23,29 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from loadbayes.models.composite import Event
+from loadbayes.diagnostics import RHAT_MAX
+from loadbayes.models.composite import EventRecord
 from loadbayes.models.composite_steps import step_intervals
 
-__all__ = ["T_PRIME_INTERVALS", "jumps", "sampling_warnings"]
+__all__ = ["T_PRIME_INTERVALS", "convergence_warnings", "jumps", "sampling_warnings"]
 
 #: T' shorter than this many sample intervals is where a misplaced step biases it.
 T_PRIME_INTERVALS = 10.0
 
 
-def jumps(event: Event) -> np.ndarray:
+def jumps(event: EventRecord) -> np.ndarray:
     """Indices ``k`` of the step intervals ``(t_k, t_k+1)`` (models/composite_steps.py)."""
     return step_intervals(event.v)
 
 
 def sampling_warnings(
-    events: Sequence[Event], t_prime_s: np.ndarray, *, steps_modelled: bool = False
+    events: Sequence[EventRecord], t_prime_s: np.ndarray, *, steps_modelled: bool = False
 ) -> list[str]:
     """Plain-words warnings about steps between samples and angles read from frequency.
 
     Parameters
     ----------
-    events : sequence of Event
+    events : sequence of EventRecord
         The recordings fitted.
     t_prime_s : ndarray
         Posterior draws of the motor's T' (s).
@@ -85,3 +86,33 @@ def sampling_warnings(
             "the missing jump"
         )
     return out
+
+
+def convergence_warnings(
+    draws: dict[str, np.ndarray], names: Sequence[str], chains: int
+) -> list[str]:
+    """One warning naming the sampled coordinates whose R-hat is not below ``RHAT_MAX``.
+
+    Only the sampled coordinates are judged (the motor's five and any torque
+    log-ratios), and in the composite's own words: which ones, their R-hat, and that a
+    longer run (``--draws``, ``--burn``) is the remedy. Nothing for a single chain.
+    (:func:`loadbayes.diagnostics.sampler_warnings` judges every parameter of a summary
+    table, with ESS and kept-draw warnings besides, in other words.)
+    """
+    if chains < 2:
+        return []
+    import warnings
+
+    from loadbayes.posterior import import_arviz
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rhat = {n: float(import_arviz().rhat(draws[n])) for n in names}
+    slow = [n for n, r in rhat.items() if not r < RHAT_MAX]
+    if not slow:
+        return []
+    return [
+        "the chains have not converged for "
+        + ", ".join(f"{n} (R-hat {rhat[n]:.3f})" for n in slow)
+        + ": run longer (--draws, --burn)"
+    ]

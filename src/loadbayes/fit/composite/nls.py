@@ -16,14 +16,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from loadbayes.fit.composite.problem import _T, STEP_PRIOR_SD, CompositeProblem
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.inference.condlinear import (
     residual_ss,
 )
 from loadbayes.models.composite import (
-    Event,
+    SCALE_FREE_MATRIX,
+    EventRecord,
     design,
 )
+from loadbayes.models.composite_prior import STEP_PRIOR_SD
 
 __all__ = ["COARSE_FS", "NLSResult", "nls"]
 
@@ -46,7 +48,9 @@ def _library_starts() -> list[np.ndarray]:
 
     starts = []
     for m in MOTORS.values():
-        starts.append((_T @ np.log([m.rs, m.xp, m.x - m.xp, m.tp_s, m.h_s, 0.6]))[:5])
+        starts.append(
+            (SCALE_FREE_MATRIX @ np.log([m.rs, m.xp, m.x - m.xp, m.tp_s, m.h_s, 0.6]))[:5]
+        )
     return starts
 
 
@@ -153,7 +157,7 @@ def _thinned(problem: CompositeProblem) -> CompositeProblem:
     for e in problem.events:
         k = max(1, int(1.0 / (COARSE_FS * float(np.median(np.diff(e.t))))))
         d = None if e.delta is None else e.delta[::k]
-        events.append(Event(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
+        events.append(EventRecord(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
     if all(a.n == b.n for a, b in zip(events, problem.events, strict=True)):
         return problem
     # Without steps: the search only needs where the motor's coordinates roughly are

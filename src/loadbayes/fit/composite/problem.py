@@ -1,4 +1,4 @@
-"""The composite load's inference problem: its prior and its collapsed log-density.
+"""The composite load's inference problem: its collapsed log-density.
 
 :class:`CompositeProblem` holds the events (with the virtual knots of their steps
 between samples, models/composite_steps.py) and evaluates ``log p(u) + sum_e log p(y_e |
@@ -9,56 +9,31 @@ The NLS start is :mod:`loadbayes.fit.composite.nls`, the sampler
 Several events share the motor (``THETA_NAMES``) and the noise precisions; each event
 has its own seven linear coefficients (its own operating point, ZIP mix and motor
 rating). Event 0's quantities carry the plain names (``p0, f_m, a1, ...``), event ``k``'s
-the suffix ``_e{k}``.
+the suffix ``_e{k}``. The prior is the model's (``models/composite_prior.py``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numba
 import numpy as np
 
-from loadbayes.fit.composite.sums import _design_sums_into, design_sums, x_sums
+from loadbayes.fit.composite.sums import design_sums, design_sums_into, weighted_sums, x_sums
 from loadbayes.inference.condlinear import (
     GroupSums,
     log_marginal,
     log_marginal_arrays,
 )
-from loadbayes.models.composite import (
-    BETA_NAMES,
-    SCALE_FREE_MATRIX,
-    THETA_NAMES,
-    Event,
-    motor_response,
-)
+from loadbayes.models.composite import SCALE_FREE_MATRIX, EventRecord, motor_response
+from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
 from loadbayes.models.composite_steps import StepGrid
-from loadbayes.models.motor_kernel import H_MAX_S, _integrate, step_size
+from loadbayes.models.motor_kernel import H_MAX_S, integrate_into, step_size
 
-__all__ = ["CompositePrior", "CompositeProblem", "THETA_PRIOR", "theta_of"]
+__all__ = ["CompositeProblem", "KernelResult", "Samples", "theta_of"]
 
-#: Default prior of the motor's log-parameters: (median, sd of the log). Centred on the
-#: library's typical motors (models/motor.md) with a wide spread: a factor e^sd either way.
-THETA_PRIOR: dict[str, tuple[float, float]] = {
-    "log_rs": (math.log(0.02), 1.0),
-    "log_x_prime": (math.log(0.15), 0.7),
-    "log_dx": (math.log(2.5), 0.7),
-    "log_t_prime": (math.log(0.5), 1.2),
-    "log_h": (math.log(0.8), 0.6),
-    "log_t0": (math.log(0.6), 0.5),
-}
-_POS = BETA_NAMES.index("p_m0")
-#: Sd of the Gaussian stand-in for a step fraction's uniform prior in the NLS start and
-#: its Laplace covariance: wide, so that the data alone place the step.
-STEP_PRIOR_SD = 10.0
-_T = SCALE_FREE_MATRIX
 _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
-_T_INV5 = np.ascontiguousarray(_T_INV[:, :5])
-# Priors are frozen dataclasses holding arrays (not hashable): cache by their bytes.
-_SCALE_FREE_CACHE: dict[Any, Any] = {}
 
 
 def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
@@ -71,90 +46,53 @@ def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class CompositePrior:
-    """Prior of the composite model.
+class Samples:
+    """The events' real samples concatenated (what the likelihood sees).
 
-    Parameters
-    ----------
-    theta_mean, theta_sd : ndarray, shape (6,)
-        Normal prior of :data:`THETA_NAMES` (logs).
-    beta_sd : ndarray, shape (7,)
-        Sd of the zero-mean normal prior of each linear coefficient (system p.u.);
-        ``p_m0`` (the motor's initial active power) is truncated to positive values.
-    tau_shape, tau_rate : float
-        Gamma prior (shape, rate) of each noise precision.
+    ``starts`` (events + 1): where each event's samples begin, then the total; ``x``
+    (``V / v0``), ``p``, ``q``: the samples; ``n`` (events, 2): each event's count, per
+    channel (P, Q).
     """
 
-    theta_mean: np.ndarray
-    theta_sd: np.ndarray
-    beta_sd: np.ndarray
-    tau_shape: float = 1e-3
-    tau_rate: float = 1e-9
+    starts: np.ndarray
+    x: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    n: np.ndarray
 
-    @classmethod
-    def default(cls, events: Sequence[Event], *, scale: float = 10.0) -> CompositePrior:
-        """Weak default: THETA_PRIOR, and ``beta_sd = scale * max |S|`` of the data."""
-        s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
-        return cls(
-            np.array([THETA_PRIOR[n][0] for n in THETA_NAMES]),
-            np.array([THETA_PRIOR[n][1] for n in THETA_NAMES]),
-            np.full(7, scale * s),
-        )
+    @property
+    def size(self) -> int:
+        """Samples over all events."""
+        return int(self.x.size)
 
-    def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """The prior in the sampled coordinates ``u`` (five) and of ``log T0`` given ``u``.
+    def event(self, e: int) -> slice:
+        """The slice of event ``e``'s samples."""
+        return slice(self.starts[e], self.starts[e + 1])
 
-        Returns
-        -------
-        (mean_u, cov_u, gain, sd_cond)
-            ``u ~ N(mean_u, cov_u)`` (the marginal of the theta prior through
-            ``SCALE_FREE_MATRIX``); ``log T0 | u ~ N(m6 + gain @ (u - mean_u), sd_cond^2)``.
-        """
-        key = (self.theta_mean.tobytes(), self.theta_sd.tobytes())
-        hit = _SCALE_FREE_CACHE.get(key)
-        if hit is not None:
-            return hit
-        mean = _T @ self.theta_mean
-        cov = _T @ np.diag(self.theta_sd**2) @ _T.T
-        cu = cov[:5, :5]
-        gain = np.linalg.solve(cu, cov[:5, 5])
-        var = cov[5, 5] - cov[5, :5] @ gain
-        out = (mean[:5], cu, gain, float(np.sqrt(var)))
-        _SCALE_FREE_CACHE[key] = out
-        return out
 
-    def log_u(self, u: np.ndarray) -> float:
-        """Log prior density of the scale-free coordinates ``u`` up to a constant."""
-        mean, cov, _, _ = self.scale_free()
-        key = ("prec", cov.tobytes())
-        prec = _SCALE_FREE_CACHE.get(key)
-        if prec is None:
-            prec = _SCALE_FREE_CACHE[key] = np.linalg.inv(cov)
-        d = u - mean
-        return -0.5 * float(d @ prec @ d)
+@dataclass
+class KernelResult:
+    """What one call of the compiled collapsed density gives back.
 
-    def draw_log_t0(self, u: np.ndarray, rng: np.random.Generator) -> float:
-        """``log T0 | u`` from the prior (the likelihood does not depend on it)."""
-        mean, _, gain, sd = self.scale_free()
-        return float(self.theta_mean[5] + gain @ (u - mean) + sd * rng.standard_normal())
+    ``lp`` is the log-density (finite), ``ztz``, ``zty``, ``yty`` each event's sums
+    (``(events, 2, 7, 7)``, ``(events, 2, 7)``, ``(events, 2)``; weighted when weights
+    were given), ``pm``, ``qm`` the motor's P, Q at every real sample (events
+    concatenated).
+    """
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description (for the output's settings)."""
-        return {
-            "theta": {
-                n: {"mean_log": float(m), "sd_log": float(s)}
-                for n, m, s in zip(THETA_NAMES, self.theta_mean, self.theta_sd, strict=True)
-            },
-            "beta_sd": dict(zip(BETA_NAMES, self.beta_sd.tolist(), strict=True)),
-            "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
-        }
+    lp: float
+    ztz: np.ndarray
+    zty: np.ndarray
+    yty: np.ndarray
+    pm: np.ndarray
+    qm: np.ndarray
 
 
 @dataclass
 class CompositeProblem:
     """Events, prior and settings: the log-densities the samplers and NLS use."""
 
-    events: list[Event]
+    events: list[EventRecord]
     prior: CompositePrior
     f_hz: float = 60.0
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0)
@@ -166,7 +104,6 @@ class CompositeProblem:
         self.m0 = np.zeros(7)
         self.p0 = 1.0 / self.prior.beta_sd**2
         ev = self.events
-        self._starts = np.cumsum([0] + [e.n for e in ev]).astype(np.int64)
         deltas = [np.zeros(e.n) if e.delta is None else e.delta - e.delta[0] for e in ev]
         # The kernel's input: the samples plus two virtual knots in every step interval
         # (models/composite_steps.py); the likelihood sees the real samples only.
@@ -174,10 +111,13 @@ class CompositeProblem:
         self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
             np.int64
         )
-        self._x = np.concatenate([e.x for e in ev])
-        self._p = np.concatenate([e.p for e in ev])
-        self._q = np.concatenate([e.q for e in ev])
-        self._n = np.array([[e.n, e.n] for e in ev], dtype=float)
+        self.samples = Samples(
+            np.cumsum([0] + [e.n for e in ev]).astype(np.int64),
+            np.concatenate([e.x for e in ev]),
+            np.concatenate([e.p for e in ev]),
+            np.concatenate([e.q for e in ev]),
+            np.array([[e.n, e.n] for e in ev], dtype=float),
+        )
         mean_u, cov_u, _, _ = self.prior.scale_free()
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
         # The design's voltage-only sums do not depend on the motor: once per problem.
@@ -218,6 +158,52 @@ class CompositeProblem:
         phi = np.asarray(u, dtype=float)[5 : 5 + self.n_steps]
         return bool(np.all((phi >= 0.0) & (phi <= 1.0)))
 
+    def kernel(
+        self,
+        u: np.ndarray,
+        tau: np.ndarray,
+        torque: tuple[float, float, float] | None = None,
+        weights: np.ndarray | None = None,
+    ) -> KernelResult | None:
+        """The compiled collapsed density at ``u`` (its motor part and steps), or None.
+
+        ``weights`` (2, n): each sample's Student-t weight on P and Q (events
+        concatenated); None for the Gaussian (its compact sums, ``sums.design_sums_into``).
+        None is returned outside the support, without a steady state or with a singular
+        linear block. Counts one evaluation.
+        """
+        self.evaluations += 1
+        if not np.all(np.isfinite(u)) or not self.in_support(u):
+            return None
+        n_ev = len(self.events)
+        ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
+        d = self.samples
+        pm, qm = np.empty(d.size), np.empty(d.size)
+        a, b, c = self.torque if torque is None else torque
+        u = np.asarray(u, dtype=float)
+        weighted = weights is not None
+        g = self.grid
+        try:
+            lp = _collapsed(
+                u[:5], np.exp(theta_of(u[:5], 0.0)), np.asarray(tau, dtype=float),
+                g.times(self.phi(u)), g.v, g.delta, g.starts, self._real, d.x, d.p, d.q,
+                d.starts, d.n, self._mean_u, self._prec_u, self.m0, self.p0,
+                POSITIVE_BETA, 2.0 * math.pi * self.f_hz, float(a), float(b), float(c),
+                float(self.h_max), self._xsums, weighted,
+                weights if weighted else _NO_WEIGHTS, pm, qm, ztz, zty, yty,
+            )  # fmt: skip
+        except np.linalg.LinAlgError:
+            return None
+        if not math.isfinite(lp):
+            return None
+        return KernelResult(lp, ztz, zty, yty, pm, qm)
+
+    def group_sums(self, k: KernelResult) -> list[GroupSums]:
+        """The events' :class:`GroupSums` of one kernel call."""
+        return [
+            GroupSums(k.ztz[e], k.zty[e], k.yty[e], self.samples.n[e]) for e in range(len(k.ztz))
+        ]
+
     def collapsed(
         self, u: np.ndarray, tau: np.ndarray, torque: tuple[float, float, float] | None = None
     ) -> tuple[float, list[GroupSums] | None]:
@@ -227,49 +213,10 @@ class CompositeProblem:
         when the motor has no steady state or the linear block is singular. ``torque``
         overrides ``self.torque`` for this call (estimated shares, fit.composite_torque).
         """
-        self.evaluations += 1
-        n_ev = len(self.events)
-        ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
-        if not np.all(np.isfinite(u)) or not self.in_support(u):
+        k = self.kernel(u, tau, torque)
+        if k is None:
             return -math.inf, None
-        a, b, c = self.torque if torque is None else torque
-        u = np.asarray(u, dtype=float)
-        try:
-            lp = _collapsed(
-                u[:5],
-                np.exp(theta_of(u[:5], 0.0)),
-                np.asarray(tau, dtype=float),
-                self.grid.times(self.phi(u)),
-                self.grid.v,
-                self.grid.delta,
-                self.grid.starts,
-                self._real,
-                self._x,
-                self._p,
-                self._q,
-                self._starts,
-                self._n,
-                self._mean_u,
-                self._prec_u,
-                _T_INV5,
-                self.m0,
-                self.p0,
-                _POS,
-                2.0 * math.pi * self.f_hz,
-                float(a),
-                float(b),
-                float(c),
-                float(self.h_max),
-                self._xsums,
-                ztz,
-                zty,
-                yty,
-            )
-        except np.linalg.LinAlgError:
-            return -math.inf, None
-        if not math.isfinite(lp):
-            return -math.inf, None
-        return lp, [GroupSums(ztz[e], zty[e], yty[e], self._n[e]) for e in range(n_ev)]
+        return k.lp, self.group_sums(k)
 
     def responses(
         self, u: np.ndarray, torque: tuple[float, float, float] | None = None
@@ -320,44 +267,25 @@ class CompositeProblem:
             return -math.inf
         out = self.prior.log_u(u[:5])
         for s in sums:
-            out += log_marginal(s, tau, self.m0, self.p0, positive=_POS)
+            out += log_marginal(s, tau, self.m0, self.p0, positive=POSITIVE_BETA)
         return out
+
+
+#: The weights argument of the Gaussian kernel call (not read).
+_NO_WEIGHTS = np.ones((2, 0))
 
 
 @numba.njit(cache=True, nogil=True)
 def _collapsed(  # pragma: no cover - compiled
-    u,
-    params,
-    tau,
-    t,
-    v,
-    delta,
-    starts_aug,
-    real,
-    x,
-    p,
-    q,
-    starts,
-    n,
-    mean_u,
-    prec_u,
-    t_inv,
-    m0,
-    p0,
-    pos,
-    wb,
-    a,
-    b,
-    c,
-    h_max,
-    xsums,
-    ztz,
-    zty,
-    yty,
-):
+    u, params, tau, t, v, delta, starts_aug, real, x, p, q, starts, n, mean_u, prec_u,
+    m0, p0, pos, wb, a, b, c, h_max, xsums, weighted, lam, pm, qm, ztz, zty, yty,
+):  # fmt: skip
     # The motor on the base where T0 = 1 (log T0 = 0), exponentiated by the caller with
     # NumPy as motor_response does: the log marginal is so ill-conditioned in the design
     # (a one-ulp change of H moves it by ~1e-6) that both paths must agree to the bit.
+    # Each event: integrate the augmented input (the steps' virtual knots), keep the real
+    # samples' P, Q in pm, qm, and add the log evidence of the event's (weighted) sums;
+    # with weights, also sum log lambda / 2 (the likelihood's log-determinant).
     rs, xp, dx, tp, h, t0 = params[0], params[1], params[2], params[3], params[4], params[5]
     hm = step_size(tp, h_max)
     d = u - mean_u
@@ -366,31 +294,25 @@ def _collapsed(  # pragma: no cover - compiled
         s0, s1 = starts[e], starts[e + 1]
         a0, a1 = starts_aug[e], starts_aug[e + 1]
         m = a1 - a0
-        pm, qm, states = np.empty(m), np.empty(m), np.empty((3, m))
-        ok = _integrate(
-            t[a0:a1],
-            v[a0:a1],
-            delta[a0:a1],
-            rs,
-            xp,
-            dx,
-            tp,
-            h,
-            wb,
-            t0,
-            a,
-            b,
-            c,
-            hm,
-            pm,
-            qm,
-            states,
-        )
+        pa, qa, states = np.empty(m), np.empty(m), np.empty((3, m))
+        ok = integrate_into(
+            t[a0:a1], v[a0:a1], delta[a0:a1], rs, xp, dx, tp, h, wb, t0, a, b, c, hm,
+            pa, qa, states,
+        )  # fmt: skip
         if not ok:
             return -math.inf
-        if m != s1 - s0:  # outputs at the virtual knots are not data
-            pm, qm = pm[real[s0:s1]], qm[real[s0:s1]]
-        _design_sums_into(x[s0:s1], pm, qm, p[s0:s1], q[s0:s1], xsums[e], ztz[e], zty[e], yty[e])
-        zz, zy, yy = ztz[e], zty[e], yty[e]
-        lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
+        idx = real[s0:s1]
+        for i in range(s1 - s0):
+            pm[s0 + i], qm[s0 + i] = pa[idx[i]], qa[idx[i]]
+        xe, pme, qme, pe, qe = x[s0:s1], pm[s0:s1], qm[s0:s1], p[s0:s1], q[s0:s1]
+        if weighted:
+            zz, zy, yy = weighted_sums(xe, pme, qme, pe, qe, lam[0, s0:s1], lam[1, s0:s1])
+            ztz[e], zty[e], yty[e] = zz, zy, yy
+        else:
+            design_sums_into(xe, pme, qme, pe, qe, xsums[e], ztz[e], zty[e], yty[e])
+        lp += log_marginal_arrays(ztz[e], zty[e], yty[e], n[e], tau, m0, p0, pos)
+    if weighted:
+        for g in range(2):
+            for i in range(lam.shape[1]):
+                lp += 0.5 * math.log(lam[g, i])
     return lp

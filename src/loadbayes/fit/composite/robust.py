@@ -7,9 +7,9 @@ weighted sums, so the sampler of :mod:`loadbayes.fit.composite.problem` keeps it
 structure and gains one step:
 
 1. ``u | tau, lambda``: adaptive Metropolis on the collapsed density computed from
-   ``Z'WZ``, ``Z'Wy``, ``y'Wy`` plus ``sum log lambda / 2`` (:func:`collapsed_weighted`,
-   compiled; the Gaussian kernel is left untouched, so the default path is exactly as
-   fast and gives the same draws);
+   ``Z'WZ``, ``Z'Wy``, ``y'Wy`` plus ``sum log lambda / 2`` (:func:`collapsed_weighted`:
+   the Gaussian's compiled loop, :meth:`CompositeProblem.kernel`, given the weights; the
+   default path reads none, so it is exactly as fast and gives the same draws);
 2. ``beta | u, tau, lambda`` exactly (the same code, on the weighted sums);
 3. ``(nu_g, lambda_g) | u, beta, tau`` (:class:`StudentTChain.update`);
 4. ``tau_g | u, beta, lambda``: the same gamma, with the weighted SSR.
@@ -21,25 +21,42 @@ fit's ``--likelihood student-t``), one per channel (``nu_p``, ``nu_q``).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Literal
 
-import numba
 import numpy as np
 
-from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem
+from loadbayes.fit.composite.sums import weighted_sums
 from loadbayes.inference.condlinear import GroupSums, log_marginal_arrays
 from loadbayes.inference.student_weights import draw_weights, step_nu
-from loadbayes.models.motor_kernel import _integrate, step_size
+from loadbayes.models.composite_prior import POSITIVE_BETA
 
 __all__ = ["StudentT", "StudentTChain", "WeightedSums", "collapsed_weighted", "robust_outputs"]
 
 
-class WeightedSums(list):
-    """The events' weighted :class:`GroupSums`, carrying the motor response they came from."""
+@dataclass
+class WeightedSums:
+    """The events' weighted :class:`GroupSums`, with the motor response they came from.
 
+    Iterates over the events' sums as the Gaussian path's list does (the sampler reads
+    either); ``pm``, ``qm`` are the motor's P, Q at every sample (events concatenated),
+    which the weights step needs for the residuals.
+    """
+
+    groups: list[GroupSums]
     pm: np.ndarray
     qm: np.ndarray
+
+    def __iter__(self) -> Iterator[GroupSums]:
+        return iter(self.groups)
+
+    def __len__(self) -> int:
+        return len(self.groups)
+
+    def __getitem__(self, event: int) -> GroupSums:
+        return self.groups[event]
 
 
 @dataclass(frozen=True)
@@ -70,118 +87,37 @@ def collapsed_weighted(
 
     ``lam`` (2, n) holds the weights of P and Q for the events' samples concatenated.
     Includes ``sum log lambda / 2`` (the likelihood's log-determinant), so the value is
-    the exact log-density of ``y`` given the weights (tested against a direct one).
+    the exact log-density of ``y`` given the weights (tested against a direct one). The
+    compiled loop is the Gaussian one's (:meth:`CompositeProblem.kernel`), with weights.
     """
-    problem.evaluations += 1
-    n_ev = len(problem.events)
-    if not np.all(np.isfinite(u)):
-        return -math.inf, None
     u = np.asarray(u, dtype=float)
-    a, b, c = problem.torque
-    extra = 0.0
+    torque, extra = None, 0.0
     n_base = 5 + problem.n_steps
-    if u.size > n_base:  # estimated torque shares (fit.composite_torque): u = (.., z)
+    if u.size > n_base and np.all(np.isfinite(u)):
+        # Estimated torque shares (fit.composite_torque): u = (.., z).
         from loadbayes.fit.composite.torque import log_prior_z, shares
 
-        (a, b, c), extra = shares(u[n_base:]), log_prior_z(u[n_base:])
+        torque, extra = shares(u[n_base:]), log_prior_z(u[n_base:])
         u = u[:n_base]
-    if not problem.in_support(u):
+    k = problem.kernel(u, tau, torque, weights=lam)
+    if k is None:
         return -math.inf, None
-    ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
-    n = problem._x.size
-    pm, qm = np.empty(n), np.empty(n)
-    g = problem.grid
-    try:
-        lp = _collapsed_w(
-            u[:5], np.exp(theta_of(u[:5], 0.0)), np.asarray(tau, dtype=float),
-            g.times(problem.phi(u)), g.v, g.delta, g.starts, problem._real, problem._x,
-            problem._p, problem._q, problem._starts, problem._n, problem._mean_u,
-            problem._prec_u, problem.m0, problem.p0, _POS, 2.0 * math.pi * problem.f_hz,
-            float(a), float(b), float(c), float(problem.h_max), lam, pm, qm, ztz, zty, yty,
-        )  # fmt: skip
-    except np.linalg.LinAlgError:
-        return -math.inf, None
-    if not math.isfinite(lp):
-        return -math.inf, None
-    lp += extra
-    out = WeightedSums(GroupSums(ztz[e], zty[e], yty[e], problem._n[e]) for e in range(n_ev))
-    out.pm, out.qm = pm, qm
-    return lp, out
-
-
-@numba.njit(cache=True, nogil=True)
-def _collapsed_w(  # pragma: no cover - compiled
-    u, params, tau, t, v, delta, starts_aug, real, x, p, q, starts, n, mean_u, prec_u,
-    m0, p0, pos, wb, a, b, c, h_max, lam, pm, qm, ztz, zty, yty,
-):  # fmt: skip
-    # As composite_problem._collapsed (the augmented input of the steps between samples,
-    # the real samples' outputs kept), with weighted sums; keeps the motor's response.
-    rs, xp, dx, tp, h, t0 = params[0], params[1], params[2], params[3], params[4], params[5]
-    hm = step_size(tp, h_max)
-    d = u - mean_u
-    lp = -0.5 * (d @ (prec_u @ d))
-    for e in range(starts.size - 1):
-        s0, s1 = starts[e], starts[e + 1]
-        a0, a1 = starts_aug[e], starts_aug[e + 1]
-        m = a1 - a0
-        pa, qa, states = np.empty(m), np.empty(m), np.empty((3, m))
-        ok = _integrate(
-            t[a0:a1], v[a0:a1], delta[a0:a1], rs, xp, dx, tp, h, wb, t0, a, b, c, hm,
-            pa, qa, states,
-        )  # fmt: skip
-        if not ok:
-            return -math.inf
-        idx = real[s0:s1]
-        for i in range(s1 - s0):
-            pm[s0 + i], qm[s0 + i] = pa[idx[i]], qa[idx[i]]
-        zz, zy, yy = _weighted_sums(
-            x[s0:s1], pm[s0:s1], qm[s0:s1], p[s0:s1], q[s0:s1], lam[0, s0:s1], lam[1, s0:s1]
-        )
-        ztz[e], zty[e], yty[e] = zz, zy, yy
-        lp += log_marginal_arrays(zz, zy, yy, n[e], tau, m0, p0, pos)
-    for g in range(2):
-        for i in range(lam.shape[1]):
-            lp += 0.5 * math.log(lam[g, i])
-    return lp
-
-
-@numba.njit(cache=True, nogil=True)
-def _weighted_sums(x, pm, qm, p, q, wp, wq):  # pragma: no cover - compiled
-    # Z'WZ, Z'Wy, y'Wy of the two designs (models.composite.design), each sample weighted.
-    ztz = np.zeros((2, 7, 7))
-    zty = np.zeros((2, 7))
-    yty = np.zeros(2)
-    pm0, qm0 = pm[0], qm[0]
-    zp = np.zeros(7)
-    zq = np.zeros(7)
-    for i in range(x.size):
-        x2 = x[i] * x[i]
-        zp[0], zp[1], zp[2], zp[6] = x2, x[i], 1.0, pm[i] / pm0
-        zq[3], zq[4], zq[5], zq[6] = x2, x[i], 1.0, (qm[i] - qm0 * x2) / pm0
-        for a in range(7):
-            zty[0, a] += wp[i] * zp[a] * p[i]
-            zty[1, a] += wq[i] * zq[a] * q[i]
-            for b in range(7):
-                ztz[0, a, b] += wp[i] * zp[a] * zp[b]
-                ztz[1, a, b] += wq[i] * zq[a] * zq[b]
-        yty[0] += wp[i] * p[i] * p[i]
-        yty[1] += wq[i] * q[i] * q[i]
-    return ztz, zty, yty
+    return k.lp + extra, WeightedSums(problem.group_sums(k), k.pm, k.qm)
 
 
 def _residuals(problem: CompositeProblem, sums: WeightedSums, betas) -> np.ndarray:
     # (2, n) residuals of P and Q given the motor response and each event's beta.
-    s = problem._starts
-    x, pm, qm = problem._x, sums.pm, sums.qm
+    d = problem.samples
+    x, pm, qm = d.x, sums.pm, sums.qm
     out = np.empty((2, x.size))
     for e, beta in enumerate(betas):
-        sl = slice(s[e], s[e + 1])
+        sl = d.event(e)
         xe, pme, qme = x[sl], pm[sl], qm[sl]
         x2 = xe * xe
         fit_p = beta[0] * x2 + beta[1] * xe + beta[2] + beta[6] * pme / pme[0]
         fit_q = beta[3] * x2 + beta[4] * xe + beta[5] + beta[6] * (qme - qme[0] * x2) / pme[0]
-        out[0, sl] = problem._p[sl] - fit_p
-        out[1, sl] = problem._q[sl] - fit_q
+        out[0, sl] = d.p[sl] - fit_p
+        out[1, sl] = d.q[sl] - fit_q
     return out
 
 
@@ -195,7 +131,7 @@ class StudentTChain:
         self.fixed = spec.nu != "auto"
         nu0 = float(spec.nu) if self.fixed else spec.nu_start
         self.nu = np.array([nu0, nu0])
-        n = problem._x.size
+        n = problem.samples.size
         self.lam = np.ones((2, n))
         self.wsum = np.zeros((2, n))
         self.nu_out = np.empty((n_kept, 2))
@@ -223,7 +159,9 @@ class StudentTChain:
 
             out += log_prior_z(u[n_base:])
         for s in self.sums:
-            out += float(log_marginal_arrays(s.ztz, s.zty, s.yty, s.n, tau, p.m0, p.p0, _POS))
+            out += float(
+                log_marginal_arrays(s.ztz, s.zty, s.yty, s.n, tau, p.m0, p.p0, POSITIVE_BETA)
+            )
         return out
 
     def update(
@@ -243,18 +181,17 @@ class StudentTChain:
         if keep:
             self.nu_out[self.kept] = self.nu
             self.kept += 1
-        p = self.problem
-        out = WeightedSums()
-        for e in range(len(p.events)):
-            sl = slice(p._starts[e], p._starts[e + 1])
-            zz, zy, yy = _weighted_sums(
-                p._x[sl], sums.pm[sl], sums.qm[sl], p._p[sl], p._q[sl],
+        d = self.problem.samples
+        groups = []
+        for e in range(len(self.problem.events)):
+            sl = d.event(e)
+            zz, zy, yy = weighted_sums(
+                d.x[sl], sums.pm[sl], sums.qm[sl], d.p[sl], d.q[sl],
                 self.lam[0, sl], self.lam[1, sl],
             )  # fmt: skip
-            out.append(GroupSums(zz, zy, yy, p._n[e]))
-        out.pm, out.qm = sums.pm, sums.qm
-        self.sums = out
-        return out
+            groups.append(GroupSums(zz, zy, yy, d.n[e]))
+        self.sums = WeightedSums(groups, sums.pm, sums.qm)
+        return self.sums
 
     def result(self) -> tuple[np.ndarray, np.ndarray, float | None]:
         """Kept ``nu`` draws (kept, 2), mean weights (2, n), acceptance of the nu step."""
@@ -283,7 +220,7 @@ def robust_outputs(problem: CompositeProblem, res, nu, draws: dict[str, np.ndarr
         thr = flag_threshold(nus[..., g], sigmas=FLAG_SIGMAS)
         for e in range(len(problem.events)):
             sfx = "" if e == 0 else f"_e{e}"
-            w = weight[g, problem._starts[e] : problem._starts[e + 1]]
+            w = weight[g, problem.samples.event(e)]
             constant[f"weight_{ch}{sfx}"] = w
             flagged[f"{ch}{sfx}"] = np.flatnonzero(w < thr).tolist()
             n_flag += len(flagged[f"{ch}{sfx}"])

@@ -18,13 +18,14 @@ import numpy as np
 from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
-from loadbayes.fit.composite.problem import _POS, CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.inference.condlinear import (
     draw_beta,
     draw_tau,
     residual_ss,
 )
 from loadbayes.inference.moves import MOVES
+from loadbayes.models.composite_prior import POSITIVE_BETA
 
 __all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
 
@@ -149,7 +150,9 @@ def sample(
             else:
                 lp, logp = wt.current(u, tau), wt.logp(tau)
             u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
-            betas = [draw_beta(s, tau, problem.m0, problem.p0, rng, positive=_POS) for s in sums]
+            betas = [
+                draw_beta(s, tau, problem.m0, problem.p0, rng, positive=POSITIVE_BETA) for s in sums
+            ]
             if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
                 sums = wt.update(sums, betas, tau, rng, it >= burn and (it - burn) % thin == 0)
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["design_sums", "x_sums"]
+__all__ = ["design_sums", "design_sums_into", "weighted_sums", "x_sums"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -44,8 +44,11 @@ def x_sums(x, p, q):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _design_sums_into(x, pm, qm, p, q, xs, ztz, zty, yty):  # pragma: no cover - compiled
-    # ztz (2, 7, 7), zty (2, 7), yty (2,) are overwritten.
+def design_sums_into(x, pm, qm, p, q, xs, ztz, zty, yty):  # pragma: no cover - compiled
+    """:func:`design_sums` from the motor-free sums ``xs`` (:func:`x_sums`), in place.
+
+    ``ztz`` (2, 7, 7), ``zty`` (2, 7), ``yty`` (2,) are overwritten.
+    """
     pm0, qm0 = pm[0], qm[0]
     sa = np.zeros(5)  # sum a x^2, a x, a, a^2, a p
     sb = np.zeros(5)  # sum b x^2, b x, b, b^2, b q
@@ -91,5 +94,33 @@ def design_sums(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``Z'Z`` (2, 7, 7), ``Z'y`` (2, 7), ``y'y`` (2,) of one event's P and Q designs."""
     ztz, zty, yty = np.zeros((2, 7, 7)), np.zeros((2, 7)), np.zeros(2)
-    _design_sums_into(x, pm, qm, p, q, x_sums(x, p, q), ztz, zty, yty)
+    design_sums_into(x, pm, qm, p, q, x_sums(x, p, q), ztz, zty, yty)
+    return ztz, zty, yty
+
+
+@numba.njit(cache=True, nogil=True)
+def weighted_sums(x, pm, qm, p, q, wp, wq):  # pragma: no cover - compiled
+    """``Z'WZ``, ``Z'Wy``, ``y'Wy`` of the two designs, each sample weighted (Student-t).
+
+    The full products, sample by sample (the weights change every iteration, so no part
+    is computed once); weights of 1 give :func:`design_sums` to rounding.
+    """
+    ztz = np.zeros((2, 7, 7))
+    zty = np.zeros((2, 7))
+    yty = np.zeros(2)
+    pm0, qm0 = pm[0], qm[0]
+    zp = np.zeros(7)
+    zq = np.zeros(7)
+    for i in range(x.size):
+        x2 = x[i] * x[i]
+        zp[0], zp[1], zp[2], zp[6] = x2, x[i], 1.0, pm[i] / pm0
+        zq[3], zq[4], zq[5], zq[6] = x2, x[i], 1.0, (qm[i] - qm0 * x2) / pm0
+        for a in range(7):
+            zty[0, a] += wp[i] * zp[a] * p[i]
+            zty[1, a] += wq[i] * zq[a] * q[i]
+            for b in range(7):
+                ztz[0, a, b] += wp[i] * zp[a] * zp[b]
+                ztz[1, a, b] += wq[i] * zq[a] * zq[b]
+        yty[0] += wp[i] * p[i] * p[i]
+        yty[1] += wq[i] * q[i] * q[i]
     return ztz, zty, yty

@@ -32,11 +32,11 @@ from loadbayes.fit.composite.problem import CompositeProblem
 
 __all__ = [
     "ALPHA",
+    "PRIOR_SD",
     "TorqueProblem",
     "extend_start",
     "log_prior_z",
     "shares",
-    "torque_identifiability",
 ]
 
 #: Dirichlet concentration of (A, B, C).
@@ -99,45 +99,3 @@ def extend_start(start: NLSResult, z0: np.ndarray) -> NLSResult:
     cov[:d, :d] = start.cov[:d, :d]
     cov[d:, d:] = cov_z
     return replace(start, u=np.concatenate([start.u, z0]), cov=cov)
-
-
-def torque_identifiability(abc: np.ndarray) -> dict:
-    """Whether the event determined the shares: posterior sd of each against the prior's.
-
-    Parameters
-    ----------
-    abc : ndarray, shape (..., 3)
-        Draws of ``A, B, C``.
-
-    Returns
-    -------
-    dict
-        Per share the sd ratio and a verdict, and a ``summary`` sentence.
-    """
-    flat = abc.reshape(-1, 3)
-    out, words = {}, []
-    for i, name in enumerate(("a", "b", "c")):
-        r = float(flat[:, i].std() / PRIOR_SD)
-        verdict = "prior-driven" if r > 0.7 else ("determined by the data" if r < 0.3 else "partly")
-        out[name] = {
-            "posterior_sd_over_prior_sd": r,
-            "verdict": verdict,
-            "mean": float(flat[:, i].mean()),
-        }
-    weak = [n.upper() for n, v in out.items() if v["verdict"] == "prior-driven"]
-    if len(weak) == 3:
-        words.append(
-            "The event did not determine the load-torque shares A, B, C: their posterior is "
-            "close to the uniform prior, so the reported values are the prior's. The torque's "
-            "speed dependence shows only when the speed moves a lot (a deep, long sag)."
-        )
-    elif weak:
-        words.append(
-            "The torque shares are only partly determined: "
-            + ", ".join(weak)
-            + " stay close to their prior; A, B, C trade off against each other."
-        )
-    else:
-        means = ", ".join(f"{n.upper()} = {v['mean']:.2f}" for n, v in out.items())
-        words.append(f"The event informs the torque shares ({means}).")
-    return {"shares": out, "prior": "Dirichlet(1, 1, 1)", "summary": " ".join(words)}

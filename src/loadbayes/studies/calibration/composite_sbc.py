@@ -45,16 +45,16 @@ _TAU = (10.0, 10.0 * 0.02**2)
 
 def _event():
     from loadbayes.cases.composite_sim import sag_samples
-    from loadbayes.models.composite import Event
+    from loadbayes.models.composite import EventRecord
 
     t = np.arange(46) / 30.0
     v = sag_samples(t, depth=0.35, start_s=0.3, duration_s=0.2, recovery_s=0.2)
-    return Event(t, v, np.zeros_like(t), np.zeros_like(t), None, "sbc")
+    return EventRecord(t, v, np.zeros_like(t), np.zeros_like(t), None, "sbc")
 
 
 def _prior(event):
-    from loadbayes.fit.composite.problem import THETA_PRIOR, CompositePrior
     from loadbayes.models.composite import THETA_NAMES
+    from loadbayes.models.composite_prior import THETA_PRIOR, CompositePrior
 
     return CompositePrior(
         np.array([THETA_PRIOR[n][0] for n in THETA_NAMES]),
@@ -104,7 +104,7 @@ def composite_sampler(
         return out
 
     def simulate(theta: Mapping[str, float], rng: np.random.Generator):
-        from loadbayes.models.composite import Event
+        from loadbayes.models.composite import EventRecord
 
         phi = theta["step_phi"]
         u = np.array([theta[n] for n in PARAMETERS[:5]] + [phi])
@@ -116,7 +116,7 @@ def composite_sampler(
         p, q = zp @ beta, zq @ beta
         p = p + rng.standard_normal(p.size) / np.sqrt(theta["tau_p"])
         q = q + rng.standard_normal(q.size) / np.sqrt(theta["tau_q"])
-        return Event(event.t, event.v, p, q, None, "sbc")
+        return EventRecord(event.t, event.v, p, q, None, "sbc")
 
     def fit(data, seed: int) -> dict[str, np.ndarray]:
         prob = CompositeProblem([data], prior)

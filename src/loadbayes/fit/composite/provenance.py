@@ -1,0 +1,102 @@
+"""What a composite fit records about how it was run: the settings of its JSON outputs.
+
+:func:`problem_settings` describes the events, the model's choices and the prior (shared
+by the posterior and the NLS baseline), :func:`sampler_record` how the chains ran and
+:func:`baseline_record` what the NLS start found. The keys and their order are the JSON's.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit.composite.nls import NLSResult
+from loadbayes.fit.composite.problem import CompositeProblem
+from loadbayes.fit.composite.sampler import ChainResult
+from loadbayes.models.composite import SCALE_FREE_NAMES
+
+__all__ = ["METHOD", "MOVE_NAME", "baseline_record", "problem_settings", "sampler_record"]
+
+#: The posterior's ``method`` for each u-move (``-student-t`` appended with that noise).
+METHOD = {"am": "mwg-adaptive-metropolis", "slice": "mwg-factor-slice"}
+#: The u-move in words, for the ``scheme`` setting.
+MOVE_NAME = {"am": "adaptive Metropolis", "slice": "factor slice sampling"}
+
+
+def problem_settings(
+    problem: CompositeProblem,
+    torque: tuple[float, float, float] | str,
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The events, the frequency, the torque, the prior, the steps and the model's choices.
+
+    ``torque`` is as the caller gave it (``(A, B, C)`` or ``"estimate"``); ``extra`` is
+    appended (the caller's own provenance, such as the files read).
+    """
+    events = problem.events
+    estimate = isinstance(torque, str)
+    grid = problem.grid
+    return {
+        "n": int(sum(e.n for e in events)),
+        "events": [
+            {
+                "name": e.name,
+                "n": e.n,
+                "t_span_s": float(e.t[-1] - e.t[0]),
+                "v0": e.v0,
+                "angle_from": e.angle_from or None,
+            }
+            for e in events
+        ],
+        "f_hz": problem.f_hz,
+        "torque": "estimate" if estimate else list(torque),
+        "torque_prior": "Dirichlet(1, 1, 1) on (a, b, c), sampled in log(a/c), log(b/c)"
+        if estimate
+        else None,
+        "prior": problem.prior.to_dict(),
+        "h_max_s": problem.h_max,
+        "steps": {
+            "modelled": bool(problem.steps),
+            "intervals": [
+                {"event": int(e), "k": int(k), "t_s": float(t), "dt_s": float(w)}
+                for e, k, t, w in zip(grid.event_of, grid.k_of, grid.left, grid.width, strict=True)
+            ],
+        },
+        "shunt": "q_c = mva_m * q_m(0): the motor's initial Q compensated at v0",
+        "closure": "xs = xr",
+        **(extra or {}),
+    }
+
+
+def sampler_record(
+    sampler: SamplerSettings,
+    move: str,
+    res: list[ChainResult],
+    seconds: dict[str, float],
+    likelihood: str,
+) -> dict[str, Any]:
+    """How the chains ran: iterations, seed, scheme, acceptance, evaluations, timings."""
+    return {
+        "draws": sampler.draws,
+        "burn": sampler.burn,
+        "thin": sampler.thin,
+        "seed": sampler.seed,
+        "scheme": f"metropolis-within-gibbs ({MOVE_NAME[move]} on theta, beta "
+        "integrated out; beta and tau exact)",
+        "move": move,
+        "acceptance": [r.acceptance for r in res],
+        "evaluations_per_iteration": [r.evaluations_per_iteration for r in res],
+        "seconds": seconds,
+        "likelihood": likelihood,
+    }
+
+
+def baseline_record(problem: CompositeProblem, start: NLSResult) -> dict[str, Any]:
+    """What the NLS start found: its cost, residual sds and estimates."""
+    return {
+        "nls_seconds": start.seconds,
+        "nls_nfev": start.nfev,
+        "residual_sd": start.sigma.tolist(),
+        "estimate_u": dict(zip(SCALE_FREE_NAMES, start.u[:5].tolist(), strict=True)),
+        "estimate_step_fraction": problem.phi(start.u).tolist(),
+    }
