@@ -31,7 +31,7 @@ class OneLineCommand(click.Command):
         return UserError(f"{msg.rstrip('.')} (see '{where} --help')")
 
     def make_context(self, info_name, args, parent=None, **extra):  # noqa: D102
-        from loadbayes.commands.output import install_signal_handlers, restore_signal_handlers
+        from loadbayes.commands.signals import install_signal_handlers, restore_signal_handlers
 
         # As early as a command of ours runs: a signal from here on gets its one line.
         install_signal_handlers()
@@ -45,7 +45,7 @@ class OneLineCommand(click.Command):
             raise
 
     def invoke(self, ctx):  # noqa: D102
-        from loadbayes.commands.output import restore_signal_handlers
+        from loadbayes.commands.signals import restore_signal_handlers
 
         try:
             return super().invoke(ctx)

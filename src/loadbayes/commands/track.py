@@ -19,9 +19,9 @@ from loadbayes.commands.output import (
     UserError,
     check_outputs,
     estimate_rows,
-    stop_if_signalled,
     user_errors,
 )
+from loadbayes.commands.signals import stop_if_signalled
 
 _PLOT_MAX_POINTS = 20_000
 
