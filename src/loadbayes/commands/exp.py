@@ -16,6 +16,7 @@ from loadbayes.commands.options import (
     nominal_note,
     nominal_options,
     output_options,
+    q_column,
     sampler_settings,
     tau_prior_options,
 )
@@ -92,7 +93,8 @@ def fit_exp_cmd(
         stdout_ok=("--json",),
     )
     distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col)
-    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
+    q_name, q_required = q_column(q_col)
+    note = nominal_note(p0, q0, with_q=q_name is not None)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     try:
         e_mean, e_sd = (float(x) for x in exponent_prior.split(","))
@@ -115,7 +117,6 @@ def fit_exp_cmd(
     from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.models.exponential import ExponentialModel, ExpPriors
 
-    q_name = None if q_col.lower() == "none" else q_col
     progress = Progress("reading", estimate_rows(data), quiet)
     try:
         pc = read_power_columns(
@@ -123,7 +124,7 @@ def fit_exp_cmd(
             v_col=v_col,
             p_col=p_col,
             q_col=q_name,
-            q_required=q_col not in ("q", "none"),
+            q_required=q_required,
             f_col=f_col,
             v_base=v_base,
             s_base=s_base,

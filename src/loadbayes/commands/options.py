@@ -55,6 +55,14 @@ class OneLineCommand(click.Command):
             restore_signal_handlers()
 
 
+def q_column(value: str) -> tuple[str | None, bool]:
+    """``--q-col`` for the library: the column (None for 'none') and whether it is required.
+
+    A Q column named by the user is required; the default ``q`` is used when present.
+    """
+    return (None if value.lower() == "none" else value), value not in ("q", "none")
+
+
 def distinct_columns(**cols: str | None) -> None:
     """Refuse one data column given to two options (``--p-col v``)."""
     from loadbayes.commands.output import UserError

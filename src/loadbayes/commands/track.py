@@ -13,6 +13,7 @@ from loadbayes.commands.options import (
     nominal,
     nominal_note,
     nominal_options,
+    q_column,
 )
 from loadbayes.commands.output import (
     Progress,
@@ -135,7 +136,8 @@ def track_zip_cmd(
     if not (np.isfinite(v0) and v0 > 0):
         raise UserError(f"--v0 must be a finite positive number, got {v0}")
     distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col)
-    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
+    q_name, q_required = q_column(q_col)
+    note = nominal_note(p0, q0, with_q=q_name is not None)
     p0, q0 = nominal(p0, "--p0"), nominal(q0, "--q0")
     if not str(out).lower().endswith((".csv", ".txt")):
         raise UserError(f"{out}: --out must be a .csv or .txt file")
@@ -149,8 +151,8 @@ def track_zip_cmd(
         data,
         v_col=v_col,
         p_col=p_col,
-        q_col=None if q_col.lower() == "none" else q_col,
-        q_required=q_col not in ("q", "none"),
+        q_col=q_name,
+        q_required=q_required,
         t_col=t_col,
         extra=TRUTH_COLUMNS if plot_out else (),
         v0=v0,

@@ -17,6 +17,7 @@ from loadbayes.commands.options import (
     output_options,
     parse_coef_priors,
     parse_nu,
+    q_column,
     sampler_settings,
     tau_prior_options,
 )
@@ -129,7 +130,8 @@ def fit_zip_cmd(
     )
     distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col)
     check_prior_sd(prior_sd, "--prior-sd")
-    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
+    q_name, q_required = q_column(q_col)
+    note = nominal_note(p0, q0, with_q=q_name is not None)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if scheme == "exact" and not conjugate:
         raise UserError("--scheme exact needs the conjugate prior: add --conjugate")
@@ -150,7 +152,7 @@ def fit_zip_cmd(
         raise UserError("--nu needs --likelihood student-t")
     check_cost(
         chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
-        n_params=PER_CHANNEL * (1 if q_col.lower() == "none" else 2)
+        n_params=PER_CHANNEL * (1 if q_name is None else 2)
         + (1 if likelihood == "student-t" else 0),
         netcdf_out=netcdf_out, quiet=quiet,
     )  # fmt: skip
@@ -176,7 +178,6 @@ def fit_zip_cmd(
         rate=tau_rate,
         conjugate=conjugate,
     )
-    q_name = None if q_col.lower() == "none" else q_col
     progress = Progress("reading", estimate_rows(data), quiet)
     try:
         post, model = fit_zip_file(
@@ -184,7 +185,7 @@ def fit_zip_cmd(
             v_col=v_col,
             p_col=p_col,
             q_col=q_name,
-            q_required=q_col not in ("q", "none"),
+            q_required=q_required,
             v0=v0,
             p0=p0_val,
             q0=q0_val,

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from loadbayes.commands.options import nominal
+from loadbayes.commands.options import nominal, q_column
 from loadbayes.commands.output import Progress, UserError, check_outputs
 
 if TYPE_CHECKING:
@@ -125,14 +125,14 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     from loadbayes.fleet.run import run_fleet
     from loadbayes.fleet.summary import write_parquet
 
-    q_col = p["q_col"]
+    q_name, q_required = q_column(p["q_col"])
     spec = ReadSpec(
         by=p["by"],
         class_col=p.get("class_col"),
         v_col=p["v_col"],
         p_col=p["p_col"],
-        q_col=None if q_col.lower() == "none" else q_col,
-        q_required=q_col not in ("q", "none"),
+        q_col=q_name,
+        q_required=q_required,
         v_base=p["v_base"],
         s_base=p["s_base"],
         drop_invalid=p["drop_invalid"],
