@@ -15,7 +15,6 @@ import numpy as np
 
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.stats import Gram, GramAccumulator
-from loadbayes.fit.sampler import MODEL_DEFAULTS, check_sampler, sampler_kwargs, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.models.base import LinearModel
@@ -24,17 +23,13 @@ from loadbayes.posterior import Posterior
 __all__ = [
     "CHUNK_ROWS",
     "MAX_OBSERVED",
-    "MODEL_DEFAULTS",
     "accumulate",
-    "check_sampler",
     "as_columns",
     "METHODS",
     "fit",
     "fit_gram",
     "fit_power_law",
     "prior_settings",
-    "sampler_kwargs",
-    "sampler_of",
 ]
 
 #: Rows read at a time by default: small enough that every per-chunk array stays under

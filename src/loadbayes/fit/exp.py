@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.settings import SamplerSettings
-from loadbayes.fit.core import MAX_OBSERVED, fit, sampler_kwargs, sampler_of
+from loadbayes.fit.core import MAX_OBSERVED, fit
+from loadbayes.fit.sampler import sampler_kwargs, sampler_of
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 

@@ -15,9 +15,8 @@ from loadbayes.fit.core import (
     MAX_OBSERVED,
     accumulate,
     prior_settings,
-    sampler_kwargs,
-    sampler_of,
 )
+from loadbayes.fit.sampler import sampler_kwargs, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.posterior import Posterior

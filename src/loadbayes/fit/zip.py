@@ -10,15 +10,8 @@ import numpy as np
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import GramAccumulator
-from loadbayes.fit.core import (
-    CHUNK_ROWS,
-    MAX_OBSERVED,
-    accumulate,
-    check_sampler,
-    fit_gram,
-    sampler_kwargs,
-    sampler_of,
-)
+from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, fit_gram
+from loadbayes.fit.sampler import check_sampler, sampler_kwargs, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
