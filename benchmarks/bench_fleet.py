@@ -30,10 +30,10 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_zip import PeakRSS, machine  # noqa: E402
+from loadbayes.core.settings import SamplerSettings  # noqa: E402
 from loadbayes.fleet.engine import Engine  # noqa: E402
 from loadbayes.fleet.generate import fleet_truth, write_fleet  # noqa: E402
 from loadbayes.fleet.partitions import ReadSpec  # noqa: E402
-from loadbayes.fleet.perbus import SamplerSettings  # noqa: E402
 from loadbayes.fleet.run import fit_fleet, fleet_statistics  # noqa: E402
 
 SAMPLER = SamplerSettings(chains=4, draws=2500, burn=500)

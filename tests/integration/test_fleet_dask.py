@@ -5,10 +5,10 @@ import os
 import pandas as pd
 import pytest
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.engine import Engine
 from loadbayes.fleet.generate import fleet_truth, write_fleet
 from loadbayes.fleet.partitions import ReadSpec
-from loadbayes.fleet.perbus import SamplerSettings
 from loadbayes.fleet.run import run_fleet
 
 pytestmark = pytest.mark.integration

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.generate import ieee33_fleet
 from loadbayes.fleet.partitions import ReadSpec
-from loadbayes.fleet.perbus import SamplerSettings
 from loadbayes.fleet.run import run_fleet
 
 pytestmark = pytest.mark.integration

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy import stats as sst
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import gram_of
 from loadbayes.fleet import hierarchical as H
 from loadbayes.fleet.generate import fleet_truth, write_fleet
 from loadbayes.fleet.partitions import ReadSpec
-from loadbayes.fleet.perbus import SamplerSettings
 from loadbayes.fleet.run import run_fleet
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.models.zip import ZIPModel

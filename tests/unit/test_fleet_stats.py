@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet import exact
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.partitions import ReadSpec, find_partitions
-from loadbayes.fleet.perbus import SamplerSettings
 from loadbayes.fleet.run import run_fleet
 from loadbayes.fleet.stats import finish, merge, partition_stats
 from loadbayes.io.errors import DataError

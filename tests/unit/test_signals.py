@@ -9,7 +9,7 @@ import weakref
 
 import pytest
 
-from loadbayes.commands import output
+from loadbayes.commands import signals as output
 
 
 class _Obj:

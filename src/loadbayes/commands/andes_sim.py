@@ -6,9 +6,9 @@ from pathlib import Path
 
 import click
 
+from loadbayes.commands.options import MOTOR_NAMES, OneLineCommand
 from loadbayes.commands.output import UserError, check_outputs, user_errors
 
-MOTOR_NAMES = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
 #: What a PMU at the load bus records: the angle too, so that a fit sees the phase jumps
 #: of the fault (a frequency column cannot hold them; fit/composite/checks.py).
 COLUMNS = ("t_s", "v", "angle_rad", "p", "q", "f")
@@ -44,7 +44,7 @@ def _in_case(case_file: str, bus: str, motor: str, q_c: float, common: dict):
         raise UserError(f"{case_file}: no bus with idx {bus!r}") from None
 
 
-@click.command("andes")
+@click.command("andes", cls=OneLineCommand)
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Event CSV.")
 @click.option(
     "--motor",

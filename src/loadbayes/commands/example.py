@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import click
 
+from loadbayes.commands.options import OneLineCommand
+
 #: Example files by name, in ``loadbayes/data``.
 EXAMPLES = {"zip": "zip_example.csv"}
 
 
-@click.command("example")
+@click.command("example", cls=OneLineCommand)
 @click.argument("name", type=click.Choice(sorted(EXAMPLES)))
 def example_cmd(name):
     """Print an example data file to stdout, e.g. loadbayes example zip > bus.csv.

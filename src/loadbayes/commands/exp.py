@@ -16,12 +16,12 @@ from loadbayes.commands.options import (
     nominal_note,
     nominal_options,
     output_options,
-    sampler_options,
+    q_column,
+    sampler_settings,
     tau_prior_options,
 )
 from loadbayes.commands.output import (
     Progress,
-    UserError,
     check_cost,
     check_outputs,
     estimate_rows,
@@ -48,7 +48,7 @@ N_PARAMS = 8
     help="Additive Gaussian noise on P (Metropolis-within-Gibbs), or relative noise "
     "(log-linear, conjugate, fastest; needs P / P0 > 0).",
 )
-@sampler_options
+@sampler_settings()
 @click.option(
     "--exponent-prior",
     default="0,10",
@@ -72,13 +72,7 @@ def fit_exp_cmd(
     v_base,
     s_base,
     noise,
-    draws,
-    burn,
-    chains,
-    thin,
-    seed,
-    init,
-    hdi_prob,
+    sampler,
     exponent_prior,
     tau_shape,
     tau_rate,
@@ -99,10 +93,9 @@ def fit_exp_cmd(
         stdout_ok=("--json",),
     )
     distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col)
-    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
+    q_name, q_required = q_column(q_col)
+    note = nominal_note(p0, q0, with_q=q_name is not None)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
-    if burn >= draws:
-        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     try:
         e_mean, e_sd = (float(x) for x in exponent_prior.split(","))
         if not (e_sd > 0 and np.isfinite(e_mean) and np.isfinite(e_sd)):
@@ -112,7 +105,8 @@ def fit_exp_cmd(
             f"{exponent_prior!r}: expected MEAN,SD with SD > 0", param_hint="--exponent-prior"
         ) from None
     check_cost(
-        chains=chains, draws=draws, burn=burn, thin=thin, n_params=N_PARAMS,
+        chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
+        n_params=N_PARAMS,
         netcdf_out=netcdf_out, quiet=quiet,
     )  # fmt: skip
     if note and not quiet:
@@ -123,7 +117,6 @@ def fit_exp_cmd(
     from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.models.exponential import ExponentialModel, ExpPriors
 
-    q_name = None if q_col.lower() == "none" else q_col
     progress = Progress("reading", estimate_rows(data), quiet)
     try:
         pc = read_power_columns(
@@ -131,7 +124,7 @@ def fit_exp_cmd(
             v_col=v_col,
             p_col=p_col,
             q_col=q_name,
-            q_required=q_col not in ("q", "none"),
+            q_required=q_required,
             f_col=f_col,
             v_base=v_base,
             s_base=s_base,
@@ -185,12 +178,7 @@ def fit_exp_cmd(
             f0=f0,
             noise=noise,
             priors=priors,
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,
-            seed=seed,
+            sampler=sampler,
             warnings=warnings,
             warn=False,
             settings={
@@ -206,7 +194,7 @@ def fit_exp_cmd(
     write_outputs(
         post,
         model=model,
-        hdi_prob=hdi_prob,
+        hdi_prob=sampler.hdi_prob,
         json_out=json_out,
         netcdf_out=netcdf_out,
         plot_out=plot_out,

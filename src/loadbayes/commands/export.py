@@ -12,6 +12,7 @@ from pathlib import Path
 
 import click
 
+from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, user_errors
 
 __all__ = ["export_cmd", "pick_values", "summary_lines"]
@@ -145,7 +146,7 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     return lines
 
 
-@click.command("export")
+@click.command("export", cls=OneLineCommand)
 @click.argument("posterior", type=click.Path(dir_okay=False))
 @click.option("--to", "fmt", required=True, type=click.Choice(["pandapower", "psse", "andes"]))
 @click.option(

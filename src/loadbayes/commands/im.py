@@ -12,7 +12,7 @@ from loadbayes.commands.options import (
     check_prior_sd,
     output_options,
     parse_coef_priors,
-    sampler_options,
+    sampler_settings,
 )
 from loadbayes.commands.output import (
     Progress,
@@ -66,7 +66,7 @@ N_PARAMS = 17
     show_default=True,
     help="exact: measured form with --conjugate only.",
 )
-@sampler_options
+@sampler_settings()
 @click.option("--prior-mean", type=float, default=0.0, show_default=True)
 @click.option(
     "--prior-sd",
@@ -99,13 +99,7 @@ def fit_im_cmd(
     f_hz,
     currents,
     scheme,
-    draws,
-    burn,
-    chains,
-    thin,
-    seed,
-    init,
-    hdi_prob,
+    sampler,
     prior_mean,
     prior_sd,
     coef_priors,
@@ -135,8 +129,6 @@ def fit_im_cmd(
         stdout_ok=("--json",),
     )
     check_prior_sd(prior_sd, "--prior-sd")
-    if burn >= draws:
-        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     if t0 is not None and not (t0 > 0 and t0 != float("inf")):
         raise UserError(f"--t0 must be a positive number, got {t0}")
     if scheme == "exact" and (currents != "measured" or not conjugate):
@@ -147,7 +139,8 @@ def fit_im_cmd(
     if f_hz is None:
         f_hz = _f_hz_fromsidecar(data) or 60.0
     check_cost(
-        chains=chains, draws=draws, burn=burn, thin=thin, n_params=N_PARAMS,
+        chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
+        n_params=N_PARAMS,
         netcdf_out=netcdf_out, quiet=quiet,
     )  # fmt: skip
 
@@ -174,19 +167,14 @@ def fit_im_cmd(
             progress=progress,
             accept_units=accept_units,
             scheme=scheme,
-            draws=draws,
-            burn=burn,
-            chains=chains,
-            thin=thin,
-            seed=seed,
-            init=init,
+            sampler=sampler,
         )
     finally:
         progress.close()
     write_outputs(
         post,
         model=model,
-        hdi_prob=hdi_prob,
+        hdi_prob=sampler.hdi_prob,
         json_out=json_out,
         netcdf_out=netcdf_out,
         plot_out=plot_out,

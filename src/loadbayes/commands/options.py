@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
+from typing import Any
 
 import click
 
@@ -29,7 +31,7 @@ class OneLineCommand(click.Command):
         return UserError(f"{msg.rstrip('.')} (see '{where} --help')")
 
     def make_context(self, info_name, args, parent=None, **extra):  # noqa: D102
-        from loadbayes.commands.output import install_signal_handlers, restore_signal_handlers
+        from loadbayes.commands.signals import install_signal_handlers, restore_signal_handlers
 
         # As early as a command of ours runs: a signal from here on gets its one line.
         install_signal_handlers()
@@ -43,7 +45,7 @@ class OneLineCommand(click.Command):
             raise
 
     def invoke(self, ctx):  # noqa: D102
-        from loadbayes.commands.output import restore_signal_handlers
+        from loadbayes.commands.signals import restore_signal_handlers
 
         try:
             return super().invoke(ctx)
@@ -51,6 +53,14 @@ class OneLineCommand(click.Command):
             raise self._one_line(exc) from None
         finally:
             restore_signal_handlers()
+
+
+def q_column(value: str) -> tuple[str | None, bool]:
+    """``--q-col`` for the library: the column (None for 'none') and whether it is required.
+
+    A Q column named by the user is required; the default ``q`` is used when present.
+    """
+    return (None if value.lower() == "none" else value), value not in ("q", "none")
 
 
 def distinct_columns(**cols: str | None) -> None:
@@ -75,45 +85,6 @@ def accept_units_option(func):
         help="Fit even when the data do not look like per unit of the nominal point "
         "(the unit check then warns instead of refusing).",
     )(func)
-
-
-def sampler_options(func):
-    """--draws --burn --chains --thin --seed --init --scheme --hdi-prob."""
-    opts = [
-        click.option(
-            "--draws",
-            type=click.IntRange(min=1),
-            default=40_000,
-            show_default=True,
-            help="Iterations per chain including burn-in (the paper's M).",
-        ),
-        click.option(
-            "--burn",
-            type=click.IntRange(min=0),
-            default=5_000,
-            show_default=True,
-            help="Leading iterations discarded (the paper's m).",
-        ),
-        click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True),
-        click.option("--thin", type=click.IntRange(min=1), default=1, show_default=True),
-        click.option("--seed", type=int, default=0, show_default=True),
-        click.option(
-            "--init",
-            type=click.Choice(["prior", "dispersed"]),
-            default="prior",
-            show_default=True,
-            help="Start from a prior draw (the paper) or scattered around LS.",
-        ),
-        click.option(
-            "--hdi-prob",
-            type=click.FloatRange(0, 1, min_open=True, max_open=True),
-            default=0.95,
-            show_default=True,
-        ),
-    ]
-    for opt in reversed(opts):
-        func = opt(func)
-    return func
 
 
 def output_options(func):
@@ -320,12 +291,15 @@ def sampler_settings(
     burn_help: str = "Leading iterations discarded (the paper's m).",
     draws_min: int = 1,
     burn_min: int = 0,
+    adjust: Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]] | None = None,
 ):
     """--draws --burn --chains --thin --seed [--init] --hdi-prob, built into one object.
 
     The command receives ``sampler``, a checked
     :class:`~loadbayes.core.settings.SamplerSettings`, instead of the loose options; a
-    burn-in not below the draws is one line naming both options.
+    burn-in not below the draws is one line naming both options. ``adjust``, if given,
+    is called with the sampler's values and the command's other options before that
+    check and returns the values to use (``fit zip --by`` has its own defaults).
     """
 
     def deco(func):
@@ -335,6 +309,8 @@ def sampler_settings(
             from loadbayes.core.settings import SamplerSettings
 
             values = {k: kwargs.pop(k) for k in _SAMPLER_KEYS if k in kwargs}
+            if adjust is not None:
+                values = adjust(values, kwargs)
             if values["burn"] >= values["draws"]:
                 raise UserError(
                     f"--burn ({values['burn']}) must be smaller than --draws ({values['draws']})"

@@ -5,7 +5,7 @@ A run is one transaction: every output path and format is checked before any wor
 (:func:`check_cost`), outputs are written to temporary files and renamed together at the
 end (:func:`write_outputs`, :class:`loadbayes.io.transaction.OutputSet`), and SIGINT or
 SIGTERM at any moment ends the run with one line, exit 130 or 143, and either every
-output or none (:func:`user_errors`).
+output or none (:func:`user_errors`; the handlers are in :mod:`.signals`).
 """
 
 from __future__ import annotations
@@ -22,8 +22,15 @@ from typing import Any
 
 import click
 
+from loadbayes.commands.signals import (
+    _STOP,
+    EXIT_SIGNAL,
+    install_signal_handlers,
+    restore_signal_handlers,
+    stop_if_signalled,
+)
+
 EXIT_DATA = 2
-EXIT_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143}
 
 #: Figure formats matplotlib writes (checked before any work, not after the fit).
 PLOT_FORMATS = ("png", "svg", "svgz", "pdf", "eps", "ps", "jpg", "jpeg", "tif", "tiff", "webp")
@@ -40,71 +47,6 @@ class UserError(click.ClickException):
 
     def show(self, file: Any = None) -> None:  # noqa: D102
         click.echo(f"loadbayes: error: {self.format_message()}", err=True)
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised like Ctrl-C so every clean-up path that handles one handles both."""
-
-
-_STOP: dict[str, Any] = {"signal": None, "outputs": None, "committed": False}
-
-
-def _on_signal(signum, frame) -> None:
-    # The first signal stops the run; later ones are ignored so that the clean-up
-    # (removing temporary files) is not itself interrupted.
-    if _STOP["signal"] is not None:
-        return
-    _STOP["signal"] = signum
-    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
-
-
-def _unraisable(hook_args) -> None:
-    # A signal that lands while Python runs a callback whose exceptions it cannot raise
-    # (a weakref finaliser during garbage collection) makes it print "Exception ignored
-    # in ..." and a traceback, then go on. The run still stops: the signal is recorded,
-    # and stop_if_signalled raises it at the next check (before anything is committed).
-    # So that exception is said by the usual one line, not as a traceback.
-    if issubclass(hook_args.exc_type, KeyboardInterrupt) and _STOP["signal"] is not None:
-        return
-    _STOP.get("previous_unraisable", sys.__unraisablehook__)(hook_args)
-
-
-def install_signal_handlers() -> None:
-    """SIGINT and SIGTERM raise in the main thread (no-op elsewhere, or if installed)."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return
-    if signal.getsignal(signal.SIGINT) is _on_signal:
-        return
-    _STOP.update(signal=None, outputs=None, committed=False)
-    _STOP["previous"] = {s: signal.getsignal(s) for s in EXIT_SIGNAL}
-    for s in EXIT_SIGNAL:
-        signal.signal(s, _on_signal)
-    _STOP["previous_unraisable"] = sys.unraisablehook
-    sys.unraisablehook = _unraisable
-
-
-def restore_signal_handlers() -> None:
-    """Put back the handlers :func:`install_signal_handlers` found.
-
-    A command run in-process (by a test or a notebook) leaves the process as it was.
-    """
-    import threading
-
-    previous = _STOP.pop("previous", None)
-    if previous is None or threading.current_thread() is not threading.main_thread():
-        return
-    for s, h in previous.items():
-        signal.signal(s, h if h is not None else signal.SIG_DFL)
-    sys.unraisablehook = _STOP.pop("previous_unraisable", sys.__unraisablehook__)
-
-
-def stop_if_signalled() -> None:
-    """Raise if a signal arrived whose exception a library swallowed (HDF5 writes do)."""
-    sig = _STOP["signal"]
-    if sig is not None:
-        raise Terminated() if sig == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _speak(message: str) -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import click
 
+from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, check_outputs, user_errors
 
 __all__ = ["events_cmd", "read_group"]
@@ -42,7 +43,7 @@ def read_group() -> None:
     """Read a recording (COMTRADE, PMU CSV) into a per-unit t_s, v, p, q, f table."""
 
 
-@read_group.command("comtrade")
+@read_group.command("comtrade", cls=OneLineCommand)
 @click.argument("cfg", type=click.Path(dir_okay=False))
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="CSV or Parquet.")
 @click.option("--voltage", help="Phase a, b, c voltage channels (default: found by unit/phase).")
@@ -108,7 +109,7 @@ def read_comtrade_cmd(cfg, out, voltage, current, side, v_base, s_base, quiet, f
         )
 
 
-@read_group.command("pmu")
+@read_group.command("pmu", cls=OneLineCommand)
 @click.argument("csv", type=click.Path(dir_okay=False))
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="CSV or Parquet.")
 @click.option("--map", "map_file", type=click.Path(dir_okay=False), help="TOML column mapping.")
@@ -159,7 +160,7 @@ def read_pmu_cmd(
         )
 
 
-@click.command("events")
+@click.command("events", cls=OneLineCommand)
 @click.argument("record", type=click.Path(dir_okay=False))
 @click.option("--out", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--threshold", type=float, default=0.9, show_default=True,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, check_outputs, user_errors
 
 
@@ -22,7 +23,7 @@ def _parse_truth(items: tuple[str, ...]) -> dict[str, float]:
     return out
 
 
-@click.command("report")
+@click.command("report", cls=OneLineCommand)
 @click.argument("result", type=str)
 @click.option(
     "--out",

@@ -7,9 +7,8 @@ from pathlib import Path
 
 import click
 
+from loadbayes.commands.options import MOTOR_NAMES, OneLineCommand
 from loadbayes.commands.output import UserError, user_errors
-
-MOTOR_NAMES = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
 
 
 def check_root(out: str, targets: list[Path], force: bool) -> Path:
@@ -57,7 +56,7 @@ def run_zip(
     return study
 
 
-@click.command("zip")
+@click.command("zip", cls=OneLineCommand)
 @click.option(
     "--out",
     type=click.Path(file_okay=False),
@@ -114,7 +113,7 @@ def reproduce_zip_cmd(out, n, noise, seed, quick, workers, quiet, force):
         click.echo(f"wrote {root / 'zip'} and {root / 'report.html'}")
 
 
-@click.command("im")
+@click.command("im", cls=OneLineCommand)
 @click.option(
     "--out",
     type=click.Path(file_okay=False),
@@ -163,7 +162,7 @@ def reproduce_im_cmd(out, motors, noise, seed, quick, quiet, force):
 _IM_MARK = "loadbayes:section im"
 
 
-@click.command("all")
+@click.command("all", cls=OneLineCommand)
 @click.option(
     "--out",
     type=click.Path(file_okay=False),

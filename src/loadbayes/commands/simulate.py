@@ -8,9 +8,9 @@ from pathlib import Path
 
 import click
 
+from loadbayes.commands.options import MOTOR_NAMES, OneLineCommand
 from loadbayes.commands.output import UserError, check_outputs, sidecar, user_errors
 
-MOTOR_NAMES = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
 DISTURBANCES = ("sag", "ramp", "walk", "file")
 _PARAM_FIELDS = {"rs", "xs", "xm", "rr", "xr", "h_s", "a", "b", "c", "name", "f_hz"}
 _PARAM_REQUIRED = ("rs", "xs", "xm", "rr", "xr", "h_s")
@@ -85,7 +85,7 @@ def _disturbance(kind: str, *, start: float | None, duration: float | None, **o)
         raise UserError(f"{path}: {exc}") from None
 
 
-@click.command("im")
+@click.command("im", cls=OneLineCommand)
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Output CSV.")
 @click.option(
     "--motor",

@@ -13,17 +13,17 @@ from loadbayes.commands.options import (
     nominal,
     nominal_note,
     nominal_options,
+    q_column,
 )
 from loadbayes.commands.output import (
     Progress,
     UserError,
     check_outputs,
     estimate_rows,
-    stop_if_signalled,
     user_errors,
 )
+from loadbayes.commands.signals import stop_if_signalled
 
-TRUTH_COLUMNS = tuple(f"a{i}_true" for i in range(1, 7))
 _PLOT_MAX_POINTS = 20_000
 
 
@@ -136,136 +136,83 @@ def track_zip_cmd(
     if not (np.isfinite(v0) and v0 > 0):
         raise UserError(f"--v0 must be a finite positive number, got {v0}")
     distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col)
-    note = nominal_note(p0, q0, with_q=q_col.lower() != "none")
+    q_name, q_required = q_column(q_col)
+    note = nominal_note(p0, q0, with_q=q_name is not None)
     p0, q0 = nominal(p0, "--p0"), nominal(q0, "--q0")
     if not str(out).lower().endswith((".csv", ".txt")):
         raise UserError(f"{out}: --out must be a .csv or .txt file")
 
     import pandas as pd
 
-    from loadbayes.inference.online import OnlinePrior, OnlineTracker
+    from loadbayes.fit.track import TRUTH_COLUMNS, track_zip
     from loadbayes.io.transaction import OutputSet
-    from loadbayes.measurements.columns import power_chunks
-    from loadbayes.measurements.units import check_power_units, level_at_nominal, refuse
 
-    q_name = None if q_col.lower() == "none" else q_col
-    contrasts = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, -1.0]])
-    offsets = np.array([0.0, 0.0, 1.0])
-    trackers: dict[str, OnlineTracker] = {}
+    track = track_zip(
+        data,
+        v_col=v_col,
+        p_col=p_col,
+        q_col=q_name,
+        q_required=q_required,
+        t_col=t_col,
+        extra=TRUTH_COLUMNS if plot_out else (),
+        v0=v0,
+        p0=p0,
+        q0=q0,
+        v_base=v_base,
+        s_base=s_base,
+        drop_invalid=drop_invalid,
+        chunk_rows=chunk_rows,
+        forgetting=forgetting,
+        window=window,
+        drift=drift,
+        prob=prob,
+        prior_sd=prior_sd,
+        noise_sd=noise_sd,
+        accept_units=accept_units,
+    )
     keep_plot: list[pd.DataFrame] = []
     progress = Progress("tracking", estimate_rows(data), quiet)
-    n_total = n_dropped = 0
-    has_t = None
     files = {"--out": out} | ({"--plot": plot_out} if plot_out else {})
-    names = {"v": v_col, "p": p_col, "q": q_name}
-    unit_notes: list[str] = []
     try:
         with (
             OutputSet(files, force=force) as outputs,
             open(outputs.temp("--out"), "w", encoding="utf-8", newline="") as fh,
         ):
             first = True
-            parts, head = _head(
-                power_chunks(
-                    data,
-                    v_col=v_col,
-                    p_col=p_col,
-                    q_col=q_name,
-                    q_required=q_col not in ("q", "none"),
-                    t_col=t_col,
-                    extra=TRUTH_COLUMNS if plot_out else (),
-                    v_base=v_base,
-                    s_base=s_base,
-                    drop_invalid=drop_invalid,
-                    chunk_rows=chunk_rows,
-                )
-            )
-            for part in parts:
-                n_dropped += part.n_dropped
-                n = part.rows.size
-                if not trackers and n:
-                    has_t = "t" in part.cols
-                    c = head
-                    problems = check_power_units(
-                        c["v"], c["p"], c.get("q"), v0=v0, p0=p0, q0=q0,
-                        v_base=v_base, s_base=s_base,
-                    )  # fmt: skip
-                    if not accept_units:
-                        refuse(problems, path=str(data), names=names)
-                    unit_notes = [f"units: {pr}" for pr in problems]
-                    # 'auto' here: P0 (Q0) from the first AUTO_ROWS rows (whatever the
-                    # chunking), then held fixed: the tracker's shares are linear only
-                    # for a known nominal power.
-                    x = c["v"] / v0
-                    nom = {ch: level_at_nominal(x, c[ch]) for ch in ("p", "q") if ch in c}
-                    if p0 == "auto":
-                        p0 = nom["p"]
-                    if q0 == "auto" and "q" in c:
-                        q0 = nom["q"]
-                    if note and not quiet:
-                        est = ", ".join(
-                            f"{k.upper()}0 = {v:.5g}" for k, v in (("p", p0), ("q", q0))
-                            if k in c and isinstance(v, float)
-                        )  # fmt: skip
-                        click.echo(
-                            f"loadbayes: note: {note}: {est} from the first {c['v'].size} rows "
-                            "(at V = V0, by least squares), then held fixed",
-                            err=True,
-                        )
-                    channels = [("p", p0, ("a1", "a2", "a3"))]
-                    if "q" in part.cols:
-                        channels.append(("q", q0, ("a4", "a5", "a6")))
-                    prior = OnlinePrior.weak(2, coef_sd=prior_sd, noise_sd=noise_sd)
-                    for ch, _, _ in channels:
-                        trackers[ch] = OnlineTracker(
-                            2,
-                            forgetting=forgetting,
-                            window=window,
-                            drift=drift,
-                            prior=prior,
-                            prob=prob,
-                            contrasts=contrasts,
-                            offsets=offsets,
-                        )
-                if n == 0:
-                    continue
+            for frame, extra in track:
+                if first and note and not quiet:
+                    est = ", ".join(
+                        f"{k.upper()}0 = {v:.5g}"
+                        for k, v in (("p", track.p0), ("q", track.q0))
+                        if (k == "p" or track.with_q) and isinstance(v, float)
+                    )
+                    click.echo(
+                        f"loadbayes: note: {note}: {est} from the first {track.head_rows} rows "
+                        "(at V = V0, by least squares), then held fixed",
+                        err=True,
+                    )
                 stop_if_signalled()
-                x = part.cols["v"] / v0
-                dx = x - 1.0
-                z = np.column_stack([dx * (x + 1.0), dx])
-                cols: dict[str, np.ndarray] = {"t": part.cols["t"] if has_t else part.rows}
-                for ch, nom, names in channels:
-                    res = trackers[ch].update(z, part.cols[ch] / nom - 1.0)
-                    for j, name in enumerate(names):
-                        cols[f"{name}_mean"] = res.mean[:, j]
-                        cols[f"{name}_low"] = res.low[:, j]
-                        cols[f"{name}_high"] = res.high[:, j]
-                frame = pd.DataFrame(cols)
                 frame.to_csv(
                     fh, header=first, index=False, float_format="%.10g", lineterminator="\n"
                 )
                 first = False
-                n_total += n
-                progress(n)
+                progress(len(frame))
                 if plot_out:
-                    for c, a in part.extra.items():
+                    for c, a in extra.items():
                         frame[c] = a
                     keep_plot.append(frame)
-            if first:
-                from loadbayes.io.errors import DataError
-
-                raise DataError("no valid rows", path=str(data))
             fh.flush()
             if plot_out:
-                _plot(pd.concat(keep_plot, ignore_index=True), outputs.temp("--plot"), has_t,
-                      prob, t_col)  # fmt: skip
+                _plot(pd.concat(keep_plot, ignore_index=True), outputs.temp("--plot"),
+                      track.has_t, prob, t_col)  # fmt: skip
             stop_if_signalled()
             outputs.commit()
     finally:
         progress.close()
+    n_total, n_dropped = track.n_rows, track.n_dropped
     if n_total == 0:
         raise UserError(f"{data}: no valid rows")
-    for w in unit_notes:
+    for w in track.unit_notes:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if n_dropped:
         click.echo(
@@ -282,26 +229,6 @@ def track_zip_cmd(
             else f"forgetting {forgetting:g}"
         )
         click.echo(f"tracked {n_total} samples ({memory}) into {out}", err=True)
-
-
-#: Rows that fix an ``auto`` nominal power and the unit check, whatever the chunking.
-AUTO_ROWS = 10_000
-
-
-def _head(chunks):
-    """The chunks again, and the first AUTO_ROWS rows of V, P, Q gathered from them."""
-    import itertools
-
-    it = iter(chunks)
-    buffered, got = [], 0
-    for part in it:
-        buffered.append(part)
-        got += part.rows.size
-        if got >= AUTO_ROWS:
-            break
-    keys = buffered[0].cols if buffered else {}
-    head = {k: np.concatenate([b.cols[k] for b in buffered])[:AUTO_ROWS] for k in keys}
-    return itertools.chain(buffered, it), head
 
 
 def _plot(df, path, has_t, prob, t_col) -> None:

@@ -4,12 +4,16 @@
 ``fit_im_file`` (motor from its states), ``fit_robust`` (Student-t on any linear model);
 each builds a model from :mod:`loadbayes.models`, hands its likelihood pieces to a
 sampler of :mod:`loadbayes.inference` and returns a :class:`~loadbayes.posterior.Posterior`.
+Each takes ``sampler`` (a :class:`~loadbayes.core.settings.SamplerSettings`) and keyword
+overrides of it (:mod:`loadbayes.fit.sampler`). ``track_zip`` follows the ZIP
+coefficients sample by sample instead (online Bayes, :mod:`loadbayes.fit.track`).
 """
 
 from loadbayes.fit.core import accumulate, fit_gram, prior_settings
 from loadbayes.fit.exp import fit_exp
 from loadbayes.fit.motor import fit_im, fit_im_file, im_priors
 from loadbayes.fit.robust import fit_robust
+from loadbayes.fit.track import track_zip
 from loadbayes.fit.zip import fit_zip, fit_zip_file, zip_priors
 
 __all__ = [
@@ -23,5 +27,6 @@ __all__ = [
     "fit_zip_file",
     "im_priors",
     "prior_settings",
+    "track_zip",
     "zip_priors",
 ]

@@ -7,7 +7,9 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.core import MAX_OBSERVED, fit
+from loadbayes.fit.sampler import sampler_kwargs, sampler_of
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 
@@ -34,15 +36,11 @@ def fit_exp(
     units: Mapping[str, str] | None = None,
     priors: Mapping[str, Any] | None = None,
     drop_invalid: bool = False,
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    sampler: SamplerSettings | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: list[str] | None = None,
     warn: bool = True,
+    **overrides: Any,
 ):
     """Posterior of the exponential load model: the Python twin of ``loadbayes fit exp``.
 
@@ -72,12 +70,15 @@ def fit_exp(
         log-linear block (multiplicative); weak defaults otherwise.
     drop_invalid : bool
         Drop rows with NaN, inf or non-positive voltage instead of refusing the data.
-    chains, draws, burn, thin, init, seed
-        Sampler settings; ``draws`` includes burn-in.
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     settings, warnings
         Recorded with the result.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
+    **overrides
+        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings of
+        ``sampler``; ``draws`` includes burn-in.
 
     Returns
     -------
@@ -99,10 +100,10 @@ def fit_exp(
     >>> round(post.mean()["np"], 1)
     1.5
     """
-    from loadbayes.fit.zip import check_bases, check_sampler
+    from loadbayes.fit.zip import check_bases
     from loadbayes.measurements.frame import is_path, read_frame
 
-    check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
+    smp = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     if with_q is False:
         q_col = None
@@ -151,8 +152,7 @@ def fit_exp(
     try:
         post = _fit_exp_columns(
             cols, v0=v0, p0=p0, q0=q0, with_q=with_q, with_f=with_f, f0=f0, noise=noise,
-            priors=priors, chains=chains, draws=draws, burn=burn, thin=thin, init=init,
-            seed=seed, settings=base, warnings=warn_list,
+            priors=priors, sampler=smp, settings=base, warnings=warn_list,
         )  # fmt: skip
     except DataError as exc:
         from loadbayes.measurements.columns import relocate
@@ -176,12 +176,7 @@ def _fit_exp_columns(
     f0: float,
     noise: Noise,
     priors: Mapping[str, Any] | None,
-    chains: int,
-    draws: int,
-    burn: int,
-    thin: int,
-    init: str,
-    seed: int,
+    sampler: SamplerSettings,
     settings: Mapping[str, Any],
     warnings: list[str],
 ):
@@ -214,12 +209,7 @@ def _fit_exp_columns(
         model,
         cols,
         priors=priors,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
+        **sampler_kwargs(sampler),
         observed=observed,
         settings=base,
         warnings=warn,

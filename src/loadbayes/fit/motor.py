@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import Gram, GramAccumulator
 from loadbayes.fit.core import (
     CHUNK_ROWS,
@@ -20,6 +21,7 @@ from loadbayes.fit.core import (
     accumulate,
     prior_settings,
 )
+from loadbayes.fit.sampler import sampler_kwargs, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.posterior import Posterior
@@ -187,14 +189,10 @@ def fit_im(
     currents: str = "modelled",
     priors: Mapping[str, BlockPrior] | None = None,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    sampler: SamplerSettings | None = None,
     drop_invalid: bool = False,
     warn: bool = True,
+    **overrides: Any,
 ) -> Posterior:
     """Posterior of the induction-motor coefficients: the Python twin of ``loadbayes fit im``.
 
@@ -217,12 +215,17 @@ def fit_im(
     priors : mapping, optional
         ``{"flux": BlockPrior(2), "speed": BlockPrior(1), "current": BlockPrior(2)}``;
         weak defaults otherwise (:func:`im_priors`).
-    scheme, chains, draws, burn, thin, init, seed
-        Sampler settings; ``draws`` counts iterations including burn-in (the paper's M).
+    scheme : {"blocked", "single-site", "exact"}
+        Gibbs scheme.
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     drop_invalid : bool
         Drop rows with NaN or inf instead of refusing the data.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
+    **overrides
+        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings of
+        ``sampler``; ``draws`` counts iterations including burn-in (the paper's M).
 
     Returns
     -------
@@ -243,18 +246,16 @@ def fit_im(
     >>> round(post.mean()["b3"], 2)  # doctest: +SKIP
     -0.71
     """
-    from loadbayes.fit.zip import check_sampler
     from loadbayes.io.errors import DataError, OptionError
     from loadbayes.measurements.columns import relocate
     from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
-    check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
-    sampler = dict(scheme=scheme, chains=chains, draws=draws, burn=burn, thin=thin, init=init,
-                   seed=seed)  # fmt: skip
+    smp = sampler_of(sampler, overrides, check=True)
     if is_path(data):
         post, _ = fit_im_file(str(data), t0=t0, f_hz=f_hz, currents=currents, priors=priors,
-                              drop_invalid=drop_invalid, **sampler)  # fmt: skip
+                              drop_invalid=drop_invalid, scheme=scheme,
+                              sampler=smp)  # fmt: skip
         if warn:
             post.warn(stacklevel=2)
         return post
@@ -284,7 +285,8 @@ def fit_im(
                 "n_dropped": table.n_dropped,
             },  # fmt: skip
             warnings=warnings,
-            **sampler,
+            scheme=scheme,
+            **sampler_kwargs(smp),
         )
     except DataError as exc:
         raise relocate(exc, "data", table.rows, {}) from None
@@ -304,7 +306,9 @@ def fit_im_file(
     chunk_rows: int = CHUNK_ROWS,
     progress: Callable[[int], None] | None = None,
     accept_units: bool = False,
-    **sampler: Any,
+    scheme: Scheme = "blocked",
+    sampler: SamplerSettings | None = None,
+    **overrides: Any,
 ):
     """Fit the induction motor to a CSV or Parquet file read in chunks.
 
@@ -324,8 +328,12 @@ def fit_im_file(
     accept_units : bool
         Fit states that do not look like per unit (a warning instead of an error; see
         :func:`loadbayes.measurements.units.check_motor_units`).
-    **sampler
-        ``scheme``, ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
+    scheme : {"blocked", "single-site", "exact"}
+        Gibbs scheme.
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+    **overrides
+        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
     Returns
     -------
@@ -342,6 +350,7 @@ def fit_im_file(
     from loadbayes.io.tables import iter_chunks
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
+    smp = sampler_of(sampler, overrides)
     model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
     acc = GramAccumulator(model.gram_columns)
     state: dict[str, Any] = {"dropped": 0}
@@ -391,7 +400,8 @@ def fit_im_file(
             observed=observed,
             settings={"data": str(path), "n_dropped": state["dropped"]},
             warnings=warnings,
-            **sampler,
+            scheme=scheme,
+            **sampler_kwargs(smp),
         )
     except DataError as exc:
         raise DataError(exc.message, path=str(path), column=exc.column, row=exc.row) from None

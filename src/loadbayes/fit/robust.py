@@ -8,6 +8,8 @@ from typing import Any, Literal
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference import robust
 from loadbayes.inference.robust import FLAG_SIGMAS, NU_BOUNDS, NU_PRIOR, flag_threshold
 from loadbayes.posterior import Posterior
@@ -21,16 +23,12 @@ def fit_robust(
     *,
     priors: Mapping[str, BlockPrior] | None = None,
     nu: float | Literal["auto"] = "auto",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: Literal["prior", "dispersed"] = "prior",
-    seed: int | np.random.SeedSequence | None = 0,
+    sampler: SamplerSettings | None = None,
     flag_sigmas: float = FLAG_SIGMAS,
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Sequence[str] = (),
+    **overrides: Any,
 ):
     """Student-t fit of every block of a linear load model, as a :class:`Posterior`.
 
@@ -46,8 +44,11 @@ def fit_robust(
         One :class:`BlockPrior` per block name; ``model.default_priors()`` otherwise.
     nu : float or "auto"
         Degrees of freedom of every block (each block has its own ``nu_<block>``).
-    chains, draws, burn, thin, init, seed
-        Sampler settings; each block gets its own child of ``seed``.
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default); each
+        block gets its own child of its ``seed`` (an int, a ``SeedSequence`` or None).
+    **overrides
+        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings.
     flag_sigmas : float
         Flag rule (module notes).
     observed, settings, warnings
@@ -60,6 +61,9 @@ def fit_robust(
         each sample per block (``weight_<block>``) and ``settings["flagged"]`` the 0-based
         indices of flagged samples per block.
     """
+    smp = sampler_of(sampler, overrides)
+    chains, draws, burn, thin = smp.chains, smp.draws, smp.burn, smp.thin
+    init, seed = smp.init, smp.seed
     rows = model.rows(data)
     names = tuple(model.gram_columns)
     priors = dict(priors or model.default_priors())

@@ -3,18 +3,30 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import GramAccumulator
 from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, fit_gram
+from loadbayes.fit.sampler import check_sampler, sampler_kwargs, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
 
-__all__ = ["check_bases", "check_sampler", "fit_zip", "fit_zip_file", "zip_priors"]
+__all__ = [
+    "check_bases",
+    "check_likelihood",
+    "check_sampler",
+    "fit_zip",
+    "fit_zip_file",
+    "zip_priors",
+]
+
+#: Noise models of a ZIP fit.
+Likelihood = Literal["normal", "student-t"]
 
 
 def fit_zip(
@@ -34,13 +46,11 @@ def fit_zip(
     priors: Mapping[str, BlockPrior] | None = None,
     drop_invalid: bool = False,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    likelihood: Likelihood = "normal",
+    nu: float | Literal["auto"] = "auto",
+    sampler: SamplerSettings | None = None,
     warn: bool = True,
+    **overrides: Any,
 ) -> Posterior:
     """Posterior of the ZIP coefficients: the Python twin of ``loadbayes fit zip``.
 
@@ -68,9 +78,21 @@ def fit_zip(
         ``{"p": BlockPrior, "q": BlockPrior}`` (see :func:`zip_priors`); weak otherwise.
     drop_invalid : bool
         Drop rows with NaN, inf or non-positive voltage instead of refusing the data.
-    scheme, chains, draws, burn, thin, init, seed
-        Sampler settings (:func:`loadbayes.inference.gibbs.sample_block`); ``draws``
-        counts iterations including burn-in, as the paper's M.
+    scheme : {"blocked", "single-site", "exact"}
+        Gibbs scheme (:func:`loadbayes.inference.gibbs.sample_block`); Gaussian only.
+    likelihood : {"normal", "student-t"}
+        Gaussian noise (the paper's), or Student-t noise that discounts bad samples
+        (:func:`loadbayes.fit.robust.fit_robust`); the samples it flags are listed in
+        ``settings["flagged"]`` (by channel) and ``settings["flagged_rows"]``, as 1-based
+        data rows.
+    nu : float or "auto"
+        Student-t degrees of freedom (``auto``: sampled).
+    sampler : SamplerSettings, optional
+        How the chains run; :data:`loadbayes.fit.core.MODEL_DEFAULTS` (40 000 draws
+        including a 5 000 burn-in, the paper's M and m) by default.
+    **overrides
+        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: change single
+        settings of ``sampler``; ``draws`` counts iterations including burn-in.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
 
@@ -105,18 +127,18 @@ def fit_zip(
     from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.zip import ZIPModel
 
-    check_sampler(draws=draws, burn=burn, chains=chains, thin=thin)
+    settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
+    check_likelihood(likelihood, scheme)
     if with_q is False:
         q_col = None
     q_required = q_col is not None and q_col != "q"
-    sampler = dict(scheme=scheme, chains=chains, draws=draws, burn=burn, thin=thin, init=init,
-                   seed=seed)  # fmt: skip
     if is_path(data):
         post, _ = fit_zip_file(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v0=v0,
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
-            drop_invalid=drop_invalid, **sampler,
+            drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
+            sampler=settings,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -137,28 +159,37 @@ def fit_zip(
             warnings.append(
                 f"{table.n_dropped} rows with invalid values were dropped (drop_invalid=True)"
             )
+        record = {
+            "data": "DataFrame" if hasattr(data, "iloc") else "mapping",
+            "columns": {"v": v_col, "p": p_col, "q": q_col if model.with_q else None},
+            "v0": v0,
+            "p0": p0,
+            "q0": q0 if model.with_q else None,
+            "v_base": v_base,
+            "s_base": s_base,
+            "units": dict(units or {}),
+            "n_dropped": table.n_dropped,
+            **table.time,
+        }
         try:
-            gram = accumulate(model, [cols])
-            post = fit_gram(
-                model,
-                gram,
-                priors=priors or model.default_priors(),
-                observed=cols if gram.n <= MAX_OBSERVED else None,
-                settings={
-                    "data": "DataFrame" if hasattr(data, "iloc") else "mapping",
-                    "columns": {"v": v_col, "p": p_col, "q": q_col if model.with_q else None},
-                    "v0": v0,
-                    "p0": p0,
-                    "q0": q0 if model.with_q else None,
-                    "v_base": v_base,
-                    "s_base": s_base,
-                    "units": dict(units or {}),
-                    "n_dropped": table.n_dropped,
-                    **table.time,
-                },
-                warnings=warnings,
-                **sampler,
-            )
+            if likelihood == "student-t":
+                warnings += model.check(accumulate(model, [cols]))
+                post = _fit_student_t(
+                    model, cols, table.rows, priors=priors, nu=nu, sampler=settings,
+                    settings=record, warnings=warnings,
+                )  # fmt: skip
+            else:
+                gram = accumulate(model, [cols])
+                post = fit_gram(
+                    model,
+                    gram,
+                    priors=priors or model.default_priors(),
+                    observed=cols if gram.n <= MAX_OBSERVED else None,
+                    settings=record,
+                    warnings=warnings,
+                    scheme=scheme,
+                    **sampler_kwargs(settings),
+                )
         except DataError as exc:
             from loadbayes.measurements.columns import relocate
 
@@ -169,14 +200,15 @@ def fit_zip(
     return post
 
 
-def check_sampler(*, draws: int, burn: int, chains: int, thin: int) -> None:
-    """The CLI's checks of the sampler settings, as ``OptionError`` in one line."""
-    for name, value, low in (("draws", draws, 1), ("chains", chains, 1), ("thin", thin, 1),
-                             ("burn", burn, 0)):  # fmt: skip
-        if int(value) != value or value < low:
-            raise OptionError(f"{name} must be an integer >= {low}, got {value!r}")
-    if burn >= draws:
-        raise OptionError(f"burn ({burn}) must be smaller than draws ({draws})")
+def check_likelihood(likelihood: str, scheme: str) -> None:
+    """A known likelihood, and the Student-t one with its own (the blocked) scheme."""
+    if likelihood not in ("normal", "student-t"):
+        raise OptionError(f"likelihood must be 'normal' or 'student-t', got {likelihood!r}")
+    if likelihood == "student-t" and scheme != "blocked":
+        raise OptionError(
+            f"scheme {scheme!r} is a Gaussian-likelihood scheme; the Student-t sampler has "
+            "its own (leave scheme at 'blocked')"
+        )
 
 
 def check_bases(v_base: float | None, s_base: float | None) -> None:
@@ -246,7 +278,11 @@ def fit_zip_file(
     chunk_rows: int = CHUNK_ROWS,
     progress: Callable[[int], None] | None = None,
     accept_units: bool = False,
-    **sampler: Any,
+    scheme: Scheme = "blocked",
+    likelihood: Likelihood = "normal",
+    nu: float | Literal["auto"] = "auto",
+    sampler: SamplerSettings | None = None,
+    **overrides: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
 
@@ -272,8 +308,14 @@ def fit_zip_file(
     accept_units : bool
         Fit data that do not look like per unit of the nominal point (a warning instead
         of a :class:`DataError`; see :mod:`loadbayes.measurements.units`).
-    **sampler
-        ``scheme``, ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
+    scheme, likelihood, nu
+        As :func:`fit_zip`. The Student-t sampler visits every sample at every
+        iteration: its data are read into memory, and its unit and V-noise checks look
+        at the whole file.
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+    **overrides
+        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
     Returns
     -------
@@ -286,46 +328,36 @@ def fit_zip_file(
     property of the whole file, and a refusal should not wait for the last row.
     """
     from loadbayes.io.errors import DataError
-    from loadbayes.io.tables import iter_chunks
+    from loadbayes.measurements.columns import power_chunks
     from loadbayes.models.zip import ZIPModel
 
-    for name, base in (("--v-base", v_base), ("--s-base", s_base)):
-        if base is not None and not (np.isfinite(base) and base > 0):
-            raise ValueError(f"{name} must be positive, got {base}")
-    vs, ss = v_base or 1.0, s_base or 1.0
-    optional = [q_col] if q_col and not q_required else []
-    required = [v_col, p_col] + ([q_col] if q_col and q_required else [])
+    settings = sampler_of(sampler, overrides)
+    check_likelihood(likelihood, scheme)
+    read = dict(
+        v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v_base=v_base,
+        s_base=s_base, drop_invalid=drop_invalid, chunk_rows=chunk_rows,
+    )  # fmt: skip
+    nominal = dict(v0=v0, p0=p0, q0=q0)
+    if likelihood == "student-t":
+        return _fit_file_student_t(
+            path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
+            progress=progress, accept_units=accept_units,
+        )  # fmt: skip
     state: dict[str, Any] = {"dropped": 0}
     names = {"v": v_col, "p": p_col, "q": q_col}
     keep_obs: dict[str, list[np.ndarray]] = {"v": [], "p": [], "q": []}
 
     def chunks():
-        for chunk in iter_chunks(
-            path,
-            required,
-            optional=optional,
-            positive=[v_col],
-            chunk_rows=chunk_rows,
-            drop_invalid=drop_invalid,
-        ):
-            state["dropped"] += chunk.n_dropped
-            # Divide only when a base is given: each division copies the chunk.
-            cols = {"v": chunk.data[v_col], "p": chunk.data[p_col]}
-            if q_col and q_col in chunk.data:
-                cols["q"] = chunk.data[q_col]
-            if v_base is not None:
-                cols["v"] = cols["v"] / vs
-            if s_base is not None:
-                for key in ("p", "q"):
-                    if key in cols:
-                        cols[key] = cols[key] / ss
+        for part in power_chunks(path, **read):  # type: ignore[arg-type]
+            state["dropped"] += part.n_dropped
+            cols = part.cols
             if "model" not in state:
-                state["model"] = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
+                state["model"] = ZIPModel(**nominal, with_q="q" in cols)  # type: ignore[arg-type]
             if "first_warnings" not in state and cols["v"].size:
                 # the first chunk with rows (one whose rows were all dropped says nothing)
                 state["first_warnings"] = data_checks(
                     cols, path=path, names=names, accept_units=accept_units,
-                    v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base,
+                    v_base=v_base, s_base=s_base, **nominal,
                 )  # fmt: skip
             if sum(a.size for a in keep_obs["v"]) <= MAX_OBSERVED:
                 for k, a in cols.items():
@@ -358,23 +390,93 @@ def fit_zip_file(
             gram,
             priors=priors or model.default_priors(),
             observed=observed,
-            settings={
-                "data": str(path),
-                "columns": {"v": v_col, "p": p_col, "q": q_col if model.with_q else None},
-                "v0": v0,
-                "p0": p0,
-                "q0": q0 if model.with_q else None,
-                "v_base": v_base,
-                "s_base": s_base,
-                "n_dropped": state["dropped"],
-            },
+            settings=_file_record(path, model, read, nominal, state["dropped"]),
             warnings=warnings,
-            **sampler,
+            scheme=scheme,
+            **sampler_kwargs(settings),
         )
     except DataError as exc:
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
         raise DataError(exc.message, path=str(path), column=column, row=exc.row) from None
     return post, model
+
+
+def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
+    """The data settings a ZIP fit of a file records (``post.settings``)."""
+    return {
+        "data": str(path),
+        "columns": {
+            "v": read["v_col"],
+            "p": read["p_col"],
+            "q": read["q_col"] if model.with_q else None,
+        },
+        "v0": nominal["v0"],
+        "p0": nominal["p0"],
+        "q0": nominal["q0"] if model.with_q else None,
+        "v_base": read["v_base"],
+        "s_base": read["s_base"],
+        "n_dropped": n_dropped,
+    }
+
+
+def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, accept_units):
+    """The Student-t ZIP of a file: read into memory, checked whole, flagged as file rows."""
+    from loadbayes.io.errors import DataError
+    from loadbayes.measurements.columns import read_power_columns, relocate
+    from loadbayes.models.zip import ZIPModel
+
+    pc = read_power_columns(path, progress=progress, **read)
+    model = ZIPModel(**nominal, with_q="q" in pc.cols)
+    names = {"v": read["v_col"], "p": read["p_col"], "q": read["q_col"]}
+    warnings = data_checks(
+        pc.cols, path=path, names=names, accept_units=accept_units,
+        v_base=read["v_base"], s_base=read["s_base"], **nominal,
+    )  # fmt: skip
+    if pc.n_dropped:
+        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+    try:
+        warnings += model.check(accumulate(model, [pc.cols]))
+        post = _fit_student_t(
+            model, pc.cols, pc.rows, priors=priors, nu=nu, sampler=sampler,
+            settings=_file_record(path, model, read, nominal, pc.n_dropped), warnings=warnings,
+        )  # fmt: skip
+    except DataError as exc:
+        raise relocate(exc, path, pc.rows, names) from None
+    return post, model
+
+
+def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings):
+    """:func:`fit_robust` on columns in memory; flagged samples as 1-based data rows.
+
+    ``rows`` are the data rows of the samples (of the file, or of the table); the result
+    lists the flagged ones under ``flagged`` (by channel) and ``flagged_rows``, in the
+    settings and in the JSON.
+    """
+    from loadbayes.fit.robust import fit_robust
+
+    post = fit_robust(
+        model,
+        cols,
+        priors=priors,
+        nu=nu,
+        observed=cols if rows.size <= MAX_OBSERVED else None,
+        warnings=warnings,
+        settings=settings,
+        sampler=sampler,
+    )
+    # 0-based sample indices -> 1-based data rows of the input
+    by_channel = {ch: [int(rows[i]) for i in idx] for ch, idx in post.settings["flagged"].items()}
+    st = post.settings
+    st["flagged"] = by_channel
+    st["flagged_rows"] = sorted({r for rs in by_channel.values() for r in rs})
+    st["flagged_are"] = "1-based data rows of the input (header excluded)"
+    post.extra_json.update(
+        likelihood="student-t",
+        flagged=list(st["flagged_rows"]),
+        flagged_by_channel=dict(st["flagged"]),
+        flag_rule=st["flag_rule"],
+    )
+    return post
 
 
 def data_checks(cols, *, path, names, accept_units, **nominal) -> list[str]:

@@ -55,9 +55,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.hier_kernels import _bus_sweep, _class_sums, _mu_terms
-from loadbayes.fleet.perbus import SamplerSettings
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.fleet.summary import failed_rows, stat_rows
 from loadbayes.io.errors import DataError

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.fleet.summary import failed_rows, stat_rows
@@ -25,20 +25,7 @@ from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 from loadbayes.posterior import IDENTIFIABILITY_CORR, Posterior
 
-__all__ = ["SamplerSettings", "bus_seed", "fit_buses"]
-
-
-@dataclass(frozen=True)
-class SamplerSettings:
-    """Gibbs settings shared by every bus (and the hierarchical sampler)."""
-
-    chains: int = 4
-    draws: int = 2_500
-    burn: int = 500
-    thin: int = 1
-    seed: int = 0
-    init: str = "prior"
-    hdi_prob: float = 0.95
+__all__ = ["bus_seed", "fit_buses"]
 
 
 def bus_seed(seed: int, bus: object) -> np.random.SeedSequence:

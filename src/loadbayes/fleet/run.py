@@ -10,10 +10,11 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet import hierarchical as hier
 from loadbayes.fleet.engine import Engine
 from loadbayes.fleet.partitions import Partition, ReadSpec, find_partitions
-from loadbayes.fleet.perbus import SamplerSettings, fit_buses
+from loadbayes.fleet.perbus import fit_buses
 from loadbayes.fleet.stats import FleetStats, finish, merge, partition_stats
 from loadbayes.fleet.summary import concat
 from loadbayes.io.errors import DataError

@@ -68,9 +68,16 @@ def power_chunks(
         drop_invalid=drop_invalid,
     ):
         d = chunk.data
-        cols = {"v": d[v_col] / vs, "p": d[p_col] / ss}
+        cols = {"v": d[v_col], "p": d[p_col]}
         if q_col and q_col in d:
-            cols["q"] = d[q_col] / ss
+            cols["q"] = d[q_col]
+        # Divide only when a base is given: each division copies the chunk (x / 1.0 is x).
+        if v_base is not None:
+            cols["v"] = cols["v"] / vs
+        if s_base is not None:
+            for key in ("p", "q"):
+                if key in cols:
+                    cols[key] = cols[key] / ss
         if f_col:
             cols["f"] = d[f_col]
         if t_col and t_col in d:

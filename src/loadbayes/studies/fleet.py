@@ -34,9 +34,9 @@ class FleetStudy:
 
 def run(*, quick: bool = True, seed: int = 0) -> FleetStudy:
     """Run the study (quick: 60 buses, about 20 s; full: 300 buses)."""
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fleet.generate import fleet_truth, write_fleet
     from loadbayes.fleet.partitions import ReadSpec
-    from loadbayes.fleet.perbus import SamplerSettings
     from loadbayes.fleet.run import fit_fleet, fleet_statistics
 
     n_buses = 60 if quick else 300

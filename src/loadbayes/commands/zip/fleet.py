@@ -8,14 +8,17 @@ sampler settings, ``--drop-invalid``, ``--quiet``, ``--force``) keep their meani
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
-from loadbayes.commands.options import nominal
+from loadbayes.commands.options import nominal, q_column
 from loadbayes.commands.output import Progress, UserError, check_outputs
 
-__all__ = ["fleet_options", "run_fleet_command"]
+if TYPE_CHECKING:
+    from loadbayes.core.settings import SamplerSettings
+
+__all__ = ["fleet_options", "fleet_sampler_defaults", "run_fleet_command"]
 
 #: Fleet defaults where the single-bus ones would be too costly for thousands of buses.
 FLEET_DRAWS = 2_500
@@ -82,10 +85,29 @@ def _refuse_single_bus_options(p: dict[str, Any]) -> None:
         raise UserError("--conjugate is not available for fleets")
 
 
-def run_fleet_command(params: dict[str, Any]) -> None:
-    """Run the fleet fit from the parsed options of ``fit zip`` (a dict by option name)."""
-    p = params
+def fleet_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
+    """With ``--by``, the fleet's draws and burn-in where the user gave none.
+
+    The ``adjust`` of ``fit zip``'s :func:`~loadbayes.commands.options.sampler_settings`.
+    """
+    if not options.get("by"):
+        return values
     ctx = click.get_current_context()
+    draws, burn = values["draws"], values["burn"]
+    src = click.core.ParameterSource.DEFAULT
+    if ctx.get_parameter_source("draws") == src:
+        draws = FLEET_DRAWS
+    if ctx.get_parameter_source("burn") == src:
+        burn = min(FLEET_BURN, draws - 1)
+    return {**values, "draws": draws, "burn": burn}
+
+
+def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
+    """Run the fleet fit from the parsed options of ``fit zip`` (a dict by option name).
+
+    ``sampler`` holds the fleet's defaults already (:func:`fleet_sampler_defaults`).
+    """
+    p = params
     _refuse_single_bus_options(p)
     if not p.get("fleet_out"):
         raise UserError("--by needs --out FILE.parquet for the fleet table")
@@ -94,32 +116,23 @@ def run_fleet_command(params: dict[str, Any]) -> None:
     if p["pool"] == "class" and p.get("netcdf_dir"):
         raise UserError("--netcdf-dir is for --pool none (pooled draws stay together)")
     check_outputs({"--out": p["fleet_out"]}, [p["data"]], p["force"])
-    draws, burn = p["draws"], p["burn"]
-    src = click.core.ParameterSource.DEFAULT
-    if ctx.get_parameter_source("draws") == src:
-        draws = FLEET_DRAWS
-    if ctx.get_parameter_source("burn") == src:
-        burn = min(FLEET_BURN, draws - 1)
-    if burn >= draws:
-        raise UserError(f"--burn ({burn}) must be smaller than --draws ({draws})")
     p0, q0 = nominal(p["p0"], "--p0"), nominal(p["q0"], "--q0")
     from loadbayes.commands.options import parse_coef_priors
     from loadbayes.fit import zip_priors
     from loadbayes.fleet.engine import Engine
     from loadbayes.fleet.hierarchical import HierPrior
     from loadbayes.fleet.partitions import ReadSpec
-    from loadbayes.fleet.perbus import SamplerSettings
     from loadbayes.fleet.run import run_fleet
     from loadbayes.fleet.summary import write_parquet
 
-    q_col = p["q_col"]
+    q_name, q_required = q_column(p["q_col"])
     spec = ReadSpec(
         by=p["by"],
         class_col=p.get("class_col"),
         v_col=p["v_col"],
         p_col=p["p_col"],
-        q_col=None if q_col.lower() == "none" else q_col,
-        q_required=q_col not in ("q", "none"),
+        q_col=q_name,
+        q_required=q_required,
         v_base=p["v_base"],
         s_base=p["s_base"],
         drop_invalid=p["drop_invalid"],
@@ -133,15 +146,6 @@ def run_fleet_command(params: dict[str, Any]) -> None:
         per_coef=parse_coef_priors(p["coef_priors"]),
         shape=p["tau_shape"],
         rate=p["tau_rate"],
-    )
-    sampler = SamplerSettings(
-        chains=p["chains"],
-        draws=draws,
-        burn=burn,
-        thin=p["thin"],
-        seed=p["seed"],
-        init=p["init"],
-        hdi_prob=p["hdi_prob"],
     )
     if p.get("netcdf_dir"):
         from pathlib import Path

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.models.motor_library import MOTORS
+
 __all__ = ["CHECKED", "CI_SETTINGS", "fit_case", "recovery_cases", "run_recovery"]
 
 #: Quantities whose 95% interval is checked against the truth.
@@ -55,7 +57,7 @@ CHECKED: tuple[str, ...] = (
 #: Settings of the CI test (tests/statistical/test_composite_recovery.py): short records
 #: at 30 samples/s and short chains, so that 200 events fit in the test-time budget.
 CI_SETTINGS: dict[str, Any] = {"t_end_s": 2.0, "fs": 30.0, "draws": 1000, "burn": 400, "chains": 2}
-_MOTORS = ("small_industrial", "large_industrial", "krause_3hp", "krause_2250hp")
+_MOTORS = tuple(MOTORS)
 _DEPTHS = (0.15, 0.3, 0.5)
 
 

@@ -1,0 +1,69 @@
+"""The fits' sampler settings: a SamplerSettings or keywords, the same draws either way."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit import fit_robust, fit_zip
+from loadbayes.fit.sampler import MODEL_DEFAULTS, sampler_kwargs, sampler_of
+from loadbayes.io.errors import OptionError
+
+
+def _data(n=300, seed=1, outlier=None):
+    rng = np.random.default_rng(seed)
+    v = rng.uniform(0.9, 1.1, n)
+    p = 0.3 * v**2 + 0.2 * v + 0.5 + rng.normal(0, 0.01, n)
+    if outlier is not None:
+        p[outlier] += 1.0
+    return {"v": v, "p": p}
+
+
+def test_defaults_are_the_papers():
+    assert (MODEL_DEFAULTS.draws, MODEL_DEFAULTS.burn, MODEL_DEFAULTS.chains) == (40_000, 5_000, 4)
+    assert (MODEL_DEFAULTS.thin, MODEL_DEFAULTS.init, MODEL_DEFAULTS.seed) == (1, "prior", 0)
+
+
+def test_keywords_override_and_seed_none_is_kept():
+    s = sampler_of(None, {"draws": 100, "burn": 10, "chains": None})
+    assert (s.draws, s.burn, s.chains) == (100, 10, 4)
+    assert sampler_of(s, {"seed": None}).seed is None
+    assert sampler_kwargs(s) == {
+        "chains": 4, "draws": 100, "burn": 10, "thin": 1, "init": "prior", "seed": 0,
+    }  # fmt: skip
+    with pytest.raises(TypeError, match="drawz"):
+        sampler_of(None, {"drawz": 3})
+
+
+def test_settings_or_keywords_give_the_same_draws():
+    data = _data()
+    a = fit_zip(data, with_q=False, draws=600, burn=100, chains=2, seed=3, warn=False)
+    b = fit_zip(data, with_q=False, sampler=SamplerSettings(draws=600, burn=100, chains=2,
+                seed=3), warn=False)  # fmt: skip
+    c = fit_zip(data, with_q=False, sampler=SamplerSettings(draws=600, burn=100, chains=2),
+                seed=3, warn=False)  # fmt: skip
+    for name in ("a1", "a2", "tau_p"):
+        np.testing.assert_array_equal(a.draws[name], b.draws[name])
+        np.testing.assert_array_equal(a.draws[name], c.draws[name])
+
+
+def test_a_bad_burn_is_the_one_line_option_error():
+    with pytest.raises(OptionError, match=r"burn \(10\) must be smaller than draws \(10\)"):
+        fit_zip(_data(), draws=10, burn=10)
+
+
+def test_student_t_zip_flags_the_bad_row_as_a_data_row():
+    data = _data(outlier=41)
+    post = fit_zip(data, with_q=False, likelihood="student-t", nu=4.0, draws=800, burn=200,
+                   chains=2, seed=0, warn=False)  # fmt: skip
+    assert 42 in post.settings["flagged_rows"]
+    assert post.extra_json["flagged"] == post.settings["flagged_rows"]
+    # the same draws as fit_robust on the same columns
+    from loadbayes.models.zip import ZIPModel
+
+    model = ZIPModel(p0=1.0, with_q=False)
+    ref = fit_robust(model, data, nu=4.0, draws=800, burn=200, chains=2, seed=0)
+    np.testing.assert_array_equal(post.draws["a1"], ref.draws["a1"])
+    with pytest.raises(OptionError, match="Gaussian-likelihood scheme"):
+        fit_zip(data, likelihood="student-t", scheme="exact")
