@@ -17,11 +17,6 @@ from loadbayes.commands.options import OneLineCommand
 
 pytestmark = pytest.mark.integration
 
-#: Commands not yet a OneLineCommand, each on a branch of its own that converts it; the
-#: lead empties this set when that branch lands.
-NOT_YET_ONE_LINE = {"loadbayes fit composite"}
-
-
 def _commands(group: click.Group, path: str) -> list[tuple[str, click.Command]]:
     out = []
     for name, cmd in sorted(group.commands.items()):
@@ -40,20 +35,15 @@ def test_the_tree_has_every_command():
     names = {n for n, _ in COMMANDS}
     assert len(COMMANDS) >= 14
     assert {"loadbayes fit zip", "loadbayes read pmu", "loadbayes simulate andes"} <= names
-    assert NOT_YET_ONE_LINE <= names
-
-
-@pytest.mark.parametrize(("name", "cmd"), COMMANDS, ids=[n for n, _ in COMMANDS])
-def test_every_command_is_one_line(name, cmd):
-    if name in NOT_YET_ONE_LINE:
-        pytest.skip("converted on another branch")
-    assert isinstance(cmd, OneLineCommand), name
+    # That each is a OneLineCommand is a layout rule: tests/unit/test_layout.py.
+    assert all(isinstance(cmd, OneLineCommand) for _, cmd in COMMANDS)
 
 
 @pytest.mark.parametrize(
     ("args", "option"),
     [
         (["fit", "zip", "bus.csv", "--draws", "many"], "--draws"),
+        (["fit", "composite", "ev.csv", "--json", "c.json", "--draws", "abc"], "--draws"),
         (["fit", "exp", "bus.csv", "--seed", "x"], "--seed"),
         (["track", "zip", "bus.csv", "--out", "o.csv", "--seed", "1.5"], "--seed"),
         (["simulate", "im", "--out", "o.csv", "--seed", "x"], "--seed"),

@@ -298,7 +298,6 @@ def commands_not_one_line(group: click.Group, path: str = "loadbayes") -> list[s
     return bad
 
 
-@pytest.mark.xfail(strict=True, reason="commands are converted on the h3/h2 branches")
 def test_every_command_is_a_one_line_command():
     from loadbayes.cli import main
 
