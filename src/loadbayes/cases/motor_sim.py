@@ -23,6 +23,10 @@ Output columns of :func:`simulate` (all p.u.; derivatives per second)
 present so the schema does not change). ``ded, deq, dw`` are the right-hand side of the
 ODE at the samples (exact), not finite differences. ``p`` and ``q`` are computed from
 the noiseless voltages and currents.
+
+One idea at about 450 lines, the reference simulation of a motor through a disturbance:
+the profiles it is driven by (constant, sag, ramp, random walk, from a file), the
+integration, and the record's CSV with its settings sidecar that ``fit im`` reads back.
 """
 
 from __future__ import annotations

@@ -7,6 +7,9 @@ Physics, time base and sign conventions are those of :mod:`loadbayes.models.moto
 with its slips fixed (docs/paper.md, slips 3-6: ``A w^2``, ``y_Ed = dEd'/dt``, the Iq
 sign, ``T0`` kept).
 
+One idea at about 400 lines: the same five equations in their two forms (measured and
+latent currents), which share every helper (Gram columns, blocks, conditionals).
+
 Two forms of the same five equations
 ------------------------------------
 ``currents="measured"`` (the paper's form, equation (2))::
