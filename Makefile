@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(VENV)/bin/loadbayes reproduce all --quick --out results --force
+	@echo "loadbayes is in $(VENV)/bin: put it on PATH with '. $(VENV)/bin/activate' (or run $(CURDIR)/$(VENV)/bin/loadbayes)"
 
 # The browser test of the HTML report needs Debian's chromium: installed here when
 # missing and possible (CI runs as root); otherwise that one test says why it skips.

@@ -1,26 +1,110 @@
-"""``loadbayes example``: print a small data file shipped with the package."""
+"""``loadbayes example``: write the example inputs the README's usage lines read."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import click
 
 from loadbayes.commands.options import OneLineCommand
 
-#: Example files by name, in ``loadbayes/data``.
-EXAMPLES = {"zip": "zip_example.csv"}
+#: One-file kinds, printed to stdout (or written to --out FILE).
+FILES = ("zip", "day")
+#: Folder kinds (loadbayes.cases.examples.KINDS), written into --out DIR.
+FOLDERS = ("composite", "fleet", "comtrade", "pmu")
+
+
+def _text(name: str) -> str:
+    if name == "zip":  # shipped as a file: its numbers are quoted in the docs
+        from importlib.resources import files
+
+        return files("loadbayes").joinpath("data", "zip_example.csv").read_text(encoding="utf-8")
+    from loadbayes.cases.examples import day_frame
+
+    return day_frame().to_csv(index=False)
+
+
+def _write_folder(folder: Path, contents: dict, force: bool) -> list[Path]:
+    """Write every file into ``folder`` or none (an existing file needs ``force``)."""
+    from loadbayes.commands.output import UserError
+    from loadbayes.io.errors import DataError
+    from loadbayes.io.transaction import OutputSet
+
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"{folder}: exists and is not a folder")
+    if not force:
+        for name in contents:
+            if (folder / name).exists():
+                raise UserError(f"{folder / name}: exists; use --force to overwrite")
+    created = not folder.exists()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with OutputSet({name: folder / name for name in contents}, force=force) as out:
+            for name, content in contents.items():
+                if isinstance(content, bytes):
+                    out.temp(name).write_bytes(content)
+                else:
+                    out.temp(name).write_text(content, encoding="utf-8")
+            return out.commit()
+    except DataError as err:
+        raise UserError(str(err)) from None
+    except OSError as err:
+        raise UserError(f"{folder}: {err.strerror}") from None
+    finally:
+        if created and folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
 
 
 @click.command("example", cls=OneLineCommand)
-@click.argument("name", type=click.Choice(sorted(EXAMPLES)))
-def example_cmd(name):
-    """Print an example data file to stdout, e.g. loadbayes example zip > bus.csv.
+@click.argument("name", type=click.Choice(FILES + FOLDERS))
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=True, path_type=Path),
+    help="zip, day: a file instead of stdout. composite, fleet, comtrade, pmu: the folder "
+    "to write into (required; created if missing).",
+)
+@click.option("--force", is_flag=True, help="Overwrite existing files.")
+def example_cmd(name, out, force):
+    """Write an example input, e.g. loadbayes example zip > bus.csv.
 
-    zip: a day of 1-minute samples at an 11 kV bus, columns time, v (kV), p (MW),
-    q (Mvar); a ZIP load with shares a1..a3 = 0.30, 0.25, 0.45 and a4..a6 = 0.60, 0.10,
-    0.30 at 5 MW and 2 Mvar. Fit it with ``loadbayes fit zip bus.csv --v-base 11
-    --s-base 5 --p0 1 --q0 0.4``.
-    """
-    from importlib.resources import files
+    Each is simulated with a known answer, in the units real data come in (the bus is
+    11 kV, 5 MVA: fit with --v-base 11 --s-base 5 where the columns are kV and MW).
 
-    text = files("loadbayes").joinpath("data", EXAMPLES[name]).read_text(encoding="utf-8")
-    click.echo(text, nl=False)
+    \b
+    zip        a day of 1-minute V (kV), P (MW), Q (Mvar) at an 11 kV bus; a ZIP load
+               a1..a3 = 0.30, 0.25, 0.45, a4..a6 = 0.60, 0.10, 0.30 at 5 MW, 2 Mvar
+               (loadbayes fit zip bus.csv --v-base 11 --s-base 5 --p0 1 --q0 0.4)
+    day        a day whose ZIP shares drift and jump, with the true shares as
+               a1_true.. columns (loadbayes track zip)
+    composite  sag1.csv, sag2.csv: two sags at a ZIP + induction-motor load, motor
+               share f_m = 0.5 (loadbayes fit composite)
+    fleet      part-*.parquet: 24 buses in three customer classes, per unit
+               (loadbayes fit zip DIR --by bus_id --class-col customer_class)
+    comtrade   event.cfg, event.dat: 8 s of 50 Hz waveforms with two sags
+               (loadbayes read comtrade, then loadbayes events)
+    pmu        historian.csv and its map.toml: 2 minutes of 30 frame/s phasors with
+               one sag (loadbayes read pmu --map)
+    """  # noqa: D301 (click's \b keeps the table's line breaks)
+    from loadbayes.commands.output import UserError
+
+    if name in FILES:
+        text = _text(name)
+        if out is None:
+            click.echo(text, nl=False)
+            return
+        from loadbayes.io.atomic import atomic_write
+        from loadbayes.io.errors import DataError
+
+        try:
+            with atomic_write(out, force=force, mode="w") as fh:
+                fh.write(text)
+        except DataError as err:
+            raise UserError(str(err)) from None
+        click.echo(f"loadbayes: wrote {out}", err=True)
+        return
+    if out is None:
+        raise UserError(f"example {name} writes several files: give the folder with --out DIR")
+    from loadbayes.cases.examples import KINDS
+
+    written = _write_folder(out, KINDS[name](), force)
+    click.echo(f"loadbayes: wrote {', '.join(str(p) for p in written)}", err=True)
