@@ -21,7 +21,7 @@ from loadbayes.fit.core import (
     accumulate,
     prior_settings,
 )
-from loadbayes.fit.sampler import sampler_kwargs, sampler_of
+from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.posterior import Posterior
@@ -73,12 +73,7 @@ def _fit_im_gram(
     t0: float | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    sampler: SamplerSettings,
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Iterable[str] = (),
@@ -104,28 +99,19 @@ def _fit_im_gram(
         wb=model.wb,
         t0_source="given" if t0 is not None else "first sample",
         scheme=scheme,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
+        chains=sampler.chains,
+        draws=sampler.draws,
+        burn=sampler.burn,
+        thin=sampler.thin,
+        init=sampler.init,
+        seed=sampler.seed,
         priors=prior_settings(priors),
     )
     if model.currents == "measured":
         if model.t0 is None:
             model = model.with_t0(model.resolve_t0(gram, first))
         raw = sample_blocks(
-            model.complete(gram),
-            model.blocks,
-            priors,
-            scheme=scheme,
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,
-            seed=seed,
+            model.complete(gram), model.blocks, priors, scheme=scheme, settings=sampler
         )
         full["t0"] = model.t0
     else:
@@ -145,13 +131,8 @@ def _fit_im_gram(
             tau_shape=[priors[b].shape for b in ("flux", "speed", "current")],
             tau_rate=[priors[b].rate for b in ("flux", "speed", "current")],
             scheme=scheme,  # type: ignore[arg-type]
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,  # type: ignore[arg-type]
             v_start=(v_ls, v_cov),
-            rng=seed,
+            settings=sampler,
         )
         if model.t0 is None:
             k1, k2 = stats.t0_k  # type: ignore[misc]
@@ -286,7 +267,7 @@ def fit_im(
             },  # fmt: skip
             warnings=warnings,
             scheme=scheme,
-            **sampler_kwargs(smp),
+            sampler=smp,
         )
     except DataError as exc:
         raise relocate(exc, "data", table.rows, {}) from None
@@ -401,7 +382,7 @@ def fit_im_file(
             settings={"data": str(path), "n_dropped": state["dropped"]},
             warnings=warnings,
             scheme=scheme,
-            **sampler_kwargs(smp),
+            sampler=smp,
         )
     except DataError as exc:
         raise DataError(exc.message, path=str(path), column=exc.column, row=exc.row) from None

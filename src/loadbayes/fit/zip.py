@@ -11,7 +11,7 @@ from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import GramAccumulator
 from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, fit_gram
-from loadbayes.fit.sampler import check_sampler, sampler_kwargs, sampler_of
+from loadbayes.fit.sampler import check_sampler, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
@@ -188,7 +188,7 @@ def fit_zip(
                     settings=record,
                     warnings=warnings,
                     scheme=scheme,
-                    **sampler_kwargs(settings),
+                    sampler=settings,
                 )
         except DataError as exc:
             from loadbayes.measurements.columns import relocate
@@ -393,7 +393,7 @@ def fit_zip_file(
             settings=_file_record(path, model, read, nominal, state["dropped"]),
             warnings=warnings,
             scheme=scheme,
-            **sampler_kwargs(settings),
+            sampler=settings,
         )
     except DataError as exc:
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
