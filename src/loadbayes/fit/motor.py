@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.core.stats import Gram, GramAccumulator
 from loadbayes.fit.core import (
     CHUNK_ROWS,
@@ -21,6 +21,7 @@ from loadbayes.fit.core import (
     accumulate,
     prior_settings,
 )
+from loadbayes.fit.data import data_of
 from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
@@ -288,6 +289,7 @@ def fit_im_file(
     progress: Callable[[int], None] | None = None,
     accept_units: bool = False,
     scheme: Scheme = "blocked",
+    spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     **overrides: Any,
 ):
@@ -311,6 +313,9 @@ def fit_im_file(
         :func:`loadbayes.measurements.units.check_motor_units`).
     scheme : {"blocked", "single-site", "exact"}
         Gibbs scheme.
+    spec : DataSpec, optional
+        Its ``drop_invalid`` and ``accept_units`` (the motor's columns are fixed); the
+        keywords, when changed from their defaults, override them.
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     **overrides
@@ -331,6 +336,9 @@ def fit_im_file(
     from loadbayes.io.tables import iter_chunks
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
+    drop_invalid, accept_units = data_of(
+        spec, fit_im_file, drop_invalid=drop_invalid, accept_units=accept_units
+    )
     smp = sampler_of(sampler, overrides)
     model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
     acc = GramAccumulator(model.gram_columns)
