@@ -67,6 +67,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "im.json"))
     args = ap.parse_args(argv)
 
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit import accumulate, fit_im, fit_im_file
     from loadbayes.inference.bilinear import sample_bilinear
     from loadbayes.models.motor import COEFFICIENT_NAMES
@@ -92,8 +93,7 @@ def main(argv: list[str] | None = None) -> dict:
             tau_shape=[1e-3] * 3,
             tau_rate=[1e-9] * 3,
             v_start=v[:2],
-            rng=0,
-            **paper,
+            settings=SamplerSettings(**paper, seed=0),
         )
 
     _, t_sample = _timed(lambda: sampler(gram, cols), args.repeat)

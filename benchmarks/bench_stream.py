@@ -160,6 +160,7 @@ def fit_file(path: str, chunk_rows: int) -> dict:
 
 def flat_in_n(sizes: list[int], repeats: int = 7) -> list[dict]:
     """Time of the O(n) statistics and of the O(1)-in-n sampling, for growing n."""
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
@@ -176,11 +177,11 @@ def flat_in_n(sizes: list[int], repeats: int = 7) -> list[dict]:
         stats_s = time.perf_counter() - t0
         del v, p
         stats = model.blocks[0].stats(gram)
-        sample_block(stats, prior, rng=0)
+        sample_block(stats, prior, settings=SamplerSettings(seed=0, draws=40_000, burn=5_000))
         times, cpu = [], []
         for _ in range(repeats):
             t0, c0 = time.perf_counter(), time.process_time()
-            sample_block(stats, prior, rng=0)
+            sample_block(stats, prior, settings=SamplerSettings(seed=0, draws=40_000, burn=5_000))
             times.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
         out.append(

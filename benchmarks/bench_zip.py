@@ -506,6 +506,7 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
 
 def _sampling_only(data, priors, seed, g, repeats) -> dict:
     """``sample_block`` alone on the P block (the O(1)-in-n part), best of ``repeats``."""
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
@@ -516,7 +517,7 @@ def _sampling_only(data, priors, seed, g, repeats) -> dict:
     times, cpu = [], []
     for _ in range(max(repeats, 1)):
         t0, c0 = time.perf_counter(), time.process_time()
-        sample_block(stats, priors["p"], rng=seed, **g)
+        sample_block(stats, priors["p"], settings=SamplerSettings(**g, seed=seed))
         times.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
     t0 = time.perf_counter()

@@ -27,6 +27,7 @@ import pytest
 
 import loadbayes
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import fit_im, fit_zip, fit_zip_file
 from loadbayes.inference.gibbs import sample_block
@@ -103,7 +104,14 @@ def test_any_number_of_threads_gives_the_same_bits(scheme, monkeypatch):
     out = []
     for threads in ("1", "2", "4"):
         monkeypatch.setenv("LOADBAYES_NUM_THREADS", threads)
-        out.append(sample_block(st, prior, scheme=scheme, chains=4, draws=30_000, burn=0, rng=5))
+        out.append(
+            sample_block(
+                st,
+                prior,
+                scheme=scheme,
+                settings=SamplerSettings(chains=4, draws=30_000, burn=0, seed=5),
+            )
+        )
     for res in out[1:]:
         np.testing.assert_array_equal(res.coef, out[0].coef)
         np.testing.assert_array_equal(res.tau, out[0].tau)
@@ -114,7 +122,12 @@ def test_a_chain_run_alone_is_the_same_chain(scheme):
     st = _stats()
     prior = BlockPrior.weak(2, conjugate=scheme == "exact")
     seed = 20_240_601
-    together = sample_block(st, prior, scheme=scheme, chains=4, draws=2000, burn=100, rng=seed)
+    together = sample_block(
+        st,
+        prior,
+        scheme=scheme,
+        settings=SamplerSettings(chains=4, draws=2000, burn=100, seed=seed),
+    )
     for c in range(4):
         # Chain c's generator is child c of SeedSequence(seed): spawn one child from a
         # sequence that has already spawned c.
@@ -122,10 +135,12 @@ def test_a_chain_run_alone_is_the_same_chain(scheme):
             st,
             prior,
             scheme=scheme,
-            chains=1,
-            draws=2000,
-            burn=100,
-            rng=np.random.SeedSequence(seed, n_children_spawned=c),
+            settings=SamplerSettings(
+                chains=1,
+                draws=2000,
+                burn=100,
+                seed=np.random.SeedSequence(seed, n_children_spawned=c),
+            ),
         )
         np.testing.assert_array_equal(alone.coef[0], together.coef[c])
         np.testing.assert_array_equal(alone.tau[0], together.tau[c])
@@ -147,7 +162,9 @@ def test_a_chain_of_a_fit_run_alone_is_the_same_chain(tmp_path):
         for c in range(3):
             seq = np.random.SeedSequence(9, spawn_key=(b,), n_children_spawned=c)
             alone = sample_block(
-                block.stats(gram), priors[block.name], chains=1, draws=1500, burn=100, rng=seq
+                block.stats(gram),
+                priors[block.name],
+                settings=SamplerSettings(chains=1, draws=1500, burn=100, seed=seq),
             )
             for i, name in enumerate(block.coef_names):
                 np.testing.assert_array_equal(alone.coef[0, :, i], post[name][c])

@@ -31,6 +31,7 @@ import pytest
 
 from loadbayes.cases.motor_sim import simulate
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import accumulate, fit_im
 from loadbayes.inference.bilinear import sample_bilinear
@@ -102,7 +103,7 @@ def test_coupled_sampler_reduces_to_the_linear_one_when_ab_ac_are_known(records)
     st = model.bilinear_stats(accumulate(InductionMotorModel(), [cols]))
     priors = model.default_priors()
     pinned = BlockPrior(mean=v_true, precision=1e30 / v_true**2)
-    kw = {"draws": 20_000, "burn": 1000, "chains": 4, "rng": 7}
+    kw = {"draws": 20_000, "burn": 1000, "chains": 4, "seed": 7}
     coupled = sample_bilinear(
         st,
         [priors["flux"], priors["speed"]],
@@ -110,7 +111,7 @@ def test_coupled_sampler_reduces_to_the_linear_one_when_ab_ac_are_known(records)
         tau_shape=[1e-3] * 3,
         tau_rate=[1e-9] * 3,
         v_start=(v_true, np.zeros((2, 2))),
-        **kw,
+        settings=SamplerSettings(**kw),
     )
     # The same flux and speed regressions with the model's currents at the true (ab, ac).
     ud, uq, ed, eq, w = (cols[k] for k in ("ud", "uq", "ed", "eq", "w"))
@@ -133,7 +134,7 @@ def test_coupled_sampler_reduces_to_the_linear_one_when_ab_ac_are_known(records)
         ),
     }
     for block, (stats_, names) in linear.items():
-        res = sample_block(stats_, priors[block], **kw)
+        res = sample_block(stats_, priors[block], settings=SamplerSettings(**kw))
         ref = {n: res.coef[..., i] for i, n in enumerate(names[:-1])} | {names[-1]: res.tau}
         a = Posterior({n: coupled[n] for n in names}, model="t", method="t").summary()
         b = Posterior(ref, model="t", method="t").summary()
@@ -165,11 +166,8 @@ def test_intervals_are_calibrated_over_noise_replications() -> None:
             priors["current"],
             tau_shape=[1e-3] * 3,
             tau_rate=[1e-9] * 3,
-            draws=2000,
-            burn=300,
-            chains=2,
             v_start=(v_ls, v_cov),
-            rng=rep,
+            settings=SamplerSettings(draws=2000, burn=300, chains=2, seed=rep),
         )
         draws = np.stack([out[k].reshape(-1) for k in COEFFICIENT_NAMES], axis=1)
         zs.append((draws.mean(axis=0) - truth) / draws.std(axis=0))

@@ -13,6 +13,7 @@ import pytest
 from scipy import stats
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import fit_zip
 from loadbayes.inference.gibbs import exact_posterior, sample_block
@@ -54,7 +55,12 @@ def test_gibbs_matches_the_exact_normal_gamma_posterior(scheme, lo, hi, draws):
     st = _stats(v, p)
     prior = BlockPrior(mean=[0.2, 0.1], precision=[4.0, 1.0], shape=2.0, rate=0.02, conjugate=True)
     ex = exact_posterior(st, prior)
-    res = sample_block(st, prior, scheme=scheme, chains=4, draws=draws, burn=1000, rng=2024)
+    res = sample_block(
+        st,
+        prior,
+        scheme=scheme,
+        settings=SamplerSettings(chains=4, draws=draws, burn=1000, seed=2024),
+    )
     cov = np.linalg.inv(ex["precision"]) * ex["rate"] / ex["shape"]
     dof = 2 * ex["shape"]
     for j in range(2):

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.inference.gibbs import exact_posterior, sample_block
 
@@ -18,11 +19,26 @@ def _stats(n=200, seed=0, noise=0.1, lo=0.7, hi=1.1):
 def test_shapes_and_seed_reproducibility(scheme):
     st = _stats()
     prior = BlockPrior.weak(2, conjugate=scheme == "exact")
-    a = sample_block(st, prior, scheme=scheme, chains=3, draws=500, burn=100, thin=2, rng=5)
-    b = sample_block(st, prior, scheme=scheme, chains=3, draws=500, burn=100, thin=2, rng=5)
+    a = sample_block(
+        st,
+        prior,
+        scheme=scheme,
+        settings=SamplerSettings(chains=3, draws=500, burn=100, thin=2, seed=5),
+    )
+    b = sample_block(
+        st,
+        prior,
+        scheme=scheme,
+        settings=SamplerSettings(chains=3, draws=500, burn=100, thin=2, seed=5),
+    )
     assert a.coef.shape == (3, 200, 2) and a.tau.shape == (3, 200)
     assert np.array_equal(a.coef, b.coef) and np.array_equal(a.tau, b.tau)
-    c = sample_block(st, prior, scheme=scheme, chains=3, draws=500, burn=100, thin=2, rng=6)
+    c = sample_block(
+        st,
+        prior,
+        scheme=scheme,
+        settings=SamplerSettings(chains=3, draws=500, burn=100, thin=2, seed=6),
+    )
     assert not np.array_equal(a.coef, c.coef)
     assert np.all(np.isfinite(a.coef)) and np.all(a.tau > 0)
 
@@ -30,24 +46,34 @@ def test_shapes_and_seed_reproducibility(scheme):
 def test_chains_are_independent_of_how_many_run():
     st = _stats()
     prior = BlockPrior.weak(2)
-    two = sample_block(st, prior, chains=2, draws=300, burn=0, rng=9)
-    four = sample_block(st, prior, chains=4, draws=300, burn=0, rng=9)
+    two = sample_block(st, prior, settings=SamplerSettings(chains=2, draws=300, burn=0, seed=9))
+    four = sample_block(st, prior, settings=SamplerSettings(chains=4, draws=300, burn=0, seed=9))
     assert np.array_equal(two.coef, four.coef[:2])
 
 
 def test_exact_requires_conjugate_prior():
     with pytest.raises(ValueError, match="conjugate"):
-        sample_block(_stats(), BlockPrior.weak(2), scheme="exact", draws=10, burn=0)
+        sample_block(
+            _stats(),
+            BlockPrior.weak(2),
+            scheme="exact",
+            settings=SamplerSettings(draws=10, burn=0, seed=None),
+        )
 
 
 def test_bad_settings():
     st = _stats()
     with pytest.raises(ValueError, match="burn-in"):
-        sample_block(st, BlockPrior.weak(2), draws=10, burn=10)
+        sample_block(st, BlockPrior.weak(2), settings=SamplerSettings(draws=10, burn=10, seed=None))
     with pytest.raises(ValueError, match="scheme"):
-        sample_block(st, BlockPrior.weak(2), scheme="nuts", draws=10, burn=0)
+        sample_block(
+            st,
+            BlockPrior.weak(2),
+            scheme="nuts",
+            settings=SamplerSettings(draws=10, burn=0, seed=None),
+        )
     with pytest.raises(ValueError, match="coefficients"):
-        sample_block(st, BlockPrior.weak(3), draws=10, burn=0)
+        sample_block(st, BlockPrior.weak(3), settings=SamplerSettings(draws=10, burn=0, seed=None))
 
 
 def test_exact_posterior_matches_direct_formula():
@@ -70,7 +96,10 @@ def test_noise_free_data_stay_finite():
     st = RegressionStats(z.T @ z, z.T @ r, float(r @ r), 100)
     for scheme in ("blocked", "single-site"):
         d = sample_block(
-            st, BlockPrior.weak(2), scheme=scheme, chains=2, draws=2000, burn=500, rng=1
+            st,
+            BlockPrior.weak(2),
+            scheme=scheme,
+            settings=SamplerSettings(chains=2, draws=2000, burn=500, seed=1),
         )
         assert np.all(np.isfinite(d.coef)) and np.all(np.isfinite(d.tau))
         if scheme == "blocked":

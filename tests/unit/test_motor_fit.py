@@ -10,6 +10,7 @@ from loadbayes.baselines.kalman import kalman
 from loadbayes.baselines.least_squares import coupled_least_squares, least_squares
 from loadbayes.cases.motor_sim import constant, simulate, write_csv
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit import accumulate, fit_im, fit_im_file, im_priors
 from loadbayes.inference.bilinear import bilinear_least_squares, sample_bilinear
 from loadbayes.io.errors import DataError
@@ -230,12 +231,13 @@ def test_v_starts_from_the_current_equations_not_from_the_prior(noisy) -> None:
     st = model.bilinear_stats(gram, model.first_row(cols))
     priors = model.default_priors()
     ac = noisy.attrs["coefficients"]["ac"]
-    kw = {"tau_shape": [1e-3] * 3, "tau_rate": [1e-9] * 3, "draws": 2000, "burn": 1000}
+    kw = {"tau_shape": [1e-3] * 3, "tau_rate": [1e-9] * 3}
+    kw["settings"] = SamplerSettings(draws=2000, burn=1000, chains=20, seed=0)
     args = (st, [priors["flux"], priors["speed"]], priors["current"])
-    from_prior = sample_bilinear(*args, chains=20, rng=0, **kw)
+    from_prior = sample_bilinear(*args, **kw)
     assert np.any(np.abs(from_prior["ac"][:, -1] / ac - 1) > 0.05)
     v_ls, v_cov, _ = model.current_estimate(gram)
-    good = sample_bilinear(*args, chains=20, rng=0, v_start=(v_ls, v_cov), **kw)
+    good = sample_bilinear(*args, v_start=(v_ls, v_cov), **kw)
     assert np.all(np.abs(good["ac"][:, 1:].mean(axis=1) / ac - 1) < 0.01)
     ml = bilinear_least_squares(st, v0=v_ls)
     np.testing.assert_allclose(np.r_[ml["u"], ml["v"]], _truth(noisy), rtol=5e-3)

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import fit_robust
 from loadbayes.inference.gibbs import sample_block
@@ -24,13 +25,13 @@ def _data(n=300, seed=0, noise=0.05, lo=0.7, hi=1.1, bad=()):
 def test_shapes_and_seed_reproducibility(nu):
     z, r = _data()
     prior = BlockPrior.weak(2)
-    a = sample_student_t(z, r, prior, nu=nu, thin=2, rng=5, **FAST)
-    b = sample_student_t(z, r, prior, nu=nu, thin=2, rng=5, **FAST)
+    a = sample_student_t(z, r, prior, nu=nu, settings=SamplerSettings(**FAST, thin=2, seed=5))
+    b = sample_student_t(z, r, prior, nu=nu, settings=SamplerSettings(**FAST, thin=2, seed=5))
     kept = len(range(300, 1500, 2))
     assert a.coef.shape == (2, kept, 2) and a.tau.shape == a.nu.shape == (2, kept)
     assert a.weight.shape == (300,)
     assert np.array_equal(a.coef, b.coef) and np.array_equal(a.nu, b.nu)
-    c = sample_student_t(z, r, prior, nu=nu, thin=2, rng=6, **FAST)
+    c = sample_student_t(z, r, prior, nu=nu, settings=SamplerSettings(**FAST, thin=2, seed=6))
     assert not np.array_equal(a.coef, c.coef)
     assert np.all(np.isfinite(a.coef)) and np.all(a.tau > 0)
     if nu == "auto":
@@ -41,17 +42,23 @@ def test_shapes_and_seed_reproducibility(nu):
 
 def test_chains_do_not_depend_on_how_many_run():
     z, r = _data()
-    two = sample_student_t(z, r, BlockPrior.weak(2), chains=2, draws=400, burn=0, rng=9)
-    four = sample_student_t(z, r, BlockPrior.weak(2), chains=4, draws=400, burn=0, rng=9)
+    two = sample_student_t(
+        z, r, BlockPrior.weak(2), settings=SamplerSettings(chains=2, draws=400, burn=0, seed=9)
+    )
+    four = sample_student_t(
+        z, r, BlockPrior.weak(2), settings=SamplerSettings(chains=4, draws=400, burn=0, seed=9)
+    )
     assert np.array_equal(two.coef, four.coef[:2])
 
 
 def test_large_nu_matches_the_gaussian_sampler():
     z, r = _data(n=400, noise=0.1)
     prior = BlockPrior.weak(2)
-    t = sample_student_t(z, r, prior, nu=1e7, chains=4, draws=4000, burn=500, rng=1)
+    t = sample_student_t(
+        z, r, prior, nu=1e7, settings=SamplerSettings(chains=4, draws=4000, burn=500, seed=1)
+    )
     st = RegressionStats(z.T @ z, z.T @ r, float(r @ r), len(r))
-    g = sample_block(st, prior, chains=4, draws=4000, burn=500, rng=1)
+    g = sample_block(st, prior, settings=SamplerSettings(chains=4, draws=4000, burn=500, seed=1))
     sd = g.coef.std(axis=(0, 1))
     # means within 0.15 posterior sd (MCSE with ESS in the thousands is ~0.02 sd)
     diff = np.abs(t.coef.mean(axis=(0, 1)) - g.coef.mean(axis=(0, 1)))
@@ -63,7 +70,7 @@ def test_large_nu_matches_the_gaussian_sampler():
 def test_outliers_get_low_weights_and_are_flagged():
     bad = [5, 50, 120, 200]
     z, r = _data(n=300, noise=0.02, bad=bad)
-    res = sample_student_t(z, r, BlockPrior.weak(2), rng=3, **FAST)
+    res = sample_student_t(z, r, BlockPrior.weak(2), settings=SamplerSettings(**FAST, seed=3))
     assert set(bad) <= set(res.flagged().tolist())
     assert np.all(res.weight[bad] < 0.05)
     assert len(res.flagged()) <= len(bad) + 3
@@ -72,9 +79,10 @@ def test_outliers_get_low_weights_and_are_flagged():
     keep = np.setdiff1d(np.arange(300), bad)
     zk, rk = z[keep], r[keep]
     g = sample_block(
-        RegressionStats(zk.T @ zk, zk.T @ rk, float(rk @ rk), keep.size), BlockPrior.weak(2),
-        rng=3, **FAST,
-    )  # fmt: skip
+        RegressionStats(zk.T @ zk, zk.T @ rk, float(rk @ rk), keep.size),
+        BlockPrior.weak(2),
+        settings=SamplerSettings(**FAST, seed=3),
+    )
     diff = np.abs(res.coef.mean(axis=(0, 1)) - g.coef.mean(axis=(0, 1)))
     assert np.all(diff < 0.5 * g.coef.std(axis=(0, 1))), diff
 
@@ -87,7 +95,7 @@ def test_flag_threshold_rule():
 def test_conjugate_prior_runs():
     z, r = _data()
     prior = BlockPrior(mean=[0, 0], precision=[1e-2, 1e-2], shape=1e-3, rate=1e-6, conjugate=True)
-    res = sample_student_t(z, r, prior, nu=5.0, rng=0, **FAST)
+    res = sample_student_t(z, r, prior, nu=5.0, settings=SamplerSettings(**FAST, seed=0))
     np.testing.assert_allclose(res.coef.mean(axis=(0, 1)), [0.4, 0.3], atol=0.2)
 
 
@@ -104,8 +112,9 @@ def test_conjugate_prior_runs():
 def test_bad_settings(kwargs, match):
     z, r = _data(n=50)
     opts = {**FAST, **kwargs}
+    nu = opts.pop("nu", "auto")
     with pytest.raises(ValueError, match=match):
-        sample_student_t(z, r, BlockPrior.weak(2), rng=0, **opts)
+        sample_student_t(z, r, BlockPrior.weak(2), nu=nu, settings=SamplerSettings(seed=0, **opts))
 
 
 def test_bad_data():

@@ -51,6 +51,29 @@ def test_data_spec_reads_none_as_no_q_and_refuses_bad_values():
         DataSpec(p_col="v")
 
 
+def test_data_spec_takes_any_finite_non_zero_nominal_power():
+    # A capacitive load has q0 < 0; a negative p0 is refused later, by the unit check.
+    assert DataSpec(q0=-0.3).q0 == -0.3 and DataSpec(p0=-1.0).p0 == -1.0
+    for bad in (0.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="q0 must be a finite non-zero number"):
+            DataSpec(q0=bad)
+        with pytest.raises(ValueError, match="p0 must be a finite non-zero number"):
+            DataSpec(p0=bad)
+    for name in ("v_base", "s_base", "v0"):
+        with pytest.raises(ValueError, match=f"{name} must be a positive number"):
+            DataSpec(**{name: -1.0})
+
+
+def test_data_spec_of_keeps_what_is_not_given():
+    d = DataSpec(v_col="V", v_base=400.0)
+    assert DataSpec.of(d, p_col="P", v_base=None) == DataSpec(v_col="V", p_col="P", v_base=400.0)
+    assert DataSpec.of(None, q0=-0.5) == DataSpec(q0=-0.5)
+    with pytest.raises(TypeError, match="unknown data setting"):
+        DataSpec.of(d, vcol="x")
+    with pytest.raises(ValueError, match="positive"):
+        DataSpec.of(d, s_base=-2.0)
+
+
 @pytest.mark.parametrize("workers", [1, 2, 3, 5])
 def test_run_chains_results_do_not_depend_on_the_threads(workers):
     def chain(i, rng):

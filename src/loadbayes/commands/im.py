@@ -10,6 +10,7 @@ from loadbayes.commands.options import (
     OneLineCommand,
     accept_units_option,
     check_prior_sd,
+    data_spec,
     output_options,
     parse_coef_priors,
     sampler_settings,
@@ -92,6 +93,7 @@ N_PARAMS = 17
 @click.option("--drop-invalid", is_flag=True, help="Drop rows with NaN or inf (and count them).")
 @click.option("--chunk-rows", type=click.IntRange(min=1), default=1 << 18, show_default=True)
 @output_options
+@data_spec("drop_invalid", "accept_units")
 @user_errors
 def fit_im_cmd(
     data,
@@ -106,9 +108,8 @@ def fit_im_cmd(
     tau_shape,
     tau_rate,
     conjugate,
-    drop_invalid,
+    spec,
     chunk_rows,
-    accept_units,
     json_out,
     netcdf_out,
     plot_out,
@@ -162,10 +163,9 @@ def fit_im_cmd(
             f_hz=f_hz,
             currents=currents,
             priors=priors,
-            drop_invalid=drop_invalid,
+            spec=spec,
             chunk_rows=chunk_rows,
             progress=progress,
-            accept_units=accept_units,
             scheme=scheme,
             sampler=sampler,
         )

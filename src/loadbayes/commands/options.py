@@ -362,6 +362,33 @@ def sampler_settings(
     return deco
 
 
+def data_spec(*names: str):
+    """Hand the command ``spec``: one DataSpec of the options ``names``, in their place.
+
+    The options are declared by :func:`data_options`, :func:`nominal_options`,
+    :func:`accept_units_option` or the command; the
+    :class:`~loadbayes.core.settings.DataSpec` goes to the fit as it is. Only options
+    whose every value makes a valid ``DataSpec`` belong here (``drop_invalid``,
+    ``accept_units``): the CLI checks the others in its own words at points of the run
+    that a check when the command starts would move (the V0 check comes after the
+    file's first chunk, the base check after the "P0 not given" note), so ``fit zip``
+    and ``fit exp`` still hand their columns, bases and nominal point to the fit one
+    by one (a fit's keywords changed from their defaults override its ``spec``).
+    """
+
+    def deco(func):
+        @functools.wraps(func)
+        def wrapper(*args, **kwargs):
+            from loadbayes.core.settings import DataSpec
+
+            kwargs["spec"] = DataSpec(**{k: kwargs.pop(k) for k in names})
+            return func(*args, **kwargs)
+
+        return wrapper
+
+    return deco
+
+
 def parse_nu(value: str) -> float | str:
     """``--nu``: a positive finite number, or ``"auto"`` (sampled)."""
     if value.strip().lower() == "auto":

@@ -114,11 +114,14 @@ class DataSpec:
     f_col, t_col : str or None
         Frequency (Hz) and time columns, when used.
     v_base, s_base : float or None
-        Bases: data / base = per unit; ``None`` when the data are per unit already.
+        Bases: data / base = per unit (positive); ``None`` when the data are per unit
+        already.
     v0 : float
-        Nominal voltage, per unit.
+        Nominal voltage, per unit (positive).
     p0, q0 : float or None
-        Nominal powers, per unit; ``None``: estimated from the data.
+        Nominal powers, per unit, finite and non-zero (a capacitive load has ``q0 < 0``;
+        a negative ``p0`` is left to the fit's unit check, which explains it better);
+        ``None``: estimated from the data.
     drop_invalid : bool
         Skip rows with missing or non-physical values instead of stopping at the first.
     accept_units : bool
@@ -141,10 +144,14 @@ class DataSpec:
     def __post_init__(self) -> None:
         if self.q_col is not None and self.q_col.strip().lower() == "none":
             object.__setattr__(self, "q_col", None)
-        for name in ("v_base", "s_base", "v0", "p0", "q0"):
+        for name in ("v_base", "s_base", "v0"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value}")
+        for name in ("p0", "q0"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value != 0):
+                raise ValueError(f"{name} must be a finite non-zero number or None, got {value}")
         cols = [c for c in (self.v_col, self.p_col, self.q_col, self.f_col, self.t_col) if c]
         dup = sorted({c for c in cols if cols.count(c) > 1})
         if dup:
@@ -158,3 +165,17 @@ class DataSpec:
     def with_(self, **changes: Any) -> DataSpec:
         """A copy with some fields changed (and checked again)."""
         return replace(self, **changes)
+
+    @classmethod
+    def of(cls, spec: DataSpec | None = None, /, **changes: Any) -> DataSpec:
+        """``spec`` (or the defaults) with the keyword ``changes`` that are not None.
+
+        As :meth:`SamplerSettings.of`: None means "not given", so a field can be set to
+        None (``q_col=None``, no base) only with :meth:`with_`.
+        """
+        base = spec if spec is not None else cls()
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise TypeError(f"unknown data setting(s): {', '.join(unknown)}")
+        return replace(base, **{k: v for k, v in changes.items() if v is not None})

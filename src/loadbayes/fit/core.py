@@ -14,7 +14,9 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import Gram, GramAccumulator
+from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.models.base import LinearModel
@@ -77,40 +79,30 @@ def fit_gram(
     *,
     priors: Mapping[str, BlockPrior],
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    sampler: SamplerSettings | None = None,
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Iterable[str] = (),
+    **overrides: Any,
 ) -> Posterior:
-    """Sample the model's blocks from precomputed statistics and wrap the result."""
+    """Sample the model's blocks from precomputed statistics and wrap the result.
+
+    ``sampler`` (or :data:`~loadbayes.fit.sampler.MODEL_DEFAULTS`) with the keyword
+    ``overrides`` (``chains=..., seed=...``) are the sampler settings.
+    """
+    smp = sampler_of(sampler, overrides)
     warn = list(warnings) + model.check(gram)
-    raw = sample_blocks(
-        gram,
-        model.blocks,
-        priors,
-        scheme=scheme,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
-    )
+    raw = sample_blocks(gram, model.blocks, priors, scheme=scheme, settings=smp)
     full = dict(settings or {})
     full.update(
         n=gram.n,
         scheme=scheme,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
+        chains=smp.chains,
+        draws=smp.draws,
+        burn=smp.burn,
+        thin=smp.thin,
+        init=smp.init,
+        seed=smp.seed,
         priors=prior_settings(priors),
     )
     return Posterior(
@@ -138,20 +130,17 @@ def fit_power_law(
     cols: Mapping[str, np.ndarray],
     priors: Mapping[str, Any],
     *,
-    chains: int,
-    draws: int,
-    burn: int,
-    thin: int,
-    seed: Any,
+    sampler: SamplerSettings,
 ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """Sample each of the model's power-law blocks (Metropolis within Gibbs).
 
-    Each block gets its own child of ``seed`` (``SeedSequence.spawn``); ``priors`` maps a
+    Each block gets its own child of ``sampler.seed`` (``SeedSequence.spawn``); ``priors`` maps a
     block name to an object with ``exponent`` (mean, sd) and ``linear`` (BlockPrior).
     Returns the model's named raw draws and the acceptance rate of each block.
     """
     from loadbayes.inference.mwg import sample_power_law
 
+    seed = sampler.seed
     seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     blocks = model.power_law_blocks(cols)
     raw: dict[str, np.ndarray] = {}
@@ -163,14 +152,7 @@ def fit_power_law(
                 f"priors['{block.name}'] must give an exponent prior and a linear BlockPrior"
             )
         th, c, tau, acc = sample_power_law(
-            block,
-            pr.exponent,
-            pr.linear,
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            seed=child,
+            block, pr.exponent, pr.linear, settings=sampler.with_(seed=child)
         )
         raw.update(model.from_power_law(block.name, th, c, tau))
         accept[block.name] = acc
@@ -255,7 +237,8 @@ def fit(
         )
     if pieces == "power-law":
         priors = dict(priors or model.default_priors())
-        raw, accept = fit_power_law(model, cols, priors, **sampler)
+        smp = SamplerSettings(chains=chains, draws=draws, burn=burn, thin=thin, seed=seed)
+        raw, accept = fit_power_law(model, cols, priors, sampler=smp)
         n = int(next(iter(cols.values())).size)
         full = dict(settings or {})
         full.update(

@@ -7,8 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit.core import MAX_OBSERVED, fit
+from loadbayes.fit.data import data_of
 from loadbayes.fit.sampler import sampler_kwargs, sampler_of
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
@@ -36,6 +37,7 @@ def fit_exp(
     units: Mapping[str, str] | None = None,
     priors: Mapping[str, Any] | None = None,
     drop_invalid: bool = False,
+    spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: list[str] | None = None,
@@ -70,6 +72,10 @@ def fit_exp(
         log-linear block (multiplicative); weak defaults otherwise.
     drop_invalid : bool
         Drop rows with NaN, inf or non-positive voltage instead of refusing the data.
+    spec : DataSpec, optional
+        Columns, bases, nominal point and drop policy in one object; the keywords above
+        that a call changes from their defaults override its fields
+        (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     settings, warnings
@@ -103,6 +109,10 @@ def fit_exp(
     from loadbayes.fit.zip import check_bases
     from loadbayes.measurements.frame import is_path, read_frame
 
+    v_col, p_col, q_col, f_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid = data_of(
+        spec, fit_exp, v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col, t_col=t_col,
+        v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+    )  # fmt: skip
     smp = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     if with_q is False:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.core.stats import Gram, GramAccumulator
 from loadbayes.fit.core import (
     CHUNK_ROWS,
@@ -21,7 +21,8 @@ from loadbayes.fit.core import (
     accumulate,
     prior_settings,
 )
-from loadbayes.fit.sampler import sampler_kwargs, sampler_of
+from loadbayes.fit.data import data_of
+from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.posterior import Posterior
@@ -73,12 +74,7 @@ def _fit_im_gram(
     t0: float | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    sampler: SamplerSettings,
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Iterable[str] = (),
@@ -104,28 +100,19 @@ def _fit_im_gram(
         wb=model.wb,
         t0_source="given" if t0 is not None else "first sample",
         scheme=scheme,
-        chains=chains,
-        draws=draws,
-        burn=burn,
-        thin=thin,
-        init=init,
-        seed=seed,
+        chains=sampler.chains,
+        draws=sampler.draws,
+        burn=sampler.burn,
+        thin=sampler.thin,
+        init=sampler.init,
+        seed=sampler.seed,
         priors=prior_settings(priors),
     )
     if model.currents == "measured":
         if model.t0 is None:
             model = model.with_t0(model.resolve_t0(gram, first))
         raw = sample_blocks(
-            model.complete(gram),
-            model.blocks,
-            priors,
-            scheme=scheme,
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,
-            seed=seed,
+            model.complete(gram), model.blocks, priors, scheme=scheme, settings=sampler
         )
         full["t0"] = model.t0
     else:
@@ -145,13 +132,8 @@ def _fit_im_gram(
             tau_shape=[priors[b].shape for b in ("flux", "speed", "current")],
             tau_rate=[priors[b].rate for b in ("flux", "speed", "current")],
             scheme=scheme,  # type: ignore[arg-type]
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,  # type: ignore[arg-type]
             v_start=(v_ls, v_cov),
-            rng=seed,
+            settings=sampler,
         )
         if model.t0 is None:
             k1, k2 = stats.t0_k  # type: ignore[misc]
@@ -286,7 +268,7 @@ def fit_im(
             },  # fmt: skip
             warnings=warnings,
             scheme=scheme,
-            **sampler_kwargs(smp),
+            sampler=smp,
         )
     except DataError as exc:
         raise relocate(exc, "data", table.rows, {}) from None
@@ -307,6 +289,7 @@ def fit_im_file(
     progress: Callable[[int], None] | None = None,
     accept_units: bool = False,
     scheme: Scheme = "blocked",
+    spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     **overrides: Any,
 ):
@@ -330,6 +313,9 @@ def fit_im_file(
         :func:`loadbayes.measurements.units.check_motor_units`).
     scheme : {"blocked", "single-site", "exact"}
         Gibbs scheme.
+    spec : DataSpec, optional
+        Its ``drop_invalid`` and ``accept_units`` (the motor's columns are fixed); the
+        keywords, when changed from their defaults, override them.
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     **overrides
@@ -350,6 +336,9 @@ def fit_im_file(
     from loadbayes.io.tables import iter_chunks
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
+    drop_invalid, accept_units = data_of(
+        spec, fit_im_file, drop_invalid=drop_invalid, accept_units=accept_units
+    )
     smp = sampler_of(sampler, overrides)
     model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
     acc = GramAccumulator(model.gram_columns)
@@ -401,7 +390,7 @@ def fit_im_file(
             settings={"data": str(path), "n_dropped": state["dropped"]},
             warnings=warnings,
             scheme=scheme,
-            **sampler_kwargs(smp),
+            sampler=smp,
         )
     except DataError as exc:
         raise DataError(exc.message, path=str(path), column=exc.column, row=exc.row) from None

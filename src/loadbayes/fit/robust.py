@@ -78,9 +78,8 @@ def fit_robust(
         z, r = block.equations_of(rows, names)
         # Looked up on the module at call time, so a test can swap the kernel for a broken one.
         res = robust.sample_student_t(
-            z, r, priors[block.name], nu=nu, chains=chains, draws=draws, burn=burn,
-            thin=thin, init=init, rng=child,
-        )  # fmt: skip
+            z, r, priors[block.name], nu=nu, settings=smp.with_(seed=child)
+        )
         for i, cname in enumerate(block.coef_names):
             raw[cname] = res.coef[..., i]
         raw[block.tau_name] = res.tau

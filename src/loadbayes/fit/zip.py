@@ -8,10 +8,11 @@ from typing import Any, Literal
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.core.stats import GramAccumulator
 from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, fit_gram
-from loadbayes.fit.sampler import check_sampler, sampler_kwargs, sampler_of
+from loadbayes.fit.data import data_of
+from loadbayes.fit.sampler import check_sampler, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
@@ -48,6 +49,7 @@ def fit_zip(
     scheme: Scheme = "blocked",
     likelihood: Likelihood = "normal",
     nu: float | Literal["auto"] = "auto",
+    spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     warn: bool = True,
     **overrides: Any,
@@ -87,6 +89,10 @@ def fit_zip(
         data rows.
     nu : float or "auto"
         Student-t degrees of freedom (``auto``: sampled).
+    spec : DataSpec, optional
+        Columns, bases, nominal point and drop policy in one object; the keywords above
+        that a call changes from their defaults override its fields
+        (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run; :data:`loadbayes.fit.core.MODEL_DEFAULTS` (40 000 draws
         including a 5 000 burn-in, the paper's M and m) by default.
@@ -127,6 +133,10 @@ def fit_zip(
     from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.zip import ZIPModel
 
+    v_col, p_col, q_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid = data_of(
+        spec, fit_zip, v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col, v0=v0, p0=p0,
+        q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+    )  # fmt: skip
     settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     check_likelihood(likelihood, scheme)
@@ -138,7 +148,7 @@ def fit_zip(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v0=v0,
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
             drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
-            sampler=settings,
+            sampler=settings, accept_units=spec.accept_units if spec is not None else False,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -188,7 +198,7 @@ def fit_zip(
                     settings=record,
                     warnings=warnings,
                     scheme=scheme,
-                    **sampler_kwargs(settings),
+                    sampler=settings,
                 )
         except DataError as exc:
             from loadbayes.measurements.columns import relocate
@@ -281,6 +291,7 @@ def fit_zip_file(
     scheme: Scheme = "blocked",
     likelihood: Likelihood = "normal",
     nu: float | Literal["auto"] = "auto",
+    spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     **overrides: Any,
 ):
@@ -312,6 +323,10 @@ def fit_zip_file(
         As :func:`fit_zip`. The Student-t sampler visits every sample at every
         iteration: its data are read into memory, and its unit and V-noise checks look
         at the whole file.
+    spec : DataSpec, optional
+        Columns, bases, nominal point and drop policy in one object; the keywords above
+        that a call changes from their defaults override its fields
+        (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     **overrides
@@ -331,6 +346,10 @@ def fit_zip_file(
     from loadbayes.measurements.columns import power_chunks
     from loadbayes.models.zip import ZIPModel
 
+    v_col, p_col, q_col, v0, p0, q0, v_base, s_base, drop_invalid, accept_units = data_of(
+        spec, fit_zip_file, v_col=v_col, p_col=p_col, q_col=q_col, v0=v0, p0=p0, q0=q0,
+        v_base=v_base, s_base=s_base, drop_invalid=drop_invalid, accept_units=accept_units,
+    )  # fmt: skip
     settings = sampler_of(sampler, overrides)
     check_likelihood(likelihood, scheme)
     read = dict(
@@ -393,7 +412,7 @@ def fit_zip_file(
             settings=_file_record(path, model, read, nominal, state["dropped"]),
             warnings=warnings,
             scheme=scheme,
-            **sampler_kwargs(settings),
+            sampler=settings,
         )
     except DataError as exc:
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)

@@ -83,12 +83,7 @@ def fit_buses(
             gram,
             model.blocks,
             priors,
-            chains=sampler.chains,
-            draws=sampler.draws,
-            burn=sampler.burn,
-            thin=sampler.thin,
-            init=sampler.init,
-            seed=bus_seed(sampler.seed, stats.buses[i]),
+            settings=sampler.with_(seed=bus_seed(sampler.seed, stats.buses[i])),
         )
         tr = model.transform(raw)
         for p in params:

@@ -19,8 +19,12 @@ from numba import njit
 from loadbayes.core.blocks import BilinearStats
 from loadbayes.core.parallel import chain_generators
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import check_iterations
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.inference.linalg import precision_draw
+
+#: The settings of :func:`sample_bilinear` when none are given (the paper's M and m; a
+#: fresh seed from the operating system).
+DEFAULTS = SamplerSettings(draws=40_000, burn=5_000, chains=4, seed=None)
 
 
 @njit(cache=True, nogil=True)
@@ -199,13 +203,8 @@ def sample_bilinear(
     tau_shape: Sequence[float],
     tau_rate: Sequence[float],
     scheme: Literal["blocked", "single-site"] = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: Literal["prior", "dispersed"] = "prior",
     v_start: tuple[np.ndarray, np.ndarray] | None = None,
-    rng: np.random.Generator | int | np.random.SeedSequence | None = None,
+    settings: SamplerSettings | None = None,
 ) -> dict[str, np.ndarray]:
     """Gibbs sampling of a bilinear Gaussian model: ``u | v, tau``; ``v | u, tau``; ``tau``.
 
@@ -222,18 +221,18 @@ def sample_bilinear(
         Gamma prior of each group's precision.
     scheme : {"blocked", "single-site"}
         Each block drawn jointly, or one coefficient at a time (the paper's Algorithm 1).
-    chains, draws, burn, thin
-        As :func:`loadbayes.inference.gibbs.sample_block` (``draws`` includes burn-in).
-    init : {"prior", "dispersed"}
-        ``u`` from its prior, or scattered three standard errors around the
-        maximum-likelihood estimate (then ``v`` too).
     v_start : (mean, cov), optional
         Gaussian from which ``v`` starts with ``init="prior"``: a bilinear likelihood
         has mirror branches (``u2 -> -u2 / c``, ``v -> c v``, ``c < 0``) that Gibbs
         cannot cross, so ``v`` must start on the right one (the motor starts it from the
         current equations alone, which identify it).
-    rng : Generator, int, SeedSequence or None
-        Randomness; one child generator per chain.
+    settings : SamplerSettings, optional
+        ``chains``, ``draws``, ``burn``, ``thin`` as
+        :func:`loadbayes.inference.gibbs.sample_block` (``draws`` includes burn-in);
+        ``init``: ``u`` from its prior, or scattered three standard errors around the
+        maximum-likelihood estimate (then ``v`` too); ``seed`` (Generator, int,
+        SeedSequence or None): one child generator per chain. :data:`DEFAULTS` when not
+        given. The chains run one after the other (``threads`` is not used).
 
     Returns
     -------
@@ -245,7 +244,9 @@ def sample_bilinear(
             f"scheme {scheme!r} is not available for the coupled (bilinear) model; "
             "use 'blocked' or 'single-site'"
         )
-    check_iterations(draws, burn, thin, chains)
+    settings = DEFAULTS if settings is None else settings
+    chains, draws, burn, thin = settings.chains, settings.draws, settings.burn, settings.thin
+    init = settings.init
     if init not in ("prior", "dispersed"):
         raise ValueError(f"init must be 'prior' or 'dispersed', got {init!r}")
     priors = [*prior_u, prior_v]
@@ -258,7 +259,7 @@ def sample_bilinear(
         raise ValueError("priors do not match the coefficient blocks")
     shape_post = np.asarray(tau_shape, float) + 0.5 * stats.n_eq
     rate0 = np.asarray(tau_rate, float)
-    gens = chain_generators(rng, chains)
+    gens = chain_generators(settings.seed, chains)
     kept = len(range(burn, draws, thin))
     out_u = np.empty((chains, kept, k1))
     out_v = np.empty((chains, kept, k2))

@@ -55,13 +55,16 @@ from numba import njit
 
 from loadbayes.core.parallel import chain_generators, num_threads, run_threads
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import check_iterations
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
 
-__all__ = ["SCHEMES", "BlockDraws", "sample_block", "chain_generators"]
+__all__ = ["DEFAULTS", "SCHEMES", "BlockDraws", "sample_block", "chain_generators"]
 
 Scheme = Literal["blocked", "single-site", "exact"]
 SCHEMES: tuple[str, ...] = ("blocked", "single-site", "exact")
+#: The settings of :func:`sample_block` when none are given (the paper's M and m; a fresh
+#: seed from the operating system).
+DEFAULTS = SamplerSettings(draws=40_000, burn=5_000, chains=4, seed=None)
 _TAU_FLOOR = 1e-100  # a Gamma(1e-3, .) prior draw can underflow to 0; keep it positive
 
 
@@ -304,10 +307,9 @@ def _n_kept(draws: int, burn: int, thin: int) -> int:
     return len(range(burn, draws, thin))
 
 
-def _check_settings(stats: RegressionStats, prior: BlockPrior, draws, burn, thin, chains):
+def _check_prior(stats: RegressionStats, prior: BlockPrior) -> None:
     if prior.k != stats.k:
         raise ValueError(f"prior has {prior.k} coefficients, the data block {stats.k}")
-    check_iterations(draws, burn, thin, chains)
 
 
 def _posterior_shape(stats: RegressionStats, prior: BlockPrior) -> float:
@@ -340,12 +342,7 @@ def sample_block(
     prior: BlockPrior,
     *,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: Literal["prior", "dispersed"] = "prior",
-    rng: np.random.Generator | int | np.random.SeedSequence | None = None,
+    settings: SamplerSettings | None = None,
 ) -> BlockDraws:
     """Draw from the posterior of one linear-Gaussian block.
 
@@ -357,19 +354,14 @@ def sample_block(
         Normal prior on the coefficients, gamma prior on the precision.
     scheme : {"blocked", "single-site", "exact"}
         See the module docstring.
-    chains : int
-        Independent chains, each from its own generator spawned from ``rng``.
-    draws : int
-        Iterations per chain *including* burn-in (the paper's M).
-    burn : int
-        Leading iterations discarded (the paper's m).
-    thin : int
-        Keep every ``thin``-th iteration after burn-in.
-    init : {"prior", "dispersed"}
-        Starting point: a draw from the prior (as the paper), or a draw scattered three
-        standard errors around the least-squares estimate (to test convergence).
-    rng : Generator, int, SeedSequence or None
-        Source of randomness; an int is a seed.
+    settings : SamplerSettings, optional
+        ``chains`` (each from its own generator spawned from ``seed``), ``draws``
+        (iterations per chain *including* burn-in, the paper's M), ``burn`` (the paper's
+        m), ``thin``, ``init`` (a draw from the prior, as the paper, or ``"dispersed"``:
+        scattered three standard errors around the least-squares estimate, to test
+        convergence), ``seed`` (Generator, int, SeedSequence or None: the source of
+        randomness) and ``threads`` (at most this many threads); :data:`DEFAULTS` when
+        not given.
 
     Returns
     -------
@@ -386,10 +378,13 @@ def sample_block(
       with ``s = 1`` for the independent prior and ``s = tau`` for the conjugate one;
     * ``tau | b ~ Gamma(a0 + n/2 [+ k/2], b0 + SSR(b)/2 [+ (b-m0)' P0 (b-m0)/2])``.
     """
-    _check_settings(stats, prior, draws, burn, thin, chains)
+    settings = DEFAULTS if settings is None else settings
+    chains, draws, burn, thin = settings.chains, settings.draws, settings.burn, settings.thin
+    init = settings.init
+    _check_prior(stats, prior)  # the iteration counts were checked by SamplerSettings
     if scheme not in SCHEMES:
         raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
-    gens = chain_generators(rng, chains)
+    gens = chain_generators(settings.seed, chains)
     kept = _n_kept(draws, burn, thin)
     k = stats.k
     if scheme == "exact":
@@ -432,15 +427,17 @@ def sample_block(
                     state[sl], z, g, m, start, burn, thin, out_b[sl], out_t[sl],
                 )  # fmt: skip
 
-    run_threads(_chain_groups(chains, draws, run))
+    run_threads(_chain_groups(chains, draws, run, settings.threads))
     return BlockDraws(out_b, out_t)
 
 
 def _chain_groups(
-    chains: int, draws: int, run: Callable[[int, int], None]
+    chains: int, draws: int, run: Callable[[int, int], None], threads: int | None = None
 ) -> list[Callable[[], None]]:
-    """Split the chains into contiguous groups, one per thread."""
+    """Split the chains into contiguous groups, one per thread (at most ``threads``)."""
     workers = min(chains, num_threads(), max(chains * draws // _MIN_ITERS_PER_THREAD, 1))
+    if threads is not None:
+        workers = min(workers, threads)
     bounds = [chains * w // workers for w in range(workers + 1)]
     return [(lambda c0=c0, c1=c1: run(c0, c1)) for c0, c1 in zip(bounds, bounds[1:], strict=False)]
 

@@ -13,10 +13,14 @@ import numpy as np
 
 from loadbayes.core.blocks import LinearBlock
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import Gram
 from loadbayes.inference.gibbs import Scheme, sample_block
 
-__all__ = ["sample_blocks"]
+__all__ = ["DEFAULTS", "sample_blocks"]
+
+#: The settings of :func:`sample_blocks` when none are given: the paper's M and m, seed 0.
+DEFAULTS = SamplerSettings(draws=40_000, burn=5_000, chains=4, seed=0)
 
 
 def sample_blocks(
@@ -25,18 +29,16 @@ def sample_blocks(
     priors: Mapping[str, BlockPrior],
     *,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int | np.random.SeedSequence | None = 0,
+    settings: SamplerSettings | None = None,
 ) -> dict[str, np.ndarray]:
     """Sample every block and return named draws shaped (chain, draw).
 
-    Each block gets its own child of ``seed`` (``SeedSequence.spawn``), so adding a block
-    (say Q next to P) leaves the draws of the others unchanged.
+    ``settings`` (:data:`DEFAULTS` when not given) are those of every block, except that
+    each block gets its own child of ``settings.seed`` (``SeedSequence.spawn``), so adding
+    a block (say Q next to P) leaves the draws of the others unchanged.
     """
+    settings = DEFAULTS if settings is None else settings
+    seed = settings.seed
     seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     children = seq.spawn(len(blocks))
     out: dict[str, np.ndarray] = {}
@@ -45,12 +47,7 @@ def sample_blocks(
             block.stats(gram),
             priors[block.name],
             scheme=scheme,
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
-            init=init,  # type: ignore[arg-type]
-            rng=child,
+            settings=settings.with_(seed=child),
         )
         for i, name in enumerate(block.coef_names):
             out[name] = res.coef[..., i]

@@ -15,7 +15,6 @@ This module knows no physics: the exponential load model builds the blocks
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from numba import njit
@@ -23,9 +22,14 @@ from numba import njit
 from loadbayes.core.blocks import PowerLawBlock
 from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.inference.linalg import cholesky, solve_lower, solve_upper
 
-__all__ = ["sample_power_law"]
+__all__ = ["DEFAULTS", "sample_power_law"]
+
+#: The settings of :func:`sample_power_law` when none are given (it had no defaults
+#: before: these are the fits' own, the paper's M and m).
+DEFAULTS = SamplerSettings(draws=40_000, burn=5_000, chains=4, seed=0)
 
 _ADAPT_EVERY = 50
 _TAU_FLOOR = 1e-100
@@ -234,11 +238,7 @@ def sample_power_law(
     exponent: tuple[float, float],
     linear: BlockPrior,
     *,
-    chains: int,
-    draws: int,
-    burn: int,
-    thin: int,
-    seed: Any,
+    settings: SamplerSettings | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Draws of (theta, c, tau) of one power-law block, shaped (chain, draw[, k]).
 
@@ -251,14 +251,17 @@ def sample_power_law(
     linear : BlockPrior
         Normal prior of ``c`` and gamma prior of ``tau`` (with no ``c``, only its
         ``shape`` and ``rate`` are used).
-    chains, draws, burn, thin, seed
-        Sampler settings (``draws`` includes burn-in); one generator per chain spawned
-        from ``seed``.
+    settings : SamplerSettings, optional
+        ``chains``, ``draws`` (burn-in included), ``burn``, ``thin``, ``seed`` (one
+        generator per chain spawned from it) and ``threads`` (at most this many threads);
+        :data:`DEFAULTS` when not given. ``init`` is not used (see below).
 
     Returns
     -------
     theta, c, tau, acceptance
     """
+    settings = DEFAULTS if settings is None else settings
+    chains, draws, burn, thin = settings.chains, settings.draws, settings.burn, settings.thin
     lx, u, y, o = block.log_x, block.design, block.target, block.offset
     n, kc = u.shape
     kept = len(range(burn, draws, thin))
@@ -267,7 +270,7 @@ def sample_power_law(
     pc = np.ascontiguousarray(linear.precision if kc else np.zeros((0, 0)))
     pcm = np.ascontiguousarray(linear.precision @ linear.mean if kc else np.zeros(0))
     th_hat, se, sigma2 = _nls_start(lx, u, y, o, exponent[0])
-    gens = chain_generators(seed, chains)
+    gens = chain_generators(settings.seed, chains)
     out_th = np.empty((chains, kept))
     out_c = np.empty((chains, kept, kc))
     out_t = np.empty((chains, kept))
@@ -303,5 +306,7 @@ def sample_power_law(
         )
 
     workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
+    if settings.threads is not None:
+        workers = min(workers, settings.threads)
     run_chains(run, gens, workers=workers)
     return out_th, out_c, out_t, float(acc[:, 0].sum() / max(acc[:, 1].sum(), 1))

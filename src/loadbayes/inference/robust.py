@@ -54,10 +54,11 @@ from numba import njit
 
 from loadbayes.core.parallel import chain_generators, num_threads, run_chains
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import check_iterations
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.inference.linalg import precision_draw
 
 __all__ = [
+    "DEFAULTS",
     "FLAG_SIGMAS",
     "NU_BOUNDS",
     "NU_PRIOR",
@@ -66,6 +67,9 @@ __all__ = [
     "sample_student_t",
 ]
 
+#: The settings of :func:`sample_student_t` when none are given (the paper's M and m; a
+#: fresh seed from the operating system).
+DEFAULTS = SamplerSettings(draws=40_000, burn=5_000, chains=4, seed=None)
 #: Gamma(shape, rate) prior of nu when it is sampled (Juarez & Steel 2010).
 NU_PRIOR = (2.0, 0.1)
 #: Support of nu when it is sampled.
@@ -265,12 +269,7 @@ def sample_student_t(
     nu: float | Literal["auto"] = "auto",
     nu_prior: tuple[float, float] = NU_PRIOR,
     nu_bounds: tuple[float, float] = NU_BOUNDS,
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: Literal["prior", "dispersed"] = "prior",
-    rng: np.random.Generator | int | np.random.SeedSequence | None = None,
+    settings: SamplerSettings | None = None,
 ) -> RobustDraws:
     """Draw from the posterior of ``r = Z b + e`` with Student-t noise.
 
@@ -288,13 +287,13 @@ def sample_student_t(
         Gamma(shape, rate) prior of ``nu`` when sampled.
     nu_bounds : (float, float)
         Support of ``nu`` when sampled.
-    chains, draws, burn, thin : int
-        As :func:`loadbayes.inference.gibbs.sample_block` (``draws`` includes burn-in).
-    init : {"prior", "dispersed"}
-        Start of ``b``: a prior draw, or three standard errors around least squares.
-    rng : Generator, int, SeedSequence or None
-        Source of randomness; each chain gets its own spawned generator, so a chain's
-        draws do not depend on how many chains run or on threads.
+    settings : SamplerSettings, optional
+        ``chains``, ``draws``, ``burn``, ``thin`` as
+        :func:`loadbayes.inference.gibbs.sample_block` (``draws`` includes burn-in);
+        ``init``: the start of ``b``, a prior draw or three standard errors around least
+        squares; ``seed`` (Generator, int, SeedSequence or None): each chain gets its own
+        spawned generator, so a chain's draws do not depend on how many chains run or on
+        threads; ``threads``: at most this many. :data:`DEFAULTS` when not given.
 
     Returns
     -------
@@ -305,6 +304,9 @@ def sample_student_t(
     With ``nu`` fixed and large (say 1e6) the draws match the Gaussian sampler's up to
     Monte Carlo error; the tests check that.
     """
+    settings = DEFAULTS if settings is None else settings
+    chains, draws, burn, thin = settings.chains, settings.draws, settings.burn, settings.thin
+    init = settings.init
     z = np.ascontiguousarray(z, dtype=float)
     r = np.ascontiguousarray(r, dtype=float).reshape(-1)
     if z.ndim != 2 or z.shape[0] != r.size:
@@ -314,7 +316,6 @@ def sample_student_t(
         raise ValueError(f"prior has {prior.k} coefficients, the design {k}")
     if n <= k:
         raise ValueError(f"{n} samples for {k} coefficients and a noise scale: too few")
-    check_iterations(draws, burn, thin, chains)
     if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
         raise ValueError("z and r must be finite")
     lo, hi = (float(x) for x in nu_bounds)
@@ -331,7 +332,7 @@ def sample_student_t(
             nu_fixed = float("nan")
         if not (np.isfinite(nu_fixed) and nu_fixed > 0):
             raise ValueError(f"nu must be a positive number or 'auto', got {nu!r}")
-    gens = chain_generators(rng, chains)
+    gens = chain_generators(settings.seed, chains)
     kept = len(range(burn, draws, thin))
     out_b = np.empty((chains, kept, k))
     out_t = np.empty((chains, kept))
@@ -353,6 +354,8 @@ def sample_student_t(
         )  # fmt: skip
 
     workers = min(chains, num_threads(), max(n * draws * chains // 2_000_000, 1))
+    if settings.threads is not None:
+        workers = min(workers, settings.threads)
     ok = run_chains(run, gens, workers=workers)
     if not all(ok):
         raise ValueError(

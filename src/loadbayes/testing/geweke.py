@@ -64,13 +64,14 @@ Kernel = Callable[[RegressionStats, BlockPrior, np.ndarray, float, int], tuple[n
 # ------------------------------------------------------------- one sweep from a state
 def _has_state_init() -> bool:
     """Whether ``sample_block`` takes ``init=(coef, tau)`` (the hook this module needs)."""
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.inference.gibbs import sample_block
 
     st = RegressionStats(np.eye(1), np.zeros(1), 1.0, 3)
     try:
-        sample_block(
-            st, BlockPrior.weak(1), chains=1, draws=1, burn=0, init=(np.zeros(1), 1.0), rng=0
-        )
+        init: Any = (np.zeros(1), 1.0)
+        one = SamplerSettings(chains=1, draws=1, burn=0, init=init, seed=0)
+        sample_block(st, BlockPrior.weak(1), settings=one)
     except (TypeError, ValueError):
         return False
     return True
@@ -134,12 +135,14 @@ def sweep_from(
     Passes ``init=(coef, tau)``; inside :func:`run_geweke` on a ``sample_block`` that
     does not take it yet, the stand-in :class:`_StartFrom` supplies the state instead.
     """
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.inference.gibbs import sample_block
 
     init: Any = (coef, tau)
     if _ACTIVE is not None:
         _ACTIVE.coef, _ACTIVE.tau, init = coef, tau, "prior"
-    res = sample_block(stats, prior, scheme=scheme, chains=1, draws=1, burn=0, init=init, rng=seed)
+    one = SamplerSettings(chains=1, draws=1, burn=0, init=init, seed=seed)
+    res = sample_block(stats, prior, scheme=scheme, settings=one)
     return res.coef[0, 0].copy(), float(res.tau[0, 0])
 
 

@@ -76,6 +76,7 @@ def _traces(cols, priors, smp, seed) -> dict[str, np.ndarray]:
     the sampler draws its randomness for every iteration whatever the burn-in, so the
     part after the burn-in is the fitted chain itself.
     """
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
@@ -90,10 +91,7 @@ def _traces(cols, priors, smp, seed) -> dict[str, np.ndarray]:
             stats,
             priors[block.name],
             scheme=scheme,  # type: ignore[arg-type]
-            chains=smp["chains"],
-            draws=smp["draws"],
-            burn=0,
-            rng=child,
+            settings=SamplerSettings(chains=smp["chains"], draws=smp["draws"], burn=0, seed=child),
         )
         out[scheme] = res.coef[..., 0]
     return out
@@ -115,6 +113,7 @@ def _sweep(
     level (common random numbers: the curves differ by the noise level only).
     """
     from loadbayes.baselines.least_squares import least_squares_block
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit import accumulate
     from loadbayes.inference.gibbs import sample_block
     from loadbayes.models.zip import ZIPModel
@@ -135,10 +134,12 @@ def _sweep(
                 stats,
                 prior,
                 scheme="blocked",
-                chains=smp["chains"],
-                draws=smp["draws"],
-                burn=smp["burn"],
-                rng=np.random.SeedSequence([int(seed), 3, int(n), int(round(s * 1e6))]),
+                settings=SamplerSettings(
+                    chains=smp["chains"],
+                    draws=smp["draws"],
+                    burn=smp["burn"],
+                    seed=np.random.SeedSequence([int(seed), 3, int(n), int(round(s * 1e6))]),
+                ),
             )
             a1, a2 = res.coef[..., 0].reshape(-1), res.coef[..., 1].reshape(-1)
             rows.append(
