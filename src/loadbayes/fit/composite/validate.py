@@ -65,6 +65,7 @@ class EventValidation:
     p0: float = float("nan")
     q0: float = float("nan")
     draws_used: int = 0
+    scale: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON record of ``loadbayes validate``."""
@@ -199,6 +200,7 @@ def validate_event(
         p0=p0n,
         q0=q0n,
         draws_used=len(means_p),
+        scale=scale,
         **out,
     )
 
