@@ -15,6 +15,7 @@ import click
 
 from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, check_outputs, user_errors
+from loadbayes.commands.signals import _STOP, stop_if_signalled
 
 __all__ = ["validate_cmd"]
 
@@ -185,7 +186,9 @@ def validate_cmd(
     }
     text = json.dumps(doc, indent=2, allow_nan=False)
     files = {k: v for k, v in outputs.items() if v}
+    stop_if_signalled()
     with OutputSet(files, force=force) as out:
+        _STOP["outputs"] = out
         if json_out:
             out.temp("--json").write_text(text + "\n", encoding="utf-8")
         if plot_out:
@@ -194,6 +197,7 @@ def validate_cmd(
 
             save_figure(plot_validation(scores, prob=prob), out.temp("--plot"), force=True)
         out.commit()
+        _STOP["committed"] = True
     if not quiet:
         click.echo(f"composite fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
         click.echo(
