@@ -294,16 +294,19 @@ def html_section(study: RealRecordStudy) -> str:
             "V, and P, Q against the 95% posterior-predictive band; "
             "crosses: samples whose window straddles a step (not scored).",
         ),  # fmt: skip
-        "<p><b>What the record cannot tell.</b> H, Rs and the ZIP split: a 13% dip for three "
-        "cycles hardly moves the motor's speed, and the static shares trade off against "
-        "each other (their intervals are the width of the prior or more); f_m only from "
-        "below (the posterior reaches past 1, the ZIP part then negative: the data bound "
-        "the motor's share from below, not from above). The fault is unbalanced (phase A "
-        "to ground): during it the negative-sequence voltage reaches about 13% of the "
-        "positive, and the model is positive-sequence, so those rows hold power the model "
-        "does not describe. The windows are short (0.38 s and 0.44 s): they tell f_m and "
-        "X' and here T' (it is short), not H. The chains are short for the demo's time "
-        "budget: read R-hat above 1.01 as 'run longer' (the FULL settings).</p>",
+        "<p><b>What the record cannot tell.</b> H and the ZIP split: a 13% dip for three "
+        "cycles hardly moves the motor's speed (H stays wide, at #2 the prior's), and the "
+        "static shares trade off against each other (their intervals are the prior's width "
+        "or more). Rs and X' only on a base whose size is the prior's (the motor's rating "
+        "is never determined by terminal data; at the README's baseline Rs was free). f_m "
+        "only from below: its interval reaches past 1 (the ZIP part then negative), so the "
+        "record says the motor carries most of the load, not how much more. The fault is "
+        "unbalanced (phase A to ground): in its rows the negative-sequence voltage reaches "
+        "about 13% of the positive, and the model is positive-sequence, so those rows hold "
+        "power it does not describe. The windows are short (0.38 s and 0.44 s): they tell "
+        "f_m and X', and T' here because it is short (0.07 s), not H. The chains are short "
+        "for the demo's time budget: read an R-hat above 1.01 as 'run longer' "
+        "(<code>run(quick=False)</code>: 20,000 iterations).</p>",
     ]
     for short in tb.index:
         parts.append(f"<p>Transformer {short}: {escape(study.identifiability[short])}</p>")
