@@ -169,6 +169,8 @@ def test_fit_composite_then_validate_round_trips(held_out, tmp_path):
                                     "50", "--draws", "1500", "--burn", "700", "--chains", "2",
                                     "--json", str(js), "--netcdf", str(nc), "--quiet"])  # fmt: skip
     assert res.exit_code == 0, res.output
+    ident = json.loads(js.read_text())["identifiability"]
+    assert "The events are short" in ident["short_window"] and "f_m" in ident["summary"]
     out = tmp_path / "v.json"
     res = _run(js, folder / "held_out.csv", tmp_path / "fitted.csv", "--netcdf", nc,
                "--json", out, "--quiet")  # fmt: skip
