@@ -194,7 +194,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Real
             )
         ident[short] = post.extra_json["identifiability"]["summary"]
         warns[short] = list(post.warnings)
-    fig = plot_validation(scores, titles=titles)
+    fig = plot_validation(scores, titles=titles, ncols=2)
     settings = {
         "record": str(cfg),
         "per_cycle": 4,
