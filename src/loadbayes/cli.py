@@ -24,6 +24,7 @@ from loadbayes.commands import report as _report
 from loadbayes.commands import reproduce as _reproduce
 from loadbayes.commands import simulate as _simulate
 from loadbayes.commands import track as _track
+from loadbayes.commands import validate as _validate
 from loadbayes.commands import zip as _zip
 
 
@@ -70,3 +71,4 @@ main.add_command(_recordings.events_cmd)
 main.add_command(_export.export_cmd)
 main.add_command(_report.report_cmd)
 main.add_command(_example.example_cmd)
+main.add_command(_validate.validate_cmd)

@@ -16,11 +16,31 @@ import numpy as np
 from loadbayes.io.errors import DataError
 from loadbayes.models.composite import EventRecord
 
-__all__ = ["MIN_DV", "MIN_SAMPLES", "MIN_SPAN_S", "MAX_GAP", "events_from_arrays", "read_events"]
+__all__ = [
+    "MIN_DV",
+    "MIN_SAMPLES",
+    "MIN_SHORT_SPAN_S",
+    "MIN_SPAN_S",
+    "MAX_GAP",
+    "STEADY_DV",
+    "STEADY_SAMPLES",
+    "events_from_arrays",
+    "read_events",
+]
 
-#: Shortest event (s): about twice the typical motor's T' (0.5 s), so that the flux
-#: transient is seen settling; a record shorter than that cannot inform T'.
+#: An event this long (s) is taken as it is: about twice the typical motor's T' (0.5 s),
+#: so that the flux transient is seen settling.
 MIN_SPAN_S = 1.0
+#: Shortest event (s) of all. A fault recorder keeps waveforms for only 0.2-0.5 s around
+#: each fault; such a window (from MIN_SHORT_SPAN_S up to MIN_SPAN_S) is accepted when it
+#: starts in steady state (the motor is initialised there) and the voltage moves. It
+#: tells the motor's share and X' (the first cycles after a step), T' and H perhaps not
+#: (``fit/composite/identifiability.py`` says so in the fit's report).
+MIN_SHORT_SPAN_S = 0.2
+#: A short event starts in steady state when its voltage stays within this fraction of
+#: the first sample for its first STEADY_SAMPLES samples and one nominal cycle.
+STEADY_DV = 0.005
+STEADY_SAMPLES = 3
 #: Fewest samples per event.
 MIN_SAMPLES = 20
 #: Smallest voltage excursion (max - min, as a fraction of the first sample's voltage):
@@ -110,15 +130,18 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
             int(rows[k]),
         )
     span = float(t[-1] - t[0])
-    if span < MIN_SPAN_S:
+    if span < MIN_SHORT_SPAN_S:
         raise DataError(
             f"{where}: the event lasts {span:g} s, shorter than the motor's time constants "
-            f"(at least {MIN_SPAN_S:g} s is needed to see the flux transient settle)",
+            f"(at least {MIN_SHORT_SPAN_S:g} s that start in steady state, or "
+            f"{MIN_SPAN_S:g} s, is needed)",
             path,
             names["t"],
             int(rows[-1]),
         )
     v0 = float(v[0])
+    if span < MIN_SPAN_S:
+        _check_steady_start(t, v, rows, where=where, path=path, col=names["v"], f_hz=f_hz)
     dv = float(np.max(v) - np.min(v)) / v0
     if dv < MIN_DV:
         raise DataError(
@@ -147,6 +170,23 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
         w = 2 * math.pi * (f - f_hz)
         delta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)])
     return EventRecord(t - t[0], v, cols["p"], cols["q"], delta, label, source)
+
+
+def _check_steady_start(t, v, rows, *, where, path, col, f_hz) -> None:
+    # A short window is fitted from the motor's steady state at its first sample: the
+    # voltage must not have moved yet (a window cut inside the fault has no such state).
+    moved = np.flatnonzero(np.abs(v / v[0] - 1.0) > STEADY_DV)
+    k = int(moved[0]) if moved.size else t.size
+    if k < STEADY_SAMPLES or t[k - 1] - t[0] < 1.0 / f_hz:
+        raise DataError(
+            f"{where}: the event lasts {t[-1] - t[0]:g} s, under {MIN_SPAN_S:g} s, and its "
+            f"voltage moves by more than {100 * STEADY_DV:g}% at t = {t[k] - t[0]:g} s, "
+            f"before {STEADY_SAMPLES} samples and one cycle of steady state: a short event "
+            "must start in steady state (cut it earlier, before the disturbance)",
+            path,
+            col,
+            int(rows[k]),
+        )
 
 
 def read_events(

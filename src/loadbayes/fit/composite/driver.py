@@ -201,7 +201,8 @@ def fit_composite(
             **robust_settings,
         },
     )
-    ident = identifiability(blocks.theta, draws_named["f_m"], prior, len(events))
+    span = max(float(e.t[-1] - e.t[0]) for e in events)
+    ident = identifiability(blocks.theta, draws_named["f_m"], prior, len(events), span_s=span)
     if estimate:
         ident["torque"] = torque_identifiability(blocks.abc)
         ident["summary"] += " " + ident["torque"]["summary"]

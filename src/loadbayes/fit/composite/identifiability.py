@@ -24,6 +24,7 @@ __all__ = [
     "RIDGE_CORR",
     "identifiability",
     "prior_driven_warning",
+    "short_window",
     "torque_identifiability",
 ]
 
@@ -47,7 +48,12 @@ MOTOR_SHARE_SD = 0.1
 
 
 def identifiability(
-    theta: np.ndarray, f_m: np.ndarray, prior: CompositePrior, n_events: int
+    theta: np.ndarray,
+    f_m: np.ndarray,
+    prior: CompositePrior,
+    n_events: int,
+    *,
+    span_s: float | None = None,
 ) -> dict[str, Any]:
     """Plain-words identifiability of the motor from posterior draws against the prior.
 
@@ -65,12 +71,16 @@ def identifiability(
         The prior the draws came from.
     n_events : int
         Number of events fitted.
+    span_s : float, optional
+        The longest event's span (s); under ``MIN_SPAN_S`` the summary says what so short
+        a window can and cannot tell (:func:`short_window`).
 
     Returns
     -------
     dict
         ``parameters`` (per coordinate: the sd ratio and a verdict), ``ridges``,
-        ``motor_share`` and ``summary`` / ``what_would_help`` sentences.
+        ``motor_share``, ``short_window`` (a sentence or None) and ``summary`` /
+        ``what_would_help`` sentences.
     """
     flat = theta.reshape(-1, 6) @ SCALE_FREE_MATRIX.T
     u = flat[:, :5]
@@ -124,6 +134,9 @@ def identifiability(
         "data, only their product: the per-unit impedances and H are reported on a base "
         "whose size comes from the prior of T0 (give it from nameplate data if known)."
     )
+    short = None if span_s is None else short_window(span_s, theta)
+    if short:
+        words.append(short)
     help_ = []
     if weak or partly or not fm_ok or ridges:
         help_ = [
@@ -137,6 +150,7 @@ def identifiability(
         "parameters": params,
         "ridges": ridges,
         "motor_share": {"sd": fm_sd, "well_determined": bool(fm_ok)},
+        "short_window": short,
         "summary": " ".join(words),
         "what_would_help": help_,
         "thresholds": {
@@ -145,6 +159,33 @@ def identifiability(
             "ridge_correlation": RIDGE_CORR,
         },
     }
+
+
+def short_window(span_s: float, theta: np.ndarray) -> str | None:
+    """What a window shorter than ``MIN_SPAN_S`` can and cannot tell, or None.
+
+    A fault recorder keeps 0.2-0.5 s around each fault. The first cycles after a voltage
+    step fix the motor's share and its transient reactance X' (the current steps with
+    the voltage before the flux moves); the flux decays with T', seen settling only when
+    T' is well under the window; the speed (H) hardly changes in a few tenths of a second.
+    """
+    from loadbayes.measurements.events import MIN_SPAN_S
+
+    if not span_s < MIN_SPAN_S:
+        return None
+    t_prime = float(np.exp(np.median(np.asarray(theta)[..., 3])))
+    seen = (
+        f"T' (median {t_prime:.3g} s) is well under it, so its decay is seen"
+        if t_prime < span_s / 3
+        else f"T' (median {t_prime:.3g} s) is not well under it, so T' is perhaps not determined"
+    )
+    return (
+        f"The events are short (the longest spans {span_s:.3g} s, under {MIN_SPAN_S:g} s): "
+        "such a window tells the motor's share f_m and its transient reactance X' (the "
+        f"first cycles after the voltage moves); {seen}; H (the speed hardly changes in "
+        f"{span_s:.2g} s) perhaps not: where the table calls them prior-driven, their "
+        "values are the prior's."
+    )
 
 
 def prior_driven_warning(ident: dict[str, Any]) -> str | None:

@@ -1,0 +1,212 @@
+"""``loadbayes validate RESULT EVENT...``: a composite fit checked on held-out events.
+
+A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py`` attaches
+it. Each EVENT's recorded voltage (magnitude and angle) drives the fitted load's posterior
+draws (:mod:`loadbayes.fit.composite.validate`); the recorded P and Q are scored against
+the posterior-predictive band. Heavy imports stay inside the function.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from loadbayes.commands.options import OneLineCommand
+from loadbayes.commands.output import UserError, check_outputs, user_errors
+from loadbayes.commands.signals import _STOP, stop_if_signalled
+
+__all__ = ["validate_cmd"]
+
+_NETCDF = (".nc", ".nc4", ".netcdf")
+
+
+def _load_posterior(result: str, netcdf: str | None):
+    """The composite posterior's draws: RESULT is the fit's NetCDF, or its JSON + --netcdf."""
+    from loadbayes.io.errors import DataError
+    from loadbayes.posterior import Posterior
+
+    doc = None
+    if Path(result).suffix.lower() not in _NETCDF:
+        try:
+            doc = json.loads(Path(result).read_text(encoding="utf-8"))
+            model = doc["model"]
+        except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+            raise DataError("not a loadbayes posterior JSON (no 'model')", result) from None
+        if model != "composite":
+            raise DataError(
+                f"a JSON of a {model} fit ({doc.get('method', '?')}): validate takes the "
+                "result of fit composite",
+                result,
+            )
+        if not netcdf:
+            raise UserError(
+                f"{result}: the JSON holds the summary of the draws, not the draws; give the "
+                "fit's NetCDF too (fit composite ... --netcdf FIT.nc, then validate "
+                f"{result} --netcdf FIT.nc ...), or validate FIT.nc directly"
+            )
+    path = netcdf or result
+    try:
+        post = Posterior.from_netcdf(path)
+    except Exception as exc:  # xarray/netCDF raise many types for a bad file
+        raise DataError(f"not a loadbayes NetCDF posterior ({exc})", path) from None
+    if post.model != "composite":
+        raise DataError(
+            f"the draws of a {post.model} fit ({post.method}): validate takes the result of "
+            "fit composite",
+            path,
+        )
+    if doc is not None:
+        a = [e.get("name") for e in (doc.get("settings", {}).get("events") or [])]
+        b = [e.get("name") for e in (post.settings.get("events") or [])]
+        if a != b or doc.get("method") != post.method:
+            raise UserError(
+                f"{path}: not the draws of {result} (events {b} by {post.method}, the JSON's "
+                f"{a} by {doc.get('method')})"
+            )
+    return post
+
+
+@click.command("validate", cls=OneLineCommand)
+@click.argument("result", type=click.Path(exists=True, dir_okay=False))
+@click.argument("events", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+@click.option(
+    "--netcdf",
+    "netcdf_in",
+    type=click.Path(exists=True, dir_okay=False),
+    help="The fit's draws (written by fit composite --netcdf), when RESULT is its JSON.",
+)
+@click.option("--t-col", default="t_s", show_default=True, help="Time column (s).")
+@click.option("--v-col", default="v", show_default=True, help="Voltage-magnitude column.")
+@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
+@click.option("--q-col", default="q", show_default=True, help="Reactive-power column.")
+@click.option("--f-col", default=None, help="Frequency column in Hz [default: f if present].")
+@click.option(
+    "--angle-col", default=None, help="Voltage-angle column in rad [default: angle_rad if present]."
+)
+@click.option(
+    "--straddle-col",
+    default="straddle",
+    show_default=True,
+    help="Column flagging samples whose phasor window straddles a step (driven, not "
+    "scored), used when present.",
+)
+@click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
+@click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
+@click.option(
+    "--n-draws",
+    type=click.IntRange(min=20),
+    default=200,
+    show_default=True,
+    help="Posterior draws played through each event.",
+)
+@click.option(
+    "--prob",
+    type=click.FloatRange(0.5, 1.0, min_open=False, max_open=True),
+    default=0.95,
+    show_default=True,
+    help="Probability of the posterior-predictive band.",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed (draws picked, noise).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Scores per event.")
+@click.option("--plot", "plot_out", type=click.Path(dir_okay=False), help="V, P, Q vs the band.")
+@click.option("--quiet", is_flag=True, help="No table on stdout.")
+@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
+@user_errors
+def validate_cmd(
+    result,
+    events,
+    netcdf_in,
+    t_col,
+    v_col,
+    p_col,
+    q_col,
+    f_col,
+    angle_col,
+    straddle_col,
+    v_base,
+    s_base,
+    n_draws,
+    prob,
+    seed,
+    json_out,
+    plot_out,
+    quiet,
+    force,
+):
+    """Play each EVENT's recorded voltage through a composite fit and score its P and Q.
+
+    RESULT is the NetCDF of `fit composite --netcdf`, or its `--json` with `--netcdf`
+    naming the draws. Each EVENT file holds t_s, v, p, q (per unit on the fit's bases, or
+    with --v-base/--s-base) and the voltage angle (angle_rad) or frequency (f); a
+    `straddle` column (true where the phasor window straddles a step) leaves those
+    samples out of the scores. Per event: n, n_excluded, rms_p and rms_q (per unit of the
+    fitted P0) and coverage_p, coverage_q (share of samples inside the band).
+    """
+    outputs = {"--json": json_out, "--plot": plot_out}
+    inputs = [result, *events] + ([netcdf_in] if netcdf_in else [])
+    check_outputs(outputs, inputs, force)
+
+    from loadbayes.fit.composite.validate import read_exclusions, validate_events
+    from loadbayes.io.transaction import OutputSet
+    from loadbayes.measurements.events import read_events
+
+    post = _load_posterior(result, netcdf_in)
+    f_hz = float(post.settings.get("f_hz", 60.0))
+    recs, masks = [], []
+    for path in events:
+        evs = read_events(
+            [path],
+            t_col=t_col,
+            v_col=v_col,
+            p_col=p_col,
+            q_col=q_col,
+            f_col=f_col,
+            angle_col=angle_col,
+            v_base=v_base,
+            s_base=s_base,
+            f_hz=f_hz,
+        )
+        if len(evs) != 1:
+            raise UserError(f"{path}: holds {len(evs)} events (an event column); give one each")
+        recs += evs
+        masks.append(read_exclusions(path, straddle_col, evs[0].n))
+    scores = validate_events(
+        post, recs, exclude=masks, f_hz=f_hz, n_draws=n_draws, prob=prob, seed=seed
+    )
+    doc = {
+        "result": str(result),
+        "draws": str(netcdf_in or result),
+        "prob": prob,
+        "p0_fitted": float(post.draws["p0"].mean()),
+        "units": "rms_p, rms_q per unit of the fitted P0 (p0_fitted); coverage: share of "
+        "scored samples inside the posterior-predictive band (model + the fit's noise)",
+        "events": [s.to_dict() for s in scores],
+    }
+    text = json.dumps(doc, indent=2, allow_nan=False)
+    files = {k: v for k, v in outputs.items() if v}
+    stop_if_signalled()
+    with OutputSet(files, force=force) as out:
+        _STOP["outputs"] = out
+        if json_out:
+            out.temp("--json").write_text(text + "\n", encoding="utf-8")
+        if plot_out:
+            from loadbayes.plots.fit import save_figure
+            from loadbayes.plots.validation import plot_validation
+
+            save_figure(plot_validation(scores, prob=prob), out.temp("--plot"), force=True)
+        out.commit()
+        _STOP["committed"] = True
+    if not quiet:
+        click.echo(f"composite fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
+        click.echo(
+            f"{'event':<40} {'n':>5} {'excl':>5} {'rms_p':>7} {'rms_q':>7} "
+            f"{'cov_p':>6} {'cov_q':>6}"
+        )
+        for s in scores:
+            click.echo(
+                f"{s.file[-40:]:<40} {s.n:>5} {s.n_excluded:>5} {s.rms_p:>7.4f} "
+                f"{s.rms_q:>7.4f} {s.coverage_p:>6.2f} {s.coverage_q:>6.2f}"
+            )
+        click.echo("rms per unit of the fitted P0; cov: share of scored samples in the band")

@@ -1,0 +1,233 @@
+"""``loadbayes validate``: a composite posterior played through held-out events, and bad input.
+
+The events come from this file's own generator: a ZIP part and a third-order induction
+motor (not one of the package's library motors) integrated by SciPy's ``solve_ivp`` from
+the equations of docs/composite.md, with its own steady state (a root of the torque
+balance), driven by a voltage with 5 ms ramps that fall between samples, as a fault
+recorder's phasors see a fault: nothing of the package's motor code is used to make them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from loadbayes.cli import main
+from loadbayes.posterior import Posterior
+
+pytestmark = pytest.mark.integration
+
+F_HZ = 50.0
+WB = 2 * math.pi * F_HZ
+#: The motor (per unit on its own base, seconds) and its loading T0 (torque T0 w^2).
+MOTOR = {"rs": 0.03, "xp": 0.16, "dx": 2.6, "tp": 0.12, "h": 0.4, "t0": 0.7}
+ZIP = (0.5, 0.2, 0.3, 0.6, 0.1, 0.3)  # a1..a6
+F_M = 0.45
+NOISE = 0.005
+
+
+def _steady(u0):
+    """The motor's steady state at the terminal voltage u0 (real): E', slip, I."""
+    m = MOTOR
+    zs = m["rs"] + 1j * m["xp"]
+
+    def state(s):
+        k = 1 / m["tp"] + 1j * WB * s + 1j * m["dx"] / (m["tp"] * zs)
+        e = 1j * m["dx"] * u0 / (m["tp"] * zs) / k
+        i = (u0 - e) / zs
+        return e, i
+
+    def balance(s):
+        e, i = state(s)
+        return (e * np.conj(i)).real - m["t0"] * (1 - s) ** 2
+
+    grid = np.geomspace(1e-7, 0.5, 4000)
+    vals = np.array([balance(s) for s in grid])
+    k = int(np.flatnonzero((vals[:-1] < 0) & (vals[1:] >= 0))[0])
+    s = brentq(balance, grid[k], grid[k + 1], xtol=1e-14)
+    return state(s)[0], 1 - s
+
+
+def _event(*, depth, jump, t_fault, hold, p0, q0, v0=1.0, span=0.4, rate=200.0, seed=0):
+    """Sampled t, V, angle, P, Q (with noise) and the straddle flags of one sag."""
+    ramp = 0.005
+    knots_t = [0, t_fault, t_fault + ramp, t_fault + hold, t_fault + hold + ramp, 10]
+    knots_v = [v0, v0, v0 * (1 - depth), v0 * (1 - depth), v0, v0]
+    knots_a = [0, 0, -jump, -jump, 0, 0]
+
+    def u(t):
+        return np.interp(t, knots_t, knots_v) * np.exp(1j * np.interp(t, knots_t, knots_a))
+
+    m = MOTOR
+    zs = m["rs"] + 1j * m["xp"]
+    e0, w0 = _steady(v0)
+
+    def rhs(t, y):
+        e = y[0] + 1j * y[1]
+        i = (u(t) - e) / zs
+        de = -(e - 1j * m["dx"] * i) / m["tp"] + 1j * WB * (y[2] - 1) * e
+        dw = ((e * np.conj(i)).real - m["t0"] * y[2] ** 2) / (2 * m["h"])
+        return [de.real, de.imag, dw]
+
+    t = np.round(np.arange(0, span + 1e-9, 1 / rate), 12)
+    t = t[t <= span]
+    sol = solve_ivp(rhs, (0, span), [e0.real, e0.imag, w0], t_eval=t, method="DOP853",
+                    rtol=1e-9, atol=1e-11, max_step=5e-4)  # fmt: skip
+    assert sol.success
+    e = sol.y[0] + 1j * sol.y[1]
+    s_m = u(t) * np.conj((u(t) - e) / zs)
+    pm, qm = s_m.real, s_m.imag
+    x = np.abs(u(t)) / v0
+    size = F_M * p0 / pm[0]
+    a1, a2, a3, a4, a5, a6 = ZIP
+    p = p0 * (1 - F_M) * (a1 * x**2 + a2 * x + a3) + size * pm
+    q = q0 * (a4 * x**2 + a5 * x + a6) + size * (qm - qm[0] * x**2)
+    rng = np.random.default_rng(seed)
+    p = p + NOISE * rng.standard_normal(t.size)
+    q = q + NOISE * rng.standard_normal(t.size)
+    # A one-cycle phasor window (20 ms) ending at the sample straddles a ramp.
+    edges = np.array([t_fault, t_fault + hold])
+    straddle = np.array([np.any((edges > tk - 0.02) & (edges < tk + ramp)) for tk in t])
+    return pd.DataFrame({"t_s": t, "v": np.abs(u(t)), "angle_rad": np.angle(u(t)), "p": p,
+                         "q": q, "straddle": straddle})  # fmt: skip
+
+
+def _truth_posterior(path, *, f_m=F_M, model="composite", chains=2, draws=60):
+    """A posterior whose every draw is the generator's truth (noise sd NOISE), as NetCDF."""
+    m = MOTOR
+    rng = np.random.default_rng(5)
+    shape = (chains, draws)
+
+    def const(x):  # a hair of jitter keeps ArviZ's summaries finite
+        return np.full(shape, float(x)) * (1 + 1e-9 * rng.standard_normal(shape))
+
+    d = {name: const(np.log(m[k])) for name, k in
+         zip(("log_rs", "log_x_prime", "log_dx", "log_t_prime", "log_h", "log_t0"),
+             ("rs", "xp", "dx", "tp", "h", "t0"), strict=True)}  # fmt: skip
+    d.update({f"a{i + 1}": const(a) for i, a in enumerate(ZIP)})
+    d.update(f_m=const(f_m), p0=const(0.9), q0=const(0.25), a=const(1.0), b=const(0.0),
+             c=const(0.0), tau_p=const(NOISE**-2), tau_q=const(NOISE**-2),
+             f_hz=const(F_HZ))  # fmt: skip
+    post = Posterior(d, model=model, method="truth", settings={"f_hz": F_HZ})
+    post.to_netcdf(path)
+    return path
+
+
+def _run(*args):
+    return CliRunner().invoke(main, ["validate", *map(str, args)])
+
+
+@pytest.fixture(scope="module")
+def held_out(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("validate")
+    # Another operating point (smaller load, lower voltage) and a deeper, longer sag with
+    # its angle jump, than the fitted event below.
+    df = _event(depth=0.3, jump=0.12, t_fault=0.1527, hold=0.071, p0=0.8, q0=0.2, v0=0.98,
+                seed=1)  # fmt: skip
+    df.to_csv(folder / "held_out.csv", index=False)
+    return folder, df
+
+
+def test_the_truth_predicts_an_independent_event_to_the_noise(held_out, tmp_path):
+    folder, df = held_out
+    nc = _truth_posterior(tmp_path / "truth.nc")
+    out, fig = tmp_path / "v.json", tmp_path / "v.png"
+    res = _run(nc, folder / "held_out.csv", "--json", out, "--plot", fig)
+    assert res.exit_code == 0, res.output
+    assert "rms_p" in res.output and fig.stat().st_size > 10_000
+    (ev,) = json.loads(out.read_text())["events"]
+    assert ev["file"] == str(folder / "held_out.csv")
+    assert ev["n"] == len(df) and ev["n_excluded"] == int(df["straddle"].sum()) > 0
+    # The model and the generator are the same physics: what is left is the noise (sd
+    # 0.005, i.e. 0.0056 of the fitted P0 = 0.9) and the linear reading of the voltage
+    # between samples on the scored rows. With the motor's share wrong, far more.
+    assert ev["rms_p"] < 1.3 * NOISE / 0.9 and ev["rms_q"] < 1.3 * NOISE / 0.9
+    assert ev["coverage_p"] > 0.85 and ev["coverage_q"] > 0.85
+    assert ev["p0"] == pytest.approx(0.8, abs=3 * NOISE)
+    static = _truth_posterior(tmp_path / "static.nc", f_m=0.02)
+    res = _run(static, folder / "held_out.csv", "--json", tmp_path / "s.json", "--quiet")
+    assert res.exit_code == 0, res.output
+    (bad,) = json.loads((tmp_path / "s.json").read_text())["events"]
+    assert bad["rms_p"] > 3 * ev["rms_p"] and bad["coverage_p"] < 0.8
+
+
+def test_fit_composite_then_validate_round_trips(held_out, tmp_path):
+    # A short event (0.4 s at four phasors a cycle) fitted by the CLI, then its JSON and
+    # NetCDF given to validate on the held-out event. Takes about 15 s on 2 cores.
+    folder, _ = held_out
+    fitted = _event(depth=0.35, jump=0.08, t_fault=0.1012, hold=0.06, p0=0.9, q0=0.25, seed=2)
+    fitted.to_csv(tmp_path / "fitted.csv", index=False)  # fit composite ignores straddle
+    js, nc = tmp_path / "fit.json", tmp_path / "fit.nc"
+    res = CliRunner().invoke(main, ["fit", "composite", str(tmp_path / "fitted.csv"), "--f-hz",
+                                    "50", "--draws", "1500", "--burn", "700", "--chains", "2",
+                                    "--json", str(js), "--netcdf", str(nc), "--quiet"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    ident = json.loads(js.read_text())["identifiability"]
+    assert "The events are short" in ident["short_window"] and "f_m" in ident["summary"]
+    out = tmp_path / "v.json"
+    res = _run(js, folder / "held_out.csv", tmp_path / "fitted.csv", "--netcdf", nc,
+               "--json", out, "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    held, own = doc["events"]
+    assert own["n_excluded"] == int(fitted["straddle"].sum()) > 0
+    assert doc["p0_fitted"] == pytest.approx(0.9, abs=0.01)
+    # Noise alone is 0.0056 of P0; the posterior of a 35% sag of 60 ms predicts a 30% sag
+    # at another operating point to within twice that (measured: 0.0046 P, 0.0061 Q).
+    # (Fitted on a 20% sag instead, the ZIP split runs wild, a1 = -4.5 +- 1.1, and the
+    # deeper held-out sag is missed by 0.025: one shallow sag cannot fix the static part.)
+    for ev in (held, own):
+        assert ev["rms_p"] < 2 * NOISE / 0.9 and ev["rms_q"] < 2 * NOISE / 0.9
+        assert ev["coverage_p"] > 0.8 and ev["coverage_q"] > 0.8
+
+
+# ------------------------------------------------------------------ bad input: exit 2
+def _bad(*args):
+    res = _run(*args)
+    assert res.exit_code == 2, res.output
+    assert "Traceback" not in res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("loadbayes: error: ")
+    return lines[0]
+
+
+def test_bad_inputs_exit_2_in_one_line(held_out, tmp_path):
+    folder, df = held_out
+    ev = folder / "held_out.csv"
+    nc = _truth_posterior(tmp_path / "truth.nc")
+    zip_nc = _truth_posterior(tmp_path / "zip.nc", model="zip")
+    zip_json = tmp_path / "zip.json"
+    zip_json.write_text(json.dumps({"model": "zip", "method": "gibbs", "parameters": {}}))
+    comp_json = tmp_path / "comp.json"
+    comp_json.write_text(json.dumps({"model": "composite", "method": "other", "parameters": {},
+                                     "settings": {"events": [{"name": "x.csv"}]}}))  # fmt: skip
+    assert "a JSON of a zip fit" in _bad(zip_json, ev)
+    assert "the draws of a zip fit" in _bad(zip_nc, ev)
+    assert "give the fit's NetCDF" in _bad(comp_json, ev)
+    assert "not the draws of" in _bad(comp_json, ev, "--netcdf", nc)
+    assert "does not exist" in _bad(tmp_path / "missing.nc", ev)
+    assert "does not exist" in _bad(nc, tmp_path / "missing.csv")
+    assert "not a loadbayes posterior JSON" in _bad(ev, ev)
+    # Outputs are checked before any work, and an existing one is kept without --force.
+    kept = tmp_path / "kept.json"
+    kept.write_text("mine")
+    assert "exists" in _bad(nc, ev, "--json", kept)
+    assert kept.read_text() == "mine"
+    assert "format 'txt'" in _bad(nc, ev, "--plot", tmp_path / "f.txt")
+    # A straddle cell that is not true/false: the file, the column and the row.
+    broken = df.astype({"straddle": object})
+    broken.loc[6, "straddle"] = "maybe"
+    broken.to_csv(tmp_path / "broken.csv", index=False)
+    line = _bad(nc, tmp_path / "broken.csv")
+    assert "broken.csv" in line and "column 'straddle', row 7" in line
+    # An event cut inside the fault: no steady state to start the motor from.
+    longer = _event(depth=0.3, jump=0.12, t_fault=0.1527, hold=0.071, p0=0.8, q0=0.2, span=0.7)
+    longer.iloc[43:].to_csv(tmp_path / "cut.csv", index=False)
+    assert "must start in steady state" in _bad(nc, tmp_path / "cut.csv")

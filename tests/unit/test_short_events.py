@@ -1,0 +1,78 @@
+"""Short events (0.2 s up to 1 s, as a fault recorder keeps them): accepted when they start
+in steady state and the voltage moves; the identifiability text says what they can tell.
+
+The events are written here: a flat voltage, a 15% step down for three cycles and back,
+sampled at 200/s (four phasors a 50 Hz cycle, as the shared DFR record's rows).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loadbayes.fit.composite.identifiability import identifiability, short_window
+from loadbayes.io.errors import DataError
+from loadbayes.measurements.events import MIN_SHORT_SPAN_S, MIN_SPAN_S, events_from_arrays
+from loadbayes.models.composite_prior import CompositePrior
+
+NAMES = {k: k for k in ("t", "v", "p", "q", "f", "angle", "event")}
+
+
+def _cols(span_s, *, fault_s=0.1, rate=200.0):
+    t = np.arange(0.0, span_s + 1e-9, 1 / rate)
+    v = np.where((t >= fault_s) & (t < fault_s + 0.06), 0.85, 1.0)
+    return {"t": t, "v": v, "p": 0.9 * v**2, "q": 0.2 * v**2}
+
+
+def _read(cols):
+    return events_from_arrays(cols, np.arange(1, cols["t"].size + 1), path="ev.csv",
+                              names=NAMES, f_hz=50.0)  # fmt: skip
+
+
+def test_a_short_window_that_starts_steady_and_moves_is_accepted():
+    (ev,) = _read(_cols(0.4))
+    assert ev.n == 81 and ev.t[-1] == pytest.approx(0.4)
+    (ev,) = _read(_cols(MIN_SHORT_SPAN_S, fault_s=0.05))
+    assert ev.t[-1] == pytest.approx(MIN_SHORT_SPAN_S)
+
+
+def test_shorter_than_the_minimum_is_refused_with_the_row():
+    with pytest.raises(DataError, match=r"lasts 0\.15 s, shorter than the motor's time") as e:
+        _read(_cols(0.15, fault_s=0.05))
+    assert e.value.column == "t" and e.value.row == 31
+
+
+def test_a_short_window_cut_inside_the_fault_is_refused():
+    # Starts 10 ms before the voltage recovers: no steady state to start the motor from.
+    cols = _cols(0.5, fault_s=0.0)
+    cols = {k: x[10:] for k, x in cols.items()}
+    with pytest.raises(DataError, match="must start in steady state") as e:
+        _read(cols)
+    assert e.value.column == "v" and e.value.row == 3
+    # The same cut, one second long, is taken as before (the long-event rule is unchanged).
+    long = _cols(1.2, fault_s=0.0)
+    (ev,) = _read({k: x[10:] for k, x in long.items()})
+    assert ev.t[-1] - ev.t[0] >= MIN_SPAN_S
+
+
+def test_a_short_window_whose_voltage_does_not_move_is_refused():
+    cols = _cols(0.4, fault_s=1.0)
+    with pytest.raises(DataError, match="never changes"):
+        _read(cols)
+
+
+def test_the_identifiability_text_of_a_short_window():
+    (ev,) = _read(_cols(0.4))
+    prior = CompositePrior.default([ev])
+    rng = np.random.default_rng(0)
+    theta = prior.theta_mean + 0.05 * rng.standard_normal((2, 50, 6))
+    theta[..., 3] = np.log(0.06)  # T' = 60 ms, well under the 0.4 s window
+    ident = identifiability(theta, np.full((2, 50), 0.4), prior, 1, span_s=0.4)
+    text = ident["short_window"]
+    assert text in ident["summary"]
+    assert "f_m" in text and "X'" in text and "its decay is seen" in text and "H" in text
+    theta[..., 3] = np.log(0.3)  # T' = 0.3 s: not seen settling in 0.4 s
+    assert "perhaps not determined" in short_window(0.4, theta)
+    # A long event says nothing of the kind.
+    assert short_window(MIN_SPAN_S, theta) is None
+    assert identifiability(theta, np.full((2, 50), 0.4), prior, 1)["short_window"] is None
