@@ -17,6 +17,7 @@ from loadbayes.commands.options import OneLineCommand
 
 pytestmark = pytest.mark.integration
 
+
 def _commands(group: click.Group, path: str) -> list[tuple[str, click.Command]]:
     out = []
     for name, cmd in sorted(group.commands.items()):

@@ -60,6 +60,11 @@ __all__ = ["PhasorFit", "fit_phasors", "max_harmonic"]
 HARMONICS = 7
 #: False-alarm rate of the test that adds the decay columns to a channel's window.
 DECAY_ALPHA = 1e-3
+#: Smallest RMS share of a window's signal that the decay columns must explain before
+#: the mimic filter is used (a smaller offset moves the phasor by less than this).
+DECAY_MIN_SHARE = 0.005
+#: Relative misfit of a voltage channel's plain fit above which a window straddles a step.
+STEP_LIMIT = 0.02
 
 
 @dataclass(frozen=True)
@@ -97,7 +102,11 @@ def max_harmonic(samples: int) -> int:
 
 
 def _centres(t: np.ndarray, period: float, per_cycle: int) -> np.ndarray:
-    first, last = t[0] + 0.5 * period, t[-1] - 0.5 * period
+    # A window of one cycle holds the samples in [c - T/2, c + T/2): the last sample
+    # stands for the interval up to the next one, so the last whole window ends one
+    # sample step after it (as the one-cycle DFT's last whole cycle does).
+    step = float(np.median(np.diff(t)))
+    first, last = t[0] + 0.5 * period, t[-1] + step - 0.5 * period
     if last < first - 1e-12 * period:
         return np.empty(0)
     hop = period / per_cycle
@@ -125,7 +134,7 @@ def _mimic(t: np.ndarray, x: np.ndarray, tau: float, w0: float) -> tuple[np.ndar
     return y, complex((1.0 + kd) - kd * np.exp(-1j * w0 * float(np.median(dt))))
 
 
-def _one_pass(t, x, centres, period, w, w0, dc, skew, tau):
+def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0):
     k = x.shape[0]
     out = np.empty((k, centres.size), dtype=complex)
     res = np.empty((k, centres.size))
@@ -146,7 +155,14 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau):
         a = np.column_stack(cols)
         coef, rss = _lstsq(a, xx)
         phasor = (coef[0] - 1j * coef[1]) / np.sqrt(2.0)
-        if dc != "off" and lo > 0:
+        # A window across a step of the voltage (its plain fit poor) is no place for the
+        # mimic filter: the decay columns would "explain" the step, and the filtered
+        # window is worse than the plain one. Voltages carry no decaying offset to speak
+        # of, so their misfit tells a step from a current's offset.
+        across = steps > 0 and bool(
+            np.any(rss[:steps] > STEP_LIMIT**2 * np.sum(xx[:, :steps] ** 2, axis=0))
+        )
+        if dc != "off" and lo > 0 and not across:
             u = (tt - c) / period
             b = np.column_stack([a, u, u * u])
             _, rss_b = _lstsq(b, xx)
@@ -158,9 +174,14 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau):
             else:  # F-test of a decaying offset, false-alarm rate DECAY_ALPHA
                 with np.errstate(invalid="ignore", divide="ignore"):
                     f_stat = 0.5 * (rss - rss_b) / (rss_b / dof)
-                use = f_stat > _f_critical(dof)
+                # ... and large enough to matter: on a near-noiseless record any model
+                # slip is "significant", and the filter costs more than it saves there.
+                big = rss - rss_b > DECAY_MIN_SHARE**2 * np.sum(xx * xx, axis=0)
+                use = (f_stat > _f_critical(dof)) & big
             if use.any():
-                coef_m, _ = _lstsq(a, y[:, lo:hi].T)
+                # The window's first filtered sample is made with the sample before
+                # the window, which may lie across a step: it is left out.
+                coef_m, _ = _lstsq(a[1:], y[:, lo + 1 : hi].T)
                 mimic = (coef_m[0] - 1j * coef_m[1]) / np.sqrt(2.0) / gain
                 phasor = np.where(use, mimic, phasor)
                 rss = np.where(use, np.minimum(rss, rss_b), rss)
@@ -193,6 +214,7 @@ def fit_phasors(
     skew_s: np.ndarray | None = None,
     reference: int = 0,
     mimic_tau_s: float | None = None,
+    step_channels: int = 0,
 ) -> PhasorFit:
     """RMS phasors of every channel over sliding one-cycle windows.
 
@@ -217,6 +239,10 @@ def fit_phasors(
         Channel whose phasor's turn gives the segment's frequency.
     mimic_tau_s : float, optional
         Time constant of the mimic filter (s); one nominal cycle by default.
+    step_channels : int, default 0
+        The first ``step_channels`` channels are voltages: a window where one of them
+        misfits by more than :data:`STEP_LIMIT` straddles a step, and keeps its plain
+        phasors (no mimic filter in any channel).
 
     Returns
     -------
@@ -245,7 +271,7 @@ def fit_phasors(
         raise ValueError(f"dc must be 'auto', 'on' or 'off', got {dc!r}")
     tau = period if mimic_tau_s is None else float(mimic_tau_s)
     first, res_first, dec_first, share_first = _one_pass(
-        t, x, centres, period, w0, w0, dc, None, tau
+        t, x, centres, period, w0, w0, dc, None, tau, step_channels
     )
     w = w0
     if centres.size >= 3:
@@ -256,5 +282,5 @@ def fit_phasors(
             w = 2.0 * np.pi * f_med
     if w == w0 and skew_s is None:
         return PhasorFit(centres, first, res_first, f0, dec_first, share_first)
-    out, res, dec, share = _one_pass(t, x, centres, period, w, w0, dc, skew_s, tau)
+    out, res, dec, share = _one_pass(t, x, centres, period, w, w0, dc, skew_s, tau, step_channels)
     return PhasorFit(centres, out, res, w / (2.0 * np.pi), dec, share)

@@ -94,7 +94,7 @@ def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.n
     skew = None if w.skew_s is None else np.concatenate([w.skew_s[0], w.skew_s[1]])
     fit = fit_phasors(
         w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
-        per_cycle=per_cycle, dc=dc, skew_s=skew,
+        per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3,
     )  # fmt: skip
     vph, iph = fit.x[:3], fit.x[3:]
     _, v1, v2 = _sequences(vph)
@@ -103,10 +103,7 @@ def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.n
     out = _empty(m)
     s1 = 3.0 * v1 * np.conj(i1)
     st = np.sum(vph * np.conj(iph), axis=0)
-    turn = np.angle(v1[1:] * np.conj(v1[:-1])) / (2 * np.pi * np.diff(fit.t_s)) if m > 1 else []
-    f = w.f_nominal + np.concatenate([turn[:1], turn]) if m > 1 else np.full(m, fit.f_hz)
-    if m > 2:
-        f[1:-1] = 0.5 * (f[1:-1] + f[2:])
+    f = _frequency(fit.t_s, v1, w.f_nominal, fit.f_hz)
     with np.errstate(invalid="ignore", divide="ignore"):
         out.update(
             t_s=fit.t_s, v=np.abs(v1), angle_rad=np.angle(v1), p=s1.real, q=s1.imag, f=f,
@@ -118,6 +115,25 @@ def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.n
         )  # fmt: skip
     out["angle_rad"] = np.unwrap(out["angle_rad"])
     return out
+
+
+def _frequency(t: np.ndarray, v1: np.ndarray, f0: float, f_seg: float) -> np.ndarray:
+    """Frequency (Hz) at each window from the turn of V1, a running median of three turns.
+
+    A window across a step of the voltage's magnitude has its phase pulled one way and
+    its neighbour's back (a spike and its mirror in the turns); the median of three
+    neighbouring turns removes such a pair and follows a real frequency change.
+    """
+    m = t.size
+    if m < 2:
+        return np.full(m, f_seg)
+    turn = np.angle(v1[1:] * np.conj(v1[:-1])) / (2 * np.pi * np.diff(t))
+    # turns[k] is between windows k-1 and k; each window takes the turns either side
+    # and the next one out.
+    pad = np.concatenate([turn[:1], turn[:1], turn, turn[-1:], turn[-1:]])
+    med = np.median(np.stack([pad[0:-2], pad[1:-1], pad[2:]]), axis=0)
+    # med[j] is the median around turn j-1; window k lies between turns k-1 and k.
+    return f0 + 0.5 * (med[:m] + med[1 : m + 1])
 
 
 def _amplitude_rows(w: Waveforms, seg, scale: float) -> dict[str, np.ndarray]:
