@@ -110,7 +110,14 @@ def _centres(t: np.ndarray, period: float, per_cycle: int) -> np.ndarray:
     if last < first - 1e-12 * period:
         return np.empty(0)
     hop = period / per_cycle
-    return first + hop * np.arange(int(np.floor((last - first) / hop + 1e-9)) + 1)
+    count = np.floor((last - first) / hop + 1e-9) + 1
+    # Bounded by the samples before allocating (red-team H1): with at least 8 samples
+    # per cycle (checked first) there are at most per_cycle windows per 8 samples.
+    if not count <= per_cycle * (t.size / 4 + 2):
+        raise ValueError(
+            f"{count:.3g} windows for {t.size} samples: the sample times are implausible"
+        )
+    return first + hop * np.arange(int(count))
 
 
 def _lstsq(a: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -89,13 +89,25 @@ def _empty(m: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.ndarray]:
+def _waveform_rows(
+    w: Waveforms, seg, per_cycle: int, dc: str, k: int = 0, source: str = ""
+) -> dict[str, np.ndarray]:
     sl = slice(seg.start, seg.stop)
     skew = None if w.skew_s is None else np.concatenate([w.skew_s[0], w.skew_s[1]])
-    fit = fit_phasors(
-        w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
-        per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3,
-    )  # fmt: skip
+    try:
+        fit = fit_phasors(
+            w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
+            per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3,
+        )  # fmt: skip
+    except ValueError as exc:
+        if len(w.segments) < 2:
+            raise
+        rate = f"{seg.rate_hz:g} samples/s by the rate table" if seg.rate_hz else "stamps"
+        raise DataError(
+            f"samples {seg.start + 1}-{seg.stop} (segment {k + 1}, {rate}): {exc}; too "
+            "short for a waveform segment (an amplitude segment labelled as waveform?)",
+            source,
+        ) from None
     vph, iph = fit.x[:3], fit.x[3:]
     _, v1, v2 = _sequences(vph)
     _, i1, i2 = _sequences(iph)
@@ -220,8 +232,8 @@ def record_table(
     if not any(s.kind == "waveform" for s in segs):
         raise ValueError("the record has no waveform segment (only magnitudes): no phasors")
     parts = [
-        (seg, _waveform_rows(w, seg, per_cycle, dc) if seg.kind == "waveform" else None)
-        for seg in segs
+        (seg, _waveform_rows(w, seg, per_cycle, dc, k, source) if seg.kind == "waveform" else None)
+        for k, seg in enumerate(segs)
     ]
     for k, (seg, rows) in enumerate(parts):
         if rows is not None and (share := float(np.median(rows.pop("_share")))) < MIN_SHARE:
