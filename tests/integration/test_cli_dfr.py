@@ -241,3 +241,32 @@ def test_missing_value_marker_of_1991_binary_is_named(tmp_path):
     dat.write_bytes(bytes(raw))
     res = run("read", "comtrade", cfg, "--out", tmp_path / "x.csv")
     one_line_error(res, "sample 1", "0xFFFF", "1991")
+
+
+@pytest.mark.parametrize(
+    ("line", "text", "needles"),
+    [
+        (2, "1,VA,A,,kV,1e300,0,0,-2147483648,2147483647,1,1,P", ["line 3", "overflow"]),
+        (2, "1,VA,A,,kV,0.01,0,0,-2147483648,2147483647,1e308,1e-308,S", ["line 3", "overflow"]),
+        (10, "3200,1", ["line 11: 1 sample declared"]),
+        (10, "0,1920", ["line 11: sample rate 0 with nrates 1", "nrates 0"]),
+        (2, "1,VA,A,,Volt,0.01,0,0,-2147483648,2147483647,1,1,P", ["line 3", "'Volt'"]),
+    ],
+    ids=["a_huge", "ps_huge", "one_sample", "rate_zero", "unit_volt"],
+)
+def test_messages_blame_the_right_thing(good, tmp_path, line, text, needles):
+    res = run("read", "comtrade", variant(good, tmp_path, line, text), "--out", tmp_path / "x.csv")
+    one_line_error(res, *needles)
+
+
+def test_blank_ascii_cell_and_a_dat_folder_are_named(good, tmp_path):
+    rows = (good / "rec.dat").read_bytes().split(b"\n")
+    cells = rows[500].split(b",")
+    cells[3] = b""
+    rows[500] = b",".join(cells)
+    cfg = variant(good, tmp_path, dat=b"\n".join(rows))
+    one_line_error(run("read", "comtrade", cfg, "--out", tmp_path / "x.csv"),
+                   "rec.dat: line 501, field 4: empty cell")  # fmt: skip
+    (tmp_path / "rec.dat").unlink()
+    (tmp_path / "rec.dat").mkdir()
+    one_line_error(run("read", "comtrade", cfg, "--out", tmp_path / "x.csv"), "is a folder")

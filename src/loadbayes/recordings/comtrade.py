@@ -44,6 +44,7 @@ What a real recorder file adds, and how it is read:
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from dataclasses import dataclass
@@ -233,7 +234,7 @@ def _locate_ascii_error(dat: Path, n: int) -> DataError:
             for j, cell in enumerate(raw.decode("latin-1").split(",")):
                 cell = cell.strip()
                 if cell == "":
-                    continue
+                    return DataError(f"line {k}, field {j + 1}: empty cell", str(dat))
                 try:
                     float(cell)
                 except ValueError:
@@ -653,11 +654,12 @@ def read_comtrade(
             idx = info.analog.index(ch)
             vals = analog[idx][: info.n_samples]
             bad = np.flatnonzero(~np.isfinite(vals))
-            if bad.size:
+            if bad.size and math.isfinite(ch.a * 2.0**31 + ch.b):
                 raise DataError(
                     f"channel {ch.name!r}, sample {bad[0] + 1}: {_missing(info, ch)}", str(dat)
                 )
-            scaled = _scale(ch, vals, side, info.path)
+            with np.errstate(over="ignore", invalid="ignore"):
+                scaled = _scale(ch, vals, side, info.path)
             if not np.all(np.isfinite(scaled)):
                 raise DataError(
                     f"line {ch.line}: channel {ch.name!r}: its values overflow when scaled "
