@@ -79,6 +79,7 @@ def test_real_record_reads_and_cuts_two_events_with_their_metadata(tmp_path, bay
     # The notes: which clock, peak amplitudes kept as magnitudes, the unbalanced rows.
     assert "times from the .dat's time stamps" in res.output
     assert "amplitude segments hold peak values" in res.output
+    assert "325 rows of amplitude segment(s) 2, 4 are per-phase magnitudes only" in res.output
     assert "negative-sequence voltage above 5%" in res.output
     rec = pd.read_parquet(tmp_path / "xtz.parquet")
     meta = json.loads((tmp_path / "xtz.parquet.meta.json").read_text(encoding="utf-8"))

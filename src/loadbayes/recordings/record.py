@@ -271,6 +271,13 @@ def record_table(
         for c in COLUMNS:
             cols[c].append(rows[c])
     table = {c: np.concatenate(v) for c, v in cols.items()}
+    amp = [k + 1 for k, s in enumerate(segs) if s.kind == "amplitude"]
+    if amp:
+        n_amp = int(np.sum(table["kind"] == "amplitude"))
+        notes.append(
+            f"{n_amp} rows of amplitude segment(s) {', '.join(map(str, amp))} are per-phase "
+            "magnitudes only (va .. ic): no phasor, P or Q is invented for them (NaN)"
+        )
     n_unb = int(table["unbalanced"].sum())
     if n_unb:
         notes.append(
