@@ -252,8 +252,9 @@ def test_missing_value_marker_of_1991_binary_is_named(tmp_path):
         (10, "3200,1", ["line 11: 1 sample declared"]),
         (10, "0,1920", ["line 11: sample rate 0 with nrates 1", "nrates 0"]),
         (2, "1,VA,A,,Volt,0.01,0,0,-2147483648,2147483647,1,1,P", ["line 3", "'Volt'"]),
+        (13, "FLOAT32", ["rec.dat: sample", "is the data file type FLOAT32 on line 14"]),
     ],
-    ids=["a_huge", "ps_huge", "one_sample", "rate_zero", "unit_volt"],
+    ids=["a_huge", "ps_huge", "one_sample", "rate_zero", "unit_volt", "ft_float_on_ascii"],
 )
 def test_messages_blame_the_right_thing(good, tmp_path, line, text, needles):
     res = run("read", "comtrade", variant(good, tmp_path, line, text), "--out", tmp_path / "x.csv")
