@@ -114,6 +114,12 @@ def test_real_record_reads_and_cuts_two_events_with_their_metadata(tmp_path, bay
         ev = pd.read_csv(tmp_path / "events" / name)
         assert ev["t_s"].iloc[0] == 0 and ev[["v", "p", "q"]].notna().all().all()
         assert {"angle_rad", "v2", "unbalanced", "straddle"} <= set(ev.columns)
+    # The table as CSV, without its sidecar: still one event per waveform window.
+    rec.to_csv(tmp_path / "bare.csv", index=False)
+    res = run("events", tmp_path / "bare.csv", "--out", tmp_path / "bare")
+    assert res.exit_code == 0, res.output
+    bare = pd.read_csv(tmp_path / "bare" / "events.csv")
+    assert list(bare["segment"]) == [0, 2] and bare["station"].isna().all()
 
 
 @needs_real

@@ -183,6 +183,25 @@ def _read_table(path: str) -> dict[str, np.ndarray]:
     return {c: df[c].to_numpy() for c in df.columns}
 
 
+def _has_record_columns(path: str) -> bool:
+    """Whether a table has a record table's ``kind`` and ``segment`` columns (header only)."""
+    try:
+        if str(path).lower().endswith((".parquet", ".pq")):
+            import pyarrow.parquet as pq
+
+            names = set(pq.read_schema(path).names)
+        else:
+            import csv
+            import gzip
+
+            opener = gzip.open if str(path).lower().endswith(".gz") else open
+            with opener(path, "rt", encoding="utf-8", newline="") as fh:
+                names = set(next(csv.reader(fh), []))
+    except Exception:  # noqa: BLE001 - not readable here: the plain reader will say why
+        return False
+    return {"kind", "segment"} <= names
+
+
 def record_events(record: str, *, v_ref: float | None = None, **settings) -> RecordEvents | None:
     """Sags of a ``read comtrade`` table, one window per sag inside a waveform segment.
 
@@ -210,7 +229,9 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
 
     meta = read_record_meta(record)
     if meta is None:
-        return None
+        if not _has_record_columns(record):
+            return None
+        meta = {}  # the table without its sidecar: no station, bay or start time
     cols = phasor_rows(_read_table(record))
     data = {c: np.asarray(cols[c], dtype=float) for c in EVENT_COLUMNS if c in cols}
     for c in ("t_s", "v", "p", "q"):
