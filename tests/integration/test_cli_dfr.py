@@ -278,3 +278,23 @@ def test_blank_ascii_cell_and_a_dat_folder_are_named(good, tmp_path):
     (tmp_path / "rec.dat").unlink()
     (tmp_path / "rec.dat").mkdir()
     one_line_error(run("read", "comtrade", cfg, "--out", tmp_path / "x.csv"), "is a folder")
+
+
+def test_implausible_time_stamps_alone_are_refused_not_gridded(good, tmp_path):
+    # nrates 0 (the stamps are the only clock) and 3 of every 5 stamps 1 us apart: the
+    # old resampler made a 1 MHz grid (part of H1); now the windows hold no waveform.
+    rows = (good / "rec.dat").read_bytes().split(b"\n")
+    stamp, out = 0, []
+    for k, row in enumerate(rows):
+        if row.strip():
+            cells = row.split(b",")
+            stamp += 1 if k % 5 < 3 else 312
+            cells[1] = str(stamp).encode()
+            row = b",".join(cells)
+        out.append(row)
+    lines = (good / "rec.cfg").read_text().split("\n")
+    lines[9:11] = ["0", "0,1920"]
+    (tmp_path / "rec.cfg").write_text("\n".join(lines))
+    (tmp_path / "rec.dat").write_bytes(b"\n".join(out))
+    res = run("read", "comtrade", tmp_path / "rec.cfg", "--out", tmp_path / "x.csv")
+    one_line_error(res, "timed by the .dat's stamps alone", "implausible time stamps")

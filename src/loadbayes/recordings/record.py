@@ -237,11 +237,20 @@ def record_table(
     ]
     for k, (seg, rows) in enumerate(parts):
         if rows is not None and (share := float(np.median(rows.pop("_share")))) < MIN_SHARE:
+            if seg.rate_hz > 0:
+                said = f"the rate table says {seg.rate_hz:g} samples/s (segment {k + 1})"
+                guess = "an amplitude segment labelled as waveform?"
+            else:
+                gaps = np.diff(w.t_s[seg.start : seg.stop])
+                said = (
+                    f"timed by the .dat's stamps alone (segment {k + 1}; spacing from "
+                    f"{gaps.min():.3g} to {gaps.max():.3g} s)"
+                )
+                guess = "implausible time stamps, or magnitudes rather than waveforms?"
             raise DataError(
-                f"samples {seg.start + 1}-{seg.stop}: the rate table says {seg.rate_hz:g} "
-                f"samples/s (segment {k + 1}), but the {w.f_nominal:g} Hz fundamental "
-                f"holds only {share:.0%} of their power: not waveform samples (an "
-                "amplitude segment labelled as waveform?)",
+                f"samples {seg.start + 1}-{seg.stop}: {said}, but the {w.f_nominal:g} Hz "
+                f"fundamental holds only {share:.0%} of their power: not waveform samples "
+                f"({guess})",
                 source,
             )
     notes = [w.clock_note] if w.clock_note else []
