@@ -124,14 +124,26 @@ def record_metadata(
 
 
 def write_record(rec, meta: dict, out: str, *, force: bool) -> None:
-    """Write the table and its sidecar (both checked writable by the caller first)."""
-    from loadbayes.io.atomic import atomic_write
-    from loadbayes.io.tables import write_table
+    """Write the table and its sidecar as one transaction: both files, or neither.
 
-    write_table(rec.columns, out, force=force)
-    with atomic_write(meta_path(out), force=force, mode="w") as fh:
-        json.dump(meta, fh, indent=1, ensure_ascii=False, allow_nan=False)
-        fh.write("\n")
+    Each goes to a temporary beside its target (:class:`~loadbayes.io.transaction.OutputSet`)
+    and they are renamed together; an error or a signal before that leaves neither.
+    """
+    from loadbayes.io.tables import write_table
+    from loadbayes.io.transaction import OutputSet
+
+    text = json.dumps(meta, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+    if out.lower().endswith(".gz"):  # the temporary's suffix would not say csv.gz
+        from loadbayes.io.atomic import atomic_write
+
+        write_table(rec.columns, out, force=force)
+        with atomic_write(meta_path(out), force=force, mode="w") as fh:
+            fh.write(text)
+        return
+    with OutputSet({"--out": out, "metadata": meta_path(out)}, force=force) as files:
+        write_table(rec.columns, files.temp("--out"), force=True)
+        files.temp("metadata").write_text(text, encoding="utf-8")
+        files.commit()
 
 
 def read_record_meta(table: str | os.PathLike[str]) -> dict | None:
