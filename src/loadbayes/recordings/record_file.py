@@ -251,6 +251,10 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
         if bad.size:
             raise DataError(f"column {c!r}, phasor row {bad[0] + 1}: not a finite number", record)
     seg = data["segment"].astype(np.int64)
+    data["segment"] = seg
+    for c in ("unbalanced", "straddle"):
+        if c in data:
+            data[c] = data[c] > 0.5
     for k in np.unique(seg):
         t = data["t_s"][seg == k]
         if t.size > 1 and not np.all(np.diff(t) > 0):
