@@ -298,3 +298,28 @@ def test_implausible_time_stamps_alone_are_refused_not_gridded(good, tmp_path):
     (tmp_path / "rec.dat").write_bytes(b"\n".join(out))
     res = run("read", "comtrade", tmp_path / "rec.cfg", "--out", tmp_path / "x.csv")
     one_line_error(res, "timed by the .dat's stamps alone", "implausible time stamps")
+
+
+@needs_real
+def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
+    # docs/formats.md shows the real record's chain run from the repository's root with
+    # its output: run each command there (../shared reached by a link) and compare.
+    doc = (_HERE.parents[2] / "docs" / "formats.md").read_text(encoding="utf-8")
+    block = doc.split("From the repository's root, as it runs:")[1].split("(`--bay")[0]
+    steps: list[tuple[str, list[str]]] = []
+    for line in block.splitlines():
+        if not line.startswith("    "):
+            continue
+        text = line[4:]
+        if text.startswith("loadbayes "):
+            steps.append((text, []))
+        else:
+            steps[-1][1].append(text)
+    assert [cmd.split()[1] for cmd, _ in steps] == ["read", "events"]
+    (tmp_path / "shared").symlink_to(REAL.parents[1], target_is_directory=True)
+    (tmp_path / "repo").mkdir()
+    monkeypatch.chdir(tmp_path / "repo")
+    for cmd, expected in steps:
+        res = CliRunner().invoke(main, cmd.split()[1:])
+        assert res.exit_code == 0, res.output
+        assert res.output.splitlines() == expected, cmd
