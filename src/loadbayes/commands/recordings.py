@@ -23,15 +23,6 @@ def _positive(value: float | None, name: str) -> float | None:
     return value
 
 
-def _names(value: str | None, opt: str) -> list[str] | None:
-    if value is None:
-        return None
-    names = [s.strip() for s in value.split(",")]
-    if len(names) != 3 or not all(names):
-        raise click.BadParameter("expected three channel names A,B,C", param_hint=opt)
-    return names
-
-
 def _write(table: dict, out: str, force: bool) -> None:
     from loadbayes.io.tables import write_table
 
