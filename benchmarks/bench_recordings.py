@@ -13,6 +13,13 @@ Prints a table and writes ``benchmarks/results/recordings.json`` (the run_all co
   ``.cfg`` checks, ``.dat`` checks, the ``comtrade`` package's decoding, scaling), and
   its per-cycle phasors computed (``cycle_phasors``); seconds and samples per second.
 - ``events``: ``find_sags`` on a per-cycle record (50 rows a second) with a sag a minute.
+- ``real-xtz``: the State Grid record in ``../shared/real`` (48 analog channels, four
+  rate segments; source and licence in its README): ``read_comtrade`` with a bay, then
+  ``record_table`` at 4 phasors per cycle, per transformer; and ``loadbayes read
+  comtrade`` end to end in a fresh process (imports included). Skipped when the record
+  is not beside the repository.
+- ``table-<s>s``: ``record_table`` (the least-squares phasors ``read comtrade`` writes)
+  on a synthetic single-rate record, 1 and 4 phasors per cycle: its cost per window.
 """
 
 from __future__ import annotations
@@ -80,6 +87,72 @@ def bench_events(hours: float) -> dict:
             "events_s": round(sec, 3), "events": len(ev), "expected": len(sags)}  # fmt: skip
 
 
+REAL = next(
+    (
+        p / "shared" / "real" / "xtz.cfg"
+        for p in Path(__file__).resolve().parents
+        if (p / "shared" / "real" / "xtz.cfg").is_file()
+    ),
+    None,
+)
+
+
+def bench_real() -> list[dict]:
+    """The shared real record: read + table per transformer, and the CLI in a new process."""
+    import subprocess
+
+    from loadbayes.recordings.comtrade import read_comtrade
+    from loadbayes.recordings.record import record_table
+
+    rows = []
+    for bay in ("1号主变", "2号主变"):
+        read_s, w = _best(lambda bay=bay: read_comtrade(REAL, bay=bay))
+        table_s, rec = _best(lambda w=w: record_table(w, per_cycle=4))
+        rows.append(
+            {
+                "case": f"real-xtz {bay}",
+                "samples": int(w.t_s.size),
+                "read_s": round(read_s, 3),
+                "table_s": round(table_s, 3),
+                "total_s": round(read_s + table_s, 3),
+                "rows": rec.rows,
+            }  # fmt: skip
+        )
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [sys.executable, "-m", "loadbayes", "read", "comtrade", str(REAL),
+               "--bay", "1号主变", "--per-cycle", "4", "--out", f"{tmp}/x.parquet",
+               "--quiet", "--force"]  # fmt: skip
+        cli_s, _ = _best(lambda: subprocess.run(cmd, check=True, capture_output=True))
+    rows.append({"case": "real-xtz CLI (fresh process)", "total_s": round(cli_s, 3)})
+    return rows
+
+
+def bench_table(seconds: float, folder: Path) -> list[dict]:
+    """record_table's least-squares phasors on a synthetic single-rate record."""
+    from loadbayes.recordings.comtrade import read_comtrade
+    from loadbayes.recordings.record import record_table
+    from loadbayes.recordings.synth import sag_profile, write_comtrade, zip_waveforms
+
+    t = np.arange(int(seconds * FS)) / FS
+    v, i = zip_waveforms(t, sag_profile(t, [(2.0, 0.3, 0.3)], recovery_s=1.0),
+                         (0.3, 0.2, 0.5, 0.6, 0.1, 0.3))  # fmt: skip
+    cfg, _ = write_comtrade(folder / "table", t, v, i, fmt="BINARY", force=True)
+    w = read_comtrade(cfg)
+    rows = []
+    for per_cycle in (1, 4):
+        sec, rec = _best(lambda pc=per_cycle: record_table(w, per_cycle=pc), repeat=1)
+        rows.append(
+            {
+                "case": f"table-{seconds:g}s per_cycle {per_cycle}",
+                "samples": t.size,
+                "table_s": round(sec, 3),
+                "rows": rec.rows,
+                "us_per_window": round(1e6 * sec / rec.rows, 1),
+            }  # fmt: skip
+        )
+    return rows
+
+
 def main() -> None:
     """Run the benchmark, print the table, write the JSON."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -91,7 +164,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for fmt in ("ASCII", "BINARY", "FLOAT32"):
             rows.append(bench_comtrade(seconds, fmt, Path(tmp)))
+        rows += bench_table(min(seconds, 60.0), Path(tmp))
     rows.append(bench_events(hours))
+    if REAL is not None:
+        rows += bench_real()
     for r in rows:
         print("  ".join(f"{k}={v}" for k, v in r.items()))
     doc = {

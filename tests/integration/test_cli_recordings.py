@@ -50,7 +50,10 @@ def test_read_events_fit_recovers_the_zip(tmp_path, revision, fmt):
     assert res.returncode == 0, res.stderr
     assert "v base 230 kV" in res.stderr
     rec = pd.read_parquet(tmp_path / "rec.parquet")
-    assert list(rec.columns) == ["t_s", "v", "angle_rad", "p", "q", "f"]
+    # The six columns the fits read come first; the record table's others follow.
+    assert list(rec.columns)[:6] == ["t_s", "v", "angle_rad", "p", "q", "f"]
+    assert {"v2", "unbalanced", "straddle", "segment", "kind"} <= set(rec.columns)
+    assert (tmp_path / "rec.parquet.meta.json").is_file()
     assert len(rec) == 450  # 9 s of 50 Hz cycles
     # The angle in the frame rotating at the nominal 50 Hz turns at 2 pi (50.2 - 50):
     # what fit composite integrates f into when there is no angle.

@@ -21,7 +21,16 @@ from loadbayes.recordings.comtrade import read_comtrade
 from loadbayes.recordings.phasor_fit import fit_phasors
 from loadbayes.recordings.record import record_table
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "real" / "xtz.cfg"
+# ../shared/real beside the repository (a clone in /work/main or a worktree in /work/wt/x).
+_HERE = Path(__file__).resolve()
+REAL = next(
+    (
+        p / "shared" / "real" / "xtz.cfg"
+        for p in (_HERE.parents[3], _HERE.parents[4])
+        if (p / "shared" / "real" / "xtz.cfg").is_file()
+    ),
+    _HERE.parents[3] / "shared" / "real" / "xtz.cfg",
+)
 needs_real = pytest.mark.skipif(not REAL.is_file(), reason="../shared/real is not beside the repo")
 A = np.exp(2j * np.pi / 3)
 
@@ -298,3 +307,18 @@ def test_both_faults_are_found_one_event_per_waveform_window():
         before = rows["t_s"][ev.start : ev.stop] < ev.sag_start_s - 0.02
         assert np.ptp(rows["t_s"][ev.start : ev.stop][before]) > 0.1
         assert rows["v2"][ev.start : ev.stop][before].max() < 0.02
+
+
+@pytest.mark.parametrize("per_cycle", [2, 4])
+def test_overlapping_windows_correlate_their_noise_by_the_overlap_fraction(per_cycle):
+    # What docs/formats.md says of --per-cycle N: neighbours' noise correlates by about
+    # the overlap 1 - lag / N. 400 cycles of white noise (fixed seed): the sample
+    # correlation's standard error is about 0.02-0.03, so 0.07 is over 2.5 of them.
+    rng = np.random.default_rng(7)
+    t = np.arange(64 * 400) / 3200.0
+    x = np.sqrt(2) * 100.0 * np.cos(2 * np.pi * 50 * t) + rng.normal(0, 5.0, t.size)
+    fit = fit_phasors(t, x[None, :], f0=50.0, per_cycle=per_cycle, dc="off")
+    e = fit.x[0] - fit.x[0].mean()
+    for lag in range(1, per_cycle + 1):
+        r = np.mean((e[:-lag] * np.conj(e[lag:])).real) / np.mean(np.abs(e) ** 2)
+        assert r == pytest.approx(1 - lag / per_cycle, abs=0.07), lag

@@ -23,15 +23,6 @@ def _positive(value: float | None, name: str) -> float | None:
     return value
 
 
-def _names(value: str | None, opt: str) -> list[str] | None:
-    if value is None:
-        return None
-    names = [s.strip() for s in value.split(",")]
-    if len(names) != 3 or not all(names):
-        raise click.BadParameter("expected three channel names A,B,C", param_hint=opt)
-    return names
-
-
 def _write(table: dict, out: str, force: bool) -> None:
     from loadbayes.io.tables import write_table
 
@@ -43,11 +34,48 @@ def read_group() -> None:
     """Read a recording (COMTRADE, PMU CSV) into a per-unit t_s, v, p, q, f table."""
 
 
+#: Output suffixes a table can be written as (checked before any work).
+TABLE_SUFFIXES = (".csv", ".txt", ".csv.gz", ".txt.gz", ".parquet", ".pq")
+
+
+def _table_out(out: str) -> None:
+    if out == "-":
+        raise UserError("--out -: a record table is written to a file, not standard output")
+    if not out.lower().endswith(TABLE_SUFFIXES):
+        suffix = Path(out).suffix or "(no extension)"
+        raise UserError(
+            f"{out}: --out must be a .csv or .parquet file (by extension), not {suffix}"
+        )
+
+
+def _channels(value: str | None, opt: str) -> list[str] | None:
+    """Three channels by name or 1-based number (names may hold spaces)."""
+    if value is None:
+        return None
+    names = [s.strip() for s in value.split(",")]
+    if len(names) != 3 or not all(names):
+        raise click.BadParameter(
+            f"expected three channels A,B,C (names or 1-based numbers), got {value!r}",
+            param_hint=opt,
+        )
+    return names
+
+
 @read_group.command("comtrade", cls=OneLineCommand)
 @click.argument("cfg", type=click.Path(dir_okay=False))
-@click.option("--out", required=True, type=click.Path(dir_okay=False), help="CSV or Parquet.")
-@click.option("--voltage", help="Phase a, b, c voltage channels (default: found by unit/phase).")
-@click.option("--current", help="Phase a, b, c current channels (default: found by unit/phase).")
+@click.option("--out", required=True, type=click.Path(dir_okay=False),
+              help="CSV or Parquet; the metadata go to OUT.meta.json beside it.")  # fmt: skip
+@click.option("--voltage", help="Phase a, b, c voltage channels: names or 1-based numbers.")
+@click.option("--current", help="Phase a, b, c current channels: names or 1-based numbers.")
+@click.option("--bay", help="The bay (text in the channels' bay field or name) whose currents "
+              "(and voltages; the bus's when it has none) are read.")  # fmt: skip
+@click.option("--encoding", help="The .cfg's text encoding (default: UTF-8, GB18030 or "
+              "Latin-1, detected).")  # fmt: skip
+@click.option("--per-cycle", type=click.IntRange(1, 64), default=1, show_default=True,
+              help="Phasor estimates per cycle (one-cycle windows, 1/N cycle apart).")  # fmt: skip
+@click.option("--dc", type=click.Choice(["auto", "on", "off"]), default="auto",
+              show_default=True, help="Decaying-DC rejection (mimic filter) where a test "
+              "finds an offset, in every window, or never.")  # fmt: skip
 @click.option(
     "--side",
     type=click.Choice(["primary", "secondary"]),
@@ -55,56 +83,61 @@ def read_group() -> None:
     show_default=True,
     help="Scale to the transformer's primary or secondary side (the .cfg's ratio).",
 )
-@click.option("--v-base", type=float, help="Voltage base, line-to-line kV (default: first cycle).")
-@click.option("--s-base", type=float, help="Power base, 3-phase MVA (default: first cycle |S|).")
+@click.option("--v-base", type=float, help="Voltage base, line-to-line kV (default: first row).")
+@click.option("--s-base", type=float, help="Power base, 3-phase MVA (default: first row |S1|).")
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite the output.")
 @user_errors
-def read_comtrade_cmd(cfg, out, voltage, current, side, v_base, s_base, quiet, force):
-    """Per-cycle positive-sequence V, three-phase P, Q and frequency from a COMTRADE record.
+def read_comtrade_cmd(
+    cfg, out, voltage, current, bay, encoding, per_cycle, dc, side, v_base, s_base, quiet, force
+):
+    """Positive-sequence V, P, Q, f and more from a COMTRADE record, per phasor window.
 
-    One-cycle DFT phasors (see docs/formats.md); the output has one row per cycle:
-    t_s (window centre, s), v, p, q (per unit of the bases), f (Hz).
+    Waveform segments become rows of least-squares phasors over one-cycle windows
+    (decaying DC rejected), N per cycle; a recorder's amplitude segments become rows of
+    per-phase magnitudes with no P or Q. Columns and metadata: docs/formats.md.
     """
-    check_outputs({"--out": out}, [cfg], force)
+    _table_out(out)
     _positive(v_base, "--v-base")
     _positive(s_base, "--s-base")
-    vnames, inames = _names(voltage, "--voltage"), _names(current, "--current")
-    import numpy as np
+    vnames, inames = _channels(voltage, "--voltage"), _channels(current, "--current")
+    if bay is not None and not bay.strip():
+        raise click.BadParameter("is empty", param_hint="--bay")
+    from loadbayes.recordings.record_file import meta_path
 
+    side_file = str(meta_path(out))
+    dat = str(Path(cfg).with_suffix(".dat"))
+    check_outputs({"--out": out, "--out's metadata": side_file}, [cfg, dat], force)
+    from loadbayes.io.errors import DataError
     from loadbayes.recordings.comtrade import read_comtrade
-    from loadbayes.recordings.phasors import cycle_phasors, to_cycle_grid
+    from loadbayes.recordings.plausible import check_table
+    from loadbayes.recordings.record import record_table
+    from loadbayes.recordings.record_file import record_metadata, write_record
 
-    w = read_comtrade(cfg, voltage=vnames, current=inames, side=side)
+    w = read_comtrade(cfg, voltage=vnames, current=inames, bay=bay, side=side, encoding=encoding)
     try:
-        t, v, i, rate = to_cycle_grid(
-            w.t_s, w.v, w.i, f0=w.f_nominal, rate_hz=w.rate_hz, uniform=w.uniform
+        rec = record_table(
+            w, per_cycle=per_cycle, dc=dc, v_base_kv=v_base, s_base_mva=s_base, source=cfg
         )
-        c = cycle_phasors(t, v, i, f0=w.f_nominal, rate_hz=rate)
     except ValueError as exc:
+        if isinstance(exc, DataError):
+            raise
         raise UserError(f"{cfg}: {exc}") from None
-    vb = v_base * 1e3 / math.sqrt(3) if v_base else float(c["v"][0])
-    sb = s_base * 1e6 if s_base else float(np.hypot(c["p"][0], c["q"][0]))
-    if not (vb > 0 and sb > 0):
-        raise UserError(f"{cfg}: the first cycle has no voltage or power; give --v-base/--s-base")
-    # The positive-sequence angle (DFT at the nominal frequency: already in the frame
-    # rotating at f0) keeps the phase jumps of a fault, which f cannot hold.
-    table = {
-        "t_s": c["t_s"],
-        "v": c["v"] / vb,
-        "angle_rad": np.unwrap(np.angle(c["v1"])),
-        "p": c["p"] / sb,
-        "q": c["q"] / sb,
-        "f": c["f"],
-    }
-    _write(table, out, force)
+    rec.notes = [*w.notes, *rec.notes, *check_table(w, rec, cfg)]
+    meta = record_metadata(w, rec, source=cfg, per_cycle=per_cycle, dc=dc, side=side, bay=bay)
+    write_record(rec, meta, out, force=force)
+    for line in rec.notes:
+        click.echo(f"loadbayes: note: {cfg}: {line}", err=True)
     if not quiet:
-        resampled = "" if rate == w.rate_hz else f", resampled to {rate:g}"
+        c = rec.columns
+        phasor = int((c["kind"] == "phasor").sum())
         click.echo(
-            f"{out}: {len(c['t_s'])} cycles at {w.f_nominal:g} Hz nominal "
-            f"({w.rate_hz:g} samples/s{resampled}); v base "
-            f"{vb * math.sqrt(3) / 1e3:.6g} kV l-l, s base {sb / 1e6:.6g} MVA; channels "
-            + ", ".join(f"{k}={v}" for k, v in w.channels.items()),
+            f"{out}: {phasor} phasor rows ({per_cycle} per cycle at {w.f_nominal:g} Hz "
+            f"nominal) and {rec.rows - phasor} amplitude rows from {len(w.segments)} "
+            f"segment(s); v base {rec.v_base_kv:.6g} kV l-l, s base {rec.s_base_mva:.6g} "
+            "MVA; channels "
+            + ", ".join(f"{k}={v}" for k, v in w.channels.items())
+            + f"; metadata in {side_file}",
             err=True,
         )
 
@@ -187,21 +220,31 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     """
     from loadbayes.io.tables import read_columns, write_table
     from loadbayes.recordings.events import cut_events, find_sags
+    from loadbayes.recordings.record_file import record_events
 
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"{out}: --out is a file, expected a folder")
     if not folder.parent.exists():
         raise UserError(f"{out}: folder {folder.parent} does not exist")
-    # v may be 0 (an interruption in a long record): not refused here.
-    data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["angle_rad", "f", "rocof"])
-    try:
-        windows = find_sags(
-            data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,
-            min_duration_s=min_duration, pre_s=pre, post_s=post, v_ref=v_ref,
-        )  # fmt: skip
-    except ValueError as exc:
-        raise UserError(f"{record}: {exc}") from None
+    # A `read comtrade` table: one event per sag inside a waveform segment, with its
+    # station, bay and absolute time (recordings/record_file.py).
+    found = record_events(
+        record, threshold=threshold, hysteresis=hysteresis, min_duration_s=min_duration,
+        pre_s=pre, post_s=post, v_ref=v_ref,
+    )  # fmt: skip
+    if found is not None:
+        data, windows = found.data, found.windows
+    else:
+        # v may be 0 (an interruption in a long record): not refused here.
+        data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["angle_rad", "f", "rocof"])
+        try:
+            windows = find_sags(
+                data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,
+                min_duration_s=min_duration, pre_s=pre, post_s=post, v_ref=v_ref,
+            )  # fmt: skip
+        except ValueError as exc:
+            raise UserError(f"{record}: {exc}") from None
     names = [folder / f"event_{ev.index:03d}.{fmt}" for ev in windows]
     index = folder / "events.csv"
     for path in [*names, index]:
@@ -213,6 +256,9 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     rows = [ev.as_row() | {"file": p.name} for ev, p in zip(windows, names, strict=True)]
     cols = ["index", "file", "start", "stop", "sag_start_s", "recovery_s", "duration_s",
             "v_min", "depth", "recovered", "n_sags"]  # fmt: skip
+    if found is not None:  # the record's metadata, carried to each event's row
+        rows = [r | x for r, x in zip(rows, found.extra, strict=True)]
+        cols += list(found.extra[0]) if found.extra else []
     import pandas as pd
 
     write_table(pd.DataFrame(rows, columns=cols), index, force=force)

@@ -167,6 +167,11 @@ def _stamp(cells: list[str], line: int, path: str) -> str:
     date, time = cells
     if date and not _DATE.fullmatch(date):
         raise DataError(f"line {line}: date {date[:20]!r} is not dd/mm/yyyy", path)
+    if date:
+        # 1999 and later write dd/mm/yyyy, 1991 mm/dd/yy: either order, but a real day.
+        d, m, _ = (int(x) for x in date.split("/"))
+        if not (1 <= d <= 31 and 1 <= m <= 31 and min(d, m) <= 12):
+            raise DataError(f"line {line}: date {date[:20]!r} is not a calendar date", path)
     m = _TIME.fullmatch(time)
     if time and m is None:
         raise DataError(f"line {line}: time {time[:20]!r} is not hh:mm:ss.ssssss", path)
@@ -270,7 +275,11 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
     total = _num(counts[0], "total channel count", name, ln_counts, int)
     n_a = _num(counts[1][:-1], "analog channel count", name, ln_counts, int)
     n_d = _num(counts[2][:-1], "status channel count", name, ln_counts, int)
-    if n_a < 0 or n_d < 0 or total != n_a + n_d:
+    if total < 0 or n_a < 0 or n_d < 0:
+        raise DataError(
+            f"line {ln_counts}: channel counts must be >= 0 (got {total}, {n_a}A, {n_d}D)", name
+        )
+    if total != n_a + n_d:
         raise DataError(
             f"line {ln_counts}: channel counts disagree: total {total} != "
             f"{n_a} analog + {n_d} status",
@@ -330,6 +339,13 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
             name,
         )
     f_nominal = _num(f[0], "line frequency", name, ln)
+    ln_freq = ln
+    if 1.0 <= f_nominal < 10.0:
+        raise DataError(
+            f"line {ln}: line frequency {f[0][:20]} Hz is not a power system's (16.7, 25, "
+            "50, 60 or 400 Hz expected): a slip in the .cfg?",
+            name,
+        )
     if not 1.0 <= f_nominal <= 1000.0:
         # An analog-channel line here means the counts on line 2 were too small.
         raise DataError(
@@ -350,6 +366,12 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
         end = _num(f[1], "end sample", name, ln, int)
         if samp < 0 or end < 1 or (rates and end <= rates[-1][1]):
             raise DataError(f"line {ln}: sample rate {samp} / end sample {end} invalid", name)
+        if samp == 0 and nrates > 0:
+            raise DataError(
+                f"line {ln}: sample rate 0 with nrates {nrates} (line {ln_rates}): a record "
+                "timed by its .dat time stamps alone has nrates 0 and rate 0",
+                name,
+            )
         rates.append((samp, end))
     start_cells, ln = rd.next("first-sample time stamp")
     rd.lines[ln - 1] = _stamp(start_cells, ln, name)
@@ -382,7 +404,7 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
         format=fmt,
         timemult=timemult,
         start=",".join(start_cells),
-        lines={"counts": ln_counts, "rates": ln_rates, "format": ln_ft},
+        lines={"counts": ln_counts, "rates": ln_rates, "format": ln_ft, "frequency": ln_freq},
         text="\n".join(rd.lines) + "\n",
         trigger=",".join(trig_cells),
         encoding=used,

@@ -60,6 +60,11 @@ __all__ = ["PhasorFit", "fit_phasors", "max_harmonic"]
 HARMONICS = 7
 #: False-alarm rate of the test that adds the decay columns to a channel's window.
 DECAY_ALPHA = 1e-3
+#: Smallest RMS share of a window's signal that the decay columns must explain before
+#: the mimic filter is used (a smaller offset moves the phasor by less than this).
+DECAY_MIN_SHARE = 0.005
+#: Relative misfit of a voltage channel's plain fit above which a window straddles a step.
+STEP_LIMIT = 0.02
 
 
 @dataclass(frozen=True)
@@ -97,17 +102,22 @@ def max_harmonic(samples: int) -> int:
 
 
 def _centres(t: np.ndarray, period: float, per_cycle: int) -> np.ndarray:
-    first, last = t[0] + 0.5 * period, t[-1] - 0.5 * period
+    # A window of one cycle holds the samples in [c - T/2, c + T/2): the last sample
+    # stands for the interval up to the next one, so the last whole window ends one
+    # sample step after it (as the one-cycle DFT's last whole cycle does).
+    step = float(np.median(np.diff(t)))
+    first, last = t[0] + 0.5 * period, t[-1] + step - 0.5 * period
     if last < first - 1e-12 * period:
         return np.empty(0)
     hop = period / per_cycle
-    return first + hop * np.arange(int(np.floor((last - first) / hop + 1e-9)) + 1)
-
-
-def _lstsq(a: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients (p, k) and residual sums of squares (k,) of y (m, k) on a (m, p)."""
-    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-    return coef, np.sum((y - a @ coef) ** 2, axis=0)
+    count = np.floor((last - first) / hop + 1e-9) + 1
+    # Bounded by the samples before allocating (red-team H1): with at least 8 samples
+    # per cycle (checked first) there are at most per_cycle windows per 8 samples.
+    if not count <= per_cycle * (t.size / 4 + 2):
+        raise ValueError(
+            f"{count:.3g} windows for {t.size} samples: the sample times are implausible"
+        )
+    return first + hop * np.arange(int(count))
 
 
 def _mimic(t: np.ndarray, x: np.ndarray, tau: float, w0: float) -> tuple[np.ndarray, complex]:
@@ -125,7 +135,15 @@ def _mimic(t: np.ndarray, x: np.ndarray, tau: float, w0: float) -> tuple[np.ndar
     return y, complex((1.0 + kd) - kd * np.exp(-1j * w0 * float(np.median(dt))))
 
 
-def _one_pass(t, x, centres, period, w, w0, dc, skew, tau):
+def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0):
+    """Phasors of every window, windows with the same sample offsets fitted together.
+
+    Each window's columns are written in the time ``u = t - c`` from its centre: the
+    harmonics' span is the same as in absolute time, and the fundamental's coefficients
+    are those of ``cos(w0 c + w u)`` turned by ``w0 c``. Evenly spaced samples give every
+    window the same offsets, so one pseudo-inverse serves all of them (a recorder's own
+    time stamps may give each window its own: then each is its own group).
+    """
     k = x.shape[0]
     out = np.empty((k, centres.size), dtype=complex)
     res = np.empty((k, centres.size))
@@ -134,41 +152,70 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau):
     dt = np.median(np.diff(t))
     if dc != "off":
         y, gain = _mimic(t, x, tau, w)
-    for j, c in enumerate(centres):
-        lo = np.searchsorted(t, c - 0.5 * period - 1e-6 * dt)
-        hi = np.searchsorted(t, c + 0.5 * period - 1e-6 * dt)
-        tt, xx = t[lo:hi], x[:, lo:hi].T
-        m = tt.size
-        phase = w0 * c + w * (tt - c)
-        cols = [np.cos(phase), np.sin(phase), np.ones(m)]
+    los = np.searchsorted(t, centres - 0.5 * period - 1e-6 * dt)
+    his = np.searchsorted(t, centres + 0.5 * period - 1e-6 * dt)
+    groups: dict[tuple, list[int]] = {}
+    for j in range(centres.size):
+        u = t[los[j] : his[j]] - centres[j]
+        key = (u.size, np.round(u / dt, 6).tobytes())
+        groups.setdefault(key, []).append(j)
+    for js in groups.values():
+        js = np.asarray(js)
+        lo = los[js]
+        m = int(his[js[0]] - lo[0])
+        idx = lo[:, None] + np.arange(m)
+        u = t[idx[0]] - centres[js[0]]
+        cols = [np.cos(w * u), np.sin(w * u), np.ones(m)]
         for h in range(2, max_harmonic(m) + 1):
-            cols += [np.cos(h * w * tt), np.sin(h * w * tt)]
+            cols += [np.cos(h * w * u), np.sin(h * w * u)]
         a = np.column_stack(cols)
-        coef, rss = _lstsq(a, xx)
-        phasor = (coef[0] - 1j * coef[1]) / np.sqrt(2.0)
-        if dc != "off" and lo > 0:
-            u = (tt - c) / period
-            b = np.column_stack([a, u, u * u])
-            _, rss_b = _lstsq(b, xx)
+        xx = x[:, idx]  # (k, g, m)
+        ssq = np.sum(xx * xx, axis=2)
+        coef = np.einsum("pm,kgm->kgp", np.linalg.pinv(a), xx)
+        rss = np.sum((xx - np.einsum("kgp,mp->kgm", coef, a)) ** 2, axis=2)
+        turn = np.exp(-1j * w0 * centres[js])
+        phasor = (coef[..., 0] - 1j * coef[..., 1]) / np.sqrt(2.0) * turn
+        if dc != "off":
+            # A window across a step of the voltage (its plain fit poor) is no place for
+            # the mimic filter: the decay columns would "explain" the step, and the
+            # filtered window is worse than the plain one. Voltages carry no decaying
+            # offset to speak of, so their misfit tells a step from a current's offset.
+            across = (
+                np.any(rss[:steps] > STEP_LIMIT**2 * ssq[:steps], axis=0)
+                if steps > 0
+                else np.zeros(js.size, dtype=bool)
+            )
+            ok = (lo > 0) & ~across
+            r = u / period
+            b = np.column_stack([a, r, r * r])
+            coef_b = np.einsum("pm,kgm->kgp", np.linalg.pinv(b), xx)
+            rss_b = np.sum((xx - np.einsum("kgp,mp->kgm", coef_b, b)) ** 2, axis=2)
             dof = m - b.shape[1]
             if dc == "on":
-                use = np.ones(k, dtype=bool)
+                use = np.ones_like(rss, dtype=bool)
             elif dof < 1:
-                use = np.zeros(k, dtype=bool)
-            else:  # F-test of a decaying offset, false-alarm rate DECAY_ALPHA
+                use = np.zeros_like(rss, dtype=bool)
+            else:  # F-test of a decaying offset, false-alarm rate DECAY_ALPHA ...
                 with np.errstate(invalid="ignore", divide="ignore"):
                     f_stat = 0.5 * (rss - rss_b) / (rss_b / dof)
-                use = f_stat > _f_critical(dof)
+                # ... and large enough to matter: on a near-noiseless record any model
+                # slip is "significant", and the filter costs more than it saves there.
+                big = rss - rss_b > DECAY_MIN_SHARE**2 * ssq
+                use = (f_stat > _f_critical(dof)) & big
+            use &= ok[None, :]
             if use.any():
-                coef_m, _ = _lstsq(a, y[:, lo:hi].T)
-                mimic = (coef_m[0] - 1j * coef_m[1]) / np.sqrt(2.0) / gain
+                # The window's first filtered sample is made with the sample before
+                # the window, which may lie across a step: it is left out.
+                yy = y[:, idx[:, 1:]]
+                coef_m = np.einsum("pm,kgm->kgp", np.linalg.pinv(a[1:]), yy)
+                mimic = (coef_m[..., 0] - 1j * coef_m[..., 1]) / np.sqrt(2.0) / gain * turn
                 phasor = np.where(use, mimic, phasor)
                 rss = np.where(use, np.minimum(rss, rss_b), rss)
-                decay[:, j] = use
+            decay[:, js] = use
         with np.errstate(invalid="ignore", divide="ignore"):
-            res[:, j] = np.sqrt(rss / np.sum(xx * xx, axis=0))
-            share[:, j] = np.abs(phasor) ** 2 / np.mean(xx * xx, axis=0)
-        out[:, j] = phasor
+            res[:, js] = np.sqrt(rss / ssq)
+            share[:, js] = np.abs(phasor) ** 2 / (ssq / m)
+        out[:, js] = phasor
     if skew is not None:
         out *= np.exp(-1j * w0 * np.asarray(skew, dtype=float))[:, None]
     return out, np.nan_to_num(res, nan=0.0), decay, np.nan_to_num(share, nan=0.0)
@@ -193,6 +240,7 @@ def fit_phasors(
     skew_s: np.ndarray | None = None,
     reference: int = 0,
     mimic_tau_s: float | None = None,
+    step_channels: int = 0,
 ) -> PhasorFit:
     """RMS phasors of every channel over sliding one-cycle windows.
 
@@ -217,6 +265,10 @@ def fit_phasors(
         Channel whose phasor's turn gives the segment's frequency.
     mimic_tau_s : float, optional
         Time constant of the mimic filter (s); one nominal cycle by default.
+    step_channels : int, default 0
+        The first ``step_channels`` channels are voltages: a window where one of them
+        misfits by more than :data:`STEP_LIMIT` straddles a step, and keeps its plain
+        phasors (no mimic filter in any channel).
 
     Returns
     -------
@@ -245,7 +297,7 @@ def fit_phasors(
         raise ValueError(f"dc must be 'auto', 'on' or 'off', got {dc!r}")
     tau = period if mimic_tau_s is None else float(mimic_tau_s)
     first, res_first, dec_first, share_first = _one_pass(
-        t, x, centres, period, w0, w0, dc, None, tau
+        t, x, centres, period, w0, w0, dc, None, tau, step_channels
     )
     w = w0
     if centres.size >= 3:
@@ -256,5 +308,5 @@ def fit_phasors(
             w = 2.0 * np.pi * f_med
     if w == w0 and skew_s is None:
         return PhasorFit(centres, first, res_first, f0, dec_first, share_first)
-    out, res, dec, share = _one_pass(t, x, centres, period, w, w0, dc, skew_s, tau)
+    out, res, dec, share = _one_pass(t, x, centres, period, w, w0, dc, skew_s, tau, step_channels)
     return PhasorFit(centres, out, res, w / (2.0 * np.pi), dec, share)

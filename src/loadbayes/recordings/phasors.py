@@ -141,6 +141,14 @@ def to_cycle_grid(
         )
     n = max(n_min, int(np.ceil(ratio - 1e-9)))
     new_rate = n * f0
+    # Bounded before allocating: a rate table that says 1 GHz (or stamps 1 us apart) for
+    # a few thousand samples would otherwise ask for a grid of 1e9 points (red-team H1).
+    size = (t_s[-1] - t_s[0]) * new_rate + 1
+    if not size <= 4 * t_s.size + 1024:
+        raise ValueError(
+            f"resampling {t_s.size} samples at {new_rate:.4g}/s would make {size:.3g} "
+            "samples: the rate table or the time stamps are implausible"
+        )
     grid = t_s[0] + np.arange(int(np.floor((t_s[-1] - t_s[0]) * new_rate)) + 1) / new_rate
     vi = CubicSpline(t_s, np.vstack([v, i]), axis=1)(grid)
     return grid, vi[:3], vi[3:], new_rate

@@ -197,6 +197,8 @@ def _numeric(df, col: str, name: str) -> np.ndarray:
     import pandas as pd
 
     raw = df[col]
+    if df.attrs.get("decimal") == ",":  # a ';'-separated file writes 1,5 for 1.5
+        raw = raw.str.replace(",", ".", regex=False)
     vals = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
     bad = np.flatnonzero(~np.isfinite(vals))
     if bad.size:
@@ -210,9 +212,19 @@ def _times(df, m: PmuMap, name: str) -> np.ndarray:
 
     raw = df[m.time]
     if m.time_format == "epoch":
-        secs = _numeric(df, m.time, name)
-        return np.round(secs * 1e9).astype("int64")
+        return _epoch(_numeric(df, m.time, name), df.attrs, name, m.time)
     text = raw.astype(str).str.strip()
+    leap = text.str.contains(r"[T ]\d{2}:\d{2}:60", regex=True).to_numpy()
+    if leap.any():
+        k = int(np.flatnonzero(leap)[0])
+        raise DataError(
+            f"{text.iloc[k][:40]!r} is a leap second (:60): UTC time as computers count it "
+            "(POSIX, and so this reader) has no such second; write that second's reports "
+            "as the PMU's leap-second flag says (C37.118: repeat 23:59:59 or skip them)",
+            name, m.time, k + 1,
+        )  # fmt: skip
+    if not aware_only(text) and m.timezone:
+        _check_zone(m.timezone, name, m.time)
     # Timestamps with an offset (Z, +02:00) go straight to UTC; those without are read in
     # the mapping's zone. Parsed apart: pandas refuses (or warns on) a mix of the two.
     aware = text.str.contains(_OFFSET, regex=True).to_numpy()
@@ -224,16 +236,101 @@ def _times(df, m: PmuMap, name: str) -> np.ndarray:
         ts = pd.to_datetime(text[part], errors="coerce", utc=part is aware, format="ISO8601")
         bad[part] = ts.isna().to_numpy()
         if part is not aware:
-            try:
-                ts = ts.dt.tz_localize(m.timezone)
-            except Exception as exc:  # unknown zone, or a local time that does not exist
-                raise DataError(f"timezone {m.timezone!r}: {exc}", name, m.time) from None
+            ts = _localize(ts, part, m.timezone, name, m.time)
         utc = ts.dt.tz_convert("UTC").dt.tz_localize(None)
         out[part] = utc.to_numpy(dtype="datetime64[ns]").astype("int64")
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        raise DataError(f"not an ISO 8601 timestamp: {text.iloc[k][:30]!r}", name, m.time, k + 1)
+        raise DataError(f"not an ISO 8601 timestamp: {text.iloc[k][:40]!r}", name, m.time, k + 1)
     return out
+
+
+def aware_only(text) -> bool:
+    """Whether every timestamp carries its own offset (then the zone is not used)."""
+    return bool(text.str.contains(_OFFSET, regex=True).all())
+
+
+def _check_zone(zone: str, name: str, col: str) -> None:
+    import zoneinfo
+
+    try:
+        zoneinfo.ZoneInfo(zone)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise DataError(
+            f"unknown time zone {zone[:40]!r} (expected an IANA name such as Europe/Berlin "
+            "or America/New_York)",
+            name,
+            col,
+        ) from None
+
+
+def _localize(ts, part, zone: str, name: str, col: str):
+    """Naive local times to zone-aware ones; a DST-ambiguous or missing hour named by row."""
+    import pandas as pd
+
+    local = ts.dt.tz_localize(zone, ambiguous="NaT", nonexistent="NaT")
+    lost = (local.isna() & ts.notna()).to_numpy()
+    if lost.any():
+        j = int(np.flatnonzero(lost)[0])
+        row = int(np.flatnonzero(np.asarray(part))[j]) + 1
+        value = ts.iloc[j]
+        try:
+            pd.Series([value]).dt.tz_localize(zone, ambiguous=True, nonexistent="raise")
+            what = "happens twice (the hour the clocks go back)"
+        except Exception:  # noqa: BLE001 - any failure here is the missing hour
+            what = "does not exist (the hour the clocks go forward)"
+        raise DataError(
+            f"local time {str(value)!r} {what} in {zone}: write the timestamps with an "
+            "offset or in UTC",
+            name, col, row,
+        )  # fmt: skip
+    return local
+
+
+#: Epoch magnitudes (of the median value) that tell the unit, largest first.
+_EPOCH_UNITS = ((1e17, 1, "nanoseconds"), (1e14, 1_000, "microseconds"),
+                (1e11, 1_000_000, "milliseconds"))  # fmt: skip
+#: Largest epoch accepted, in seconds (year 2286; beyond it int64 nanoseconds overflow).
+_EPOCH_MAX_S = 1e10
+
+
+def _epoch(vals: np.ndarray, attrs: dict, name: str, col: str) -> np.ndarray:
+    """Epoch values to int64 nanoseconds: the unit told by the median, each row checked.
+
+    Historians write seconds, milliseconds, microseconds or nanoseconds since 1970; a
+    present-day time is about 1.7e9 s, 1.7e12 ms, 1.7e15 us or 1.7e18 ns, so the median
+    tells the unit. A value out of range is refused by row, not wrapped around int64.
+    """
+    ns_per, unit = 1_000_000_000, "seconds"
+    med = float(np.median(np.abs(vals)))
+    for limit, factor, label in _EPOCH_UNITS:
+        if med >= limit:
+            ns_per, unit = factor, label
+            break
+    secs = vals * (ns_per / 1e9)
+    bad = np.flatnonzero(~(np.abs(secs) <= _EPOCH_MAX_S))
+    if bad.size:
+        raise DataError(
+            f"epoch {vals[bad[0]]:.6g} is out of range (the column reads as {unit} since "
+            "1970, and this is beyond the year 2286)",
+            name, col, int(bad[0]) + 1,
+        )  # fmt: skip
+    if unit != "seconds":
+        attrs["epoch_note"] = f"epoch times read as {unit} (median value {med:.4g})"
+    # Whole units and the fraction apart, in the file's own unit: nanoseconds of 1.7e9 s
+    # exceed float64's 15-16 digits.
+    whole = np.floor(vals)
+    frac = np.round((vals - whole) * ns_per).astype("int64")
+    return whole.astype("int64") * ns_per + frac
+
+
+def _separator(path: Path) -> tuple[str, str]:
+    """',' or ';' (then ',' is the decimal mark), from the header line."""
+    with open(path, "rb") as fh:
+        head = fh.readline(1 << 16)
+    if b";" in head and b"," not in head:
+        return ";", ","
+    return ",", "."
 
 
 def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
@@ -263,10 +360,23 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     p = Path(path)
     if not p.is_file():
         raise DataError("file not found", name)
+    sep, decimal = _separator(p)
     try:
-        df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True)
-    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
+        df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True, sep=sep)
+    except pd.errors.ParserError as exc:
+        import re
+
+        msg = str(exc).splitlines()[0]
+        got = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", msg)
+        if got:
+            want, line, saw = (int(x) for x in got.groups())
+            raise DataError(
+                f"{saw} fields, expected {want} (as in the header)", name, row=line - 1
+            ) from None
+        raise DataError(f"cannot be read as CSV: {msg}", name) from None
+    except (UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise DataError(f"cannot be read as CSV: {str(exc).splitlines()[0]}", name) from None
+    df.attrs["decimal"] = decimal
     m = mapping
     wanted = [m.time, *m.v_mag, *m.v_ang, *m.i_mag, *m.i_ang]
     wanted += [c for c in (m.freq, m.rocof) if c]
@@ -288,6 +398,13 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
             ]
         )
 
+    for col in [*m.v_mag, *m.i_mag]:
+        neg = np.flatnonzero(_numeric(df, col, name) < 0)
+        if neg.size:
+            raise DataError(
+                "a phasor magnitude cannot be negative (it would turn P and Q over)",
+                name, col, int(neg[0]) + 1,
+            )  # fmt: skip
     vph = phasors(m.v_mag, m.v_ang, _V_UNITS[m.voltage])
     iph = phasors(m.i_mag, m.i_ang, _I_UNITS[m.current])
     if vph.shape[0] == 1:
@@ -301,7 +418,7 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     if m.rocof:
         extra["rocof"] = _numeric(df, m.rocof, name)
 
-    report = []
+    report = [df.attrs["epoch_note"]] if "epoch_note" in df.attrs else []
     order = np.argsort(t_ns, kind="stable")
     if np.any(order != np.arange(order.size)):
         n_out = int(np.sum(np.diff(t_ns) < 0))

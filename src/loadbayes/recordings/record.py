@@ -89,13 +89,25 @@ def _empty(m: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.ndarray]:
+def _waveform_rows(
+    w: Waveforms, seg, per_cycle: int, dc: str, k: int = 0, source: str = ""
+) -> dict[str, np.ndarray]:
     sl = slice(seg.start, seg.stop)
     skew = None if w.skew_s is None else np.concatenate([w.skew_s[0], w.skew_s[1]])
-    fit = fit_phasors(
-        w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
-        per_cycle=per_cycle, dc=dc, skew_s=skew,
-    )  # fmt: skip
+    try:
+        fit = fit_phasors(
+            w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
+            per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3,
+        )  # fmt: skip
+    except ValueError as exc:
+        if len(w.segments) < 2:
+            raise
+        rate = f"{seg.rate_hz:g} samples/s by the rate table" if seg.rate_hz else "stamps"
+        raise DataError(
+            f"samples {seg.start + 1}-{seg.stop} (segment {k + 1}, {rate}): {exc}; too "
+            "short for a waveform segment (an amplitude segment labelled as waveform?)",
+            source,
+        ) from None
     vph, iph = fit.x[:3], fit.x[3:]
     _, v1, v2 = _sequences(vph)
     _, i1, i2 = _sequences(iph)
@@ -103,10 +115,7 @@ def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.n
     out = _empty(m)
     s1 = 3.0 * v1 * np.conj(i1)
     st = np.sum(vph * np.conj(iph), axis=0)
-    turn = np.angle(v1[1:] * np.conj(v1[:-1])) / (2 * np.pi * np.diff(fit.t_s)) if m > 1 else []
-    f = w.f_nominal + np.concatenate([turn[:1], turn]) if m > 1 else np.full(m, fit.f_hz)
-    if m > 2:
-        f[1:-1] = 0.5 * (f[1:-1] + f[2:])
+    f = _frequency(fit.t_s, v1, w.f_nominal, fit.f_hz)
     with np.errstate(invalid="ignore", divide="ignore"):
         out.update(
             t_s=fit.t_s, v=np.abs(v1), angle_rad=np.angle(v1), p=s1.real, q=s1.imag, f=f,
@@ -118,6 +127,25 @@ def _waveform_rows(w: Waveforms, seg, per_cycle: int, dc: str) -> dict[str, np.n
         )  # fmt: skip
     out["angle_rad"] = np.unwrap(out["angle_rad"])
     return out
+
+
+def _frequency(t: np.ndarray, v1: np.ndarray, f0: float, f_seg: float) -> np.ndarray:
+    """Frequency (Hz) at each window from the turn of V1, a running median of three turns.
+
+    A window across a step of the voltage's magnitude has its phase pulled one way and
+    its neighbour's back (a spike and its mirror in the turns); the median of three
+    neighbouring turns removes such a pair and follows a real frequency change.
+    """
+    m = t.size
+    if m < 2:
+        return np.full(m, f_seg)
+    turn = np.angle(v1[1:] * np.conj(v1[:-1])) / (2 * np.pi * np.diff(t))
+    # turns[k] is between windows k-1 and k; each window takes the turns either side
+    # and the next one out.
+    pad = np.concatenate([turn[:1], turn[:1], turn, turn[-1:], turn[-1:]])
+    med = np.median(np.stack([pad[0:-2], pad[1:-1], pad[2:]]), axis=0)
+    # med[j] is the median around turn j-1; window k lies between turns k-1 and k.
+    return f0 + 0.5 * (med[:m] + med[1 : m + 1])
 
 
 def _amplitude_rows(w: Waveforms, seg, scale: float) -> dict[str, np.ndarray]:
@@ -204,16 +232,25 @@ def record_table(
     if not any(s.kind == "waveform" for s in segs):
         raise ValueError("the record has no waveform segment (only magnitudes): no phasors")
     parts = [
-        (seg, _waveform_rows(w, seg, per_cycle, dc) if seg.kind == "waveform" else None)
-        for seg in segs
+        (seg, _waveform_rows(w, seg, per_cycle, dc, k, source) if seg.kind == "waveform" else None)
+        for k, seg in enumerate(segs)
     ]
     for k, (seg, rows) in enumerate(parts):
         if rows is not None and (share := float(np.median(rows.pop("_share")))) < MIN_SHARE:
+            if seg.rate_hz > 0:
+                said = f"the rate table says {seg.rate_hz:g} samples/s (segment {k + 1})"
+                guess = "an amplitude segment labelled as waveform?"
+            else:
+                gaps = np.diff(w.t_s[seg.start : seg.stop])
+                said = (
+                    f"timed by the .dat's stamps alone (segment {k + 1}; spacing from "
+                    f"{gaps.min():.3g} to {gaps.max():.3g} s)"
+                )
+                guess = "implausible time stamps, or magnitudes rather than waveforms?"
             raise DataError(
-                f"samples {seg.start + 1}-{seg.stop}: the rate table says {seg.rate_hz:g} "
-                f"samples/s (segment {k + 1}), but the {w.f_nominal:g} Hz fundamental "
-                f"holds only {share:.0%} of their power: not waveform samples (an "
-                "amplitude segment labelled as waveform?)",
+                f"samples {seg.start + 1}-{seg.stop}: {said}, but the {w.f_nominal:g} Hz "
+                f"fundamental holds only {share:.0%} of their power: not waveform samples "
+                f"({guess})",
                 source,
             )
     notes = [w.clock_note] if w.clock_note else []
@@ -243,6 +280,13 @@ def record_table(
         for c in COLUMNS:
             cols[c].append(rows[c])
     table = {c: np.concatenate(v) for c, v in cols.items()}
+    amp = [k + 1 for k, s in enumerate(segs) if s.kind == "amplitude"]
+    if amp:
+        n_amp = int(np.sum(table["kind"] == "amplitude"))
+        notes.append(
+            f"{n_amp} rows of amplitude segment(s) {', '.join(map(str, amp))} are per-phase "
+            "magnitudes only (va .. ic): no phasor, P or Q is invented for them (NaN)"
+        )
     n_unb = int(table["unbalanced"].sum())
     if n_unb:
         notes.append(
