@@ -109,3 +109,13 @@ def test_a_wrong_formula_would_be_caught():
     got = summarize(x * 1.001)
     want = _arviz_rows(x, 0.95)
     assert not np.allclose(got["sd"], want[:, 1], rtol=1e-8, atol=0)
+
+
+def test_threads_change_nothing(monkeypatch):
+    x = _rng(9).standard_normal((5, 4, 20_000))
+    monkeypatch.setenv("LOADBAYES_NUM_THREADS", "1")
+    one = summarize(x)
+    monkeypatch.setenv("LOADBAYES_NUM_THREADS", "2")
+    two = summarize(x)
+    for key in COLUMNS:
+        assert np.array_equal(one[key], two[key]), key

@@ -41,6 +41,9 @@ DIRECT_LAGS = 48
 
 _RESOLUTION = float(np.finfo(float).resolution)
 
+#: Draws (all series together) below which one thread summarises them all.
+_MIN_DRAWS_PER_THREAD = 200_000
+
 
 @functools.lru_cache(maxsize=8)
 def _scores(size: int, half: bool) -> np.ndarray:
@@ -56,7 +59,7 @@ def _scores(size: int, half: bool) -> np.ndarray:
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _pairwise_sum(a, lo, n):  # pragma: no cover - compiled
     """``a[lo:lo + n].sum()`` in numpy's order for ``n <= 128`` (8 lanes); in order above.
 
@@ -94,7 +97,7 @@ def _pairwise_sum(a, lo, n):  # pragma: no cover - compiled
     return res
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _var_seq(a, ddof):  # pragma: no cover - compiled
     """ArviZ's ``stats_variance_1d``: ``E[x^2] - E[x]^2``, summed in order."""
     s = 0.0
@@ -107,7 +110,7 @@ def _var_seq(a, ddof):  # pragma: no cover - compiled
     return var * (n / (n - ddof))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _z_scores(values, order, table, half_table):  # pragma: no cover - compiled
     """Normal scores of the average ranks of each row of ``values`` (rows sorted by order).
 
@@ -134,7 +137,7 @@ def _z_scores(values, order, table, half_table):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _fold_order(s, order, med):  # pragma: no cover - compiled
     """Order of ``|x - med|`` from the sorted ``x`` (``s``, ``order``): a merge, not a sort.
 
@@ -159,7 +162,7 @@ def _fold_order(s, order, med):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rhat(z, chain_means):  # pragma: no cover - compiled
     """Split R-hat of each series of ``z`` (m, chains, draws) (ArviZ's ``_rhat``).
 
@@ -177,7 +180,7 @@ def _rhat(z, chain_means):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract", "nsz", "arcp"})
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc", "contract", "nsz", "arcp"})
 def _lag(xc, t):  # pragma: no cover - compiled
     """Mean over chains of the lag-``t`` autocovariance (sum of products / length)."""
     c, d = xc.shape
@@ -191,7 +194,7 @@ def _lag(xc, t):  # pragma: no cover - compiled
     return _pairwise_sum(acc, 0, c) / c
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _geyer(xc, acov, mean_var, var_plus, max_lag):  # pragma: no cover - compiled
     """ESS of one series from its centred chains (ArviZ's ``_ess`` loop).
 
@@ -236,7 +239,7 @@ def _geyer(xc, acov, mean_var, var_plus, max_lag):  # pragma: no cover - compile
     return ess / tau
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _ess_direct(y, chain_means, max_lag, mean_var_out, var_plus_out):  # pragma: no cover
     """ESS of each series of ``y`` (m, chains, draws); -1.0 where the FFT is needed.
 
@@ -282,7 +285,7 @@ def _ess_direct(y, chain_means, max_lag, mean_var_out, var_plus_out):  # pragma:
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _ess_fft_rows(y, acov, mean_var, var_plus):  # pragma: no cover - compiled
     """ESS of series ``y`` (chains, draws) with every lag's mean autocovariance given."""
     c, d = y.shape
@@ -364,6 +367,28 @@ def summarize(
     x = np.ascontiguousarray(draws, dtype=float)
     if x.ndim != 3:
         raise ValueError(f"draws must be shaped (series, chain, draw); got {x.shape}")
+    from loadbayes.core.parallel import num_threads, run_threads
+
+    m = x.shape[0]
+    groups = min(num_threads(), m, max(1, x.size // _MIN_DRAWS_PER_THREAD))
+    if groups <= 1:
+        return _summarize(x, hdi_prob, tail)
+    # The series are independent: a share of them per thread (the sorts and the
+    # compiled kernels release the GIL); the result is the same as in one thread.
+    bounds = np.linspace(0, m, groups + 1).astype(int)
+    parts: list[dict[str, np.ndarray]] = [{} for _ in range(groups)]
+
+    def task(i: int):
+        def run() -> None:
+            parts[i] = _summarize(x[bounds[i] : bounds[i + 1]], hdi_prob, tail)
+
+        return run
+
+    run_threads([task(i) for i in range(groups)])
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _summarize(x: np.ndarray, hdi_prob: float, tail: bool) -> dict[str, np.ndarray]:
     m, c, d = x.shape
     flat = x.reshape(m, c * d)
     out: dict[str, np.ndarray] = {
@@ -388,7 +413,7 @@ def summarize(
     if not ok.all():
         # ArviZ: a series with a NaN has no diagnostics; the others are computed alone.
         if ok.any():
-            part = summarize(x[ok], hdi_prob=hdi_prob, tail=tail)
+            part = _summarize(np.ascontiguousarray(x[ok]), hdi_prob, tail)
             for k in keys:
                 diag[k][ok] = part[k]
         return {**out, **diag}
