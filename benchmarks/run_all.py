@@ -35,6 +35,7 @@ SCRIPTS = [
     ("bench_powerflow.py", "powerflow"),
     ("bench_im.py", "im"),
     ("bench_composite.py", "composite"),
+    ("bench_cli.py", "cli"),
 ]
 
 

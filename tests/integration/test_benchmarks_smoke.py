@@ -16,7 +16,7 @@ import pytest
 pytestmark = pytest.mark.integration
 
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
-SCRIPTS = ["bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py"]
+SCRIPTS = ["bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py", "bench_cli.py"]
 
 
 def _run_all():
@@ -60,6 +60,12 @@ def test_script_runs_quick(script, tmp_path):
                 assert rows[name]["check"] in ("ok", "low ESS"), rows[name]
     if script == "bench_stream.py":
         assert info["bit_identical"]
+    if script == "bench_cli.py":
+        cases = {r["case"] for r in info["results"]}
+        assert {"fit zip, cold cache (compiles)", "fit zip, warm cache"} <= cases
+        assert info["machine"]["load_average_at_start"] is not None
+        parts = {p["part"]: p["seconds"] for p in info["where_the_time_goes"]}
+        assert parts["import arviz (should be absent)"] == 0.0  # fit zip never loads ArviZ
 
 
 def test_readme_is_written_from_results(tmp_path):
