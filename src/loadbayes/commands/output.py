@@ -10,6 +10,7 @@ output or none (:func:`user_errors`; the handlers are in :mod:`.signals`).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
@@ -275,6 +276,80 @@ class Progress:
         elif not self.quiet and self.count:
             click.echo(f"{self.label}: {self.count} rows", err=True)
         self.quiet = True
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return f"{max(seconds, 1):.0f} s"
+    if seconds < 3600:
+        return f"{seconds // 60:.0f} min {seconds % 60:02.0f} s"
+    return f"{seconds // 3600:.0f} h {seconds % 3600 / 60:02.0f} min"
+
+
+class SamplingBar:
+    """The estimated cost of a sampling run, then a progress bar with the time left.
+
+    ``begin(total, seconds)`` says on stderr what the run will take (unless quiet);
+    calls with a number of iterations done move the bar, which is drawn only on a
+    terminal (as :class:`Progress`). Safe to call from the chains' threads.
+    """
+
+    def __init__(self, quiet: bool, label: str = "sampling") -> None:
+        import threading
+
+        self.quiet = quiet
+        self.label = label
+        self.bar = None
+        self.lock = threading.Lock()
+
+    def begin(self, total: int, seconds: float) -> None:
+        """Say the estimate; start the bar."""
+        if self.quiet:
+            return
+        click.echo(
+            f"loadbayes: {self.label} {total} iterations (all chains): about "
+            f"{_duration(seconds)} on this machine (timed on a short run)",
+            err=True,
+        )
+        if _isatty(sys.stderr):
+            self.bar = click.progressbar(
+                length=total, label=self.label, file=sys.stderr, show_eta=True, show_percent=True
+            )
+            self.bar.__enter__()
+
+    def __call__(self, n: int) -> None:
+        if self.bar is not None:
+            with self.lock:
+                self.bar.update(n)
+
+    def close(self) -> None:
+        """End the bar (a line of its own)."""
+        with self.lock:
+            if self.bar is not None:
+                self.bar.__exit__(None, None, None)
+                self.bar = None
+
+
+@contextlib.contextmanager
+def output_transaction(files: dict[str, str | None], *, force: bool):
+    """Write a command's outputs as one transaction (every one, or none).
+
+    Yields a :class:`loadbayes.io.transaction.OutputSet` over the outputs given (``-``
+    and None left out): write each to ``out.temp(option)``; leaving the block normally
+    renames them all onto their targets, and :func:`user_errors` then says truly what a
+    signal left (every output, or none). Call :func:`stop_if_signalled` between two
+    writes whose libraries may swallow a KeyboardInterrupt (netCDF/HDF5).
+    """
+    from loadbayes.io.transaction import OutputSet
+
+    targets = {k: v for k, v in files.items() if v and v != "-"}
+    stop_if_signalled()
+    with OutputSet(targets, force=force) as out:
+        _STOP["outputs"] = out
+        yield out
+        stop_if_signalled()
+        out.commit()
+        _STOP["committed"] = True
 
 
 def _isatty(stream) -> bool:
