@@ -87,20 +87,43 @@ def user_errors(func):
             raise UserError(str(exc)) from None
         except OSError as exc:
             raise UserError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")) from None
-        except KeyboardInterrupt as exc:
-            sig = _STOP["signal"] or signal.SIGINT
-            what = "terminated (SIGTERM)" if sig == signal.SIGTERM else "interrupted"
-            if _STOP["committed"] or getattr(_STOP.get("outputs"), "committed", False):
-                msg = f"{what} after every output was written"
-            else:
-                msg = f"{what}; no output was written"
+        except SystemError as exc:
+            # A signal that lands in a Python callback of a compiled function (numba's
+            # dispatcher unpickling a constant) comes out as "SystemError: ... returned a
+            # result with an exception set", its cause the KeyboardInterrupt.
+            if _STOP["signal"] is None or not _caused_by_interrupt(exc):
+                raise
             del exc
-            click.echo(f"loadbayes: {msg}", err=True)
-            sys.exit(EXIT_SIGNAL.get(sig, 130))
+            _say_interrupted()
+        except KeyboardInterrupt as exc:
+            del exc
+            _say_interrupted()
         finally:
             restore_signal_handlers()
 
     return wrapper
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    seen = 0
+    cur: BaseException | None = exc
+    while cur is not None and seen < 50:
+        if isinstance(cur, KeyboardInterrupt):
+            return True
+        cur, seen = cur.__cause__ or cur.__context__, seen + 1
+    return False
+
+
+def _say_interrupted() -> None:
+    # One line saying what a signal left (every output or none), and exit 130 or 143.
+    sig = _STOP["signal"] or signal.SIGINT
+    what = "terminated (SIGTERM)" if sig == signal.SIGTERM else "interrupted"
+    if _STOP["committed"] or getattr(_STOP.get("outputs"), "committed", False):
+        msg = f"{what} after every output was written"
+    else:
+        msg = f"{what}; no output was written"
+    click.echo(f"loadbayes: {msg}", err=True)
+    sys.exit(EXIT_SIGNAL.get(sig, 130))
 
 
 def check_outputs(
