@@ -127,3 +127,36 @@ def test_json_on_standard_output_and_no_raw_arviz_lines(tmp_path):
     assert "R-hat needs two or more chains" in res.stderr
     assert "arviz - WARNING" not in res.output
     assert "composite posterior" in res.stderr  # the table moved off standard output
+
+
+def test_sigterm_inside_the_writes_leaves_all_outputs_or_none(tmp_path):
+    # A real signal once the first temporary output exists (the NetCDF and the figure
+    # are written after it), at a seeded random delay: every output, or none, and no
+    # temporary file of any depth.
+    _csv(tmp_path / "sag.csv")
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    args = [sys.executable, "-m", "loadbayes", "fit", "composite", "sag.csv",
+            "--draws", "400", "--burn", "200", "--chains", "2", "--quiet",
+            "--json", "c.json", "--netcdf", "c.nc", "--plot", "c.png",
+            "--baseline-json", "b.json"]  # fmt: skip
+    proc = subprocess.Popen(args, cwd=tmp_path, stderr=subprocess.PIPE, env=env, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not any(p.name.startswith(".c.json.") for p in tmp_path.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.01)
+        time.sleep(np.random.default_rng(7).uniform(0.0, 0.3))
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    names = sorted(p.name for p in tmp_path.iterdir())
+    outputs = ["b.json", "c.json", "c.nc", "c.png"]
+    last = err.strip().splitlines()[-1]
+    if last == "loadbayes: terminated (SIGTERM); no output was written":
+        assert proc.returncode == 143 and names == ["sag.csv"]
+    else:  # the signal came after the renames
+        assert proc.returncode in (0, 143), err
+        assert names == sorted([*outputs, "sag.csv"])
