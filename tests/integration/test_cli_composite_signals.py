@@ -127,6 +127,8 @@ def test_json_on_standard_output_and_no_raw_arviz_lines(tmp_path):
     assert "R-hat needs two or more chains" in res.stderr
     assert "arviz - WARNING" not in res.output
     assert "composite posterior" in res.stderr  # the table moved off standard output
+    # The cost, said before the chains start (a short timed run, extrapolated).
+    assert "loadbayes: sampling 200 iterations (all chains): about " in res.stderr
 
 
 def test_sigterm_inside_the_writes_leaves_all_outputs_or_none(tmp_path):

@@ -163,3 +163,24 @@ def test_progress_gets_the_estimate_then_every_iteration():
     assert set(da["settings"].pop("timing_s")) == {"nls", "sampler"}
     db["settings"].pop("timing_s")
     assert da == db
+
+
+def test_the_sampling_bar_says_the_cost_and_draws_on_a_terminal(monkeypatch, capsys):
+    from loadbayes.commands import output
+
+    monkeypatch.setattr(output, "_isatty", lambda stream: True)
+    bar = output.SamplingBar(quiet=False)
+    bar.begin(400, 125.0)
+    drawn = bar.bar  # click's bar (it renders only on a real terminal)
+    assert drawn is not None and drawn.show_eta
+    for _ in range(4):
+        bar(100)
+    assert drawn.pos == 400
+    bar.close()
+    err = capsys.readouterr().err
+    assert "sampling 400 iterations (all chains): about 2 min 05 s" in err
+    quiet = output.SamplingBar(quiet=True)
+    quiet.begin(400, 125.0)
+    quiet(400)
+    quiet.close()
+    assert capsys.readouterr().err == ""
