@@ -435,14 +435,19 @@ def write_outputs(
         if netcdf_out:
             if not quiet:
                 click.echo(f"loadbayes: writing {netcdf_out} (draws, predictions)...", err=True)
-            post.to_netcdf(out.temp("--netcdf"), force=True)
+            # Straight into the set's temporary: Posterior.to_netcdf would write a
+            # temporary of it, which a signal inside HDF5 could leave behind.
+            post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             # netCDF/HDF5 may swallow the KeyboardInterrupt raised inside its C calls.
             stop_if_signalled()
         if plot_out:
-            from loadbayes.plots.fit import plot_fit, save_figure
+            from loadbayes.plots.fit import plot_fit, pyplot
 
-            save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), out.temp("--plot"),
-                        force=True)  # fmt: skip
+            fig = plot_fit(post, model=model, hdi_prob=hdi_prob)
+            target = out.temp("--plot")
+            fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
+                        bbox_inches="tight")  # fmt: skip
+            pyplot().close(fig)
             stop_if_signalled()
         out.commit()
         _STOP["committed"] = True
