@@ -50,3 +50,33 @@ def test_a_swallowed_signal_is_silent_and_still_stops_the_run(capsys):
         output._STOP["previous_unraisable"] = previous
         output.restore_signal_handlers()
     assert sys.unraisablehook is before
+
+
+def test_a_signal_inside_a_compiled_functions_callback_is_one_line():
+    # numba's dispatcher runs Python callbacks (unpickling a constant); a signal landing in
+    # one surfaces as "SystemError: ... returned a result with an exception set" whose
+    # cause is the KeyboardInterrupt: said as the interrupt, not as a traceback.
+    import click
+    from click.testing import CliRunner
+
+    from loadbayes.commands.output import user_errors
+
+    @click.command()
+    @user_errors
+    def cmd():
+        output._STOP["signal"] = signal.SIGINT  # what _on_signal records first
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") from exc
+
+    @click.command()
+    @user_errors
+    def other():
+        raise SystemError("a real one")
+
+    res = CliRunner().invoke(cmd, [])
+    assert res.exit_code == 130
+    assert res.output.strip() == "loadbayes: interrupted; no output was written"
+    res = CliRunner().invoke(other, [])
+    assert isinstance(res.exception, SystemError)  # not a signal: not hidden

@@ -6,17 +6,28 @@ registers it under ``fit``. Heavy imports stay inside the function.
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
 
 import click
 
 from loadbayes.commands.options import (
     OneLineCommand,
+    accept_units_option,
     likelihood_options,
     parse_nu,
     sampler_settings,
 )
-from loadbayes.commands.output import UserError, check_outputs, user_errors
+from loadbayes.commands.output import (
+    SamplingBar,
+    UserError,
+    check_cost,
+    check_outputs,
+    output_transaction,
+    stop_if_signalled,
+    user_errors,
+)
 
 __all__ = ["fit_composite_cmd"]
 
@@ -83,12 +94,13 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
 )
 @click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
 @click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
+@accept_units_option
 @click.option(
     "--f-hz",
-    type=click.FloatRange(min=0, min_open=True),
+    type=click.FloatRange(min=10, max=1000),
     default=60.0,
     show_default=True,
-    help="Nominal frequency (the motor's time base).",
+    help="Nominal frequency (the motor's time base), 10-1000 Hz.",
 )
 @click.option(
     "--torque",
@@ -127,7 +139,11 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     burn_help="Burn-in (the proposal adapts during it, then freezes).",
 )
 @click.option(
-    "--json", "json_out", type=click.Path(dir_okay=False), required=True, help="Summary JSON."
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False),
+    required=True,
+    help="Summary JSON ('-': standard output, the table then goes to stderr).",
 )
 @click.option("--netcdf", "netcdf_out", type=click.Path(dir_okay=False), help="All draws.")
 @click.option("--plot", "plot_out", type=click.Path(dir_okay=False), help="Figure.")
@@ -137,7 +153,7 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     type=click.Path(dir_okay=False),
     help="The NLS baseline (Gaussian approximation) in the same JSON contract.",
 )
-@click.option("--quiet", is_flag=True, help="No table on stdout.")
+@click.option("--quiet", is_flag=True, help="No progress, no estimate and no table.")
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def fit_composite_cmd(
@@ -151,6 +167,7 @@ def fit_composite_cmd(
     event_col,
     v_base,
     s_base,
+    accept_units,
     f_hz,
     torque,
     steps,
@@ -177,20 +194,25 @@ def fit_composite_cmd(
         "--plot": plot_out,
         "--baseline-json": baseline_out,
     }
-    check_outputs(outputs, list(files), force)
+    check_outputs(outputs, list(files), force, stdout_ok=("--json",))
     torque_abc = _parse_torque(torque)
     nu_value = parse_nu(nu)
     if likelihood != "student-t" and nu != "auto":
         raise UserError("--nu needs --likelihood student-t")
     prior_items = _parse_priors(priors)
+    if sampler.seed < 0:
+        raise UserError(f"--seed {sampler.seed}: the seed must be a non-negative integer")
 
     import numpy as np
 
     from loadbayes.fit.composite import fit_composite, predictive_band
+    from loadbayes.fit.composite.checks import check_run, check_units
     from loadbayes.measurements.events import read_events
     from loadbayes.models.composite import THETA_NAMES
     from loadbayes.models.composite_prior import CompositePrior
 
+    check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
+              seed=sampler.seed)  # fmt: skip
     events = read_events(
         list(files),
         t_col=t_col,
@@ -204,6 +226,14 @@ def fit_composite_cmd(
         s_base=s_base,
         f_hz=f_hz,
     )
+    check_units(events, accept_units=accept_units)  # before the prior reads v0, p0
+    # Stored per kept draw (an upper bound): the named draws of the motor, torque and
+    # noise (~30), each event's 7 coefficients and its derived shares and powers, the
+    # steps' fractions (at most 2 per event), the raw blocks kept alongside.
+    check_cost(
+        chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
+        n_params=2 * (30 + 20 * len(events)), netcdf_out=netcdf_out, quiet=quiet,
+    )  # fmt: skip
     prior = CompositePrior.default(events)
     if prior_items:
         mean, sd = prior.theta_mean.copy(), prior.theta_sd.copy()
@@ -216,40 +246,67 @@ def fit_composite_cmd(
         click.echo(
             f"fitting {len(events)} event(s), {n} samples: NLS start, then sampling", err=True
         )
-    fit = fit_composite(
-        events,
-        prior=prior,
-        f_hz=f_hz,
-        torque=torque_abc,
-        steps=steps,
-        sampler=sampler,
-        settings={"files": list(files)},
-        likelihood=likelihood,
-        nu=nu_value,
-    )
-    post = fit.posterior
-    table = post.summary(hdi_prob=sampler.hdi_prob)
-    written: list[str] = []
+    if sampler.chains < 2:
+        click.echo(
+            "loadbayes: warning: one chain: R-hat needs two or more chains, so convergence "
+            "is not checked (use --chains 2 or more)",
+            err=True,
+        )
+    bar = SamplingBar(quiet)
     try:
-        post.to_json(json_out, hdi_prob=sampler.hdi_prob, force=force, summary=table)
-        written.append(str(json_out))
+        with _quiet_arviz():
+            fit = fit_composite(
+                events,
+                prior=prior,
+                f_hz=f_hz,
+                torque=torque_abc,
+                steps=steps,
+                sampler=sampler,
+                settings={"files": list(files)},
+                likelihood=likelihood,
+                nu=nu_value,
+                accept_units=accept_units,
+                progress=bar,
+            )
+    finally:
+        bar.close()
+    post = fit.posterior
+    with _quiet_arviz():
+        table = post.summary(hdi_prob=sampler.hdi_prob)
+        text = json.dumps(post.to_dict(hdi_prob=sampler.hdi_prob, summary=table), indent=2,
+                          allow_nan=False)  # fmt: skip
+    bands = None
+    if plot_out:
+        bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=sampler.seed)
+    stop_if_signalled()
+    # One transaction: every output to a temporary beside its target, renamed together
+    # at the end (a signal before that leaves none of them, and the message says so).
+    with output_transaction(outputs, force=force) as out:
+        if json_out != "-":
+            out.temp("--json").write_text(text + "\n", encoding="utf-8")
+        stop_if_signalled()
         if baseline_out:
-            fit.baseline.to_json(baseline_out, hdi_prob=sampler.hdi_prob, force=force)
-            written.append(str(baseline_out))
+            base = fit.baseline.to_dict(hdi_prob=sampler.hdi_prob)
+            out.temp("--baseline-json").write_text(
+                json.dumps(base, indent=2, allow_nan=False) + "\n", encoding="utf-8"
+            )
+            stop_if_signalled()
         if netcdf_out:
-            post.to_netcdf(netcdf_out, force=force)
-            written.append(str(netcdf_out))
+            # Straight into the transaction's temporary (Posterior.to_netcdf would make a
+            # temporary of it, which a signal could leave behind).
+            post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
+            stop_if_signalled()
         if plot_out:
             from loadbayes.plots.composite import plot_composite
-            from loadbayes.plots.fit import save_figure
+            from loadbayes.plots.fit import pyplot
 
-            bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=sampler.seed)
             fig = plot_composite(post, events, bands, baseline=fit.baseline)
-            save_figure(fig, plot_out, force=force)
-            written.append(str(plot_out))
-    except KeyboardInterrupt as exc:
-        exc.written = written  # type: ignore[attr-defined]
-        raise
+            target = out.temp("--plot")
+            fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
+                        bbox_inches="tight")  # fmt: skip
+            pyplot().close(fig)
+    if json_out == "-":
+        click.echo(text)
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
@@ -258,8 +315,23 @@ def fit_composite_cmd(
         names += [n for n in ("a", "b", "c") if torque_abc == "estimate"]
         names += [n for n in ("nu_p", "nu_q") if n in post.draws]
         cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
-        click.echo(f"composite posterior, {post.method}, {len(events)} event(s)")
-        click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"))
-        click.echo(post.extra_json["identifiability"]["summary"])
+        err = json_out == "-"  # the JSON has standard output
+        click.echo(f"composite posterior, {post.method}, {len(events)} event(s)", err=err)
+        click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"), err=err)
+        click.echo(post.extra_json["identifiability"]["summary"], err=err)
         acc = np.round(post.settings["acceptance"], 3).tolist()
-        click.echo(f"Metropolis acceptance per chain: {acc}")
+        click.echo(f"Metropolis acceptance per chain: {acc}", err=err)
+
+
+@contextlib.contextmanager
+def _quiet_arviz():
+    # ArviZ logs "arviz - WARNING" lines of its own (R-hat of one chain, few draws); the
+    # fit says what matters in its own warnings instead.
+    import logging
+
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)  # its loggers have handlers and levels of their own
+    try:
+        yield
+    finally:
+        logging.disable(previous)

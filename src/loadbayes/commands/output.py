@@ -10,6 +10,7 @@ output or none (:func:`user_errors`; the handlers are in :mod:`.signals`).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
@@ -86,20 +87,43 @@ def user_errors(func):
             raise UserError(str(exc)) from None
         except OSError as exc:
             raise UserError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")) from None
-        except KeyboardInterrupt as exc:
-            sig = _STOP["signal"] or signal.SIGINT
-            what = "terminated (SIGTERM)" if sig == signal.SIGTERM else "interrupted"
-            if _STOP["committed"] or getattr(_STOP.get("outputs"), "committed", False):
-                msg = f"{what} after every output was written"
-            else:
-                msg = f"{what}; no output was written"
+        except SystemError as exc:
+            # A signal that lands in a Python callback of a compiled function (numba's
+            # dispatcher unpickling a constant) comes out as "SystemError: ... returned a
+            # result with an exception set", its cause the KeyboardInterrupt.
+            if _STOP["signal"] is None or not _caused_by_interrupt(exc):
+                raise
             del exc
-            click.echo(f"loadbayes: {msg}", err=True)
-            sys.exit(EXIT_SIGNAL.get(sig, 130))
+            _say_interrupted()
+        except KeyboardInterrupt as exc:
+            del exc
+            _say_interrupted()
         finally:
             restore_signal_handlers()
 
     return wrapper
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    seen = 0
+    cur: BaseException | None = exc
+    while cur is not None and seen < 50:
+        if isinstance(cur, KeyboardInterrupt):
+            return True
+        cur, seen = cur.__cause__ or cur.__context__, seen + 1
+    return False
+
+
+def _say_interrupted() -> None:
+    # One line saying what a signal left (every output or none), and exit 130 or 143.
+    sig = _STOP["signal"] or signal.SIGINT
+    what = "terminated (SIGTERM)" if sig == signal.SIGTERM else "interrupted"
+    if _STOP["committed"] or getattr(_STOP.get("outputs"), "committed", False):
+        msg = f"{what} after every output was written"
+    else:
+        msg = f"{what}; no output was written"
+    click.echo(f"loadbayes: {msg}", err=True)
+    sys.exit(EXIT_SIGNAL.get(sig, 130))
 
 
 def check_outputs(
@@ -277,6 +301,80 @@ class Progress:
         self.quiet = True
 
 
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return f"{max(seconds, 1):.0f} s"
+    if seconds < 3600:
+        return f"{seconds // 60:.0f} min {seconds % 60:02.0f} s"
+    return f"{seconds // 3600:.0f} h {seconds % 3600 / 60:02.0f} min"
+
+
+class SamplingBar:
+    """The estimated cost of a sampling run, then a progress bar with the time left.
+
+    ``begin(total, seconds)`` says on stderr what the run will take (unless quiet);
+    calls with a number of iterations done move the bar, which is drawn only on a
+    terminal (as :class:`Progress`). Safe to call from the chains' threads.
+    """
+
+    def __init__(self, quiet: bool, label: str = "sampling") -> None:
+        import threading
+
+        self.quiet = quiet
+        self.label = label
+        self.bar = None
+        self.lock = threading.Lock()
+
+    def begin(self, total: int, seconds: float) -> None:
+        """Say the estimate; start the bar."""
+        if self.quiet:
+            return
+        click.echo(
+            f"loadbayes: {self.label} {total} iterations (all chains): about "
+            f"{_duration(seconds)} on this machine (timed on a short run)",
+            err=True,
+        )
+        if _isatty(sys.stderr):
+            self.bar = click.progressbar(
+                length=total, label=self.label, file=sys.stderr, show_eta=True, show_percent=True
+            )
+            self.bar.__enter__()
+
+    def __call__(self, n: int) -> None:
+        if self.bar is not None:
+            with self.lock:
+                self.bar.update(n)
+
+    def close(self) -> None:
+        """End the bar (a line of its own)."""
+        with self.lock:
+            if self.bar is not None:
+                self.bar.__exit__(None, None, None)
+                self.bar = None
+
+
+@contextlib.contextmanager
+def output_transaction(files: dict[str, str | None], *, force: bool):
+    """Write a command's outputs as one transaction (every one, or none).
+
+    Yields a :class:`loadbayes.io.transaction.OutputSet` over the outputs given (``-``
+    and None left out): write each to ``out.temp(option)``; leaving the block normally
+    renames them all onto their targets, and :func:`user_errors` then says truly what a
+    signal left (every output, or none). Call :func:`stop_if_signalled` between two
+    writes whose libraries may swallow a KeyboardInterrupt (netCDF/HDF5).
+    """
+    from loadbayes.io.transaction import OutputSet
+
+    targets = {k: v for k, v in files.items() if v and v != "-"}
+    stop_if_signalled()
+    with OutputSet(targets, force=force) as out:
+        _STOP["outputs"] = out
+        yield out
+        stop_if_signalled()
+        out.commit()
+        _STOP["committed"] = True
+
+
 def _isatty(stream) -> bool:
     try:
         return bool(stream.isatty())
@@ -337,14 +435,19 @@ def write_outputs(
         if netcdf_out:
             if not quiet:
                 click.echo(f"loadbayes: writing {netcdf_out} (draws, predictions)...", err=True)
-            post.to_netcdf(out.temp("--netcdf"), force=True)
+            # Straight into the set's temporary: Posterior.to_netcdf would write a
+            # temporary of it, which a signal inside HDF5 could leave behind.
+            post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             # netCDF/HDF5 may swallow the KeyboardInterrupt raised inside its C calls.
             stop_if_signalled()
         if plot_out:
-            from loadbayes.plots.fit import plot_fit, save_figure
+            from loadbayes.plots.fit import plot_fit, pyplot
 
-            save_figure(plot_fit(post, model=model, hdi_prob=hdi_prob), out.temp("--plot"),
-                        force=True)  # fmt: skip
+            fig = plot_fit(post, model=model, hdi_prob=hdi_prob)
+            target = out.temp("--plot")
+            fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
+                        bbox_inches="tight")  # fmt: skip
+            pyplot().close(fig)
             stop_if_signalled()
         out.commit()
         _STOP["committed"] = True

@@ -216,12 +216,25 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     """Find the voltage sags in a long t_s, v, p, q[, f] record; write one file per event.
 
     Writes OUT/event_001.csv ... (t_s from each event's start) and OUT/events.csv, the
-    list of events (window, sag start, recovery, depth).
+    list of events (window, sag start, recovery, depth), as one transaction: all of them
+    or none. With --force, event files of an earlier run that this run does not write are
+    removed, so that the folder holds exactly the events events.csv lists.
     """
+    import numpy as np
+
+    from loadbayes.commands.output import output_transaction, stop_if_signalled
+    from loadbayes.io.errors import DataError
     from loadbayes.io.tables import read_columns, write_table
     from loadbayes.recordings.events import cut_events, find_sags
     from loadbayes.recordings.record_file import record_events
 
+    for opt, value in (("--threshold", threshold), ("--hysteresis", hysteresis),
+                       ("--min-duration", min_duration), ("--pre", pre), ("--post", post),
+                       ("--v-ref", v_ref)):  # fmt: skip
+        if value is not None and not math.isfinite(value):
+            raise UserError(f"{opt} {value}: must be a finite number")
+        if opt in ("--min-duration", "--pre", "--post") and value < 0:
+            raise UserError(f"{opt} {value:g}: must be a finite number >= 0")
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"{out}: --out is a file, expected a folder")
@@ -238,21 +251,34 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     else:
         # v may be 0 (an interruption in a long record): not refused here.
         data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["angle_rad", "f", "rocof"])
+        t = data["t_s"]
+        back = np.flatnonzero(~(np.diff(t) > 0))
+        if back.size:
+            k = int(back[0]) + 1  # 0-based index of the offending sample = data row k + 1
+            raise DataError(
+                f"t_s must be strictly increasing (t = {t[k]:g} s after {t[k - 1]:g} s)",
+                record,
+                "t_s",
+                k + 1,
+            )
         try:
             windows = find_sags(
-                data["t_s"], data["v"], threshold=threshold, hysteresis=hysteresis,
+                t, data["v"], threshold=threshold, hysteresis=hysteresis,
                 min_duration_s=min_duration, pre_s=pre, post_s=post, v_ref=v_ref,
             )  # fmt: skip
         except ValueError as exc:
             raise UserError(f"{record}: {exc}") from None
     names = [folder / f"event_{ev.index:03d}.{fmt}" for ev in windows]
     index = folder / "events.csv"
-    for path in [*names, index]:
+    stale = _stale_events(folder, set(names)) if force else []
+    source = Path(record).resolve()
+    for path in [*names, index, *stale]:
+        if path.resolve() == source:
+            raise UserError(f"{path}: --out {out} would overwrite the input record")
         if path.exists() and not force:
             raise UserError(f"{path}: exists; use --force to overwrite")
+    made = not folder.exists()
     folder.mkdir(exist_ok=True)
-    for path, table in zip(names, cut_events(data, windows), strict=True):
-        write_table(table, path, force=force)
     rows = [ev.as_row() | {"file": p.name} for ev, p in zip(windows, names, strict=True)]
     cols = ["index", "file", "start", "stop", "sag_start_s", "recovery_s", "duration_s",
             "v_min", "depth", "recovered", "n_sags"]  # fmt: skip
@@ -261,13 +287,56 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
         cols += list(found.extra[0]) if found.extra else []
     import pandas as pd
 
-    write_table(pd.DataFrame(rows, columns=cols), index, force=force)
+    targets = {p.name: str(p) for p in names} | {"events.csv": str(index)}
+    try:
+        with output_transaction(targets, force=force) as tx:
+            for path, table in zip(names, cut_events(data, windows), strict=True):
+                write_table(table, tx.temp(path.name), force=True)
+                stop_if_signalled()
+            write_table(pd.DataFrame(rows, columns=cols), tx.temp("events.csv"), force=True)
+        _remove(stale)
+    except BaseException:
+        if made and not any(folder.iterdir()):
+            folder.rmdir()  # the folder this run made, left empty: gone too
+        raise
     if not quiet:
         click.echo(f"{record}: {len(windows)} event(s) written to {out}", err=True)
-        for ev in windows:
+        shown = windows if len(windows) <= _LISTED else windows[: _LISTED // 2]
+        for ev in shown:
             rec = f"recovered at {ev.recovery_s:.4g} s" if ev.recovered else "not recovered"
             click.echo(
                 f"  event {ev.index}: sag at {ev.sag_start_s:.4g} s, depth {ev.depth:.3f}, "
                 f"{ev.duration_s:.4g} s, {rec}",
                 err=True,
             )
+        if len(shown) < len(windows):
+            click.echo(f"  ... and {len(windows) - len(shown)} more (listed in {index})", err=True)
+
+
+#: More events than this are summarised on stderr (events.csv lists them all).
+_LISTED = 20
+
+
+def _stale_events(folder: Path, keep: set[Path]) -> list[Path]:
+    # Event files of an earlier run (event_NNN.csv / .parquet) that this run does not write.
+    import re
+
+    if not folder.is_dir():
+        return []
+    pattern = re.compile(r"event_\d{3,}\.(csv|parquet)")
+    return sorted(p for p in folder.iterdir() if pattern.fullmatch(p.name) and p not in keep)
+
+
+def _remove(paths: list[Path]) -> None:
+    # After the commit, with SIGINT/SIGTERM held back: the folder then lists exactly the
+    # events of events.csv, even if a signal arrives meanwhile.
+    import contextlib
+    import signal
+
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        for p in paths:
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)

@@ -38,6 +38,11 @@ def _on_signal(signum, frame) -> None:
     if _STOP["signal"] is not None:
         return
     _STOP["signal"] = signum
+    # The chains running in other threads see this at their next iteration (the
+    # exception below reaches only the main thread).
+    from loadbayes.core.parallel import request_stop
+
+    request_stop()
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
@@ -60,6 +65,9 @@ def install_signal_handlers() -> None:
         return
     if signal.getsignal(signal.SIGINT) is _on_signal:
         return
+    from loadbayes.core.parallel import clear_stop
+
+    clear_stop()
     _STOP.update(signal=None, outputs=None, committed=False)
     _STOP["previous"] = {s: signal.getsignal(s) for s in EXIT_SIGNAL}
     for s in EXIT_SIGNAL:
@@ -80,6 +88,9 @@ def restore_signal_handlers() -> None:
         return
     for s, h in previous.items():
         signal.signal(s, h if h is not None else signal.SIG_DFL)
+    from loadbayes.core.parallel import clear_stop
+
+    clear_stop()
     sys.unraisablehook = _STOP.pop("previous_unraisable", sys.__unraisablehook__)
 
 

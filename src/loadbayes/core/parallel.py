@@ -6,6 +6,12 @@ runs a list of callables (row blocks of a compiled kernel).
 Chains and row blocks run in plain threads because the compiled kernels release the GIL;
 each chain draws from its own generator spawned from the caller's seed, so the draws do
 not depend on the number of threads.
+
+A stop flag ends the chains early: a chain loop calls :func:`check_stop` every iteration,
+which raises :class:`ChainsStopped` once its run's flag is set (another chain failed, or
+the main thread was interrupted) or :func:`request_stop` was called (the CLI's SIGINT /
+SIGTERM handler does). Without it, Ctrl-C took effect only when the running chains ended
+(minutes later on a long composite fit).
 """
 
 from __future__ import annotations
@@ -19,7 +25,42 @@ import numpy as np
 
 T = TypeVar("T")
 
-__all__ = ["chain_generators", "num_threads", "run_chains", "run_threads"]
+__all__ = [
+    "ChainsStopped",
+    "chain_generators",
+    "check_stop",
+    "clear_stop",
+    "num_threads",
+    "request_stop",
+    "run_chains",
+    "run_threads",
+]
+
+#: Set by :func:`request_stop` (a signal): every running chain stops at its next check.
+_ALL_STOP = threading.Event()
+
+
+class ChainsStopped(KeyboardInterrupt):
+    """A chain stopped at its stop flag (a KeyboardInterrupt: the run was interrupted)."""
+
+
+def request_stop() -> None:
+    """Ask every running chain to stop at its next :func:`check_stop` (signal-safe)."""
+    _ALL_STOP.set()
+
+
+def clear_stop() -> None:
+    """Forget a :func:`request_stop` (a new command run in the same process)."""
+    _ALL_STOP.clear()
+
+
+def check_stop(stop: threading.Event | None = None) -> None:
+    """Raise :class:`ChainsStopped` if ``stop`` is set or :func:`request_stop` was called.
+
+    Cheap (two flag reads): a chain loop calls it every iteration.
+    """
+    if _ALL_STOP.is_set() or (stop is not None and stop.is_set()):
+        raise ChainsStopped()
 
 
 def num_threads() -> int:
@@ -36,12 +77,27 @@ def num_threads() -> int:
         return max(os.cpu_count() or 1, 1)
 
 
-def run_threads(tasks: Sequence[Callable[[], None]]) -> None:
+def _first_error(errors: list[BaseException]) -> BaseException:
+    # The cause, not the chains it stopped: an interrupt first, then a real error.
+    for kind in (lambda e: isinstance(e, KeyboardInterrupt) and not isinstance(e, ChainsStopped),
+                 lambda e: not isinstance(e, ChainsStopped)):  # fmt: skip
+        for exc in errors:
+            if kind(exc):
+                return exc
+    return errors[0]
+
+
+def run_threads(
+    tasks: Sequence[Callable[[], None]], *, stop: threading.Event | None = None
+) -> None:
     """Run callables concurrently: the first in this thread, the others in new threads.
 
     Meant for compiled kernels that release the GIL. Threads are started per call (tens
     of microseconds), which keeps this safe after ``fork`` and from any thread. The first
-    exception raised by a task is re-raised here once all have finished.
+    exception raised by a task is re-raised here once all have finished (an interrupt
+    before any other error). When ``stop`` is given it is set as soon as a task fails or
+    this thread is interrupted, so tasks that call :func:`check_stop` end within one step
+    instead of running to their end.
     """
     if len(tasks) == 1:
         tasks[0]()
@@ -53,15 +109,25 @@ def run_threads(tasks: Sequence[Callable[[], None]]) -> None:
             task()
         except BaseException as exc:  # noqa: BLE001 - re-raised in the caller
             errors.append(exc)
+            if stop is not None:
+                stop.set()
 
     threads = [threading.Thread(target=guarded, args=(t,), daemon=True) for t in tasks[1:]]
-    for th in threads:
-        th.start()
-    guarded(tasks[0])
-    for th in threads:
-        th.join()
+    try:
+        for th in threads:
+            th.start()
+        guarded(tasks[0])
+        for th in threads:
+            th.join()
+    except BaseException as exc:  # an interrupt outside a task (in a join, say)
+        errors.append(exc)
+        if stop is not None:
+            stop.set()
+        for th in threads:
+            if th.ident is not None:  # started
+                th.join()
     if errors:
-        raise errors[0]
+        raise _first_error(errors)
 
 
 def chain_generators(
@@ -79,6 +145,7 @@ def run_chains(
     generators: Sequence[np.random.Generator],
     *,
     workers: int | None = None,
+    stop: threading.Event | None = None,
 ) -> list[T]:
     """Run ``chain(i, generators[i])`` for every chain, in up to ``workers`` threads.
 
@@ -95,6 +162,10 @@ def run_chains(
         One per chain (:func:`chain_generators`).
     workers : int, optional
         Threads; default ``min(chains, num_threads())``. 1 runs every chain here.
+    stop : threading.Event, optional
+        The chains' stop flag: set here when a chain fails or the caller is interrupted;
+        a chain that calls ``check_stop(stop)`` every iteration then ends at once (raising
+        :class:`ChainsStopped`) and the cause is re-raised.
 
     Returns
     -------
@@ -108,6 +179,7 @@ def run_chains(
     def lane(k: int) -> Callable[[], None]:
         def run() -> None:
             for i in range(k, n, workers):
+                check_stop(stop)
                 out[i] = chain(i, generators[i])
 
         return run
@@ -115,5 +187,5 @@ def run_chains(
     if workers <= 1:
         lane(0)()
     else:
-        run_threads([lane(k) for k in range(workers)])
+        run_threads([lane(k) for k in range(workers)], stop=stop)
     return out

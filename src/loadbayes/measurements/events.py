@@ -48,6 +48,14 @@ MIN_SAMPLES = 20
 MIN_DV = 0.01
 #: A sampling interval larger than this multiple of the median interval is a gap.
 MAX_GAP = 2.5
+#: The record's own frequency (median of f, or from the angle's drift) this far off the
+#: nominal is another system's frequency (50 Hz data at --f-hz 60 is 17% off), not a
+#: disturbance: refused, since the motor's time base would be wrong.
+MAX_F_OFF = 0.03
+#: A value further than this from its column's median (in units of the median's size,
+#: at least 1) is a corrupt cell, not a measurement (it made the fit's linear algebra
+#: singular, with no location).
+MAX_OUTLIER = 1e6
 
 
 def events_from_arrays(
@@ -139,6 +147,18 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
             names["t"],
             int(rows[-1]),
         )
+    for key in ("v", "p", "q"):
+        x = cols[key]
+        med = float(np.median(x))
+        far = np.flatnonzero(np.abs(x - med) > MAX_OUTLIER * max(abs(med), 1.0))
+        if far.size:
+            k = int(far[0])
+            raise DataError(
+                f"value {x[k]:g} is not a measurement (the column's median is {med:.4g})",
+                path,
+                names[key],
+                int(rows[k]),
+            )
     v0 = float(v[0])
     if span < MIN_SPAN_S:
         _check_steady_start(t, v, rows, where=where, path=path, col=names["v"], f_hz=f_hz)
@@ -151,6 +171,7 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
             names["v"],
             int(rows[int(np.argmax(np.abs(v - v0)))]),
         )
+    _check_frequency(cols, rows, dt, path=path, label=label, names=names, f_hz=f_hz)
     delta, source = None, ""
     if "angle" in cols:
         delta, source = np.unwrap(cols["angle"]), "angle"
@@ -186,6 +207,28 @@ def _check_steady_start(t, v, rows, *, where, path, col, f_hz) -> None:
             path,
             col,
             int(rows[k]),
+        )
+
+
+def _check_frequency(cols, rows, dt, *, path, label, names, f_hz) -> None:
+    # The record's own frequency against the nominal: the f column's median, else the
+    # angle's drift (an angle in a frame turning at f_hz drifts by 2 pi (f - f_hz) rad/s).
+    where = "" if label == path else f" in {label}"
+    if "f" in cols:
+        f = float(np.median(cols["f"]))
+        column, how = names["f"], "its median"
+    elif "angle" in cols:
+        slope = np.diff(np.unwrap(cols["angle"])) / dt
+        f = f_hz + float(np.median(slope)) / (2 * math.pi)
+        column, how = names["angle"], "from the angle's drift"
+    else:
+        return
+    if abs(f / f_hz - 1) > MAX_F_OFF:
+        raise DataError(
+            f"the record's frequency is about {f:.4g} Hz ({how}){where}, not the nominal "
+            f"{f_hz:g} Hz: give --f-hz {round(f):g} if the system runs at {round(f):g} Hz",
+            path,
+            column,
         )
 
 

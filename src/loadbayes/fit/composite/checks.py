@@ -27,10 +27,132 @@ from loadbayes.diagnostics import RHAT_MAX
 from loadbayes.models.composite import EventRecord
 from loadbayes.models.composite_steps import step_intervals
 
-__all__ = ["T_PRIME_INTERVALS", "convergence_warnings", "jumps", "sampling_warnings"]
+__all__ = [
+    "F_HZ_RANGE",
+    "MIN_KEPT",
+    "T_PRIME_INTERVALS",
+    "check_run",
+    "check_units",
+    "convergence_warnings",
+    "jumps",
+    "sampling_warnings",
+    "start_warnings",
+]
 
 #: T' shorter than this many sample intervals is where a misplaced step biases it.
 T_PRIME_INTERVALS = 10.0
+#: Nominal frequencies a power system runs at, with room (Hz): 16.7 Hz rail to 400 Hz
+#: aircraft. Outside it the motor's time base makes no sense (the NLS start failed).
+F_HZ_RANGE = (10.0, 1000.0)
+#: Fewest kept draws per chain: fewer and R-hat, ESS and the intervals mean nothing
+#: (two identical kept draws were once reported as "well determined").
+MIN_KEPT = 50
+#: The voltage at the event's first sample more than this share below the level it
+#: settles at (its last tenth): the event starts inside the sag, not in a steady state.
+START_BELOW = 0.05
+#: The first samples (this many seconds) vary by more than this share of V0: not steady.
+START_SPAN_S, START_FLAT = 0.05, 0.02
+
+
+def check_run(*, f_hz: float, draws: int, burn: int, thin: int, seed: object) -> None:
+    """Refuse settings the composite fit cannot run, before any work (one line each).
+
+    Raises
+    ------
+    loadbayes.io.errors.OptionError
+        ``f_hz`` outside :data:`F_HZ_RANGE`, fewer than :data:`MIN_KEPT` kept draws per
+        chain, or a negative integer seed.
+    """
+    from loadbayes.io.errors import OptionError
+
+    lo, hi = F_HZ_RANGE
+    if not (lo <= f_hz <= hi):
+        raise OptionError(
+            f"--f-hz {f_hz:g}: the nominal frequency must be between {lo:g} and {hi:g} Hz"
+        )
+    kept = len(range(burn, draws, thin))
+    if kept < MIN_KEPT:
+        raise OptionError(
+            f"--draws {draws} --burn {burn} --thin {thin} keep {kept} draw(s) per chain; "
+            f"the composite fit needs at least {MIN_KEPT} (R-hat, ESS and the intervals "
+            "mean nothing with fewer)"
+        )
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed < 0:
+        raise OptionError(f"--seed {seed}: the seed must be a non-negative integer")
+
+
+def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) -> list[str]:
+    """The unit check of ``fit zip``, per event: V per unit, P and Q of a sensible size.
+
+    The composite's nominal powers are estimated (``p0``, ``q0`` per event), so P and Q
+    are checked as ``fit zip --p0 auto`` checks them; a negative median P (a load that
+    generates) is refused too. With ``accept_units`` the problems become warnings.
+
+    Returns
+    -------
+    list of str
+        Warnings (only with ``accept_units``).
+
+    Raises
+    ------
+    loadbayes.io.errors.DataError
+        The first problem, naming the event's file (and event id) and the column.
+    """
+    from loadbayes.io.errors import DataError
+    from loadbayes.measurements.units import ACCEPT, UnitProblem, check_power_units
+
+    out: list[str] = []
+    for e in events:
+        problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto")
+        med_p = float(np.median(e.p))
+        if not problems and med_p < 0:
+            problems.append(
+                UnitProblem(
+                    "p",
+                    f"P has median {med_p:.4g} < 0: the bus exports power, and a composite "
+                    "load (ZIP + motor) consumes it",
+                    "give P as the power into the load (check the meter's sign convention)",
+                )
+            )
+        if not problems:
+            continue
+        if not accept_units:
+            first = problems[0]
+            raise DataError(str(first), path=e.name or None, column=first.column)
+        out += [f"{e.name or 'event'}: column '{pr.column}': {pr.seen} (fitted anyway: "
+                f"{ACCEPT})" for pr in problems]  # fmt: skip
+    return out
+
+
+def start_warnings(events: Sequence[EventRecord]) -> list[str]:
+    """Plain-words warnings for an event that does not start in a steady state.
+
+    The fit takes each event's first sample as the operating point before the
+    disturbance (the motor's initial state, ``p0``, ``q0`` and ``v0``). An event cut
+    inside a sag or during its recovery starts lower than it settles, or moving.
+    """
+    out = []
+    for e in events:
+        v0 = float(e.v[0])
+        tail = float(np.median(e.v[-max(e.n // 10, 1) :]))
+        head = e.v[e.t <= e.t[0] + START_SPAN_S]
+        head = head if head.size >= 3 else e.v[:3]
+        span = float(np.ptp(head)) / abs(v0) if v0 else np.inf
+        why = None
+        if tail > v0 * (1 + START_BELOW):
+            why = (f"its first voltage ({v0:.3g}) is {100 * (1 - v0 / tail):.0f}% below the "
+                   f"level it ends at ({tail:.3g}): it starts inside the sag")  # fmt: skip
+        elif span > START_FLAT:
+            why = (f"its voltage moves by {100 * span:.1f}% in the first {head.size} samples: "
+                   "it starts during a change")  # fmt: skip
+        if why:
+            out.append(
+                f"{e.name or 'the event'} does not start in a steady state: {why}. The fit "
+                "takes the first sample as the pre-disturbance operating point, so v0, p0, "
+                "q0 and the motor refer to the wrong state: cut the event earlier (events "
+                "--pre)"
+            )
+    return out
 
 
 def jumps(event: EventRecord) -> np.ndarray:

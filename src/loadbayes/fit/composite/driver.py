@@ -12,6 +12,7 @@ the posterior: draws named by :mod:`~loadbayes.fit.composite.naming`, provenance
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -20,7 +21,13 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.settings import SamplerSettings
-from loadbayes.fit.composite.checks import convergence_warnings, sampling_warnings
+from loadbayes.fit.composite.checks import (
+    check_run,
+    check_units,
+    convergence_warnings,
+    sampling_warnings,
+    start_warnings,
+)
 from loadbayes.fit.composite.identifiability import (
     identifiability,
     prior_driven_warning,
@@ -48,7 +55,7 @@ from loadbayes.models.composite_prior import CompositePrior
 from loadbayes.models.motor_kernel import H_MAX_S
 from loadbayes.posterior import Posterior, gaussian_draws
 
-__all__ = ["COMPOSITE_DEFAULTS", "CompositeFit", "fit_composite"]
+__all__ = ["COMPOSITE_DEFAULTS", "CompositeFit", "SamplingProgress", "fit_composite"]
 
 #: The composite fit's sampler defaults (the CLI's too): 16000 iterations, 4000 burn-in,
 #: four chains.
@@ -87,6 +94,43 @@ def _baseline_draws(
     return named_draws(problem, theta, betas, tau, phi=problem.phi(x[..., :d]))
 
 
+class SamplingProgress:
+    """What :func:`fit_composite` tells about the sampling while it runs (override both).
+
+    :meth:`begin` gets the iterations to run (all chains) and the estimated wall time
+    before the chains start; the instance is then called with the iterations done since
+    its last call, from the chains' threads.
+    """
+
+    def begin(self, total: int, seconds: float) -> None:  # noqa: D102
+        pass
+
+    def __call__(self, n: int) -> None:  # noqa: D102
+        pass
+
+
+#: Iterations of the short run that times one iteration before the chains start.
+_PROBE_ITERATIONS = 12
+
+
+def _estimate_seconds(sampled, start, run: SamplerSettings, move: str, student_t) -> float:
+    # Measure a few iterations of one chain (its own throw-away run) and extrapolate: the
+    # chains share the threads, each runs run.draws iterations.
+    from loadbayes.core.parallel import num_threads
+
+    def probe(n: int) -> float:
+        t0 = time.perf_counter()
+        sample(sampled, start=start, draws=n, burn=n // 2, chains=1, seed=run.seed,
+               workers=1, move=move, student_t=student_t)  # fmt: skip
+        return time.perf_counter() - t0
+
+    probe(2)  # the first call compiles the kernels (the run would pay it anyway)
+    per_iteration = probe(_PROBE_ITERATIONS) / _PROBE_ITERATIONS
+    threads = run.threads or num_threads()
+    rounds = math.ceil(run.chains / max(1, min(threads, run.chains)))
+    return per_iteration * run.draws * rounds
+
+
 def _student_t(likelihood: str, nu: float | str) -> StudentT | None:
     if likelihood == "student-t":
         return StudentT(nu=nu)
@@ -109,6 +153,8 @@ def fit_composite(
     likelihood: str = "normal",
     nu: float | str = "auto",
     workers: int | None = None,
+    accept_units: bool = False,
+    progress: SamplingProgress | None = None,
     **overrides: Any,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -143,6 +189,12 @@ def fit_composite(
         Student-t degrees of freedom, fixed or sampled (one per channel).
     workers : int, optional
         Threads for the chains (``sampler.threads`` overridden when given).
+    accept_units : bool
+        Fit events whose V is not per unit, or whose P is negative (warned, not refused;
+        the check is ``fit zip``'s: :func:`loadbayes.fit.composite.checks.check_units`).
+    progress : SamplingProgress, optional
+        Told the estimated cost before sampling (a short timed run) and the iterations
+        as they are done.
     **overrides
         ``draws``, ``burn``, ``thin``, ``chains``, ``seed``: change those of ``sampler``
         (``SamplerSettings.of``).
@@ -151,12 +203,22 @@ def fit_composite(
     -------
     CompositeFit
         The posterior, the NLS baseline (Gaussian draws), the problem and timings.
+
+    Raises
+    ------
+    loadbayes.io.errors.DataError
+        Events whose units are not per unit (V) or whose P is negative, unless
+        ``accept_units``.
+    loadbayes.io.errors.OptionError
+        ``f_hz`` outside 10-1000 Hz, fewer than 50 kept draws per chain, a negative seed.
     """
     base = sampler if sampler is not None else COMPOSITE_DEFAULTS
     run = SamplerSettings.of(base, threads=workers, **overrides)
     events = list(events)
     if not events:
         raise ValueError("no events to fit")
+    check_run(f_hz=f_hz, draws=run.draws, burn=run.burn, thin=run.thin, seed=run.seed)
+    unit_warnings = check_units(events, accept_units=accept_units)
     prior = prior or CompositePrior.default(events)
     estimate = isinstance(torque, str)
     if estimate and torque != "estimate":
@@ -172,12 +234,20 @@ def fit_composite(
         sampled = TorqueProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps)
         sample_start = extend_start(start, np.zeros(2))
     student_t = _student_t(likelihood, nu)
+    t_sample = t1
+    if progress is not None:
+        progress.begin(
+            run.draws * run.chains,
+            _estimate_seconds(sampled, sample_start, run, move, student_t),
+        )
+        t_sample = time.perf_counter()
     res = sample(
         sampled, start=sample_start, draws=run.draws, burn=run.burn, thin=run.thin,
         chains=run.chains, seed=run.seed, workers=run.threads, move=move, student_t=student_t,
+        progress=progress,
     )  # fmt: skip
     t2 = time.perf_counter()
-    seconds = {"nls": t1 - t0, "sampler": t2 - t1}
+    seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
     blocks = ChainDraws.stack(res, steps=bool(problem.n_steps), torque=estimate)
     draws_named = blocks.named(problem)
     common = problem_settings(problem, torque, settings)
@@ -191,7 +261,7 @@ def fit_composite(
         model="composite",
         method=METHOD[move] + ("-student-t" if student_t else ""),
         constant=constant,
-        warnings=robust_warn,
+        warnings=unit_warnings + start_warnings(events) + robust_warn,
         coefficients=coefficients,
         free=free,
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},

@@ -136,12 +136,12 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     x_best = np.concatenate([best.x[:5], mean_s]) if best.x.size < problem.dim else best.x
     if coarse is not problem:
         w = 1.0 / _static_sigmas(problem)
-    _, betas = _project(problem, x_best, w)
+    _, betas = _projected(problem, x_best, w)
     w = 1.0 / _sigmas(problem, x_best, betas)
     sol = run(w, x_best)
     nfev += sol.nfev
     u = sol.x
-    _, betas = _project(problem, u, w)
+    _, betas = _projected(problem, u, w)
     sig = _sigmas(problem, u, betas)
     cov = _gauss_newton_cov(problem, u, betas, 1.0 / sig, np.linalg.inv(cov_u))
     return NLSResult(u, betas, sig, cov, float(sol.cost), time.perf_counter() - t_start, int(nfev))
@@ -149,6 +149,22 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
 
 #: Sample rate (per s) above which the NLS's multi-start search runs on thinned events.
 COARSE_FS = 120.0
+
+
+def _projected(problem: CompositeProblem, u: np.ndarray, w: np.ndarray):
+    # _project, or one line saying why there is no start (this was a TypeError traceback,
+    # "cannot unpack non-iterable NoneType", on data in kV and MW).
+    out = _project(problem, u, w)
+    if out is None:
+        from loadbayes.io.errors import DataError
+
+        names = ", ".join(e.name for e in problem.events if e.name) or "the events"
+        raise DataError(
+            f"{names}: the least-squares start found no motor whose response can be "
+            f"computed for these data: are V, P and Q per unit (--v-base, --s-base) and "
+            f"is --f-hz {problem.f_hz:g} the system's frequency?"
+        )
+    return out
 
 
 def _thinned(problem: CompositeProblem) -> CompositeProblem:

@@ -10,12 +10,15 @@ physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-mo
 
 from __future__ import annotations
 
+import threading
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from loadbayes.core.parallel import chain_generators, run_chains
+from loadbayes.core.parallel import chain_generators, check_stop, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
@@ -31,6 +34,8 @@ __all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "am"
+#: Seconds between two progress reports of one chain.
+PROGRESS_EVERY_S = 0.2
 
 
 @dataclass
@@ -64,6 +69,7 @@ def sample(
     dispersion: float = 2.0,
     move: str = DEFAULT_MOVE,
     student_t: Any = None,
+    progress: Callable[[int], None] | None = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -94,6 +100,9 @@ def sample(
         this move").
     student_t : loadbayes.fit.composite.robust.StudentT, optional
         Student-t noise (a weights step each iteration); Gaussian noise when None.
+    progress : callable, optional
+        Called with a number of iterations just done (of ``chains * draws``), about every
+        :data:`PROGRESS_EVERY_S` seconds per chain, from the chains' threads.
 
     Returns
     -------
@@ -117,6 +126,9 @@ def sample(
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
     kept_idx = range(burn, draws, thin)
     root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
+    # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
+    # chain end every chain within one iteration, not when the chains finish.
+    stop = threading.Event()
 
     def chain(index: int, rng: np.random.Generator) -> ChainResult:
         am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
@@ -140,7 +152,12 @@ def sample(
         wt = None if student_t is None else student_t.chain(problem, u, tau, len(kept_idx))
         if wt is not None:
             sums = wt.sums
+        told, last = 0, time.perf_counter()
         for it in range(draws):
+            check_stop(stop)
+            if progress is not None and time.perf_counter() - last > PROGRESS_EVERY_S:
+                progress(it - told)
+                told, last = it, time.perf_counter()
             if wt is None:
                 lp = problem.log_collapsed(sums, u, tau)
 
@@ -164,6 +181,8 @@ def sample(
                 x_out[j] = u[n_base:]
                 b_out[j], t_out[j] = np.array(betas), tau
                 j += 1
+        if progress is not None:
+            progress(draws - told)
         robust = {}
         if wt is not None:
             robust = dict(zip(("nu", "weight", "nu_acceptance"), wt.result(), strict=True))
@@ -178,4 +197,4 @@ def sample(
             **robust,
         )
 
-    return run_chains(chain, chain_generators(seed, chains), workers=workers)
+    return run_chains(chain, chain_generators(seed, chains), workers=workers, stop=stop)
