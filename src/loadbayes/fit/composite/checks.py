@@ -223,13 +223,10 @@ def convergence_warnings(
     """
     if chains < 2:
         return []
-    import warnings
+    from loadbayes.core.convergence import summarize
 
-    from loadbayes.posterior import import_arviz
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        rhat = {n: float(import_arviz().rhat(draws[n])) for n in names}
+    values = summarize(np.stack([draws[n] for n in names]), tail=False)["r_hat"]
+    rhat = {n: float(r) for n, r in zip(names, values, strict=True)}
     slow = [n for n, r in rhat.items() if not r < RHAT_MAX]
     if not slow:
         return []
