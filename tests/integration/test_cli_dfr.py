@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -323,3 +324,25 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
         res = CliRunner().invoke(main, cmd.split()[1:])
         assert res.exit_code == 0, res.output
         assert res.output.splitlines() == expected, cmd
+    # The fit and the prediction of the reclose, as the page goes on: the same lines,
+    # the numbers within what another machine's last digits (or the fit's Monte Carlo
+    # error at a fixed seed) can move them.
+    block = doc.split("the numbers are one run's")[1].split("The defaults (")[0]
+    steps = []
+    for line in block.splitlines():
+        if line.startswith("    loadbayes ") and not line.startswith("    loadbayes: "):
+            steps.append((line[4:], []))
+        elif line.startswith("    "):
+            steps[-1][1].append(line[4:])
+    assert [cmd.split()[1] for cmd, _ in steps] == ["fit", "validate"]
+    number = re.compile(r"-?\d+\.\d+")
+    for cmd, expected in steps:
+        res = CliRunner().invoke(main, cmd.split()[1:])
+        assert res.exit_code == 0, res.output
+        got = res.output.splitlines()
+        assert [number.sub("#", g) for g in got] == [number.sub("#", e) for e in expected]
+        for g, e in zip(got, expected, strict=True):
+            for a, b in zip(number.findall(g), number.findall(e), strict=True):
+                assert float(a) == pytest.approx(float(b), abs=0.01), (cmd, g)
+    report = json.loads(Path("val.json").read_text())["events"][0]
+    assert report["n_excluded"] == 9 and report["rms_p"] < 0.022  # README baseline 2.2%
