@@ -1,0 +1,239 @@
+"""The channels of a COMTRADE record: chosen by name, number, bay or phase; scaled; checked.
+
+Part of :func:`~loadbayes.recordings.comtrade.read_comtrade` (its module docstring says
+how channels are chosen).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from loadbayes.io.errors import DataError
+from loadbayes.recordings.comtrade_cfg import AnalogChannel, CfgInfo
+
+__all__ = ["dead_channels", "missing_note", "pick_channels", "scale_channel", "unit_factor"]
+
+
+_UNIT_SCALE = {"V": 1.0, "kV": 1e3, "KV": 1e3, "MV": 1e6, "mV": 1e-3,
+               "A": 1.0, "kA": 1e3, "KA": 1e3, "mA": 1e-3}  # fmt: skip
+
+
+_PHASES = (("A", "B", "C"), ("R", "S", "T"), ("L1", "L2", "L3"), ("1", "2", "3"))
+
+
+def _phase_key(ch: AnalogChannel) -> str | None:
+    ph = ch.phase.strip().upper()
+    if len(ph) == 2 and ph.endswith("N"):
+        ph = ph[0]  # "AN": phase a to neutral
+    for trio in _PHASES:
+        if ph in trio:
+            return "abc"[trio.index(ph)]
+    tail = ch.name.strip().upper()
+    for suffix in ("-N", "_N", "N"):
+        if tail.endswith(suffix) and len(tail) > len(suffix) + 1:
+            tail = tail[: -len(suffix)]  # "VA-N", "VAN": phase to neutral
+            break
+    for trio in _PHASES[:3]:
+        for k, tag in enumerate(trio):
+            if tail.endswith(tag) and len(tail) > len(tag):
+                return "abc"[k]
+    return None
+
+
+def _duplicates(info: CfgInfo) -> dict[str, list[int]]:
+    """Channel ids given to more than one analog channel, with their ``.cfg`` lines."""
+    lines: dict[str, list[int]] = {}
+    for ch in info.analog:
+        lines.setdefault(ch.name, []).append(ch.line)
+    return {k: v for k, v in lines.items() if len(v) > 1}
+
+
+def _by_spec(info: CfgInfo, spec: str, kind: str) -> AnalogChannel:
+    """A channel by name (``ch_id``) or by its 1-based number."""
+    dup = _duplicates(info).get(spec)
+    if dup:
+        raise DataError(
+            f"channel id {spec!r} is on lines {', '.join(map(str, dup))}: name the channel "
+            f"by its 1-based number in --{kind}",
+            info.path,
+        )
+    for ch in info.analog:
+        if ch.name == spec:
+            return ch
+    if spec.strip().isdigit():
+        for ch in info.analog:
+            if ch.n == int(spec):
+                return ch
+        raise DataError(
+            f"no analog channel number {spec} (channels 1 to {len(info.analog)}; --{kind})",
+            info.path,
+        )
+    raise DataError(
+        f"no analog channel {spec!r} (channels: {', '.join(ch.name for ch in info.analog)})",
+        info.path,
+    )
+
+
+def _trios(chans: list[AnalogChannel]) -> list[list[AnalogChannel]]:
+    """Three-phase sets, in file order: per bay (``ccbm``) a, b, c channels."""
+    groups: dict[str, dict[str, AnalogChannel]] = {}
+    for ch in chans:
+        key = _phase_key(ch)
+        if key is not None:
+            groups.setdefault(ch.ccbm.strip(), {}).setdefault(key, ch)
+    out = [[g["a"], g["b"], g["c"]] for g in groups.values() if len(g) == 3]
+    if not out:  # no bay fields: the first a, b, c of the file
+        found: dict[str, AnalogChannel] = {}
+        for ch in chans:
+            key = _phase_key(ch)
+            if key is not None and key not in found:
+                found[key] = ch
+        if len(found) == 3:
+            out = [[found["a"], found["b"], found["c"]]]
+    return out
+
+
+def _bays(info: CfgInfo) -> list[str]:
+    return list(dict.fromkeys(ch.ccbm.strip() for ch in info.analog if ch.ccbm.strip()))
+
+
+def pick_channels(
+    info: CfgInfo, names: list[str] | None, kind: str, bay: str | None = None
+) -> tuple[list[AnalogChannel], str]:
+    """Three phase channels and how they were chosen."""
+    if names is not None:
+        if len(names) != 3:
+            raise DataError(f"--{kind} takes three channel names, got {len(names)}", info.path)
+        chans = [_by_spec(info, nm, kind) for nm in names]
+        for k, ch in enumerate(chans):
+            if ch in chans[:k]:
+                raise DataError(
+                    f"--{kind} names channel {ch.name!r} (line {ch.line}) twice: one channel "
+                    "cannot be two phases",
+                    info.path,
+                )
+        return chans, "named"
+    base = "V" if kind == "voltage" else "A"
+    cands = [ch for ch in info.analog if ch.unit.strip().upper().endswith(base)]
+    cands = [ch for ch in cands if unit_factor(ch.unit) is not None]
+    how = "found by unit and phase"
+    if bay is not None:
+        in_bay = [ch for ch in cands if bay.lower() in (ch.ccbm + " " + ch.name).lower()]
+        if in_bay:
+            cands, how = in_bay, f"bay {bay!r}"
+        elif kind == "current":
+            raise DataError(
+                f"bay {bay!r} has no current channels (bays: {', '.join(_bays(info))})",
+                info.path,
+            )
+        else:
+            how = f"bay {bay!r} has no voltage channels: the first three-phase voltage"
+    trios = _trios(cands)
+    dup = _duplicates(info)
+    if dup and any(ch.name in dup for t in trios[:1] for ch in t) or (not trios and dup):
+        name, lines = next(iter(dup.items()))
+        raise DataError(
+            f"channel id {name!r} is given to the channels on lines "
+            f"{', '.join(map(str, lines))}: name the {kind} channels by their 1-based "
+            f"numbers with --{kind} N,N,N",
+            info.path,
+        )
+    if not trios:
+        odd = [ch for ch in info.analog if unit_factor(ch.unit) is None]
+        hint = (
+            f"; line {odd[0].line}: channel {odd[0].name!r} has unit {odd[0].unit.strip()[:20]!r}"
+            f", not one of {', '.join(sorted(set(_UNIT_SCALE)))}"
+            if odd
+            else ""
+        )
+        raise DataError(
+            f"cannot tell which three channels are the phase {kind}s; name them with "
+            f"--{kind} A,B,C (names or 1-based numbers; analog channels: "
+            f"{', '.join(ch.name for ch in info.analog)}){hint}",
+            info.path,
+        )
+    if kind == "current" and bay is None and len(trios) > 1:
+        raise DataError(
+            f"{len(trios)} three-phase current sets ("
+            + "; ".join(t[0].ccbm.strip() or t[0].name for t in trios)
+            + "): choose one with --bay TEXT or --current A,B,C",
+            info.path,
+        )
+    return trios[0], how
+
+
+def unit_factor(unit: str) -> float | None:
+    """The factor from a channel's unit to volts or amperes, or None if unknown."""
+    unit = unit.strip()
+    if unit in _UNIT_SCALE:
+        return _UNIT_SCALE[unit]
+    # Case is only meaningful for m/M (milli, mega); "kv", "KV", "a" are plain.
+    return {"V": 1.0, "KV": 1e3, "A": 1.0, "KA": 1e3}.get(unit.upper())
+
+
+def scale_channel(ch: AnalogChannel, values: np.ndarray, side: str, path: str) -> np.ndarray:
+    """A channel's values in volts or amperes on the primary or secondary side."""
+    unit = ch.unit.strip()
+    factor = unit_factor(unit)
+    if factor is None:
+        raise DataError(
+            f"line {ch.line}: channel {ch.name!r} unit {unit[:20]!r} is not one of "
+            f"{', '.join(sorted(set(_UNIT_SCALE)))}",
+            path,
+        )
+    ratio = ch.primary / ch.secondary
+    if side == "primary" and ch.pors == "S":
+        factor *= ratio
+    elif side == "secondary" and ch.pors == "P":
+        factor /= ratio
+    return values * factor
+
+
+def missing_note(info: CfgInfo, ch: AnalogChannel) -> str:
+    """Why a sample is missing, in the words of the standard's markers."""
+    if info.format == "BINARY" and info.revision == "1991":
+        return (
+            "missing value (raw 0xFFFF: COMTRADE 1991 BINARY marks a missing sample so, "
+            "though later revisions read it as -1)"
+        )
+    if info.format == "BINARY":
+        return "missing value (raw 0x8000, the BINARY missing-sample marker)"
+    if info.format == "BINARY32":
+        return "missing value (raw 0x80000000, the BINARY32 missing-sample marker)"
+    if info.format == "FLOAT32":
+        return "missing value (NaN or infinite, FLOAT32's missing-sample marker)"
+    return "missing value (an empty, 99999, NaN or infinite cell)"
+
+
+def dead_channels(vch, v, ich, i, path: str) -> list[str]:
+    """Refuse a dead or mis-scaled voltage phase; say where a current phase is dead.
+
+    A voltage phase that is constant over the whole record (a multiplier of 0, an open
+    VT fuse) puts the positive sequence at 2/3 of the truth; one whose typical magnitude
+    differs from the others' by 3x or more has a unit or ratio wrong in the ``.cfg``
+    (V among kV). A constant current phase can be real (an open pole): said, not refused.
+    """
+    notes = []
+    spread = np.ptp(v, axis=1)
+    for ch, sp in zip(vch, spread, strict=True):
+        if sp == 0:
+            raise DataError(
+                f"line {ch.line}: voltage channel {ch.name!r} is constant over the whole "
+                "record (a dead phase, or a multiplier of 0): the positive sequence would be "
+                "2/3 of the truth; name another with --voltage",
+                path,
+            )
+    typical = np.median(np.abs(v), axis=1)
+    if typical.min() > 0 and typical.max() / typical.min() >= 3.0:
+        lo, hi = int(np.argmin(typical)), int(np.argmax(typical))
+        ratio = typical[hi] / typical[lo]
+        raise DataError(
+            f"line {vch[lo].line}: voltage channel {vch[lo].name!r} is {ratio:.3g}"
+            f" times smaller than {vch[hi].name!r} over the record: its unit "
+            f"({vch[lo].unit.strip()!r}) or ratio is wrong, or the phases are not one set",
+            path,
+        )
+    for ch, sp in zip(ich, np.ptp(i, axis=1), strict=True):
+        if sp == 0:
+            notes.append(f"current channel {ch.name!r} is constant over the whole record")
+    return notes
