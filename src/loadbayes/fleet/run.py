@@ -14,7 +14,7 @@ from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet import hierarchical as hier
 from loadbayes.fleet.engine import Engine
 from loadbayes.fleet.partitions import Partition, ReadSpec, find_partitions
-from loadbayes.fleet.perbus import fit_buses
+from loadbayes.fleet.perbus import check_netcdf_targets, fit_buses
 from loadbayes.fleet.stats import FleetStats, finish, merge, partition_stats
 from loadbayes.fleet.summary import concat
 from loadbayes.io.errors import DataError
@@ -195,6 +195,9 @@ def fit_fleet(
     eng = engine or Engine()
     sampler = sampler or SamplerSettings()
     refused = None
+    if netcdf_dir:
+        # Before any fit: an id that cannot be a file name, or a file in the way.
+        check_netcdf_targets(stats.buses, netcdf_dir, force=force)
     if not accept_units:
         stats, refused = _refuse_unit_errors(stats, model)
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
