@@ -15,7 +15,10 @@ while the interpreter is still whole, not during its shutdown (see :class:`Loadb
 
 from __future__ import annotations
 
+import contextlib
 import gc
+import os
+import signal
 import sys
 
 import click
@@ -48,9 +51,19 @@ class LoadbayesGroup(click.Group):
     command run in-process, by a test's CliRunner, returns as click's would.)
     """
 
+    def invoke(self, ctx):  # noqa: D102
+        try:
+            return super().invoke(ctx)
+        finally:
+            _LATE["finished"] = True
+
     def main(self, args=None, *rest, **kwargs):  # noqa: D102
         if args is not None:
             return super().main(args, *rest, **kwargs)
+        _LATE.update(signal=None, finished=False)
+        with contextlib.suppress(ValueError):  # not the main thread: leave them be
+            for s in _EXIT_CODE:
+                signal.signal(s, _on_late_signal)
         try:
             return super().main(args, *rest, **kwargs)
         except SystemExit as exc:
@@ -59,7 +72,34 @@ class LoadbayesGroup(click.Group):
         # are unreferenced now, and what only they kept alive can be collected.
         if code not in (0, None):
             release_native()
+        late = _LATE["signal"]
+        if late is not None and code in (0, None):
+            what = "terminated (SIGTERM)" if late == signal.SIGTERM else "interrupted"
+            click.echo(f"loadbayes: {what} after every output was written", err=True)
+            code = _EXIT_CODE[late]
         sys.exit(code)
+
+
+_EXIT_CODE = {signal.SIGINT: 130, signal.SIGTERM: 143}
+_LATE: dict = {"signal": None, "finished": False}
+
+
+def _on_late_signal(signum, frame) -> None:
+    """SIGINT/SIGTERM outside a command's own handling (its handlers are restored to this).
+
+    Before the command has run it acts as Python's default would (KeyboardInterrupt, or
+    the end of the process for SIGTERM). Once the command has finished, every output is
+    written or none: the signal is recorded and said in one line with exit 130 or 143,
+    instead of killing the process in its teardown (exit -2 and no word).
+    """
+    if _LATE["finished"]:
+        if _LATE["signal"] is None:
+            _LATE["signal"] = signum
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    signal.signal(signum, signal.SIG_DFL)
+    os.kill(os.getpid(), signum)
 
 
 def release_native() -> None:

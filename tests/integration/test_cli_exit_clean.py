@@ -314,3 +314,44 @@ def test_warnings_name_their_package_or_nothing():
         "loadbayes: warning: overflow encountered (from numpy)",
         "loadbayes: warning: installed",
     ], lines
+
+
+# ------------------------------------------------ a signal once the command has ended
+def test_a_signal_after_the_command_is_one_line_not_a_killed_process(tmp_path):
+    """SIGTERM right after the command finished (outputs written): exit 143, one line.
+
+    Before, such a signal killed the process in its teardown (exit -15 or -2, no word).
+    The signal is sent from inside the process the moment the command returns.
+    """
+    code = (
+        "import os, signal, sys\n"
+        "from loadbayes import cli\n"
+        "inner = cli.LoadbayesGroup.invoke\n"
+        "def invoke(self, ctx):\n"
+        "    try:\n"
+        "        return inner(self, ctx)\n"
+        "    finally:\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "cli.LoadbayesGroup.invoke = invoke\n"
+        "sys.argv = ['loadbayes', 'example', 'zip']\n"
+        "cli.main(prog_name='loadbayes')\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=_env(),
+                       capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert r.returncode == 143, (r.returncode, r.stderr)
+    assert r.stderr.strip().splitlines() == [
+        "loadbayes: terminated (SIGTERM) after every output was written"
+    ], r.stderr
+    assert r.stdout.startswith("time,v,p,q")  # the output was complete
+
+
+def test_a_signal_before_any_command_acts_as_before():
+    from loadbayes import cli
+
+    cli._LATE.update(signal=None, finished=False)
+    with pytest.raises(KeyboardInterrupt):
+        cli._on_late_signal(signal.SIGINT, None)
+    cli._LATE.update(finished=True)
+    cli._on_late_signal(signal.SIGINT, None)  # recorded, not raised
+    assert cli._LATE["signal"] == signal.SIGINT
+    cli._LATE.update(signal=None, finished=False)
