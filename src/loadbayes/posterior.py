@@ -387,11 +387,28 @@ class Posterior:
             )
         return idata
 
-    def to_netcdf(self, path: str | Path, *, force: bool = False, pointwise: bool = True) -> Path:
-        """Write :meth:`to_arviz` as NetCDF, atomically (no overwrite without ``force``)."""
+    def to_netcdf(
+        self,
+        path: str | Path,
+        *,
+        force: bool = False,
+        pointwise: bool = True,
+        atomic: bool = True,
+    ) -> Path:
+        """Write :meth:`to_arviz` as NetCDF, atomically (no overwrite without ``force``).
+
+        ``atomic=False`` writes straight into ``path``: for a temporary file that the
+        caller already owns and renames (an :class:`~loadbayes.io.transaction.OutputSet`'s),
+        which would otherwise get a temporary of its own, and a signal at the wrong
+        moment could leave that one behind (``.x.nc.XXXX.tmp.nc.YYYY.tmp.nc``).
+        """
         from loadbayes.io.atomic import atomic_write
 
         path = Path(path)
+        if not atomic:
+            idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
+            idata.to_netcdf(str(path))
+            return path
         with atomic_write(path, force=force) as tmp:
             idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
             idata.to_netcdf(str(tmp))

@@ -17,6 +17,9 @@ from loadbayes.commands.output import UserError, user_errors
 
 __all__ = ["export_cmd", "pick_values", "summary_lines"]
 
+#: Largest parameter magnitude exported (shares, p.u., MW, seconds): past it a value is
+#: a corrupt file, and products of it overflow in the writers.
+VALUE_MAX = 1e12
 _STAT = re.compile(r"^(mean|median|q(\d{1,2}(?:\.\d+)?))$")
 _MODEL_NAMES = {"zip": "zip", "exp": "exponential", "exponential": "exponential",
                 "composite": "composite"}  # fmt: skip
@@ -51,11 +54,78 @@ def _read_posterior(path: str):
         doc = json.loads(p.read_text(encoding="utf-8"))
         params = doc["parameters"]
         model = doc["model"]
+    except RecursionError:
+        raise DataError("not a loadbayes posterior JSON (nested too deeply)", path) from None
     except (ValueError, KeyError, TypeError, UnicodeDecodeError):
         raise DataError("not a loadbayes posterior JSON (no 'model'/'parameters')", path) from None
-    summary = {k: v for k, v in params.items() if isinstance(v, dict) and v.get("mean") is not None}
+    return _checked_json(doc, params, model, path)
+
+
+def _number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _checked_json(doc: dict, params, model, path: str):
+    """The parts of a posterior JSON the exports use, each checked and located by key.
+
+    A file edited by hand (or by a tool) may hold anything: a list where the parameters
+    go, strings for numbers, NaN or Infinity (Python's json reads both). Each is refused
+    here in one line naming the key, rather than failing deep in a writer.
+    """
+    from loadbayes.io.errors import DataError
+
+    if not isinstance(model, str):
+        raise DataError(f"'model' is {type(model).__name__}, expected a name", path)
+    if not isinstance(params, dict):
+        raise DataError(f"'parameters' is {type(params).__name__}, expected an object", path)
+    summary = {}
+    for name, row in params.items():
+        if not isinstance(row, dict) or row.get("mean") is None:
+            continue
+        for key in ("mean", "sd", "hdi_low", "hdi_high"):
+            val = row.get(key)
+            if key != "mean" and val is None:
+                continue
+            where = f"parameters.{name}.{key}"
+            if not _number(val):
+                raise DataError(f"{where} is {_shown(val)}, expected a number", path)
+            if key == "mean" and not math.isfinite(val):
+                raise DataError(f"{where} is {val}, expected a finite number", path)
+        summary[name] = row
+    settings = doc.get("settings", {})
+    if settings is None:
+        settings = {}
+    if not isinstance(settings, dict):
+        raise DataError(f"'settings' is {type(settings).__name__}, expected an object", path)
+    for key in ("v0", "p0", "q0"):
+        val = settings.get(key)
+        if val is None or (key != "v0" and val == "auto"):
+            continue
+        if not _number(val) or not math.isfinite(val):
+            raise DataError(f"settings.{key} is {_shown(val)}, expected a finite number", path)
     prob = doc.get("hdi_prob", 0.95)
-    return model, None, summary, doc.get("settings", {}), f"{100 * prob:g}% HDI"
+    if not _number(prob) or not 0 < prob < 1:
+        raise DataError(f"'hdi_prob' is {_shown(prob)}, expected a number in (0, 1)", path)
+    return model, None, summary, settings, f"{100 * prob:g}% HDI"
+
+
+def _shown(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 30 else text[:27] + "..."
+
+
+def _check_values(values: dict, source: str) -> None:
+    """Refuse a parameter set with NaN or infinity (a NetCDF's draws, a tampered JSON)."""
+    from loadbayes.io.errors import DataError
+
+    for name, val in values.items():
+        if not math.isfinite(val):
+            raise DataError(f"parameter {name!r} is {val}, expected a finite number", source)
+        if abs(val) > VALUE_MAX:
+            raise DataError(
+                f"parameter {name!r} is {val:.6g}: beyond {VALUE_MAX:g}, not a load's value",
+                source,
+            )
 
 
 def _fill(values: dict, settings: dict) -> dict:
@@ -169,7 +239,12 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     help="Export N posterior draws instead, one output each (_draw001 ...).",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Which draws (--draws).")
-@click.option("--bus", type=click.IntRange(min=0), help="Bus number of the load.")
+@click.option(
+    "--bus",
+    type=click.IntRange(min=0),
+    help="Bus number of the load (default: 1 in PSS/E, 3 in ANDES, the one-bus net's "
+    "bus in pandapower).",
+)
 @click.option(
     "--s-base",
     type=float,
@@ -210,6 +285,10 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     model = _MODEL_NAMES.get(model_raw, model_raw)
     export.check_model(model)
     outp = Path(out)
+    if fmt == "psse" and outp.suffix.lower() == ".dyr":
+        # The .raw is the case and the .dyr its dynamics: both take the stem of --out,
+        # and neither may be written over the other.
+        outp = outp.with_suffix(".raw")
     if n_draws is None:
         jobs = [(outp, _fill(pick_values(draws, summary, stat), settings), stat)]
     else:
@@ -245,6 +324,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
                "v0": settings.get("v0")}  # fmt: skip
     if s_base is None:
         options.pop("s_base_mva")
+    for _, values, _ in jobs:
+        _check_values(values, posterior)
     written: list[str] = []
     try:
         for path, values, what in jobs:

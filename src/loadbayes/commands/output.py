@@ -55,6 +55,19 @@ def _speak(message: str) -> None:
     click.echo(f"loadbayes: warning: {message}", err=True)
 
 
+def _warning_origin(filename: str | None) -> str | None:
+    """The package a warning came from (``numpy``), or None for loadbayes' own code.
+
+    Only a path under ``site-packages`` names a package; loadbayes (wherever it is
+    installed or checked out) and anything else get no ``(from ...)``.
+    """
+    path = (filename or "").replace("\\", "/")
+    if "/site-packages/" not in path:
+        return None
+    origin = path.split("/site-packages/")[-1].split("/")[0]
+    return None if not origin or origin == "loadbayes" else origin
+
+
 def user_errors(func):
     """Run a command as one transaction: one-line errors (exit 2), signals (130, 143).
 
@@ -75,9 +88,8 @@ def user_errors(func):
                     seen = set()
                     for w in caught:
                         text = (str(w.message).strip().splitlines() or [""])[0]
-                        origin = (w.filename or "").replace("\\", "/").split("/site-packages/")[-1]
-                        origin = origin.split("/")[0] if origin else "python"
-                        line = f"{text} (from {origin})"
+                        origin = _warning_origin(w.filename)
+                        line = f"{text} (from {origin})" if origin else text
                         if line not in seen:
                             seen.add(line)
                             _speak(line)
@@ -435,9 +447,7 @@ def write_outputs(
         if netcdf_out:
             if not quiet:
                 click.echo(f"loadbayes: writing {netcdf_out} (draws, predictions)...", err=True)
-            # Straight into the set's temporary: Posterior.to_netcdf would write a
-            # temporary of it, which a signal inside HDF5 could leave behind.
-            post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
+            post.to_netcdf(out.temp("--netcdf"), force=True, atomic=False)
             # netCDF/HDF5 may swallow the KeyboardInterrupt raised inside its C calls.
             stop_if_signalled()
         if plot_out:

@@ -49,12 +49,13 @@ it); the ``.raw`` title lines name the model and the statistic. Options: ``bus``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from loadbayes.export.loadparts import LoadParts, load_parts
-from loadbayes.io.atomic import atomic_write
+from loadbayes.io.transaction import OutputSet
 
 __all__ = ["FORMAT", "SUFFIXES", "VERSION", "read_dyr", "read_loads", "write"]
 
@@ -203,35 +204,84 @@ def write(
     bus = int(opts["bus"]) if opts.get("bus") is not None else 1
     if not 1 <= bus <= 999_997:
         raise ValueError(f"PSS/E bus numbers run from 1 to 999997, got {bus}")
+    raw, dyr = _paths(Path(out))
     parts = load_parts(values, model=model, options=opts)
+    _check_record(parts)
     force = bool(opts.get("force"))
     what = header[0].split("exported: ")[-1] if header else "parameters given"
     title = f"loadbayes {model} load, {what}"
-    written = []
     text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=float(opts.get("vn_kv") or 230.0),
                      title=title)  # fmt: skip
-    with atomic_write(out, force=force, mode="w") as fh:
-        fh.write(text)
-    written.append(Path(out))
+    files = {"raw": raw}
     notes = list(parts.notes)
+    dyr_text = None
     if parts.motor is not None:
         cim = cim5_values(parts)
+        _check_fields(cim, "CIM5BL")
         nums = " ".join(_g(v) for v in cim.values())
-        dyr = Path(out).with_suffix(".dyr")
-        with atomic_write(dyr, force=force, mode="w") as fh:
-            fh.write(f"{bus} 'CIM5BL' 'M' 1 {nums} /\n")
-        written.append(dyr)
+        dyr_text = f"{bus} 'CIM5BL' 'M' 1 {nums} /\n"
+        files["dyr"] = dyr
         pr = parts.motor.params
         notes.append(
             f"CIM5BL: t0 = {parts.motor.t0:.6g} (own base), torque a, b, c = "
             f"{pr.a:.4g}, {pr.b:.4g}, {pr.c:.4g} -> D = {cim['D']:.4g}"
         )
     side = Path(out).with_name(Path(out).name + ".summary.txt")
+    files["summary"] = side
     rec = _load_record(bus, "1", (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz))
-    with atomic_write(side, force=force, mode="w") as fh:
-        fh.write("\n".join(f"# {ln}" for ln in [*header, *notes, f"load record: {rec}"]) + "\n")
-    written.append(side)
-    return written
+    summary = "\n".join(f"# {ln}" for ln in [*header, *notes, f"load record: {rec}"]) + "\n"
+    # The case, its dynamics and the summary are one output: all written, or none.
+    with OutputSet(files, force=force) as outs:
+        outs.temp("raw").write_text(text, encoding="utf-8")
+        if dyr_text is not None:
+            outs.temp("dyr").write_text(dyr_text, encoding="utf-8")
+        outs.temp("summary").write_text(summary, encoding="utf-8")
+        return outs.commit()
+
+
+def _paths(out: Path) -> tuple[Path, Path]:
+    """The ``.raw`` and ``.dyr`` of ``out``: one stem, two names, never one path twice.
+
+    ``case.raw`` or ``case.dyr`` both give ``case.raw`` and ``case.dyr``; any other
+    name is the ``.raw`` itself, its ``.dyr`` beside it.
+    """
+    if out.suffix.lower() in SUFFIXES:
+        return out.with_suffix(".raw"), out.with_suffix(".dyr")
+    dyr = out.with_suffix(".dyr")
+    return out, (dyr if dyr != out else out.with_name(out.name + ".dyr"))
+
+
+#: Largest magnitude written into a PSS/E field (MW, Mvar, p.u.): past it a value is
+#: a corrupt input, not a load (the largest power systems are about 1e6 MW).
+FIELD_MAX = 1e9
+
+
+def _check_fields(fields: Mapping[str, float], record: str) -> None:
+    for name, val in fields.items():
+        if not math.isfinite(val):
+            raise ValueError(f"PSS/E {record} field {name} would be {val}: not a finite number")
+        if abs(val) > FIELD_MAX:
+            raise ValueError(
+                f"PSS/E {record} field {name} would be {val:.6g}: beyond {FIELD_MAX:g}, "
+                "not a load's value"
+            )
+
+
+def _check_record(parts: LoadParts) -> None:
+    """Every number of the load records finite and plausible; no negative load."""
+    _check_fields(
+        {"PL": parts.pp, "IP": parts.pi, "YP": parts.pz, "QL": parts.qp, "IQ": parts.qi,
+         "YQ": -parts.qz, "V0": parts.v0},
+        "load record",
+    )  # fmt: skip
+    if parts.motor is not None:
+        _check_fields({"PL": parts.motor.p_mw, "QL": parts.motor.q_mvar}, "motor load 'M'")
+    p_total = float(parts.p(parts.v0)) + (parts.motor.p_mw if parts.motor else 0.0)
+    if p_total < 0:
+        raise ValueError(
+            f"the load draws P = {p_total:.6g} MW at v0: a negative load is a generator; "
+            "PSS/E export takes loads that consume power (check p0)"
+        )
 
 
 def read_loads(path: str | Path) -> dict[str, dict[str, float]]:

@@ -16,6 +16,8 @@ collected by task, in submission order, so a bus is neither lost nor counted twi
 
 from __future__ import annotations
 
+import logging
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -24,6 +26,21 @@ __all__ = ["Engine"]
 
 #: Times a task lost with a dying worker is submitted again before giving up.
 _ATTEMPTS = 3
+
+
+#: Dask's own log lines (timestamped ``distributed.*`` warnings when a worker is lost or
+#: the run is interrupted) are kept from the user's terminal below this level; what they
+#: report reaches the user as loadbayes' one-line messages (a task lost is re-run, an
+#: interrupted run says what was written).
+_DASK_LOG_LEVEL = logging.CRITICAL
+
+
+def _quiet_dask() -> None:
+    """Raise the level of Dask's loggers, here and in the worker processes started."""
+    # Read by dask's config when a worker process imports it (they inherit the environ).
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", logging.getLevelName(_DASK_LOG_LEVEL))
+    for name in ("distributed", "tornado", "bokeh"):
+        logging.getLogger(name).setLevel(_DASK_LOG_LEVEL)
 
 
 class Engine:
@@ -61,12 +78,14 @@ class Engine:
     def __enter__(self) -> Engine:
         if self.client is not None or not (self.scheduler or self.workers):
             return self
+        _quiet_dask()
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:  # pragma: no cover - the cluster extra is missing
             raise ValueError(
                 "--workers and --scheduler need Dask: pip install 'loadbayes[cluster]'"
             ) from None
+        _quiet_dask()  # again: importing distributed sets its loggers' levels from its config
         if self.scheduler:
             try:
                 self.client = Client(self.scheduler, timeout="20s")
@@ -80,6 +99,7 @@ class Engine:
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=":0",
+                silence_logs=_DASK_LOG_LEVEL,
             )
             self._own.append(cluster)
             self.client = Client(cluster)

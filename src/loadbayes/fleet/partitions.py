@@ -33,7 +33,7 @@ from loadbayes.io.tables import CSV_SUFFIXES, PARQUET_SUFFIXES, iter_chunks
 
 _HEADER_BYTES = 1 << 20
 
-__all__ = ["BusChunk", "Partition", "ReadSpec", "find_partitions", "read_partition"]
+__all__ = ["BusChunk", "Partition", "ReadSpec", "find_partitions", "id_kinds", "read_partition"]
 
 
 @dataclass(frozen=True)
@@ -71,11 +71,12 @@ class BusChunk:
     n_dropped: int
 
 
-def _is_data_file(name: str) -> bool:
+def _is_data_file(name: str, *, text: bool = True) -> bool:
     low = name.lower()
-    return low.endswith(CSV_SUFFIXES + PARQUET_SUFFIXES) and not Path(name).name.startswith(
-        (".", "_")
-    )
+    suffixes = CSV_SUFFIXES + PARQUET_SUFFIXES
+    if not text:
+        suffixes = tuple(s for s in suffixes if not s.startswith(".txt"))
+    return low.endswith(suffixes) and not Path(name).name.startswith((".", "_"))
 
 
 def _hive(path: Path, root: Path) -> dict[str, str]:
@@ -93,8 +94,9 @@ def find_partitions(data: str) -> list[Partition]:
     Parameters
     ----------
     data : str
-        A file, a folder (searched recursively; hidden and ``_``-prefixed files such as
-        ``_SUCCESS`` are skipped) or a glob pattern.
+        A file, a folder (searched recursively for ``.csv``, ``.csv.gz``, ``.parquet``
+        and ``.pq``; hidden and ``_``-prefixed files such as ``_SUCCESS``, and ``.txt``
+        notes, are skipped) or a glob pattern.
 
     Returns
     -------
@@ -107,7 +109,9 @@ def find_partitions(data: str) -> list[Partition]:
     """
     p = Path(data)
     if p.is_dir():
-        files = sorted(f for f in p.rglob("*") if f.is_file() and _is_data_file(f.name))
+        # A folder's .txt files are notes (README.txt), not data: a .txt table is read
+        # when named, or matched by a glob.
+        files = sorted(f for f in p.rglob("*") if f.is_file() and _is_data_file(f.name, text=False))
         if not files:
             raise DataError("no CSV or Parquet files in this folder", data)
         return [Partition(str(f), _hive(f, p)) for f in files]
@@ -216,10 +220,59 @@ def _labels(part: Partition, col: str | None, name: str, what: str) -> _Aligned 
         return part.hive[col]
     if what == "bus":
         raise DataError(
-            f"no column {col!r} and no folder named {col}=...; --by names the bus column",
+            f"no column {col!r} and no folder named {col}=...; --by names the bus column "
+            "(a file that is not data? name the data files with a glob, "
+            "e.g. 'folder/**/*.parquet')",
             name,
         )
     raise DataError(f"no column {col!r} and no folder named {col}=... (--class-col)", name)
+
+
+def _check_folder_key(arr: pa.Array, value: str, name: str, col: str, first_row: int) -> None:
+    """A column and the hive folder ``col=value`` above it must name the same bus/class."""
+    differs = pc.not_equal(arr, pa.scalar(value, pa.string()))
+    if not pc.any(differs).as_py():
+        return
+    i = int(np.flatnonzero(differs.to_numpy(zero_copy_only=False))[0])
+    shown = arr[i].as_py()
+    raise DataError(
+        f"{shown!r} here, but the file is in folder {col}={value}: which is it? "
+        "(rename the folder or fix the column)",
+        name,
+        col,
+        first_row + i,
+    )
+
+
+def id_kinds(parts: list[Partition], col: str) -> dict[str, str]:
+    """How each file stores the ids of ``col``: ``integer``, ``float`` or ``text``.
+
+    Ids are compared as text (``1`` and ``1.0`` in Parquet both read as ``'1'``), so
+    files that store them differently can merge buses that were meant apart, or keep
+    apart ``'1.0'`` in a CSV and ``1`` in a Parquet file. Returns a kind per file (a
+    hive folder key and a CSV column are text); a Parquet file that cannot be read is
+    left out (the reader refuses it by name).
+    """
+    kinds: dict[str, str] = {}
+    for part in parts:
+        kind = "text"
+        if part.path.lower().endswith(PARQUET_SUFFIXES):
+            try:
+                schema = pq.read_schema(part.path)
+            except (OSError, pa.ArrowException):
+                continue
+            if col in schema.names:
+                t = schema.field(col).type
+                t = t.value_type if pa.types.is_dictionary(t) else t
+                kind = (
+                    "integer"
+                    if pa.types.is_integer(t)
+                    else "float"
+                    if pa.types.is_floating(t) or pa.types.is_decimal(t)
+                    else "text"
+                )
+        kinds[part.path] = kind
+    return kinds
 
 
 def read_partition(part: Partition, spec: ReadSpec) -> Iterator[BusChunk]:
@@ -255,13 +308,15 @@ def read_partition(part: Partition, spec: ReadSpec) -> Iterator[BusChunk]:
                 if key in cols:
                     cols[key] = cols[key] / spec.s_base
         labels = []
-        for src in (bus_src, cls_src):
+        for src, col in ((bus_src, spec.by), (cls_src, spec.class_col)):
             if src is None:
                 labels.append(None)
             elif isinstance(src, str):
                 labels.append(pa.array([src] * chunk.n_rows, pa.string()))
             else:
                 arr = src.take(chunk.n_rows_read, chunk.start_row)
+                if col in part.hive:
+                    _check_folder_key(arr, part.hive[col], name, col, chunk.start_row)
                 if chunk.n_dropped:
                     keep = np.ones(chunk.n_rows_read, bool)
                     keep[chunk.dropped_rows - chunk.start_row] = False

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Mapping
 from pathlib import Path
+from urllib.parse import quote
 
 import numpy as np
 import pandas as pd
@@ -25,13 +26,64 @@ from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 from loadbayes.posterior import IDENTIFIABILITY_CORR, Posterior
 
-__all__ = ["bus_seed", "fit_buses"]
+__all__ = ["bus_file_name", "bus_seed", "check_netcdf_targets", "fit_buses"]
 
 
 def bus_seed(seed: int, bus: object) -> np.random.SeedSequence:
     """The seed of one bus: the run's seed and a hash of the bus id (stable everywhere)."""
     h = int.from_bytes(hashlib.blake2b(str(bus).encode(), digest_size=8).digest(), "little")
     return np.random.SeedSequence(seed, spawn_key=(h,))
+
+
+#: The longest file name most file systems take (bytes), with ".nc".
+_NAME_MAX = 255
+
+
+def bus_file_name(bus: object) -> str:
+    """The NetCDF file name of a bus under ``--netcdf-dir``: its id, made safe.
+
+    Bus ids come from the data, so they must never choose where a file goes: every
+    character but letters, digits, ``-``, ``_`` and ``.`` is percent-encoded (``/``
+    becomes ``%2F``, ``%`` itself ``%25``), and so is a leading dot, so that no id
+    names a parent folder, an absolute path or a hidden file. The encoding is
+    one-to-one: two different ids never share a file.
+
+    Raises
+    ------
+    DataError
+        If the encoded name is longer than a file name can be.
+    """
+    name = quote(str(bus), safe="-_.")
+    if name.startswith("."):
+        name = "%2E" + name[1:]
+    name += ".nc"
+    if len(name.encode()) > _NAME_MAX:
+        shown = str(bus) if len(str(bus)) <= 40 else str(bus)[:37] + "..."
+        raise DataError(
+            f"bus id {shown!r} is too long for a file name under --netcdf-dir "
+            f"({len(name.encode())} bytes encoded, at most {_NAME_MAX})"
+        )
+    return name
+
+
+def check_netcdf_targets(
+    buses: np.ndarray, netcdf_dir: str | Path, *, force: bool = False
+) -> list[Path]:
+    """The NetCDF file of every bus under ``netcdf_dir``, checked before any fit.
+
+    Raises
+    ------
+    DataError
+        If an id cannot be a file name (:func:`bus_file_name`), or a file exists and
+        ``force`` is False.
+    """
+    folder = Path(netcdf_dir)
+    paths = [folder / bus_file_name(b) for b in buses]
+    if not force:
+        for b, path in zip(buses, paths, strict=True):
+            if path.exists():
+                raise DataError(f"bus {b!s}: exists; use --force to overwrite", str(path))
+    return paths
 
 
 def _free_pairs(model: ZIPModel) -> list[tuple[str, str]]:
@@ -60,7 +112,8 @@ def fit_buses(
         Block priors, as for one bus.
     sampler : SamplerSettings
     netcdf_dir : str, optional
-        Write each bus's draws to ``<netcdf_dir>/<bus>.nc``.
+        Write each bus's draws to ``<netcdf_dir>/<bus>.nc``, the id made a safe file
+        name by :func:`bus_file_name`.
     force : bool
         Overwrite existing NetCDF files.
     """
@@ -105,7 +158,7 @@ def fit_buses(
                 settings={"bus": str(stats.buses[i]), "n": gram.n, "seed": sampler.seed},
                 warnings=w,
             )
-            post.to_netcdf(Path(netcdf_dir) / f"{stats.buses[i]}.nc", force=force)
+            post.to_netcdf(Path(netcdf_dir) / bus_file_name(stats.buses[i]), force=force)
     frames = []
     if ok:
         idx = np.array(ok)

@@ -13,8 +13,8 @@ from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet import hierarchical as hier
 from loadbayes.fleet.engine import Engine
-from loadbayes.fleet.partitions import Partition, ReadSpec, find_partitions
-from loadbayes.fleet.perbus import fit_buses
+from loadbayes.fleet.partitions import Partition, ReadSpec, display, find_partitions, id_kinds
+from loadbayes.fleet.perbus import check_netcdf_targets, fit_buses
 from loadbayes.fleet.stats import FleetStats, finish, merge, partition_stats
 from loadbayes.fleet.summary import concat
 from loadbayes.io.errors import DataError
@@ -57,6 +57,26 @@ def _has_column(part: Partition, col: str) -> bool:
     return col in next(csv.reader([line], delimiter=sep), [])
 
 
+def _warn_mixed_ids(parts: list[Partition], col: str) -> None:
+    """Say so when the files store the bus ids as different types (they merge as text)."""
+    import warnings
+
+    kinds = id_kinds(parts, col)
+    if len(set(kinds.values())) < 2:
+        return
+    first: dict[str, str] = {}
+    for path, kind in kinds.items():
+        first.setdefault(kind, path)
+    shown = ", ".join(f"{kind} in {display(path)}" for kind, path in sorted(first.items()))
+    warnings.warn(
+        f"bus ids in column {col!r} are stored as {shown}: they are matched as text, so 1 "
+        "and 1.0 (Parquet) are the same bus as '1', while '1.0' in a CSV is another; "
+        "store them with one type to be sure which buses merge",
+        UserWarning,
+        stacklevel=2,
+    )
+
+
 def fleet_statistics(
     data: str,
     spec: ReadSpec,
@@ -73,6 +93,7 @@ def fleet_statistics(
     the number of files.
     """
     parts = find_partitions(data)
+    _warn_mixed_ids(parts, spec.by)
     with_q = bool(spec.q_col) and (spec.q_required or _has_column(parts[0], spec.q_col))
     model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q=with_q)  # type: ignore[arg-type]
     eng = engine or Engine()
@@ -195,6 +216,9 @@ def fit_fleet(
     eng = engine or Engine()
     sampler = sampler or SamplerSettings()
     refused = None
+    if netcdf_dir:
+        # Before any fit: an id that cannot be a file name, or a file in the way.
+        check_netcdf_targets(stats.buses, netcdf_dir, force=force)
     if not accept_units:
         stats, refused = _refuse_unit_errors(stats, model)
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,

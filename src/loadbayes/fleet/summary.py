@@ -102,14 +102,23 @@ def concat(frames: Sequence[pd.DataFrame]) -> pd.DataFrame:
     return df.iloc[order].reset_index(drop=True)
 
 
-def write_parquet(df: pd.DataFrame, path: str | Path, *, force: bool = False) -> Path:
-    """Write the table atomically (never overwrites without ``force``)."""
+def write_parquet(
+    df: pd.DataFrame, path: str | Path, *, force: bool = False, atomic: bool = True
+) -> Path:
+    """Write the table atomically (never overwrites without ``force``).
+
+    ``atomic=False`` writes straight into ``path``, a temporary the caller renames (an
+    :class:`~loadbayes.io.transaction.OutputSet`'s).
+    """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     from loadbayes.io.atomic import atomic_write
 
     table = pa.Table.from_pandas(df, preserve_index=False)
+    if not atomic:
+        pq.write_table(table, path)
+        return Path(path)
     with atomic_write(path, force=force) as tmp:
         pq.write_table(table, tmp)
     return Path(path)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,7 +18,7 @@ from typing import Any
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["atomic_write", "check_target"]
+__all__ = ["atomic_write", "check_target", "held_signals"]
 
 _WRITE_MODES = ("w", "wt", "wb")
 
@@ -104,16 +105,20 @@ def atomic_write(
         raise ValueError(f"mode must be None or one of {_WRITE_MODES}, not {mode!r}")
     target = check_target(path, force=force)
     name = os.fspath(path)
+    tmp: Path | None = None
     try:
-        fd, tmp_name = tempfile.mkstemp(
-            dir=target.parent, prefix=f".{target.name}.", suffix=f".tmp{target.suffix}"
-        )
-    except OSError as err:
-        message = f"cannot create a file in '{target.parent}': {err.strerror}"
-        raise DataError(message, name) from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
+        # Created and remembered with SIGINT/SIGTERM held back: a signal between the two
+        # would leave a temporary no clean-up knows of. It is raised right after, here.
+        with held_signals():
+            try:
+                fd, tmp_name = tempfile.mkstemp(
+                    dir=target.parent, prefix=f".{target.name}.", suffix=f".tmp{target.suffix}"
+                )
+            except OSError as err:
+                message = f"cannot create a file in '{target.parent}': {err.strerror}"
+                raise DataError(message, name) from None
+            os.close(fd)
+            tmp = Path(tmp_name)
         if mode is None:
             yield tmp
         else:
@@ -126,10 +131,28 @@ def atomic_write(
         os.chmod(tmp, _file_mode(target))
         os.replace(tmp, target)
     except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+        if tmp is not None:
+            with held_signals(), contextlib.suppress(OSError):
+                tmp.unlink()
         raise
     _fsync_dir(target.parent)
+
+
+_HELD = frozenset({signal.SIGINT, signal.SIGTERM})
+
+
+@contextlib.contextmanager
+def held_signals() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back for the block; they are delivered when it ends.
+
+    For the few steps that must not be split (a temporary created and registered, the
+    renames of a commit, a clean-up): a signal during them takes effect right after.
+    """
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _fsync(path: Path) -> None:

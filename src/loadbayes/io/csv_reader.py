@@ -5,10 +5,12 @@ Yields validated pieces (:class:`~loadbayes.io.cells._Piece`) of about 1 MiB of 
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import gzip
 import os
 import re
+import stat
 import zlib
 from collections.abc import Iterator
 from typing import Any
@@ -18,7 +20,7 @@ import pyarrow.csv as pacsv
 
 from loadbayes.io.cells import _one_line, _Piece, _show, select_columns, validate_batch
 from loadbayes.io.errors import DataError
-from loadbayes.io.sources import _open_binary
+from loadbayes.io.sources import STDIN, _open_binary
 
 # CSV bytes per Arrow batch: what is validated at a time, independent of ``chunk_rows``
 # so the same first bad row is found for any chunk size.
@@ -72,11 +74,13 @@ def _csv_pieces(
         present = select_columns(header, required, extra, name)
         arrow_names = [f"f{i}" for i in range(len(header))]
         start = 1
+        source = reader = None
         try:
+            source = _native_stream(path, fh, name)
             # Cells come as raw bytes: decoding and parsing them here is what lets an
             # error name its row (Arrow's own conversion errors do not, when streaming).
             reader = pacsv.open_csv(
-                fh,
+                source if source is not None else fh,
                 read_options=pacsv.ReadOptions(
                     column_names=arrow_names, block_size=_CSV_BLOCK_BYTES, use_threads=False
                 ),
@@ -102,6 +106,44 @@ def _csv_pieces(
             if isinstance(err, pa.ArrowInvalid) and "Empty CSV file" in str(err):
                 return
             raise _csv_read_error(err, start, name) from None
+        finally:
+            # An error (ours or the caller's, which closes this generator) must not leave
+            # Arrow's reader behind: its read-ahead thread holds the file, and if the last
+            # reference to a Python file goes during interpreter shutdown, the process
+            # aborts ("terminate called without an active exception", exit 134).
+            _close_quietly(reader)
+            _close_quietly(source)
+
+
+def _native_stream(path: str | os.PathLike[str], fh: Any, name: str) -> pa.NativeFile | None:
+    """An Arrow file positioned where ``fh`` is (after the header); None to read ``fh``.
+
+    Arrow then reads a plain file with no Python object in its I/O thread. Standard
+    input and gzip files stay Python file objects (their position or their
+    decompression is Python's).
+    """
+    if os.fspath(path) == STDIN or name.lower().endswith(".gz"):
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            return None  # a FIFO or a device: not seekable, read it as before
+    except (AttributeError, OSError, ValueError):
+        return None
+    position = fh.tell()
+    native = pa.OSFile(os.fspath(path), mode="r")
+    try:
+        native.seek(position)
+    except BaseException:
+        native.close()
+        raise
+    return native
+
+
+def _close_quietly(resource: Any) -> None:
+    if resource is None:
+        return
+    with contextlib.suppress(Exception):
+        resource.close()
 
 
 # Arrow's message for a row with too many or too few fields. Not an invalid_row_handler:

@@ -16,7 +16,7 @@ import signal
 import tempfile
 from pathlib import Path
 
-from loadbayes.io.atomic import _file_mode, _fsync, _fsync_dir, check_target
+from loadbayes.io.atomic import _file_mode, _fsync, _fsync_dir, check_target, held_signals
 from loadbayes.io.errors import DataError
 
 __all__ = ["OutputSet"]
@@ -66,16 +66,20 @@ class OutputSet:
         if label in self._temps:
             return self._temps[label]
         target = self.targets[label]
-        try:
-            fd, name = tempfile.mkstemp(
-                dir=target.parent, prefix=f".{target.name}.", suffix=f".tmp{target.suffix}"
-            )
-        except OSError as err:
-            raise DataError(
-                f"cannot create a file in '{target.parent}': {err.strerror}", path=str(target)
-            ) from None
-        os.close(fd)
-        self._temps[label] = Path(name)
+        # Created and registered with the signals held back, so that abort() knows of
+        # every temporary there is.
+        with held_signals():
+            try:
+                fd, name = tempfile.mkstemp(
+                    dir=target.parent, prefix=f".{target.name}.", suffix=f".tmp{target.suffix}"
+                )
+            except OSError as err:
+                raise DataError(
+                    f"cannot create a file in '{target.parent}': {err.strerror}",
+                    path=str(target),
+                ) from None
+            os.close(fd)
+            self._temps[label] = Path(name)
         return self._temps[label]
 
     def commit(self) -> list[Path]:

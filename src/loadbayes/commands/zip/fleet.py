@@ -8,6 +8,9 @@ sampler settings, ``--drop-invalid``, ``--quiet``, ``--force``) keep their meani
 
 from __future__ import annotations
 
+import contextlib
+import os
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -123,7 +126,6 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     from loadbayes.fleet.hierarchical import HierPrior
     from loadbayes.fleet.partitions import ReadSpec
     from loadbayes.fleet.run import run_fleet
-    from loadbayes.fleet.summary import write_parquet
 
     q_name, q_required = q_column(p["q_col"])
     spec = ReadSpec(
@@ -147,10 +149,6 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
         shape=p["tau_shape"],
         rate=p["tau_rate"],
     )
-    if p.get("netcdf_dir"):
-        from pathlib import Path
-
-        Path(p["netcdf_dir"]).mkdir(parents=True, exist_ok=True)
     quiet = p["quiet"]
     files = Progress("files", None, True)  # the bar that matters is over buses
     buses: dict[str, Progress] = {}
@@ -166,8 +164,11 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     def file_progress(n: int) -> None:
         files(n)
 
+    nc = _NetcdfStaging(p.get("netcdf_dir"), p["force"])
+
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
+        nc.check(stats.buses)
 
     try:
         with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
@@ -182,19 +183,111 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
                 hyper=HierPrior(tau_shape=p["tau_shape"], tau_rate=p["tau_rate"]),
                 sampler=sampler,
                 engine=engine,
-                netcdf_dir=p.get("netcdf_dir"),
+                netcdf_dir=nc.staging,
                 force=p["force"],
                 accept_units=bool(p.get("accept_units")),
                 progress_files=file_progress,
                 progress_buses=bus_progress,
                 on_stats=stats_hook,
             )
+        _commit(res.table, p["fleet_out"], p["force"], nc)
     finally:
         files.close()
         if "bar" in buses:
             buses["bar"].close()
-    write_parquet(res.table, p["fleet_out"], force=p["force"])
+        nc.clean_up()
     _report(res, p["fleet_out"], quiet)
+
+
+def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging) -> None:
+    """The fleet table and the per-bus NetCDF files, renamed into place together."""
+    from loadbayes.commands.signals import _STOP, stop_if_signalled
+    from loadbayes.fleet.summary import write_parquet
+    from loadbayes.io.atomic import held_signals
+    from loadbayes.io.transaction import OutputSet
+
+    stop_if_signalled()
+    with OutputSet({"--out": out_path}, force=force) as out:
+        _STOP["outputs"] = out
+        write_parquet(table, out.temp("--out"), atomic=False)
+        stop_if_signalled()
+        moves = nc.moves()
+        with held_signals():
+            out.commit()
+            for staged, target in moves:
+                os.replace(staged, target)
+            _STOP["committed"] = True
+
+
+class _NetcdfStaging:
+    """``--netcdf-dir`` as part of the run's transaction: every file, or none.
+
+    The fits write into a hidden folder inside DIR (the same file system, so the final
+    renames are atomic); the files are renamed into DIR with the fleet table at the
+    end. An error or a signal removes the hidden folder, and DIR itself if this run
+    created it, so nothing is left half-done.
+    """
+
+    def __init__(self, folder: str | None, force: bool) -> None:
+        self.folder = Path(folder) if folder else None
+        self.force = force
+        self.staging: str | None = None
+        self.created = False
+        self.buses = None
+        if self.folder is None:
+            return
+        import tempfile
+
+        from loadbayes.io.atomic import held_signals
+
+        if self.folder.exists() and not self.folder.is_dir():
+            raise UserError(f"{folder}: --netcdf-dir is not a folder")
+        with held_signals():
+            self.created = not self.folder.exists()
+            try:
+                self.folder.mkdir(parents=True, exist_ok=True)
+                self.staging = tempfile.mkdtemp(
+                    dir=self.folder, prefix=".loadbayes-", suffix=".tmp"
+                )
+            except OSError as exc:
+                raise UserError(
+                    f"{folder}: --netcdf-dir cannot be written ({exc.strerror})"
+                ) from None
+
+    def check(self, buses) -> None:
+        """Before the fits: every id a safe file name, no file in the way without --force."""
+        if self.folder is None:
+            return
+        from loadbayes.fleet.perbus import check_netcdf_targets
+
+        check_netcdf_targets(buses, self.folder, force=self.force)
+        self.buses = buses
+
+    def moves(self) -> list[tuple[Path, Path]]:
+        """(staged file, target) for every bus written; targets checked again."""
+        if self.folder is None or self.staging is None:
+            return []
+        from loadbayes.fleet.perbus import check_netcdf_targets
+
+        staged = {f.name: f for f in Path(self.staging).iterdir()}
+        buses = self.buses if self.buses is not None else []
+        targets = check_netcdf_targets(buses, self.folder, force=self.force)
+        return [(staged[t.name], t) for t in targets if t.name in staged]
+
+    def clean_up(self) -> None:
+        """Remove the hidden folder (empty after a commit), and DIR if created and empty."""
+        if self.staging is None:
+            return
+        import shutil
+
+        from loadbayes.io.atomic import held_signals
+
+        with held_signals():
+            shutil.rmtree(self.staging, ignore_errors=True)
+            self.staging = None
+            if self.created:
+                with contextlib.suppress(OSError):
+                    self.folder.rmdir()  # only if empty: nothing was committed
 
 
 def _report(res, out: str, quiet: bool) -> None:

@@ -26,10 +26,12 @@ from typing import Any
 
 from loadbayes.io.atomic import atomic_write
 
-__all__ = ["FORMAT", "SUFFIXES", "write"]
+__all__ = ["DEFAULT_BUS", "FORMAT", "SUFFIXES", "write"]
 
 FORMAT = "andes"
 SUFFIXES: tuple[str, ...] = (".xlsx", ".json")
+#: The load bus idx when none is given (the infinite and network buses get the next two).
+DEFAULT_BUS = 3
 
 _MODELS = ("zip", "composite")
 
@@ -109,7 +111,8 @@ def write(
         base_mva=base,
         z_src=z_src,
     )
-    bus = int(options.get("bus", 3))
+    # --bus not given reaches here as None: the documented default, bus 3.
+    bus = int(options["bus"]) if options.get("bus") is not None else DEFAULT_BUS
     system, devices = _build(case, bus)
     with atomic_write(out, force=True) as tmp:
         _write_case(system, Path(tmp))
