@@ -1,4 +1,8 @@
-"""Options shared by the commands, declared once: data, nominal point, sampler, priors, outputs."""
+"""Options shared by the commands, declared once: data, nominal point, sampler, priors, outputs.
+
+One idea at about 440 lines: every option two commands share, declared here once (with
+the settings objects they build) so that no command spells one again.
+"""
 
 from __future__ import annotations
 

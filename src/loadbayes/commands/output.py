@@ -1,5 +1,8 @@
 """What every command does with its outputs: one-line errors, output checks, progress, writing.
 
+One idea at about 480 lines, a command's outputs as one transaction, from the checks before
+the work to the rename at the end.
+
 A run is one transaction: every output path and format is checked before any work
 (:func:`check_outputs`), the cost of the draws is said before it is paid
 (:func:`check_cost`), outputs are written to temporary files and renamed together at the

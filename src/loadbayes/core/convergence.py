@@ -1,5 +1,8 @@
 """Posterior summaries as ``arviz.summary`` computes them, compiled, for many series at once.
 
+One idea at about 450 lines, ArviZ's summary: R-hat, ESS and MCSE need the ranks, the
+folded draws and the autocovariances, each a compiled kernel of its own.
+
 One implementation for every caller: :meth:`loadbayes.posterior.Posterior.summary` (the
 parameters of one fit) and the fleets (a parameter of tens of thousands of buses). The
 formulas are ArviZ's (0.23, ``arviz.summary(..., round_to="none")``, Vehtari et al. 2021):

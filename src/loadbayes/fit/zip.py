@@ -1,4 +1,9 @@
-"""ZIP fits: from arrays or DataFrames, and from files read in chunks."""
+"""ZIP fits: from arrays or DataFrames, and from files read in chunks.
+
+One idea at about 500 lines, the ZIP fit's Python entry: the same checks and defaults for a
+table in memory and a file read in chunks, with either likelihood (Gaussian or Student-t,
+whose flagged samples are mapped back to the file's rows).
+"""
 
 from __future__ import annotations
 
