@@ -22,18 +22,13 @@ from click.testing import CliRunner
 
 from loadbayes.cli import main
 from loadbayes.recordings.synth import sag_profile, write_comtrade, zip_waveforms
+from loadbayes.studies.real_record import find_record
 
 pytestmark = pytest.mark.integration
 
 _HERE = Path(__file__).resolve()
-REAL = next(
-    (
-        p / "shared" / "real" / "xtz.cfg"
-        for p in (_HERE.parents[3], _HERE.parents[4])
-        if (p / "shared" / "real" / "xtz.cfg").is_file()
-    ),
-    _HERE.parents[3] / "shared" / "real" / "xtz.cfg",
-)
+# ../shared/real beside the repository (found above this file, as the demo finds it).
+REAL = find_record(_HERE) or _HERE.parents[3] / "shared" / "real" / "xtz.cfg"
 needs_real = pytest.mark.skipif(not REAL.is_file(), reason="../shared/real is not beside the repo")
 A = np.exp(2j * np.pi / 3)
 

@@ -20,17 +20,11 @@ from loadbayes.io.errors import DataError
 from loadbayes.recordings.comtrade import read_comtrade
 from loadbayes.recordings.phasor_fit import fit_phasors
 from loadbayes.recordings.record import record_table
+from loadbayes.studies.real_record import find_record
 
-# ../shared/real beside the repository (a clone in /work/main or a worktree in /work/wt/x).
 _HERE = Path(__file__).resolve()
-REAL = next(
-    (
-        p / "shared" / "real" / "xtz.cfg"
-        for p in (_HERE.parents[3], _HERE.parents[4])
-        if (p / "shared" / "real" / "xtz.cfg").is_file()
-    ),
-    _HERE.parents[3] / "shared" / "real" / "xtz.cfg",
-)
+# ../shared/real beside the repository (found above this file, as the demo finds it).
+REAL = find_record(_HERE) or _HERE.parents[3] / "shared" / "real" / "xtz.cfg"
 needs_real = pytest.mark.skipif(not REAL.is_file(), reason="../shared/real is not beside the repo")
 A = np.exp(2j * np.pi / 3)
 
