@@ -12,7 +12,11 @@ from pathlib import Path
 import click
 
 from loadbayes.commands.options import OneLineCommand
-from loadbayes.commands.output import UserError, check_outputs, user_errors
+from loadbayes.commands.output import Progress, UserError, check_outputs, user_errors
+
+#: Seconds a phasor window costs where windows are fitted one at a time (a recorder's own
+#: time stamps; benchmarks/README.md): for the estimate said before a long read.
+_SECONDS_PER_WINDOW = 3e-4
 
 __all__ = ["events_cmd", "read_group"]
 
@@ -111,18 +115,29 @@ def read_comtrade_cmd(
     from loadbayes.io.errors import DataError
     from loadbayes.recordings.comtrade import read_comtrade
     from loadbayes.recordings.plausible import check_table
-    from loadbayes.recordings.record import record_table
+    from loadbayes.recordings.record import phasor_windows, record_table
     from loadbayes.recordings.record_file import record_metadata, write_record
 
     w = read_comtrade(cfg, voltage=vnames, current=inames, bay=bay, side=side, encoding=encoding)
+    windows = phasor_windows(w, per_cycle)
+    if not quiet and windows * _SECONDS_PER_WINDOW > 2.0:  # the cost first, when it is felt
+        click.echo(
+            f"loadbayes: note: {cfg}: {w.t_s.size} samples, about {windows // 2} phasor "
+            f"windows: about {windows * _SECONDS_PER_WINDOW:.0f} s",
+            err=True,
+        )
+    bar = Progress("phasor windows", windows, quiet)
     try:
         rec = record_table(
-            w, per_cycle=per_cycle, dc=dc, v_base_kv=v_base, s_base_mva=s_base, source=cfg
-        )
+            w, per_cycle=per_cycle, dc=dc, v_base_kv=v_base, s_base_mva=s_base, source=cfg,
+            progress=bar,
+        )  # fmt: skip
     except ValueError as exc:
         if isinstance(exc, DataError):
             raise
         raise UserError(f"{cfg}: {exc}") from None
+    finally:
+        bar.close()
     rec.notes = [*w.notes, *rec.notes, *check_table(w, rec, cfg)]
     meta = record_metadata(w, rec, source=cfg, per_cycle=per_cycle, dc=dc, side=side, bay=bay)
     write_record(rec, meta, out, force=force)

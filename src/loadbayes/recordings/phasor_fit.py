@@ -50,6 +50,7 @@ out or flagged.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -135,7 +136,7 @@ def _mimic(t: np.ndarray, x: np.ndarray, tau: float, w0: float) -> tuple[np.ndar
     return y, complex((1.0 + kd) - kd * np.exp(-1j * w0 * float(np.median(dt))))
 
 
-def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0):
+def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, progress=None):
     """Phasors of every window, windows with the same sample offsets fitted together.
 
     Each window's columns are written in the time ``u = t - c`` from its centre: the
@@ -161,6 +162,8 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0):
         groups.setdefault(key, []).append(j)
     for js in groups.values():
         js = np.asarray(js)
+        if progress is not None:
+            progress(int(js.size))
         lo = los[js]
         m = int(his[js[0]] - lo[0])
         idx = lo[:, None] + np.arange(m)
@@ -241,6 +244,7 @@ def fit_phasors(
     reference: int = 0,
     mimic_tau_s: float | None = None,
     step_channels: int = 0,
+    progress: Callable[[int], None] | None = None,
 ) -> PhasorFit:
     """RMS phasors of every channel over sliding one-cycle windows.
 
@@ -269,6 +273,9 @@ def fit_phasors(
         The first ``step_channels`` channels are voltages: a window where one of them
         misfits by more than :data:`STEP_LIMIT` straddles a step, and keeps its plain
         phasors (no mimic filter in any channel).
+    progress : callable, optional
+        Called with the number of windows fitted, as they are (twice per window: a first
+        pass at ``f0``, a second at the segment's frequency).
 
     Returns
     -------
@@ -297,7 +304,7 @@ def fit_phasors(
         raise ValueError(f"dc must be 'auto', 'on' or 'off', got {dc!r}")
     tau = period if mimic_tau_s is None else float(mimic_tau_s)
     first, res_first, dec_first, share_first = _one_pass(
-        t, x, centres, period, w0, w0, dc, None, tau, step_channels
+        t, x, centres, period, w0, w0, dc, None, tau, step_channels, progress
     )
     w = w0
     if centres.size >= 3:
@@ -308,5 +315,7 @@ def fit_phasors(
             w = 2.0 * np.pi * f_med
     if w == w0 and skew_s is None:
         return PhasorFit(centres, first, res_first, f0, dec_first, share_first)
-    out, res, dec, share = _one_pass(t, x, centres, period, w, w0, dc, skew_s, tau, step_channels)
+    out, res, dec, share = _one_pass(
+        t, x, centres, period, w, w0, dc, skew_s, tau, step_channels, progress
+    )
     return PhasorFit(centres, out, res, w / (2.0 * np.pi), dec, share)

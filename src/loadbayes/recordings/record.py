@@ -30,6 +30,7 @@ invented for them: those columns are NaN.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,7 +39,7 @@ from loadbayes.io.errors import DataError
 from loadbayes.recordings.comtrade import Waveforms
 from loadbayes.recordings.phasor_fit import fit_phasors
 
-__all__ = ["STRADDLE_LIMIT", "UNBALANCE_LIMIT", "RecordTable", "record_table"]
+__all__ = ["STRADDLE_LIMIT", "UNBALANCE_LIMIT", "RecordTable", "phasor_windows", "record_table"]
 
 #: Negative-sequence voltage share above which a sample is flagged ``unbalanced``.
 UNBALANCE_LIMIT = 0.05
@@ -90,14 +91,14 @@ def _empty(m: int) -> dict[str, np.ndarray]:
 
 
 def _waveform_rows(
-    w: Waveforms, seg, per_cycle: int, dc: str, k: int = 0, source: str = ""
+    w: Waveforms, seg, per_cycle: int, dc: str, k: int = 0, source: str = "", progress=None
 ) -> dict[str, np.ndarray]:
     sl = slice(seg.start, seg.stop)
     skew = None if w.skew_s is None else np.concatenate([w.skew_s[0], w.skew_s[1]])
     try:
         fit = fit_phasors(
             w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
-            per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3,
+            per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3, progress=progress,
         )  # fmt: skip
     except ValueError as exc:
         if len(w.segments) < 2:
@@ -194,6 +195,7 @@ def record_table(
     v_base_kv: float | None = None,
     s_base_mva: float | None = None,
     source: str = "",
+    progress: Callable[[int], None] | None = None,
 ) -> RecordTable:
     """The record's table: phasor rows of its waveform segments, magnitude rows of the rest.
 
@@ -211,6 +213,9 @@ def record_table(
         first phasor row's ``sqrt(3) |V1|`` and ``|S1|``.
     source : str
         The file, for error messages.
+    progress : callable, optional
+        Called with the number of phasor windows fitted, as they are (about
+        :func:`phasor_windows` in all).
 
     Returns
     -------
@@ -232,7 +237,12 @@ def record_table(
     if not any(s.kind == "waveform" for s in segs):
         raise ValueError("the record has no waveform segment (only magnitudes): no phasors")
     parts = [
-        (seg, _waveform_rows(w, seg, per_cycle, dc, k, source) if seg.kind == "waveform" else None)
+        (
+            seg,
+            _waveform_rows(w, seg, per_cycle, dc, k, source, progress)
+            if seg.kind == "waveform"
+            else None,
+        )
         for k, seg in enumerate(segs)
     ]
     for k, (seg, rows) in enumerate(parts):
@@ -338,3 +348,10 @@ def sags_by_segment(columns: dict[str, np.ndarray], **settings) -> list:
                 )  # fmt: skip
             )
     return out
+
+
+def phasor_windows(w: Waveforms, per_cycle: int = 1) -> int:
+    """About how many windows :func:`record_table` fits (both passes): its cost, told first."""
+    segs = [s for s in (w.segments or ()) if s.kind == "waveform"]
+    spans = [w.t_s[s.stop - 1] - w.t_s[s.start] for s in segs] or [w.t_s[-1] - w.t_s[0]]
+    return int(2 * sum(max(span, 0.0) * w.f_nominal * per_cycle for span in spans))
