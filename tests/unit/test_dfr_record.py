@@ -316,3 +316,16 @@ def test_overlapping_windows_correlate_their_noise_by_the_overlap_fraction(per_c
     for lag in range(1, per_cycle + 1):
         r = np.mean((e[:-lag] * np.conj(e[lag:])).real) / np.mean(np.abs(e) ** 2)
         assert r == pytest.approx(1 - lag / per_cycle, abs=0.07), lag
+
+
+@needs_real
+def test_the_phasor_windows_are_counted_for_the_progress_bar():
+    from loadbayes.recordings.record import phasor_windows
+
+    w = read_comtrade(REAL, bay="1号主变")
+    seen: list[int] = []
+    rec = record_table(w, per_cycle=4, progress=seen.append)
+    phasor_rows_fitted = int((rec.columns["kind"] == "phasor").sum())
+    # Two passes (at f0, then at the segment's frequency) over every window.
+    assert sum(seen) == 2 * phasor_rows_fitted
+    assert phasor_windows(w, 4) == pytest.approx(sum(seen), rel=0.05)
