@@ -176,6 +176,12 @@ def test_fit_composite_then_validate_round_trips(held_out, tmp_path):
                "--json", out, "--quiet")  # fmt: skip
     assert res.exit_code == 0, res.output
     doc = json.loads(out.read_text())
+    # The JSON alone, as the issue writes the command: the NetCDF of the same name beside
+    # it is found (and checked to be that fit's), with the same result.
+    res = _run(js, folder / "held_out.csv", tmp_path / "fitted.csv", "--json",
+               tmp_path / "v2.json", "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "v2.json").read_text())["events"] == doc["events"]
     held, own = doc["events"]
     assert own["n_excluded"] == int(fitted["straddle"].sum()) > 0
     assert doc["p0_fitted"] == pytest.approx(0.9, abs=0.01)

@@ -23,7 +23,11 @@ _NETCDF = (".nc", ".nc4", ".netcdf")
 
 
 def _load_posterior(result: str, netcdf: str | None):
-    """The composite posterior's draws: RESULT is the fit's NetCDF, or its JSON + --netcdf."""
+    """The composite posterior's draws: RESULT is the fit's NetCDF, or its JSON + --netcdf.
+
+    A JSON without --netcdf takes the NetCDF of the same name beside it, when there is one
+    (checked, as an explicit one is, to hold the draws of that JSON's fit).
+    """
     from loadbayes.io.errors import DataError
     from loadbayes.posterior import Posterior
 
@@ -40,6 +44,12 @@ def _load_posterior(result: str, netcdf: str | None):
                 "result of fit composite",
                 result,
             )
+        beside = next(
+            (Path(result).with_suffix(x) for x in _NETCDF if Path(result).with_suffix(x).is_file()),
+            None,
+        )
+        if not netcdf and beside is not None:  # fit composite --json F.json --netcdf F.nc
+            netcdf = str(beside)
         if not netcdf:
             raise UserError(
                 f"{result}: the JSON holds the summary of the draws, not the draws; give the "
