@@ -29,7 +29,6 @@ import argparse
 import datetime
 import json
 import os
-import platform
 import resource
 import statistics
 import subprocess
@@ -37,6 +36,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_zip import machine  # noqa: E402  (one copy: the machine's description)
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "results" / "cli.json"
@@ -124,33 +126,6 @@ def _row(case: str, walls: list[float], cpus: list[float]) -> dict:
         "median_s": statistics.median(walls),
         "worst_s": max(walls),
         "cpu_median_s": statistics.median(cpus),
-    }
-
-
-def machine() -> dict:
-    """CPU, cores, memory, OS, Python and the load average of this machine."""
-    cpu = platform.processor()
-    mem_gb = None
-    if Path("/proc/cpuinfo").exists():
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    if Path("/proc/meminfo").exists():
-        first = Path("/proc/meminfo").read_text().splitlines()[0]
-        mem_gb = round(int(first.split()[1]) / 2**20, 1)
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    return {
-        "platform": platform.platform(),
-        "cpu": cpu,
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": usable,
-        "memory_gb": mem_gb,
-        "load_average_at_start": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-        "python": sys.version.split()[0],
     }
 
 
