@@ -288,17 +288,17 @@ class Progress:
     """A progress bar on a terminal's stderr; nothing otherwise (nor with --quiet).
 
     Only a person watching a terminal needs it: in a pipe or a log it would put lines
-    before a one-line error.
+    before a one-line error. ``eta`` adds the time left (from the rate so far).
     """
 
-    def __init__(self, label: str, total: int | None, quiet: bool) -> None:
+    def __init__(self, label: str, total: int | None, quiet: bool, *, eta: bool = False) -> None:
         self.bar = None
         self.label = label
         self.count = 0
         self.quiet = quiet or not _isatty(sys.stderr)
         if not self.quiet and total:
             self.bar = click.progressbar(
-                length=total, label=label, file=sys.stderr, show_pos=True, show_eta=False
+                length=total, label=label, file=sys.stderr, show_pos=True, show_eta=eta
             )
             self.bar.__enter__()
 

@@ -156,7 +156,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     def bus_progress(n: int) -> None:
         if "bar" not in buses:
             files.close()
-            buses["bar"] = Progress("buses", result_size["buses"], quiet)
+            buses["bar"] = Progress("buses", result_size["buses"], quiet, eta=True)
         buses["bar"](n)
 
     result_size: dict[str, int] = {}
@@ -169,6 +169,12 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
         nc.check(stats.buses)
+        if not quiet:  # the size of the work before it starts; the bar then says the time left
+            click.echo(
+                f"loadbayes: note: {result_size['buses']} buses x {sampler.chains} chains x "
+                f"{sampler.draws} iterations (pool {p['pool']})",
+                err=True,
+            )
 
     try:
         with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
