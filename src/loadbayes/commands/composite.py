@@ -15,6 +15,7 @@ import click
 from loadbayes.commands.options import (
     OneLineCommand,
     accept_units_option,
+    event_column_options,
     likelihood_options,
     parse_nu,
     sampler_settings,
@@ -81,14 +82,7 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
 
 @click.command("composite", cls=OneLineCommand)
 @click.argument("files", nargs=-1, required=True, type=str)
-@click.option("--t-col", default="t_s", show_default=True, help="Time column (s).")
-@click.option("--v-col", default="v", show_default=True, help="Voltage-magnitude column.")
-@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
-@click.option("--q-col", default="q", show_default=True, help="Reactive-power column.")
-@click.option("--f-col", default=None, help="Frequency column in Hz [default: f if present].")
-@click.option(
-    "--angle-col", default=None, help="Voltage-angle column in rad [default: angle_rad if present]."
-)
+@event_column_options
 @click.option(
     "--event-col", default="event", show_default=True, help="Event-id column (if present)."
 )

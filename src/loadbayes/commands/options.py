@@ -438,3 +438,24 @@ def likelihood_options(
         return func
 
     return deco
+
+
+def event_column_options(func):
+    """--t-col --v-col --p-col --q-col --f-col --angle-col: the columns of an event file."""
+    opts = [
+        click.option("--t-col", default="t_s", show_default=True, help="Time column (s)."),
+        click.option("--v-col", default="v", show_default=True, help="Voltage-magnitude column."),
+        click.option("--p-col", default="p", show_default=True, help="Active-power column."),
+        click.option("--q-col", default="q", show_default=True, help="Reactive-power column."),
+        click.option(
+            "--f-col", default=None, help="Frequency column in Hz [default: f if present]."
+        ),
+        click.option(
+            "--angle-col",
+            default=None,
+            help="Voltage-angle column in rad [default: angle_rad if present].",
+        ),
+    ]
+    for opt in reversed(opts):
+        func = opt(func)
+    return func

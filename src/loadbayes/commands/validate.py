@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from loadbayes.commands.options import OneLineCommand
+from loadbayes.commands.options import OneLineCommand, event_column_options
 from loadbayes.commands.output import UserError, check_outputs, user_errors
 from loadbayes.commands.signals import _STOP, stop_if_signalled
 
@@ -87,14 +87,7 @@ def _load_posterior(result: str, netcdf: str | None):
     type=click.Path(exists=True, dir_okay=False),
     help="The fit's draws (written by fit composite --netcdf), when RESULT is its JSON.",
 )
-@click.option("--t-col", default="t_s", show_default=True, help="Time column (s).")
-@click.option("--v-col", default="v", show_default=True, help="Voltage-magnitude column.")
-@click.option("--p-col", default="p", show_default=True, help="Active-power column.")
-@click.option("--q-col", default="q", show_default=True, help="Reactive-power column.")
-@click.option("--f-col", default=None, help="Frequency column in Hz [default: f if present].")
-@click.option(
-    "--angle-col", default=None, help="Voltage-angle column in rad [default: angle_rad if present]."
-)
+@event_column_options
 @click.option(
     "--straddle-col",
     default="straddle",
