@@ -102,10 +102,12 @@ def user_errors(func):
             raise UserError(str(exc)) from None
         except OSError as exc:
             raise UserError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")) from None
-        except SystemError as exc:
-            # A signal that lands in a Python callback of a compiled function (numba's
-            # dispatcher unpickling a constant) comes out as "SystemError: ... returned a
-            # result with an exception set", its cause the KeyboardInterrupt.
+        except Exception as exc:
+            # A signal that lands where Python wraps the exception it raises comes out as
+            # another exception whose cause is the KeyboardInterrupt: a Python callback of
+            # a compiled function (numba's dispatcher: "SystemError: ... returned a result
+            # with an exception set"), or a class being created during an import
+            # ("RuntimeError: Error calling __set_name__"). It is the signal all the same.
             if _STOP["signal"] is None or not _caused_by_interrupt(exc):
                 raise
             del exc
