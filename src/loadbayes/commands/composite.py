@@ -129,8 +129,24 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     init=False,
     draws_min=2,
     burn_min=1,
-    draws_help="Iterations per chain, burn-in included.",
+    draws_help="Iterations per chain, burn-in included. Left at its default, the chains "
+    "then run on until every reported quantity has R-hat < 1.01 and bulk ESS >= 400 "
+    "(or --max-seconds runs out); given, exactly that many.",
     burn_help="Burn-in (the proposal adapts during it, then freezes).",
+)
+@click.option(
+    "--max-seconds",
+    type=float,
+    default=300.0,
+    show_default=True,
+    help="Time budget of the sampling when it runs until convergence; the run says so "
+    "when it ends unconverged.",
+)
+@click.option(
+    "--until-converged/--fixed-draws",
+    default=None,
+    help="Run on after --draws until converged (the default when --draws is not given), "
+    "or exactly --draws iterations (the default when it is).",
 )
 @click.option(
     "--json",
@@ -169,6 +185,8 @@ def fit_composite_cmd(
     nu,
     priors,
     sampler,
+    max_seconds,
+    until_converged,
     json_out,
     netcdf_out,
     plot_out,
@@ -206,7 +224,10 @@ def fit_composite_cmd(
     from loadbayes.models.composite_prior import CompositePrior
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
-              seed=sampler.seed)  # fmt: skip
+              seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
+    if until_converged is None:
+        source = click.get_current_context().get_parameter_source("draws")
+        until_converged = source in (None, click.core.ParameterSource.DEFAULT)
     events = read_events(
         list(files),
         t_col=t_col,
@@ -240,6 +261,13 @@ def fit_composite_cmd(
         click.echo(
             f"fitting {len(events)} event(s), {n} samples: NLS start, then sampling", err=True
         )
+        if until_converged and sampler.chains >= 2:
+            click.echo(
+                f"loadbayes: after {sampler.draws} iterations per chain the chains run on "
+                f"until converged (R-hat < 1.01, bulk ESS >= 400), at most {max_seconds:g} s "
+                "of sampling (--max-seconds)",
+                err=True,
+            )
     if sampler.chains < 2:
         click.echo(
             "loadbayes: warning: one chain: R-hat needs two or more chains, so convergence "
@@ -261,6 +289,8 @@ def fit_composite_cmd(
                 nu=nu_value,
                 accept_units=accept_units,
                 progress=bar,
+                max_seconds=max_seconds,
+                until_converged=until_converged,
             )
     finally:
         bar.close()

@@ -362,6 +362,22 @@ class SamplingBar:
             with self.lock:
                 self.bar.update(n)
 
+    def extend(self, total: int, seconds: float, short: str) -> None:
+        """The run goes on (not converged yet): say why and for how long; a new bar."""
+        self.close()
+        if self.quiet:
+            return
+        click.echo(
+            f"loadbayes: not converged yet ({short}): {total} more iterations (all chains), "
+            f"about {_duration(seconds)}",
+            err=True,
+        )
+        if _isatty(sys.stderr):
+            self.bar = click.progressbar(
+                length=total, label=self.label, file=sys.stderr, show_eta=True, show_percent=True
+            )
+            self.bar.__enter__()
+
     def close(self) -> None:
         """End the bar (a line of its own)."""
         with self.lock:

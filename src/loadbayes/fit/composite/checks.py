@@ -54,14 +54,16 @@ START_BELOW = 0.05
 START_SPAN_S, START_FLAT = 0.05, 0.02
 
 
-def check_run(*, f_hz: float, draws: int, burn: int, thin: int, seed: object) -> None:
+def check_run(
+    *, f_hz: float, draws: int, burn: int, thin: int, seed: object, max_seconds: float = 1.0
+) -> None:
     """Refuse settings the composite fit cannot run, before any work (one line each).
 
     Raises
     ------
     loadbayes.io.errors.OptionError
         ``f_hz`` outside :data:`F_HZ_RANGE`, fewer than :data:`MIN_KEPT` kept draws per
-        chain, or a negative integer seed.
+        chain, a negative integer seed, or a time budget that is not a positive number.
     """
     from loadbayes.io.errors import OptionError
 
@@ -79,6 +81,10 @@ def check_run(*, f_hz: float, draws: int, burn: int, thin: int, seed: object) ->
         )
     if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed < 0:
         raise OptionError(f"--seed {seed}: the seed must be a non-negative integer")
+    if not (isinstance(max_seconds, (int, float)) and max_seconds > 0 and max_seconds < 1e9):
+        raise OptionError(
+            f"--max-seconds {max_seconds}: the time budget must be a positive number of seconds"
+        )
 
 
 def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) -> list[str]:

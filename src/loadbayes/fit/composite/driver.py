@@ -50,6 +50,7 @@ from loadbayes.fit.composite.provenance import (
 from loadbayes.fit.composite.robust import StudentT, robust_outputs
 from loadbayes.fit.composite.sampler import DEFAULT_MOVE, sample
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
+from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
 from loadbayes.models.composite import THETA_NAMES, EventRecord
 from loadbayes.models.composite_prior import CompositePrior
 from loadbayes.models.motor_kernel import H_MAX_S
@@ -108,6 +109,12 @@ class SamplingProgress:
     def __call__(self, n: int) -> None:  # noqa: D102
         pass
 
+    def extend(self, total: int, seconds: float, short: str) -> None:
+        """The run goes on: ``total`` more iterations (all chains), about ``seconds``.
+
+        ``short`` names the quantities that have not converged yet.
+        """
+
 
 #: Iterations of the short run that times one iteration before the chains start.
 _PROBE_ITERATIONS = 12
@@ -155,6 +162,8 @@ def fit_composite(
     workers: int | None = None,
     accept_units: bool = False,
     progress: SamplingProgress | None = None,
+    max_seconds: float = DEFAULT_MAX_SECONDS,
+    until_converged: bool | None = None,
     **overrides: Any,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -195,6 +204,14 @@ def fit_composite(
     progress : SamplingProgress, optional
         Told the estimated cost before sampling (a short timed run) and the iterations
         as they are done.
+    max_seconds : float
+        Time budget of the sampling when it runs until convergence (s).
+    until_converged : bool, optional
+        After ``draws`` iterations, run the chains on until every reported quantity has
+        R-hat < 1.01 and bulk ESS >= 400, or ``max_seconds`` runs out (then a warning
+        says so): :mod:`loadbayes.fit.composite.until`. Default: True when the number
+        of draws was left at its default (neither ``sampler`` nor ``draws`` given),
+        False when it was given (that many iterations, as asked).
     **overrides
         ``draws``, ``burn``, ``thin``, ``chains``, ``seed``: change those of ``sampler``
         (``SamplerSettings.of``).
@@ -212,12 +229,17 @@ def fit_composite(
     loadbayes.io.errors.OptionError
         ``f_hz`` outside 10-1000 Hz, fewer than 50 kept draws per chain, a negative seed.
     """
+    if until_converged is None:
+        until_converged = sampler is None and "draws" not in overrides
     base = sampler if sampler is not None else COMPOSITE_DEFAULTS
     run = SamplerSettings.of(base, threads=workers, **overrides)
     events = list(events)
     if not events:
         raise ValueError("no events to fit")
-    check_run(f_hz=f_hz, draws=run.draws, burn=run.burn, thin=run.thin, seed=run.seed)
+    check_run(
+        f_hz=f_hz, draws=run.draws, burn=run.burn, thin=run.thin, seed=run.seed,
+        max_seconds=max_seconds,
+    )  # fmt: skip
     unit_warnings = check_units(events, accept_units=accept_units)
     prior = prior or CompositePrior.default(events)
     estimate = isinstance(torque, str)
@@ -241,10 +263,23 @@ def fit_composite(
             _estimate_seconds(sampled, sample_start, run, move, student_t),
         )
         t_sample = time.perf_counter()
+    until = None
+    if until_converged and run.chains >= 2:
+
+        def quantities(results) -> dict[str, np.ndarray]:
+            named = ChainDraws.stack(results, steps=bool(problem.n_steps), torque=estimate)
+            named = named.named(problem)
+            return {n: named[n] for n in (*free_names(problem), *coefficient_names(named))}
+
+        until = UntilConverged(
+            quantities, max_seconds=float(max_seconds), thin=run.thin,
+            announce=None if progress is None else progress.extend,
+        )  # fmt: skip
+        until.start(run.draws)
     res = sample(
         sampled, start=sample_start, draws=run.draws, burn=run.burn, thin=run.thin,
         chains=run.chains, seed=run.seed, workers=run.threads, move=move, student_t=student_t,
-        progress=progress,
+        progress=progress, extend=until,
     )  # fmt: skip
     t2 = time.perf_counter()
     seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
@@ -283,6 +318,14 @@ def fit_composite(
     post.warnings.extend(sampling_warnings(events, draws_named["t_prime_s"], steps_modelled=steps))
     watch = _WATCH + (_WATCH_TORQUE if estimate else ())
     post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))
+    if until is not None:
+        post.settings["until_converged"] = {
+            **until.record(),
+            "iterations_per_chain": run.burn + res[0].theta.shape[0] * run.thin,
+        }
+        budget = until.warning(res)
+        if budget:
+            post.warnings.append(budget)
     # Baseline draws per chain: (draws - burn) // thin, at least one (not run.kept, which
     # rounds up: the baseline's size has always been this).
     n_baseline = max((run.draws - run.burn) // run.thin, 1)

@@ -73,11 +73,9 @@ class StudentT:
         ):
             raise ValueError(f"nu must be a positive number or 'auto', got {self.nu!r}")
 
-    def chain(
-        self, problem: CompositeProblem, u: np.ndarray, tau: np.ndarray, n_kept: int
-    ) -> StudentTChain:
+    def chain(self, problem: CompositeProblem, u: np.ndarray, tau: np.ndarray) -> StudentTChain:
         """A chain's weights state, started at weight 1 (the Gaussian) at ``u``."""
-        return StudentTChain(problem, self, u, tau, n_kept)
+        return StudentTChain(problem, self, u, tau)
 
 
 def collapsed_weighted(
@@ -124,9 +122,7 @@ def _residuals(problem: CompositeProblem, sums: WeightedSums, betas) -> np.ndarr
 class StudentTChain:
     """One chain's weights, ``nu`` and their records (see the module notes)."""
 
-    def __init__(
-        self, problem: CompositeProblem, spec: StudentT, u: np.ndarray, tau, n_kept: int
-    ) -> None:
+    def __init__(self, problem: CompositeProblem, spec: StudentT, u: np.ndarray, tau) -> None:
         self.problem = problem
         self.fixed = spec.nu != "auto"
         nu0 = float(spec.nu) if self.fixed else spec.nu_start
@@ -134,7 +130,7 @@ class StudentTChain:
         n = problem.samples.size
         self.lam = np.ones((2, n))
         self.wsum = np.zeros((2, n))
-        self.nu_out = np.empty((n_kept, 2))
+        self.nu_out: list[np.ndarray] = []  # kept nu draws (grows: runs can be extended)
         self.kept = 0
         self.accepted = np.zeros(2)
         self.proposed = 0
@@ -179,7 +175,7 @@ class StudentTChain:
             if keep:
                 self.wsum[g] += mean
         if keep:
-            self.nu_out[self.kept] = self.nu
+            self.nu_out.append(self.nu.copy())
             self.kept += 1
         d = self.problem.samples
         groups = []
@@ -196,7 +192,8 @@ class StudentTChain:
     def result(self) -> tuple[np.ndarray, np.ndarray, float | None]:
         """Kept ``nu`` draws (kept, 2), mean weights (2, n), acceptance of the nu step."""
         acc = None if self.fixed else float(self.accepted.mean() / max(self.proposed, 1))
-        return self.nu_out[: self.kept], self.wsum / max(self.kept, 1), acc
+        nus = np.array(self.nu_out).reshape(self.kept, 2)
+        return nus, self.wsum / max(self.kept, 1), acc
 
 
 def robust_outputs(problem: CompositeProblem, res, nu, draws: dict[str, np.ndarray]):

@@ -56,6 +56,104 @@ class ChainResult:
     nu_acceptance: float | None = None
 
 
+#: Decides, after a round of sampling, how many more iterations every chain runs (0:
+#: stop). Called with the chains' results so far.
+Extension = Callable[[list[ChainResult]], int]
+
+
+class _Chain:
+    """One chain's state between rounds: it can be run on (the kept draws grow).
+
+    The same draws as one uninterrupted run of the same total length: a round only
+    splits the loop (the generator, the move and the state carry over).
+    """
+
+    def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
+                 dispersion, student_t, stop, progress):  # fmt: skip
+        self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
+        self.n_tot, self.stop, self.progress = n_tot, stop, progress
+        dim = problem.dim
+        self.n_base = 5 + problem.n_steps
+        self.am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
+        u, sums = start.u, None
+        for _ in range(100):
+            cand = start.u + dispersion * root @ rng.standard_normal(dim)
+            sums = problem.sums(cand)
+            if sums is not None:
+                u = cand
+                break
+        if sums is None:
+            u, sums = start.u, problem.sums(start.u)
+        self.u, self.sums, self.tau = u, sums, tau0.copy()
+        # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
+        self.wt = None if student_t is None else student_t.chain(problem, u, tau0)
+        if self.wt is not None:
+            self.sums = self.wt.sums
+        self.it = 0
+        self.kept: dict[str, list[np.ndarray]] = {k: [] for k in ("th", "phi", "b", "t", "x")}
+
+    def run(self, iterations: int) -> None:
+        """Run ``iterations`` more iterations, keeping those past burn-in at the thinning."""
+        problem, rng, wt, am = self.problem, self.rng, self.wt, self.am
+        prior = problem.prior
+        u, sums, tau = self.u, self.sums, self.tau
+        burn, thin, n_base = self.burn, self.thin, self.n_base
+        end = self.it + iterations
+        kept = self.kept
+        told, last = self.it, time.perf_counter()
+        for it in range(self.it, end):
+            check_stop(self.stop)
+            if self.progress is not None and time.perf_counter() - last > PROGRESS_EVERY_S:
+                self.progress(it - told)
+                told, last = it, time.perf_counter()
+            if wt is None:
+                lp = problem.log_collapsed(sums, u, tau)
+
+                def logp(x, tau=tau):
+                    return problem.collapsed(x, tau)
+
+            else:
+                lp, logp = wt.current(u, tau), wt.logp(tau)
+            u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
+            betas = [
+                draw_beta(s, tau, problem.m0, problem.p0, rng, positive=POSITIVE_BETA) for s in sums
+            ]
+            keep = it >= burn and (it - burn) % thin == 0
+            if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
+                sums = wt.update(sums, betas, tau, rng, keep)
+            ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
+            tau = draw_tau(ssr, self.n_tot, prior.tau_shape, prior.tau_rate, rng)
+            log_t0 = prior.draw_log_t0(u[:5], rng)
+            if keep:
+                kept["th"].append(theta_of(u[:5], log_t0))
+                kept["phi"].append(problem.phi(u))
+                kept["x"].append(u[n_base:])
+                kept["b"].append(np.array(betas))
+                kept["t"].append(tau)
+        if self.progress is not None:
+            self.progress(end - told)
+        self.u, self.sums, self.tau, self.it = u, sums, tau, end
+
+    def result(self) -> ChainResult:
+        """The kept draws so far."""
+        k, p = self.kept, self.problem
+        n = len(k["th"])
+        extra = np.array(k["x"]).reshape(n, p.dim - self.n_base)
+        robust = {}
+        if self.wt is not None:
+            robust = dict(zip(("nu", "weight", "nu_acceptance"), self.wt.result(), strict=True))
+        return ChainResult(
+            np.array(k["th"]).reshape(n, 6),
+            np.array(k["b"]).reshape(n, len(p.events), 7),
+            np.array(k["t"]).reshape(n, 2),
+            self.am.acceptance,
+            phi=np.array(k["phi"]).reshape(n, p.n_steps),
+            evaluations_per_iteration=self.am.evaluations_per_step,
+            u_extra=extra if p.dim > self.n_base else None,
+            **robust,
+        )
+
+
 def sample(
     problem: CompositeProblem,
     *,
@@ -70,6 +168,7 @@ def sample(
     move: str = DEFAULT_MOVE,
     student_t: Any = None,
     progress: Callable[[int], None] | None = None,
+    extend: Extension | None = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -103,6 +202,11 @@ def sample(
     progress : callable, optional
         Called with a number of iterations just done (of ``chains * draws``), about every
         :data:`PROGRESS_EVERY_S` seconds per chain, from the chains' threads.
+    extend : callable, optional
+        After the ``draws`` iterations, and after each further round, called with the
+        chains' results; it returns how many more iterations every chain runs (all
+        kept, at the thinning), 0 to stop. The moves stay frozen after burn-in, so a
+        run extended by ``n`` gives the same draws as one of ``draws + n``.
 
     Returns
     -------
@@ -111,10 +215,8 @@ def sample(
     check_iterations(draws, burn, thin, chains)
     if move not in MOVES:
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
-    prior = problem.prior
     # The motor's five, the steps' fractions, then any extra coordinates (torque shares).
     d = dim = problem.dim
-    n_base = 5 + problem.n_steps
     lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
     # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
@@ -124,77 +226,31 @@ def sample(
     lap = lap * np.outer(shrink, shrink)
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
-    kept_idx = range(burn, draws, thin)
     root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
     # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
     # chain end every chain within one iteration, not when the chains finish.
     stop = threading.Event()
+    state: list[_Chain | None] = [None] * chains
 
-    def chain(index: int, rng: np.random.Generator) -> ChainResult:
-        am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
-        u, sums = start.u, None
-        for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(dim)
-            sums = problem.sums(cand)
-            if sums is not None:
-                u = cand
-                break
-        if sums is None:
-            u, sums = start.u, problem.sums(start.u)
-        tau = tau0.copy()
-        th_out = np.empty((len(kept_idx), 6))
-        phi_out = np.empty((len(kept_idx), problem.n_steps))
-        b_out = np.empty((len(kept_idx), len(problem.events), 7))
-        t_out = np.empty((len(kept_idx), 2))
-        x_out = np.empty((len(kept_idx), dim - n_base))
-        j = 0
-        # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
-        wt = None if student_t is None else student_t.chain(problem, u, tau, len(kept_idx))
-        if wt is not None:
-            sums = wt.sums
-        told, last = 0, time.perf_counter()
-        for it in range(draws):
-            check_stop(stop)
-            if progress is not None and time.perf_counter() - last > PROGRESS_EVERY_S:
-                progress(it - told)
-                told, last = it, time.perf_counter()
-            if wt is None:
-                lp = problem.log_collapsed(sums, u, tau)
+    def first(index: int, rng: np.random.Generator) -> ChainResult:
+        c = _Chain(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
+                   move=move, dispersion=dispersion, student_t=student_t, stop=stop,
+                   progress=progress)  # fmt: skip
+        state[index] = c
+        c.run(draws)
+        return c.result()
 
-                def logp(x, tau=tau):
-                    return problem.collapsed(x, tau)
+    generators = chain_generators(seed, chains)
+    out = run_chains(first, generators, workers=workers, stop=stop)
+    while extend is not None:
+        more = int(extend(out))
+        if more <= 0:
+            break
 
-            else:
-                lp, logp = wt.current(u, tau), wt.logp(tau)
-            u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
-            betas = [
-                draw_beta(s, tau, problem.m0, problem.p0, rng, positive=POSITIVE_BETA) for s in sums
-            ]
-            if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
-                sums = wt.update(sums, betas, tau, rng, it >= burn and (it - burn) % thin == 0)
-            ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
-            tau = draw_tau(ssr, n_tot, prior.tau_shape, prior.tau_rate, rng)
-            log_t0 = prior.draw_log_t0(u[:5], rng)
-            if it >= burn and (it - burn) % thin == 0:
-                th_out[j] = theta_of(u[:5], log_t0)
-                phi_out[j] = problem.phi(u)
-                x_out[j] = u[n_base:]
-                b_out[j], t_out[j] = np.array(betas), tau
-                j += 1
-        if progress is not None:
-            progress(draws - told)
-        robust = {}
-        if wt is not None:
-            robust = dict(zip(("nu", "weight", "nu_acceptance"), wt.result(), strict=True))
-        return ChainResult(
-            th_out,
-            b_out,
-            t_out,
-            am.acceptance,
-            phi=phi_out,
-            evaluations_per_iteration=am.evaluations_per_step,
-            u_extra=x_out if dim > n_base else None,
-            **robust,
-        )
+        def again(index: int, rng: np.random.Generator, more=more) -> ChainResult:
+            c = state[index]
+            c.run(more)
+            return c.result()
 
-    return run_chains(chain, chain_generators(seed, chains), workers=workers, stop=stop)
+        out = run_chains(again, generators, workers=workers, stop=stop)
+    return out

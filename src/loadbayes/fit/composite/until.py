@@ -1,0 +1,145 @@
+"""Run the composite chains until they converge, or a time budget runs out.
+
+The default composite fit does not stop at a fixed number of iterations: after the
+first ``draws`` iterations it checks every reported quantity (R-hat below
+:data:`~loadbayes.diagnostics.RHAT_MAX` and bulk ESS at least
+:data:`~loadbayes.diagnostics.ESS_MIN`) and, if one falls short, runs every chain on by
+the number of iterations the slowest quantity's ESS says it needs (kept draws grow
+linearly with ESS), as long as the time budget allows. When the budget runs out first,
+the fit says so in a warning, with the R-hat and ESS reached. docs/composite.md, "How
+long it runs".
+
+The moves are frozen after burn-in, so the extended chains are ordinary Markov chains
+from a fixed kernel: the kept draws of a run extended by ``n`` are those of one run of
+``draws + n`` iterations (the same seed, the same draws). Where the budget stops the run
+depends on the machine's speed, so an unconverged run's length is not reproducible; a
+converged one's is.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
+
+__all__ = ["DEFAULT_MAX_SECONDS", "UntilConverged"]
+
+#: The default time budget of a composite fit's sampling (s): a few minutes.
+DEFAULT_MAX_SECONDS = 300.0
+#: An extension is at least this share of the kept draws so far (no creeping rounds).
+_MIN_GROWTH = 0.25
+#: ... and at most this multiple of them (the ESS rate of a short run is uncertain).
+_MAX_GROWTH = 4.0
+#: Aim this far above the ESS target (the rate estimated from a run is noisy).
+_MARGIN = 1.15
+
+
+@dataclass
+class UntilConverged:
+    """The ``extend`` policy of :func:`loadbayes.fit.composite.sampler.sample`.
+
+    Parameters
+    ----------
+    quantities : callable
+        ``quantities(results) -> {name: (chain, draw) array}``: the reported quantities
+        of the chains' results so far (the ones judged).
+    max_seconds : float
+        Budget for the whole sampling, from :meth:`start` (s).
+    thin : int
+        The run's thinning (iterations per kept draw).
+    announce : callable, optional
+        ``announce(iterations, seconds, state)``: told before each extension (the
+        iterations of all chains, the estimated time, the current R-hat/ESS text).
+    """
+
+    quantities: Callable[[Sequence], dict[str, np.ndarray]]
+    max_seconds: float = DEFAULT_MAX_SECONDS
+    thin: int = 1
+    announce: Callable[[int, float, str], None] | None = None
+    rounds: list[dict] = field(default_factory=list)
+    t_start: float = field(default_factory=time.perf_counter)
+    _t_round: float = field(default_factory=time.perf_counter)
+    _iterations: int = 0
+    stopped_by_budget: bool = False
+
+    def start(self, first_iterations: int) -> None:
+        """Start the clock at the first round of ``first_iterations`` per chain."""
+        self.t_start = self._t_round = time.perf_counter()
+        self._iterations = int(first_iterations)
+
+    def state(self, results: Sequence) -> tuple[float, float, str]:
+        """``(max R-hat, min bulk ESS, which quantities fall short)`` of ``results``."""
+        from loadbayes.core.convergence import summarize
+
+        named = self.quantities(results)
+        names = [n for n, x in named.items() if np.all(np.isfinite(x)) and np.ptp(x) > 0]
+        if not names:
+            return 1.0, math.inf, ""
+        s = summarize(np.stack([named[n] for n in names]), tail=False)
+        rhat, ess = s["r_hat"], s["ess_bulk"]
+        rhat = np.where(np.isfinite(rhat), rhat, 1.0)
+        short = [
+            f"{n} (R-hat {r:.3f}, ESS {e:.0f})"
+            for n, r, e in zip(names, rhat, ess, strict=True)
+            if not (r < RHAT_MAX and e >= ESS_MIN)
+        ]
+        return (
+            float(np.max(rhat)),
+            float(np.min(ess)),
+            ", ".join(short[:4]) + (f" and {len(short) - 4} more" if len(short) > 4 else ""),
+        )
+
+    def __call__(self, results: Sequence) -> int:
+        """How many more iterations every chain runs (0: converged, or out of time)."""
+        now = time.perf_counter()
+        round_s = now - self._t_round
+        per_iteration = round_s / max(self._iterations, 1)
+        rhat, ess, short = self.state(results)
+        kept = results[0].theta.shape[0]
+        elapsed = now - self.t_start
+        self.rounds.append(
+            {"kept": int(kept), "r_hat_max": rhat, "ess_bulk_min": ess, "elapsed_s": elapsed}
+        )
+        if not short:
+            return 0
+        # Bulk ESS grows about linearly with the kept draws; R-hat short of the mark with
+        # enough ESS still needs more draws: half as many again.
+        growth = 0.5 if ess >= ESS_MIN else _MARGIN * ESS_MIN / max(ess, 1.0) - 1.0
+        growth = min(max(growth, _MIN_GROWTH), _MAX_GROWTH)
+        more = math.ceil(kept * growth) * self.thin
+        left = self.max_seconds - elapsed
+        affordable = int(left / per_iteration) if per_iteration > 0 else more
+        if affordable < max(1, math.ceil(_MIN_GROWTH * kept * self.thin)):
+            self.stopped_by_budget = True
+            return 0
+        more = min(more, affordable)
+        if self.announce is not None:
+            self.announce(more * len(results), more * per_iteration, short)
+        self._t_round, self._iterations = time.perf_counter(), more
+        return more
+
+    def warning(self, results: Sequence) -> str | None:
+        """The plain-words warning when the budget ended the run unconverged."""
+        if not self.stopped_by_budget:
+            return None
+        _, _, short = self.state(results)
+        return (
+            f"the time budget of {self.max_seconds:g} s ran out before the chains converged "
+            f"(R-hat < {RHAT_MAX} and bulk ESS >= {ESS_MIN} for every reported quantity): "
+            f"{short} fall short; these results are not converged: give a larger "
+            "--max-seconds (max_seconds=...), or more --draws"
+        )
+
+    def record(self) -> dict:
+        """What the JSON's settings keep about the run's length."""
+        return {
+            "rule": f"R-hat < {RHAT_MAX} and bulk ESS >= {ESS_MIN} for every reported quantity",
+            "max_seconds": self.max_seconds,
+            "rounds": self.rounds,
+            "stopped_by_budget": self.stopped_by_budget,
+        }
