@@ -18,6 +18,18 @@ A **step interval** is one where ``|V_k+1 - V_k| > JUMP v0`` and the change is m
 ``RATIO`` times that of both neighbouring intervals: a discontinuity, not a fast ramp
 (the first interval of a linear recovery has a neighbour changing as much).
 
+A fault's edge is not always inside one interval: a ramp of 10-50 ms, or a recorder's
+phasor, which averages over a window (one cycle, often several samples), spreads it over
+two or more intervals, and the samples inside it are neither the level before nor the
+one after. :func:`edge_runs` finds such **edges**: a run of consecutive intervals in
+which the voltage moves the same way, at least one of them by more than ``JUMP v0``, the
+others by more than ``GROW`` of that (and more than ``NOISE_SIGMAS`` times the record's
+interval-to-interval noise), no longer than the window allows (``max_intervals``). The
+samples inside an edge are left out of the fit (their window straddles the change; how
+many is reported), and the edge becomes one step interval from the sample before it to
+the sample after it, the step at an unknown instant in it as above. A run longer than
+the window (a ramp that the samples resolve) is left as the samples draw it.
+
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 (fit/composite/problem.py).
 """
@@ -33,10 +45,15 @@ from numpy.typing import NDArray
 
 __all__ = [
     "EPS_FRACTION",
+    "GROW",
     "JUMP",
+    "NOISE_SIGMAS",
     "RATIO",
+    "FitSamples",
     "StepGrid",
+    "edge_runs",
     "fill_times",
+    "max_intervals",
     "step_intervals",
 ]
 
@@ -46,6 +63,75 @@ JUMP = 0.05
 RATIO = 3.0
 #: Width of the virtual ramp, as a fraction of the interval.
 EPS_FRACTION = 1e-5
+#: An interval next to a step joins its edge when it moves the same way by more than
+#: this share of the step's change ...
+GROW = 0.05
+#: ... and by more than this many times the record's interval-to-interval noise sd.
+NOISE_SIGMAS = 4.0
+
+
+def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
+    """The longest edge, in intervals, that a ``window_s`` phasor window can make.
+
+    A step spreads over the samples whose window holds it (``window / dt`` of them)
+    plus the interval it fell in; at least two intervals (a short ramp across a sample).
+    """
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1)
+
+
+def edge_runs(
+    v: NDArray[np.float64], *, longest: int, jump: float = JUMP, grow: float = GROW
+) -> list[tuple[int, int]]:
+    """The edges of one voltage record: ``(k0, k1)``, from sample ``k0`` to ``k1``.
+
+    The voltage moves across ``k1 - k0`` intervals (at most ``longest``).
+
+    A single-interval edge is a step interval of :func:`step_intervals`; a longer one
+    holds ``k1 - k0 - 1`` samples inside it, which the fit leaves out.
+    """
+    v = np.asarray(v, dtype=float)
+    dv = np.diff(v)
+    if dv.size == 0:
+        return []
+    noise = 1.4826 * float(np.median(np.abs(dv - np.median(dv))))
+    core = np.abs(dv) > jump * abs(v[0])
+    out: list[tuple[int, int]] = []
+    k = 0
+    while k < dv.size:
+        if not core[k]:
+            k += 1
+            continue
+        # The run of core intervals moving the same way.
+        k0, k1 = k, k + 1
+        sign = np.sign(dv[k])
+        while k1 < dv.size and core[k1] and np.sign(dv[k1]) == sign:
+            k1 += 1
+        big = float(np.max(np.abs(dv[k0:k1])))
+        floor = max(grow * big, NOISE_SIGMAS * noise)
+
+        def joins(i: int, sign=sign, floor=floor) -> bool:
+            return 0 <= i < dv.size and np.sign(dv[i]) == sign and abs(dv[i]) > floor
+
+        while k1 - k0 < longest and (joins(k0 - 1) or joins(k1)):
+            # Grow toward the larger neighbour first.
+            left = abs(dv[k0 - 1]) if joins(k0 - 1) else -1.0
+            right = abs(dv[k1]) if joins(k1) else -1.0
+            if left >= right:
+                k0 -= 1
+            else:
+                k1 += 1
+        grown_out = joins(k0 - 1) or joins(k1)
+        if k1 - k0 == 1 and not grown_out:
+            # One interval: a step if it stands out as before (RATIO), else a fast ramp.
+            before = abs(dv[k0 - 1]) if k0 > 0 else 0.0
+            after = abs(dv[k1]) if k1 < dv.size else 0.0
+            if abs(dv[k0]) > RATIO * before and abs(dv[k0]) > RATIO * after:
+                out.append((k0, k1))
+        elif not grown_out and k1 - k0 <= longest and (not out or k0 >= out[-1][1]):
+            out.append((k0, k1))
+        k = k1
+    return out
 
 
 def step_intervals(v: NDArray[np.float64], *, jump: float = JUMP, ratio: float = RATIO):
@@ -104,12 +190,22 @@ class StepGrid:
         deltas: Sequence[NDArray[np.float64]],
         *,
         detect: bool = True,
+        intervals: Sequence[NDArray[np.int64]] | None = None,
     ) -> StepGrid:
-        """Augment each event's ``t, v, delta`` (``detect=False``: no steps, real only)."""
+        """Augment each event's ``t, v, delta`` (``detect=False``: no steps, real only).
+
+        ``intervals`` gives each event's step intervals (from :func:`edge_runs`, on the
+        samples the fit keeps) instead of :func:`step_intervals`.
+        """
         t_out, v_out, d_out, real, pos, left, width, ev_of, k_of = ([] for _ in range(9))
         starts, offset = [0], 0
         for e, (t, v, d) in enumerate(zip(ts, vs, deltas, strict=True)):
-            ks = step_intervals(v) if detect else np.zeros(0, dtype=np.int64)
+            if not detect:
+                ks = np.zeros(0, dtype=np.int64)
+            elif intervals is not None:
+                ks = np.asarray(intervals[e], dtype=np.int64)
+            else:
+                ks = step_intervals(v)
             n = t.size
             # Each real sample k moves right by 2 for every step interval before it.
             shift = np.searchsorted(ks, np.arange(n), side="left") * 2
@@ -191,3 +287,45 @@ def fill_times(t, pos, left, width, phi):  # pragma: no cover - compiled
         a = left[j] + eps + phi[j] * (width[j] - 3.0 * eps)
         t[pos[j]] = a
         t[pos[j] + 1] = a + eps
+
+
+@dataclass(frozen=True)
+class FitSamples:
+    """Which samples of each event the fit reads, and its step intervals among them.
+
+    ``keep[e]``: indices of event ``e``'s samples in the fit (the samples inside an
+    edge left out); ``intervals[e]``: the step intervals, indices into the kept samples;
+    ``edges[e]``: the edges ``(k0, k1)`` in the event's own sample indices.
+    """
+
+    keep: list[NDArray[np.int64]]
+    intervals: list[NDArray[np.int64]]
+    edges: list[list[tuple[int, int]]]
+
+    @property
+    def left_out(self) -> int:
+        """Samples left out over all events."""
+        return int(sum(k1 - k0 - 1 for ev in self.edges for k0, k1 in ev))
+
+    @classmethod
+    def find(
+        cls,
+        ts: Sequence[NDArray[np.float64]],
+        vs: Sequence[NDArray[np.float64]],
+        *,
+        window_s: float,
+        detect: bool = True,
+    ) -> FitSamples:
+        """The edges of every event (``detect=False``: none, every sample kept)."""
+        keep, intervals, edges = [], [], []
+        for t, v in zip(ts, vs, strict=True):
+            runs = edge_runs(v, longest=max_intervals(t, window_s)) if detect else []
+            mask = np.ones(t.size, dtype=bool)
+            for k0, k1 in runs:
+                mask[k0 + 1 : k1] = False
+            kept = np.flatnonzero(mask).astype(np.int64)
+            # Each edge's first sample k0 is kept: its position among the kept samples.
+            intervals.append(np.searchsorted(kept, [k0 for k0, _ in runs]).astype(np.int64))
+            keep.append(kept)
+            edges.append(runs)
+        return cls(keep, intervals, edges)

@@ -69,8 +69,9 @@ def plot_composite(
         for row, ch in ((0, "p"), (1, "q")):
             ax = fig.add_subplot(grid[row, k * w_ev : (k + 1) * w_ev])
             ax.plot(ev.t, getattr(ev, ch), ".", ms=2.5, color="0.4", label="measured")
-            ax.fill_between(ev.t, band[f"{ch}_lo"], band[f"{ch}_hi"], color="C0", alpha=0.35)
-            ax.plot(ev.t, band[f"{ch}_mid"], color="C0", lw=1.0, label="posterior (95% band)")
+            tb = band.get("t", ev.t)
+            ax.fill_between(tb, band[f"{ch}_lo"], band[f"{ch}_hi"], color="C0", alpha=0.35)
+            ax.plot(tb, band[f"{ch}_mid"], color="C0", lw=1.0, label="posterior (95% band)")
             ax.set_xlabel("t (s)")
             ax.set_ylabel(f"{ch.upper()} (p.u.)")
             ax.set_title(ev.name[-40:], fontsize=8)

@@ -164,6 +164,7 @@ def fit_composite(
     progress: SamplingProgress | None = None,
     max_seconds: float = DEFAULT_MAX_SECONDS,
     until_converged: bool | None = None,
+    window_s: float | None = None,
     **overrides: Any,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -206,6 +207,11 @@ def fit_composite(
         as they are done.
     max_seconds : float
         Time budget of the sampling when it runs until convergence (s).
+    window_s : float, optional
+        The recorder's phasor window (s; default one cycle of ``f_hz``): the samples
+        inside a fault's edge, whose window straddles the change, are left out
+        (``models/composite_steps.py``), and the edge becomes a step at an unknown
+        instant. Point samples (a simulation) need no more than the default.
     until_converged : bool, optional
         After ``draws`` iterations, run the chains on until every reported quantity has
         R-hat < 1.01 and bulk ESS >= 400, or ``max_seconds`` runs out (then a warning
@@ -247,13 +253,18 @@ def fit_composite(
         raise ValueError(f"torque must be (A, B, C) or 'estimate', got {torque!r}")
     # Estimated shares: NLS (the start) at the prior's centre A = B = C = 1/3.
     fixed = (1 / 3, 1 / 3, 1 / 3) if estimate else tuple(torque)
-    problem = CompositeProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps)
+    if window_s is not None and not (math.isfinite(window_s) and 0 <= window_s <= 1.0):
+        from loadbayes.io.errors import OptionError
+
+        raise OptionError(f"--window-s {window_s}: the phasor window must be 0-1 s")
+    kw = dict(f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps, window_s=window_s)
+    problem = CompositeProblem(events, prior, **kw)
     t0 = time.perf_counter()
     start = nls(problem)
     t1 = time.perf_counter()
     sampled, sample_start = problem, start
     if estimate:
-        sampled = TorqueProblem(events, prior, f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps)
+        sampled = TorqueProblem(events, prior, **kw)
         sample_start = extend_start(start, np.zeros(2))
     student_t = _student_t(likelihood, nu)
     t_sample = t1

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from loadbayes.fit.composite.naming import beta_from_named, event_suffix
 from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_response
-from loadbayes.models.composite_steps import StepGrid
+from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.posterior import Posterior
 
 __all__ = ["predictive_band"]
@@ -27,7 +28,9 @@ def predictive_band(
     """Posterior band of the model's P(t), Q(t) for each event (noise not added).
 
     Returns, per event, ``p_lo, p_mid, p_hi, q_lo, q_mid, q_hi`` (the ``prob`` central
-    interval and the median over ``n_draws`` posterior draws).
+    interval and the median over ``n_draws`` posterior draws) at the samples the fit
+    read, whose times are ``t`` and indices ``k`` (the samples inside a fault's edge
+    are left out, as in the fit: models/composite_steps.py).
     """
     rng = np.random.default_rng(seed)
     theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
@@ -39,12 +42,21 @@ def predictive_band(
     )
     pick = rng.choice(theta.shape[0], size=min(n_draws, theta.shape[0]), replace=False)
     out = []
-    for k, ev in enumerate(events):
+    steps = post.settings.get("steps") or {}
+    window = steps.get("window_s") or 1.0 / f_hz
+    for k, recorded in enumerate(events):
         beta = beta_from_named(post.draws, k).reshape(-1, 7)
         # The steps where each draw put them (none when the fit read them as ramps).
         sfx = event_suffix(k)
+        detect = f"t_step0{sfx}" in post.draws
+        fs = FitSamples.find([recorded.t], [recorded.v], window_s=window, detect=detect)
+        keep = fs.keep[0]
+        ev = replace(
+            recorded, t=recorded.t[keep], v=recorded.v[keep], p=recorded.p[keep],
+            q=recorded.q[keep], delta=None if recorded.delta is None else recorded.delta[keep],
+        )  # fmt: skip
         delta = np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]
-        grid = StepGrid.build([ev.t], [ev.v], [delta], detect=f"t_step0{sfx}" in post.draws)
+        grid = StepGrid.build([ev.t], [ev.v], [delta], detect=detect, intervals=fs.intervals)
         names = [f"t_step{j}{sfx}" for j in range(grid.n_steps)]
         times = np.stack([post.draws[n].ravel() for n in names], -1) if names else None
         ps, qs = [], []
@@ -57,7 +69,7 @@ def predictive_band(
                 ps.append(zp @ beta[i])
                 qs.append(zq @ beta[i])
         lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-        band = {}
+        band = {"t": ev.t, "k": keep}
         for name, arr in (("p", np.array(ps)), ("q", np.array(qs))):
             band[f"{name}_lo"], band[f"{name}_mid"], band[f"{name}_hi"] = np.percentile(
                 arr, [lo, 50, hi], axis=0

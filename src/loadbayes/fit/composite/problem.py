@@ -28,7 +28,7 @@ from loadbayes.inference.condlinear import (
 )
 from loadbayes.models.composite import SCALE_FREE_MATRIX, EventRecord, motor_response
 from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
-from loadbayes.models.composite_steps import StepGrid
+from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.models.motor_kernel import H_MAX_S, integrate_into, step_size
 
 __all__ = ["CompositeProblem", "KernelResult", "Samples", "theta_of"]
@@ -98,16 +98,33 @@ class CompositeProblem:
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0)
     h_max: float = H_MAX_S
     steps: bool = True
+    #: The recorder's phasor window (s); None: one cycle of ``f_hz``. Sets how long an
+    #: edge can be (models/composite_steps.py).
+    window_s: float | None = None
     evaluations: int = field(default=0, init=False)
 
     def __post_init__(self) -> None:
         self.m0 = np.zeros(7)
         self.p0 = 1.0 / self.prior.beta_sd**2
+        # The samples inside a fault's edge (a ramp, or a phasor window across the
+        # change) are left out; ``recorded`` keeps the events as given.
+        self.recorded = list(self.events)
+        window = 1.0 / self.f_hz if self.window_s is None else float(self.window_s)
+        self.fit_samples = FitSamples.find(
+            [e.t for e in self.recorded], [e.v for e in self.recorded], window_s=window,
+            detect=self.steps,
+        )  # fmt: skip
+        self.events = [
+            _subset(e, k) for e, k in zip(self.recorded, self.fit_samples.keep, strict=True)
+        ]
         ev = self.events
         deltas = [np.zeros(e.n) if e.delta is None else e.delta - e.delta[0] for e in ev]
         # The kernel's input: the samples plus two virtual knots in every step interval
         # (models/composite_steps.py); the likelihood sees the real samples only.
-        self.grid = StepGrid.build([e.t for e in ev], [e.v for e in ev], deltas, detect=self.steps)
+        self.grid = StepGrid.build(
+            [e.t for e in ev], [e.v for e in ev], deltas, detect=self.steps,
+            intervals=self.fit_samples.intervals,
+        )  # fmt: skip
         self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
             np.int64
         )
@@ -269,6 +286,17 @@ class CompositeProblem:
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=POSITIVE_BETA)
         return out
+
+
+def _subset(event: EventRecord, keep: np.ndarray) -> EventRecord:
+    # The event with only the samples at ``keep`` (all of them: the same record).
+    if keep.size == event.n:
+        return event
+    from dataclasses import replace
+
+    delta = None if event.delta is None else event.delta[keep]
+    return replace(event, t=event.t[keep], v=event.v[keep], p=event.p[keep], q=event.q[keep],
+                   delta=delta)  # fmt: skip
 
 
 #: The weights argument of the Gaussian kernel call (not read).

@@ -33,20 +33,22 @@ def problem_settings(
     ``torque`` is as the caller gave it (``(A, B, C)`` or ``"estimate"``); ``extra`` is
     appended (the caller's own provenance, such as the files read).
     """
-    events = problem.events
+    events = problem.recorded
     estimate = isinstance(torque, str)
     grid = problem.grid
+    fs = problem.fit_samples
     return {
-        "n": int(sum(e.n for e in events)),
+        "n": int(sum(e.n for e in problem.events)),
         "events": [
             {
                 "name": e.name,
                 "n": e.n,
+                "n_fitted": int(fs.keep[i].size),
                 "t_span_s": float(e.t[-1] - e.t[0]),
                 "v0": e.v0,
                 "angle_from": e.angle_from or None,
             }
-            for e in events
+            for i, e in enumerate(events)
         ],
         "f_hz": problem.f_hz,
         "torque": "estimate" if estimate else list(torque),
@@ -58,9 +60,22 @@ def problem_settings(
         "steps": {
             "modelled": bool(problem.steps),
             "intervals": [
-                {"event": int(e), "k": int(k), "t_s": float(t), "dt_s": float(w)}
+                {"event": int(e), "k": int(fs.keep[e][k]), "t_s": float(t), "dt_s": float(w)}
                 for e, k, t, w in zip(grid.event_of, grid.k_of, grid.left, grid.width, strict=True)
             ],
+            "window_s": problem.window_s if problem.window_s is not None else 1.0 / problem.f_hz,
+            "left_out": {
+                "rule": "the samples inside a fault's edge (a run of intervals moving the "
+                "same way, no longer than the phasor window allows) are left out of the "
+                "likelihood; the edge is a step at an unknown instant between its ends",
+                "count": fs.left_out,
+                "samples": [
+                    {"event": e, "from_k": int(k0), "to_k": int(k1)}
+                    for e, runs in enumerate(fs.edges)
+                    for k0, k1 in runs
+                    if k1 - k0 > 1
+                ],
+            },
         },
         "shunt": "q_c = mva_m * q_m(0): the motor's initial Q compensated at v0",
         "closure": "xs = xr",
