@@ -43,8 +43,14 @@ _PRIOR_NAMES = {
 }
 
 
-def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
-    out = {}
+def _parse_priors(
+    items: tuple[str, ...],
+) -> tuple[dict[str, tuple[float, float]], dict[str, tuple[float, float]]]:
+    # Motor priors (log-normal: NAME=MEDIAN,SD_LOG) and coefficient priors (normal:
+    # NAME=MEAN,SD on a1..a6, f_m, p0, q0).
+    from loadbayes.models.composite_prior import COEFFICIENT_PRIOR_NAMES
+
+    motor, coef = {}, {}
     for item in items:
         try:
             name, rest = item.split("=", 1)
@@ -52,20 +58,30 @@ def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
             med, sd = float(med_s), float(sd_s)
         except ValueError:
             raise click.BadParameter(
-                f"{item!r}: expected NAME=MEDIAN,SD_LOG such as h_s=0.7,0.3",
+                f"{item!r}: expected NAME=MEDIAN,SD_LOG such as h_s=0.7,0.3 (a motor "
+                "parameter) or NAME=MEAN,SD such as a1=0.3,0.1 (a share, f_m, p0, q0)",
                 param_hint="--prior",
             ) from None
         name = name.strip()
+        if name in COEFFICIENT_PRIOR_NAMES:
+            if not (math.isfinite(med) and sd > 0 and math.isfinite(sd)):
+                raise click.BadParameter(
+                    f"{item!r}: MEAN must be finite and SD positive", param_hint="--prior"
+                )
+            coef[name] = (med, sd)
+            continue
         if name not in _PRIOR_NAMES:
             raise click.BadParameter(
-                f"{item!r}: NAME must be one of {', '.join(_PRIOR_NAMES)}", param_hint="--prior"
+                f"{item!r}: NAME must be one of {', '.join(_PRIOR_NAMES)} (log-normal) or "
+                f"{', '.join(COEFFICIENT_PRIOR_NAMES)} (normal)",
+                param_hint="--prior",
             )
         if not (med > 0 and math.isfinite(med) and sd > 0 and math.isfinite(sd)):
             raise click.BadParameter(
                 f"{item!r}: MEDIAN and SD_LOG must be positive and finite", param_hint="--prior"
             )
-        out[_PRIOR_NAMES[name]] = (math.log(med), sd)
-    return out
+        motor[_PRIOR_NAMES[name]] = (math.log(med), sd)
+    return motor, coef
 
 
 def _parse_torque(text: str) -> tuple[float, float, float] | str:
@@ -120,8 +136,25 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     "--prior",
     "priors",
     multiple=True,
-    metavar="NAME=MEDIAN,SD_LOG",
-    help="Log-normal prior of rs, x_prime, dx, t_prime_s, h_s or t0 (repeatable).",
+    metavar="NAME=MEDIAN,SD_LOG|NAME=MEAN,SD",
+    help="Log-normal prior of rs, x_prime, dx, t_prime_s, h_s or t0 (NAME=MEDIAN,SD_LOG), "
+    "or a normal prior factor on a1..a6, f_m, p0 or q0 of every event (NAME=MEAN,SD); "
+    "repeatable.",
+)
+@click.option(
+    "--shares",
+    type=click.Choice(["free", "bounded"]),
+    default="free",
+    show_default=True,
+    help="'bounded' holds every static ZIP share in [0, 1] (so f_m in (0, 1)) by its "
+    "prior: a load a simulator can take; 'free' lets the data put them anywhere.",
+)
+@click.option(
+    "--window-s",
+    type=click.FloatRange(min=0, max=1),
+    default=None,
+    help="The recorder's phasor window in s (default one cycle of --f-hz): samples inside "
+    "a fault's edge, whose window straddles the change, are left out of the fit.",
 )
 @sampler_settings(
     draws=16_000,
@@ -184,6 +217,8 @@ def fit_composite_cmd(
     likelihood,
     nu,
     priors,
+    shares,
+    window_s,
     sampler,
     max_seconds,
     until_converged,
@@ -211,7 +246,7 @@ def fit_composite_cmd(
     nu_value = parse_nu(nu)
     if likelihood != "student-t" and nu != "auto":
         raise UserError("--nu needs --likelihood student-t")
-    prior_items = _parse_priors(priors)
+    prior_items, coef_priors = _parse_priors(priors)
     if sampler.seed < 0:
         raise UserError(f"--seed {sampler.seed}: the seed must be a non-negative integer")
 
@@ -291,6 +326,9 @@ def fit_composite_cmd(
                 progress=bar,
                 max_seconds=max_seconds,
                 until_converged=until_converged,
+                shares=shares,
+                coefficient_prior=coef_priors,
+                window_s=window_s,
             )
     finally:
         bar.close()

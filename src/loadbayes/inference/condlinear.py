@@ -31,6 +31,7 @@ from scipy import special
 __all__ = [
     "GroupSums",
     "draw_beta",
+    "draw_betas",
     "draw_tau",
     "log_marginal",
     "posterior_moments",
@@ -207,3 +208,39 @@ def draw_tau(
     ``ssr`` and ``n`` may be summed over several independent blocks sharing the ``tau_g``.
     """
     return rng.gamma(shape + 0.5 * np.asarray(n), 1.0 / (rate + 0.5 * np.asarray(ssr)))
+
+
+def draw_betas(
+    sums: GroupSums,
+    tau: np.ndarray,
+    m0: np.ndarray,
+    p0: np.ndarray,
+    rng: np.random.Generator,
+    size: int,
+    *,
+    positive: int | None = None,
+) -> np.ndarray:
+    """``size`` independent exact draws of ``beta | tau, y`` (as :func:`draw_beta`), (size, k)."""
+    mu, cov, _, _ = posterior_moments(sums, np.asarray(tau, dtype=float), m0, p0)
+    k = mu.size
+    z = rng.standard_normal((size, k))
+    if positive is None:
+        return mu + z @ np.linalg.cholesky(cov).T
+    j = positive
+    sd = math.sqrt(cov[j, j])
+    a = -mu[j] / sd
+    upper = special.ndtr(-a)
+    if upper > 1e-300:
+        w = rng.uniform(0.0, upper, size)
+        bj = mu[j] + sd * -special.ndtri(np.maximum(w, 1e-300))
+    else:
+        bj = mu[j] + sd * (a + rng.exponential(1.0 / a, size))
+    rest = [i for i in range(k) if i != j]
+    c_rj = cov[rest, j]
+    cov_r = cov[np.ix_(rest, rest)] - np.outer(c_rj, c_rj) / cov[j, j]
+    w_, v_ = np.linalg.eigh((cov_r + cov_r.T) / 2)
+    root = v_ * np.sqrt(np.clip(w_, 0.0, None))
+    out = np.empty((size, k))
+    out[:, j] = bj
+    out[:, rest] = mu[rest] + np.outer(bj - mu[j], c_rj / cov[j, j]) + z[:, : k - 1] @ root.T
+    return out

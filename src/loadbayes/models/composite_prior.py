@@ -17,7 +17,15 @@ import numpy as np
 
 from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, THETA_NAMES, EventRecord
 
-__all__ = ["POSITIVE_BETA", "STEP_PRIOR_SD", "THETA_PRIOR", "CompositePrior"]
+__all__ = [
+    "COEFFICIENT_PRIOR_NAMES",
+    "POSITIVE_BETA",
+    "STEP_PRIOR_SD",
+    "THETA_PRIOR",
+    "CoefficientPrior",
+    "CompositePrior",
+    "named_coefficients",
+]
 
 #: Default prior of the motor's log-parameters: (median, sd of the log). Centred on the
 #: library's typical motors (docs/motor.md, "The documented motors";
@@ -118,4 +126,81 @@ class CompositePrior:
             },
             "beta_sd": dict(zip(BETA_NAMES, self.beta_sd.tolist(), strict=True)),
             "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
+        }
+
+
+#: The named quantities of one event's coefficients that a prior can be put on.
+COEFFICIENT_PRIOR_NAMES = ("a1", "a2", "a3", "a4", "a5", "a6", "f_m", "p0", "q0")
+
+
+def named_coefficients(beta: np.ndarray) -> dict[str, np.ndarray]:
+    """``a1..a6, f_m, p0, q0`` of coefficients ``beta`` (..., 7) (:data:`BETA_NAMES`)."""
+    b = np.asarray(beta, dtype=float)
+    cp, cq, pm = b[..., 0:3], b[..., 3:6], b[..., 6]
+    p_zip = cp.sum(-1)
+    q0 = cq.sum(-1)
+    p0 = p_zip + pm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = {f"a{i + 1}": cp[..., i] / p_zip for i in range(3)}
+        out.update({f"a{i + 4}": cq[..., i] / q0 for i in range(3)})
+        out["f_m"] = pm / p0
+    out["p0"], out["q0"] = p0, q0
+    return out
+
+
+@dataclass(frozen=True)
+class CoefficientPrior:
+    """An extra prior factor on each event's linear coefficients (the static part, f_m).
+
+    The coefficients' Gaussian prior (:class:`CompositePrior`) keeps them conjugate, so
+    the sampler integrates them out; this factor ``r(beta)`` multiplies it, and the
+    sampler handles it exactly by importance weights (fit/composite/sampler.py):
+
+    - ``bounded``: every static share in [0, 1] (``a1..a3 >= 0`` with ``a1 + a2 + a3 =
+      1``, the same for ``a4..a6``; with ``p_m0 > 0`` this also holds ``0 < f_m < 1``):
+      what a simulator's static load and a planner's export need;
+    - ``normal``: ``{name: (mean, sd)}``, a normal factor on a named quantity
+      (:data:`COEFFICIENT_PRIOR_NAMES`): prior knowledge of a share, of the motor
+      share or of the operating point.
+
+    Each factor multiplies the Gaussian prior, so the stated normal is the prior of that
+    quantity only where the Gaussian one is flat at its scale (it is: ten times the
+    data's largest apparent power).
+    """
+
+    bounded: bool = False
+    normal: tuple[tuple[str, float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        for name, mean, sd in self.normal:
+            if name not in COEFFICIENT_PRIOR_NAMES:
+                raise ValueError(f"no prior on {name!r}: one of {COEFFICIENT_PRIOR_NAMES}")
+            if not (math.isfinite(mean) and math.isfinite(sd) and sd > 0):
+                raise ValueError(f"prior of {name}: the mean must be finite, the sd positive")
+
+    @property
+    def active(self) -> bool:
+        """Whether there is any factor (else the plain conjugate sampler runs)."""
+        return self.bounded or bool(self.normal)
+
+    def log_factor(self, beta: np.ndarray) -> np.ndarray:
+        """``log r(beta)`` of coefficients (..., 7): ``-inf`` outside the bounds."""
+        b = np.asarray(beta, dtype=float)
+        out = np.zeros(b.shape[:-1])
+        if self.bounded:
+            cp, cq = b[..., 0:3], b[..., 3:6]
+            ok = np.all(cp >= 0, -1) & (np.all(cq >= 0, -1) | np.all(cq <= 0, -1))
+            out = np.where(ok, out, -np.inf)
+        if self.normal:
+            named = named_coefficients(b)
+            for name, mean, sd in self.normal:
+                z = (named[name] - mean) / sd
+                out = out - 0.5 * np.where(np.isfinite(z), z * z, np.inf)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """For the JSON's settings."""
+        return {
+            "shares": "bounded" if self.bounded else "free",
+            "normal": {name: [mean, sd] for name, mean, sd in self.normal},
         }

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit.composite.bounded import share_start
 from loadbayes.fit.composite.checks import (
     check_run,
     check_units,
@@ -47,12 +48,13 @@ from loadbayes.fit.composite.provenance import (
     problem_settings,
     sampler_record,
 )
+from loadbayes.fit.composite.residuals import residual_autocorrelation, residual_warning
 from loadbayes.fit.composite.robust import StudentT, robust_outputs
 from loadbayes.fit.composite.sampler import DEFAULT_MOVE, sample
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
 from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
 from loadbayes.models.composite import THETA_NAMES, EventRecord
-from loadbayes.models.composite_prior import CompositePrior
+from loadbayes.models.composite_prior import CoefficientPrior, CompositePrior
 from loadbayes.models.motor_kernel import H_MAX_S
 from loadbayes.posterior import Posterior, gaussian_draws
 
@@ -95,6 +97,18 @@ def _baseline_draws(
     return named_draws(problem, theta, betas, tau, phi=problem.phi(x[..., :d]))
 
 
+def _shares_outside(draws: dict[str, np.ndarray]) -> str:
+    # The static shares (and f_m) whose posterior mean lies outside [0, 1], in words.
+    out = []
+    for name in sorted(draws):
+        base = name.split("_e")[0]
+        if base in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
+            m = float(np.mean(draws[name]))
+            if not -0.02 <= m <= 1.02:
+                out.append(f"{name} {m:+.2f}")
+    return ", ".join(out)
+
+
 class SamplingProgress:
     """What :func:`fit_composite` tells about the sampling while it runs (override both).
 
@@ -120,7 +134,9 @@ class SamplingProgress:
 _PROBE_ITERATIONS = 12
 
 
-def _estimate_seconds(sampled, start, run: SamplerSettings, move: str, student_t) -> float:
+def _estimate_seconds(
+    sampled, start, run: SamplerSettings, move: str, student_t, factor=None
+) -> float:
     # Measure a few iterations of one chain (its own throw-away run) and extrapolate: the
     # chains share the threads, each runs run.draws iterations.
     from loadbayes.core.parallel import num_threads
@@ -128,7 +144,7 @@ def _estimate_seconds(sampled, start, run: SamplerSettings, move: str, student_t
     def probe(n: int) -> float:
         t0 = time.perf_counter()
         sample(sampled, start=start, draws=n, burn=n // 2, chains=1, seed=run.seed,
-               workers=1, move=move, student_t=student_t)  # fmt: skip
+               workers=1, move=move, student_t=student_t, factor=factor)  # fmt: skip
         return time.perf_counter() - t0
 
     probe(2)  # the first call compiles the kernels (the run would pay it anyway)
@@ -136,6 +152,38 @@ def _estimate_seconds(sampled, start, run: SamplerSettings, move: str, student_t
     threads = run.threads or num_threads()
     rounds = math.ceil(run.chains / max(1, min(threads, run.chains)))
     return per_iteration * run.draws * rounds
+
+
+def _factor(shares: str, normal: dict | None, move: str) -> CoefficientPrior | None:
+    from loadbayes.io.errors import OptionError
+
+    if shares not in ("free", "bounded"):
+        raise OptionError(f"--shares {shares!r}: one of free, bounded")
+    try:
+        # Bounded shares are the bounded model's parametrisation (fit/composite/bounded.py),
+        # not a factor; the normal factors stay factors.
+        factor = CoefficientPrior(
+            bounded=False,
+            normal=tuple((n, float(m), float(s)) for n, (m, s) in (normal or {}).items()),
+        )
+    except ValueError as exc:
+        raise OptionError(f"--prior: {exc}") from None
+    if factor.active and move != "am":
+        raise OptionError(
+            "--shares bounded and priors on a1..a6, f_m, p0, q0 need the default move (am)"
+        )
+    return factor if factor.active else None
+
+
+def _append_start(start: NLSResult, values: np.ndarray, *, sd: float) -> NLSResult:
+    # The sampler's start with coordinates appended (independent, sd ``sd``).
+    from dataclasses import replace
+
+    d, k = start.u.size, values.size
+    cov = np.zeros((d + k, d + k))
+    cov[:d, :d] = start.cov[:d, :d]
+    cov[d:, d:] = sd**2 * np.eye(k)
+    return replace(start, u=np.concatenate([start.u, values]), cov=cov)
 
 
 def _student_t(likelihood: str, nu: float | str) -> StudentT | None:
@@ -165,6 +213,8 @@ def fit_composite(
     max_seconds: float = DEFAULT_MAX_SECONDS,
     until_converged: bool | None = None,
     window_s: float | None = None,
+    shares: str = "free",
+    coefficient_prior: dict[str, tuple[float, float]] | None = None,
     **overrides: Any,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -212,6 +262,14 @@ def fit_composite(
         inside a fault's edge, whose window straddles the change, are left out
         (``models/composite_steps.py``), and the edge becomes a step at an unknown
         instant. Point samples (a simulation) need no more than the default.
+    shares : {"free", "bounded"}
+        ``"bounded"`` holds every static share in [0, 1] (and so ``f_m`` in (0, 1)) by
+        its prior: a physically admissible load, as an export needs. ``"free"`` (the
+        default) lets the data put them anywhere (a negative share fits a load that
+        the ZIP form cannot describe, or an undetermined static part).
+    coefficient_prior : dict, optional
+        ``{name: (mean, sd)}``: a normal prior factor on ``a1..a6``, ``f_m``, ``p0`` or
+        ``q0`` of every event (:class:`~loadbayes.models.composite_prior.CoefficientPrior`).
     until_converged : bool, optional
         After ``draws`` iterations, run the chains on until every reported quantity has
         R-hat < 1.01 and bulk ESS >= 400, or ``max_seconds`` runs out (then a warning
@@ -259,19 +317,30 @@ def fit_composite(
         raise OptionError(f"--window-s {window_s}: the phasor window must be 0-1 s")
     kw = dict(f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps, window_s=window_s)
     problem = CompositeProblem(events, prior, **kw)
+    bounded = shares == "bounded"
+    factor = _factor(shares, coefficient_prior, move)
+    if bounded and likelihood != "normal":
+        from loadbayes.io.errors import OptionError
+
+        raise OptionError("--shares bounded works with --likelihood normal only (for now)")
     t0 = time.perf_counter()
     start = nls(problem)
     t1 = time.perf_counter()
     sampled, sample_start = problem, start
+    if bounded:
+        # The shares become sampled coordinates (fit/composite/bounded.py), started at
+        # the free estimate's shares moved inside the simplex.
+        sampled = CompositeProblem(events, prior, bounded=True, **kw)
+        sample_start = _append_start(start, share_start(start.betas), sd=0.5)
     if estimate:
-        sampled = TorqueProblem(events, prior, **kw)
-        sample_start = extend_start(start, np.zeros(2))
+        sampled = TorqueProblem(events, prior, bounded=bounded, **kw)
+        sample_start = extend_start(sample_start, np.zeros(2))
     student_t = _student_t(likelihood, nu)
     t_sample = t1
     if progress is not None:
         progress.begin(
             run.draws * run.chains,
-            _estimate_seconds(sampled, sample_start, run, move, student_t),
+            _estimate_seconds(sampled, sample_start, run, move, student_t, factor),
         )
         t_sample = time.perf_counter()
     until = None
@@ -290,7 +359,7 @@ def fit_composite(
     res = sample(
         sampled, start=sample_start, draws=run.draws, burn=run.burn, thin=run.thin,
         chains=run.chains, seed=run.seed, workers=run.threads, move=move, student_t=student_t,
-        progress=progress, extend=until,
+        progress=progress, extend=until, factor=factor,
     )  # fmt: skip
     t2 = time.perf_counter()
     seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
@@ -329,6 +398,29 @@ def fit_composite(
     post.warnings.extend(sampling_warnings(events, draws_named["t_prime_s"], steps_modelled=steps))
     watch = _WATCH + (_WATCH_TORQUE if estimate else ())
     post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))
+    lag1 = residual_autocorrelation(
+        problem, blocks.theta, blocks.phi, blocks.betas, seed=run.seed, abc=blocks.abc
+    )
+    post.settings["residuals"] = {
+        "lag1_autocorrelation": lag1,
+        "what": "lag-1 autocorrelation of each event's P and Q residuals, mean over 20 "
+        "posterior draws (white noise: within +-2/sqrt(n) of 0)",
+    }
+    lag_warning = residual_warning(lag1)
+    if lag_warning:
+        post.warnings.append(lag_warning)
+    post.settings["coefficient_prior"] = {
+        **(factor or CoefficientPrior()).to_dict(),
+        "shares": shares,
+    }
+    if not bounded:
+        outside = _shares_outside(draws_named)
+        if outside:
+            post.warnings.append(
+                f"the static part is not a physical ZIP load: {outside}; a simulator's "
+                "static load needs every share in [0, 1]: refit with --shares bounded "
+                "(shares='bounded') to hold them there"
+            )
     if until is not None:
         post.settings["until_converged"] = {
             **until.record(),

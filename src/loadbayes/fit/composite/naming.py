@@ -57,7 +57,7 @@ class ChainDraws:
             np.stack([r.beta for r in res]),
             np.stack([r.tau for r in res]),
             np.stack([r.phi for r in res]) if steps else None,
-            np.stack([r.u_extra for r in res]) if torque else None,
+            np.stack([r.u_extra[:, -2:] for r in res]) if torque else None,
         )
 
     @cached_property

@@ -20,9 +20,18 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from loadbayes.fit.composite.bounded import (
+    SHARE_COORDS,
+    draw_gamma,
+    log_evidence,
+    log_prior_shares,
+    shares_of,
+)
 from loadbayes.fit.composite.sums import design_sums, design_sums_into, weighted_sums, x_sums
 from loadbayes.inference.condlinear import (
     GroupSums,
+    draw_beta,
+    draw_betas,
     log_marginal,
     log_marginal_arrays,
 )
@@ -101,6 +110,9 @@ class CompositeProblem:
     #: The recorder's phasor window (s); None: one cycle of ``f_hz``. Sets how long an
     #: edge can be (models/composite_steps.py).
     window_s: float | None = None
+    #: Static shares held in [0, 1] (fit/composite/bounded.py): four more sampled
+    #: coordinates per event, after the steps' fractions.
+    bounded: bool = False
     evaluations: int = field(default=0, init=False)
 
     def __post_init__(self) -> None:
@@ -146,9 +158,52 @@ class CompositeProblem:
         return self.grid.n_steps
 
     @property
+    def n_share_coords(self) -> int:
+        """Sampled share coordinates (bounded shares: four per event; else none)."""
+        return SHARE_COORDS * len(self.events) if self.bounded else 0
+
+    @property
     def dim(self) -> int:
-        """Length of the sampled vector: five scale-free motor coordinates, then the steps."""
-        return 5 + self.grid.n_steps
+        """Length of the sampled vector: the motor's five, the steps, any share coordinates."""
+        return 5 + self.grid.n_steps + self.n_share_coords
+
+    def share_z(self, u: np.ndarray) -> np.ndarray:
+        """The bounded shares' log-ratio coordinates in ``u``, (events, 4)."""
+        i = 5 + self.grid.n_steps
+        return np.asarray(u, dtype=float)[i : i + self.n_share_coords].reshape(-1, SHARE_COORDS)
+
+    def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
+        # The collapsed density of the bounded model (fit/composite/bounded.py).
+        out = self.prior.log_u(u[:5])
+        gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
+        for z, g in zip(self.share_z(u), groups, strict=True):
+            out += log_prior_shares(z)
+            out += log_evidence(g.ztz, g.zty, g.yty, g.n, np.asarray(tau, float),
+                                shares_of(z), gamma_p0)  # fmt: skip
+        return float(out)
+
+    def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:
+        """Every event's ``beta | u, tau`` (exact; bounded shares: fit/composite/bounded.py)."""
+        if not self.bounded:
+            return [draw_beta(s, tau, self.m0, self.p0, rng, positive=POSITIVE_BETA) for s in sums]
+        gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
+        return [
+            draw_gamma(g.ztz, g.zty, tau, shares_of(z), gamma_p0, rng)[0]
+            for z, g in zip(self.share_z(u), sums, strict=True)
+        ]
+
+    def draw_coefficient_sets(self, sums, tau, u, rng, size: int) -> list[np.ndarray]:
+        """``size`` draws of every event's ``beta | u, tau``, each (size, 7)."""
+        if not self.bounded:
+            return [
+                draw_betas(s, tau, self.m0, self.p0, rng, size, positive=POSITIVE_BETA)
+                for s in sums
+            ]
+        gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
+        return [
+            draw_gamma(g.ztz, g.zty, tau, shares_of(z), gamma_p0, rng, size)
+            for z, g in zip(self.share_z(u), sums, strict=True)
+        ]
 
     def phi(self, u: np.ndarray) -> np.ndarray:
         """The steps' fractions of their intervals (sampled as they are, in [0, 1]).
@@ -233,7 +288,10 @@ class CompositeProblem:
         k = self.kernel(u, tau, torque)
         if k is None:
             return -math.inf, None
-        return k.lp, self.group_sums(k)
+        groups = self.group_sums(k)
+        if self.bounded:
+            return self._bounded_lp(np.asarray(u, dtype=float), tau, groups), groups
+        return k.lp, groups
 
     def responses(
         self, u: np.ndarray, torque: tuple[float, float, float] | None = None
@@ -282,6 +340,8 @@ class CompositeProblem:
             return -math.inf
         if u.size > 5 and not self.in_support(u):
             return -math.inf
+        if self.bounded:
+            return self._bounded_lp(u, tau, sums)
         out = self.prior.log_u(u[:5])
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=POSITIVE_BETA)

@@ -10,6 +10,7 @@ physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-mo
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -23,12 +24,10 @@ from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.inference.condlinear import (
-    draw_beta,
     draw_tau,
     residual_ss,
 )
 from loadbayes.inference.moves import MOVES
-from loadbayes.models.composite_prior import POSITIVE_BETA
 
 __all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
 
@@ -56,6 +55,67 @@ class ChainResult:
     nu_acceptance: float | None = None
 
 
+#: Candidates per event of the importance step that handles a coefficient prior factor.
+TILT_TRIES = 512
+
+
+class _Tilted:
+    """A prior factor ``r(beta)`` on the coefficients, handled exactly (docs/composite.md).
+
+    The state is ``(u, beta, tau)``. Each iteration extends it with ``M - 1`` fresh draws
+    of every event's ``beta`` from its conjugate conditional (the current ``beta`` the
+    M-th); the u-move proposes ``u'`` with ``M`` fresh draws at ``u'`` and accepts by the
+    ratio of ``p(u) Z(u) mean_m r(beta_m)``, the collapsed density times the importance
+    estimate of ``E[r]``; then ``beta`` is picked among the candidates of the state it
+    landed on with probability proportional to ``r``. This is Metropolis-Hastings on the
+    extended target ``pi(u, beta_k) prod_{m != k} q(beta_m | u)`` (the particle-marginal
+    construction of Andrieu, Doucet & Holenstein 2010 with one time step): exact for any
+    ``M``, whose size only sets how sticky the chain is where ``r`` is often zero.
+    """
+
+    def __init__(self, problem, factor, tries: int = TILT_TRIES) -> None:
+        self.problem, self.factor, self.tries = problem, factor, int(tries)
+
+    def candidates(self, sums, tau, u, rng, current=None):
+        """Every event's candidates, their ``log r`` and the log estimate of ``E[r]``."""
+        n = self.tries - (current is not None)
+        sets = self.problem.draw_coefficient_sets(sums, tau, u, rng, n)
+        cands, logr, est = [], [], 0.0
+        for e, draws in enumerate(sets):
+            if current is not None:
+                draws = np.vstack([current[e][None, :], draws])
+            lr = self.factor.log_factor(draws)
+            top = float(np.max(lr))
+            if not math.isfinite(top):
+                return cands, logr, -math.inf
+            est += top + math.log(float(np.mean(np.exp(lr - top))))
+            cands.append(draws)
+            logr.append(lr)
+        return cands, logr, est
+
+    def select(self, cands, logr, rng) -> list[np.ndarray]:
+        """One candidate per event, with probability proportional to ``r``."""
+        out = []
+        for c, lr in zip(cands, logr, strict=True):
+            w = np.exp(lr - np.max(lr))
+            out.append(c[rng.choice(len(w), p=w / w.sum())].copy())
+        return out
+
+    def feasible(self, sums, tau, u, rng) -> list[np.ndarray]:
+        """Starting coefficients with ``r > 0`` (drawn; else a draw moved inside)."""
+        cands, logr, est = self.candidates(sums, tau, u, rng)
+        if math.isfinite(est):
+            return self.select(cands, logr, rng)
+        out = []
+        for b in self.problem.draw_coefficients(sums, tau, u, rng):
+            tiny = 1e-9 * max(1.0, float(np.max(np.abs(b))))
+            b[0:3] = np.maximum(b[0:3], tiny)
+            sign = 1.0 if b[3:6].sum() >= 0 else -1.0
+            b[3:6] = sign * np.maximum(sign * b[3:6], tiny)
+            out.append(b)
+        return out
+
+
 #: Decides, after a round of sampling, how many more iterations every chain runs (0:
 #: stop). Called with the chains' results so far.
 Extension = Callable[[list[ChainResult]], int]
@@ -69,7 +129,7 @@ class _Chain:
     """
 
     def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
-                 dispersion, student_t, stop, progress):  # fmt: skip
+                 dispersion, student_t, stop, progress, factor=None):  # fmt: skip
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot, self.stop, self.progress = n_tot, stop, progress
         dim = problem.dim
@@ -89,6 +149,11 @@ class _Chain:
         self.wt = None if student_t is None else student_t.chain(problem, u, tau0)
         if self.wt is not None:
             self.sums = self.wt.sums
+        self.tilted = None
+        self.betas = None
+        if factor is not None and factor.active:
+            self.tilted = _Tilted(problem, factor)
+            self.betas = self.tilted.feasible(self.sums, self.tau, self.u, rng)
         self.it = 0
         self.kept: dict[str, list[np.ndarray]] = {k: [] for k in ("th", "phi", "b", "t", "x")}
 
@@ -114,10 +179,11 @@ class _Chain:
 
             else:
                 lp, logp = wt.current(u, tau), wt.logp(tau)
-            u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
-            betas = [
-                draw_beta(s, tau, problem.m0, problem.p0, rng, positive=POSITIVE_BETA) for s in sums
-            ]
+            if self.tilted is None:
+                u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
+                betas = problem.draw_coefficients(sums, tau, u, rng)
+            else:
+                u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it)
             keep = it >= burn and (it - burn) % thin == 0
             if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
                 sums = wt.update(sums, betas, tau, rng, keep)
@@ -133,6 +199,23 @@ class _Chain:
         if self.progress is not None:
             self.progress(end - told)
         self.u, self.sums, self.tau, self.it = u, sums, tau, end
+
+    def _tilted_step(self, u, lp, logp, sums, tau, it):
+        # The u-move and the coefficients with a prior factor (_Tilted's notes).
+        rng, tilt = self.rng, self.tilted
+        cands, logr, est = tilt.candidates(sums, tau, u, rng, current=self.betas)
+
+        def logp_tilted(x):
+            lc, s2 = logp(x)
+            if s2 is None or not math.isfinite(lc):
+                return -math.inf, None
+            c2, l2, e2 = tilt.candidates(s2, tau, x, rng)
+            return lc + e2, (s2, c2, l2)
+
+        u, _, aux, _ = self.am.step(u, lp + est, logp_tilted, rng, it, aux=(sums, cands, logr))
+        sums, cands, logr = aux
+        self.betas = tilt.select(cands, logr, rng)
+        return u, sums, self.betas
 
     def result(self) -> ChainResult:
         """The kept draws so far."""
@@ -169,6 +252,7 @@ def sample(
     student_t: Any = None,
     progress: Callable[[int], None] | None = None,
     extend: Extension | None = None,
+    factor: Any = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -207,6 +291,9 @@ def sample(
         chains' results; it returns how many more iterations every chain runs (all
         kept, at the thinning), 0 to stop. The moves stay frozen after burn-in, so a
         run extended by ``n`` gives the same draws as one of ``draws + n``.
+    factor : loadbayes.models.composite_prior.CoefficientPrior, optional
+        A prior factor on the coefficients (bounded shares, priors on named quantities),
+        handled by :class:`_Tilted`; needs the ``"am"`` move (one evaluation per step).
 
     Returns
     -------
@@ -215,6 +302,11 @@ def sample(
     check_iterations(draws, burn, thin, chains)
     if move not in MOVES:
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
+    if factor is not None and factor.active and move != "am":
+        raise ValueError(
+            "bounded shares and priors on the coefficients need the 'am' move: its density "
+            "is estimated (importance weights), which a slice move cannot use"
+        )
     # The motor's five, the steps' fractions, then any extra coordinates (torque shares).
     d = dim = problem.dim
     lap = start.cov[:d, :d]
@@ -235,7 +327,7 @@ def sample(
     def first(index: int, rng: np.random.Generator) -> ChainResult:
         c = _Chain(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
                    move=move, dispersion=dispersion, student_t=student_t, stop=stop,
-                   progress=progress)  # fmt: skip
+                   progress=progress, factor=factor)  # fmt: skip
         state[index] = c
         c.run(draws)
         return c.result()
