@@ -1,0 +1,86 @@
+"""Fault edges that span samples: ramps and phasor windows (models/composite_steps.py).
+
+The voltage records here are written in the test: a continuous sag (exact step or a
+ramp) sampled as points or as one-cycle window means, so the edges are known exactly.
+"""
+
+import numpy as np
+import pytest
+
+from loadbayes.models.composite_steps import FitSamples, edge_runs, max_intervals
+
+F_HZ = 60.0
+
+
+def _v_of(t, start, depth, ramp):
+    # Continuous sag: 1 before start, 1 - depth after start + ramp, linear between.
+    if ramp == 0:
+        return np.where(t < start, 1.0, 1.0 - depth)
+    return 1.0 - depth * np.clip((t - start) / ramp, 0.0, 1.0)
+
+
+def _record(rate, start, depth, ramp, *, phasor=False, noise=0.0, seed=0):
+    t = np.arange(int(1.0 * rate) + 1) / rate
+    if phasor:  # one-cycle window means, by fine quadrature
+        fine = np.linspace(0, 1 / F_HZ, 401)
+        v = np.array([np.mean(_v_of(tk - fine, start, depth, ramp)) for tk in t])
+    else:
+        v = _v_of(t, start, depth, ramp)
+    return t, v + noise * np.random.default_rng(seed).standard_normal(t.size)
+
+
+def _inside(t, start, end):
+    return set(np.flatnonzero((t > start) & (t < end)).tolist())
+
+
+@pytest.mark.parametrize("rate", [30.0, 60.0, 120.0])
+def test_an_exact_step_between_samples_is_one_interval(rate):
+    t, v = _record(rate, 0.4013, 0.3, 0.0, noise=0.001)
+    runs = edge_runs(v, longest=max_intervals(t, 1 / F_HZ))
+    assert len(runs) == 1
+    k0, k1 = runs[0]
+    assert k1 - k0 == 1 and t[k0] < 0.4013 < t[k1]
+
+
+@pytest.mark.parametrize("rate, ramp", [(60.0, 0.020), (120.0, 0.020), (30.0, 0.010)])
+def test_a_short_ramp_becomes_one_edge_with_its_inside_samples_left_out(rate, ramp):
+    start = 0.4013
+    t, v = _record(rate, start, 0.35, ramp, noise=0.001)
+    runs = edge_runs(v, longest=max_intervals(t, 1 / F_HZ))
+    assert len(runs) == 1
+    k0, k1 = runs[0]
+    # The edge holds the whole ramp, and the samples on the ramp are the inside ones.
+    assert t[k0] <= start and t[k1] >= start + ramp
+    assert set(range(k0 + 1, k1)) == _inside(t, start, start + ramp)
+
+
+def test_phasor_samples_whose_window_holds_the_step_are_left_out():
+    # 4 phasors per cycle (240/s), a one-cycle window: a step spreads over 4 samples.
+    rate, start = 240.0, 0.40131
+    t, v = _record(rate, start, 0.3, 0.0, phasor=True, noise=0.0005)
+    fs = FitSamples.find([t], [v], window_s=1 / F_HZ)
+    (k0, k1), = fs.edges[0]
+    contaminated = _inside(t, start, start + 1 / F_HZ)
+    assert contaminated <= set(range(k0 + 1, k1))
+    assert fs.left_out == k1 - k0 - 1
+    assert np.setdiff1d(np.arange(t.size), fs.keep[0]).tolist() == list(range(k0 + 1, k1))
+    # The kept samples' step interval is the edge, in the kept samples' numbering.
+    kept = fs.keep[0]
+    assert kept[fs.intervals[0][0]] == k0 and kept[fs.intervals[0][0] + 1] == k1
+
+
+def test_a_ramp_the_samples_resolve_is_no_edge():
+    # A 300 ms recovery at 60/s moves 1.7 % per interval: the samples draw it.
+    t, v = _record(60.0, 0.4013, 0.3, 0.3)
+    assert edge_runs(v, longest=max_intervals(t, 1 / F_HZ)) == []
+    # A 50 ms ramp at 120/s spans 6 intervals, more than a one-cycle window makes.
+    t, v = _record(120.0, 0.4013, 0.3, 0.05)
+    assert edge_runs(v, longest=max_intervals(t, 1 / F_HZ)) == []
+
+
+def test_noise_alone_and_detect_false_give_no_edge():
+    t, v = _record(60.0, 0.4013, 0.0, 0.0, noise=0.005)
+    assert edge_runs(v, longest=3) == []
+    t, v = _record(60.0, 0.4013, 0.3, 0.02)
+    fs = FitSamples.find([t], [v], window_s=1 / F_HZ, detect=False)
+    assert fs.left_out == 0 and fs.keep[0].size == t.size
