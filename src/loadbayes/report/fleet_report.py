@@ -338,8 +338,7 @@ def write_fleet_report(
     Raises
     ------
     DataError
-        A file that cannot be read or is not what it should be (file, column, row).
-    FileExistsError
+        A file that cannot be read or is not what it should be (file, column, row), or
         ``out`` exists and ``force`` is False.
     """
     from loadbayes.io.atomic import atomic_write
