@@ -37,8 +37,9 @@ def class_mix_figure(ft: FleetTable, *, hdi_prob: float = 0.95) -> Figure | None
 
     cls_rows = ft.class_rows
     wide = ft.wide()
-    chans = [c for c, names in SHARES.items() if names[0] in (
-        set(cls_rows["parameter"]) if ft.pooled else set(wide.columns))]  # fmt: skip
+    have = set(cls_rows["parameter"]) if ft.pooled else set(wide.columns)
+    shares = {c: [n for n in names if n in have] for c, names in SHARES.items()}
+    chans = [c for c, names in shares.items() if names]
     if not chans:
         return None
     classes = sorted(set(cls_rows["class"]) if ft.pooled else set(ft.bus_rows["class"]))
@@ -49,7 +50,7 @@ def class_mix_figure(ft: FleetTable, *, hdi_prob: float = 0.95) -> Figure | None
     width = 0.8 / max(len(classes), 1)
     bus_class = ft.bus_rows.groupby("bus", sort=False)["class"].first()
     for ax, ch in zip(axes[0], chans, strict=True):
-        names = SHARES[ch]
+        names = shares[ch]
         for k, c in enumerate(classes):
             xs = np.arange(len(names)) - 0.4 + width * (k + 0.5)
             if ft.pooled:
@@ -70,8 +71,8 @@ def class_mix_figure(ft: FleetTable, *, hdi_prob: float = 0.95) -> Figure | None
                            boxprops={"facecolor": colour[c], "alpha": 0.6},
                            medianprops={"color": "black"})  # fmt: skip
                 ax.plot([], [], "s", color=colour[c], label=f"{c} ({len(sub)} buses)")
-        ax.set_xticks(np.arange(len(names)), [f"{n} ({w})" for n, w in zip(
-            names, ("Z", "I", "P"), strict=True)])  # fmt: skip
+        kind = dict(zip(SHARES[ch], ("Z", "I", "P"), strict=True))
+        ax.set_xticks(np.arange(len(names)), [f"{n} ({kind[n]})" for n in names])
         ax.axhline(0.0, color="0.7", lw=0.8)
         ax.set_ylabel(f"share of {ch}0 (per unit)")
         ax.set_title(f"{ch}: class mixes", fontsize=10)

@@ -46,6 +46,8 @@ __all__ = [
 RHAT_LIMIT, ESS_LIMIT, THIN_ROWS = 1.01, 400, 50
 #: Warnings that say a bus's voltage hardly moved.
 FLAT_WORDS = ("voltage has no spread", "voltage spans only", "too few distinct voltage")
+#: Warnings (of a later fleet run) about convergence, listed as reasons as they stand.
+_CONVERGENCE = re.compile(r"r-hat|\bess\b|converge", re.IGNORECASE)
 
 #: Columns without which a table is not a fleet result.
 REQUIRED = ("level", "bus", "class", "parameter", "mean", "sd", "hdi_low", "hdi_high",
@@ -81,6 +83,14 @@ class FleetTable:
     table: pd.DataFrame
     settings: dict[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # Ids as text (a map's ids are text too), no null class, warnings as text.
+        df = self.table.copy()
+        df["warnings"] = df["warnings"].fillna("").astype(str)
+        df["bus"] = [None if pd.isna(b) else str(b) for b in df["bus"]]
+        df["class"] = ["all" if pd.isna(c) else str(c) for c in df["class"]]
+        self.table = df
+
     @property
     def bus_rows(self) -> pd.DataFrame:
         """Rows of level ``bus`` (a null parameter: a bus not fitted)."""
@@ -110,33 +120,38 @@ class FleetTable:
         (fewer than :data:`THIN_ROWS` rows), flat voltage (the warnings say so).
         """
         b = self.bus_rows
+        first = b.groupby("bus", sort=False).agg(
+            cls=("class", "first"), n=("n", "first"), text=("warnings", "first")
+        )
+        fitted = b[b["parameter"].notna()]
+        # The worst parameter of each bus: one sort, not a Python loop over 10^4 buses.
+        worst_r = fitted.sort_values("r_hat", ascending=False, na_position="last")
+        worst_r = worst_r.drop_duplicates("bus").set_index("bus")
+        worst_e = fitted.sort_values("ess_bulk", ascending=True, na_position="last")
+        worst_e = worst_e.drop_duplicates("bus").set_index("bus")
         out = []
-        for bus, g in b.groupby("bus", sort=False, dropna=False):
+        for bus, cls, n, text in zip(first.index, first["cls"], first["n"], first["text"],
+                                     strict=True):  # fmt: skip
+            n = int(n) if np.isfinite(n) else 0
             reasons = []
-            fitted = g[g["parameter"].notna()]
-            n = int(g["n"].iloc[0]) if g["n"].notna().any() else 0
-            text = " | ".join(w for w in g["warnings"].unique() if w)
-            if not len(fitted):
+            if bus not in worst_r.index:
                 reasons.append(text or "not fitted")
             else:
-                rh = fitted["r_hat"].max(skipna=True)
-                ess = fitted["ess_bulk"].min(skipna=True)
+                rh, who_r = worst_r.at[bus, "r_hat"], worst_r.at[bus, "parameter"]
+                ess, who_e = worst_e.at[bus, "ess_bulk"], worst_e.at[bus, "parameter"]
                 if np.isfinite(rh) and rh > RHAT_LIMIT:
-                    who = fitted.loc[fitted["r_hat"].idxmax(), "parameter"]
-                    reasons.append(f"unconverged: R-hat {rh:.3f} ({who})")
+                    reasons.append(f"unconverged: R-hat {rh:.3f} ({who_r})")
                 if np.isfinite(ess) and ess < ESS_LIMIT:
-                    who = fitted.loc[fitted["ess_bulk"].idxmin(), "parameter"]
-                    reasons.append(f"few effective draws: ESS {ess:,.0f} ({who})")
+                    reasons.append(f"few effective draws: ESS {ess:,.0f} ({who_e})")
                 if n < THIN_ROWS:
                     reasons.append(f"thin: {n} rows")
-                low = text.lower()
-                if any(w in low for w in FLAT_WORDS):
+                if any(w in text.lower() for w in FLAT_WORDS):
                     reasons.append("flat voltage")
                 for w in text.split(" | "):
-                    if re.search(r"r-hat|ess|converge", w, re.IGNORECASE):
+                    if _CONVERGENCE.search(w):
                         reasons.append(w)
             if reasons:
-                out.append({"bus": bus, "class": g["class"].iloc[0], "n": n,
+                out.append({"bus": bus, "class": cls, "n": n,
                             "reasons": list(dict.fromkeys(reasons))})  # fmt: skip
         return pd.DataFrame(out, columns=["bus", "class", "n", "reasons"])
 
@@ -229,9 +244,6 @@ def read_fleet(path: str | Path) -> FleetTable:
                         column="level", row=row + 1)  # fmt: skip
     if not (levels == "bus").any():
         raise DataError("no bus rows: not a fleet result", name, column="level")
-    df["warnings"] = df["warnings"].fillna("").astype(str)
-    df["bus"] = df["bus"].map(lambda b: b if b is None or b is pd.NA else str(b))
-    df["class"] = df["class"].map(lambda c: "all" if c is None or c is pd.NA else str(c))
     settings: dict[str, Any] = {}
     meta = table.schema.metadata or {}
     if b"loadbayes" in meta:
