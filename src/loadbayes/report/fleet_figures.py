@@ -189,7 +189,10 @@ def sensitivity_figure(
             ax.set_xlabel(axis_names[0])
             ax.set_ylabel(axis_names[1])
             if axis_names[1].lower().startswith("lat") and len(at):
-                ax.set_aspect(1.0 / max(np.cos(np.deg2rad(float(at["y"].mean()))), 0.1))
+                ax.set_aspect(
+                    1.0 / max(np.cos(np.deg2rad(float(at["y"].mean()))), 0.1),
+                    adjustable="datalim",
+                )
             ax.set_title(f"{label[k]} at V0, per bus", fontsize=10)
         else:
             s = s.sort_values("mean")
