@@ -103,32 +103,19 @@ def concat(frames: Sequence[pd.DataFrame]) -> pd.DataFrame:
 
 
 def write_parquet(
-    df: pd.DataFrame,
-    path: str | Path,
-    *,
-    force: bool = False,
-    atomic: bool = True,
-    settings: Mapping[str, object] | None = None,
+    df: pd.DataFrame, path: str | Path, *, force: bool = False, atomic: bool = True
 ) -> Path:
     """Write the table atomically (never overwrites without ``force``).
 
     ``atomic=False`` writes straight into ``path``, a temporary the caller renames (an
-    :class:`~loadbayes.io.transaction.OutputSet`'s). ``settings`` (the run's data,
-    columns, sampler and seed) are kept as JSON under the key ``loadbayes`` of the
-    schema's metadata, where ``loadbayes report`` finds them.
+    :class:`~loadbayes.io.transaction.OutputSet`'s).
     """
-    import json
-
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     from loadbayes.io.atomic import atomic_write
 
     table = pa.Table.from_pandas(df, preserve_index=False)
-    if settings:
-        meta = dict(table.schema.metadata or {})
-        meta[b"loadbayes"] = json.dumps(dict(settings), default=str).encode("utf-8")
-        table = table.replace_schema_metadata(meta)
     if not atomic:
         pq.write_table(table, path)
         return Path(path)

@@ -196,7 +196,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
                 progress_buses=bus_progress,
                 on_stats=stats_hook,
             )
-        _commit(res.table, p["fleet_out"], p["force"], nc, _settings(p, sampler, res))
+        _commit(res.table, p["fleet_out"], p["force"], nc)
     finally:
         files.close()
         if "bar" in buses:
@@ -205,23 +205,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     _report(res, p["fleet_out"], quiet)
 
 
-def _settings(p: dict[str, Any], sampler: SamplerSettings, res) -> dict[str, Any]:
-    """What the run was asked, kept in the table for ``loadbayes report``."""
-    from loadbayes._version import __version__
-
-    keys = ("data", "by", "class_col", "pool", "v_col", "p_col", "q_col", "v_base", "s_base",
-            "v0", "p0", "q0", "drop_invalid")  # fmt: skip
-    out = {k: p.get(k) for k in keys}
-    out.update(p0=nominal(p["p0"], "--p0"), q0=nominal(p["q0"], "--q0"))
-    out.update(chains=sampler.chains, draws=sampler.draws, burn=sampler.burn,
-               thin=sampler.thin, seed=sampler.seed, hdi_prob=sampler.hdi_prob,
-               files=res.files, engine=res.engine, loadbayes_version=__version__)  # fmt: skip
-    return out
-
-
-def _commit(
-    table, out_path: str, force: bool, nc: _NetcdfStaging, settings: dict[str, Any]
-) -> None:
+def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging) -> None:
     """The fleet table and the per-bus NetCDF files, renamed into place together."""
     from loadbayes.commands.signals import _STOP, stop_if_signalled
     from loadbayes.fleet.summary import write_parquet
@@ -231,7 +215,7 @@ def _commit(
     stop_if_signalled()
     with OutputSet({"--out": out_path}, force=force) as out:
         _STOP["outputs"] = out
-        write_parquet(table, out.temp("--out"), atomic=False, settings=settings)
+        write_parquet(table, out.temp("--out"), atomic=False)
         stop_if_signalled()
         moves = nc.moves()
         with held_signals():
