@@ -43,6 +43,18 @@ def _fleet_rows(seed: int = 11) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+def _write(table: pd.DataFrame, path, settings: dict) -> None:
+    """The table with its settings under the Parquet metadata key 'loadbayes' (as the CLI)."""
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = pa.Table.from_pandas(table, preserve_index=False)
+    meta = {**(t.schema.metadata or {}), b"loadbayes": json.dumps(settings).encode()}
+    pq.write_table(t.replace_schema_metadata(meta), path)
+
+
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
     root = tmp_path_factory.mktemp("fleet")
@@ -53,8 +65,8 @@ def fleet(tmp_path_factory):
     for pool in ("class", "none"):
         res = run_fleet(str(data), spec, pool=pool, p0=1.0, q0=1.0, sampler=SETTINGS)
         path = root / f"{pool}.parquet"
-        write_parquet(res.table, path, settings={"data": "meters.parquet", "by": "bus_id",
-                                                 "pool": pool, "draws": 400})  # fmt: skip
+        _write(res.table, path, {"data": "meters.parquet", "by": "bus_id", "pool": pool,
+                                 "draws": 400, "warnings": ["a run-level sentence"]})  # fmt: skip
         out[pool] = path
     return root, data, out
 
@@ -89,15 +101,16 @@ def test_the_pooled_page_has_class_mixes_shrinkage_flags_and_settings(fleet):
     assert "own (unpooled) estimates: not in this file" in text
     assert page.count("<figure>") == 3  # class mixes, shrinkage, sensitivity
     assert "meters.parquet" in text and "bus_id" in text  # settings from the metadata
+    assert "a run-level sentence" in text.split("Contents")[0]  # the run's warnings, first
 
 
 def test_sensitivity_is_2a1_plus_a2_unless_the_table_has_it(fleet, tmp_path):
     _, _, out = fleet
     ft = read_fleet(out["class"])
-    s, where = ft.sensitivity("dp_dv")
+    s, where, unit = ft.sensitivity("dp_dv")
     w = ft.wide()
     np.testing.assert_allclose(s["mean"], 2 * w["a1"] + w["a2"])
-    assert where == "2 a1 + a2 (the means only)"
+    assert where == "2 a1 + a2 (the means only)" and unit == "per unit of P0 per p.u. of V"
     # A later table with dP/dV rows (and a column the report does not know): used as is.
     t = ft.table.copy()
     extra = t[(t.level == "bus") & (t.parameter == "a1")].copy()
@@ -106,7 +119,7 @@ def test_sensitivity_is_2a1_plus_a2_unless_the_table_has_it(fleet, tmp_path):
     t["new_column"] = 1.0
     path = write_parquet(t, tmp_path / "later.parquet")
     ft2 = read_fleet(path)
-    s2, where2 = ft2.sensitivity("dp_dv")
+    s2, where2, _ = ft2.sensitivity("dp_dv")
     assert where2 == "the table's dP_dV rows" and np.allclose(s2["mean"], 0.777)
     text = _text(fleet_report(ft2))
     assert "dP/dV from the table's dP_dV rows (with intervals)" in text

@@ -159,6 +159,7 @@ def shrinkage_figure(ft: FleetTable, unpooled: pd.DataFrame | None, source: str)
 def sensitivity_figure(
     ft: FleetTable,
     sens: dict[str, pd.DataFrame],
+    units: dict[str, str],
     coords: pd.DataFrame | None,
     axis_names: tuple[str, str],
     flagged: set[str],
@@ -185,7 +186,7 @@ def sensitivity_figure(
                             edgecolors="none")  # fmt: skip
             bad = at[at.index.isin(flagged)]
             ax.scatter(bad["x"], bad["y"], s=70, facecolors="none", edgecolors="red", lw=1)
-            fig.colorbar(sc, ax=ax, label=f"{label[k]} (per unit)")
+            fig.colorbar(sc, ax=ax, label=f"{label[k]} ({units[k]})")
             ax.set_xlabel(axis_names[0])
             ax.set_ylabel(axis_names[1])
             if axis_names[1].lower().startswith("lat") and len(at):
@@ -208,19 +209,20 @@ def sensitivity_figure(
             ax.scatter(pos[bad], s["mean"].to_numpy()[bad], s=50, facecolors="none",
                        edgecolors="red", lw=1)  # fmt: skip
             ax.set_xlabel("buses, sorted by the value")
-            ax.set_ylabel(f"{label[k]} at V0 (per unit)")
+            ax.set_ylabel(f"{label[k]} at V0\n({units[k]})")
             ax.set_title(f"{label[k]} per bus", fontsize=10)
             ax.legend(fontsize=7, loc="best")
+    what = "; ".join(f"{label[k]} in {units[k]}" for k in chans)
+    bars = len(s) <= MAX_BARS and s["hdi_low"].notna().any()
     if coords is not None:
-        cap = ("The slope of each bus's P (and Q) against V at V0, in per unit of its P0 (Q0) "
-               f"per per-unit volt, placed at the bus's coordinates ({', '.join(axis_names)}); "
-               "red rings: flagged buses (see the table above).")  # fmt: skip
+        cap = (f"The slope of each bus's P (and Q) against V at V0 ({what}), placed at the "
+               f"bus's coordinates ({', '.join(axis_names)}); red rings: flagged buses (see "
+               "the table above).")  # fmt: skip
         alt = "Map of the buses coloured by their voltage sensitivity."
     else:
-        cap = ("The slope of each bus's P (and Q) against V at V0, in per unit of its P0 (Q0) "
-               "per per-unit volt, buses sorted by the value, one colour a class"
-               + (f"; grey bars: {len(s):,} buses' intervals" if len(s) <= MAX_BARS
-                  and s["hdi_low"].notna().any() else "")
+        cap = (f"The slope of each bus's P (and Q) against V at V0 ({what}), buses sorted "
+               "by the value, one colour a class"
+               + (f"; grey bars: the {len(s):,} buses' intervals" if bars else "")
                + "; red rings: flagged buses. There are no coordinates, so no map.")  # fmt: skip
         alt = "Sorted per-bus voltage sensitivities, one colour per class."
     return Figure("Voltage sensitivity", png(fig), cap, alt)

@@ -156,8 +156,11 @@ def fleet_report(
             summary.append(table_html(head, rows, caption=cap))
         rh = ft.class_rows["r_hat"].max(skipna=True)
         ess = ft.class_rows["ess_bulk"].min(skipna=True)
-        bad_cls = ft.class_rows[(ft.class_rows["r_hat"] > RHAT_LIMIT)
-                                | (ft.class_rows["ess_bulk"] < ESS_LIMIT)]  # fmt: skip
+        cr = ft.class_rows
+        bad = (cr["r_hat"] > RHAT_LIMIT) | (cr["ess_bulk"] < ESS_LIMIT)
+        if "converged" in cr.columns:
+            bad |= cr["converged"].map(lambda v: False if pd.isna(v) else not bool(v))
+        bad_cls = cr[bad.astype(bool)]
         if np.isfinite(rh):
             ok = bad_cls.empty
             names = ", ".join(sorted(set(bad_cls["class"])))
@@ -183,6 +186,14 @@ def fleet_report(
         )
     else:
         summary.append("<p class='ok'>No bus flagged.</p>")
+    run_warn = st.get("warnings") or []
+    if isinstance(run_warn, str):
+        run_warn = [run_warn]
+    if st.get("stop"):
+        summary.append(f"<p>{e('The chains stopped: ' + str(st['stop']))}</p>")
+    if run_warn:
+        items = "".join(f"<li>{e(str(w))}</li>" for w in run_warn)
+        summary.append(f"<div class='warn'><b>Run warnings</b><ul>{items}</ul></div>")
     cls_warn = [w for w in ft.class_rows["warnings"].unique() if w]
     if cls_warn:
         items = "".join(f"<li>{e(w)}</li>" for w in cls_warn)
@@ -260,12 +271,12 @@ def fleet_report(
 
     # ------------------------------------------------------------ sensitivity
     sec = page.section("Voltage sensitivity")
-    sens, where = {}, {}
+    sens, where, unit = {}, {}, {}
     for k in ("dp_dv", "dq_dv"):
-        sens[k], where[k] = ft.sensitivity(k)
+        sens[k], where[k], unit[k] = ft.sensitivity(k)
     if coords is None:
         coords, coord_names = table_coords(ft)
-    fig = sensitivity_figure(ft, sens, coords, coord_names, set(flagged["bus"].astype(str)))
+    fig = sensitivity_figure(ft, sens, unit, coords, coord_names, set(flagged["bus"].astype(str)))
     if fig is not None:
         sec.figure(fig.png, fig.caption, alt=fig.alt, title=fig.title)
     for k, lab in (("dp_dv", "dP/dV"), ("dq_dv", "dQ/dV")):
@@ -276,7 +287,7 @@ def fleet_report(
             ivl = "with intervals" if sens[k]["hdi_low"].notna().any() else "no intervals"
             sec.text(
                 f"{lab} from {where[k]} ({ivl}): median {fmt(s.median())}, 5% to 95% of the "
-                f"buses {fmt(s.quantile(0.05))} to {fmt(s.quantile(0.95))} per unit."
+                f"buses {fmt(s.quantile(0.05))} to {fmt(s.quantile(0.95))} ({unit[k]})."
             )
     if coords is None:
         sec.text(
@@ -306,7 +317,7 @@ def _settings_section(page: Page, ft: FleetTable) -> None:
         "columns": ", ".join(map(str, ft.table.columns)),
     }
     for k, v in st.items():
-        if v is not None and k != "loadbayes_version":
+        if v is not None and k not in ("loadbayes_version", "warnings"):
             known[k.replace("_", " ")] = _plain(v)
     items = "".join(f"<dt>{html.escape(k)}</dt><dd>{html.escape(str(v))}</dd>"
                     for k, v in known.items())  # fmt: skip
@@ -318,7 +329,9 @@ def _settings_section(page: Page, ft: FleetTable) -> None:
 
 def _plain(v: Any) -> str:
     if isinstance(v, dict):
-        return ", ".join(f"{k} = {w}" for k, w in v.items() if w is not None)
+        return ", ".join(f"{k} = {_plain(w)}" for k, w in v.items() if w is not None)
+    if isinstance(v, list | tuple):
+        return "; ".join(_plain(w) for w in v)
     if isinstance(v, float) and np.isfinite(v):
         return fmt(v)
     return str(v)

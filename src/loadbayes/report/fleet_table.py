@@ -124,6 +124,12 @@ class FleetTable:
             cls=("class", "first"), n=("n", "first"), text=("warnings", "first")
         )
         fitted = b[b["parameter"].notna()]
+        # A later table's own verdict per row (R-hat < 1.01 and ESS >= 400), when present.
+        if "converged" in b.columns:
+            ok = fitted["converged"].map(lambda v: True if pd.isna(v) else bool(v))
+            not_ok = set(fitted.loc[~ok.astype(bool), "bus"])
+        else:
+            not_ok = set()
         # The worst parameter of each bus: one sort, not a Python loop over 10^4 buses.
         worst_r = fitted.sort_values("r_hat", ascending=False, na_position="last")
         worst_r = worst_r.drop_duplicates("bus").set_index("bus")
@@ -137,19 +143,22 @@ class FleetTable:
             if bus not in worst_r.index:
                 reasons.append(text or "not fitted")
             else:
+                said = [w for w in text.split(" | ") if _CONVERGENCE.search(w)]
                 rh, who_r = worst_r.at[bus, "r_hat"], worst_r.at[bus, "parameter"]
                 ess, who_e = worst_e.at[bus, "ess_bulk"], worst_e.at[bus, "parameter"]
-                if np.isfinite(rh) and rh > RHAT_LIMIT:
-                    reasons.append(f"unconverged: R-hat {rh:.3f} ({who_r})")
-                if np.isfinite(ess) and ess < ESS_LIMIT:
-                    reasons.append(f"few effective draws: ESS {ess:,.0f} ({who_e})")
+                if said:  # the run's own words (a later loadbayes) stand for the numbers
+                    reasons += said
+                else:
+                    if np.isfinite(rh) and rh > RHAT_LIMIT:
+                        reasons.append(f"unconverged: R-hat {rh:.3f} ({who_r})")
+                    if np.isfinite(ess) and ess < ESS_LIMIT:
+                        reasons.append(f"few effective draws: ESS {ess:,.0f} ({who_e})")
+                    if not reasons and bus in not_ok:
+                        reasons.append("unconverged (the table's converged column)")
                 if n < THIN_ROWS:
                     reasons.append(f"thin: {n} rows")
                 if any(w in text.lower() for w in FLAT_WORDS):
                     reasons.append("flat voltage")
-                for w in text.split(" | "):
-                    if _CONVERGENCE.search(w):
-                        reasons.append(w)
             if reasons:
                 out.append({"bus": bus, "class": cls, "n": n,
                             "reasons": list(dict.fromkeys(reasons))})  # fmt: skip
@@ -162,29 +171,35 @@ class FleetTable:
                 return str(c)
         return None
 
-    def sensitivity(self, which: str) -> tuple[pd.DataFrame | None, str]:
-        """Per-bus dP/dV or dQ/dV: (frame of mean, low, high by bus, where it came from).
+    def sensitivity(self, which: str) -> tuple[pd.DataFrame | None, str, str]:
+        """Per-bus dP/dV or dQ/dV: (frame of mean, low, high by bus, source, unit).
 
         ``which`` is ``dp_dv`` or ``dq_dv``. The frame is None when neither the value nor
-        the shares it follows from are in the table.
+        the shares it follows from are in the table. The table's own values are in its
+        P (Q) units per per-unit V (``P0 (2 a1 + a2) / V0``); from the shares alone, the
+        slope is per unit of the bus's P0 (Q0).
         """
+        ch = "P" if which == "dp_dv" else "Q"
+        own = f"the data's {ch} units per p.u. of V"
+        rel = f"per unit of {ch}0 per p.u. of V"
         keys = (_key(which), *SENSITIVITY[which])
         b = self.bus_rows.dropna(subset=["parameter"])
         rows = b[b["parameter"].map(_key).isin(keys)]
         if len(rows):
             out = rows.set_index("bus")[["mean", "hdi_low", "hdi_high"]]
-            return out[~out.index.duplicated()], f"the table's {rows['parameter'].iloc[0]} rows"
+            src = f"the table's {rows['parameter'].iloc[0]} rows"
+            return out[~out.index.duplicated()], src, own
         col = self.column_named(keys)
         if col is not None:
             v = b.groupby("bus", sort=False)[col].first()
             out = pd.DataFrame({"mean": v, "hdi_low": np.nan, "hdi_high": np.nan})
-            return out, f"the table's {col!r} column"
+            return out, f"the table's {col!r} column", own
         a, c = SLOPE_PAIRS[which]
         w = self.wide()
         if a in w.columns and c in w.columns:
             out = pd.DataFrame({"mean": 2.0 * w[a] + w[c], "hdi_low": np.nan, "hdi_high": np.nan})
-            return out.dropna(subset=["mean"]), f"2 {a} + {c} (the means only)"
-        return None, ""
+            return out.dropna(subset=["mean"]), f"2 {a} + {c} (the means only)", rel
+        return None, "", ""
 
     def unpooled(self, other: FleetTable | None = None) -> tuple[pd.DataFrame | None, str]:
         """Each bus's own (unpooled) means by parameter, from a column or another table."""
