@@ -163,3 +163,24 @@ def test_bad_tables_are_refused_naming_the_file_and_column(fleet, tmp_path):
     (tmp_path / "c.csv").write_text("bus_id,x\nb1,1\n")
     with pytest.raises(DataError, match=r"c\.csv: column 'x': no coordinates"):
         read_coords(tmp_path / "c.csv", by="bus_id")
+
+
+def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
+    """The fleet branch's additions (docs/fleet.md there): 'converged', class warnings."""
+    _, _, out = fleet
+    t = read_fleet(out["class"]).table.copy()
+    t["converged"] = True
+    note = "not converged: R-hat 1.470 on sd_a1, ESS 7 on sd_a1"
+    cls = (t.level == "class") & (t["class"] == "res")
+    t.loc[cls, "warnings"] = note
+    t.loc[cls & (t.parameter == "sd_a1"), ["r_hat", "ess_bulk", "converged"]] = [1.47, 7.0, False]
+    b2 = t.bus == "b2"
+    t.loc[b2, "converged"] = False  # its numbers fine, its own verdict not: flagged by it
+    t.loc[b2, ["r_hat", "ess_bulk"]] = [1.0, 5000.0]
+    _write(t, tmp_path / "later.parquet", {"stop": "the time budget ran out"})
+    text = _text(fleet_report(read_fleet(tmp_path / "later.parquet")))
+    head = text.split("Contents")[0]
+    assert re.search(r"may not have converged in [a-z, ]*\bres: largest R-hat 1\.470", head)
+    assert note in head and "The chains stopped: the time budget ran out" in head
+    flagged = read_fleet(tmp_path / "later.parquet").flagged().set_index("bus")["reasons"]
+    assert flagged["b2"] == ["unconverged (the table's converged column)"]
