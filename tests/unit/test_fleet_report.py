@@ -20,7 +20,7 @@ from loadbayes.fleet.run import run_fleet
 from loadbayes.fleet.summary import write_parquet
 from loadbayes.io.errors import DataError
 from loadbayes.report.fleet_report import fleet_report, write_fleet_report
-from loadbayes.report.fleet_table import read_coords, read_fleet
+from loadbayes.report.fleet_table import load_fleet, read_coords
 
 MIXES = {"res": (0.5, 0.2, 0.6, 0.2), "com": (0.2, 0.3, 0.3, 0.4), "ind": (0.05, 0.1, 0.1, 0.3)}
 SETTINGS = SamplerSettings(draws=400, burn=100, chains=2, seed=3)
@@ -77,7 +77,7 @@ def _text(page: str) -> str:
 
 def test_the_pooled_page_has_class_mixes_shrinkage_flags_and_settings(fleet):
     root, _, out = fleet
-    ft = read_fleet(out["class"])
+    ft = load_fleet(out["class"])
     page = fleet_report(ft, source="class.parquet")
     text = _text(page)
     for sec in ("Class mixes", "Shrinkage", "Buses flagged", "Voltage sensitivity", "Settings"):
@@ -106,7 +106,7 @@ def test_the_pooled_page_has_class_mixes_shrinkage_flags_and_settings(fleet):
 
 def test_sensitivity_is_2a1_plus_a2_unless_the_table_has_it(fleet, tmp_path):
     _, _, out = fleet
-    ft = read_fleet(out["class"])
+    ft = load_fleet(out["class"])
     s, where, unit = ft.sensitivity("dp_dv")
     w = ft.wide()
     np.testing.assert_allclose(s["mean"], 2 * w["a1"] + w["a2"])
@@ -118,7 +118,7 @@ def test_sensitivity_is_2a1_plus_a2_unless_the_table_has_it(fleet, tmp_path):
     t = pd.concat([t, extra], ignore_index=True)
     t["new_column"] = 1.0
     path = write_parquet(t, tmp_path / "later.parquet")
-    ft2 = read_fleet(path)
+    ft2 = load_fleet(path)
     s2, where2, _ = ft2.sensitivity("dp_dv")
     assert where2 == "the table's dP_dV rows" and np.allclose(s2["mean"], 0.777)
     text = _text(fleet_report(ft2))
@@ -142,7 +142,7 @@ def test_coordinates_and_unpooled_estimates_make_the_map_and_the_pairs(fleet, tm
 
 def test_the_unpooled_page_says_there_is_no_class_estimate(fleet):
     _, _, out = fleet
-    text = _text(fleet_report(read_fleet(out["none"])))
+    text = _text(fleet_report(load_fleet(out["none"])))
     assert "no class estimates in this file" in text
     assert "every bus keeps its own estimate" in text
 
@@ -150,16 +150,16 @@ def test_the_unpooled_page_says_there_is_no_class_estimate(fleet):
 def test_bad_tables_are_refused_naming_the_file_and_column(fleet, tmp_path):
     root, data, out = fleet
     with pytest.raises(DataError, match=r"meters\.parquet: column 'level': not a loadbayes fleet"):
-        read_fleet(data)
+        load_fleet(data)
     t = pd.read_parquet(out["class"])
     t.drop(columns="r_hat").to_parquet(tmp_path / "no_rhat.parquet")
     with pytest.raises(DataError, match=r"no_rhat\.parquet: column 'r_hat': not a loadbayes"):
-        read_fleet(tmp_path / "no_rhat.parquet")
+        load_fleet(tmp_path / "no_rhat.parquet")
     bad = t.astype({"mean": str})
     bad.loc[3, "mean"] = "abc"
     bad.to_parquet(tmp_path / "text.parquet")
     with pytest.raises(DataError, match=r"text\.parquet: column 'mean', row 4: not a number"):
-        read_fleet(tmp_path / "text.parquet")
+        load_fleet(tmp_path / "text.parquet")
     (tmp_path / "c.csv").write_text("bus_id,x\nb1,1\n")
     with pytest.raises(DataError, match=r"c\.csv: column 'x': no coordinates"):
         read_coords(tmp_path / "c.csv", by="bus_id")
@@ -168,7 +168,7 @@ def test_bad_tables_are_refused_naming_the_file_and_column(fleet, tmp_path):
 def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     """The fleet branch's additions (docs/fleet.md there): 'converged', class warnings."""
     _, _, out = fleet
-    t = read_fleet(out["class"]).table.copy()
+    t = load_fleet(out["class"]).table.copy()
     t["converged"] = True
     note = "not converged: R-hat 1.470 on sd_a1, ESS 7 on sd_a1"
     cls = (t.level == "class") & (t["class"] == "res")
@@ -178,9 +178,9 @@ def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     t.loc[b2, "converged"] = False  # its numbers fine, its own verdict not: flagged by it
     t.loc[b2, ["r_hat", "ess_bulk"]] = [1.0, 5000.0]
     _write(t, tmp_path / "later.parquet", {"stop": "the time budget ran out"})
-    text = _text(fleet_report(read_fleet(tmp_path / "later.parquet")))
+    text = _text(fleet_report(load_fleet(tmp_path / "later.parquet")))
     head = text.split("Contents")[0]
     assert re.search(r"may not have converged in [a-z, ]*\bres: largest R-hat 1\.470", head)
     assert note in head and "The chains stopped: the time budget ran out" in head
-    flagged = read_fleet(tmp_path / "later.parquet").flagged().set_index("bus")["reasons"]
+    flagged = load_fleet(tmp_path / "later.parquet").flagged().set_index("bus")["reasons"]
     assert flagged["b2"] == ["unconverged (the table's converged column)"]

@@ -24,8 +24,8 @@ from loadbayes.report.fleet_table import (
     RHAT_LIMIT,
     THIN_ROWS,
     FleetTable,
+    load_fleet,
     read_coords,
-    read_fleet,
     table_coords,
 )
 from loadbayes.report.page import Page, table_html
@@ -90,7 +90,7 @@ def fleet_report(
     Parameters
     ----------
     ft : FleetTable
-        From :func:`~loadbayes.report.fleet_table.read_fleet`.
+        From :func:`~loadbayes.report.fleet_table.load_fleet`.
     unpooled : FleetTable, optional
         A ``--pool none`` run of the same buses: each bus's own estimate, for the
         shrinkage figure of a pooled run.
@@ -356,8 +356,8 @@ def write_fleet_report(
     """
     from loadbayes.io.atomic import atomic_write
 
-    ft = read_fleet(result)
-    other = read_fleet(unpooled) if unpooled else None
+    ft = load_fleet(result)
+    other = load_fleet(unpooled) if unpooled else None
     xy, names = (None, ("x", "y"))
     if coords:
         xy, names = read_coords(coords, by=ft.settings.get("by"))

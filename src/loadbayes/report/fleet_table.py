@@ -37,7 +37,7 @@ __all__ = [
     "FleetTable",
     "is_parquet",
     "read_coords",
-    "read_fleet",
+    "load_fleet",
     "table_coords",
 ]
 
@@ -213,7 +213,7 @@ class FleetTable:
         return None, ""
 
 
-def read_fleet(path: str | Path) -> FleetTable:
+def load_fleet(path: str | Path) -> FleetTable:
     """Read and check a fleet table (Parquet).
 
     Raises
