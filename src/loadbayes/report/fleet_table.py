@@ -36,8 +36,8 @@ __all__ = [
     "REQUIRED",
     "FleetTable",
     "is_parquet",
-    "read_coords",
     "load_fleet",
+    "read_coords",
     "table_coords",
 ]
 
