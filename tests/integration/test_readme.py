@@ -85,6 +85,7 @@ def test_readme_usage_runs_fast_lines(tmp_path):
     run_lines([line for line in lines if not line.startswith(SLOW)], tmp_path)
     assert (tmp_path / "report.html").stat().st_size > 0
     assert (tmp_path / "fleet.parquet").exists()
+    assert "Buses flagged" in (tmp_path / "fleet.html").read_text(encoding="utf-8")
     assert (tmp_path / "events" / "event_002.csv").exists()
 
 

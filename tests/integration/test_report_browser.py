@@ -309,3 +309,82 @@ def test_paper_report_pieces_fit_the_screen_and_the_page(tmp_path):
         assert all(t["over"] <= 0 and t["right"] <= 0 for t in printed), printed
     finally:
         b.close()
+
+
+@pytest.fixture(scope="module")
+def fleet_report(tmp_path_factory) -> Path:
+    """The README's fleet (``loadbayes example fleet``), pooled, with a map of its buses."""
+    root = tmp_path_factory.mktemp("fleet_browser")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+
+    def run(*args):
+        res = subprocess.run([*EXE, *args], cwd=root, env=env, capture_output=True, text=True,
+                             timeout=600)  # fmt: skip
+        assert res.returncode == 0, res.stderr
+
+    run("example", "fleet", "--out", "meters")
+    run("fit", "zip", "meters/", "--by", "bus_id", "--class-col", "customer_class",
+        "--out", "fleet.parquet", "--pool", "class", "--draws", "600", "--burn", "200",
+        "--quiet")  # fmt: skip
+    ids = [f"bus{i:02d}" for i in range(24)]
+    (root / "coords.csv").write_text(
+        "bus_id,lat,lon\n"
+        + "".join(
+            f"{b},{51 + 0.01 * (i // 6)},{-1 + 0.02 * (i % 6)}\n" for i, b in enumerate(ids)
+        )  # fmt: skip
+    )
+    run("report", "fleet.parquet", "--out", "fleet.html", "--coords", "coords.csv", "--quiet")
+    return root / "fleet.html"
+
+
+def test_fleet_report_in_a_headless_browser(fleet_report, tmp_path):
+    exe = _chromium()
+    b = Browser(exe, tmp_path / "profile")
+    try:
+        _open(b, fleet_report)
+        time.sleep(0.3)  # late console messages
+        errors = [
+            ev for ev in b.events
+            if (ev.get("method") == "Runtime.consoleAPICalled"
+                and ev["params"]["type"] in ("error", "assert"))
+            or ev.get("method") == "Runtime.exceptionThrown"
+            or (ev.get("method") == "Log.entryAdded"
+                and ev["params"]["entry"]["level"] == "error")
+        ]  # fmt: skip
+        assert not errors, errors
+        outside = [
+            ev["params"]["request"]["url"]
+            for ev in b.events
+            if ev.get("method") == "Network.requestWillBeSent"
+            and not ev["params"]["request"]["url"].startswith(("file:", "data:", "about:"))
+        ]
+        assert not outside, outside
+        assert b.evaluate("document.title").startswith("Fleet of 24 buses")
+        assert b.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
+        tables = b.evaluate(OVERFLOW_JS)
+        assert len(tables) >= 3  # the summary's mixes, the class table, the shrinkage
+        assert all(t["over"] <= 0 and t["right"] <= 0 for t in tables), tables
+        figs = b.evaluate(FIGURES_JS)
+        assert len(figs) == 3  # class mixes, shrinkage, the map of dP/dV and dQ/dV
+        assert all(f["loaded"] and f["alt"] > 20 and f["caption"] > 40 for f in figs), figs
+        text = b.evaluate("document.body.innerText")
+        assert "placed at the bus's coordinates (lon, lat)" in text
+        order = b.evaluate(
+            "Array.from(document.querySelectorAll('body > section, body > nav'))"
+            ".map(e => e.id || e.className)"
+        )
+        assert order == ["summary", "contents", "class-mixes", "shrinkage", "buses-flagged",
+                         "voltage-sensitivity", "settings"], order  # fmt: skip
+        import base64
+
+        shot = b.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True})
+        png = base64.b64decode(shot["data"])
+        (fleet_report.parent / "fleet.png").write_bytes(png)
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 50_000
+        b.send("Emulation.setEmulatedMedia", {"media": "print"})
+        b.send("Emulation.setDeviceMetricsOverride",
+               {"width": 688, "height": 1000, "deviceScaleFactor": 1, "mobile": False})  # fmt: skip
+        printed = b.evaluate(OVERFLOW_JS)
+        assert all(t["over"] <= 0 and t["right"] <= 0 for t in printed), printed
+    finally:
+        b.close()

@@ -115,3 +115,40 @@ def test_reports_of_an_exponential_and_a_motor_fit(tmp_path):
             assert "Load curves" not in html  # no P(V) for the motor's states
         else:
             assert "Load curves" in html and "exponent of P" in html
+
+
+def test_report_of_a_parquet_that_is_not_a_fleet_table_exits_2_in_one_line(tmp_path):
+    """The fleet's input given for its result, and a fleet table missing a column."""
+    assert run("example", "fleet", "--out", "meters", cwd=tmp_path).returncode == 0
+    res = run("report", "meters/part-00000.parquet", "--out", "r.html", cwd=tmp_path)
+    assert res.returncode == 2, res.stderr
+    err = [line for line in res.stderr.splitlines() if "error" in line]
+    assert err == [
+        "loadbayes: error: meters/part-00000.parquet: column 'level': not a loadbayes fleet "
+        "table: no such column (it has bus_id, customer_class, v, p, q); write one with "
+        "loadbayes fit zip DATA --by BUS --out fleet.parquet"
+    ]
+    assert "Traceback" not in res.stderr and not (tmp_path / "r.html").exists()
+    import pandas as pd
+
+    table = pd.DataFrame({"level": ["bus"], "bus": ["b1"], "class": ["c"], "parameter": ["a1"],
+                          "mean": [0.3], "sd": [0.1], "hdi_low": [0.1], "hdi_high": [0.5],
+                          "r_hat": [1.0], "n": [100], "warnings": [""]})  # fmt: skip
+    table.to_parquet(tmp_path / "f.parquet")
+    res = run("report", "f.parquet", "--out", "r.html", "--quiet", cwd=tmp_path)
+    assert res.returncode == 2
+    assert res.stderr.startswith("loadbayes: error: f.parquet: column 'ess_bulk': not a loadbayes")
+    assert len(res.stderr.strip().splitlines()) == 1, res.stderr
+    table.assign(ess_bulk=[900.0]).to_parquet(tmp_path / "ok.parquet")
+    res = run("report", "ok.parquet", "--out", "r.html", "--quiet", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    res = run("report", "ok.parquet", "--out", "r.html", "--coords", "meters/part-00001.parquet",
+              "--quiet", cwd=tmp_path)  # fmt: skip
+    assert res.returncode == 2 and "exists; use --force" in res.stderr
+    res = run("report", "ok.parquet", "--out", "r2.html", "--coords", "meters/part-00001.parquet",
+              "--quiet", cwd=tmp_path)  # fmt: skip
+    assert res.returncode == 2
+    assert res.stderr.strip() == (
+        "loadbayes: error: meters/part-00001.parquet: column 'x': no coordinates: expected "
+        "columns x and y, or lat and lon"
+    )

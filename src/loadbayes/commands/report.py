@@ -1,4 +1,7 @@
-"""``loadbayes report``: the HTML report of any fit, from its JSON or NetCDF result."""
+"""``loadbayes report``: the HTML report of a fit (JSON, NetCDF) or of a fleet (Parquet).
+
+The command dispatches on the file's type: a Parquet file is a fleet table.
+"""
 
 from __future__ import annotations
 
@@ -39,22 +42,47 @@ def _parse_truth(items: tuple[str, ...]) -> dict[str, float]:
     help="A known true value (simulated data), flagged where the interval misses it; repeatable.",
 )
 @click.option("--title", help="Page title (default: the model and the data).")
+@click.option(
+    "--coords",
+    type=str,
+    metavar="FILE",
+    help="A fleet's bus coordinates: CSV/Parquet with the bus column and x, y or lat, lon "
+    "(the fleet's input will do); draws dP/dV and dQ/dV on a map.",
+)
+@click.option(
+    "--unpooled",
+    type=str,
+    metavar="FILE",
+    help="A --pool none fleet table of the same buses: each bus's own estimate, drawn "
+    "against its pooled one.",
+)
 @click.option("--force", is_flag=True, help="Overwrite an existing report.")
 @click.option("--quiet", is_flag=True, help="Do not say where the report was written.")
 @user_errors
-def report_cmd(result, out, truth, title, force, quiet):
-    """Write the HTML report of a fit: RESULT is its .nc (with figures) or .json file.
+def report_cmd(result, out, truth, title, coords, unpooled, force, quiet):
+    """Write the HTML report of RESULT: a fit's .nc or .json, or a fleet's .parquet.
 
     The report starts with a summary (what was fitted, the headline numbers with their
     intervals, the diagnostics' verdict, the warnings), then a contents list, the
     parameter table, the load curves, marginals, pair plots and traces (from a NetCDF
-    result), the correlations and the settings.
+    result), the correlations and the settings. A fleet's report has the class mixes,
+    the shrinkage, the buses flagged, dP/dV and dQ/dV per bus and the settings.
     """
-    check_outputs({"--out": out}, [result], force)
+    check_outputs({"--out": out}, [result, coords or "", unpooled or ""], force)
     truth_val = _parse_truth(truth)
     from pathlib import Path
 
     from loadbayes.io.atomic import atomic_write
+    from loadbayes.report.fleet_table import is_parquet
+
+    if is_parquet(result):
+        if truth_val:
+            raise UserError("--truth is for the report of one fit, not of a fleet")
+        _fleet(result, out, coords, unpooled, title, force, quiet)
+        return
+    for flag, value in (("--coords", coords), ("--unpooled", unpooled)):
+        if value:
+            raise UserError(f"{flag} is for a fleet's .parquet table; {result} is not one")
     from loadbayes.report.fit_report import fit_report, load_result
 
     d, post = load_result(result)
@@ -66,5 +94,15 @@ def report_cmd(result, out, truth, title, force, quiet):
         raise UserError(f"{result}: not a complete loadbayes result (no {exc})") from None
     with atomic_write(Path(out), force=force) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
+    if not quiet:
+        click.echo(f"loadbayes: wrote {out}", err=True)
+
+
+def _fleet(result, out, coords, unpooled, title, force, quiet) -> None:
+    from loadbayes.report.fleet_report import write_fleet_report
+
+    if not quiet:
+        click.echo(f"loadbayes: drawing the figures of the fleet {result}...", err=True)
+    write_fleet_report(result, out, unpooled=unpooled, coords=coords, title=title, force=force)
     if not quiet:
         click.echo(f"loadbayes: wrote {out}", err=True)

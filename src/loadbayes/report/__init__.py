@@ -2,6 +2,8 @@
 
 ``text.py`` formats numbers and tables, ``figures.py`` draws a fit's figures as inline
 images, ``page.py`` assembles the page (summary first, contents, captioned figures) and
-``fit_report.py`` builds the report of one fit. Nothing here imports
-:mod:`loadbayes.studies`; the paper's report is built on these pieces.
+``fit_report.py`` builds the report of one fit; ``fleet_table.py`` reads and checks a
+fleet's Parquet table, ``fleet_figures.py`` and ``fleet_report.py`` make its page.
+Nothing here imports :mod:`loadbayes.studies`; the paper's report is built on these
+pieces.
 """
