@@ -131,30 +131,33 @@ def draw_gamma(ztz, zty, tau, a, p0_gamma, rng: np.random.Generator, size: int =
     zz = np.einsum("ji,gjk,kl->gil", t, ztz, t)
     zy = np.einsum("ji,gj->gi", t, zty)
     mu, cov, _, _ = posterior_moments_3(zz, zy, np.asarray(tau, float), p0_gamma)
-    out = np.empty((size, 3))
     sm = math.sqrt(cov[_P_M0, _P_M0])
     # P_zip0 | P_m0: its conditional mean moves with P_m0, its sd does not.
     slope = cov[_P_ZIP, _P_M0] / cov[_P_M0, _P_M0]
     sz = math.sqrt(max(cov[_P_ZIP, _P_ZIP] - slope * cov[_P_ZIP, _P_M0], 1e-300))
     lo = special.ndtr(-mu[_P_M0] / sm)
-    for i in range(size):
-        for _ in range(_MAX_TRIES):
-            w = rng.uniform(lo, 1.0)
-            pm = mu[_P_M0] + sm * special.ndtri(min(max(w, 1e-300), 1 - 1e-16))
-            mz = mu[_P_ZIP] + slope * (pm - mu[_P_M0])
-            if rng.uniform() < special.ndtr(mz / sz):
-                break
-        # P_zip0 given P_m0, truncated to > 0 (inverse CDF on the upper tail).
-        upper = special.ndtr(mz / sz)
-        pz = mz + sz * -special.ndtri(max(rng.uniform(0.0, upper), 1e-300))
-        pair = np.array([pz, pm])
-        idx = [_P_ZIP, _P_M0]
-        c_q = cov[_Q0, idx]
-        c_pp = cov[np.ix_(idx, idx)]
-        wq = np.linalg.solve(c_pp, c_q)
-        mq = mu[_Q0] + wq @ (pair - mu[idx])
-        vq = max(cov[_Q0, _Q0] - wq @ c_q, 1e-300)
-        out[i] = (pz, mq + math.sqrt(vq) * rng.standard_normal(), pm)
+    pm = np.empty(size)
+    todo = np.arange(size)
+    for _ in range(_MAX_TRIES):
+        w = rng.uniform(lo, 1.0, todo.size)
+        cand = mu[_P_M0] + sm * special.ndtri(np.clip(w, 1e-300, 1 - 1e-16))
+        mz = mu[_P_ZIP] + slope * (cand - mu[_P_M0])
+        ok = rng.uniform(size=todo.size) < special.ndtr(mz / sz)
+        pm[todo] = cand  # the last try stands if none is accepted (far in a tail)
+        todo = todo[~ok]
+        if todo.size == 0:
+            break
+    # P_zip0 given P_m0, truncated to > 0 (inverse CDF on the upper tail).
+    mz = mu[_P_ZIP] + slope * (pm - mu[_P_M0])
+    upper = special.ndtr(mz / sz)
+    pz = mz + sz * -special.ndtri(np.maximum(rng.uniform(0.0, 1.0, size) * upper, 1e-300))
+    idx = [_P_ZIP, _P_M0]
+    c_q = cov[_Q0, idx]
+    wq = np.linalg.solve(cov[np.ix_(idx, idx)], c_q)
+    pair = np.stack([pz, pm], -1)
+    mq = mu[_Q0] + (pair - mu[idx]) @ wq
+    vq = max(cov[_Q0, _Q0] - wq @ c_q, 1e-300)
+    out = np.stack([pz, mq + math.sqrt(vq) * rng.standard_normal(size), pm], -1)
     return out @ t.T
 
 

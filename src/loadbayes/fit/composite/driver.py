@@ -175,6 +175,14 @@ def _factor(shares: str, normal: dict | None, move: str) -> CoefficientPrior | N
     return factor if factor.active else None
 
 
+def _check_share_prior(items) -> None:
+    from loadbayes.io.errors import OptionError
+
+    for i, mean, sd in items:
+        if not (math.isfinite(mean) and math.isfinite(sd) and sd > 0):
+            raise OptionError(f"--prior a{i + 1}: the mean must be finite, the sd positive")
+
+
 def _append_start(start: NLSResult, values: np.ndarray, *, sd: float) -> NLSResult:
     # The sampler's start with coordinates appended (independent, sd ``sd``).
     from dataclasses import replace
@@ -318,7 +326,19 @@ def fit_composite(
     kw = dict(f_hz=f_hz, torque=fixed, h_max=h_max, steps=steps, window_s=window_s)
     problem = CompositeProblem(events, prior, **kw)
     bounded = shares == "bounded"
-    factor = _factor(shares, coefficient_prior, move)
+    coefficient_prior = dict(coefficient_prior or {})
+    # With bounded shares a prior on a share is part of the sampled density (exact and
+    # free); the other coefficient priors are factors (importance weights).
+    share_prior = tuple(
+        (int(n[1]) - 1, float(m), float(sd))
+        for n, (m, sd) in coefficient_prior.items()
+        if bounded and n in ("a1", "a2", "a3", "a4", "a5", "a6")
+    )
+    factor = _factor(
+        shares,
+        {n: v for n, v in coefficient_prior.items() if not (bounded and n[0] == "a")},
+        move,
+    )
     if bounded and likelihood != "normal":
         from loadbayes.io.errors import OptionError
 
@@ -330,10 +350,11 @@ def fit_composite(
     if bounded:
         # The shares become sampled coordinates (fit/composite/bounded.py), started at
         # the free estimate's shares moved inside the simplex.
-        sampled = CompositeProblem(events, prior, bounded=True, **kw)
+        _check_share_prior(share_prior)
+        sampled = CompositeProblem(events, prior, bounded=True, share_prior=share_prior, **kw)
         sample_start = _append_start(start, share_start(start.betas), sd=0.5)
     if estimate:
-        sampled = TorqueProblem(events, prior, bounded=bounded, **kw)
+        sampled = TorqueProblem(events, prior, bounded=bounded, share_prior=share_prior, **kw)
         sample_start = extend_start(sample_start, np.zeros(2))
     student_t = _student_t(likelihood, nu)
     t_sample = t1
@@ -410,8 +431,8 @@ def fit_composite(
     if lag_warning:
         post.warnings.append(lag_warning)
     post.settings["coefficient_prior"] = {
-        **(factor or CoefficientPrior()).to_dict(),
         "shares": shares,
+        "normal": {n: [float(m), float(sd)] for n, (m, sd) in coefficient_prior.items()},
     }
     if not bounded:
         outside = _shares_outside(draws_named)

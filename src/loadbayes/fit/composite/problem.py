@@ -113,6 +113,9 @@ class CompositeProblem:
     #: Static shares held in [0, 1] (fit/composite/bounded.py): four more sampled
     #: coordinates per event, after the steps' fractions.
     bounded: bool = False
+    #: Normal priors ``(share index 0-5, mean, sd)`` on the bounded shares (exact: the
+    #: shares are sampled coordinates there).
+    share_prior: tuple[tuple[int, float, float], ...] = ()
     evaluations: int = field(default=0, init=False)
 
     def __post_init__(self) -> None:
@@ -177,9 +180,11 @@ class CompositeProblem:
         out = self.prior.log_u(u[:5])
         gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
         for z, g in zip(self.share_z(u), groups, strict=True):
+            a = shares_of(z)
             out += log_prior_shares(z)
-            out += log_evidence(g.ztz, g.zty, g.yty, g.n, np.asarray(tau, float),
-                                shares_of(z), gamma_p0)  # fmt: skip
+            for i, mean, sd in self.share_prior:
+                out -= 0.5 * ((a[i] - mean) / sd) ** 2
+            out += log_evidence(g.ztz, g.zty, g.yty, g.n, np.asarray(tau, float), a, gamma_p0)
         return float(out)
 
     def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:

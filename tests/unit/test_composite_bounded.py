@@ -1,0 +1,146 @@
+"""Bounded static shares, coefficient priors, the run-until-converged loop and the
+residual check of the composite fit (fit/composite/bounded.py, until.py, residuals.py).
+
+The bivariate-normal quadrant and the truncated draws are checked against plain Monte
+Carlo (400,000 draws: the tolerances are about 5 Monte Carlo sds); the fits are short.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.fit.composite import fit_composite
+from loadbayes.fit.composite.bounded import (
+    _log_quadrant,
+    draw_gamma,
+    posterior_moments_3,
+    shares_of,
+    transform,
+)
+from loadbayes.fit.composite.residuals import residual_warning
+from loadbayes.io.errors import OptionError
+from loadbayes.models.composite_prior import CoefficientPrior, named_coefficients
+
+
+def test_quadrant_probability_matches_monte_carlo():
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        a = rng.normal(size=(3, 3))
+        cov = a @ a.T + 0.1 * np.eye(3)
+        mu = 1.5 * rng.normal(size=3)
+        x = rng.multivariate_normal(mu, cov, size=400_000)
+        mc = np.mean((x[:, 0] > 0) & (x[:, 2] > 0))
+        sd = math.sqrt(mc * (1 - mc) / x.shape[0])
+        assert abs(math.exp(_log_quadrant(mu, cov)) - mc) < 5 * sd + 1e-6
+
+
+def test_bounded_draws_are_the_quadrant_truncated_conditional():
+    rng = np.random.default_rng(1)
+    a = np.array([0.2, 0.3, 0.5, 0.6, 0.3, 0.1])
+    t = transform(a)
+    z = rng.normal(size=(2, 50, 7))
+    y = rng.normal(size=(2, 50))
+    ztz, zty = np.einsum("gni,gnj->gij", z, z), np.einsum("gni,gn->gi", z, y)
+    tau, p0 = np.array([0.5, 0.8]), np.array([0.1, 0.1, 0.1])
+    beta = draw_gamma(ztz, zty, tau, a, p0, rng, 20_000)
+    gamma = beta @ np.linalg.pinv(t.T)
+    assert np.all(gamma[:, 0] > 0) and np.all(gamma[:, 2] > 0)
+    # beta keeps the shares: cp / sum(cp) = a1..a3, cq / sum(cq) = a4..a6.
+    named = named_coefficients(beta)
+    for i in range(6):
+        assert np.allclose(named[f"a{i + 1}"], a[i])
+    zz = np.einsum("ji,gjk,kl->gil", t, ztz, t)
+    zy = np.einsum("ji,gj->gi", t, zty)
+    mu, cov, _, _ = posterior_moments_3(zz, zy, tau, p0)
+    x = rng.multivariate_normal(mu, cov, size=400_000)
+    x = x[(x[:, 0] > 0) & (x[:, 2] > 0)]
+    se = x.std(0) / math.sqrt(20_000)
+    assert np.all(np.abs(gamma.mean(0) - x.mean(0)) < 5 * se)
+    assert np.allclose(gamma.std(0), x.std(0), rtol=0.05)
+
+
+def test_share_coordinates_cover_the_simplex():
+    z = np.random.default_rng(2).normal(scale=3, size=(100, 4))
+    a = shares_of(z)
+    assert np.all(a >= 0) and np.all(a <= 1)
+    assert np.allclose(a[:, :3].sum(1), 1) and np.allclose(a[:, 3:].sum(1), 1)
+
+
+def test_coefficient_prior_factor():
+    f = CoefficientPrior(bounded=True, normal=(("f_m", 0.4, 0.1),))
+    beta = np.array([[0.1, 0.2, 0.3, 0.1, 0.1, 0.1, 0.4], [-0.1, 0.2, 0.3, 0.1, 0.1, 0.1, 0.4]])
+    lr = f.log_factor(beta)
+    assert math.isfinite(lr[0]) and lr[1] == -math.inf
+    assert lr[0] == pytest.approx(-0.5 * ((0.4 / 1.0 - 0.4) / 0.1) ** 2)
+    with pytest.raises(ValueError, match="no prior on"):
+        CoefficientPrior(normal=(("a7", 0.1, 0.1),))
+
+
+@pytest.fixture(scope="module")
+def inadmissible_event():
+    # A load whose static P is all constant current and power and Q all impedance: the
+    # free fit's shares wander outside [0, 1] on one short sag.
+    ev, truth = simulate_event(t_end_s=1.5, fs=60, seed=3, zip_p=(0.0, 0.2, 0.8),
+                               zip_q=(0.9, 0.1, 0.0))  # fmt: skip
+    return ev, truth
+
+
+def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event):
+    ev, truth = inadmissible_event
+    free = fit_composite([ev], draws=400, burn=200, chains=2, seed=5)
+    assert any("--shares bounded" in w for w in free.posterior.warnings)
+    fit = fit_composite([ev], draws=400, burn=200, chains=2, seed=5, shares="bounded")
+    d = fit.posterior.draws
+    for n in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
+        assert np.all(d[n] >= 0) and np.all(d[n] <= 1), n
+    assert np.allclose(d["a1"] + d["a2"] + d["a3"], 1)
+    assert fit.posterior.settings["coefficient_prior"]["shares"] == "bounded"
+    assert not any("--shares bounded" in w for w in fit.posterior.warnings)
+
+
+def test_a_prior_on_a_share_pulls_it(inadmissible_event):
+    # The data put a1 near 0 (truth 0); a tight prior at 0.6 must move it most of the way.
+    ev, _ = inadmissible_event
+    kw = dict(draws=400, burn=200, chains=2, seed=5, shares="bounded")
+    plain = fit_composite([ev], **kw).posterior.draws["a1"]
+    fit = fit_composite([ev], coefficient_prior={"a1": (0.6, 0.02)}, **kw)
+    pulled = fit.posterior.draws["a1"]
+    assert float(np.mean(plain)) < 0.2
+    assert float(np.mean(pulled)) > 0.45
+    assert fit.posterior.settings["coefficient_prior"]["normal"] == {"a1": [0.6, 0.02]}
+
+
+def test_bad_share_and_budget_options_are_refused(inadmissible_event):
+    ev, _ = inadmissible_event
+    with pytest.raises(OptionError, match="--shares"):
+        fit_composite([ev], draws=200, burn=100, shares="loose")
+    with pytest.raises(OptionError, match="--max-seconds"):
+        fit_composite([ev], draws=200, burn=100, max_seconds=-1)
+    with pytest.raises(OptionError, match="normal only"):
+        fit_composite([ev], draws=200, burn=100, shares="bounded", likelihood="student-t")
+
+
+def test_a_run_out_of_time_says_so(inadmissible_event):
+    ev, _ = inadmissible_event
+    fit = fit_composite([ev], draws=200, burn=100, chains=2, seed=1, until_converged=True,
+                        max_seconds=0.01)  # fmt: skip
+    rec = fit.posterior.settings["until_converged"]
+    assert rec["stopped_by_budget"] is True
+    assert any("time budget" in w and "not converged" in w for w in fit.posterior.warnings)
+
+
+def test_residuals_that_run_in_stretches_are_reported():
+    ev, _ = simulate_event(t_end_s=1.5, fs=60, seed=4)
+    # Something the model does not have: a slow oscillation on P (2 Hz, 4 % of P0).
+    from dataclasses import replace
+
+    bad = replace(ev, p=ev.p + 0.04 * np.sin(2 * np.pi * 2.0 * ev.t))
+    fit = fit_composite([bad], draws=300, burn=150, chains=2, seed=2)
+    lag = fit.posterior.settings["residuals"]["lag1_autocorrelation"]
+    assert lag["p"] > 0.5
+    assert any("run in stretches" in w for w in fit.posterior.warnings)
+    good = fit_composite([ev], draws=300, burn=150, chains=2, seed=2)
+    assert abs(good.posterior.settings["residuals"]["lag1_autocorrelation"]["p"]) < 0.3
+    assert residual_warning({"p": 0.1, "q": 0.05}) is None
