@@ -76,3 +76,40 @@ def test_bad_torque_exits_2(tmp_path, bad):
     res = _run(tmp_path / "sag.csv", "--json", tmp_path / "o.json", "--torque", bad, *SHORT)
     assert res.exit_code == 2, res.output
     assert "--torque" in res.output and "Traceback" not in res.output
+
+
+def test_shares_bounded_prior_and_budget_reach_the_json(tmp_path):
+    _csv(tmp_path / "sag.csv")
+    out = tmp_path / "b.json"
+    res = _run(tmp_path / "sag.csv", "--json", out, "--shares", "bounded", "--prior",
+               "a4=0.5,0.2", "--prior", "f_m=0.5,0.2", *SHORT)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    d = json.loads(out.read_text())
+    assert d["settings"]["coefficient_prior"] == {
+        "shares": "bounded", "normal": {"a4": [0.5, 0.2], "f_m": [0.5, 0.2]}
+    }
+    for name in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
+        p = d["parameters"][name]
+        assert 0.0 <= p["hdi_low"] <= p["hdi_high"] <= 1.0, name
+    # --draws given: exactly that many (no run-on until converged).
+    assert "until_converged" not in d["settings"]
+    assert "lag1_autocorrelation" in d["settings"]["residuals"]
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--prior", "a7=0.1,0.1"], "--prior"),
+        (["--prior", "a1=0.1,-1"], "SD positive"),
+        (["--shares", "tight"], "--shares"),
+        (["--max-seconds", "0"], "--max-seconds"),
+        (["--window-s", "2"], "--window-s"),
+        (["--shares", "bounded", "--likelihood", "student-t"], "normal only"),
+    ],
+)
+def test_bad_composite_options_are_one_line(tmp_path, args, words):
+    _csv(tmp_path / "sag.csv")
+    res = _run(tmp_path / "sag.csv", "--json", tmp_path / "x.json", *args, *SHORT)
+    assert res.exit_code == 2, res.output
+    assert words in res.output and "Traceback" not in res.output
+    assert not (tmp_path / "x.json").exists()
