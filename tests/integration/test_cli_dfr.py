@@ -322,7 +322,7 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
     # The fit and the prediction of the reclose, as the page goes on: the same lines,
     # the numbers within what another machine's last digits (or the fit's Monte Carlo
     # error at a fixed seed) can move them.
-    block = doc.split("the numbers are one run's")[1].split("The defaults (")[0]
+    block = doc.split("the numbers are one run's")[1].split("The default run goes on")[0]
     steps = []
     for line in block.splitlines():
         if line.startswith("    loadbayes ") and not line.startswith("    loadbayes: "):
