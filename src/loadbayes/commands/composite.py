@@ -256,7 +256,7 @@ def fit_composite_cmd(
                 torque=torque_abc,
                 steps=steps,
                 sampler=sampler,
-                settings={"files": list(files)},
+                settings={"files": list(files), "v_base_kv": v_base, "s_base_mva": s_base},
                 likelihood=likelihood,
                 nu=nu_value,
                 accept_units=accept_units,

@@ -14,6 +14,7 @@ import click
 
 from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, user_errors
+from loadbayes.export.bases import BASE_KEYS, resolve_bases
 
 __all__ = ["export_cmd", "pick_values", "summary_lines"]
 
@@ -103,6 +104,12 @@ def _checked_json(doc: dict, params, model, path: str):
             continue
         if not _number(val) or not math.isfinite(val):
             raise DataError(f"settings.{key} is {_shown(val)}, expected a finite number", path)
+    for key in (*BASE_KEYS, "v_base", "s_base"):
+        val = settings.get(key)
+        if val is None:
+            continue
+        if not _number(val) or not (math.isfinite(val) and val > 0):
+            raise DataError(f"settings.{key} is {_shown(val)}, expected a positive number", path)
     prob = doc.get("hdi_prob", 0.95)
     if not _number(prob) or not 0 < prob < 1:
         raise DataError(f"'hdi_prob' is {_shown(prob)}, expected a number in (0, 1)", path)
@@ -248,11 +255,18 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
 @click.option(
     "--s-base",
     type=float,
-    help="MVA per p.u. of the posterior's powers (PSS/E: also SBASE, default 100).",
+    help="MVA per p.u. of the posterior's powers (default: the fit's s_base_mva; PSS/E: "
+    "also SBASE).",
 )
 @click.option("--p-mw", type=float, help="Load P at v0 in MW when the posterior has no p0.")
 @click.option("--q-mvar", type=float, help="Load Q at v0 in Mvar when the posterior has no q0.")
-@click.option("--vn-kv", type=float, help="Bus base voltage (kV) of the net/case built.")
+@click.option(
+    "--v-base",
+    "--vn-kv",
+    "vn_kv",
+    type=float,
+    help="Bus base voltage (kV) of the net/case built (default: the fit's v_base_kv).",
+)
 @click.option(
     "--net",
     "net_file",
@@ -319,21 +333,26 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
         for r in related:
             if r.exists() and not force:
                 raise UserError(f"{r}: exists; use --force to overwrite")
-    options = {"bus": bus, "s_base_mva": s_base, "p_mw": p_mw, "q_mvar": q_mvar,
-               "vn_kv": vn_kv, "net": net_file, "load_index": load_index, "force": force,
-               "v0": settings.get("v0")}  # fmt: skip
-    if s_base is None:
-        options.pop("s_base_mva")
+    s_used, v_used, base_notes = resolve_bases(settings, fmt, s_base=s_base, v_base=vn_kv)
+    options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
+               "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
+               "v0": settings.get("v0"), "f_hz": settings.get("f_hz")}  # fmt: skip
+    for key in ("s_base_mva", "vn_kv", "f_hz"):
+        if options[key] is None:
+            options.pop(key)
     for _, values, _ in jobs:
         _check_values(values, posterior)
     written: list[str] = []
     try:
         for path, values, what in jobs:
-            header = summary_lines(posterior, model, summary, what, interval)
+            header = summary_lines(posterior, model, summary, what, interval) + base_notes
             paths = writer.write(values, path, model=model, header=header, options=options)
             written += [str(p) for p in paths]
     except KeyboardInterrupt as exc:
         exc.written = written  # type: ignore[attr-defined]
         raise
     if not quiet:
+        # After the work: an error stays the run's one line.
+        for note in base_notes:
+            click.echo(f"loadbayes: note: {note}", err=True)
         click.echo(f"{posterior}: {model} exported to {fmt}: {', '.join(written)}", err=True)
