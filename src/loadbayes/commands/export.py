@@ -274,11 +274,27 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     help="pandapower: JSON net to write the load into (default: a one-bus net).",
 )
 @click.option("--load-index", type=int, help="pandapower: the load of --net to overwrite.")
+@click.option(
+    "--motor-as",
+    type=click.Choice(["power", "impedance"]),
+    default="power",
+    show_default=True,
+    help="pandapower: the composite load's motor as its constant-power (motor element) or "
+    "constant-impedance (shunt) equivalent at v0.",
+)
+@click.option(
+    "--motor-record",
+    type=click.Choice(["cmldblu2", "cim5bl"]),
+    default="cmldblu2",
+    show_default=True,
+    help="PSS/E: the composite load as the WECC CMLDBLU2 record (and a PSLF CMPLDW .dyd), "
+    "or as a static load plus a CIM5BL motor.",
+)
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
-               net_file, load_index, quiet, force):  # fmt: skip
+               net_file, load_index, motor_as, motor_record, quiet, force):  # fmt: skip
     """Write a fitted load model into pandapower, PSS/E or ANDES files.
 
     The posterior summary (mean, sd and interval of each parameter, the source and the
@@ -336,7 +352,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     s_used, v_used, base_notes = resolve_bases(settings, fmt, s_base=s_base, v_base=vn_kv)
     options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
                "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
-               "v0": settings.get("v0"), "f_hz": settings.get("f_hz")}  # fmt: skip
+               "v0": settings.get("v0"), "f_hz": settings.get("f_hz"),
+               "motor_as": motor_as, "motor_record": motor_record}  # fmt: skip
     for key in ("s_base_mva", "vn_kv", "f_hz"):
         if options[key] is None:
             options.pop(key)
