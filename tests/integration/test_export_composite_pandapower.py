@@ -43,8 +43,8 @@ def test_power_flows_at_five_voltages_match_the_fitted_static_model(tmp_path, mo
     import pandapower as pp
 
     out = tmp_path / "net.json"
-    get("pandapower").write(DRAW, out, model="composite", header=HEADER,
-                            options={"s_base_mva": S, "vn_kv": 11.0, "motor_as": motor_as})  # fmt: skip
+    opts = {"s_base_mva": S, "vn_kv": 11.0, "motor_as": motor_as}
+    get("pandapower").write(DRAW, out, model="composite", header=HEADER, options=opts)
     net = pp.from_json(str(out))
     p_m, q_m = _motor()
     assert len(net.load) == 1
