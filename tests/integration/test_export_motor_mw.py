@@ -48,7 +48,7 @@ def test_psse_and_pandapower_write_the_same_motor_mw(tmp_path):
     import pandapower as pp
 
     p_m, mva, q_m = _expected()
-    opts = {"s_base_mva": S_BASE, "bus": 3}
+    opts = {"s_base_mva": S_BASE, "bus": 3, "motor_record": "cim5bl"}
     get("psse").write(DRAW, tmp_path / "c.raw", model="composite", header=HEADER, options=opts)
     assert read_loads(tmp_path / "c.raw")["M"]["pl"] == pytest.approx(p_m, rel=1e-9)
     get("pandapower").write(DRAW, tmp_path / "n.json", model="composite", header=HEADER,

@@ -344,7 +344,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             raise UserError(f"{path}: --out would overwrite the --net it starts from")
         if not path.parent.is_dir():
             raise UserError(f"{path}: folder {path.parent} does not exist")
-        related = [path, *(path.with_suffix(s) for s in writer.SUFFIXES)]
+        suffixes = (*writer.SUFFIXES, *getattr(writer, "EXTRA_SUFFIXES", ()))
+        related = [path, *(path.with_suffix(s) for s in suffixes)]
         related += [path.with_name(path.name + s) for s in sidecar]
         for r in related:
             if r.exists() and not force:
