@@ -34,8 +34,9 @@ def posterior(tmp_path_factory):
     draws["a3"] = 1 - draws["a1"] - draws["a2"]
     draws["a6"] = 1 - draws["a4"] - draws["a5"]
     path = tmp_path_factory.mktemp("mc") / "c.nc"
-    Posterior(draws, model="composite", method="mwg-adaptive-metropolis",
-              settings={"s_base_mva": S, "v_base_kv": 11.0, "f_hz": 60.0}).to_netcdf(path)  # fmt: skip
+    bases = {"s_base_mva": S, "v_base_kv": 11.0, "f_hz": 60.0}
+    post = Posterior(draws, model="composite", method="mwg-adaptive-metropolis", settings=bases)
+    post.to_netcdf(path)
     pooled = {k: np.asarray(v).reshape(-1) for k, v in draws.items()}
     return path, pooled
 
