@@ -313,7 +313,17 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     writer = export.get(fmt)
     model_raw, draws, summary, settings, interval = _read_posterior(posterior)
     model = _MODEL_NAMES.get(model_raw, model_raw)
-    export.check_model(model)
+    try:
+        export.check_model(model)
+    except ValueError as exc:
+        from loadbayes.io.errors import DataError
+
+        raise DataError(str(exc), posterior) from None
+    reason = export.check_parameters(model, summary if draws is None else draws)
+    if reason:
+        from loadbayes.io.errors import DataError
+
+        raise DataError(reason, posterior)
     outp = Path(out)
     if fmt == "psse" and outp.suffix.lower() == ".dyr":
         # The .raw is the case and the .dyr its dynamics: both take the stem of --out,
