@@ -277,8 +277,9 @@ def write(
         )
     side = Path(out).with_name(Path(out).name + ".summary.txt")
     files["summary"] = side
-    rec = _load_record(bus, "1", (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz))
-    summary = "\n".join(f"# {ln}" for ln in [*header, *notes, f"load record: {rec}"]) + "\n"
+    rec = next(ln for ln in text.splitlines() if ln.startswith(f"{bus},'1 '"))
+    what_rec = "load record (the whole load at v0)" if whole else "load record"
+    summary = "\n".join(f"# {ln}" for ln in [*header, *notes, f"{what_rec}: {rec}"]) + "\n"
     # The case, its dynamics and the summary are one output: all written, or none.
     with OutputSet(files, force=force) as outs:
         outs.temp("raw").write_text(text, encoding="utf-8")
