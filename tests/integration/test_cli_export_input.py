@@ -39,6 +39,11 @@ CASES = {
     "zip-relabelled-composite": lambda d: _json(d / "in.json", "composite", ZIP),
     "composite-without-t0": lambda d: _json(d / "in.json", "composite", COMPOSITE, ["t0"]),
     "zip-without-a2": lambda d: _json(d / "in.json", "zip", ZIP, ["a2"]),
+    # The real record's fit before --shares bounded: f_m's mean 1.42 (the static part a
+    # generator); not a load a simulator holds, said in words.
+    "motor-share-above-one": lambda d: _json(
+        d / "in.json", "composite", {**COMPOSITE, "f_m": 1.42}
+    ),
     "track-csv": lambda d: (d / "in.json").write_text("t_s,a1,a2\n0,0.3,0.2\n") and d / "in.json",
 }
 NEEDLES = {
@@ -48,6 +53,7 @@ NEEDLES = {
     "composite-without-t0": "needs parameters.t0: missing",
     "zip-without-a2": "needs parameters.a2: missing",
     "track-csv": "not a loadbayes posterior JSON",
+    "motor-share-above-one": "f_m is 1.42: a load's motor takes a share in (0, 1]",
 }
 
 

@@ -15,6 +15,7 @@ import click
 from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, user_errors
 from loadbayes.export.bases import BASE_KEYS, resolve_bases
+from loadbayes.io.errors import DataError
 
 __all__ = ["export_cmd", "pick_values", "summary_lines"]
 
@@ -316,13 +317,9 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     try:
         export.check_model(model)
     except ValueError as exc:
-        from loadbayes.io.errors import DataError
-
         raise DataError(str(exc), posterior) from None
     reason = export.check_parameters(model, summary if draws is None else draws)
     if reason:
-        from loadbayes.io.errors import DataError
-
         raise DataError(reason, posterior)
     outp = Path(out)
     if fmt == "psse" and outp.suffix.lower() == ".dyr":
@@ -374,7 +371,13 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     try:
         for path, values, what in jobs:
             header = summary_lines(posterior, model, summary, what, interval) + base_notes
-            paths = writer.write(values, path, model=model, header=header, options=options)
+            try:
+                paths = writer.write(values, path, model=model, header=header, options=options)
+            except ValueError as exc:
+                if isinstance(exc, DataError):
+                    raise
+                # What the writer refuses comes from the posterior: name it.
+                raise UserError(f"{posterior}: {what}: {exc}") from None
             written += [str(p) for p in paths]
     except KeyboardInterrupt as exc:
         exc.written = written  # type: ignore[attr-defined]

@@ -288,7 +288,11 @@ def _motor(values: Mapping[str, float], options: Mapping[str, Any], p_tot: float
     )
     f_m = float(values["f_m"])
     if not (0.0 < f_m <= 1.0):
-        raise ValueError(f"the motor's share f_m is {f_m:.6g}: it must be in (0, 1]")
+        raise ValueError(
+            f"the motor's share f_m is {f_m:.6g}: a load's motor takes a share in (0, 1] of "
+            "its power, so this parameter set is not a load a simulator can hold (refit "
+            "with the shares kept in [0, 1]: fit composite --shares bounded)"
+        )
     if not p_tot > 0:
         raise ValueError(f"the load draws P0 = {p_tot:.6g} MW: a composite load needs P0 > 0")
     p_m = f_m * p_tot
