@@ -58,3 +58,32 @@ def test_psse_and_pandapower_write_the_same_motor_mw(tmp_path):
     assert net.motor.sn_mva.iloc[0] == pytest.approx(mva, rel=1e-9)
     pp.runpp(net)
     assert net.res_motor.p_mw.iloc[0] == pytest.approx(p_m, rel=1e-9)
+
+
+def test_a_fitted_composite_gives_one_motor_mw_in_pandapower_and_psse(tmp_path):
+    """The CLI on a real fit's JSON (tests/data/README.md: Q shares edited into [0, 1])."""
+    import json
+    from pathlib import Path
+
+    import pandapower as pp
+    from click.testing import CliRunner
+
+    from loadbayes.cli import main
+    from loadbayes.export.cmld import read_cmldblu2
+
+    src = Path(__file__).parents[1] / "data" / "composite_example_fit.json"
+    par = json.loads(src.read_text())["parameters"]
+    expected = par["f_m"]["mean"] * par["p0"]["mean"] * 10.0  # s_base_mva 10 in the fit
+    mw = {}
+    for fmt, name, extra in (("pandapower", "n.json", []), ("psse", "a.raw", []),
+                             ("psse", "b.raw", ["--motor-record", "cim5bl"])):  # fmt: skip
+        r = CliRunner().invoke(main, ["export", str(src), "--to", fmt, "--out",
+                                      str(tmp_path / name), *extra])  # fmt: skip
+        assert r.exit_code == 0, r.output
+        assert "note" not in r.output  # the fit's bases were used, nothing assumed
+    mw["pandapower"] = pp.from_json(str(tmp_path / "n.json")).motor.pn_mech_mw.iloc[0]
+    mw["cmldblu2"] = read_cmldblu2(tmp_path / "a.dyr")["Fma"] * read_loads(
+        tmp_path / "a.raw")["1"]["pl"]  # fmt: skip
+    mw["cim5bl"] = read_loads(tmp_path / "b.raw")["M"]["pl"]
+    for route, value in mw.items():
+        assert value == pytest.approx(expected, rel=1e-9), route
