@@ -27,6 +27,12 @@ def kv_mw(tmp_path_factory):
     return path
 
 
+@pytest.fixture(scope="module")
+def fitted(kv_mw):
+    """The ZIP fitted on its bases, once for the module."""
+    return _fit(kv_mw, "--v-base", "11", "--s-base", "5")
+
+
 def _fit(path, *extra):
     out = path.with_name(f"fit{len(extra)}.json")
     res = CliRunner().invoke(main, ["fit", "zip", str(path), "--json", str(out), *SHORT,
@@ -40,10 +46,10 @@ def _export(post, fmt, out, *extra):
                                      "--force", *extra])  # fmt: skip
 
 
-def test_zip_fitted_on_bases_exports_mw_on_its_bus(kv_mw, tmp_path):
+def test_zip_fitted_on_bases_exports_mw_on_its_bus(fitted, tmp_path):
     import pandapower as pp
 
-    post, doc = _fit(kv_mw, "--v-base", "11", "--s-base", "5")
+    post, doc = fitted
     s = doc["settings"]
     assert (s["v_base_kv"], s["s_base_mva"]) == (11.0, 5.0) and "f_hz" in s
     p0, q0 = doc["parameters"]["p0"]["mean"], doc["parameters"]["q0"]["mean"]
@@ -63,10 +69,10 @@ def test_zip_fitted_on_bases_exports_mw_on_its_bus(kv_mw, tmp_path):
     assert float(bus_line.split(",")[2]) == 11.0
 
 
-def test_override_is_said_and_per_unit_fit_names_the_options(kv_mw, tmp_path):
+def test_override_is_said_and_per_unit_fit_names_the_options(kv_mw, fitted, tmp_path):
     import pandapower as pp
 
-    post, doc = _fit(kv_mw, "--v-base", "11", "--s-base", "5")
+    post, doc = fitted
     p0 = doc["parameters"]["p0"]["mean"]
     res = _export(post, "pandapower", tmp_path / "o.json", "--s-base", "10", "--v-base", "33")
     assert res.exit_code == 0, res.output
@@ -88,8 +94,11 @@ def test_override_is_said_and_per_unit_fit_names_the_options(kv_mw, tmp_path):
     assert "records no power base" in (tmp_path / "pu.raw.summary.txt").read_text()
 
 
-def test_tampered_base_is_refused_in_one_line(kv_mw, tmp_path):
-    post, doc = _fit(kv_mw, "--v-base", "11", "--s-base", "5")
+def test_tampered_base_is_refused_in_one_line(fitted, tmp_path):
+    import copy
+
+    post, doc = fitted
+    doc = copy.deepcopy(doc)
     doc["settings"]["s_base_mva"] = "5 MVA"
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps(doc))
