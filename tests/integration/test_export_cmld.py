@@ -5,7 +5,6 @@ not through the export's code; ANDES's PSS/E dyr reader splits the record indepe
 """
 
 import math
-import re
 
 import pytest
 
@@ -88,13 +87,18 @@ def test_andes_dyr_reader_splits_the_record(written):
 def test_cmpldw_carries_the_same_numbers(written):
     out, _ = written
     text = out.with_suffix(".dyd").read_text()
-    assert text.startswith('cmpldw 7 "LOADBAYES" 11 "1" : #9')
-    pairs = dict(re.findall(r"(\w+)=(\S+)", text))
+    assert text.startswith('cmpldw 7 "LOADBAYES" 11 "1" : #9 mva=')
+    # PSLF's order, by position after mva= (InterPSS's PSLF reader: FmA 18th after MVA,
+    # frcel 26th, PFs 27th, P1c 29th, Q1c 34th, MtypA 38th, LfmA 42nd ... HA 49th).
+    vals = [float(v) for v in text.split("mva=")[1].replace("/", " ").split()]
     rec = read_cmldblu2(out.with_suffix(".dyr"))
-    for name in ("Fma", "Fmb", "P1c", "P2c", "Q1c", "Q2c", "PFs", "RsA", "LsA", "LpA",
-                 "TpoA", "HA", "EtrqA", "LFmA"):  # fmt: skip
-        assert float(pairs[name]) == pytest.approx(rec[name], rel=1e-9), name
-    assert float(pairs["mva"]) == pytest.approx(rec["MVA"], rel=1e-9)
+    at = {"MVA": 0, "Fma": 18, "Fmb": 19, "Fel": 22, "PFs": 27, "P1e": 28, "P1c": 29,
+          "P2c": 31, "Q1c": 34, "Q2c": 36, "MtpA": 38, "LFmA": 42, "RsA": 43, "LsA": 44,
+          "LpA": 45, "LppA": 46, "TpoA": 47, "TppoA": 48, "HA": 49, "EtrqA": 50}  # fmt: skip
+    for name, k in at.items():
+        assert vals[k] == pytest.approx(rec[name], rel=1e-9), name
+    assert vals[26] == 1.0  # frcel: not in CMLDBLU2
+    assert len(vals) == 5 + 22 + 11 + 4 + 3 * 19 + 22  # 121, InterPSS's list after MVA + 1
 
 
 def test_cli_default_is_cmldblu2_and_cim5bl_stays_an_option(tmp_path):

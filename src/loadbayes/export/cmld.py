@@ -20,9 +20,13 @@ Sources of the field order (docs/formats.md has the table with every field):
   where the extra one sits could not be confirmed). They are written as 0: motor D's
   fraction ``Fmd`` is 0, so PSS/E should not use them; if PSS/E refuses a zero there,
   take those CONs from the Load Model Data Tool's typical record.
-- CMPLDW (PSLF ``.dyd``) takes ``name=value`` pairs, so its order does not matter; the
-  names are the WECC composite load model specification's as written here (not checked
-  against a PSLF installation, which was not reachable).
+- CMPLDW (PSLF ``.dyd``): ``cmpldw IBUS "NAME" BASEKV "ID" : #9 mva=MVA`` then the other
+  parameters by position, in the order of InterPSS's PSLF reader
+  (``org.ieee.odm.adapter.ge.parser.dynamic.load.PSLFDynLoadCMPLDWDataParser``, InterPSS
+  ODM): unlike CMLDBLU2 it has ``frcel`` after ``Vd2``, the four motor types together
+  (``MtypA .. MtypD``) before motor A's fields, motors B and C without a type field, and
+  motor D's 24 named fields (``LfmD, CompPF, Vstall ... Tv``), written as 0 here (its
+  fraction is 0). Not checked against a PSLF installation, which was not reachable.
 
 ANDES's PSS/E dyr reader (``andes.io.psse``) splits the record into numbers but does not
 support the model (it logs "Models not yet supported: USRLOD"); the tests read the record
@@ -35,7 +39,14 @@ import math
 
 from loadbayes.export.loadparts import LoadParts
 
-__all__ = ["CON_NAMES", "cmld_values", "cmldblu2_text", "cmpldw_text", "read_cmldblu2"]
+__all__ = [
+    "CMPLDW_NAMES",
+    "CON_NAMES",
+    "cmld_values",
+    "cmldblu2_text",
+    "cmpldw_text",
+    "read_cmldblu2",
+]
 
 _MOTOR = ("Mtp{m}", "LFm{m}", "Rs{m}", "Ls{m}", "Lp{m}", "Lpp{m}", "Tpo{m}", "Tppo{m}",
           "H{m}", "Etrq{m}", "Vtr1{m}", "Ttr1{m}", "Ftr1{m}", "Vrc1{m}", "Trc1{m}",
@@ -52,6 +63,18 @@ CON_NAMES: tuple[str, ...] = (
     *(f"J+{k}" for k in range(97, 133)),
 )  # fmt: skip
 assert len(CON_NAMES) == 133
+
+_PSLF_MOTOR = tuple(f for f in _MOTOR if f != "Mtp{m}")
+#: CMPLDW's parameters in PSLF's order (InterPSS's reader), ``MVA`` written ``mva=``.
+CMPLDW_NAMES: tuple[str, ...] = (
+    *CON_NAMES[:26], "frcel", *CON_NAMES[26:37], "MtpA", "MtpB", "MtpC", "MtpD",
+    *(f.format(m="A") for f in _PSLF_MOTOR),
+    *(f.format(m="B") for f in _PSLF_MOTOR),
+    *(f.format(m="C") for f in _PSLF_MOTOR),
+    "LFmD", "CompPF", "Vstall", "Rstall", "Xstall", "Tstall", "Frst", "Vrst", "Trst", "Fuvr",
+    "Vtr1", "Ttr1", "Vtr2", "Ttr2", "Vc1off", "Vc2off", "Vc1on", "Vc2on", "Tth", "Th1t",
+    "Th2t", "Tv",
+)  # fmt: skip
 
 #: The trip and reconnection settings written for every motor: none (no trip).
 _NO_TRIP = {"Vtr1": 0.0, "Ttr1": 9999.0, "Ftr1": 0.0, "Vrc1": 0.0, "Trc1": 9999.0,
@@ -151,7 +174,7 @@ def cmldblu2_text(bus: int, load_id: str, cons: dict[str, float]) -> str:
 
 
 def cmpldw_text(bus: int, load_id: str, cons: dict[str, float], *, vn_kv: float) -> str:
-    """The same load as a PSLF CMPLDW record (``.dyd``, ``name=value`` pairs).
+    """The same load as a PSLF CMPLDW record (``.dyd``; :data:`CMPLDW_NAMES` by position).
 
     Parameters
     ----------
@@ -169,10 +192,12 @@ def cmpldw_text(bus: int, load_id: str, cons: dict[str, float], *, vn_kv: float)
     str
         The record; ``/`` continues a line.
     """
-    names = [n for n in CON_NAMES if not n.startswith("J+") and not n.endswith(("B", "C"))]
-    pairs = [f"{'mva' if n == 'MVA' else n}={_fmt(cons[n])}" for n in names]
-    rows = [" ".join(pairs[k : k + 6]) for k in range(0, len(pairs), 6)]
-    head = f'cmpldw {bus} "LOADBAYES" {_fmt(vn_kv)} "{load_id}" : #9'
+    # CMPLDW's fields that CMLDBLU2 has not: the electronic load's recovering fraction
+    # (Fel = 0: unused), motor D single-phase (MtpD = 1) and its fields (FmD = 0: 0).
+    extra = {"frcel": 1.0, "MtpD": 1.0}
+    vals = [_fmt(cons.get(n, extra.get(n, 0.0))) for n in CMPLDW_NAMES]
+    head = f'cmpldw {bus} "LOADBAYES" {_fmt(vn_kv)} "{load_id}" : #9 mva={vals[0]}'
+    rows = [" ".join(vals[k : k + 10]) for k in range(1, len(vals), 10)]
     return head + " /\n" + " /\n".join(rows) + "\n"
 
 
