@@ -83,8 +83,8 @@ def test_psse_out_dyr_gives_both_files_their_own_name(tmp_path, monkeypatch):
     from loadbayes.export.psse import read_dyr, read_loads
 
     posterior_json(tmp_path / "comp.json", COMPOSITE, "composite")
-    r = run("comp.json", "--to", "psse", "--out", "case.dyr", cwd=tmp_path,
-            monkeypatch=monkeypatch)  # fmt: skip
+    r = run("comp.json", "--to", "psse", "--out", "case.dyr", "--motor-record", "cim5bl",
+            cwd=tmp_path, monkeypatch=monkeypatch)  # fmt: skip
     assert r.exit_code == 0, r.output
     assert files(tmp_path) == ["case.dyr", "case.raw", "case.raw.summary.txt", "comp.json"]
     assert "case.raw, case.dyr, case.raw.summary.txt" in r.stderr
@@ -92,8 +92,8 @@ def test_psse_out_dyr_gives_both_files_their_own_name(tmp_path, monkeypatch):
     assert set(read_loads(tmp_path / "case.raw")) == {"1", "M"}  # and the .raw the case
     # again, without --force: refused before anything is touched
     before = (tmp_path / "case.dyr").read_bytes()
-    one_line(run("comp.json", "--to", "psse", "--out", "case.dyr", cwd=tmp_path,
-                 monkeypatch=monkeypatch), "exists", "--force")  # fmt: skip
+    one_line(run("comp.json", "--to", "psse", "--out", "case.dyr", "--motor-record", "cim5bl",
+                 cwd=tmp_path, monkeypatch=monkeypatch), "exists", "--force")  # fmt: skip
     assert (tmp_path / "case.dyr").read_bytes() == before
 
 

@@ -119,8 +119,8 @@ def test_psse_composite_dyr_round_trip(tmp_path):
 
     psse = get("psse")
     out = tmp_path / "comp.raw"
-    written = psse.write(COMPOSITE, out, model="composite", header=HEADER,
-                         options={"bus": 3, "s_base_mva": 100.0})  # fmt: skip
+    opts = {"bus": 3, "s_base_mva": 100.0, "motor_record": "cim5bl"}
+    written = psse.write(COMPOSITE, out, model="composite", header=HEADER, options=opts)
     assert [Path(p).suffix for p in written] == [".raw", ".dyr", ".txt"]
     dyr = read_dyr(tmp_path / "comp.dyr")
     params = MotorParams(rs=0.031, xs=0.10, xm=3.2, rr=0.018, xr=0.18, h_s=0.7)

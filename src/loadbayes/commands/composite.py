@@ -254,7 +254,7 @@ def fit_composite_cmd(
 
     from loadbayes.fit.composite import fit_composite, predictive_band
     from loadbayes.fit.composite.checks import check_run, check_units
-    from loadbayes.measurements.events import read_events
+    from loadbayes.measurements.events import index_bases, read_events
     from loadbayes.models.composite import THETA_NAMES
     from loadbayes.models.composite_prior import CompositePrior
 
@@ -277,6 +277,20 @@ def fit_composite_cmd(
         f_hz=f_hz,
     )
     check_units(events, accept_units=accept_units)  # before the prior reads v0, p0
+    bases_note = None
+    if v_base is None and s_base is None:
+        # Per-unit events cut by `loadbayes events`: their bases are in events.csv.
+        found = index_bases(list(files))
+        if found is not None:
+            v_base_rec, s_base_rec = found
+            bases_note = (
+                f"bases from events.csv: {v_base_rec:.6g} kV, {s_base_rec:.6g} MVA "
+                "(recorded for export)"
+            )
+        else:
+            v_base_rec = s_base_rec = None
+    else:
+        v_base_rec, s_base_rec = v_base, s_base
     # Stored per kept draw (an upper bound): the named draws of the motor, torque and
     # noise (~30), each event's 7 coefficients and its derived shares and powers, the
     # steps' fractions (at most 2 per event), the raw blocks kept alongside.
@@ -292,6 +306,8 @@ def fit_composite_cmd(
             mean[i], sd[i] = m, s
         prior = CompositePrior(mean, sd, prior.beta_sd, prior.tau_shape, prior.tau_rate)
     if not quiet:
+        if bases_note:
+            click.echo(f"loadbayes: note: {bases_note}", err=True)
         n = sum(e.n for e in events)
         click.echo(
             f"fitting {len(events)} event(s), {n} samples: NLS start, then sampling", err=True
@@ -319,7 +335,7 @@ def fit_composite_cmd(
                 torque=torque_abc,
                 steps=steps,
                 sampler=sampler,
-                settings={"files": list(files)},
+                settings={"files": list(files), "v_base_kv": v_base_rec, "s_base_mva": s_base_rec},
                 likelihood=likelihood,
                 nu=nu_value,
                 accept_units=accept_units,

@@ -14,6 +14,8 @@ import click
 
 from loadbayes.commands.options import OneLineCommand
 from loadbayes.commands.output import UserError, user_errors
+from loadbayes.export.bases import BASE_KEYS, resolve_bases
+from loadbayes.io.errors import DataError
 
 __all__ = ["export_cmd", "pick_values", "summary_lines"]
 
@@ -103,6 +105,12 @@ def _checked_json(doc: dict, params, model, path: str):
             continue
         if not _number(val) or not math.isfinite(val):
             raise DataError(f"settings.{key} is {_shown(val)}, expected a finite number", path)
+    for key in (*BASE_KEYS, "v_base", "s_base"):
+        val = settings.get(key)
+        if val is None:
+            continue
+        if not _number(val) or not (math.isfinite(val) and val > 0):
+            raise DataError(f"settings.{key} is {_shown(val)}, expected a positive number", path)
     prob = doc.get("hdi_prob", 0.95)
     if not _number(prob) or not 0 < prob < 1:
         raise DataError(f"'hdi_prob' is {_shown(prob)}, expected a number in (0, 1)", path)
@@ -248,11 +256,18 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
 @click.option(
     "--s-base",
     type=float,
-    help="MVA per p.u. of the posterior's powers (PSS/E: also SBASE, default 100).",
+    help="MVA per p.u. of the posterior's powers (default: the fit's s_base_mva; PSS/E: "
+    "also SBASE).",
 )
 @click.option("--p-mw", type=float, help="Load P at v0 in MW when the posterior has no p0.")
 @click.option("--q-mvar", type=float, help="Load Q at v0 in Mvar when the posterior has no q0.")
-@click.option("--vn-kv", type=float, help="Bus base voltage (kV) of the net/case built.")
+@click.option(
+    "--v-base",
+    "--vn-kv",
+    "vn_kv",
+    type=float,
+    help="Bus base voltage (kV) of the net/case built (default: the fit's v_base_kv).",
+)
 @click.option(
     "--net",
     "net_file",
@@ -260,11 +275,27 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     help="pandapower: JSON net to write the load into (default: a one-bus net).",
 )
 @click.option("--load-index", type=int, help="pandapower: the load of --net to overwrite.")
+@click.option(
+    "--motor-as",
+    type=click.Choice(["power", "impedance"]),
+    default="power",
+    show_default=True,
+    help="pandapower: the composite load's motor as its constant-power (motor element) or "
+    "constant-impedance (shunt) equivalent at v0.",
+)
+@click.option(
+    "--motor-record",
+    type=click.Choice(["cmldblu2", "cim5bl"]),
+    default="cmldblu2",
+    show_default=True,
+    help="PSS/E: the composite load as the WECC CMLDBLU2 record (and a PSLF CMPLDW .dyd), "
+    "or as a static load plus a CIM5BL motor.",
+)
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
-               net_file, load_index, quiet, force):  # fmt: skip
+               net_file, load_index, motor_as, motor_record, quiet, force):  # fmt: skip
     """Write a fitted load model into pandapower, PSS/E or ANDES files.
 
     The posterior summary (mean, sd and interval of each parameter, the source and the
@@ -283,7 +314,13 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     writer = export.get(fmt)
     model_raw, draws, summary, settings, interval = _read_posterior(posterior)
     model = _MODEL_NAMES.get(model_raw, model_raw)
-    export.check_model(model)
+    try:
+        export.check_model(model)
+    except ValueError as exc:
+        raise DataError(str(exc), posterior) from None
+    reason = export.check_parameters(model, summary if draws is None else draws)
+    if reason:
+        raise DataError(reason, posterior)
     outp = Path(out)
     if fmt == "psse" and outp.suffix.lower() == ".dyr":
         # The .raw is the case and the .dyr its dynamics: both take the stem of --out,
@@ -314,26 +351,39 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             raise UserError(f"{path}: --out would overwrite the --net it starts from")
         if not path.parent.is_dir():
             raise UserError(f"{path}: folder {path.parent} does not exist")
-        related = [path, *(path.with_suffix(s) for s in writer.SUFFIXES)]
+        suffixes = (*writer.SUFFIXES, *getattr(writer, "EXTRA_SUFFIXES", ()))
+        related = [path, *(path.with_suffix(s) for s in suffixes)]
         related += [path.with_name(path.name + s) for s in sidecar]
         for r in related:
             if r.exists() and not force:
                 raise UserError(f"{r}: exists; use --force to overwrite")
-    options = {"bus": bus, "s_base_mva": s_base, "p_mw": p_mw, "q_mvar": q_mvar,
-               "vn_kv": vn_kv, "net": net_file, "load_index": load_index, "force": force,
-               "v0": settings.get("v0")}  # fmt: skip
-    if s_base is None:
-        options.pop("s_base_mva")
+    s_used, v_used, base_notes = resolve_bases(settings, fmt, s_base=s_base, v_base=vn_kv)
+    options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
+               "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
+               "v0": settings.get("v0"), "f_hz": settings.get("f_hz"),
+               "motor_as": motor_as, "motor_record": motor_record}  # fmt: skip
+    for key in ("s_base_mva", "vn_kv", "f_hz"):
+        if options[key] is None:
+            options.pop(key)
     for _, values, _ in jobs:
         _check_values(values, posterior)
     written: list[str] = []
     try:
         for path, values, what in jobs:
-            header = summary_lines(posterior, model, summary, what, interval)
-            paths = writer.write(values, path, model=model, header=header, options=options)
+            header = summary_lines(posterior, model, summary, what, interval) + base_notes
+            try:
+                paths = writer.write(values, path, model=model, header=header, options=options)
+            except ValueError as exc:
+                if isinstance(exc, DataError):
+                    raise
+                # What the writer refuses comes from the posterior: name it.
+                raise UserError(f"{posterior}: {what}: {exc}") from None
             written += [str(p) for p in paths]
     except KeyboardInterrupt as exc:
         exc.written = written  # type: ignore[attr-defined]
         raise
     if not quiet:
+        # After the work: an error stays the run's one line.
+        for note in base_notes:
+            click.echo(f"loadbayes: note: {note}", err=True)
         click.echo(f"{posterior}: {model} exported to {fmt}: {', '.join(written)}", err=True)

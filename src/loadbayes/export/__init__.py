@@ -17,7 +17,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-__all__ = ["FORMATS", "MODELS", "check_model", "get"]
+__all__ = ["FORMATS", "MODELS", "check_model", "check_parameters", "get"]
 
 #: Format name -> module path.
 FORMATS = {
@@ -76,3 +76,49 @@ def check_model(model: str) -> None:
     """
     if model not in MODELS:
         raise ValueError(f"model {model!r} cannot be exported (exports take {', '.join(MODELS)})")
+
+
+#: The parameters each model's export needs, and the ones that betray another model.
+_NEEDS = {
+    "zip": ("a1", "a2"),
+    "exponential": ("np",),
+    "composite": ("p0", "q0", "a1", "a2", "a4", "a5", "f_m", "rs", "xs", "xm", "rr", "xr",
+                  "h_s", "t0"),
+}  # fmt: skip
+_BETRAY = {
+    "zip": ("f_m", "rs", "t0", "np"),
+    "exponential": ("a1", "f_m", "rs"),
+    "composite": ("np",),
+}
+
+
+def check_parameters(model: str, names) -> str | None:
+    """Why a parameter set cannot be ``model``'s, or None when it can.
+
+    A file whose ``model`` was edited (a composite posterior relabelled ``zip``, whose
+    ``a1 .. a3`` are then the shares of the static part only) or whose parameters were
+    cut is refused before a writer turns it into wrong numbers.
+
+    Parameters
+    ----------
+    model : str
+        One of :data:`MODELS`.
+    names : iterable of str
+        The parameters present.
+
+    Returns
+    -------
+    str or None
+        The reason, naming the parameters.
+    """
+    have = set(names)
+    missing = [n for n in _NEEDS[model] if n not in have]
+    if missing:
+        return f"a {model} posterior needs parameters.{', parameters.'.join(missing)}: missing"
+    foreign = [n for n in _BETRAY[model] if n in have]
+    if foreign:
+        return (
+            f"'model' says {model} but the parameters include {', '.join(foreign)}, which "
+            f"{model} has not: the file is from another fit (or was edited)"
+        )
+    return None

@@ -14,12 +14,21 @@ from one parameter set named as in the naming contract.
   so it is replaced by the ZIP that fits ``x^np`` best in least squares on
   ``V/v0`` in [0.7, 1.1] with shares summing to 1; the largest relative deviation on
   that band is reported in the notes (it is zero for np = 0, 1, 2).
-- Composite: the static ZIP carries ``(1 - f_m) p0`` of the active power and
-  ``q0 - q_m + q_c`` of the reactive, where ``q_m`` is the motor's reactive power at
-  its steady state at ``v0`` (from :func:`loadbayes.models.motor.steady_state`, with
-  the load torque ``t0`` on the motor's base, scaled by ``mva_m``) and ``q_c`` the shunt
-  compensation (reactive power supplied at v0, positive for capacitors; it becomes a
-  constant-impedance term ``-q_c (V/v0)^2`` of the load's Q).
+- Composite: the motor draws ``f_m p0`` at ``v0``, always (the best-determined number of
+  the fit is not moved by the conversion): its rating is ``mva = f_m p0 / P_m(v0)`` with
+  ``P_m(v0)`` the motor's own-base P at its steady state at ``v0`` (from
+  :func:`loadbayes.models.motor.steady_state`, load torque ``t0`` on the motor's base),
+  and its Q is ``mva Q_m(v0)``. The posterior's ``mva_m`` is *not* used: the mean (or a
+  quantile) of ``mva_m`` times the own-base P of the mean motor is not ``f_m p0``, which
+  moved the motor's MW by 9 % between exports (issue 23). The static ZIP carries
+  ``(1 - f_m) p0`` of the active power and ``q0 - q_m + q_c`` of the reactive, where
+  ``q_c`` is the shunt compensation (reactive power supplied at v0, positive for
+  capacitors; the posterior's ``q_c``, else the motor's Q at v0 as the composite model
+  defines it). It is a constant-impedance ``-q_c (V/v0)^2``: ``LoadParts.q_c`` for the
+  writers that hold a shunt, folded into the polynomial's ``qz`` for the others.
+
+Every export (pandapower, PSS/E, ANDES) takes its numbers from :func:`load_parts`, so the
+same draw gives the same motor MW in each.
 
 Powers in the posterior are in per unit of ``s_base_mva`` (``options["s_base_mva"]``,
 default 1: the posterior's units are then MW and Mvar); ``options["p_mw"]`` and
@@ -48,15 +57,18 @@ class MotorPart:
     Parameters
     ----------
     params : loadbayes.models.motor.MotorParams
-        Its parameters on its own base.
+        Its parameters on its own base (impedances in p.u. of ``mva``, ``h_s`` in s on
+        ``mva``).
     t0 : float
         Load torque at synchronous speed (own base).
     mva : float
-        Rating (MVA).
+        Rating (MVA): ``p_mw / p_pu``.
     p_mw, q_mvar : float
-        Power drawn at ``v0``.
+        Power drawn at ``v0``; ``p_mw = f_m P0`` exactly.
     slip : float
         Initial slip.
+    p_pu, q_pu : float
+        The same power on the motor's own base (``p_pu`` is the WECC loading factor).
     """
 
     params: Any
@@ -65,11 +77,37 @@ class MotorPart:
     p_mw: float
     q_mvar: float
     slip: float
+    p_pu: float = float("nan")
+    q_pu: float = float("nan")
+
+    @property
+    def x_sync(self) -> float:
+        """Synchronous (open-circuit) reactance ``xs + xm`` (own base)."""
+        return self.params.xs + self.params.xm
+
+    @property
+    def x_transient(self) -> float:
+        """Transient reactance ``xs + xm xr / (xm + xr)`` (own base)."""
+        pr = self.params
+        return pr.xs + pr.xm * pr.xr / (pr.xm + pr.xr)
+
+    @property
+    def t_open_s(self) -> float:
+        """Transient open-circuit time constant ``(xr + xm) / (wb rr)`` in seconds."""
+        pr = self.params
+        return (pr.xr + pr.xm) / (2.0 * math.pi * pr.f_hz * pr.rr)
 
 
 @dataclass
 class LoadParts:
-    """Static polynomial (MW, Mvar at V in p.u.), optional motor, and notes for the header."""
+    """Static polynomial (MW, Mvar at V in p.u.), optional motor, and notes for the header.
+
+    ``pz .. qp`` hold the static load *and* the shunt compensation (``-q_c / v0^2`` in
+    ``qz``), as a simulator with one load record takes them; ``q_c`` (Mvar at v0),
+    ``p_static``, ``q_static`` (the static load's MW, Mvar at v0, without the shunt) and
+    its shares ``shares_p``, ``shares_q`` (Z, I, P of ``V/v0``) are there for the
+    writers that hold the parts apart (pandapower's shunt, the WECC composite record).
+    """
 
     pz: float
     pi: float
@@ -80,6 +118,20 @@ class LoadParts:
     v0: float
     motor: MotorPart | None = None
     notes: list[str] = field(default_factory=list)
+    q_c: float = 0.0
+    p_static: float = float("nan")
+    q_static: float = float("nan")
+    shares_p: tuple[float, float, float] = (float("nan"),) * 3
+    shares_q: tuple[float, float, float] = (float("nan"),) * 3
+
+    @property
+    def p_total(self) -> float:
+        """The whole load's MW at v0 (static and motor)."""
+        return self.p_static + (self.motor.p_mw if self.motor else 0.0)
+
+    def without_shunt(self) -> tuple[float, float, float]:
+        """``(qz, qi, qp)`` of the static load alone (the shunt taken out of ``qz``)."""
+        return self.qz + self.q_c / self.v0**2, self.qi, self.qp
 
     def p(self, v: np.ndarray | float) -> np.ndarray:
         """Static P (MW) at V (p.u.)."""
@@ -191,13 +243,17 @@ def load_parts(values: Mapping[str, float], *, model: str, options: Mapping[str,
     if model == "composite":
         motor = _motor(values, options, p_tot, v0)
         p_static = p_tot - motor.p_mw
-        q_c = float(values.get("q_c", 0.0)) * float(options.get("s_base_mva") or 1.0)
+        if "q_c" in values:
+            q_c = float(values["q_c"]) * float(options.get("s_base_mva") or 1.0)
+        else:  # the composite model's shunt: the motor's Q compensated at v0
+            q_c = motor.q_mvar
         q_static = q_tot - motor.q_mvar + q_c
         qz_extra = -q_c / v0**2
         notes.append(
-            f"composite: motor {motor.p_mw:.6g} MW, {motor.q_mvar:.6g} Mvar at v0 "
-            f"(slip {motor.slip:.4g}, rating {motor.mva:.6g} MVA); static part "
-            f"{p_static:.6g} MW, {q_static:.6g} Mvar; shunt compensation {q_c:.6g} Mvar"
+            f"composite: motor {motor.p_mw:.6g} MW (f_m {float(values['f_m']):.6g} of P0 "
+            f"{p_tot:.6g} MW), {motor.q_mvar:.6g} Mvar at v0 (slip {motor.slip:.4g}, "
+            f"rating {motor.mva:.6g} MVA); static part {p_static:.6g} MW, {q_static:.6g} "
+            f"Mvar; shunt compensation {q_c:.6g} Mvar"
         )
     return LoadParts(
         pz=p_static * sp[0] / v0**2,
@@ -209,13 +265,18 @@ def load_parts(values: Mapping[str, float], *, model: str, options: Mapping[str,
         v0=v0,
         motor=motor,
         notes=notes,
+        q_c=q_c if model == "composite" else 0.0,
+        p_static=p_static,
+        q_static=q_static,
+        shares_p=tuple(float(x) for x in sp),
+        shares_q=tuple(float(x) for x in sq),
     )
 
 
 def _motor(values: Mapping[str, float], options: Mapping[str, Any], p_tot: float, v0: float):
     from loadbayes.models.motor import MotorParams, steady_state
 
-    missing = [k for k in (*_MOTOR_FIELDS, "f_m") if k not in values]
+    missing = [k for k in (*_MOTOR_FIELDS, "f_m", "t0") if k not in values]
     if missing:
         raise ValueError(f"composite parameter set lacks {', '.join(missing)}")
     params = MotorParams(
@@ -225,12 +286,21 @@ def _motor(values: Mapping[str, float], options: Mapping[str, Any], p_tot: float
         c=float(values.get("c", 0.0)),
         f_hz=float(values.get("f_hz", options.get("f_hz") or 60.0)),
     )
-    p_m = float(values["f_m"]) * p_tot
-    if "t0" in values:
+    f_m = float(values["f_m"])
+    if not (0.0 < f_m <= 1.0):
+        raise ValueError(
+            f"the motor's share f_m is {f_m:.6g}: a load's motor takes a share in (0, 1] of "
+            "its power, so this parameter set is not a load a simulator can hold (refit "
+            "with the shares kept in [0, 1]: fit composite --shares bounded)"
+        )
+    if not p_tot > 0:
+        raise ValueError(f"the load draws P0 = {p_tot:.6g} MW: a composite load needs P0 > 0")
+    p_m = f_m * p_tot
+    try:
         op = steady_state(params, v_pu=v0, t0=float(values["t0"]))
-    else:
-        raise ValueError("composite parameter set lacks t0 (the motor's load torque)")
-    mva = p_m / op.p if "mva_m" not in values else None
-    if mva is None:
-        mva = float(values["mva_m"]) * float(options.get("s_base_mva") or 1.0)
-    return MotorPart(params, op.t0, mva, op.p * mva, op.q * mva, op.slip)
+    except ValueError as exc:
+        raise ValueError(f"the motor has no steady state at v0 = {v0:.4g}: {exc}") from None
+    # The rating follows from f_m p0 (never from the posterior's mva_m): see the module
+    # docstring; so the motor draws f_m p0 at v0 in every export.
+    mva = p_m / op.p
+    return MotorPart(params, op.t0, mva, p_m, op.q * mva, op.slip, op.p, op.q)

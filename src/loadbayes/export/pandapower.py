@@ -21,9 +21,19 @@ What pandapower does with unusual shares, and what this export does about it:
 - ``p_mw <= 0`` (or ``q_mvar = 0`` with non-zero Q shares): the percentages are
   undefined; refused.
 
-The composite load's motor is added as a pandapower ``motor`` element drawing its
-steady-state P and Q at v0 (pandapower's motor is a constant-power element in the power
-flow; the dynamics belong to PSS/E and ANDES).
+The composite load is three elements on the bus, each from
+:func:`~loadbayes.export.loadparts.load_parts`:
+
+- the static part as the ``load`` above, with the fitted shares (``a1 .. a6`` of
+  ``(1 - f_m) p0`` and of ``q0 - q_m + q_c``) referred from ``V/v0`` to V;
+- the shunt compensation ``q_c`` as a ``shunt`` (constant impedance,
+  ``q_mvar = -q_c / v0^2`` at 1 p.u.);
+- the motor at its steady state at v0 (``f_m p0`` MW, ``mva Q_m(v0)`` Mvar), as
+  ``options["motor_as"]`` says: ``"power"`` (default) a pandapower ``motor`` element,
+  constant power in the power flow; ``"impedance"`` a ``shunt`` drawing the same P, Q
+  at v0 (``p_mw = P_m / v0^2``, ``q_mvar = Q_m / v0^2`` at 1 p.u.). A power flow has
+  no slip: the first is right near v0 and for a motor that rides through, the second
+  for a deep sag where the motor stalls. The dynamics belong to PSS/E and ANDES.
 
 Options: ``net`` (a pandapower JSON net to write into; default a one-bus net built here:
 an ext_grid and the load on a bus of ``vn_kv``, default 20 kV), ``load_index`` (the load
@@ -42,7 +52,7 @@ from loadbayes.export.loadparts import LoadParts, load_parts
 from loadbayes.io.atomic import atomic_write
 from loadbayes.io.errors import DataError
 
-__all__ = ["FORMAT", "SUFFIXES", "percentages", "write"]
+__all__ = ["FORMAT", "MOTOR_AS", "SUFFIXES", "percentages", "write"]
 
 FORMAT = "pandapower"
 SUFFIXES = (".json",)
@@ -93,10 +103,15 @@ def percentages(parts: LoadParts) -> dict[str, float]:
             raise ValueError(
                 f"{ch.upper()}: constant-impedance {z:.4g} % + constant-current {i:.4g} % "
                 f"exceed 100 % (a negative constant-power share, {100 - z - i:.4g} %), which "
-                "pandapower refuses; export another statistic (--stat) or refit with a "
-                "prior that keeps the shares in [0, 1]"
+                "pandapower refuses; export another statistic (--stat median), or refit "
+                "with shares kept in [0, 1] (fit composite --shares bounded; fit zip "
+                "--prior)"
             )
     return out
+
+
+#: How the composite load's motor enters the power flow (see the module docstring).
+MOTOR_AS = ("power", "impedance")
 
 
 def _build_net(options: Mapping[str, Any]):
@@ -153,7 +168,15 @@ def write(
     import pandapower as pp
 
     parts = load_parts(values, model=model, options=options)
-    cols = percentages(parts)
+    motor_as = str(options.get("motor_as") or "power")
+    if motor_as not in MOTOR_AS:
+        raise ValueError(f"motor_as {motor_as!r}: expected one of {', '.join(MOTOR_AS)}")
+    static = parts
+    if parts.motor is not None:
+        # The load holds the static part alone; the shunt and the motor are elements.
+        qz, qi, qp = parts.without_shunt()
+        static = LoadParts(parts.pz, parts.pi, parts.pp, qz, qi, qp, parts.v0)
+    cols = percentages(static)
     net, src = _build_net(options)
     if "const_z_q_percent" not in net.load.columns:
         # pandapower < 2.14 (or a net saved by it): one pair of shares for P and Q.
@@ -194,12 +217,23 @@ def write(
     if min(v for k, v in cols.items() if k.endswith("percent")) < 0:
         notes.append("a Z or I share is negative: pandapower takes it as is (exact)")
     if parts.motor is not None:
-        m = parts.motor
-        pp.create_motor(
-            net, bus, pn_mech_mw=m.p_mw, cos_phi=m.p_mw / (m.p_mw**2 + m.q_mvar**2) ** 0.5,
-            efficiency_percent=100.0, loading_percent=100.0, name="loadbayes motor",
-            sn_mva=m.mva,
-        )  # fmt: skip
+        m, v0 = parts.motor, parts.v0
+        if parts.q_c:
+            pp.create_shunt(net, bus, q_mvar=-parts.q_c / v0**2, p_mw=0.0,
+                            name="loadbayes shunt compensation")  # fmt: skip
+        if motor_as == "power":
+            pp.create_motor(
+                net, bus, pn_mech_mw=m.p_mw, cos_phi=m.p_mw / (m.p_mw**2 + m.q_mvar**2) ** 0.5,
+                efficiency_percent=100.0, loading_percent=100.0, name="loadbayes motor",
+                sn_mva=m.mva,
+            )  # fmt: skip
+        else:
+            pp.create_shunt(net, bus, q_mvar=m.q_mvar / v0**2, p_mw=m.p_mw / v0**2,
+                            name="loadbayes motor (constant impedance at v0)")  # fmt: skip
+        notes.append(
+            f"motor as constant {motor_as} at v0: {m.p_mw:.6g} MW, {m.q_mvar:.6g} Mvar; "
+            f"shunt compensation {parts.q_c:.6g} Mvar at v0 (a pandapower shunt)"
+        )
     lines = [*header, *notes, f"pandapower load {idx} on bus {bus}: " + ", ".join(
         f"{k} = {v:.8g}" for k, v in cols.items())]  # fmt: skip
     net.name = "loadbayes export | " + " | ".join(lines)[:2000]

@@ -1,4 +1,13 @@
-"""Export to PSS/E: a version-33 ``.raw`` case with the load, and a ``.dyr`` CIM5BL motor.
+"""Export to PSS/E: a version-33 ``.raw`` case with the load, and the composite's dynamics.
+
+A composite load goes out, by default (``options["motor_record"] = "cmldblu2"``), as the
+WECC composite load record CMLDBLU2 in the ``.dyr`` (PSS/E 35; the fitted motor as motor
+A, the static part on the record's static-load fields, every other fraction zero) with
+the same numbers as a PSLF CMPLDW record in a ``.dyd``; see
+:mod:`loadbayes.export.cmld` for the fields and their sources. The ``.raw`` then holds
+one load ``'1'`` drawing the whole load's P, Q at v0 (the power flow's constant power;
+CMLDBLU2 takes it over at initialisation). ``motor_record = "cim5bl"`` writes the
+layout below instead:
 
 The ``.raw`` (PSS/E 33 format) is a whole minimal case: a swing bus with a generator, the
 load bus, a short branch between them, the load record(s), and every other section
@@ -54,13 +63,27 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from loadbayes.export import cmld
 from loadbayes.export.loadparts import LoadParts, load_parts
 from loadbayes.io.transaction import OutputSet
 
-__all__ = ["FORMAT", "SUFFIXES", "VERSION", "read_dyr", "read_loads", "write"]
+__all__ = [
+    "EXTRA_SUFFIXES",
+    "FORMAT",
+    "MOTOR_RECORDS",
+    "SUFFIXES",
+    "VERSION",
+    "read_dyr",
+    "read_loads",
+    "write",
+]
 
 FORMAT = "psse"
 SUFFIXES = (".raw", ".dyr")
+#: Written beside them for a composite load with CMLDBLU2: the PSLF CMPLDW record.
+EXTRA_SUFFIXES = (".dyd",)
+#: The composite load's dynamic record: the WECC composite load, or a CIM5BL motor.
+MOTOR_RECORDS = ("cmldblu2", "cim5bl")
 VERSION = 33
 
 _EMPTY_SECTIONS = (
@@ -83,20 +106,30 @@ def _load_record(bus: int, load_id: str, p: tuple[float, float, float], q: tuple
     return ",".join(fields)
 
 
-def _raw_text(parts: LoadParts, *, bus: int, sbase: float, vn_kv: float, title: str) -> str:
+def _raw_text(
+    parts: LoadParts, *, bus: int, sbase: float, vn_kv: float, title: str, whole: bool = False
+) -> str:
     src = 1 if bus != 1 else 2
     p_total = float(parts.p(parts.v0)) + (parts.motor.p_mw if parts.motor else 0.0)
+    if whole:
+        q_total = float(parts.q(parts.v0)) + parts.motor.q_mvar
+        load = _load_record(bus, "1", (p_total, 0.0, 0.0), (q_total, 0.0, 0.0))
+        note = "composite load '1' (whole P, Q at v0) + CMLDBLU2 (.dyr)"
+    else:
+        p_poly, q_poly = (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz)
+        load = _load_record(bus, "1", p_poly, q_poly)
+        note = "static load as PL/IP/YP, QL/IQ/YQ; motor (if any) as load 'M' + CIM5BL (.dyr)"
     bus_line = "{},'{:<12}',{},{},1,1,1,{},0.0,1.1,0.9,1.1,0.9"
     lines = [
         f"0,{_g(sbase)},{VERSION},0,0,60.0     / PSS(R)E-33 RAW created by loadbayes",
         title[:60],
-        "static load as PL/IP/YP, QL/IQ/YQ; motor (if any) as load 'M' + CIM5BL (.dyr)"[:60],
+        note[:60],
         bus_line.format(src, "SOURCE", _g(vn_kv), 3, _g(parts.v0)),
         bus_line.format(bus, "LOADBAYES", _g(vn_kv), 1, _g(parts.v0)),
         "0 / END OF BUS DATA, BEGIN LOAD DATA",
-        _load_record(bus, "1", (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz)),
+        load,
     ]
-    if parts.motor is not None:
+    if parts.motor is not None and not whole:
         m = parts.motor
         lines.append(_load_record(bus, "M", (m.p_mw, 0.0, 0.0), (m.q_mvar, 0.0, 0.0)))
     gen = [str(src), "'1 '", _g(p_total), "0.0", "9999.0", "-9999.0", _g(parts.v0), "0",
@@ -205,17 +238,33 @@ def write(
     if not 1 <= bus <= 999_997:
         raise ValueError(f"PSS/E bus numbers run from 1 to 999997, got {bus}")
     raw, dyr = _paths(Path(out))
+    record = str(opts.get("motor_record") or "cmldblu2")
+    if record not in MOTOR_RECORDS:
+        raise ValueError(f"motor_record {record!r}: expected one of {', '.join(MOTOR_RECORDS)}")
     parts = load_parts(values, model=model, options=opts)
     _check_record(parts)
     force = bool(opts.get("force"))
     what = header[0].split("exported: ")[-1] if header else "parameters given"
     title = f"loadbayes {model} load, {what}"
-    text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=float(opts.get("vn_kv") or 230.0),
-                     title=title)  # fmt: skip
+    vn_kv = float(opts.get("vn_kv") or 230.0)
+    whole = parts.motor is not None and record == "cmldblu2"
+    text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=vn_kv, title=title, whole=whole)
     files = {"raw": raw}
     notes = list(parts.notes)
-    dyr_text = None
-    if parts.motor is not None:
+    dyr_text = dyd_text = None
+    if whole:
+        cons = cmld.cmld_values(parts)
+        _check_fields(cons, "CMLDBLU2")
+        dyr_text = cmld.cmldblu2_text(bus, "1", cons)
+        dyd_text = cmld.cmpldw_text(bus, "1", cons, vn_kv=vn_kv)
+        files["dyr"], files["dyd"] = dyr, dyr.with_suffix(".dyd")
+        notes.append(
+            f"CMLDBLU2 (.dyr) and CMPLDW (.dyd): motor A = the fitted motor, Fma = "
+            f"{cons['Fma']:.6g}; static part P1c, P2c = {cons['P1c']:.4g}, {cons['P2c']:.4g}, "
+            f"Q1c, Q2c = {cons['Q1c']:.4g}, {cons['Q2c']:.4g}, PFs = {cons['PFs']:.4g}; "
+            "motors B, C, D and the electronic load at fraction 0"
+        )
+    elif parts.motor is not None:
         cim = cim5_values(parts)
         _check_fields(cim, "CIM5BL")
         nums = " ".join(_g(v) for v in cim.values())
@@ -228,13 +277,16 @@ def write(
         )
     side = Path(out).with_name(Path(out).name + ".summary.txt")
     files["summary"] = side
-    rec = _load_record(bus, "1", (parts.pp, parts.pi, parts.pz), (parts.qp, parts.qi, parts.qz))
-    summary = "\n".join(f"# {ln}" for ln in [*header, *notes, f"load record: {rec}"]) + "\n"
+    rec = next(ln for ln in text.splitlines() if ln.startswith(f"{bus},'1 '"))
+    what_rec = "load record (the whole load at v0)" if whole else "load record"
+    summary = "\n".join(f"# {ln}" for ln in [*header, *notes, f"{what_rec}: {rec}"]) + "\n"
     # The case, its dynamics and the summary are one output: all written, or none.
     with OutputSet(files, force=force) as outs:
         outs.temp("raw").write_text(text, encoding="utf-8")
         if dyr_text is not None:
             outs.temp("dyr").write_text(dyr_text, encoding="utf-8")
+        if dyd_text is not None:
+            outs.temp("dyd").write_text(dyd_text, encoding="utf-8")
         outs.temp("summary").write_text(summary, encoding="utf-8")
         return outs.commit()
 

@@ -15,7 +15,7 @@ from typing import Any
 
 from loadbayes.core.settings import DataSpec
 
-__all__ = ["data_of"]
+__all__ = ["bases", "data_of"]
 
 _FIELDS = frozenset(f.name for f in fields(DataSpec))
 
@@ -50,3 +50,27 @@ def data_of(spec: DataSpec | None, fit: Callable[..., Any], **given: Any) -> tup
                 value = "auto"
         out.append(value)
     return tuple(out)
+
+
+def bases(v_base: float | None, s_base: float | None, f_hz: float | None = None) -> dict:
+    """The bases every fit's ``settings`` carries, so an export can write physical units.
+
+    Parameters
+    ----------
+    v_base : float or None
+        kV per p.u. of the voltage (None: the data were per unit).
+    s_base : float or None
+        MVA per p.u. of the powers (None: the data were per unit).
+    f_hz : float or None
+        Nominal frequency (None when the fit has no frequency in it).
+
+    Returns
+    -------
+    dict
+        ``{"v_base_kv", "s_base_mva", "f_hz"}``.
+    """
+    return {
+        "v_base_kv": None if v_base is None else float(v_base),
+        "s_base_mva": None if s_base is None else float(s_base),
+        "f_hz": None if f_hz is None else float(f_hz),
+    }

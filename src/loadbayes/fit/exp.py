@@ -9,7 +9,7 @@ import numpy as np
 
 from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit.core import MAX_OBSERVED, fit
-from loadbayes.fit.data import data_of
+from loadbayes.fit.data import bases, data_of
 from loadbayes.fit.sampler import sampler_kwargs, sampler_of
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
@@ -155,6 +155,8 @@ def fit_exp(
     base.setdefault("columns", {"v": v_col, "p": p_col, "q": q_col, "f": f_col})
     base.setdefault("v_base", v_base)
     base.setdefault("s_base", s_base)
+    for key, val in bases(base["v_base"], base["s_base"], f0 if "f" in cols else None).items():
+        base.setdefault(key, val)
     base["units"] = dict(units or base.get("units") or {})
     base.setdefault("n_dropped", dropped)
     with_q = "q" in cols

@@ -21,7 +21,7 @@ from loadbayes.fit.core import (
     accumulate,
     prior_settings,
 )
-from loadbayes.fit.data import data_of
+from loadbayes.fit.data import bases, data_of
 from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
@@ -93,6 +93,8 @@ def _fit_im_gram(
         model = model.with_t0(t0)
     warn = list(warnings) + model.check(gram)
     full = dict(settings or {})
+    # The motor's states are per unit of its own base: no kV or MVA to record.
+    full.update(bases(None, None, model.f_hz))
     full.update(
         n=gram.n,
         currents=model.currents,

@@ -16,7 +16,7 @@ from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.core.stats import GramAccumulator
 from loadbayes.fit.core import CHUNK_ROWS, MAX_OBSERVED, accumulate, fit_gram
-from loadbayes.fit.data import data_of
+from loadbayes.fit.data import bases, data_of
 from loadbayes.fit.sampler import check_sampler, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
@@ -182,6 +182,7 @@ def fit_zip(
             "q0": q0 if model.with_q else None,
             "v_base": v_base,
             "s_base": s_base,
+            **bases(v_base, s_base),
             "units": dict(units or {}),
             "n_dropped": table.n_dropped,
             **table.time,
@@ -439,6 +440,7 @@ def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
         "q0": nominal["q0"] if model.with_q else None,
         "v_base": read["v_base"],
         "s_base": read["s_base"],
+        **bases(read["v_base"], read["s_base"]),
         "n_dropped": n_dropped,
     }
 

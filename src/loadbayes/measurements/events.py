@@ -17,6 +17,7 @@ from loadbayes.io.errors import DataError
 from loadbayes.models.composite import EventRecord
 
 __all__ = [
+    "index_bases",
     "MIN_DV",
     "MIN_SAMPLES",
     "MIN_SHORT_SPAN_S",
@@ -287,3 +288,41 @@ def read_events(
         }
         out += events_from_arrays(cols, pc.rows, path=str(path), names=names, f_hz=f_hz)
     return out
+
+
+def index_bases(paths: Sequence[str]) -> tuple[float, float] | None:
+    """The bases of per-unit event files cut by ``loadbayes events``, from their index.
+
+    ``events`` writes each event per unit and the record's bases into ``events.csv``
+    beside them (``v_base_kv``, ``s_base_mva`` on the event's row, found by ``file``).
+    A fit of those files records the bases, so that its export writes MW and kV.
+
+    Parameters
+    ----------
+    paths : sequence of str
+        The event files.
+
+    Returns
+    -------
+    (v_base_kv, s_base_mva) or None
+        The bases every file's row gives, or None when a file has no index or row, a
+        base is missing, or the files disagree.
+    """
+    import csv
+    from pathlib import Path
+
+    found = set()
+    for path in paths:
+        index = Path(path).with_name("events.csv")
+        if Path(path).name == index.name or not index.is_file():
+            return None
+        try:
+            with index.open(encoding="utf-8", newline="") as fh:
+                rows = [r for r in csv.DictReader(fh) if r.get("file") == Path(path).name]
+            v, s = float(rows[0]["v_base_kv"]), float(rows[0]["s_base_mva"])
+        except (OSError, ValueError, KeyError, IndexError, TypeError, UnicodeDecodeError):
+            return None
+        if not (math.isfinite(v) and math.isfinite(s) and v > 0 and s > 0):
+            return None
+        found.add((v, s))
+    return found.pop() if len(found) == 1 else None

@@ -51,6 +51,9 @@ def problem_settings(
             for i, e in enumerate(events)
         ],
         "f_hz": problem.f_hz,
+        # The bases of the data (None: per unit); the command gives them in ``extra``.
+        "v_base_kv": None,
+        "s_base_mva": None,
         "torque": "estimate" if estimate else list(torque),
         "torque_prior": "Dirichlet(1, 1, 1) on (a, b, c), sampled in log(a/c), log(b/c)"
         if estimate
