@@ -150,6 +150,14 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     "prior: a load a simulator can take; 'free' lets the data put them anywhere.",
 )
 @click.option(
+    "--noise",
+    type=click.Choice(["white", "ar1"]),
+    default="white",
+    show_default=True,
+    help="Noise on P and Q independent from sample to sample, or AR(1) in each channel "
+    "(rho_p, rho_q sampled): for recordings whose residuals run in stretches.",
+)
+@click.option(
     "--window-s",
     type=click.FloatRange(min=0, max=1),
     default=None,
@@ -218,6 +226,7 @@ def fit_composite_cmd(
     nu,
     priors,
     shares,
+    noise,
     window_s,
     sampler,
     max_seconds,
@@ -343,6 +352,7 @@ def fit_composite_cmd(
                 max_seconds=max_seconds,
                 until_converged=until_converged,
                 shares=shares,
+                noise=noise,
                 coefficient_prior=coef_priors,
                 window_s=window_s,
             )

@@ -135,7 +135,7 @@ _PROBE_ITERATIONS = 12
 
 
 def _estimate_seconds(
-    sampled, start, run: SamplerSettings, move: str, student_t, factor=None
+    sampled, start, run: SamplerSettings, move: str, student_t, factor=None, noise="white"
 ) -> float:
     # Measure a few iterations of one chain (its own throw-away run) and extrapolate: the
     # chains share the threads, each runs run.draws iterations.
@@ -144,7 +144,8 @@ def _estimate_seconds(
     def probe(n: int) -> float:
         t0 = time.perf_counter()
         sample(sampled, start=start, draws=n, burn=n // 2, chains=1, seed=run.seed,
-               workers=1, move=move, student_t=student_t, factor=factor)  # fmt: skip
+               workers=1, move=move, student_t=student_t, factor=factor,
+               ar=noise == "ar1")  # fmt: skip
         return time.perf_counter() - t0
 
     probe(2)  # the first call compiles the kernels (the run would pay it anyway)
@@ -222,6 +223,7 @@ def fit_composite(
     until_converged: bool | None = None,
     window_s: float | None = None,
     shares: str = "free",
+    noise: str = "white",
     coefficient_prior: dict[str, tuple[float, float]] | None = None,
     **overrides: Any,
 ) -> CompositeFit:
@@ -275,6 +277,11 @@ def fit_composite(
         its prior: a physically admissible load, as an export needs. ``"free"`` (the
         default) lets the data put them anywhere (a negative share fits a load that
         the ZIP form cannot describe, or an undetermined static part).
+    noise : {"white", "ar1"}
+        Noise on P and Q independent from sample to sample, or AR(1) in each channel
+        (``rho_p``, ``rho_q`` sampled, uniform on (-1, 1); Gaussian likelihood only):
+        the likelihood a recording whose residuals run in stretches needs for honest
+        intervals (docs/composite.md, "Residuals that run in time").
     coefficient_prior : dict, optional
         ``{name: (mean, sd)}``: a normal prior factor on ``a1..a6``, ``f_m``, ``p0`` or
         ``q0`` of every event (:class:`~loadbayes.models.composite_prior.CoefficientPrior`).
@@ -339,6 +346,14 @@ def fit_composite(
         {n: v for n, v in coefficient_prior.items() if not (bounded and n[0] == "a")},
         move,
     )
+    if noise not in ("white", "ar1"):
+        from loadbayes.io.errors import OptionError
+
+        raise OptionError(f"--noise {noise!r}: one of white, ar1")
+    if noise == "ar1" and likelihood != "normal":
+        from loadbayes.io.errors import OptionError
+
+        raise OptionError("--noise ar1 works with --likelihood normal only")
     if bounded and likelihood != "normal":
         from loadbayes.io.errors import OptionError
 
@@ -361,7 +376,7 @@ def fit_composite(
     if progress is not None:
         progress.begin(
             run.draws * run.chains,
-            _estimate_seconds(sampled, sample_start, run, move, student_t, factor),
+            _estimate_seconds(sampled, sample_start, run, move, student_t, factor, noise),
         )
         t_sample = time.perf_counter()
     until = None
@@ -370,7 +385,11 @@ def fit_composite(
         def quantities(results) -> dict[str, np.ndarray]:
             named = ChainDraws.stack(results, steps=bool(problem.n_steps), torque=estimate)
             named = named.named(problem)
-            return {n: named[n] for n in (*free_names(problem), *coefficient_names(named))}
+            out = {n: named[n] for n in (*free_names(problem), *coefficient_names(named))}
+            if noise == "ar1":
+                rho = np.stack([r.rho for r in results])
+                out["rho_p"], out["rho_q"] = rho[..., 0], rho[..., 1]
+            return out
 
         until = UntilConverged(
             quantities, max_seconds=float(max_seconds), thin=run.thin,
@@ -380,12 +399,15 @@ def fit_composite(
     res = sample(
         sampled, start=sample_start, draws=run.draws, burn=run.burn, thin=run.thin,
         chains=run.chains, seed=run.seed, workers=run.threads, move=move, student_t=student_t,
-        progress=progress, extend=until, factor=factor,
+        progress=progress, extend=until, factor=factor, ar=noise == "ar1",
     )  # fmt: skip
     t2 = time.perf_counter()
     seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
     blocks = ChainDraws.stack(res, steps=bool(problem.n_steps), torque=estimate)
     draws_named = blocks.named(problem)
+    if noise == "ar1":
+        rho = np.stack([r.rho for r in res])
+        draws_named["rho_p"], draws_named["rho_q"] = rho[..., 0], rho[..., 1]
     common = problem_settings(problem, torque, settings)
     free = free_names(problem)
     coefficients = coefficient_names(draws_named)
@@ -422,12 +444,13 @@ def fit_composite(
     lag1 = residual_autocorrelation(
         problem, blocks.theta, blocks.phi, blocks.betas, seed=run.seed, abc=blocks.abc
     )
+    post.settings["noise"] = noise
     post.settings["residuals"] = {
         "lag1_autocorrelation": lag1,
         "what": "lag-1 autocorrelation of each event's P and Q residuals, mean over 20 "
         "posterior draws (white noise: within +-2/sqrt(n) of 0)",
     }
-    lag_warning = residual_warning(lag1)
+    lag_warning = residual_warning(lag1) if noise == "white" else None
     if lag_warning:
         post.warnings.append(lag_warning)
     post.settings["coefficient_prior"] = {

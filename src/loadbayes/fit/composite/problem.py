@@ -27,7 +27,14 @@ from loadbayes.fit.composite.bounded import (
     log_prior_shares,
     shares_of,
 )
-from loadbayes.fit.composite.sums import design_sums, design_sums_into, weighted_sums, x_sums
+from loadbayes.fit.composite.sums import (
+    ar_residual_sums,
+    ar_sums_into,
+    design_sums,
+    design_sums_into,
+    weighted_sums,
+    x_sums,
+)
 from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
@@ -143,6 +150,14 @@ class CompositeProblem:
         self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
             np.int64
         )
+        # AR(1) noise: where each segment of consecutive samples starts (an event's
+        # first sample, and the first after samples left out).
+        seg = []
+        for keep in self.fit_samples.keep:
+            start = np.ones(keep.size, dtype=bool)
+            start[1:] = np.diff(keep) != 1
+            seg.append(start)
+        self.seg = np.concatenate(seg)
         self.samples = Samples(
             np.cumsum([0] + [e.n for e in ev]).astype(np.int64),
             np.concatenate([e.x for e in ev]),
@@ -241,11 +256,15 @@ class CompositeProblem:
         tau: np.ndarray,
         torque: tuple[float, float, float] | None = None,
         weights: np.ndarray | None = None,
+        rho: np.ndarray | None = None,
     ) -> KernelResult | None:
         """The compiled collapsed density at ``u`` (its motor part and steps), or None.
 
         ``weights`` (2, n): each sample's Student-t weight on P and Q (events
         concatenated); None for the Gaussian (its compact sums, ``sums.design_sums_into``).
+        ``rho`` (2,): AR(1) noise on P and Q, the sums of the whitened designs
+        (``sums.ar_sums_into``; the log-determinant, which does not depend on ``u``, is
+        left out).
         None is returned outside the support, without a steady state or with a singular
         linear block. Counts one evaluation.
         """
@@ -268,6 +287,8 @@ class CompositeProblem:
                 POSITIVE_BETA, 2.0 * math.pi * self.f_hz, float(a), float(b), float(c),
                 float(self.h_max), self._xsums, weighted,
                 weights if weighted else _NO_WEIGHTS, pm, qm, ztz, zty, yty,
+                rho is not None, _NO_RHO if rho is None else np.asarray(rho, dtype=float),
+                self.seg,
             )  # fmt: skip
         except np.linalg.LinAlgError:
             return None
@@ -282,7 +303,11 @@ class CompositeProblem:
         ]
 
     def collapsed(
-        self, u: np.ndarray, tau: np.ndarray, torque: tuple[float, float, float] | None = None
+        self,
+        u: np.ndarray,
+        tau: np.ndarray,
+        torque: tuple[float, float, float] | None = None,
+        rho: np.ndarray | None = None,
     ) -> tuple[float, list[GroupSums] | None]:
         """``log p(u) + sum_e log p(y_e | u, tau)`` and the events' sums, in one compiled call.
 
@@ -290,10 +315,12 @@ class CompositeProblem:
         when the motor has no steady state or the linear block is singular. ``torque``
         overrides ``self.torque`` for this call (estimated shares, fit.composite_torque).
         """
-        k = self.kernel(u, tau, torque)
+        k = self.kernel(u, tau, torque, rho=rho)
         if k is None:
             return -math.inf, None
         groups = self.group_sums(k)
+        if rho is not None:
+            groups = ResponseSums(groups, k.pm, k.qm)
         if self.bounded:
             return self._bounded_lp(np.asarray(u, dtype=float), tau, groups), groups
         return k.lp, groups
@@ -339,6 +366,26 @@ class CompositeProblem:
             out.append(GroupSums(ztz, zty, yty, np.array([ev.n, ev.n], dtype=float)))
         return out
 
+    def resum(self, sums: ResponseSums, rho: np.ndarray) -> ResponseSums:
+        """The events' sums whitened for AR(1) coefficients ``rho`` (no motor solve)."""
+        d, groups = self.samples, []
+        for e in range(len(self.events)):
+            sl = d.event(e)
+            zz, zy, yy = np.zeros((2, 7, 7)), np.zeros((2, 7)), np.zeros(2)
+            ar_sums_into(d.x[sl], sums.pm[sl], sums.qm[sl], d.p[sl], d.q[sl], self.seg[sl],
+                         np.asarray(rho, dtype=float), zz, zy, yy)  # fmt: skip
+            groups.append(GroupSums(zz, zy, yy, d.n[e]))
+        return ResponseSums(groups, sums.pm, sums.qm)
+
+    def ar_statistics(self, sums: ResponseSums, betas) -> np.ndarray:
+        """Residual sums of every event for the AR(1) step (``sums.ar_residual_sums``)."""
+        d, out = self.samples, np.zeros((2, 4))
+        for e, beta in enumerate(betas):
+            sl = d.event(e)
+            out += ar_residual_sums(d.x[sl], sums.pm[sl], sums.qm[sl], d.p[sl], d.q[sl],
+                                    self.seg[sl], np.asarray(beta, dtype=float))  # fmt: skip
+        return out
+
     def log_collapsed(self, sums: list[GroupSums] | None, u, tau) -> float:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
         if sums is None or not np.all(np.isfinite(u)):
@@ -364,6 +411,30 @@ def _subset(event: EventRecord, keep: np.ndarray) -> EventRecord:
                    delta=delta)  # fmt: skip
 
 
+@dataclass
+class ResponseSums:
+    """The events' :class:`GroupSums` with the motor's P, Q they came from (AR(1) noise).
+
+    Iterates as the plain list does; :meth:`CompositeProblem.resum` whitens them again
+    for a new ``rho`` without solving the motor again.
+    """
+
+    groups: list[GroupSums]
+    pm: np.ndarray
+    qm: np.ndarray
+
+    def __iter__(self):
+        return iter(self.groups)
+
+    def __len__(self) -> int:
+        return len(self.groups)
+
+    def __getitem__(self, event: int) -> GroupSums:
+        return self.groups[event]
+
+
+#: The rho argument of the white-noise kernel call (not read).
+_NO_RHO = np.zeros(2)
 #: The weights argument of the Gaussian kernel call (not read).
 _NO_WEIGHTS = np.ones((2, 0))
 
@@ -372,6 +443,7 @@ _NO_WEIGHTS = np.ones((2, 0))
 def _collapsed(  # pragma: no cover - compiled
     u, params, tau, t, v, delta, starts_aug, real, x, p, q, starts, n, mean_u, prec_u,
     m0, p0, pos, wb, a, b, c, h_max, xsums, weighted, lam, pm, qm, ztz, zty, yty,
+    ar, rho, seg,
 ):  # fmt: skip
     # The motor on the base where T0 = 1 (log T0 = 0), exponentiated by the caller with
     # NumPy as motor_response does: the log marginal is so ill-conditioned in the design
@@ -401,6 +473,8 @@ def _collapsed(  # pragma: no cover - compiled
         if weighted:
             zz, zy, yy = weighted_sums(xe, pme, qme, pe, qe, lam[0, s0:s1], lam[1, s0:s1])
             ztz[e], zty[e], yty[e] = zz, zy, yy
+        elif ar:
+            ar_sums_into(xe, pme, qme, pe, qe, seg[s0:s1], rho, ztz[e], zty[e], yty[e])
         else:
             design_sums_into(xe, pme, qme, pe, qe, xsums[e], ztz[e], zty[e], yty[e])
         lp += log_marginal_arrays(ztz[e], zty[e], yty[e], n[e], tau, m0, p0, pos)

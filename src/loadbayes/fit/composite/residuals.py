@@ -78,6 +78,7 @@ def residual_warning(lag1: dict[str, float]) -> str | None:
     return (
         f"the residuals run in stretches (lag-1 autocorrelation {parts}): the model misses "
         "something systematic in the recording, and the intervals, which take the noise "
-        f"as independent from sample to sample, are too narrow by about {factor:.1f}x; "
-        "compare the fit with the recording in the figure (--plot)"
+        f"as independent from sample to sample, are too narrow by about {factor:.1f}x: "
+        "refit with --noise ar1 (noise='ar1') to model it, and compare the fit with the "
+        "recording in the figure (--plot)"
     )

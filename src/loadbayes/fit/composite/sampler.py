@@ -23,6 +23,7 @@ from loadbayes.core.parallel import chain_generators, check_stop, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
+from loadbayes.inference.ar1 import draw_rho
 from loadbayes.inference.condlinear import (
     draw_tau,
     residual_ss,
@@ -53,6 +54,8 @@ class ChainResult:
     nu: np.ndarray | None = None
     weight: np.ndarray | None = None
     nu_acceptance: float | None = None
+    # AR(1) noise only: rho draws (kept, 2) of P and Q.
+    rho: np.ndarray | None = None
 
 
 #: Candidates per event of the importance step that handles a coefficient prior factor.
@@ -129,7 +132,7 @@ class _Chain:
     """
 
     def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
-                 dispersion, student_t, stop, progress, factor=None):  # fmt: skip
+                 dispersion, student_t, stop, progress, factor=None, ar=False):  # fmt: skip
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot, self.stop, self.progress = n_tot, stop, progress
         dim = problem.dim
@@ -145,6 +148,10 @@ class _Chain:
         if sums is None:
             u, sums = start.u, problem.sums(start.u)
         self.u, self.sums, self.tau = u, sums, tau0.copy()
+        # AR(1) noise: rho starts at 0 (white), the sums carry the motor's response.
+        self.rho = np.zeros(2) if ar else None
+        if ar:
+            _, self.sums = problem.collapsed(u, self.tau, rho=self.rho)
         # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
         self.wt = None if student_t is None else student_t.chain(problem, u, tau0)
         if self.wt is not None:
@@ -155,13 +162,15 @@ class _Chain:
             self.tilted = _Tilted(problem, factor)
             self.betas = self.tilted.feasible(self.sums, self.tau, self.u, rng)
         self.it = 0
-        self.kept: dict[str, list[np.ndarray]] = {k: [] for k in ("th", "phi", "b", "t", "x")}
+        self.kept: dict[str, list[np.ndarray]] = {
+            k: [] for k in ("th", "phi", "b", "t", "x", "rho")
+        }
 
     def run(self, iterations: int) -> None:
         """Run ``iterations`` more iterations, keeping those past burn-in at the thinning."""
         problem, rng, wt, am = self.problem, self.rng, self.wt, self.am
         prior = problem.prior
-        u, sums, tau = self.u, self.sums, self.tau
+        u, sums, tau, rho = self.u, self.sums, self.tau, self.rho
         burn, thin, n_base = self.burn, self.thin, self.n_base
         end = self.it + iterations
         kept = self.kept
@@ -174,8 +183,8 @@ class _Chain:
             if wt is None:
                 lp = problem.log_collapsed(sums, u, tau)
 
-                def logp(x, tau=tau):
-                    return problem.collapsed(x, tau)
+                def logp(x, tau=tau, rho=rho):
+                    return problem.collapsed(x, tau, rho=rho)
 
             else:
                 lp, logp = wt.current(u, tau), wt.logp(tau)
@@ -185,6 +194,11 @@ class _Chain:
             else:
                 u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it)
             keep = it >= burn and (it - burn) % thin == 0
+            if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
+                stats = problem.ar_statistics(sums, betas)
+                rho = np.array([draw_rho(stats[g], float(tau[g]), float(rho[g]), rng)[0]
+                                for g in range(2)])  # fmt: skip
+                sums = problem.resum(sums, rho)
             if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
                 sums = wt.update(sums, betas, tau, rng, keep)
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
@@ -196,9 +210,11 @@ class _Chain:
                 kept["x"].append(u[n_base:])
                 kept["b"].append(np.array(betas))
                 kept["t"].append(tau)
+                if rho is not None:
+                    kept["rho"].append(rho)
         if self.progress is not None:
             self.progress(end - told)
-        self.u, self.sums, self.tau, self.it = u, sums, tau, end
+        self.u, self.sums, self.tau, self.rho, self.it = u, sums, tau, rho, end
 
     def _tilted_step(self, u, lp, logp, sums, tau, it):
         # The u-move and the coefficients with a prior factor (_Tilted's notes).
@@ -233,6 +249,7 @@ class _Chain:
             phi=np.array(k["phi"]).reshape(n, p.n_steps),
             evaluations_per_iteration=self.am.evaluations_per_step,
             u_extra=extra if p.dim > self.n_base else None,
+            rho=np.array(k["rho"]).reshape(n, 2) if self.rho is not None else None,
             **robust,
         )
 
@@ -253,6 +270,7 @@ def sample(
     progress: Callable[[int], None] | None = None,
     extend: Extension | None = None,
     factor: Any = None,
+    ar: bool = False,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -294,6 +312,9 @@ def sample(
     factor : loadbayes.models.composite_prior.CoefficientPrior, optional
         A prior factor on the coefficients (bounded shares, priors on named quantities),
         handled by :class:`_Tilted`; needs the ``"am"`` move (one evaluation per step).
+    ar : bool
+        AR(1) noise on P and Q (one ``rho`` each, uniform prior on (-1, 1),
+        :func:`loadbayes.inference.ar1.draw_rho` each iteration); Gaussian noise only.
 
     Returns
     -------
@@ -302,6 +323,8 @@ def sample(
     check_iterations(draws, burn, thin, chains)
     if move not in MOVES:
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
+    if ar and student_t is not None:
+        raise ValueError("AR(1) noise is for the Gaussian likelihood only")
     if factor is not None and factor.active and move != "am":
         raise ValueError(
             "bounded shares and priors on the coefficients need the 'am' move: its density "
@@ -327,7 +350,7 @@ def sample(
     def first(index: int, rng: np.random.Generator) -> ChainResult:
         c = _Chain(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
                    move=move, dispersion=dispersion, student_t=student_t, stop=stop,
-                   progress=progress, factor=factor)  # fmt: skip
+                   progress=progress, factor=factor, ar=ar)  # fmt: skip
         state[index] = c
         c.run(draws)
         return c.result()

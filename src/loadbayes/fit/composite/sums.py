@@ -15,10 +15,19 @@ The result equals the direct sums to rounding (tests/unit/test_composite_speed.p
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
-__all__ = ["design_sums", "design_sums_into", "weighted_sums", "x_sums"]
+__all__ = [
+    "ar_residual_sums",
+    "ar_sums_into",
+    "design_sums",
+    "design_sums_into",
+    "weighted_sums",
+    "x_sums",
+]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -124,3 +133,76 @@ def weighted_sums(x, pm, qm, p, q, wp, wq):  # pragma: no cover - compiled
         yty[0] += wp[i] * p[i] * p[i]
         yty[1] += wq[i] * q[i] * q[i]
     return ztz, zty, yty
+
+
+@numba.njit(cache=True, nogil=True)
+def ar_sums_into(x, pm, qm, p, q, seg, rho, ztz, zty, yty):  # pragma: no cover - compiled
+    """The two designs' sums after AR(1) whitening, in place (Prais-Winsten).
+
+    Each sample's row and target become ``z_k - rho z_k-1`` and ``y_k - rho y_k-1``;
+    the first sample of a segment (``seg`` True: an event's first, or the first after
+    samples left out) is scaled by ``sqrt(1 - rho^2)`` instead. ``rho`` (2,): P, Q.
+    """
+    ztz[:] = 0.0
+    zty[:] = 0.0
+    yty[:] = 0.0
+    pm0, qm0 = pm[0], qm[0]
+    zp, zq = np.zeros(7), np.zeros(7)
+    lp, lq = np.zeros(7), np.zeros(7)  # the previous sample's rows
+    wp, wq = np.zeros(7), np.zeros(7)
+    yp_prev, yq_prev = 0.0, 0.0
+    sp, sq = math.sqrt(1.0 - rho[0] * rho[0]), math.sqrt(1.0 - rho[1] * rho[1])
+    for i in range(x.size):
+        x2 = x[i] * x[i]
+        zp[0], zp[1], zp[2], zp[6] = x2, x[i], 1.0, pm[i] / pm0
+        zq[3], zq[4], zq[5], zq[6] = x2, x[i], 1.0, (qm[i] - qm0 * x2) / pm0
+        if seg[i]:
+            for a in range(7):
+                wp[a], wq[a] = sp * zp[a], sq * zq[a]
+            yp, yq = sp * p[i], sq * q[i]
+        else:
+            for a in range(7):
+                wp[a] = zp[a] - rho[0] * lp[a]
+                wq[a] = zq[a] - rho[1] * lq[a]
+            yp, yq = p[i] - rho[0] * yp_prev, q[i] - rho[1] * yq_prev
+        for a in range(7):
+            zty[0, a] += wp[a] * yp
+            zty[1, a] += wq[a] * yq
+            for b in range(7):
+                ztz[0, a, b] += wp[a] * wp[b]
+                ztz[1, a, b] += wq[a] * wq[b]
+        yty[0] += yp * yp
+        yty[1] += yq * yq
+        for a in range(7):
+            lp[a], lq[a] = zp[a], zq[a]
+        yp_prev, yq_prev = p[i], q[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def ar_residual_sums(x, pm, qm, p, q, seg, beta):  # pragma: no cover - compiled
+    """What the AR(1) coefficient's conditional needs from one event's residuals.
+
+    Per channel (rows P, Q): ``[sum e_k e_k-1, sum e_k-1^2, sum e_s^2, segments]`` over
+    the samples that follow one in their segment (``k``) and the segments' first
+    samples (``s``).
+    """
+    out = np.zeros((2, 4))
+    pm0, qm0 = pm[0], qm[0]
+    ep_prev, eq_prev = 0.0, 0.0
+    for i in range(x.size):
+        x2 = x[i] * x[i]
+        fp = beta[0] * x2 + beta[1] * x[i] + beta[2] + beta[6] * pm[i] / pm0
+        fq = beta[3] * x2 + beta[4] * x[i] + beta[5] + beta[6] * (qm[i] - qm0 * x2) / pm0
+        ep, eq = p[i] - fp, q[i] - fq
+        if seg[i]:
+            out[0, 2] += ep * ep
+            out[1, 2] += eq * eq
+            out[0, 3] += 1.0
+            out[1, 3] += 1.0
+        else:
+            out[0, 0] += ep * ep_prev
+            out[1, 0] += eq * eq_prev
+            out[0, 1] += ep_prev * ep_prev
+            out[1, 1] += eq_prev * eq_prev
+        ep_prev, eq_prev = ep, eq
+    return out

@@ -68,11 +68,11 @@ class TorqueProblem(CompositeProblem):
         """The base problem's coordinates and the two log-ratios."""
         return super().dim + 2
 
-    def collapsed(self, u, tau, torque=None):
+    def collapsed(self, u, tau, torque=None, rho=None):
         """Collapsed log-density of ``u`` with its shares (see the module notes)."""
         if not np.all(np.isfinite(u)):
             return -math.inf, None
-        lp, sums = super().collapsed(u[:-2], tau, torque=shares(u[-2:]))
+        lp, sums = super().collapsed(u[:-2], tau, torque=shares(u[-2:]), rho=rho)
         return lp + log_prior_z(u[-2:]), sums
 
     def sums(self, u, torque=None):
