@@ -95,7 +95,8 @@ def test_round_trip_reproduces_the_composite_prediction(composite_case):
 def test_zip_export_from_power_in_mw(tmp_path):
     out = tmp_path / "zip.json"
     values = {"a1": 0.3, "a2": 0.5, "a4": -0.2, "a5": 1.0}  # no p0, q0: from the options
-    export.write(values, out, model="zip", header=HEADER, options={"p_mw": 45.0, "q_mvar": 12})
+    options = {"p_mw": 45.0, "q_mvar": 12, "bus": 3}  # the three-bus case: a network bus
+    export.write(values, out, model="zip", header=HEADER, options=options)
     ss, rec = _faulted(out, 3, xf=0.1, t_end=0.5)
     assert ss.PQ.p0.v[0] == pytest.approx(0.45) and ss.PQ.q0.v[0] == pytest.approx(0.12)
     x = rec["v"].to_numpy() / rec["v"].iloc[0]

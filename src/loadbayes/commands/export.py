@@ -242,8 +242,9 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
 @click.option(
     "--bus",
     type=click.IntRange(min=0),
-    help="Bus number of the load (default: 1 in PSS/E, 3 in ANDES, the one-bus net's "
-    "bus in pandapower).",
+    help="Bus number of the load (default: 1 in PSS/E; the one-bus net's bus in "
+    "pandapower; ANDES: none given, the load on bus 1 fed from an infinite bus, bus 2, "
+    "through 0.01+0.1j p.u.; given, the three-bus stand-in with the load on bus N).",
 )
 @click.option(
     "--s-base",

@@ -1,8 +1,14 @@
 """The ANDES case of a composite load, shared by the simulation harness and the export.
 
-Three buses in a row, all at ``VN_KV``, on the system base ``base_mva``::
+Three buses in a row, all at ``VN_KV``, on the system base ``base_mva``
+(:func:`add_composite`, the harness's case and ``export --to andes --bus N``)::
 
     source (Slack: infinite bus) --z_src-- network bus --Z_FEED-- load bus
+
+or, the export's default (:func:`add_single_bus`), the load bus fed straight from the
+source through ``z_src``::
+
+    source (Slack: infinite bus, idx 2) --z_src-- load bus (idx 1)
 
 The load bus carries a ``PQ`` replaced in the time domain by a ``ZIP`` (the static part),
 a ``Motor3`` and, when ``q_c`` is not zero, a ``Shunt`` capacitor. The Slack's voltage is
@@ -27,12 +33,14 @@ from loadbayes.export.andes.conventions import motor3_fields, zip_fields
 from loadbayes.models.motor import MotorParams, steady_state
 from loadbayes.models.motor_library import motor_from_values
 
-__all__ = ["VN_KV", "Z_FEED", "CompositeCase", "add_composite"]
+__all__ = ["SINGLE_LOAD_BUS", "VN_KV", "Z_FEED", "CompositeCase", "add_composite", "add_single_bus"]
 
 VN_KV = 110.0
 """Nominal voltage of every bus and device (kV); equal everywhere so ANDES rescales nothing."""
 Z_FEED = complex(0.002, 0.02)
 """Feeder impedance between bus 2 and the load bus (system p.u.)."""
+SINGLE_LOAD_BUS = 1
+"""The load bus's idx in the single-bus case (the source bus is the next one)."""
 
 
 @dataclass(frozen=True)
@@ -115,8 +123,12 @@ class CompositeCase:
     @property
     def v_src(self) -> complex:
         """Infinite-bus voltage that puts the load bus at ``v0`` (Ohm's law, no shunts)."""
+        return self.source_voltage(self.z_src + Z_FEED)
+
+    def source_voltage(self, z: complex) -> complex:
+        """The voltage behind ``z`` (system p.u.) that puts the load bus at ``v0``, angle 0."""
         current = (complex(self.p0, self.q0) / self.v0).conjugate()
-        return self.v0 + (self.z_src + Z_FEED) * current
+        return self.v0 + z * current
 
     def motor3(self) -> dict[str, float]:
         """``Motor3`` parameters (:func:`loadbayes.export.andes.conventions.motor3_fields`)."""
@@ -171,10 +183,52 @@ def add_composite(system: Any, case: CompositeCase, *, load_bus: int = 3) -> dic
             {"idx": idx, "bus1": b1, "bus2": b2, "r": z.real, "x": z.imag, "b": 0.0,
              "Vn1": VN_KV, "Vn2": VN_KV, "Sn": base},
         )  # fmt: skip
+    ids: dict[str, Any] = {"load_bus": bus_load, "net_bus": bus_net}
+    return {**ids, **_add_load(system, case, bus_load)}
+
+
+def add_single_bus(system: Any, case: CompositeCase) -> dict[str, Any]:
+    """The load on bus ``SINGLE_LOAD_BUS`` fed from an infinite bus through ``case.z_src``.
+
+    The Slack (idx 1, on the source bus ``SINGLE_LOAD_BUS + 1``) sits at the voltage that
+    puts the load bus at ``v0`` with angle 0. A fault for a study goes on the load bus.
+
+    Parameters
+    ----------
+    system : andes.System
+        A system not yet set up.
+    case : CompositeCase
+        The load.
+
+    Returns
+    -------
+    dict
+        As :func:`add_composite`; ``net_bus`` is the source bus.
+    """
+    base, v_src = case.base_mva, case.source_voltage(case.z_src)
+    system.config.mva = base
+    bus_load, bus_source = SINGLE_LOAD_BUS, SINGLE_LOAD_BUS + 1
+    for idx, name in ((bus_load, "load"), (bus_source, "source")):
+        system.add("Bus", {"idx": idx, "name": name, "Vn": VN_KV, "v0": case.v0})
+    system.add(
+        "Slack",
+        {"idx": 1, "bus": bus_source, "Vn": VN_KV, "Sn": base, "v0": abs(v_src),
+         "a0": float(np.angle(v_src))},
+    )  # fmt: skip
+    system.add(
+        "Line",
+        {"idx": 1, "bus1": bus_source, "bus2": bus_load, "r": case.z_src.real,
+         "x": case.z_src.imag, "b": 0.0, "Vn1": VN_KV, "Vn2": VN_KV, "Sn": base},
+    )  # fmt: skip
+    return {"load_bus": bus_load, "net_bus": bus_source, **_add_load(system, case, bus_load)}
+
+
+def _add_load(system: Any, case: CompositeCase, bus_load: int) -> dict[str, Any]:
+    base = case.base_mva
     s_pq = case.static_pq
     system.add("PQ", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "p0": s_pq.real, "q0": s_pq.imag})
     system.add("ZIP", {"idx": 1, "pq": 1, **zip_fields(case.a_p, case.a_q)})
-    ids: dict[str, Any] = {"load_bus": bus_load, "net_bus": bus_net, "pq": 1, "zip": 1}
+    ids: dict[str, Any] = {"pq": 1, "zip": 1}
     ids["shunt"] = ids["motor"] = None
     if case.q_c:
         b = case.q_c / case.v0**2

@@ -1,7 +1,9 @@
 """Export a fitted ZIP or composite load as an ANDES case (xlsx or json, ANDES's own writers).
 
 The case (:mod:`loadbayes.export.andes.case`) is the load on its bus behind a stand-in
-network (an infinite bus and two lines) whose source voltage puts the load bus at ``v0``:
+network whose source voltage puts the load bus at ``v0``: by default the load on bus 1 fed
+from an infinite bus (bus 2) through ``z_src`` (0.01 + 0.1j p.u. on the system base), with
+``bus`` given the harness's three buses (an infinite bus and two lines, load bus ``bus``):
 
 - the static part as a ``PQ`` (its power at ``v0``) replaced in the time domain by a
   ``ZIP`` with ``kpz, kpi, kpp = 100 (a1, a2, a3)`` and ``kqz, kqi, kqp = 100 (a4, a5, a6)``;
@@ -11,10 +13,15 @@ network (an infinite bus and two lines) whose source voltage puts the load bus a
   (docs/andes.md), and, when ``q_c`` is not zero, a ``Shunt`` with ``b = q_c / v0^2``.
 
 Copy the load bus's devices into your own network, or run the case as it is with a
-``Fault`` added at the network bus. ANDES 2.0 starts ``Motor3`` at standstill in its
-power flow and diverges for a running motor; call
-:func:`loadbayes.export.andes.conventions.solve_power_flow` instead of ``PFlow.run``. The
-posterior summary and these notes go to a sidecar ``<case file name>.summary.txt``.
+``Fault`` added. ANDES solves the case on its own (``andes run case.json``): the case's
+``_config`` sets ``PFlow.linsolve = 1`` and ``TDS.linsolve = 1``. Without them ANDES 2.0's
+default KLU solver crashes the interpreter on any case with a running ``Motor3``: the motor
+enters the power flow at ANDES's start values (``vd = vq = Iq = 0``), ten Jacobian entries
+are exactly zero at the first Newton step and absent from the sparsity pattern KLU
+factorises symbolically, and reusing that factorisation at the second step, where they
+are not zero, segfaults in ``klu.numeric`` (ANDES's own help for ``linsolve`` reads
+"enable when KLU segfaults"). The posterior summary and these notes go to a sidecar
+``<case file name>.summary.txt``.
 """
 
 from __future__ import annotations
@@ -24,14 +31,17 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from loadbayes.export.andes.case import SINGLE_LOAD_BUS
 from loadbayes.io.atomic import atomic_write
 
-__all__ = ["DEFAULT_BUS", "FORMAT", "SUFFIXES", "write"]
+__all__ = ["CASE_CONFIG", "DEFAULT_BUS", "FORMAT", "SUFFIXES", "write"]
 
 FORMAT = "andes"
 SUFFIXES: tuple[str, ...] = (".xlsx", ".json")
-#: The load bus idx when none is given (the infinite and network buses get the next two).
-DEFAULT_BUS = 3
+#: The load bus idx when none is given: the single-bus case (the source bus is idx 2).
+DEFAULT_BUS = SINGLE_LOAD_BUS
+#: Configuration written into the case's ``_config`` so that ANDES alone solves it.
+CASE_CONFIG = {"PFlow": {"linsolve": 1}, "TDS": {"linsolve": 1}}
 
 _MODELS = ("zip", "composite")
 
@@ -79,9 +89,9 @@ def write(
     header : sequence of str
         Lines of the posterior summary, written to the sidecar.
     options : mapping
-        ``base_mva`` (default 100), ``bus`` (load bus idx, default 3), ``z_src`` (source
-        impedance, complex, default 0.01 + 0.1j), ``p_mw``/``q_mvar`` when ``values`` has
-        no ``p0``/``q0``.
+        ``base_mva`` (default 100), ``bus`` (load bus idx of the three-bus case; None or
+        absent: the single-bus case, load bus 1), ``z_src`` (source impedance, complex,
+        default 0.01 + 0.1j), ``p_mw``/``q_mvar`` when ``values`` has no ``p0``/``q0``.
 
     Returns
     -------
@@ -111,8 +121,8 @@ def write(
         base_mva=base,
         z_src=z_src,
     )
-    # --bus not given reaches here as None: the documented default, bus 3.
-    bus = int(options["bus"]) if options.get("bus") is not None else DEFAULT_BUS
+    # --bus not given reaches here as None: the single-bus case.
+    bus = int(options["bus"]) if options.get("bus") is not None else None
     system, devices = _build(case, bus)
     with atomic_write(out, force=True) as tmp:
         _write_case(system, Path(tmp))
@@ -122,15 +132,21 @@ def write(
     return [out, sidecar]
 
 
-def _build(case: Any, bus: int) -> tuple[Any, dict[str, Any]]:
+def _build(case: Any, bus: int | None) -> tuple[Any, dict[str, Any]]:
     import andes
 
-    from loadbayes.export.andes.case import add_composite
+    from loadbayes.export.andes.case import add_composite, add_single_bus
     from loadbayes.export.andes.conventions import andes_quiet
 
     with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
         system = andes.System(no_output=True, default_config=True, output_path=tmp)
-        ids = add_composite(system, case, load_bus=bus)
+        if bus is None:
+            ids = add_single_bus(system, case)
+        else:
+            ids = add_composite(system, case, load_bus=bus)
+        for routine, fields in CASE_CONFIG.items():
+            for key, value in fields.items():
+                setattr(getattr(system, routine).config, key, value)
     return system, ids
 
 
@@ -152,10 +168,16 @@ def _summary(header, values, case, devices, out: Path, model: str) -> str:
     lines += [f"# {line}" for line in header]
     lines += ["#", "# Parameter set exported (naming contract, system p.u.):"]
     lines += [f"#   {k} = {float(v):.10g}" for k, v in sorted(values.items())]
+    if devices["net_bus"] == devices["load_bus"] + 1:
+        z = case.z_src
+        where = (f"fed from the infinite bus idx {devices['net_bus']} through "
+                 f"z = {z.real:g} + j{z.imag:g} p.u. (put a Fault on the load bus)")  # fmt: skip
+    else:
+        where = f"network bus idx {devices['net_bus']} (put a Fault there)"
     lines += [
         "#",
-        f"# Load bus idx {devices['load_bus']} at v0 = {case.v0:.6g} p.u.; network bus idx "
-        f"{devices['net_bus']} (put a Fault there); base {case.base_mva:g} MVA.",
+        f"# Load bus idx {devices['load_bus']} at v0 = {case.v0:.6g} p.u.; {where}; "
+        f"base {case.base_mva:g} MVA.",
         f"# PQ 1 (static part at v0): p0 = {case.static_pq.real:.10g}, "
         f"q0 = {case.static_pq.imag:.10g}; ZIP 1 replaces it in the time domain.",
     ]
@@ -170,11 +192,13 @@ def _summary(header, values, case, devices, out: Path, model: str) -> str:
         lines.append(f"# Shunt 1: b = {case.q_c / case.v0**2:.10g} (q_c = {case.q_c:.10g} at v0)")
     lines += [
         "#",
-        "# ANDES 2.0's power flow starts Motor3 at standstill and diverges for a running",
-        "# motor. Run it with:",
+        "# ANDES alone solves it: `andes run <case>` or, with a fault,",
         "#   ss = andes.load(path, setup=False); ss.add('Fault', {...}); ss.setup()",
-        "#   from loadbayes.export.andes.conventions import solve_power_flow; solve_power_flow(ss)",
-        "#   ss.TDS.run()",
+        "#   ss.PFlow.run(); ss.TDS.config.tf = 2; ss.TDS.run()",
+        "# The case's _config sets PFlow.linsolve = TDS.linsolve = 1: ANDES 2.0's KLU",
+        "# otherwise segfaults on a running Motor3 (docs/andes.md). With loadbayes at hand,",
+        "# loadbayes.export.andes.conventions.solve_power_flow(ss) also seeds the motor",
+        "# at its steady state before ANDES's Newton steps.",
         "",
     ]
     return "\n".join(lines)
