@@ -57,7 +57,9 @@ def one_line(r, *needles) -> str:
     return lines[0]
 
 
-def result_json(path: Path, truth: dict, steps: list[tuple[int, float]], sd: dict, event: str):
+def result_json(
+    path: Path, truth: dict, steps: list[tuple[int, float]], sd: dict, event: str, **settings
+):
     """The truth in fit composite's JSON contract (the parts playback and export read)."""
     params = {k: {"mean": float(v), "sd": 0.0} for k, v in truth.items()}
     params["tau_p"] = {"mean": sd["p"] ** -2}
@@ -73,6 +75,7 @@ def result_json(path: Path, truth: dict, steps: list[tuple[int, float]], sd: dic
             "v0": truth["v0"],
             "events": [{"name": event}],
             "steps": {"intervals": [{"event": 0, "k": k} for k, _ in steps]},
+            **settings,
         },
     }
     path.write_text(json.dumps(doc))
@@ -113,6 +116,24 @@ def test_noise_free_playback_matches_andes_own_run(event):
     assert pb.rms_p < 1e-3 and pb.rms_q < 1e-3, (pb.rms_p, pb.rms_q)
     assert pb.to_dict()["max_v_error"] < 2e-4  # the tie's drop only
     assert ev.v.min() < 0.75  # a real sag was played
+
+
+def test_a_case_in_mw_plays_back_in_the_fit_per_unit(event):
+    # The fit's base (5 MVA) reaches the case (a 5 MW load on ANDES's 100 MVA base) and
+    # playback scales ANDES's P, Q back to the event's per unit.
+    d, truth, steps = event
+    sd = {"p": 0.01, "q": 0.003}
+    res = result_json(d / "mw_fit.json", truth, list(steps.items()), sd, "clean.csv",
+                      s_base_mva=5.0)  # fmt: skip
+    r = cli("export", res, "--to", "andes", "--out", d / "mw.json", "--s-base", 5, "--quiet")
+    assert r.exit_code == 0, r.output
+    case = json.loads((d / "mw.json").read_text())
+    assert sum(r["p0"] for r in case["PQ"]) < 0.05  # the static part of 5 MW on 100 MVA
+    r = cli("playback", res, d / "mw.json", d / "clean.csv", "--json", d / "mw_pb.json")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((d / "mw_pb.json").read_text())
+    assert doc["s_base_mva"] == 5.0
+    assert doc["rms_p"] < 1e-3 and doc["rms_q"] < 1e-3, doc
 
 
 def test_cli_playback_reproduces_the_event_within_the_fit_noise(event):

@@ -79,7 +79,9 @@ def playback_cmd(
     if len(evs) != 1:
         raise UserError(f"{event}: holds {len(evs)} events (an event column); give one")
     steps = fit.steps_for(event)
-    pb = playback(export, evs[0], p0=fit.p0_for(event), steps=steps)
+    # MVA per p.u. of the event: --s-base, else the fit's recorded base, else the case's.
+    s_event = s_base if s_base is not None else fit.s_base_mva
+    pb = playback(export, evs[0], p0=fit.p0_for(event), steps=steps, s_base_mva=s_event)
     numbers = compare(pb, fit)
     numbers["fitted_event"] = fit.fitted_event(event)
     numbers["steps_from"] = "the fit" if steps is not None else "the middle of each interval"

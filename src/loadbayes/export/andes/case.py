@@ -61,6 +61,7 @@ class CompositeCase:
     mva_m: float
     base_mva: float
     z_src: complex
+    vn_kv: float = VN_KV
 
     @classmethod
     def from_values(
@@ -70,6 +71,7 @@ class CompositeCase:
         with_motor: bool,
         base_mva: float = 100.0,
         z_src: complex = complex(0.01, 0.1),
+        vn_kv: float = VN_KV,
     ) -> CompositeCase:
         """Resolve a parameter set (naming contract) into the case.
 
@@ -85,6 +87,8 @@ class CompositeCase:
             System base (MVA).
         z_src : complex
             Source impedance from the infinite bus to bus 2 (system p.u.).
+        vn_kv : float
+            Nominal voltage of every bus and device (kV).
 
         Returns
         -------
@@ -105,7 +109,7 @@ class CompositeCase:
                 raise ValueError(f"need 0 < f_m <= 1 and p0 > 0, got f_m={f_m}, p0={p0}")
             motor, t0 = motor_from_values(values), float(values["t0"])
             mva_m = f_m * p0 / steady_state(motor, v_pu=v0, t0=t0).p
-        return cls(p0, q0, v0, a_p, a_q, q_c, motor, t0, mva_m, base_mva, z_src)
+        return cls(p0, q0, v0, a_p, a_q, q_c, motor, t0, mva_m, base_mva, z_src, float(vn_kv))
 
     @property
     def motor_pq(self) -> complex:
@@ -135,7 +139,7 @@ class CompositeCase:
         if self.motor is None:
             raise ValueError("a ZIP-only case has no motor")
         return motor3_fields(
-            self.motor, t0=self.t0, mva_m=self.mva_m, base_mva=self.base_mva, vn_kv=VN_KV
+            self.motor, t0=self.t0, mva_m=self.mva_m, base_mva=self.base_mva, vn_kv=self.vn_kv
         )
 
 
@@ -170,10 +174,10 @@ def add_composite(system: Any, case: CompositeCase, *, load_bus: int = 3) -> dic
     system.config.mva = base
     bus_load, bus_source, bus_net = load_bus, load_bus + 1, load_bus + 2
     for idx, name in ((bus_load, "load"), (bus_source, "source"), (bus_net, "network")):
-        system.add("Bus", {"idx": idx, "name": name, "Vn": VN_KV, "v0": case.v0})
+        system.add("Bus", {"idx": idx, "name": name, "Vn": case.vn_kv, "v0": case.v0})
     system.add(
         "Slack",
-        {"idx": 1, "bus": bus_source, "Vn": VN_KV, "Sn": base, "v0": abs(v_src),
+        {"idx": 1, "bus": bus_source, "Vn": case.vn_kv, "Sn": base, "v0": abs(v_src),
          "a0": float(np.angle(v_src))},
     )  # fmt: skip
     lines = ((bus_source, bus_net, case.z_src), (bus_net, bus_load, Z_FEED))
@@ -181,7 +185,7 @@ def add_composite(system: Any, case: CompositeCase, *, load_bus: int = 3) -> dic
         system.add(
             "Line",
             {"idx": idx, "bus1": b1, "bus2": b2, "r": z.real, "x": z.imag, "b": 0.0,
-             "Vn1": VN_KV, "Vn2": VN_KV, "Sn": base},
+             "Vn1": case.vn_kv, "Vn2": case.vn_kv, "Sn": base},
         )  # fmt: skip
     ids: dict[str, Any] = {"load_bus": bus_load, "net_bus": bus_net}
     return {**ids, **_add_load(system, case, bus_load)}
@@ -209,16 +213,16 @@ def add_single_bus(system: Any, case: CompositeCase) -> dict[str, Any]:
     system.config.mva = base
     bus_load, bus_source = SINGLE_LOAD_BUS, SINGLE_LOAD_BUS + 1
     for idx, name in ((bus_load, "load"), (bus_source, "source")):
-        system.add("Bus", {"idx": idx, "name": name, "Vn": VN_KV, "v0": case.v0})
+        system.add("Bus", {"idx": idx, "name": name, "Vn": case.vn_kv, "v0": case.v0})
     system.add(
         "Slack",
-        {"idx": 1, "bus": bus_source, "Vn": VN_KV, "Sn": base, "v0": abs(v_src),
+        {"idx": 1, "bus": bus_source, "Vn": case.vn_kv, "Sn": base, "v0": abs(v_src),
          "a0": float(np.angle(v_src))},
     )  # fmt: skip
     system.add(
         "Line",
         {"idx": 1, "bus1": bus_source, "bus2": bus_load, "r": case.z_src.real,
-         "x": case.z_src.imag, "b": 0.0, "Vn1": VN_KV, "Vn2": VN_KV, "Sn": base},
+         "x": case.z_src.imag, "b": 0.0, "Vn1": case.vn_kv, "Vn2": case.vn_kv, "Sn": base},
     )  # fmt: skip
     return {"load_bus": bus_load, "net_bus": bus_source, **_add_load(system, case, bus_load)}
 
@@ -226,13 +230,14 @@ def add_single_bus(system: Any, case: CompositeCase) -> dict[str, Any]:
 def _add_load(system: Any, case: CompositeCase, bus_load: int) -> dict[str, Any]:
     base = case.base_mva
     s_pq = case.static_pq
-    system.add("PQ", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "p0": s_pq.real, "q0": s_pq.imag})
+    pq = {"idx": 1, "bus": bus_load, "Vn": case.vn_kv, "p0": s_pq.real, "q0": s_pq.imag}
+    system.add("PQ", pq)
     system.add("ZIP", {"idx": 1, "pq": 1, **zip_fields(case.a_p, case.a_q)})
     ids: dict[str, Any] = {"pq": 1, "zip": 1}
     ids["shunt"] = ids["motor"] = None
     if case.q_c:
         b = case.q_c / case.v0**2
-        system.add("Shunt", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "Sn": base, "b": b})
+        system.add("Shunt", {"idx": 1, "bus": bus_load, "Vn": case.vn_kv, "Sn": base, "b": b})
         ids["shunt"] = 1
     if case.motor is not None:
         system.add("Motor3", {"idx": 1, "bus": bus_load, **case.motor3()})

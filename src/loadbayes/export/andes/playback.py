@@ -67,6 +67,7 @@ class Playback:
     q_sim: np.ndarray
     p0: float
     step_s: float
+    s_base_mva: float
     angle_from: str
     v_load: np.ndarray
     devices: dict[str, int] = field(default_factory=dict)
@@ -93,6 +94,7 @@ class Playback:
             "max_abs_p": float(np.max(np.abs(self.p_sim - self.p_rec)) / self.p0),
             "max_abs_q": float(np.max(np.abs(self.q_sim - self.q_rec)) / self.p0),
             "step_s": self.step_s,
+            "s_base_mva": self.s_base_mva,
             "max_v_error": float(np.max(np.abs(self.v_load - self.v))),
             "angle_from": self.angle_from or "none (magnitude only)",
             "devices": dict(self.devices),
@@ -116,6 +118,7 @@ class FitResult:
     events: tuple[str, ...]
     steps: dict[str, dict[int, float]]
     p0_by_event: dict[str, float] = field(default_factory=dict)
+    s_base_mva: float | None = None
 
     def fitted_event(self, name: str) -> str | None:
         """The fitted event whose file has the name of ``name``, or None (held out)."""
@@ -192,7 +195,14 @@ def read_fit(path: str | Path) -> FitResult:
         val = mean(f"p0{'' if e == 0 else f'_e{e}'}")
         if val is not None and val > 0:
             p0s[name] = val
-    return FitResult(p0, sigma[0], sigma[1], names, steps, p0s)
+    s_base = settings.get("s_base_mva", settings.get("s_base"))
+    if s_base is not None and not (
+        isinstance(s_base, int | float) and not isinstance(s_base, bool) and s_base > 0
+    ):
+        raise DataError(f"settings.s_base_mva is {s_base!r}, expected MVA > 0", where)
+    return FitResult(
+        p0, sigma[0], sigma[1], names, steps, p0s, None if s_base is None else float(s_base)
+    )
 
 
 def load_devices(case: str | Path) -> dict[str, list[dict[str, Any]]]:
@@ -207,7 +217,8 @@ def load_devices(case: str | Path) -> dict[str, list[dict[str, Any]]]:
     -------
     dict
         ``"Bus"`` (the load bus's row) and, per model of ``PQ, ZIP, Motor3, Shunt``, the
-        input parameters of each device on that bus (``ZIP`` rows those of its ``PQ``).
+        input parameters of each device on that bus (``ZIP`` rows those of its ``PQ``);
+        ``"mva"``: the case's system base (MVA).
 
     Raises
     ------
@@ -225,6 +236,7 @@ def load_devices(case: str | Path) -> dict[str, list[dict[str, Any]]]:
         if ss is None:
             raise DataError("ANDES cannot read this case", path)
         rows = {name: _rows(ss, name) for name in ("Bus", *_COPIED)}
+        mva = float(ss.config.mva)
     pq_bus = {r["idx"]: r["bus"] for r in rows["PQ"]}
     if rows["ZIP"]:
         bus = pq_bus.get(rows["ZIP"][0]["pq"])
@@ -242,6 +254,7 @@ def load_devices(case: str | Path) -> dict[str, list[dict[str, Any]]]:
     out["Shunt"] = [r for r in rows["Shunt"] if r["bus"] == bus]
     if not out["Bus"]:
         raise DataError(f"the load's bus {bus!r} is not in the case", path)
+    out["mva"] = mva  # type: ignore[assignment]
     return out
 
 
@@ -276,6 +289,7 @@ def playback(
     *,
     p0: float,
     steps: dict[int, float] | None = None,
+    s_base_mva: float | None = None,
     step_s: float | None = None,
 ) -> Playback:
     """Run an exported ANDES case with the event's voltage imposed at the load bus.
@@ -296,6 +310,10 @@ def playback(
         instant, then ``V_k+1`` (as the fit reads a step: ``models/composite_steps.py``).
         Default: the intervals :func:`~loadbayes.models.composite_steps.step_intervals`
         finds, each stepped at its middle.
+    s_base_mva : float, optional
+        MVA per p.u. of the event's (and ``p0``'s) powers. ANDES's P, Q (p.u. of the
+        case's system base) are rescaled to it. Default: the case's base (the event is
+        per unit of the same base).
     step_s : float, optional
         ANDES's fixed step; default :func:`step_for`.
 
@@ -325,7 +343,8 @@ def playback(
         p_k, q_k, v_k = _run(devices, knots_t - t[0], knots_v, knots_a, h, tmp)
     # The record's own samples (the knots add the steps' instants).
     at = np.searchsorted(knots_t, t)
-    p_sim, q_sim, v_load = p_k[at], q_k[at], v_k[at]
+    scale = 1.0 if s_base_mva is None else float(devices["mva"]) / float(s_base_mva)
+    p_sim, q_sim, v_load = p_k[at] * scale, q_k[at] * scale, v_k[at]
     counts = {name: len(devices[name]) for name in _COPIED if devices[name]}
     return Playback(
         t_s=t,
@@ -337,6 +356,7 @@ def playback(
         q_sim=q_sim,
         p0=float(p0),
         step_s=h,
+        s_base_mva=float(devices["mva"]) if s_base_mva is None else float(s_base_mva),
         angle_from=event.angle_from if event.delta is not None else "",
         v_load=v_load,
         devices=counts,

@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from loadbayes.export.andes.case import SINGLE_LOAD_BUS
+from loadbayes.export.andes.case import SINGLE_LOAD_BUS, VN_KV
 from loadbayes.io.atomic import atomic_write
 
 __all__ = ["CASE_CONFIG", "DEFAULT_BUS", "FORMAT", "SUFFIXES", "write"]
@@ -47,8 +47,18 @@ _MODELS = ("zip", "composite")
 
 
 def _values_with_power(values: Mapping[str, float], options: Mapping[str, Any]) -> dict:
+    """The parameter set with its powers in p.u. of the case's system base ``base_mva``.
+
+    The posterior's ``p0, q0, q_c`` are per unit of ``s_base_mva`` (the fit's base, or
+    ``--s-base``); without it they are taken as per unit of the system base (100 MVA).
+    """
     out = dict(values)
     base = float(options.get("base_mva", 100.0))
+    s_base = options.get("s_base_mva")
+    scale = 1.0 if s_base is None else float(s_base) / base
+    for key in ("p0", "q0", "q_c"):
+        if key in out:
+            out[key] = float(out[key]) * scale
     for key, option in (("p0", "p_mw"), ("q0", "q_mvar")):
         if key not in out:
             if option not in options:
@@ -89,9 +99,11 @@ def write(
     header : sequence of str
         Lines of the posterior summary, written to the sidecar.
     options : mapping
-        ``base_mva`` (default 100), ``bus`` (load bus idx of the three-bus case; None or
-        absent: the single-bus case, load bus 1), ``z_src`` (source impedance, complex,
-        default 0.01 + 0.1j), ``p_mw``/``q_mvar`` when ``values`` has no ``p0``/``q0``.
+        ``base_mva`` (the case's system base, default 100), ``s_base_mva`` (MVA per p.u.
+        of the posterior's powers; default ``base_mva``), ``vn_kv`` (every bus's kV,
+        default 110), ``bus`` (load bus idx of the three-bus case; None or absent: the
+        single-bus case, load bus 1), ``z_src`` (source impedance, complex, default
+        0.01 + 0.1j), ``p_mw``/``q_mvar`` when ``values`` has no ``p0``/``q0``.
 
     Returns
     -------
@@ -120,6 +132,7 @@ def write(
         with_motor=model == "composite",
         base_mva=base,
         z_src=z_src,
+        vn_kv=float(options.get("vn_kv") or VN_KV),
     )
     # --bus not given reaches here as None: the single-bus case.
     bus = int(options["bus"]) if options.get("bus") is not None else None
@@ -177,7 +190,9 @@ def _summary(header, values, case, devices, out: Path, model: str) -> str:
     lines += [
         "#",
         f"# Load bus idx {devices['load_bus']} at v0 = {case.v0:.6g} p.u.; {where}; "
-        f"base {case.base_mva:g} MVA.",
+        f"base {case.base_mva:g} MVA, buses at {case.vn_kv:g} kV.",
+        f"# The load: {case.p0 * case.base_mva:.8g} MW, {case.q0 * case.base_mva:.8g} Mvar at "
+        f"v0; motor {case.motor_pq.real * case.base_mva:.8g} MW.",
         f"# PQ 1 (static part at v0): p0 = {case.static_pq.real:.10g}, "
         f"q0 = {case.static_pq.imag:.10g}; ZIP 1 replaces it in the time domain.",
     ]
