@@ -261,11 +261,17 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     help="pandapower: JSON net to write the load into (default: a one-bus net).",
 )
 @click.option("--load-index", type=int, help="pandapower: the load of --net to overwrite.")
+@click.option(
+    "--case",
+    "case_in",
+    help="ANDES: a case file, or a name of ANDES's case library (kundur/kundur_full.xlsx), "
+    "to place the load in, on bus --bus.",
+)
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
-               net_file, load_index, quiet, force):  # fmt: skip
+               net_file, load_index, case_in, quiet, force):  # fmt: skip
     """Write a fitted load model into pandapower, PSS/E or ANDES files.
 
     The posterior summary (mean, sd and interval of each parameter, the source and the
@@ -279,6 +285,10 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             raise click.BadParameter("must be a finite number", param_hint=name)
     if n_draws is not None and stat != "mean":
         raise UserError("give either --stat or --draws, not both")
+    if case_in is not None and fmt != "andes":
+        raise UserError("--case places the load in an ANDES case: it goes with --to andes")
+    if case_in is not None and bus is None:
+        raise UserError("--case needs the bus to put the load on: give --bus N")
     from loadbayes import export
 
     writer = export.get(fmt)
@@ -313,6 +323,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             raise UserError(f"{path}: --out would overwrite the posterior")
         if net_file and path.resolve() == Path(net_file).resolve():
             raise UserError(f"{path}: --out would overwrite the --net it starts from")
+        if case_in and path.resolve() == Path(case_in).resolve():
+            raise UserError(f"{path}: --out would overwrite the --case it starts from")
         if not path.parent.is_dir():
             raise UserError(f"{path}: folder {path.parent} does not exist")
         related = [path, *(path.with_suffix(s) for s in writer.SUFFIXES)]
@@ -322,7 +334,7 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
                 raise UserError(f"{r}: exists; use --force to overwrite")
     options = {"bus": bus, "s_base_mva": s_base, "p_mw": p_mw, "q_mvar": q_mvar,
                "vn_kv": vn_kv, "net": net_file, "load_index": load_index, "force": force,
-               "v0": settings.get("v0")}  # fmt: skip
+               "v0": settings.get("v0"), "case": case_in}  # fmt: skip
     if s_base is None:
         options.pop("s_base_mva")
     for _, values, _ in jobs:

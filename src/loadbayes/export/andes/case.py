@@ -33,7 +33,16 @@ from loadbayes.export.andes.conventions import motor3_fields, zip_fields
 from loadbayes.models.motor import MotorParams, steady_state
 from loadbayes.models.motor_library import motor_from_values
 
-__all__ = ["SINGLE_LOAD_BUS", "VN_KV", "Z_FEED", "CompositeCase", "add_composite", "add_single_bus"]
+__all__ = [
+    "CASE_IDS",
+    "SINGLE_LOAD_BUS",
+    "VN_KV",
+    "Z_FEED",
+    "CompositeCase",
+    "add_composite",
+    "add_single_bus",
+    "add_to_case",
+]
 
 VN_KV = 110.0
 """Nominal voltage of every bus and device (kV); equal everywhere so ANDES rescales nothing."""
@@ -227,19 +236,44 @@ def add_single_bus(system: Any, case: CompositeCase) -> dict[str, Any]:
     return {"load_bus": bus_load, "net_bus": bus_source, **_add_load(system, case, bus_load)}
 
 
-def _add_load(system: Any, case: CompositeCase, bus_load: int) -> dict[str, Any]:
+#: The idx of the load's devices added to another case (``add_to_case``): named, so they
+#: cannot clash with the case's own devices and playback finds them.
+CASE_IDS = {"pq": "loadbayes_pq", "zip": "loadbayes_zip", "shunt": "loadbayes_shunt",
+            "motor": "loadbayes_motor"}  # fmt: skip
+
+
+def add_to_case(system: Any, case: CompositeCase, bus: Any) -> dict[str, Any]:
+    """Add the load's devices to bus ``bus`` of a loaded ANDES case (not set up).
+
+    The devices take the bus's ``Vn`` (``case.vn_kv`` should be it) and the idx of
+    :data:`CASE_IDS`. The case's power flow sets the bus's voltage, to which the ``ZIP``
+    refers its shares; the motor draws ``f_m p0`` at ``v0``.
+
+    Returns
+    -------
+    dict
+        As :func:`add_composite`; ``net_bus`` is None (the bus is the case's).
+    """
+    return {"load_bus": bus, "net_bus": None, **_add_load(system, case, bus, CASE_IDS)}
+
+
+def _add_load(
+    system: Any, case: CompositeCase, bus_load: Any, names: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    idx = names or {"pq": 1, "zip": 1, "shunt": 1, "motor": 1}
     base = case.base_mva
     s_pq = case.static_pq
-    pq = {"idx": 1, "bus": bus_load, "Vn": case.vn_kv, "p0": s_pq.real, "q0": s_pq.imag}
+    pq = {"idx": idx["pq"], "bus": bus_load, "Vn": case.vn_kv, "p0": s_pq.real, "q0": s_pq.imag}
     system.add("PQ", pq)
-    system.add("ZIP", {"idx": 1, "pq": 1, **zip_fields(case.a_p, case.a_q)})
-    ids: dict[str, Any] = {"pq": 1, "zip": 1}
+    system.add("ZIP", {"idx": idx["zip"], "pq": idx["pq"], **zip_fields(case.a_p, case.a_q)})
+    ids: dict[str, Any] = {"pq": idx["pq"], "zip": idx["zip"]}
     ids["shunt"] = ids["motor"] = None
     if case.q_c:
         b = case.q_c / case.v0**2
-        system.add("Shunt", {"idx": 1, "bus": bus_load, "Vn": case.vn_kv, "Sn": base, "b": b})
-        ids["shunt"] = 1
+        shunt = {"idx": idx["shunt"], "bus": bus_load, "Vn": case.vn_kv, "Sn": base, "b": b}
+        system.add("Shunt", shunt)
+        ids["shunt"] = idx["shunt"]
     if case.motor is not None:
-        system.add("Motor3", {"idx": 1, "bus": bus_load, **case.motor3()})
-        ids["motor"] = 1
+        system.add("Motor3", {"idx": idx["motor"], "bus": bus_load, **case.motor3()})
+        ids["motor"] = idx["motor"]
     return ids

@@ -238,6 +238,12 @@ def load_devices(case: str | Path) -> dict[str, list[dict[str, Any]]]:
         rows = {name: _rows(ss, name) for name in ("Bus", *_COPIED)}
         mva = float(ss.config.mva)
     pq_bus = {r["idx"]: r["bus"] for r in rows["PQ"]}
+    # A load exported into another case (--case) has named devices: only those are
+    # the load; the case's own devices on that bus are not.
+    ours = {name: [r for r in rows[name] if str(r["idx"]).startswith("loadbayes_")]
+            for name in _COPIED}  # fmt: skip
+    if any(ours.values()):
+        rows.update(ours)
     if rows["ZIP"]:
         bus = pq_bus.get(rows["ZIP"][0]["pq"])
     elif rows["Motor3"]:

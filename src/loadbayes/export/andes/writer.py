@@ -104,6 +104,9 @@ def write(
         default 110), ``bus`` (load bus idx of the three-bus case; None or absent: the
         single-bus case, load bus 1), ``z_src`` (source impedance, complex, default
         0.01 + 0.1j), ``p_mw``/``q_mvar`` when ``values`` has no ``p0``/``q0``.
+        ``case``: an ANDES case file, or a name of ANDES's case library
+        (``kundur/kundur_full.xlsx``), to place the load in, on its bus ``bus``; the
+        case's system base and the bus's ``Vn`` replace ``base_mva`` and ``vn_kv``.
 
     Returns
     -------
@@ -126,17 +129,23 @@ def write(
     from loadbayes.export.andes.case import CompositeCase
 
     base = float(options.get("base_mva", 100.0))
+    vn_kv = float(options.get("vn_kv") or VN_KV)
     z_src = complex(options.get("z_src", complex(0.01, 0.1)))
+    # --bus not given reaches here as None: the single-bus case.
+    bus = int(options["bus"]) if options.get("bus") is not None else None
+    host = None
+    if options.get("case") is not None:
+        if bus is None:
+            raise ValueError("a load placed in a case needs its bus: give --bus with --case")
+        host, base, vn_kv = _load_host(str(options["case"]), bus)
     case = CompositeCase.from_values(
-        _values_with_power(values, options),
+        _values_with_power({**values}, {**options, "base_mva": base}),
         with_motor=model == "composite",
         base_mva=base,
         z_src=z_src,
-        vn_kv=float(options.get("vn_kv") or VN_KV),
+        vn_kv=vn_kv,
     )
-    # --bus not given reaches here as None: the single-bus case.
-    bus = int(options["bus"]) if options.get("bus") is not None else None
-    system, devices = _build(case, bus)
+    system, devices = _build(case, bus, host)
     with atomic_write(out, force=True) as tmp:
         _write_case(system, Path(tmp))
     sidecar = _sidecar(out)
@@ -145,17 +154,52 @@ def write(
     return [out, sidecar]
 
 
-def _build(case: Any, bus: int | None) -> tuple[Any, dict[str, Any]]:
+def _load_host(name: str, bus: int) -> tuple[Any, float, float]:
+    """An ANDES case to place the load in (not set up), its MVA base and the bus's kV."""
     import andes
 
-    from loadbayes.export.andes.case import add_composite, add_single_bus
+    from loadbayes.export.andes.conventions import andes_quiet
+
+    path = Path(name)
+    if not path.is_file():
+        try:
+            path = Path(andes.get_case(name))
+        except Exception:  # ANDES raises several types for a name it does not have
+            path = None  # type: ignore[assignment]
+        if path is None or not path.is_file():
+            raise ValueError(f"--case {name}: neither a file nor a case of ANDES's library")
+    with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
+        try:
+            host = andes.load(
+                str(path), setup=False, no_output=True, default_config=True, output_path=tmp
+            )
+        except Exception as exc:  # ANDES raises many types for a file it cannot parse
+            raise ValueError(
+                f"--case {name}: ANDES cannot read it ({type(exc).__name__})"
+            ) from None
+    if host is None or bus not in list(host.Bus.idx.v):
+        known = [] if host is None else list(host.Bus.idx.v)
+        shown = ", ".join(map(str, known[:12])) + (" ..." if len(known) > 12 else "")
+        raise ValueError(f"--case {name}: no bus {bus} (its buses: {shown or 'none'})")
+    uid = host.Bus.idx2uid(bus)
+    return host, float(host.config.mva), float(host.Bus.Vn.v[uid])
+
+
+def _build(case: Any, bus: int | None, host: Any = None) -> tuple[Any, dict[str, Any]]:
+    import andes
+
+    from loadbayes.export.andes.case import add_composite, add_single_bus, add_to_case
     from loadbayes.export.andes.conventions import andes_quiet
 
     with tempfile.TemporaryDirectory(prefix="loadbayes-andes-") as tmp, andes_quiet():
-        system = andes.System(no_output=True, default_config=True, output_path=tmp)
-        if bus is None:
+        if host is not None:
+            system = host
+            ids = add_to_case(system, case, bus)
+        elif bus is None:
+            system = andes.System(no_output=True, default_config=True, output_path=tmp)
             ids = add_single_bus(system, case)
         else:
+            system = andes.System(no_output=True, default_config=True, output_path=tmp)
             ids = add_composite(system, case, load_bus=bus)
         for routine, fields in CASE_CONFIG.items():
             for key, value in fields.items():
@@ -181,7 +225,11 @@ def _summary(header, values, case, devices, out: Path, model: str) -> str:
     lines += [f"# {line}" for line in header]
     lines += ["#", "# Parameter set exported (naming contract, system p.u.):"]
     lines += [f"#   {k} = {float(v):.10g}" for k, v in sorted(values.items())]
-    if devices["net_bus"] == devices["load_bus"] + 1:
+    if devices["net_bus"] is None:
+        where = (
+            "a bus of the case given (its power flow sets the bus's voltage, the ZIP's reference)"
+        )
+    elif devices["net_bus"] == devices["load_bus"] + 1:
         z = case.z_src
         where = (f"fed from the infinite bus idx {devices['net_bus']} through "
                  f"z = {z.real:g} + j{z.imag:g} p.u. (put a Fault on the load bus)")  # fmt: skip
@@ -193,18 +241,20 @@ def _summary(header, values, case, devices, out: Path, model: str) -> str:
         f"base {case.base_mva:g} MVA, buses at {case.vn_kv:g} kV.",
         f"# The load: {case.p0 * case.base_mva:.8g} MW, {case.q0 * case.base_mva:.8g} Mvar at "
         f"v0; motor {case.motor_pq.real * case.base_mva:.8g} MW.",
-        f"# PQ 1 (static part at v0): p0 = {case.static_pq.real:.10g}, "
-        f"q0 = {case.static_pq.imag:.10g}; ZIP 1 replaces it in the time domain.",
+        f"# PQ {devices['pq']} (static part at v0): p0 = {case.static_pq.real:.10g}, "
+        f"q0 = {case.static_pq.imag:.10g}; ZIP {devices['zip']} replaces it in the time "
+        "domain.",
     ]
     if case.motor is not None:
         fields = ", ".join(f"{k}={v:.6g}" for k, v in case.motor3().items())
         lines += [
-            f"# Motor3 1: {fields}",
+            f"# Motor3 {devices['motor']}: {fields}",
             f"#   mva_m = {case.mva_m:.10g} (system p.u.), t0 = {case.t0:.10g} (own base); "
             "c1..c3 are on the system base (docs/andes.md).",
         ]
     if devices["shunt"] is not None:
-        lines.append(f"# Shunt 1: b = {case.q_c / case.v0**2:.10g} (q_c = {case.q_c:.10g} at v0)")
+        b = case.q_c / case.v0**2
+        lines.append(f"# Shunt {devices['shunt']}: b = {b:.10g} (q_c = {case.q_c:.10g} at v0)")
     lines += [
         "#",
         "# ANDES alone solves it: `andes run <case>` or, with a fault,",
