@@ -182,4 +182,21 @@ def test_bad_input_exit_2_one_line_nothing_written(event, tmp_path):
     broken.write_text("{not json")
     one_line(cli("playback", broken, d / "case.json", d / "noisy.csv", "--json", out),
              "broken.json", "not a loadbayes posterior JSON")  # fmt: skip
+    # Tampered results: a NaN, a string, no p0; and --json over the RESULT itself.
+    doc = json.loads((d / "fit.json").read_text())
+    for key, value, needle in (("p0", float("nan"), "parameters.p0.mean"),
+                               ("tau_q", "0.1", "parameters.tau_q.mean"),
+                               ("p0", None, "parameters.p0 is None")):  # fmt: skip
+        bad = json.loads(json.dumps(doc))
+        if value is None:
+            del bad["parameters"][key]
+        else:
+            bad["parameters"][key]["mean"] = value
+        (tmp_path / "bad.json").write_text(json.dumps(bad))
+        one_line(cli("playback", tmp_path / "bad.json", d / "case.json", d / "noisy.csv",
+                     "--json", out), "bad.json", needle)  # fmt: skip
+    before = (d / "fit.json").read_bytes()
+    one_line(cli("playback", d / "fit.json", d / "case.json", d / "noisy.csv", "--json",
+                 d / "fit.json", "--force"))  # fmt: skip
+    assert (d / "fit.json").read_bytes() == before
     assert not out.exists()
