@@ -134,6 +134,10 @@ def test_a_case_in_mw_plays_back_in_the_fit_per_unit(event):
     doc = json.loads((d / "mw_pb.json").read_text())
     assert doc["s_base_mva"] == 5.0
     assert doc["rms_p"] < 1e-3 and doc["rms_q"] < 1e-3, doc
+    # The 100 MVA case (exported without the base) against this 5 MVA result: refused.
+    r = cli("playback", res, d / "case.json", d / "clean.csv", "--json", d / "mix.json")
+    one_line(r, "case.json", "the power bases disagree")
+    assert not (d / "mix.json").exists()
 
 
 def test_cli_playback_reproduces_the_event_within_the_fit_noise(event):

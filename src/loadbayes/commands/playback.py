@@ -82,7 +82,7 @@ def playback_cmd(
     # MVA per p.u. of the event: --s-base, else the fit's recorded base, else the case's.
     s_event = s_base if s_base is not None else fit.s_base_mva
     pb = playback(export, evs[0], p0=fit.p0_for(event), steps=steps, s_base_mva=s_event)
-    numbers = compare(pb, fit)
+    numbers = compare(pb, fit, event=event)
     numbers["fitted_event"] = fit.fitted_event(event)
     numbers["steps_from"] = "the fit" if steps is not None else "the middle of each interval"
     doc = {"result": str(result), "export": str(export), "event": str(event), **numbers}

@@ -351,6 +351,7 @@ def playback(
     at = np.searchsorted(knots_t, t)
     scale = 1.0 if s_base_mva is None else float(devices["mva"]) / float(s_base_mva)
     p_sim, q_sim, v_load = p_k[at] * scale, q_k[at] * scale, v_k[at]
+    _check_bases(case, event, p_sim[0], float(devices["mva"]), s_base_mva)
     counts = {name: len(devices[name]) for name in _COPIED if devices[name]}
     return Playback(
         t_s=t,
@@ -367,6 +368,27 @@ def playback(
         v_load=v_load,
         devices=counts,
         steps={int(k): float(s) for k, s in sorted(steps.items())},
+    )
+
+
+#: The case's load at the event's first sample, over the event's: outside this range
+#: the two are not on the same base (a factor 20 for a 5 MVA fit on a 100 MVA case).
+BASE_RATIO = (0.5, 2.0)
+
+
+def _check_bases(case, event: EventRecord, p_first: float, mva: float, s_base) -> None:
+    """Refuse a playback whose case and event disagree on the power base."""
+    p_rec = float(event.p[0])
+    ratio = p_first / p_rec if p_rec > 0 else math.inf
+    if BASE_RATIO[0] <= ratio <= BASE_RATIO[1]:
+        return
+    used = f"{mva:g} MVA, the case's" if s_base is None else f"{float(s_base):g} MVA"
+    raise DataError(
+        f"its load draws {p_first * (s_base or mva):.4g} MW at the event's first voltage, "
+        f"the event {p_rec * (s_base or mva):.4g} MW (p.u. x {used}): the power bases "
+        "disagree; give playback --s-base as the export used it (or export with the "
+        "fit's --s-base)",
+        str(case),
     )
 
 
@@ -454,8 +476,12 @@ def _run(devices, t_rel, v, angle, h, tmp) -> tuple[np.ndarray, np.ndarray, np.n
 WITHIN = 1.2
 
 
-def compare(pb: Playback, fit: FitResult) -> dict[str, Any]:
+def compare(pb: Playback, fit: FitResult, *, event: str | None = None) -> dict[str, Any]:
     """The playback's numbers against the fit's residual noise, with a verdict in words.
+
+    ``event`` (the event file's name) adds what the verdict must know: an event the fit
+    held its own operating point and static mix for is played into event 0's (the one
+    the export writes); a held-out event's steps sit at the intervals' middles.
 
     Returns
     -------
@@ -466,12 +492,25 @@ def compare(pb: Playback, fit: FitResult) -> dict[str, Any]:
         ``verdict`` (one sentence).
     """
     out = pb.to_dict()
+    caveat = ""
+    if event is not None and fit.events:
+        fitted = fit.fitted_event(event)
+        if fitted is None:
+            caveat = (
+                "; a held-out event: its voltage steps are put at the middles of their "
+                "sample intervals, which alone can raise Q's RMS several-fold (docs/andes.md)"
+            )
+        elif fitted != fit.events[0]:
+            caveat = (
+                f"; the case holds the operating point and static mix of {fit.events[0]} "
+                "(the export writes event 0's), this event was fitted with its own"
+            )
     if fit.sigma_p is None or fit.sigma_q is None:
         out.update(fit_residual_p=None, fit_residual_q=None, ratio_p=None, ratio_q=None)
         out["reproduces"] = None
         out["verdict"] = (
             f"played back: RMS {pb.rms_p:.4f} on P, {pb.rms_q:.4f} on Q (per unit of P0); "
-            "the result holds no residual noise (tau_p, tau_q) to compare them with"
+            "the result holds no residual noise (tau_p, tau_q) to compare them with" + caveat
         )
         return out
     res_p, res_q = fit.sigma_p / pb.p0, fit.sigma_q / pb.p0
@@ -484,7 +523,7 @@ def compare(pb: Playback, fit: FitResult) -> dict[str, Any]:
         f"{ratio_q:.2f} times the fit's residual noise"
     )
     if ok:
-        out["verdict"] = f"the exported case reproduces the record: {numbers}"
+        out["verdict"] = f"the exported case reproduces the record: {numbers}{caveat}"
     else:
         worse = "P" if ratio_p >= ratio_q else "Q"
         out["verdict"] = (
@@ -492,6 +531,6 @@ def compare(pb: Playback, fit: FitResult) -> dict[str, Any]:
             "misses by more than the noise the fit found. The exported values are one "
             "point of the posterior (its mean, by default), which can sit off the "
             "posterior's ridge; export a draw (export --draws) or a median, or check the "
-            "fit (R-hat, the warnings in its JSON)"
+            "fit (R-hat, the warnings in its JSON)" + caveat
         )
     return out
