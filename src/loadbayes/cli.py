@@ -29,6 +29,7 @@ from loadbayes.commands import example as _example
 from loadbayes.commands import exp as _exp
 from loadbayes.commands import export as _export
 from loadbayes.commands import im as _im
+from loadbayes.commands import playback as _playback
 from loadbayes.commands import recordings as _recordings
 from loadbayes.commands import report as _report
 from loadbayes.commands import reproduce as _reproduce
@@ -183,3 +184,4 @@ main.add_command(_export.export_cmd)
 main.add_command(_report.report_cmd)
 main.add_command(_example.example_cmd)
 main.add_command(_validate.validate_cmd)
+main.add_command(_playback.playback_cmd)

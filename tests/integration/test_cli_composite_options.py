@@ -86,7 +86,8 @@ def test_shares_bounded_prior_and_budget_reach_the_json(tmp_path):
     assert res.exit_code == 0, res.output
     d = json.loads(out.read_text())
     assert d["settings"]["coefficient_prior"] == {
-        "shares": "bounded", "normal": {"a4": [0.5, 0.2], "f_m": [0.5, 0.2]}
+        "shares": "bounded",
+        "normal": {"a4": [0.5, 0.2], "f_m": [0.5, 0.2]},
     }
     for name in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
         p = d["parameters"][name]

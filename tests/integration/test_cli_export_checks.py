@@ -183,3 +183,40 @@ def test_netcdf_draws_with_nan_are_refused(tmp_path, monkeypatch):
     one_line(run("p.nc", "--to", "psse", "--out", "c.raw", "--stat", "median", cwd=tmp_path,
                  monkeypatch=monkeypatch), "p.nc", "'a2'", "nan")  # fmt: skip
     assert files(tmp_path) == ["p.nc"]
+
+
+# ---------------------------------------------- issue 23: ANDES, --case NAME --bus N
+def test_andes_case_and_bus_place_the_load_in_that_case(tmp_path, monkeypatch):
+    pytest.importorskip("andes", reason="ANDES is in the optional 'andes' extra")
+    import andes
+
+    from loadbayes.export.andes.playback import load_devices
+
+    posterior_json(tmp_path / "post.json", COMPOSITE, "composite")
+    r = run("post.json", "--to", "andes", "--out", "kundur.json", "--case",
+            "kundur/kundur_full.xlsx", "--bus", 7, "--quiet", cwd=tmp_path,
+            monkeypatch=monkeypatch)  # fmt: skip
+    assert r.exit_code == 0, r.output
+    andes.config_logger(stream_level=50)
+    ss = andes.load(str(tmp_path / "kundur.json"), no_output=True, default_config=True)
+    orig = andes.load(andes.get_case("kundur/kundur_full.xlsx"), no_output=True,
+                      default_config=True, setup=False)  # fmt: skip
+    assert ss.GENROU.n == orig.GENROU.n and ss.PQ.n == orig.PQ.n + 1  # the case, plus ours
+    assert ss.PFlow.run()  # ANDES alone, with KLU: the case's _config carries linsolve
+    k = ss.Motor3.idx2uid("loadbayes_motor")
+    assert ss.Motor3.bus.v[k] == 7 and ss.Motor3.Vn.v[k] == ss.Bus.Vn.v[ss.Bus.idx2uid(7)]
+    assert 0 < ss.Motor3.slip.v[k] < 0.05  # running, not the start-up guess
+    # Playback takes our devices only, not the case's own load on bus 7.
+    dev = load_devices(tmp_path / "kundur.json")
+    assert [d["idx"] for d in dev["PQ"]] == ["loadbayes_pq"] and dev["Bus"][0]["idx"] == 7
+    # Refused in one line: no --bus, a bus the case lacks, another format, a wrong name.
+    for args, needle in (
+        (("--to", "andes", "--case", "kundur/kundur_full.xlsx"), "give --bus N"),
+        (("--to", "andes", "--case", "kundur/kundur_full.xlsx", "--bus", 77), "no bus 77"),
+        (("--to", "psse", "--case", "kundur/kundur_full.xlsx", "--bus", 7), "--to andes"),
+        (("--to", "andes", "--case", "nowhere.xlsx", "--bus", 7), "neither a file"),
+    ):
+        out = "c.raw" if "psse" in args else "c.json"
+        one_line(run("post.json", *args, "--out", out, cwd=tmp_path, monkeypatch=monkeypatch),
+                 needle)  # fmt: skip
+        assert not (tmp_path / out).exists()

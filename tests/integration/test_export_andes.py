@@ -95,7 +95,8 @@ def test_round_trip_reproduces_the_composite_prediction(composite_case):
 def test_zip_export_from_power_in_mw(tmp_path):
     out = tmp_path / "zip.json"
     values = {"a1": 0.3, "a2": 0.5, "a4": -0.2, "a5": 1.0}  # no p0, q0: from the options
-    export.write(values, out, model="zip", header=HEADER, options={"p_mw": 45.0, "q_mvar": 12})
+    options = {"p_mw": 45.0, "q_mvar": 12, "bus": 3}  # the three-bus case: a network bus
+    export.write(values, out, model="zip", header=HEADER, options=options)
     ss, rec = _faulted(out, 3, xf=0.1, t_end=0.5)
     assert ss.PQ.p0.v[0] == pytest.approx(0.45) and ss.PQ.q0.v[0] == pytest.approx(0.12)
     x = rec["v"].to_numpy() / rec["v"].iloc[0]
@@ -121,3 +122,24 @@ def test_refuses_clearly(tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):
         export.write(values, out, header=HEADER, options={}, **kwargs)
     assert not out.exists()
+
+
+def test_bases_reach_the_case_and_the_motor_draws_f_m_p0(tmp_path):
+    # A draw in per unit of an 80 MVA base, exported on ANDES's 100 MVA system base at
+    # 11 kV. Its mva_m is deliberately inconsistent (9.9, twice and more the right
+    # rating): the motor must still draw f_m x P0, the best-determined number of a fit.
+    draw = {**COMPOSITE, "p0": 0.52, "q0": 0.21, "v0": 0.98, "f_m": 0.436, "mva_m": 9.9}
+    out = tmp_path / "based.json"
+    opts = {"s_base_mva": 80.0, "vn_kv": 11.0}
+    export.write(draw, out, model="composite", header=HEADER, options=opts)
+    with andes_quiet():
+        ss = andes.load(str(out), no_output=True, default_config=True)
+        assert ss.PFlow.run()  # ANDES's own power flow, the case's _config
+    mw = 100.0  # ANDES's system base
+    assert set(ss.Bus.Vn.v) == {11.0} and ss.Motor3.Vn.v[0] == 11.0
+    assert ss.Bus.v.v[0] == pytest.approx(0.98, abs=1e-6)
+    assert ss.Motor3.p.v[0] * mw == pytest.approx(0.436 * 0.52 * 80.0, rel=1e-6)
+    assert (ss.PQ.p0.v[0] + ss.Motor3.p.v[0]) * mw == pytest.approx(0.52 * 80.0, rel=1e-6)
+    q_load = ss.PQ.q0.v[0] + ss.Motor3.q.v[0] - ss.Shunt.b.v[0] * 0.98**2
+    assert q_load * mw == pytest.approx(0.21 * 80.0, rel=1e-6)
+    assert ss.Motor3.Sn.v[0] != pytest.approx(9.9 * 80.0, rel=0.05)

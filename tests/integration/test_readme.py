@@ -32,6 +32,7 @@ SLOW = (
     "loadbayes export comp.json",
     "loadbayes simulate im",
     "loadbayes simulate andes",
+    "loadbayes playback",
 )
 
 
@@ -95,7 +96,8 @@ def test_readme_usage_runs_slow_lines(tmp_path):
     # fast test runs the rest; together they run every line).
     lines = usage_lines(README.read_text(encoding="utf-8"))
     run_lines([ln for ln in lines if ln.startswith(SLOW + ("loadbayes example",))], tmp_path)
-    for name in ("comp.json", "load.json", "load.raw", "case.xlsx", "im.json", "ev.csv"):
+    for name in ("comp.json", "load.json", "load.raw", "case.xlsx", "im.json", "ev.csv",
+                 "playback.png"):  # fmt: skip
         assert (tmp_path / name).exists(), name
 
 

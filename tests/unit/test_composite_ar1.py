@@ -63,7 +63,7 @@ def test_the_rho_step_leaves_its_conditional_invariant():
     stats = np.array([e[1:] @ e[:-1], e[:-1] @ e[:-1], e[0] ** 2, 1.0])
     grid = np.linspace(-0.999, 0.999, 20001)
     a = stats[1] - stats[2]
-    logd = -0.5 * tau * (a * grid**2 - 2 * stats[0] * grid) + 0.5 * np.log1p(-grid**2)
+    logd = -0.5 * tau * (a * grid**2 - 2 * stats[0] * grid) + 0.5 * np.log1p(-(grid**2))
     w = np.exp(logd - logd.max())
     w /= w.sum()
     mean, sd = float(grid @ w), float(np.sqrt(((grid - grid @ w) ** 2) @ w))

@@ -59,7 +59,7 @@ def test_phasor_samples_whose_window_holds_the_step_are_left_out():
     rate, start = 240.0, 0.40131
     t, v = _record(rate, start, 0.3, 0.0, phasor=True, noise=0.0005)
     fs = FitSamples.find([t], [v], window_s=1 / F_HZ)
-    (k0, k1), = fs.edges[0]
+    ((k0, k1),) = fs.edges[0]
     contaminated = _inside(t, start, start + 1 / F_HZ)
     assert contaminated <= set(range(k0 + 1, k1))
     assert fs.left_out == k1 - k0 - 1

@@ -250,8 +250,9 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
 @click.option(
     "--bus",
     type=click.IntRange(min=0),
-    help="Bus number of the load (default: 1 in PSS/E, 3 in ANDES, the one-bus net's "
-    "bus in pandapower).",
+    help="Bus number of the load (default: 1 in PSS/E; the one-bus net's bus in "
+    "pandapower; ANDES: none given, the load on bus 1 fed from an infinite bus, bus 2, "
+    "through 0.01+0.1j p.u.; given, the three-bus stand-in with the load on bus N).",
 )
 @click.option(
     "--s-base",
@@ -291,11 +292,18 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     help="PSS/E: the composite load as the WECC CMLDBLU2 record (and a PSLF CMPLDW .dyd), "
     "or as a static load plus a CIM5BL motor.",
 )
+@click.option(
+    "--case",
+    "case_in",
+    help="ANDES: a case file, or a name of ANDES's case library (kundur/kundur_full.xlsx), "
+    "to place the load in, on bus --bus.",
+)
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
-               net_file, load_index, motor_as, motor_record, quiet, force):  # fmt: skip
+               net_file, load_index, motor_as, motor_record, case_in, quiet,
+               force):  # fmt: skip
     """Write a fitted load model into pandapower, PSS/E or ANDES files.
 
     The posterior summary (mean, sd and interval of each parameter, the source and the
@@ -309,6 +317,10 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             raise click.BadParameter("must be a finite number", param_hint=name)
     if n_draws is not None and stat != "mean":
         raise UserError("give either --stat or --draws, not both")
+    if case_in is not None and fmt != "andes":
+        raise UserError("--case places the load in an ANDES case: it goes with --to andes")
+    if case_in is not None and bus is None:
+        raise UserError("--case needs the bus to put the load on: give --bus N")
     from loadbayes import export
 
     writer = export.get(fmt)
@@ -349,6 +361,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             raise UserError(f"{path}: --out would overwrite the posterior")
         if net_file and path.resolve() == Path(net_file).resolve():
             raise UserError(f"{path}: --out would overwrite the --net it starts from")
+        if case_in and path.resolve() == Path(case_in).resolve():
+            raise UserError(f"{path}: --out would overwrite the --case it starts from")
         if not path.parent.is_dir():
             raise UserError(f"{path}: folder {path.parent} does not exist")
         suffixes = (*writer.SUFFIXES, *getattr(writer, "EXTRA_SUFFIXES", ()))
@@ -361,7 +375,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
                "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
                "v0": settings.get("v0"), "f_hz": settings.get("f_hz"),
-               "motor_as": motor_as, "motor_record": motor_record}  # fmt: skip
+               "motor_as": motor_as, "motor_record": motor_record,
+               "case": case_in}  # fmt: skip
     for key in ("s_base_mva", "vn_kv", "f_hz"):
         if options[key] is None:
             options.pop(key)

@@ -1,8 +1,14 @@
 """The ANDES case of a composite load, shared by the simulation harness and the export.
 
-Three buses in a row, all at ``VN_KV``, on the system base ``base_mva``::
+Three buses in a row, all at ``VN_KV``, on the system base ``base_mva``
+(:func:`add_composite`, the harness's case and ``export --to andes --bus N``)::
 
     source (Slack: infinite bus) --z_src-- network bus --Z_FEED-- load bus
+
+or, the export's default (:func:`add_single_bus`), the load bus fed straight from the
+source through ``z_src``::
+
+    source (Slack: infinite bus, idx 2) --z_src-- load bus (idx 1)
 
 The load bus carries a ``PQ`` replaced in the time domain by a ``ZIP`` (the static part),
 a ``Motor3`` and, when ``q_c`` is not zero, a ``Shunt`` capacitor. The Slack's voltage is
@@ -27,12 +33,23 @@ from loadbayes.export.andes.conventions import motor3_fields, zip_fields
 from loadbayes.models.motor import MotorParams, steady_state
 from loadbayes.models.motor_library import motor_from_values
 
-__all__ = ["VN_KV", "Z_FEED", "CompositeCase", "add_composite"]
+__all__ = [
+    "CASE_IDS",
+    "SINGLE_LOAD_BUS",
+    "VN_KV",
+    "Z_FEED",
+    "CompositeCase",
+    "add_composite",
+    "add_single_bus",
+    "add_to_case",
+]
 
 VN_KV = 110.0
 """Nominal voltage of every bus and device (kV); equal everywhere so ANDES rescales nothing."""
 Z_FEED = complex(0.002, 0.02)
 """Feeder impedance between bus 2 and the load bus (system p.u.)."""
+SINGLE_LOAD_BUS = 1
+"""The load bus's idx in the single-bus case (the source bus is the next one)."""
 
 
 @dataclass(frozen=True)
@@ -53,6 +70,7 @@ class CompositeCase:
     mva_m: float
     base_mva: float
     z_src: complex
+    vn_kv: float = VN_KV
 
     @classmethod
     def from_values(
@@ -62,6 +80,7 @@ class CompositeCase:
         with_motor: bool,
         base_mva: float = 100.0,
         z_src: complex = complex(0.01, 0.1),
+        vn_kv: float = VN_KV,
     ) -> CompositeCase:
         """Resolve a parameter set (naming contract) into the case.
 
@@ -77,6 +96,8 @@ class CompositeCase:
             System base (MVA).
         z_src : complex
             Source impedance from the infinite bus to bus 2 (system p.u.).
+        vn_kv : float
+            Nominal voltage of every bus and device (kV).
 
         Returns
         -------
@@ -97,7 +118,7 @@ class CompositeCase:
                 raise ValueError(f"need 0 < f_m <= 1 and p0 > 0, got f_m={f_m}, p0={p0}")
             motor, t0 = motor_from_values(values), float(values["t0"])
             mva_m = f_m * p0 / steady_state(motor, v_pu=v0, t0=t0).p
-        return cls(p0, q0, v0, a_p, a_q, q_c, motor, t0, mva_m, base_mva, z_src)
+        return cls(p0, q0, v0, a_p, a_q, q_c, motor, t0, mva_m, base_mva, z_src, float(vn_kv))
 
     @property
     def motor_pq(self) -> complex:
@@ -115,15 +136,19 @@ class CompositeCase:
     @property
     def v_src(self) -> complex:
         """Infinite-bus voltage that puts the load bus at ``v0`` (Ohm's law, no shunts)."""
+        return self.source_voltage(self.z_src + Z_FEED)
+
+    def source_voltage(self, z: complex) -> complex:
+        """The voltage behind ``z`` (system p.u.) that puts the load bus at ``v0``, angle 0."""
         current = (complex(self.p0, self.q0) / self.v0).conjugate()
-        return self.v0 + (self.z_src + Z_FEED) * current
+        return self.v0 + z * current
 
     def motor3(self) -> dict[str, float]:
         """``Motor3`` parameters (:func:`loadbayes.export.andes.conventions.motor3_fields`)."""
         if self.motor is None:
             raise ValueError("a ZIP-only case has no motor")
         return motor3_fields(
-            self.motor, t0=self.t0, mva_m=self.mva_m, base_mva=self.base_mva, vn_kv=VN_KV
+            self.motor, t0=self.t0, mva_m=self.mva_m, base_mva=self.base_mva, vn_kv=self.vn_kv
         )
 
 
@@ -158,10 +183,10 @@ def add_composite(system: Any, case: CompositeCase, *, load_bus: int = 3) -> dic
     system.config.mva = base
     bus_load, bus_source, bus_net = load_bus, load_bus + 1, load_bus + 2
     for idx, name in ((bus_load, "load"), (bus_source, "source"), (bus_net, "network")):
-        system.add("Bus", {"idx": idx, "name": name, "Vn": VN_KV, "v0": case.v0})
+        system.add("Bus", {"idx": idx, "name": name, "Vn": case.vn_kv, "v0": case.v0})
     system.add(
         "Slack",
-        {"idx": 1, "bus": bus_source, "Vn": VN_KV, "Sn": base, "v0": abs(v_src),
+        {"idx": 1, "bus": bus_source, "Vn": case.vn_kv, "Sn": base, "v0": abs(v_src),
          "a0": float(np.angle(v_src))},
     )  # fmt: skip
     lines = ((bus_source, bus_net, case.z_src), (bus_net, bus_load, Z_FEED))
@@ -169,18 +194,86 @@ def add_composite(system: Any, case: CompositeCase, *, load_bus: int = 3) -> dic
         system.add(
             "Line",
             {"idx": idx, "bus1": b1, "bus2": b2, "r": z.real, "x": z.imag, "b": 0.0,
-             "Vn1": VN_KV, "Vn2": VN_KV, "Sn": base},
+             "Vn1": case.vn_kv, "Vn2": case.vn_kv, "Sn": base},
         )  # fmt: skip
+    ids: dict[str, Any] = {"load_bus": bus_load, "net_bus": bus_net}
+    return {**ids, **_add_load(system, case, bus_load)}
+
+
+def add_single_bus(system: Any, case: CompositeCase) -> dict[str, Any]:
+    """The load on bus ``SINGLE_LOAD_BUS`` fed from an infinite bus through ``case.z_src``.
+
+    The Slack (idx 1, on the source bus ``SINGLE_LOAD_BUS + 1``) sits at the voltage that
+    puts the load bus at ``v0`` with angle 0. A fault for a study goes on the load bus.
+
+    Parameters
+    ----------
+    system : andes.System
+        A system not yet set up.
+    case : CompositeCase
+        The load.
+
+    Returns
+    -------
+    dict
+        As :func:`add_composite`; ``net_bus`` is the source bus.
+    """
+    base, v_src = case.base_mva, case.source_voltage(case.z_src)
+    system.config.mva = base
+    bus_load, bus_source = SINGLE_LOAD_BUS, SINGLE_LOAD_BUS + 1
+    for idx, name in ((bus_load, "load"), (bus_source, "source")):
+        system.add("Bus", {"idx": idx, "name": name, "Vn": case.vn_kv, "v0": case.v0})
+    system.add(
+        "Slack",
+        {"idx": 1, "bus": bus_source, "Vn": case.vn_kv, "Sn": base, "v0": abs(v_src),
+         "a0": float(np.angle(v_src))},
+    )  # fmt: skip
+    system.add(
+        "Line",
+        {"idx": 1, "bus1": bus_source, "bus2": bus_load, "r": case.z_src.real,
+         "x": case.z_src.imag, "b": 0.0, "Vn1": case.vn_kv, "Vn2": case.vn_kv, "Sn": base},
+    )  # fmt: skip
+    return {"load_bus": bus_load, "net_bus": bus_source, **_add_load(system, case, bus_load)}
+
+
+#: The idx of the load's devices added to another case (``add_to_case``): named, so they
+#: cannot clash with the case's own devices and playback finds them.
+CASE_IDS = {"pq": "loadbayes_pq", "zip": "loadbayes_zip", "shunt": "loadbayes_shunt",
+            "motor": "loadbayes_motor"}  # fmt: skip
+
+
+def add_to_case(system: Any, case: CompositeCase, bus: Any) -> dict[str, Any]:
+    """Add the load's devices to bus ``bus`` of a loaded ANDES case (not set up).
+
+    The devices take the bus's ``Vn`` (``case.vn_kv`` should be it) and the idx of
+    :data:`CASE_IDS`. The case's power flow sets the bus's voltage, to which the ``ZIP``
+    refers its shares; the motor draws ``f_m p0`` at ``v0``.
+
+    Returns
+    -------
+    dict
+        As :func:`add_composite`; ``net_bus`` is None (the bus is the case's).
+    """
+    return {"load_bus": bus, "net_bus": None, **_add_load(system, case, bus, CASE_IDS)}
+
+
+def _add_load(
+    system: Any, case: CompositeCase, bus_load: Any, names: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    idx = names or {"pq": 1, "zip": 1, "shunt": 1, "motor": 1}
+    base = case.base_mva
     s_pq = case.static_pq
-    system.add("PQ", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "p0": s_pq.real, "q0": s_pq.imag})
-    system.add("ZIP", {"idx": 1, "pq": 1, **zip_fields(case.a_p, case.a_q)})
-    ids: dict[str, Any] = {"load_bus": bus_load, "net_bus": bus_net, "pq": 1, "zip": 1}
+    pq = {"idx": idx["pq"], "bus": bus_load, "Vn": case.vn_kv, "p0": s_pq.real, "q0": s_pq.imag}
+    system.add("PQ", pq)
+    system.add("ZIP", {"idx": idx["zip"], "pq": idx["pq"], **zip_fields(case.a_p, case.a_q)})
+    ids: dict[str, Any] = {"pq": idx["pq"], "zip": idx["zip"]}
     ids["shunt"] = ids["motor"] = None
     if case.q_c:
         b = case.q_c / case.v0**2
-        system.add("Shunt", {"idx": 1, "bus": bus_load, "Vn": VN_KV, "Sn": base, "b": b})
-        ids["shunt"] = 1
+        shunt = {"idx": idx["shunt"], "bus": bus_load, "Vn": case.vn_kv, "Sn": base, "b": b}
+        system.add("Shunt", shunt)
+        ids["shunt"] = idx["shunt"]
     if case.motor is not None:
-        system.add("Motor3", {"idx": 1, "bus": bus_load, **case.motor3()})
-        ids["motor"] = 1
+        system.add("Motor3", {"idx": idx["motor"], "bus": bus_load, **case.motor3()})
+        ids["motor"] = idx["motor"]
     return ids

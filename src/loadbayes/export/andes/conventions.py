@@ -16,9 +16,12 @@ In short, for ANDES 2.0's ``Motor3`` (``andes/models/motor/motorbase.py``):
   ``bb = -c2 - 2 c3``. In ``w = 1 - s`` this is
   ``c2 w^2 + (2 c3 - c2) w + (c1 + c2 - c3)`` (Milano's book has ``c3 s^2``; ANDES 2.0's
   code has ``c2 s^2``, and the maps below follow the code, checked by the tests).
-- Power flow: ANDES starts ``Motor3`` at ``slip = 1`` (standstill, for start-up studies) and
-  its Newton iteration diverges for a running motor (seen: a segfault in KLU on the NaN).
-  :func:`solve_power_flow` seeds the motor's variables at loadbayes's steady state first.
+- Power flow: ANDES starts ``Motor3`` at ``slip = 1`` (standstill, for start-up studies)
+  with ``vd = vq = Iq = 0``; ten Jacobian entries are then exactly zero and absent from
+  the pattern ANDES's default KLU factorises once, which segfaults at the next iteration
+  (docs/andes.md). With ``linsolve = 1`` (what an exported case carries) ANDES's own
+  Newton converges from there; :func:`solve_power_flow` seeds the motor's variables at
+  the steady state first and uses SciPy's solver, which raises instead of crashing.
 """
 
 from __future__ import annotations
