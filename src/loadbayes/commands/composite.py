@@ -304,15 +304,15 @@ def fit_composite_cmd(
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        names = ["p0", "q0", "f_m", "a1", "a2", "a3", "a4", "a5", "a6"]
-        names += ["rs", "x_prime", "x_open", "t_prime_s", "h_s", "t0", "mva_m", "q_c"]
-        names += [n for n in ("a", "b", "c") if torque_abc == "estimate"]
-        names += [n for n in ("nu_p", "nu_q") if n in post.draws]
-        cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
+        from loadbayes.fit.composite.table import composite_table, static_lines
+
         err = json_out == "-"  # the JSON has standard output
-        click.echo(f"composite posterior, {post.method}, {len(events)} event(s)", err=err)
-        click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"), err=err)
-        click.echo(post.extra_json["identifiability"]["summary"], err=err)
+        click.echo(composite_table(post, table, n_events=len(events),
+                                   hdi_prob=sampler.hdi_prob), err=err)  # fmt: skip
+        ident = post.extra_json["identifiability"]
+        click.echo(ident["summary"], err=err)
+        for line in static_lines(ident["static_part"], hdi_prob=sampler.hdi_prob):
+            click.echo(line, err=err)
         acc = np.round(post.settings["acceptance"], 3).tolist()
         click.echo(f"Metropolis acceptance per chain: {acc}", err=err)
 

@@ -31,6 +31,7 @@ from loadbayes.fit.composite.checks import (
 from loadbayes.fit.composite.identifiability import (
     identifiability,
     prior_driven_warning,
+    static_identifiability,
     torque_identifiability,
 )
 from loadbayes.fit.composite.naming import (
@@ -276,10 +277,15 @@ def fit_composite(
     if estimate:
         ident["torque"] = torque_identifiability(blocks.abc)
         ident["summary"] += " " + ident["torque"]["summary"]
+    # The static (ZIP) part: which shares the events fixed, and the combinations they do.
+    ident["static_part"] = static_identifiability(draws_named, events, prior=prior,
+                                                  hdi_prob=run.hdi_prob)  # fmt: skip
     post.extra_json["identifiability"] = ident
     weak = prior_driven_warning(ident)
     if weak:
         post.warnings.append(weak)
+    if ident["static_part"]["warning"]:
+        post.warnings.append(ident["static_part"]["warning"])
     post.warnings.extend(sampling_warnings(events, draws_named["t_prime_s"], steps_modelled=steps))
     watch = _WATCH + (_WATCH_TORQUE if estimate else ())
     post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))
