@@ -1,7 +1,8 @@
-"""What a user is handed after ``fit composite``: the table, the static part's verdict.
+"""What a user is handed after ``fit composite``: the table, the static part, the figure.
 
-The draws here are written in the test (no fit): the table's units and meanings, and the
-static part's determined combinations, are checked against values known by construction.
+The draws are written in the test where it matters (no fit): the table's units and
+meanings, and the static part's determined combinations, are checked against values
+known by construction; one short fit checks what the result keeps for the report.
 """
 
 from __future__ import annotations
@@ -11,8 +12,10 @@ import pytest
 
 from loadbayes.fit.composite.identifiability import static_identifiability
 from loadbayes.fit.composite.naming import QUANTITIES, describe
+from loadbayes.fit.composite.predictive import events_of, fault_times, predictive_band
 from loadbayes.fit.composite.table import TABLE_WIDTH, composite_table, static_lines
 from loadbayes.models.composite import THETA_NAMES, EventRecord
+from loadbayes.plots.composite import plot_composite_fit
 from loadbayes.posterior import Posterior
 
 #: Every name a composite fit draws (event 0 plain, event 1 suffixed, two steps each).
@@ -110,3 +113,54 @@ def test_determined_shares_give_no_warning():
     out = static_identifiability(d, [_event()])
     assert out["warning"] is None and static_lines(out) == []
     assert out["events"][0]["p"]["determined"] and out["events"][0]["q"]["determined"]
+
+
+def test_fault_times_find_a_step_and_both_ends_of_a_ramp():
+    # A step at 0.5 s (between samples), a hold, then a 0.2 s ramp back: three places
+    # to zoom on, with no fitted steps to go by (noise on V does not add any).
+    fs = 60
+    t = np.arange(0.0, 2.0, 1 / fs)
+    v = np.interp(t, [0, 0.5, 0.5 + 1e-9, 0.7, 0.9, 2.0], [1, 1, 0.7, 0.7, 1, 1])
+    v = v + np.random.default_rng(0).normal(0, 5e-4, t.size)
+    ev = EventRecord(t, v, np.ones_like(t), np.ones_like(t), None, "ramp")
+    post = Posterior({"p0": np.ones((1, 4))}, model="composite", method="x")
+    (found,) = fault_times(post, [ev])
+    assert len(found) == 3, found
+    for got, want in zip(found, (0.5, 0.7, 0.9), strict=True):
+        assert abs(got - want) <= 1.5 / fs, (got, want)
+
+
+def test_a_fit_keeps_its_recordings_and_the_figure_draws_them(tmp_path):
+    from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.fit.composite import fit_composite
+    from loadbayes.plots.fit import pyplot
+
+    ev = simulate_event("small_industrial", depth=0.3, t_end_s=1.5, fs=30, seed=0)[0]
+    fit = fit_composite([ev], draws=120, burn=60, chains=1, seed=0)
+    fit.posterior.to_netcdf(tmp_path / "c.nc")
+    back = Posterior.from_netcdf(tmp_path / "c.nc")
+    (kept,) = events_of(back)
+    for ch in ("t", "v", "p", "q"):
+        np.testing.assert_array_equal(getattr(kept, ch), getattr(ev, ch))
+    assert kept.name == ev.name
+    assert back.extra_json["identifiability"]["static_part"]["events"]
+    (band,) = predictive_band(back, [kept])
+    for ch in ("p", "q"):  # the predictive band holds the model's band and more
+        assert np.all(band[f"{ch}_pred_lo"] <= band[f"{ch}_lo"] + 1e-12)
+        assert np.all(band[f"{ch}_pred_hi"] >= band[f"{ch}_hi"] - 1e-12)
+        assert np.mean(band[f"{ch}_pred_hi"] - band[f"{ch}_pred_lo"]) > np.mean(
+            band[f"{ch}_hi"] - band[f"{ch}_lo"]
+        )
+    faults = fault_times(back, [kept])
+    fig = plot_composite_fit(back, [kept], [band], faults)
+    try:
+        n_zoom = len(faults[0])
+        assert n_zoom >= 2  # the sag's edge and its recovery
+        assert len(fig.axes) == 3 * (1 + n_zoom) + 3
+        labels = {ax.get_ylabel() for ax in fig.axes}
+        assert {"V (p.u.)", "P (p.u. system base)", "Q (p.u. system base)"} <= labels
+        assert all(ax.get_xlabel() for ax in fig.axes[-3:])
+        zooms = [ax for ax in fig.axes if ax.get_title().startswith("zoom: fault at")]
+        assert len(zooms) == n_zoom
+    finally:
+        pyplot().close(fig)

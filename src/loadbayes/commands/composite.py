@@ -269,9 +269,12 @@ def fit_composite_cmd(
         table = post.summary(hdi_prob=sampler.hdi_prob)
         text = json.dumps(post.to_dict(hdi_prob=sampler.hdi_prob, summary=table), indent=2,
                           allow_nan=False)  # fmt: skip
-    bands = None
+    bands = faults = None
     if plot_out:
+        from loadbayes.fit.composite.predictive import fault_times
+
         bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=sampler.seed)
+        faults = fault_times(post, events)
     stop_if_signalled()
     # One transaction: every output to a temporary beside its target, renamed together
     # at the end (a signal before that leaves none of them, and the message says so).
@@ -291,10 +294,10 @@ def fit_composite_cmd(
             post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             stop_if_signalled()
         if plot_out:
-            from loadbayes.plots.composite import plot_composite
+            from loadbayes.plots.composite import plot_composite_fit
             from loadbayes.plots.fit import pyplot
 
-            fig = plot_composite(post, events, bands, baseline=fit.baseline)
+            fig = plot_composite_fit(post, events, bands, faults, baseline=fit.baseline)
             target = out.temp("--plot")
             fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
                         bbox_inches="tight")  # fmt: skip

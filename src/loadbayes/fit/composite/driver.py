@@ -41,6 +41,7 @@ from loadbayes.fit.composite.naming import (
     named_draws,
 )
 from loadbayes.fit.composite.nls import NLSResult, nls
+from loadbayes.fit.composite.predictive import event_arrays
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.fit.composite.provenance import (
     METHOD,
@@ -261,7 +262,7 @@ def fit_composite(
         draws_named,
         model="composite",
         method=METHOD[move] + ("-student-t" if student_t else ""),
-        constant=constant,
+        constant={**constant, **event_arrays(events)},  # the recordings, for the report
         warnings=unit_warnings + start_warnings(events) + robust_warn,
         coefficients=coefficients,
         free=free,

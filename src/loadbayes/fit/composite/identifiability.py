@@ -331,17 +331,18 @@ def static_identifiability(
                 or max(sds) > SHARE_SD
                 or (prior_sd is not None and max(sds) > PRIOR_DRIVEN * prior_sd)
             )
+            n1, n2, n3 = (f"{n}{sfx}" for n in names)
             slope = 2 * a[0] + a[1]
             level = a[0] * x * x + a[1] * x + a[2]
             combos = [
                 {
-                    "name": f"2 {names[0]} + {names[1]}",
+                    "name": f"2 {n1} + {n2}",
                     "meaning": f"d{upper}/dV of the static {upper} at v0 (per unit of its "
                     f"initial {upper}, per unit of v0)",
                     **_interval(slope, hdi_prob),
                 },
                 {
-                    "name": f"{names[0]} x^2 + {names[1]} x + {names[2]} at x = {x:.3f}",
+                    "name": f"{n1} x^2 + {n2} x + {n3} at x = {x:.3f}",
                     "meaning": f"static {upper} at the sag's voltage {x:.3f} v0 (per unit "
                     f"of its initial {upper})",
                     **_interval(level, hdi_prob),
@@ -371,7 +372,7 @@ def static_identifiability(
                 )
                 words.append(
                     f"Event {k + 1}: the ZIP shares of the static {upper} are not determined "
-                    f"({shares}; correlation of {names[0]} and {names[1]} {r:+.3f}). What the "
+                    f"({shares}; correlation of {n1} and {n2} {r:+.3f}). What the "
                     f"event does determine: {fixed}."
                 )
         out.append(row)
