@@ -175,8 +175,9 @@ def test_the_table_says_units_and_what_one_sag_fixes_of_the_static_part(tmp_path
     _csv(tmp_path / "sag.csv", 0.3, 1)
     out = tmp_path / "o.json"
     res = _run(tmp_path / "sag.csv", "--json", out, "--draws", "400", "--burn", "200",
-               "--chains", "2")  # fmt: skip
+               "--chains", "2", "--plot", tmp_path / "c.png")  # fmt: skip
     assert res.exit_code == 0, res.output
+    assert (tmp_path / "c.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     lines = res.output.splitlines()
     head = next(i for i, ln in enumerate(lines) if ln.startswith("composite posterior"))
     assert "95% low" in lines[head + 1]

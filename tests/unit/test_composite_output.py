@@ -13,7 +13,12 @@ import pytest
 from loadbayes.fit.composite.identifiability import static_identifiability
 from loadbayes.fit.composite.naming import QUANTITIES, describe
 from loadbayes.fit.composite.predictive import events_of, fault_times, predictive_band
-from loadbayes.fit.composite.table import TABLE_WIDTH, composite_table, static_lines
+from loadbayes.fit.composite.table import (
+    TABLE_WIDTH,
+    composite_table,
+    run_lines,
+    static_lines,
+)
 from loadbayes.models.composite import THETA_NAMES, EventRecord
 from loadbayes.plots.composite import plot_composite_fit
 from loadbayes.posterior import Posterior
@@ -152,7 +157,7 @@ def test_a_fit_keeps_its_recordings_and_the_figure_draws_them(tmp_path):
             band[f"{ch}_hi"] - band[f"{ch}_lo"]
         )
     faults = fault_times(back, [kept])
-    fig = plot_composite_fit(back, [kept], [band], faults)
+    fig = plot_composite_fit(back, [kept], [band], faults, notes=run_lines(back))
     try:
         n_zoom = len(faults[0])
         assert n_zoom >= 2  # the sag's edge and its recovery
@@ -162,5 +167,21 @@ def test_a_fit_keeps_its_recordings_and_the_figure_draws_them(tmp_path):
         assert all(ax.get_xlabel() for ax in fig.axes[-3:])
         zooms = [ax for ax in fig.axes if ax.get_title().startswith("zoom: fault at")]
         assert len(zooms) == n_zoom
+        (notes,) = fig.texts  # the settings used, under the panels
+        assert "seed 0" in notes.get_text() and "1 chains x 120 iterations" in notes.get_text()
     finally:
         pyplot().close(fig)
+
+
+def test_the_settings_lines_show_the_bases_when_the_settings_hold_them():
+    st = {"files": ["a.csv", "b.csv"], "v_base_kv": 11.0, "s_base_mva": 5.0, "f_hz": 50.0,
+          "draws": 100, "burn": 50, "thin": 1, "seed": 3, "torque": [1.0, 0.0, 0.0]}  # fmt: skip
+    post = Posterior({"p0": np.ones((2, 5))}, model="composite", method="m", settings=st)
+    lines = run_lines(post)
+    assert lines[0] == "data: a.csv, b.csv"
+    assert lines[1] == "bases: v_base_kv = 11, s_base_mva = 5, f = 50 Hz"
+    assert lines[2].startswith("run: 2 chains x 100 iterations (50 burn-in, thin 1); seed 3")
+    # Without bases in the settings, no bases line but the frequency.
+    del st["v_base_kv"], st["s_base_mva"]
+    post = Posterior({"p0": np.ones((2, 5))}, model="composite", method="m", settings=st)
+    assert run_lines(post)[1] == "bases: f = 50 Hz"

@@ -281,10 +281,14 @@ def fit_composite_cmd(
             post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             stop_if_signalled()
         if plot_out:
+            from loadbayes.fit.composite.table import run_lines, static_lines
             from loadbayes.plots.composite import plot_composite_fit
             from loadbayes.plots.fit import pyplot
 
-            fig = plot_composite_fit(post, events, bands, faults, baseline=fit.baseline)
+            ident = post.extra_json["identifiability"]
+            notes = [ident["summary"], *static_lines(ident["static_part"]), *run_lines(post)]
+            fig = plot_composite_fit(post, events, bands, faults, baseline=fit.baseline,
+                                     notes=notes)  # fmt: skip
             target = out.temp("--plot")
             fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
                         bbox_inches="tight")  # fmt: skip

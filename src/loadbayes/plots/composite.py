@@ -147,6 +147,7 @@ def plot_composite_fit(
     truth: Mapping[str, float] | None = None,
     max_events: int = 3,
     max_zooms: int = 3,
+    notes: Sequence[str] = (),
 ) -> Any:
     """V(t), P(t), Q(t) of each event against the recording, with a zoom on each fault.
 
@@ -171,6 +172,9 @@ def plot_composite_fit(
         As :func:`plot_composite` (pair plots).
     max_events, max_zooms : int
         Events drawn (the first ones) and zooms per event (the first faults).
+    notes : sequence of str
+        Paragraphs printed under the panels (what the events determine, the settings
+        used), wrapped to the figure's width.
 
     Returns
     -------
@@ -180,8 +184,14 @@ def plot_composite_fit(
     n_ev = min(len(events), max_events)
     faults = [list(f)[:max_zooms] for f in (faults or [[] for _ in events])][:n_ev]
     n_zoom = max((len(f) for f in faults), default=0)
+    import textwrap
+
     ncol = max(2 + n_zoom, len(_PAIRS))
-    fig = plt.figure(figsize=(3.0 * ncol, 2.1 * (3 * n_ev + 1) + 0.6))
+    width_in = 3.0 * ncol
+    wrapped = [textwrap.fill(n, width=int(width_in * 13)) for n in notes if n]
+    text_lines = sum(w.count("\n") + 1 for w in wrapped)
+    text_in = 0.16 * text_lines + (0.3 if wrapped else 0.0)
+    fig = plt.figure(figsize=(width_in, 2.1 * (3 * n_ev + 1) + 0.6 + text_in))
     grid = fig.add_gridspec(3 * n_ev + 1, ncol)
     for k in range(n_ev):
         ev, band = events[k], None if bands is None else bands[k]
@@ -213,5 +223,12 @@ def plot_composite_fit(
     for k in range(len(_PAIRS)):
         ax = fig.add_subplot(grid[3 * n_ev, k * w_pair : (k + 1) * w_pair])
         _pair(ax, k, post, baseline, truth)
-    fig.tight_layout()
+    if wrapped:
+        # The text in its own strip at the bottom; the panels keep the rest.
+        bottom = text_in / fig.get_figheight()
+        fig.tight_layout(rect=(0, bottom, 1, 1))
+        fig.text(0.01, bottom - 0.3 / fig.get_figheight(), "\n".join(wrapped), fontsize=7.5,
+                 va="top", ha="left", family="monospace")  # fmt: skip
+    else:
+        fig.tight_layout()
     return fig

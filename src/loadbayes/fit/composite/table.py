@@ -12,7 +12,14 @@ from typing import Any
 
 from loadbayes.fit.composite.naming import TABLE_NAMES, describe, event_suffix
 
-__all__ = ["TABLE_WIDTH", "composite_table", "meaning", "static_lines", "table_names"]
+__all__ = [
+    "TABLE_WIDTH",
+    "composite_table",
+    "meaning",
+    "run_lines",
+    "static_lines",
+    "table_names",
+]
 
 #: The table's width: the composite's names and units need more than ``fit zip``'s 80.
 TABLE_WIDTH = 100
@@ -104,4 +111,32 @@ def static_lines(static: dict[str, Any], *, hdi_prob: float = 0.95) -> list[str]
             for c in part["combinations"]:
                 mid, lo, hi = (fmt_like(c[key], c["sd"]) for key in ("mean", "low", "high"))
                 lines.append(f"  {c['name']} = {mid} ({lo} to {hi}): {c['meaning']}")
+    return lines
+
+
+def run_lines(post: Any) -> list[str]:
+    """The settings a reader of the figure needs, one line each: files, bases, the run.
+
+    The bases are shown when the settings hold them (``v_base_kv``, ``s_base_mva``, or
+    the plain ``v_base``, ``s_base``).
+    """
+    st = post.settings
+    lines = []
+    files = st.get("files") or [e.get("name") for e in st.get("events") or []]
+    if files:
+        lines.append("data: " + ", ".join(map(str, files)))
+    bases = [f"{k} = {st[k]:g}" for k in ("v_base_kv", "s_base_mva", "v_base", "s_base")
+             if isinstance(st.get(k), (int, float))]  # fmt: skip
+    nominal = f"f = {st['f_hz']:g} Hz" if isinstance(st.get("f_hz"), (int, float)) else ""
+    if bases or nominal:
+        lines.append("bases: " + ", ".join([*bases, nominal] if nominal else bases))
+    run = [f"{post.n_chains} chains x {st.get('draws', '?')} iterations "
+           f"({st.get('burn', '?')} burn-in, thin {st.get('thin', 1)})",
+           f"seed {st.get('seed', '?')}", f"{st.get('likelihood', 'normal')} likelihood",
+           f"method {post.method}"]  # fmt: skip
+    torque = st.get("torque")
+    if torque is not None:
+        run.append("torque " + (torque if isinstance(torque, str)
+                                else "(" + ", ".join(f"{x:g}" for x in torque) + ")"))  # fmt: skip
+    lines.append("run: " + "; ".join(run))
     return lines
