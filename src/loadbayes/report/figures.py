@@ -76,12 +76,16 @@ def curves_figure(post: Any, *, hdi_prob: float = 0.95) -> Figure | None:
 
 
 def marginals_figure(
-    post: Any, *, hdi_prob: float = 0.95, truth: Mapping[str, float] | None = None
+    post: Any,
+    *,
+    hdi_prob: float = 0.95,
+    truth: Mapping[str, float] | None = None,
+    names: Any = None,
 ) -> Figure | None:
-    """The marginal posterior of every coefficient (derived ones included)."""
+    """The marginal posterior of every coefficient (derived ones included), or of ``names``."""
     from loadbayes.plots.fit import draw_marginal, pyplot
 
-    names = [n for n in post.coefficients if n in post.draws]
+    names = [n for n in (post.coefficients if names is None else names) if n in post.draws]
     if not names:
         return None
     plt = pyplot()

@@ -238,7 +238,9 @@ def fit_report(
         sections(page, d, post, hdi)
     _parameters_section(page, d, post, truth, flags, pct)
     if post is not None:
-        _figure_sections(page, post, hdi, truth)
+        # A composite's marginals: the rows of its summary (the JSON holds ~40 names).
+        shown = coefs if d["model"] == "composite" else None
+        _figure_sections(page, post, hdi, truth, shown)
     _correlation_section(page, d, coefs)
     _settings_section(page, d, st)
     return page.render()
@@ -289,7 +291,7 @@ def _parameters_section(page, d, post, truth, flags, pct) -> None:
     )
 
 
-def _figure_sections(page, post, hdi, truth) -> None:
+def _figure_sections(page, post, hdi, truth, names=None) -> None:
     from loadbayes.report.figures import (
         curves_figure,
         marginals_figure,
@@ -301,7 +303,7 @@ def _figure_sections(page, post, hdi, truth) -> None:
     if curve is not None:
         page.section("Load curves").figure(curve.png, curve.caption, alt=curve.alt,
                                            title=curve.title)  # fmt: skip
-    marg = marginals_figure(post, hdi_prob=hdi, truth=truth)
+    marg = marginals_figure(post, hdi_prob=hdi, truth=truth, names=names)
     if marg is not None:
         page.section("Marginal posteriors").figure(marg.png, marg.caption, alt=marg.alt,
                                                    title=marg.title)  # fmt: skip
