@@ -32,11 +32,18 @@ from loadbayes.commands.output import (
 
 __all__ = ["fit_composite_cmd"]
 
+#: ``--prior`` names -> the sampled log-parameter they set.
+_PRIOR_NAMES = {
+    "rs": "log_rs",
+    "x_prime": "log_x_prime",
+    "dx": "log_dx",
+    "t_prime_s": "log_t_prime",
+    "h_s": "log_h",
+    "t0": "log_t0",
+}
+
 
 def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
-    # The syntax here (click's message); the names from the library's list.
-    from loadbayes.fit.composite.api import PRIOR_NAMES
-
     out = {}
     for item in items:
         try:
@@ -49,15 +56,15 @@ def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
                 param_hint="--prior",
             ) from None
         name = name.strip()
-        if name not in PRIOR_NAMES:
+        if name not in _PRIOR_NAMES:
             raise click.BadParameter(
-                f"{item!r}: NAME must be one of {', '.join(PRIOR_NAMES)}", param_hint="--prior"
+                f"{item!r}: NAME must be one of {', '.join(_PRIOR_NAMES)}", param_hint="--prior"
             )
         if not (med > 0 and math.isfinite(med) and sd > 0 and math.isfinite(sd)):
             raise click.BadParameter(
                 f"{item!r}: MEDIAN and SD_LOG must be positive and finite", param_hint="--prior"
             )
-        out[name] = (med, sd)
+        out[_PRIOR_NAMES[name]] = (math.log(med), sd)
     return out
 
 
@@ -193,9 +200,10 @@ def fit_composite_cmd(
     import numpy as np
 
     from loadbayes.fit.composite import fit_composite, predictive_band
-    from loadbayes.fit.composite.api import prior_with
     from loadbayes.fit.composite.checks import check_run, check_units
     from loadbayes.measurements.events import read_events
+    from loadbayes.models.composite import THETA_NAMES
+    from loadbayes.models.composite_prior import CompositePrior
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed)  # fmt: skip
@@ -221,7 +229,13 @@ def fit_composite_cmd(
         chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
         n_params=2 * (30 + 20 * len(events)), netcdf_out=netcdf_out, quiet=quiet,
     )  # fmt: skip
-    prior = prior_with(events, prior_items)
+    prior = CompositePrior.default(events)
+    if prior_items:
+        mean, sd = prior.theta_mean.copy(), prior.theta_sd.copy()
+        for name, (m, s) in prior_items.items():
+            i = THETA_NAMES.index(name)
+            mean[i], sd[i] = m, s
+        prior = CompositePrior(mean, sd, prior.beta_sd, prior.tau_shape, prior.tau_rate)
     if not quiet:
         n = sum(e.n for e in events)
         click.echo(

@@ -126,13 +126,17 @@ def _trace(ax, ev: EventRecord, band, ch: str, window=None) -> None:
     if ch == "v":
         ax.plot(t[sel], ev.v[sel], "-", lw=0.6, color="0.6", zorder=2)
     elif band is not None:
+        # The band at its own times: the samples the fit read (a fit that leaves out the
+        # samples inside a fault's edge gives them as band["t"]).
+        tb = np.asarray(band.get("t", t))
+        sb = slice(None) if window is None else (tb >= window[0]) & (tb <= window[1])
         if f"{ch}_pred_lo" in band:
-            ax.fill_between(t[sel], band[f"{ch}_pred_lo"][sel], band[f"{ch}_pred_hi"][sel],
+            ax.fill_between(tb[sb], band[f"{ch}_pred_lo"][sb], band[f"{ch}_pred_hi"][sb],
                             color="C0", alpha=0.15, lw=0,
                             label="95% posterior predictive (noise included)")  # fmt: skip
-        ax.fill_between(t[sel], band[f"{ch}_lo"][sel], band[f"{ch}_hi"][sel], color="C0",
+        ax.fill_between(tb[sb], band[f"{ch}_lo"][sb], band[f"{ch}_hi"][sb], color="C0",
                         alpha=0.4, lw=0, label="95% band of the model")  # fmt: skip
-        ax.plot(t[sel], band[f"{ch}_mid"][sel], color="C0", lw=1.0, label="posterior median")
+        ax.plot(tb[sb], band[f"{ch}_mid"][sb], color="C0", lw=1.0, label="posterior median")
     ax.set_ylabel(_trace_label(ch), fontsize=8)
     ax.tick_params(labelsize=7)
 

@@ -34,14 +34,15 @@ def predictive_band(
     prob: float = 0.95,
     seed: int = 0,
 ) -> list[dict[str, np.ndarray]]:
-    """Posterior band of the model's P(t), Q(t) for each event, and the predictive band.
+    """Posterior band of the model's P(t), Q(t) for each event (noise not added).
 
     Returns, per event, ``p_lo, p_mid, p_hi, q_lo, q_mid, q_hi`` (the ``prob`` central
-    interval and the median of the model's P, Q over ``n_draws`` posterior draws, noise
-    not added) and ``p_pred_lo, p_pred_hi, q_pred_lo, q_pred_hi``: the ``prob``
-    posterior-predictive interval, each draw's noise added (normal with its precision
-    ``tau_p``, ``tau_q``; Student-t with its ``nu_p``, ``nu_q`` when those were sampled):
-    where a new recording of the same event would fall.
+    interval and the median over ``n_draws`` posterior draws).
+
+    And the posterior-predictive band ``p_pred_lo, p_pred_hi, q_pred_lo, q_pred_hi``:
+    the ``prob`` interval with each draw's noise added (normal with its precision
+    ``tau_p``, ``tau_q``; Student-t with its ``nu_p``, ``nu_q`` when those were
+    sampled), where a new recording of the same event would fall.
     """
     rng = np.random.default_rng(seed)
     theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
