@@ -1,7 +1,10 @@
 """The composite fit's posterior band of P(t), Q(t) for each event, and the events it keeps.
 
-:func:`predictive_band` plays posterior draws through each event (the model's band, and
-the posterior-predictive band with the noise added); :func:`event_arrays` stores the
+:func:`predictive_band` plays posterior draws through each event: the model's band
+(``p_lo, p_mid, p_hi``, ...) and the posterior-predictive band ``p_pred_lo, p_pred_hi,
+q_pred_lo, q_pred_hi`` (each draw's noise added: normal with its precision ``tau_p``,
+``tau_q``, Student-t with its ``nu_p``, ``nu_q`` when sampled), where a new recording of
+the same event would fall; :func:`event_arrays` stores the
 recordings in the result (the NetCDF's ``constant_data``) so that the report can draw
 them again, and :func:`events_of` reads them back; :func:`fault_times` says where each
 event's voltage moved fast (the figure's zooms).
@@ -38,11 +41,6 @@ def predictive_band(
 
     Returns, per event, ``p_lo, p_mid, p_hi, q_lo, q_mid, q_hi`` (the ``prob`` central
     interval and the median over ``n_draws`` posterior draws).
-
-    And the posterior-predictive band ``p_pred_lo, p_pred_hi, q_pred_lo, q_pred_hi``:
-    the ``prob`` interval with each draw's noise added (normal with its precision
-    ``tau_p``, ``tau_q``; Student-t with its ``nu_p``, ``nu_q`` when those were
-    sampled), where a new recording of the same event would fall.
     """
     rng = np.random.default_rng(seed)
     theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
