@@ -65,9 +65,9 @@ def sections(page: Any, d: Mapping[str, Any], post: Any, hdi: float) -> None:
             items = "".join(f"<li>{e(line.strip())}</li>" for line in lines)
             sec.add(
                 "<div class='warn'><b>Static (ZIP) part: its shares are not determined.</b> "
-                "One sag shows the static part at two voltages only; the shares trade off, "
-                "and the reported a1..a6 are not physical values to export. What the events "
-                f"do fix:<ul>{items}</ul></div>"
+                "One sag shows the static part at two voltages only; the shares trade off "
+                "along a line, and the reported a1..a6 are not what the data determine. What "
+                f"the events do fix:<ul>{items}</ul></div>"
             )
         else:
             sec.add(f"<p class='ok'><b>Static (ZIP) part.</b> {e(static['summary'])}</p>")

@@ -381,10 +381,11 @@ def static_identifiability(
         warning = (
             "the static (ZIP) part is not determined for "
             + ", ".join(weak)
-            + ": one sag shows it at two voltages only, so its shares trade off and the "
-            "reported a1..a6 are not physical values to export; the combinations the data "
-            "do fix are listed under identifiability.static_part (a deeper or second sag, "
-            "or a prior on the shares, would separate them)"
+            + ": one sag shows it at two voltages only, so its shares trade off along a line "
+            "and the reported a1..a6 are not what the data determine (a point on that line, "
+            "or the prior's); the combinations the data do fix are listed under "
+            "identifiability.static_part (a deeper or second sag, or a prior on the shares, "
+            "would separate them)"
         )
         summary = " ".join(words)
     else:
