@@ -220,8 +220,10 @@ def fit_composite_cmd(
         s_base=s_base,
         f_hz=f_hz,
     )
-    # Before the prior reads v0, p0.
+    # Named by the data's own columns (--v-col ...); the base check below then passes.
     check_units(events, accept_units=accept_units, columns={"v": v_col, "p": p_col, "q": q_col})
+
+    check_units(events, accept_units=accept_units)  # before the prior reads v0, p0
     # Stored per kept draw (an upper bound): the named draws of the motor, torque and
     # noise (~30), each event's 7 coefficients and its derived shares and powers, the
     # steps' fractions (at most 2 per event), the raw blocks kept alongside.
