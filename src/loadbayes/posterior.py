@@ -330,6 +330,8 @@ class Posterior:
             "settings": json.dumps(self.settings, default=_json_default),
             "warnings": json.dumps(self.warnings),
         }
+        if self.extra_json:  # the JSON's extra sections (a composite's identifiability)
+            attrs["extra_json"] = json.dumps(self.extra_json, default=_json_default)
         units = channel_units(self)
         for key in ("data", "v_base", "s_base", "time_start", "time_end", "time_column"):
             if self.settings.get(key) is not None:
@@ -437,7 +439,7 @@ class Posterior:
                 **{k: constant.pop(k) for k in _INPUTS if k in constant},
                 **(observed or {}),
             }
-        return cls(
+        out = cls(
             draws,
             model=str(attrs.get("model", "unknown")),
             method=str(attrs.get("method", "unknown")),
@@ -451,6 +453,8 @@ class Posterior:
             },
             warnings=json.loads(attrs.get("warnings", "[]")),
         )
+        out.extra_json = json.loads(attrs.get("extra_json", "{}"))
+        return out
 
     @classmethod
     def from_netcdf(cls, path: str | Path) -> Posterior:

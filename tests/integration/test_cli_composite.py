@@ -167,3 +167,26 @@ def test_bad_options(tmp_path):
     assert res.exit_code == 2 and "A + B + C" in res.output
     res = _run(tmp_path / "ok.csv", "--json", tmp_path / "o.json", "--prior", "xx=1,1")
     assert res.exit_code == 2 and "NAME must be one of" in res.output
+
+
+def test_the_table_says_units_and_what_one_sag_fixes_of_the_static_part(tmp_path):
+    # One sag shows the static part at two voltages: the table carries a unit on every
+    # row, and the undetermined ZIP shares are said with the combinations that are fixed.
+    _csv(tmp_path / "sag.csv", 0.3, 1)
+    out = tmp_path / "o.json"
+    res = _run(tmp_path / "sag.csv", "--json", out, "--draws", "400", "--burn", "200",
+               "--chains", "2", "--plot", tmp_path / "c.png")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "c.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    lines = res.output.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("composite posterior"))
+    assert "95% low" in lines[head + 1]
+    rows = {ln.split()[0]: ln for ln in lines[head + 2 : head + 20] if ln.endswith("]")}
+    assert rows["t_prime_s"].endswith("[s]") and rows["x_prime"].endswith("[p.u. motor base]")
+    assert rows["p0"].endswith("[p.u. system base]") and rows["f_m"].endswith("[-]")
+    static = json.loads(out.read_text())["identifiability"]["static_part"]
+    p = static["events"][0]["p"]
+    assert not p["determined"] and p["correlation"] < -0.9
+    assert any(ln.startswith("static P of event 1") for ln in lines)
+    assert any(ln.startswith("  2 a1 + a2 = ") for ln in lines)
+    assert "the static (ZIP) part is not determined for P of" in res.output

@@ -87,7 +87,7 @@ def test_a_signal_while_writing_leaves_no_output_and_says_so(tmp_path, monkeypat
         assert any(p.name.startswith(".c.json.") for p in tmp_path.iterdir())  # temporaries
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(plots, "plot_composite", interrupted)
+    monkeypatch.setattr(plots, "plot_composite_fit", interrupted)  # what --plot draws
     outs = ["--json", "c.json", "--baseline-json", "b.json", "--netcdf", "c.nc",
             "--plot", "c.png"]  # fmt: skip
     args = ["fit", "composite", str(tmp_path / "sag.csv"),

@@ -258,6 +258,51 @@ def test_report_in_a_headless_browser(report, tmp_path):
         b.close()
 
 
+def test_composite_report_shows_the_recordings_units_and_what_is_determined(tmp_path):
+    """A composite fit's report (issue 21): V, P, Q against the recording with the band and
+    the zooms, units on every row, the identifiability text and the settings used."""
+    import numpy as np
+    import pandas as pd
+
+    exe = _chromium()
+    # A sag written here (not the package's simulator): a static load plus a first-order
+    # lag that stands in for a motor's recovering current; the report checks the page.
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 2.0, 1 / 60)
+    v = np.where((t >= 0.5) & (t < 0.7), 0.7, 1.0)
+    lag = np.where(t >= 0.5, np.exp(-np.clip(t - 0.5, 0, None) / 0.15), 0.0) * (t < 0.7)
+    p = 0.5 * v**2 + 0.5 * (1 - 0.6 * lag) + rng.normal(0, 0.005, t.size)
+    q = 0.2 * v**2 + 0.1 + 0.3 * lag + rng.normal(0, 0.005, t.size)
+    pd.DataFrame({"t_s": t, "v": v, "p": p, "q": q}).to_csv(tmp_path / "sag.csv", index=False)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    for args in (
+        ["fit", "composite", "sag.csv", "--draws", "400", "--burn", "200", "--chains", "2",
+         "--json", "c.json", "--netcdf", "c.nc", "--quiet"],
+        ["report", "c.nc", "--out", "c.html", "--quiet"],
+    ):  # fmt: skip
+        res = subprocess.run([*EXE, *args], cwd=tmp_path, env=env, capture_output=True,
+                             text=True, timeout=600)  # fmt: skip
+        assert res.returncode == 0, res.stderr
+    b = Browser(exe, tmp_path / "profile")
+    try:
+        _open(b, tmp_path / "c.html")
+        assert b.evaluate("document.title").startswith("Composite load model")
+        assert b.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
+        tables = b.evaluate(OVERFLOW_JS)
+        assert all(t["over"] <= 0 and t["right"] <= 0 for t in tables), tables
+        figs = b.evaluate(FIGURES_JS)
+        assert len(figs) >= 2 and all(f["loaded"] and f["caption"] > 40 for f in figs), figs
+        heads = b.evaluate("Array.from(document.querySelectorAll('h2')).map(h => h.textContent)")
+        assert any("Fit to the recordings" in h for h in heads), heads
+        assert any("What the events determine" in h for h in heads), heads
+        text = b.evaluate("document.body.innerText")
+        assert "transient time constant T' [s]" in text  # the summary's meaning and unit
+        assert "Static (ZIP) part" in text and "posterior-predictive" in text
+        assert "sag.csv" in text and "seed" in text  # the settings used
+    finally:
+        b.close()
+
+
 def _open(b: Browser, path: Path, width: int = 1280) -> None:
     target = b.send("Target.createTarget", {"url": "about:blank"})["targetId"]
     b.session = b.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]

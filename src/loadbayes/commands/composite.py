@@ -285,6 +285,9 @@ def fit_composite_cmd(
         s_base=s_base,
         f_hz=f_hz,
     )
+    # Named by the data's own columns (--v-col ...); the base check below then passes.
+    check_units(events, accept_units=accept_units, columns={"v": v_col, "p": p_col, "q": q_col})
+
     check_units(events, accept_units=accept_units)  # before the prior reads v0, p0
     bases_note = None
     if v_base is None and s_base is None:
@@ -363,9 +366,12 @@ def fit_composite_cmd(
         table = post.summary(hdi_prob=sampler.hdi_prob)
         text = json.dumps(post.to_dict(hdi_prob=sampler.hdi_prob, summary=table), indent=2,
                           allow_nan=False)  # fmt: skip
-    bands = None
+    bands = faults = None
     if plot_out:
+        from loadbayes.fit.composite.predictive import fault_times
+
         bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=sampler.seed)
+        faults = fault_times(post, events)
     stop_if_signalled()
     # One transaction: every output to a temporary beside its target, renamed together
     # at the end (a signal before that leaves none of them, and the message says so).
@@ -385,10 +391,14 @@ def fit_composite_cmd(
             post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             stop_if_signalled()
         if plot_out:
-            from loadbayes.plots.composite import plot_composite
+            from loadbayes.fit.composite.table import run_lines, static_lines
+            from loadbayes.plots.composite import plot_composite_fit
             from loadbayes.plots.fit import pyplot
 
-            fig = plot_composite(post, events, bands, baseline=fit.baseline)
+            ident = post.extra_json["identifiability"]
+            notes = [ident["summary"], *static_lines(ident["static_part"]), *run_lines(post)]
+            fig = plot_composite_fit(post, events, bands, faults, baseline=fit.baseline,
+                                     notes=notes)  # fmt: skip
             target = out.temp("--plot")
             fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
                         bbox_inches="tight")  # fmt: skip
@@ -398,15 +408,15 @@ def fit_composite_cmd(
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        names = ["p0", "q0", "f_m", "a1", "a2", "a3", "a4", "a5", "a6"]
-        names += ["rs", "x_prime", "x_open", "t_prime_s", "h_s", "t0", "mva_m", "q_c"]
-        names += [n for n in ("a", "b", "c") if torque_abc == "estimate"]
-        names += [n for n in ("nu_p", "nu_q") if n in post.draws]
-        cols = ["mean", "sd", "hdi_low", "hdi_high", "ess_bulk", "r_hat"]
+        from loadbayes.fit.composite.table import composite_table, static_lines
+
         err = json_out == "-"  # the JSON has standard output
-        click.echo(f"composite posterior, {post.method}, {len(events)} event(s)", err=err)
-        click.echo(table.loc[names, cols].to_string(float_format=lambda x: f"{x:.5g}"), err=err)
-        click.echo(post.extra_json["identifiability"]["summary"], err=err)
+        click.echo(composite_table(post, table, n_events=len(events),
+                                   hdi_prob=sampler.hdi_prob), err=err)  # fmt: skip
+        ident = post.extra_json["identifiability"]
+        click.echo(ident["summary"], err=err)
+        for line in static_lines(ident["static_part"], hdi_prob=sampler.hdi_prob):
+            click.echo(line, err=err)
         acc = np.round(post.settings["acceptance"], 3).tolist()
         click.echo(f"Metropolis acceptance per chain: {acc}", err=err)
 

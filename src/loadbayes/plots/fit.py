@@ -69,6 +69,12 @@ def _ticks(ax: Any) -> None:
 
 def label(name: str, post: Posterior) -> str:
     """Axis label of a parameter: its name and unit."""
+    if post.model == "composite":  # the composite's units live with its names
+        from loadbayes.fit.composite.naming import describe
+
+        unit = describe(name)[0]
+        if unit:
+            return f"{name} [{unit}]"
     return f"{name} [{param_unit(name, post)}]"
 
 

@@ -13,7 +13,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Figure", "curves_figure", "marginals_figure", "pairs_figure", "png", "traces_figure"]
+__all__ = [
+    "Figure",
+    "composite_fit_figure",
+    "curves_figure",
+    "marginals_figure",
+    "pairs_figure",
+    "png",
+    "traces_figure",
+]
 
 #: Pixels per inch of the report's figures: 1100 px wide at 11 in.
 DPI = 100
@@ -68,12 +76,16 @@ def curves_figure(post: Any, *, hdi_prob: float = 0.95) -> Figure | None:
 
 
 def marginals_figure(
-    post: Any, *, hdi_prob: float = 0.95, truth: Mapping[str, float] | None = None
+    post: Any,
+    *,
+    hdi_prob: float = 0.95,
+    truth: Mapping[str, float] | None = None,
+    names: Any = None,
 ) -> Figure | None:
-    """The marginal posterior of every coefficient (derived ones included)."""
+    """The marginal posterior of every coefficient (derived ones included), or of ``names``."""
     from loadbayes.plots.fit import draw_marginal, pyplot
 
-    names = [n for n in post.coefficients if n in post.draws]
+    names = [n for n in (post.coefficients if names is None else names) if n in post.draws]
     if not names:
         return None
     plt = pyplot()
@@ -145,4 +157,39 @@ def traces_figure(post: Any, *, max_params: int = 6) -> Figure | None:
         "Chains that overlap with no trend or stuck stretch have mixed; R-hat and ESS in the "
         "parameter table say the same in numbers.",
         "Trace plots of " + ", ".join(names) + f" for {post.n_chains} chains.",
+    )
+
+
+def composite_fit_figure(post: Any, *, hdi_prob: float = 0.95, seed: int = 0) -> Figure | None:
+    """A composite fit's V(t), P(t), Q(t) against the recordings, with a zoom on each fault.
+
+    None when the result keeps no recordings (written before they were kept).
+    """
+    from loadbayes.fit.composite.predictive import events_of, fault_times, predictive_band
+    from loadbayes.plots.composite import plot_composite_fit
+
+    events = events_of(post)
+    if not events:
+        return None
+    torque = post.settings.get("torque", [1.0, 0.0, 0.0])
+    f_hz = float(post.settings.get("f_hz", 60.0))
+    # Estimated shares are in the draws (predictive_band reads them there).
+    fixed = (1.0, 0.0, 0.0) if isinstance(torque, str) else tuple(torque)
+    bands = predictive_band(post, events, f_hz=f_hz, torque=fixed, prob=hdi_prob, seed=seed)
+    faults = fault_times(post, events)
+    fig = plot_composite_fit(post, events, bands, faults)
+    shown = min(len(events), 3)
+    pct = f"{hdi_prob:.0%}"
+    return Figure(
+        "Fit to the recordings",
+        png(fig),
+        f"Each event's V(t), P(t), Q(t) (V in p.u., P and Q in p.u. of the system base; t in "
+        f"s), {shown} of {len(events)} event(s), with a zoom on each fault (dotted line: a "
+        "fitted step or a place where the voltage starts or stops moving). Dots: the "
+        f"recording; dark band: {pct} interval of the model's P, Q over 200 posterior "
+        f"draws; light band: {pct} posterior-predictive interval (each draw's noise "
+        "added), where about 1 in 20 samples should fall outside if the model and its noise "
+        "are right; line: posterior median. Bottom row: pairs of motor parameters.",
+        "Measured voltage, active and reactive power of each event over time, with the "
+        "fitted composite load's bands and zooms on the faults.",
     )

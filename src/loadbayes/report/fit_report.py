@@ -27,6 +27,7 @@ MODEL_NAMES = {
     "zip": "ZIP load model",
     "exp": "exponential load model",
     "im": "third-order induction motor",
+    "composite": "composite load model (ZIP + induction motor)",
 }
 
 #: R-hat above which chains are said not to agree; bulk ESS below which draws are few.
@@ -70,8 +71,11 @@ def _what(d: Mapping[str, Any]) -> str:
     chans = "P and Q" if any(k in d["parameters"] for k in ("a4", "nq", "tau_q")) else "P"
     if d["model"] == "im":
         chans = "flux, speed and current equations"
-    data = st.get("data")
+    data = st.get("data") or ", ".join(map(str, st.get("files") or [])) or None
     src = f" of {data}" if data and data not in ("DataFrame", "mapping") else ""
+    if d["model"] == "composite":
+        n_ev = len(st.get("events") or [])
+        src = f" of {n_ev} event(s)" + (f" ({data})" if data else "")
     span = ""
     if st.get("time_start"):
         span = f", from {st['time_start']} to {st['time_end']}"
@@ -101,6 +105,14 @@ def _verdict(d: Mapping[str, Any]) -> tuple[bool, str]:
         f"(at least {ESS_LIMIT} wanted)"
     )
     return ok, ("Chains agree: " if ok else "Chains may not have converged: ") + text + "."
+
+
+def _meaning(d: Mapping[str, Any], name: str, *, with_unit: bool = False) -> str:
+    if d["model"] == "composite":
+        from loadbayes.report.composite import meaning
+
+        return meaning(name, with_unit=with_unit)
+    return DESCRIPTIONS.get(name, "")
 
 
 def _truth_flags(d: Mapping[str, Any], truth: Mapping[str, float]) -> dict[str, bool]:
@@ -171,6 +183,10 @@ def fit_report(
     coefs = [n for n in d["parameters"] if not n.startswith("tau")]
     if post is not None:
         coefs = [n for n in post.coefficients if n in d["parameters"]]
+    if d["model"] == "composite":  # the rows the CLI prints (the JSON has them all)
+        from loadbayes.report.composite import headline_names
+
+        coefs = headline_names(d)
 
     # -------------------------------------------------------------- summary
     e = html.escape
@@ -179,7 +195,7 @@ def fit_report(
     for n in coefs:
         p = d["parameters"][n]
         lo, hi = fmt_like(p["hdi_low"], p["sd"]), fmt_like(p["hdi_high"], p["sd"])
-        row = [n, DESCRIPTIONS.get(n, ""), fmt_like(p["mean"], p["sd"]), f"{lo} to {hi}"]
+        row = [n, _meaning(d, n, with_unit=True), fmt_like(p["mean"], p["sd"]), f"{lo} to {hi}"]
         if truth:
             row += [fmt(truth[n]) if n in truth else "", _flag_text(flags.get(n))]
         head_rows.append(row)
@@ -216,9 +232,15 @@ def fit_report(
     page.summary("".join(summary))
 
     # ----------------------------------------------------------- sections
+    if d["model"] == "composite":
+        from loadbayes.report.composite import sections
+
+        sections(page, d, post, hdi)
     _parameters_section(page, d, post, truth, flags, pct)
     if post is not None:
-        _figure_sections(page, post, hdi, truth)
+        # A composite's marginals: the rows of its summary (the JSON holds ~40 names).
+        shown = coefs if d["model"] == "composite" else None
+        _figure_sections(page, post, hdi, truth, shown)
     _correlation_section(page, d, coefs)
     _settings_section(page, d, st)
     return page.render()
@@ -245,7 +267,11 @@ def _parameters_section(page, d, post, truth, flags, pct) -> None:
     for n in names:
         p = d["parameters"][n]
         unit = param_unit(n, post) if post is not None else ""
-        row = [n, DESCRIPTIONS.get(n, ""), unit, fmt_like(p["mean"], p["sd"]), fmt(p["sd"], 2),
+        if d["model"] == "composite":
+            from loadbayes.report.composite import unit as composite_unit
+
+            unit = composite_unit(n)
+        row = [n, _meaning(d, n), unit, fmt_like(p["mean"], p["sd"]), fmt(p["sd"], 2),
                fmt_like(p["hdi_low"], p["sd"]), fmt_like(p["hdi_high"], p["sd"]),
                "–" if p.get("ess_bulk") is None else f"{p['ess_bulk']:,.0f}",
                "–" if p.get("r_hat") is None else f"{p['r_hat']:.3f}"]  # fmt: skip
@@ -265,7 +291,7 @@ def _parameters_section(page, d, post, truth, flags, pct) -> None:
     )
 
 
-def _figure_sections(page, post, hdi, truth) -> None:
+def _figure_sections(page, post, hdi, truth, names=None) -> None:
     from loadbayes.report.figures import (
         curves_figure,
         marginals_figure,
@@ -277,7 +303,7 @@ def _figure_sections(page, post, hdi, truth) -> None:
     if curve is not None:
         page.section("Load curves").figure(curve.png, curve.caption, alt=curve.alt,
                                            title=curve.title)  # fmt: skip
-    marg = marginals_figure(post, hdi_prob=hdi, truth=truth)
+    marg = marginals_figure(post, hdi_prob=hdi, truth=truth, names=names)
     if marg is not None:
         page.section("Marginal posteriors").figure(marg.png, marg.caption, alt=marg.alt,
                                                    title=marg.title)  # fmt: skip
@@ -316,7 +342,23 @@ def _correlation_section(page, d, coefs) -> None:
 
 def _settings_section(page, d, st) -> None:
     sec = page.section("Settings")
-    keep = {
+    if d["model"] == "composite":
+        from loadbayes.report.composite import settings
+
+        keep = settings(d, st)
+    else:
+        keep = _linear_settings(d, st)
+    items = "".join(
+        f"<dt>{html.escape(k)}</dt><dd>{html.escape(_plain(v))}</dd>"
+        for k, v in keep.items()
+        if v is not None and v != "None / None"
+    )
+    sec.add(f"<dl class='settings'>{items}</dl>")
+    sec.text("Every setting, the priors included, is in the JSON result under 'settings'.")
+
+
+def _linear_settings(d, st) -> dict[str, Any]:
+    return {
         "data": st.get("data"),
         "columns": st.get("columns"),
         "v_base / s_base": f"{st.get('v_base')} / {st.get('s_base')}",
@@ -328,13 +370,6 @@ def _settings_section(page, d, st) -> None:
         "rows dropped": st.get("n_dropped"),
         "time span": f"{st['time_start']} to {st['time_end']}" if st.get("time_start") else None,
     }
-    items = "".join(
-        f"<dt>{html.escape(k)}</dt><dd>{html.escape(_plain(v))}</dd>"
-        for k, v in keep.items()
-        if v is not None and v != "None / None"
-    )
-    sec.add(f"<dl class='settings'>{items}</dl>")
-    sec.text("Every setting, the priors included, is in the JSON result under 'settings'.")
 
 
 def _plain(v: Any) -> str:

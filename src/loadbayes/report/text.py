@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -112,9 +113,20 @@ def fmt_like(x: Any, sd: Any) -> str:
     return f"{round(x, decimals):,.0f}"
 
 
-def summary_rows(post: Any, *, hdi_prob: float = 0.95, summary: Any = None) -> list[dict]:
-    """One dict per parameter: name, mean, sd, HDI, ESS, R-hat as formatted strings."""
+def summary_rows(
+    post: Any,
+    *,
+    hdi_prob: float = 0.95,
+    summary: Any = None,
+    describe: Callable[[str], str] | None = None,
+) -> list[dict]:
+    """One dict per parameter: name, mean, sd, HDI, ESS, R-hat as formatted strings.
+
+    ``describe`` gives a name's meaning (default :data:`DESCRIPTIONS`); the rows are
+    those of ``summary`` (all parameters when it is None).
+    """
     s = post.summary(hdi_prob=hdi_prob) if summary is None else summary
+    what = describe or (lambda name: DESCRIPTIONS.get(name, ""))
     rows = []
     for name, r in s.iterrows():
         ess = r.get("ess_bulk", float("nan"))
@@ -128,7 +140,7 @@ def summary_rows(post: Any, *, hdi_prob: float = 0.95, summary: Any = None) -> l
                 "high": fmt_like(r["hdi_high"], r["sd"]),
                 "ess": f"{ess:,.0f}" if np.isfinite(ess) else "–",
                 "r_hat": f"{rhat:.3f}" if np.isfinite(rhat) else "–",
-                "what": DESCRIPTIONS.get(str(name), ""),
+                "what": what(str(name)),
             }
         )
     return rows
@@ -146,7 +158,13 @@ def headline(post: Any) -> str:
 
 
 def summary_table(
-    post: Any, *, hdi_prob: float = 0.95, summary: Any = None, width: int = 80
+    post: Any,
+    *,
+    hdi_prob: float = 0.95,
+    summary: Any = None,
+    width: int = 80,
+    describe: Callable[[str], str] | None = None,
+    title: str | None = None,
 ) -> str:
     """The table ``loadbayes fit`` prints: one row a parameter, at most ``width`` columns.
 
@@ -159,9 +177,14 @@ def summary_table(
     summary : DataFrame, optional
         A :meth:`Posterior.summary` already computed (the costly part).
     width : int
-        Longest line; the description column is cut to fit.
+        Longest line; the description column is cut to fit (a unit at its end, in
+        square brackets, is kept whole).
+    describe : callable, optional
+        A name's meaning (default :data:`DESCRIPTIONS`).
+    title : str, optional
+        The first line (default :func:`headline`).
     """
-    rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary)
+    rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary, describe=describe)
     pct = f"{hdi_prob:.0%}"
     head = {"name": "", "mean": "mean", "sd": "sd", "low": f"{pct} low", "high": f"{pct} high",
             "ess": "ESS", "r_hat": "R-hat"}  # fmt: skip
@@ -175,13 +198,24 @@ def summary_table(
         text = "  ".join(cells)
         room = width - len(text) - 2
         if what and room >= 8:
-            text += "  " + (what if len(what) <= room else what[: room - 1] + "…")
+            text += "  " + _cut(what, room)
         return text[:width]
 
-    lines.append(_wrap(headline(post), width))
+    lines.append(_wrap(headline(post) if title is None else title, width))
     lines.append(line(head))
     lines.extend(line(r, r["what"]) for r in rows)
     return "\n".join(lines)
+
+
+def _cut(what: str, room: int) -> str:
+    # Cut the words, keep a trailing unit "[...]" whole when it fits.
+    if len(what) <= room:
+        return what
+    words, sep, unit = what.rpartition(" [")
+    if sep and len(unit) + 3 < room - 4:
+        unit = sep + unit
+        return words[: room - len(unit) - 1] + "…" + unit
+    return what[: room - 1] + "…"
 
 
 def _wrap(text: str, width: int) -> str:

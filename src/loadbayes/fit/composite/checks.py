@@ -87,8 +87,16 @@ def check_run(
         )
 
 
-def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) -> list[str]:
+def check_units(
+    events: Sequence[EventRecord],
+    *,
+    accept_units: bool = False,
+    columns: dict[str, str] | None = None,
+) -> list[str]:
     """The unit check of ``fit zip``, per event: V per unit, P and Q of a sensible size.
+
+    ``columns`` maps ``v``, ``p``, ``q`` to the data's own column names (the ones a
+    message names; default the short names).
 
     The composite's nominal powers are estimated (``p0``, ``q0`` per event), so P and Q
     are checked as ``fit zip --p0 auto`` checks them; a negative median P (a load that
@@ -107,6 +115,7 @@ def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) ->
     from loadbayes.io.errors import DataError
     from loadbayes.measurements.units import ACCEPT, UnitProblem, check_power_units
 
+    names = {"v": "v", "p": "p", "q": "q", **(columns or {})}
     out: list[str] = []
     for e in events:
         problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto")
@@ -124,9 +133,10 @@ def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) ->
             continue
         if not accept_units:
             first = problems[0]
-            raise DataError(str(first), path=e.name or None, column=first.column)
-        out += [f"{e.name or 'event'}: column '{pr.column}': {pr.seen} (fitted anyway: "
-                f"{ACCEPT})" for pr in problems]  # fmt: skip
+            column = names.get(first.column, first.column)
+            raise DataError(str(first), path=e.name or None, column=column)
+        out += [f"{e.name or 'event'}: column '{names.get(pr.column, pr.column)}': {pr.seen} "
+                f"(fitted anyway: {ACCEPT})" for pr in problems]  # fmt: skip
     return out
 
 

@@ -32,6 +32,7 @@ from loadbayes.fit.composite.checks import (
 from loadbayes.fit.composite.identifiability import (
     identifiability,
     prior_driven_warning,
+    static_identifiability,
     torque_identifiability,
 )
 from loadbayes.fit.composite.naming import (
@@ -41,6 +42,7 @@ from loadbayes.fit.composite.naming import (
     named_draws,
 )
 from loadbayes.fit.composite.nls import NLSResult, nls
+from loadbayes.fit.composite.predictive import event_arrays
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.fit.composite.provenance import (
     METHOD,
@@ -418,7 +420,7 @@ def fit_composite(
         draws_named,
         model="composite",
         method=METHOD[move] + ("-student-t" if student_t else ""),
-        constant=constant,
+        constant={**constant, **event_arrays(events)},  # the recordings, for the report
         warnings=unit_warnings + start_warnings(events) + robust_warn,
         coefficients=coefficients,
         free=free,
@@ -434,10 +436,15 @@ def fit_composite(
     if estimate:
         ident["torque"] = torque_identifiability(blocks.abc)
         ident["summary"] += " " + ident["torque"]["summary"]
+    # The static (ZIP) part: which shares the events fixed, and the combinations they do.
+    ident["static_part"] = static_identifiability(draws_named, events, prior=prior,
+                                                  hdi_prob=run.hdi_prob)  # fmt: skip
     post.extra_json["identifiability"] = ident
     weak = prior_driven_warning(ident)
     if weak:
         post.warnings.append(weak)
+    if ident["static_part"]["warning"]:
+        post.warnings.append(ident["static_part"]["warning"])
     post.warnings.extend(sampling_warnings(events, draws_named["t_prime_s"], steps_modelled=steps))
     watch = _WATCH + (_WATCH_TORQUE if estimate else ())
     post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))

@@ -24,7 +24,10 @@ __all__ = [
     "RIDGE_CORR",
     "identifiability",
     "prior_driven_warning",
+    "SHARE_SD",
+    "STATIC_CORR",
     "short_window",
+    "static_identifiability",
     "torque_identifiability",
 ]
 
@@ -45,6 +48,10 @@ PRIOR_DRIVEN, DETERMINED = 0.7, 0.3
 RIDGE_CORR = 0.9
 #: Posterior sd of the motor share f_m below which it is "well determined".
 MOTOR_SHARE_SD = 0.1
+#: The ZIP shares of one channel are "not determined" when the posterior correlation of
+#: the impedance and current shares is below ``STATIC_CORR``, when a share's sd exceeds
+#: ``SHARE_SD``, or when it exceeds ``PRIOR_DRIVEN`` times the prior's sd of the share.
+STATIC_CORR, SHARE_SD = -0.9, 0.3
 
 
 def identifiability(
@@ -246,3 +253,150 @@ def torque_identifiability(abc: np.ndarray) -> dict:
         means = ", ".join(f"{n.upper()} = {v['mean']:.2f}" for n, v in out.items())
         words.append(f"The event informs the torque shares ({means}).")
     return {"shares": out, "prior": "Dirichlet(1, 1, 1)", "summary": " ".join(words)}
+
+
+#: Per channel: the shares (impedance, current, power) and the words of the channel.
+_STATIC = {"p": (("a1", "a2", "a3"), "P", "cp2"), "q": (("a4", "a5", "a6"), "Q", "cq2")}
+
+
+def _interval(x: np.ndarray, prob: float) -> dict[str, float]:
+    lo, hi = np.quantile(x, [(1 - prob) / 2, (1 + prob) / 2])
+    return {"mean": float(x.mean()), "sd": float(x.std()), "low": float(lo), "high": float(hi)}
+
+
+def static_identifiability(
+    draws: dict[str, np.ndarray],
+    events: Any,
+    *,
+    prior: CompositePrior | None = None,
+    hdi_prob: float = 0.95,
+) -> dict[str, Any]:
+    """Whether each event determined the ZIP shares of its static part, and what it did fix.
+
+    One sag shows the static part at two voltages, its initial ``v0`` and the sag's
+    lowest ``V_sag`` (and briefly in between): the shares ``a1, a2, a3`` of P (``a4, a5,
+    a6`` of Q) then trade off along a line, and only combinations of them are fixed by
+    the data: the slope ``2 a1 + a2`` (dP/dV of the static part at ``v0``, per unit of
+    its initial P and of ``v0``; ``fit zip`` reports the same) and the static P at the
+    sag's voltage, ``a1 x^2 + a2 x + a3`` with ``x = V_sag / v0`` (per unit of its
+    initial P). Both are given with their central ``hdi_prob`` interval.
+
+    Parameters
+    ----------
+    draws : dict of str to ndarray
+        The named draws (``a1{sfx}`` ... ``a6{sfx}``, ``p0{sfx}``, ``f_m{sfx}``).
+    events : sequence of EventRecord
+        The events fitted (their lowest voltage).
+    prior : CompositePrior, optional
+        The fit's prior: a share whose sd exceeds ``PRIOR_DRIVEN`` times the prior's sd
+        of that share is also "not determined".
+    hdi_prob : float
+        Probability of the intervals.
+
+    Returns
+    -------
+    dict
+        ``events`` (per event, per channel ``p``/``q``: ``determined``, the shares' mean
+        and sd, their correlation and the ``combinations``), ``summary`` (words) and
+        ``warning`` (a sentence, or None when every share is determined).
+    """
+    from loadbayes.fit.composite.naming import event_suffix
+
+    out, words, weak = [], [], []
+    for k, ev in enumerate(events):
+        sfx = event_suffix(k)
+        x = float(np.min(ev.v) / ev.v0)
+        row: dict[str, Any] = {"event": ev.name, "v_sag_over_v0": x}
+        for ch, (names, upper, beta_name) in _STATIC.items():
+            if any(f"{n}{sfx}" not in draws for n in names):
+                continue
+            a = [np.asarray(draws[f"{n}{sfx}"], dtype=float).ravel() for n in names]
+            sds = [float(s.std()) for s in a]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                r = float(np.corrcoef(a[0], a[1])[0, 1])
+            prior_sd = None
+            if prior is not None:
+                from loadbayes.models.composite import BETA_NAMES
+
+                # The share's prior sd: the coefficient's, over the static part's power.
+                i = BETA_NAMES.index(beta_name)
+                if ch == "p":
+                    base = draws[f"p0{sfx}"] * (1 - draws[f"f_m{sfx}"])
+                else:
+                    base = draws[f"q0{sfx}"]
+                scale = float(np.abs(np.mean(base)))
+                prior_sd = float(prior.beta_sd[i]) / scale if scale > 0 else None
+            undetermined = (
+                (np.isfinite(r) and r < STATIC_CORR)
+                or max(sds) > SHARE_SD
+                or (prior_sd is not None and max(sds) > PRIOR_DRIVEN * prior_sd)
+            )
+            n1, n2, n3 = (f"{n}{sfx}" for n in names)
+            slope = 2 * a[0] + a[1]
+            level = a[0] * x * x + a[1] * x + a[2]
+            combos = [
+                {
+                    "name": f"2 {n1} + {n2}",
+                    "meaning": f"d{upper}/dV of the static {upper} at v0 (per unit of its "
+                    f"initial {upper}, per unit of v0)",
+                    **_interval(slope, hdi_prob),
+                },
+                {
+                    "name": f"{n1} x^2 + {n2} x + {n3} at x = {x:.3f}",
+                    "meaning": f"static {upper} at the sag's voltage {x:.3f} v0 (per unit "
+                    f"of its initial {upper})",
+                    **_interval(level, hdi_prob),
+                },
+            ]
+            row[ch] = {
+                "determined": not undetermined,
+                "shares": {
+                    f"{n}{sfx}": {"mean": float(s.mean()), "sd": sd}
+                    for n, s, sd in zip(names, a, sds, strict=True)
+                },
+                "correlation": r if np.isfinite(r) else None,
+                "prior_sd_of_share": prior_sd,
+                "combinations": combos,
+            }
+            if undetermined:
+                weak.append(f"{upper} of {ev.name or f'event {k + 1}'}")
+                shares = ", ".join(
+                    f"{n}{sfx} {s.mean():+.2f} +- {sd:.2f}"
+                    for n, s, sd in zip(names, a, sds, strict=True)
+                )
+                pct = f"{hdi_prob:.0%}"
+                fixed = "; ".join(
+                    f"{c['name']} = {c['mean']:.3f} ({pct} interval {c['low']:.3f} to "
+                    f"{c['high']:.3f}): {c['meaning']}"
+                    for c in combos
+                )
+                words.append(
+                    f"Event {k + 1}: the ZIP shares of the static {upper} are not determined "
+                    f"({shares}; correlation of {n1} and {n2} {r:+.3f}). What the "
+                    f"event does determine: {fixed}."
+                )
+        out.append(row)
+    warning = None
+    if weak:
+        warning = (
+            "the static (ZIP) part is not determined for "
+            + ", ".join(weak)
+            + ": one sag shows it at two voltages only, so its shares trade off along a line "
+            "and the reported a1..a6 are not what the data determine (a point on that line, "
+            "or the prior's); the combinations the data do fix are listed under "
+            "identifiability.static_part (a deeper or second sag, or a prior on the shares, "
+            "would separate them)"
+        )
+        summary = " ".join(words)
+    else:
+        summary = "The ZIP shares of the static part are determined by the data."
+    return {
+        "events": out,
+        "thresholds": {
+            "correlation_below": STATIC_CORR,
+            "share_sd_above": SHARE_SD,
+            "share_sd_over_prior_sd_above": PRIOR_DRIVEN,
+        },
+        "summary": summary,
+        "warning": warning,
+    }

@@ -1,4 +1,14 @@
-"""The composite fit's posterior band of P(t), Q(t) for each event (for the figure)."""
+"""The composite fit's posterior band of P(t), Q(t) for each event, and the events it keeps.
+
+:func:`predictive_band` plays posterior draws through each event: the model's band
+(``p_lo, p_mid, p_hi``, ...) and the posterior-predictive band ``p_pred_lo, p_pred_hi,
+q_pred_lo, q_pred_hi`` (each draw's noise added: normal with its precision ``tau_p``,
+``tau_q``, Student-t with its ``nu_p``, ``nu_q`` when sampled), where a new recording of
+the same event would fall; :func:`event_arrays` stores the
+recordings in the result (the NetCDF's ``constant_data``) so that the report can draw
+them again, and :func:`events_of` reads them back; :func:`fault_times` says where each
+event's voltage moved fast (the figure's zooms).
+"""
 
 from __future__ import annotations
 
@@ -12,7 +22,10 @@ from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_r
 from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.posterior import Posterior
 
-__all__ = ["predictive_band"]
+__all__ = ["event_arrays", "events_of", "fault_times", "predictive_band"]
+
+#: Prefix of the recordings' arrays in the posterior's constants (``rec_v``, ``rec_v_e1``).
+REC = "rec_"
 
 
 def predictive_band(
@@ -59,7 +72,7 @@ def predictive_band(
         grid = StepGrid.build([ev.t], [ev.v], [delta], detect=detect, intervals=fs.intervals)
         names = [f"t_step{j}{sfx}" for j in range(grid.n_steps)]
         times = np.stack([post.draws[n].ravel() for n in names], -1) if names else None
-        ps, qs = [], []
+        ps, qs, used = [], [], []
         for i in pick:
             t_aug = grid.times(grid.phi_of(times[i])) if names else grid.t
             aug, real = grid.motor_input(0, t_aug)
@@ -68,11 +81,105 @@ def predictive_band(
                 zp, zq = design(ev, r[0][real], r[1][real])
                 ps.append(zp @ beta[i])
                 qs.append(zq @ beta[i])
+                used.append(i)
         lo, hi = 50 * (1 - prob), 50 * (1 + prob)
         band = {"t": ev.t, "k": keep}
         for name, arr in (("p", np.array(ps)), ("q", np.array(qs))):
             band[f"{name}_lo"], band[f"{name}_mid"], band[f"{name}_hi"] = np.percentile(
                 arr, [lo, 50, hi], axis=0
             )
+            noisy = arr + _noise(post, name, np.array(used, dtype=int), arr.shape, rng)
+            band[f"{name}_pred_lo"], band[f"{name}_pred_hi"] = np.percentile(
+                noisy, [lo, hi], axis=0
+            )
         out.append(band)
+    return out
+
+
+def _noise(post: Posterior, ch: str, idx: np.ndarray, shape, rng) -> np.ndarray:
+    # Each used draw's own noise: its precision, and its Student-t nu when sampled.
+    tau = post.draws.get(f"tau_{ch}")
+    if tau is None or idx.size == 0:
+        return np.zeros(shape)
+    sd = 1.0 / np.sqrt(tau.reshape(-1)[idx])[:, None]
+    nu = post.draws.get(f"nu_{ch}")
+    if nu is not None:
+        return sd * rng.standard_t(nu.reshape(-1)[idx][:, None], size=shape)
+    return sd * rng.standard_normal(shape)
+
+
+def event_arrays(events: Sequence[EventRecord]) -> dict[str, np.ndarray]:
+    """The recordings as constants of the result (the NetCDF's ``constant_data``).
+
+    ``rec_t_s, rec_v, rec_p, rec_q`` (and ``rec_delta`` when the event has an angle);
+    event ``k``'s with the suffix ``_e{k}``.
+    """
+    out = {}
+    for k, ev in enumerate(events):
+        sfx = event_suffix(k)
+        for name, arr in (
+            ("t_s", ev.t),
+            ("v", ev.v),
+            ("p", ev.p),
+            ("q", ev.q),
+            ("delta", ev.delta),
+        ):
+            if arr is not None:
+                out[f"{REC}{name}{sfx}"] = np.asarray(arr, dtype=float)
+    return out
+
+
+def events_of(post: Posterior) -> list[EventRecord]:
+    """The recordings a composite result keeps (:func:`event_arrays`).
+
+    Named as in its settings; ``[]`` for a result written before they were kept.
+    """
+    c = post.constant
+    names = [e.get("name", "") for e in post.settings.get("events", [])]
+    out = []
+    k = 0
+    while f"{REC}t_s{event_suffix(k)}" in c:
+        sfx = event_suffix(k)
+        delta = c.get(f"{REC}delta{sfx}")
+        out.append(
+            EventRecord(
+                np.asarray(c[f"{REC}t_s{sfx}"], dtype=float),
+                np.asarray(c[f"{REC}v{sfx}"], dtype=float),
+                np.asarray(c[f"{REC}p{sfx}"], dtype=float),
+                np.asarray(c[f"{REC}q{sfx}"], dtype=float),
+                None if delta is None else np.asarray(delta, dtype=float),
+                names[k] if k < len(names) else f"event {k + 1}",
+            )
+        )
+        k += 1
+    return out
+
+
+def fault_times(post: Posterior, events: Sequence[EventRecord]) -> list[list[float]]:
+    """Per event, the instants (s) where its voltage starts or stops moving: the sag's edges.
+
+    The fitted steps' instants (posterior medians) when the fit modelled steps, and the
+    ends of every run of samples over which the voltage moves by more than 1% of ``v0``
+    per interval (or five times the noise of its differences, whichever is larger): a
+    step is one such run, a ramp (a recovery) a longer one, zoomed at its start and end.
+    """
+    out = []
+    for k, ev in enumerate(events):
+        sfx = event_suffix(k)
+        steps = [n for n in post.draws if n.startswith("t_step") and n.endswith(sfx)
+                 and (sfx or "_e" not in n)]  # fmt: skip
+        found = sorted(float(np.median(post.draws[n])) for n in steps)
+        dv = np.diff(ev.v)
+        if dv.size:
+            noise = 1.4826 * float(np.median(np.abs(dv - np.median(dv))))
+            moving = np.flatnonzero(np.abs(dv) > max(0.01 * abs(ev.v0), 5 * noise))
+            runs = np.split(moving, np.flatnonzero(np.diff(moving) > 1) + 1) if moving.size else []
+            dt = float(np.median(np.diff(ev.t)))
+            for run in runs:
+                t_a, t_b = float(ev.t[run[0]]), float(ev.t[run[-1] + 1])
+                edges = [0.5 * (t_a + t_b)] if run.size == 1 else [t_a, t_b]
+                for edge in edges:
+                    if all(abs(edge - f) > 1.5 * dt for f in found):
+                        found.append(edge)
+        out.append(sorted(found))
     return out
