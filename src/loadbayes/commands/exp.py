@@ -180,6 +180,7 @@ def fit_exp_cmd(
             priors=priors,
             sampler=sampler,
             warnings=warnings,
+            unit_check=False,  # done above on the file, worded with the options
             warn=False,
             settings={
                 "data": str(data),

@@ -20,6 +20,7 @@ from loadbayes.fit.data import data_of
 from loadbayes.fit.sampler import check_sampler, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
+from loadbayes.measurements.units import Wording, option
 from loadbayes.posterior import Posterior
 
 __all__ = [
@@ -43,10 +44,11 @@ def fit_zip(
     q_col: str | None = "q",
     t_col: str | None = None,
     v0: float = 1.0,
-    p0: float | str = 1.0,
-    q0: float | str = 1.0,
+    p0: float | str = "auto",
+    q0: float | str = "auto",
     v_base: float | None = None,
     s_base: float | None = None,
+    accept_units: bool = False,
     with_q: bool | None = None,
     units: Mapping[str, str] | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
@@ -74,8 +76,15 @@ def fit_zip(
         are recorded with the result, it is not fitted.
     v0, p0, q0 : float or "auto"
         Nominal values, in per unit when bases are given, else in the data's units.
+        ``p0``/``q0`` default to ``"auto"`` (estimated, as the CLI does): a number is
+        a claim about the load, checked against the data.
     v_base, s_base : float, optional
         Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
+    accept_units : bool
+        Fit data that do not look like per unit of the nominal point (a warning instead
+        of a :class:`DataError`). Files and tables in memory get the same check
+        (:func:`loadbayes.measurements.units.check_power_units`), worded with these
+        keywords (``v_base=13.8``) where the CLI names its options.
     with_q : bool, optional
         ``False`` fits P only even when there is a Q column.
     units : mapping, optional
@@ -138,9 +147,12 @@ def fit_zip(
     from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.zip import ZIPModel
 
-    v_col, p_col, q_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid = data_of(
-        spec, fit_zip, v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col, v0=v0, p0=p0,
-        q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+    v_col, p_col, q_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid, accept_units = (
+        data_of(
+            spec, fit_zip, v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col, v0=v0, p0=p0,
+            q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+            accept_units=accept_units,
+        )
     )  # fmt: skip
     settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
@@ -153,7 +165,7 @@ def fit_zip(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v0=v0,
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
             drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
-            sampler=settings, accept_units=spec.accept_units if spec is not None else False,
+            sampler=settings, accept_units=accept_units,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -169,7 +181,12 @@ def fit_zip(
         if q_col and q_col in table.data:
             cols["q"] = table.data[q_col] / (s_base or 1.0)
         model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
-        warnings = []
+        names = {"v": v_col, "p": p_col, "q": q_col}
+        # the file's unit and V-noise checks, on the whole table, worded for Python
+        warnings = data_checks(
+            cols, path="data", names=names, accept_units=accept_units, wording="python",
+            v0=v0, p0=p0, q0=q0 if model.with_q else "auto", v_base=v_base, s_base=s_base,
+        )  # fmt: skip
         if table.n_dropped:
             warnings.append(
                 f"{table.n_dropped} rows with invalid values were dropped (drop_invalid=True)"
@@ -298,6 +315,7 @@ def fit_zip_file(
     nu: float | Literal["auto"] = "auto",
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
+    wording: Wording = "python",
     **overrides: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
@@ -334,6 +352,9 @@ def fit_zip_file(
         (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+    wording : {"python", "cli"}
+        Whose names the messages give for a fix: these keywords, or the CLI's options
+        (``loadbayes fit zip`` passes ``"cli"``).
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -365,7 +386,7 @@ def fit_zip_file(
     if likelihood == "student-t":
         return _fit_file_student_t(
             path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
-            progress=progress, accept_units=accept_units,
+            progress=progress, accept_units=accept_units, wording=wording,
         )  # fmt: skip
     state: dict[str, Any] = {"dropped": 0}
     names = {"v": v_col, "p": p_col, "q": q_col}
@@ -381,7 +402,7 @@ def fit_zip_file(
                 # the first chunk with rows (one whose rows were all dropped says nothing)
                 state["first_warnings"] = data_checks(
                     cols, path=path, names=names, accept_units=accept_units,
-                    v_base=v_base, s_base=s_base, **nominal,
+                    v_base=v_base, s_base=s_base, wording=wording, **nominal,
                 )  # fmt: skip
             if sum(a.size for a in keep_obs["v"]) <= MAX_OBSERVED:
                 for k, a in cols.items():
@@ -403,7 +424,8 @@ def fit_zip_file(
     warnings = list(state.get("first_warnings", []))
     if state["dropped"]:
         warnings.append(
-            f"{state['dropped']} rows with invalid values were dropped (--drop-invalid)"
+            f"{state['dropped']} rows with invalid values were dropped "
+            f"({option('drop-invalid', wording=wording).removesuffix('=...')})"
         )
     observed = None
     if gram.n <= MAX_OBSERVED:
@@ -443,7 +465,9 @@ def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
     }
 
 
-def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, accept_units):
+def _fit_file_student_t(
+    path, *, read, nominal, priors, nu, sampler, progress, accept_units, wording
+):
     """The Student-t ZIP of a file: read into memory, checked whole, flagged as file rows."""
     from loadbayes.io.errors import DataError
     from loadbayes.measurements.columns import read_power_columns, relocate
@@ -454,10 +478,11 @@ def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, a
     names = {"v": read["v_col"], "p": read["p_col"], "q": read["q_col"]}
     warnings = data_checks(
         pc.cols, path=path, names=names, accept_units=accept_units,
-        v_base=read["v_base"], s_base=read["s_base"], **nominal,
+        v_base=read["v_base"], s_base=read["s_base"], wording=wording, **nominal,
     )  # fmt: skip
     if pc.n_dropped:
-        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+        drop = option("drop-invalid", wording=wording).removesuffix("=...")
+        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped ({drop})")
     try:
         warnings += model.check(accumulate(model, [pc.cols]))
         post = _fit_student_t(
@@ -503,12 +528,17 @@ def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings
     return post
 
 
-def data_checks(cols, *, path, names, accept_units, **nominal) -> list[str]:
-    """The unit check (refuse, or warn with ``accept_units``) and the V-noise check."""
+def data_checks(cols, *, path, names, accept_units, wording="cli", **nominal) -> list[str]:
+    """The unit check (refuse, or warn with ``accept_units``) and the V-noise check.
+
+    ``wording`` names the fixes as the CLI's options or as Python's keywords.
+    """
     from loadbayes.diagnostics import voltage_noise_warning
     from loadbayes.measurements.units import check_power_units, refuse
 
-    problems = check_power_units(cols["v"], cols.get("p"), cols.get("q"), **nominal)
+    problems = check_power_units(
+        cols["v"], cols.get("p"), cols.get("q"), wording=wording, **nominal
+    )
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]

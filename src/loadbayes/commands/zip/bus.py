@@ -200,6 +200,7 @@ def fit_zip_cmd(
             chunk_rows=chunk_rows,
             progress=progress,
             accept_units=accept_units,
+            wording="cli",
         )
     finally:
         progress.close()
