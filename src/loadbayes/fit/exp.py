@@ -169,7 +169,7 @@ def fit_exp(
     where = str(data) if is_path(data) else "data"
     if unit_check:
         warn_list += data_checks(
-            cols, path=where, names=names, accept_units=accept_units, wording="python",
+            cols, path=where, names=names, accept_units=accept_units, eiv=False, wording="python",
             v0=v0, p0=p0, q0=q0 if "q" in cols else "auto", v_base=v_base, s_base=s_base,
         )  # fmt: skip
     if dropped and not warnings:

@@ -56,6 +56,7 @@ def fit_zip(
     scheme: Scheme = "blocked",
     likelihood: Likelihood = "normal",
     nu: float | Literal["auto"] = "auto",
+    v_noise: float | Literal["auto"] | None = None,
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     warn: bool = True,
@@ -103,13 +104,20 @@ def fit_zip(
         data rows.
     nu : float or "auto"
         Student-t degrees of freedom (``auto``: sampled).
+    v_noise : float or "auto", optional
+        Noise on V (errors in variables, :mod:`loadbayes.fit.eiv`): the sd of the
+        voltage's measurement noise in per unit of ``v0`` (from the instrument class),
+        or ``"auto"`` to sample it (needs Q as well as P). A latent true voltage per
+        sample removes the bias toward a flat load that noise on V gives the plain fit;
+        each iteration then costs O(n). Gaussian likelihood, blocked scheme only.
     spec : DataSpec, optional
         Columns, bases, nominal point and drop policy in one object; the keywords above
         that a call changes from their defaults override its fields
         (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run; :data:`loadbayes.fit.core.MODEL_DEFAULTS` (40 000 draws
-        including a 5 000 burn-in, the paper's M and m) by default.
+        including a 5 000 burn-in, the paper's M and m) by default, and
+        :data:`loadbayes.fit.eiv.EIV_DEFAULTS` (4 000 and 1 000) with ``v_noise``.
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: change single
         settings of ``sampler``; ``draws`` counts iterations including burn-in.
@@ -154,6 +162,11 @@ def fit_zip(
             accept_units=accept_units,
         )
     )  # fmt: skip
+    v_noise = check_v_noise(v_noise, likelihood, scheme)
+    if sampler is None and v_noise is not None:
+        from loadbayes.fit.eiv import EIV_DEFAULTS
+
+        sampler = EIV_DEFAULTS
     settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     check_likelihood(likelihood, scheme)
@@ -165,7 +178,7 @@ def fit_zip(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v0=v0,
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
             drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
-            sampler=settings, accept_units=accept_units,
+            sampler=settings, accept_units=accept_units, v_noise=v_noise,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -186,6 +199,7 @@ def fit_zip(
         warnings = data_checks(
             cols, path="data", names=names, accept_units=accept_units, wording="python",
             v0=v0, p0=p0, q0=q0 if model.with_q else "auto", v_base=v_base, s_base=s_base,
+            v_noise=v_noise,
         )  # fmt: skip
         if table.n_dropped:
             warnings.append(
@@ -204,7 +218,12 @@ def fit_zip(
             **table.time,
         }
         try:
-            if likelihood == "student-t":
+            if v_noise is not None:
+                post = _fit_eiv(
+                    model, cols, v_noise=v_noise, priors=priors, sampler=settings,
+                    settings=record, warnings=warnings,
+                )  # fmt: skip
+            elif likelihood == "student-t":
                 warnings += model.check(accumulate(model, [cols]))
                 post = _fit_student_t(
                     model, cols, table.rows, priors=priors, nu=nu, sampler=settings,
@@ -230,6 +249,36 @@ def fit_zip(
     if warn:
         post.warn(stacklevel=2)
     return post
+
+
+def check_v_noise(v_noise: Any, likelihood: str, scheme: str) -> float | str | None:
+    """The errors-in-variables option checked: None, a positive sd or "auto"."""
+    from loadbayes.fit.eiv import check_v_noise as check
+
+    value = check(v_noise)
+    if value is not None and (likelihood != "normal" or scheme != "blocked"):
+        raise OptionError(
+            "v_noise (errors in variables) has its own Gibbs sampler with the Gaussian "
+            "likelihood: leave likelihood at 'normal' and scheme at 'blocked'"
+        )
+    return value
+
+
+def _fit_eiv(model, cols, *, v_noise, priors, sampler, settings, warnings):
+    """The errors-in-variables fit of columns in memory (:mod:`loadbayes.fit.eiv`)."""
+    from loadbayes.fit.eiv import fit_zip_eiv
+
+    if v_noise == "auto" and not model.with_q:
+        raise OptionError(
+            "v_noise='auto' needs Q as well as P: with P alone the noise on V is not "
+            "identified (give the instrument's sd, e.g. v_noise=0.005)"
+        )
+    warnings = list(warnings) + model.check(accumulate(model, [cols]))
+    return fit_zip_eiv(
+        model, cols, v_noise=v_noise, priors=priors, sampler=sampler,
+        observed=cols if cols["v"].size <= MAX_OBSERVED else None,
+        settings=settings, warnings=warnings,
+    )  # fmt: skip
 
 
 def check_likelihood(likelihood: str, scheme: str) -> None:
@@ -316,6 +365,7 @@ def fit_zip_file(
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     wording: Wording = "python",
+    v_noise: float | Literal["auto"] | None = None,
     **overrides: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
@@ -355,6 +405,9 @@ def fit_zip_file(
     wording : {"python", "cli"}
         Whose names the messages give for a fix: these keywords, or the CLI's options
         (``loadbayes fit zip`` passes ``"cli"``).
+    v_noise : float or "auto", optional
+        Errors in variables (as :func:`fit_zip`): the file is read into memory (the
+        latent voltages are visited at every iteration) and checked whole.
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -376,6 +429,7 @@ def fit_zip_file(
         spec, fit_zip_file, v_col=v_col, p_col=p_col, q_col=q_col, v0=v0, p0=p0, q0=q0,
         v_base=v_base, s_base=s_base, drop_invalid=drop_invalid, accept_units=accept_units,
     )  # fmt: skip
+    v_noise = check_v_noise(v_noise, likelihood, scheme)
     settings = sampler_of(sampler, overrides)
     check_likelihood(likelihood, scheme)
     read = dict(
@@ -383,10 +437,10 @@ def fit_zip_file(
         s_base=s_base, drop_invalid=drop_invalid, chunk_rows=chunk_rows,
     )  # fmt: skip
     nominal = dict(v0=v0, p0=p0, q0=q0)
-    if likelihood == "student-t":
+    if likelihood == "student-t" or v_noise is not None:
         return _fit_file_student_t(
             path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
-            progress=progress, accept_units=accept_units, wording=wording,
+            progress=progress, accept_units=accept_units, wording=wording, v_noise=v_noise,
         )  # fmt: skip
     state: dict[str, Any] = {"dropped": 0}
     names = {"v": v_col, "p": p_col, "q": q_col}
@@ -466,9 +520,12 @@ def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
 
 
 def _fit_file_student_t(
-    path, *, read, nominal, priors, nu, sampler, progress, accept_units, wording
+    path, *, read, nominal, priors, nu, sampler, progress, accept_units, wording, v_noise=None
 ):
-    """The Student-t ZIP of a file: read into memory, checked whole, flagged as file rows."""
+    """The Student-t or errors-in-variables ZIP of a file: read into memory, checked whole.
+
+    The samples the Student-t fit flags are given as file rows.
+    """
     from loadbayes.io.errors import DataError
     from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.models.zip import ZIPModel
@@ -478,12 +535,20 @@ def _fit_file_student_t(
     names = {"v": read["v_col"], "p": read["p_col"], "q": read["q_col"]}
     warnings = data_checks(
         pc.cols, path=path, names=names, accept_units=accept_units,
-        v_base=read["v_base"], s_base=read["s_base"], wording=wording, **nominal,
+        v_base=read["v_base"], s_base=read["s_base"], wording=wording, v_noise=v_noise,
+        **nominal,
     )  # fmt: skip
     if pc.n_dropped:
         drop = option("drop-invalid", wording=wording).removesuffix("=...")
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped ({drop})")
     try:
+        if v_noise is not None:
+            post = _fit_eiv(
+                model, pc.cols, v_noise=v_noise, priors=priors, sampler=sampler,
+                settings=_file_record(path, model, read, nominal, pc.n_dropped),
+                warnings=warnings,
+            )  # fmt: skip
+            return post, model
         warnings += model.check(accumulate(model, [pc.cols]))
         post = _fit_student_t(
             model, pc.cols, pc.rows, priors=priors, nu=nu, sampler=sampler,
@@ -528,10 +593,14 @@ def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings
     return post
 
 
-def data_checks(cols, *, path, names, accept_units, wording="cli", **nominal) -> list[str]:
+def data_checks(
+    cols, *, path, names, accept_units, wording="cli", v_noise=None, eiv=True, **nominal
+) -> list[str]:
     """The unit check (refuse, or warn with ``accept_units``) and the V-noise check.
 
-    ``wording`` names the fixes as the CLI's options or as Python's keywords.
+    ``wording`` names the fixes as the CLI's options or as Python's keywords; with
+    ``v_noise`` (the noise on V modelled) the V-noise check has nothing to say;
+    ``eiv=False``: the fit has no such option (the exponential one), not offered.
     """
     from loadbayes.diagnostics import voltage_noise_warning
     from loadbayes.measurements.units import check_power_units, refuse
@@ -542,7 +611,7 @@ def data_checks(cols, *, path, names, accept_units, wording="cli", **nominal) ->
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]
-    noise = voltage_noise_warning(cols["v"])
+    noise = voltage_noise_warning(cols["v"], wording=wording, eiv=eiv) if v_noise is None else None
     return out + ([noise] if noise else [])
 
 
