@@ -72,3 +72,29 @@ def test_p0_is_estimated_by_default_as_in_the_cli():
     x = 13.2 / 13.8
     truth = 6.5 * (0.3 * x**2 + 0.3 * x + 0.4)
     assert post.predict([13.2])["p_mean"].iloc[0] == pytest.approx(truth, abs=0.02)
+
+
+def test_the_motor_fit_checks_a_dataframe_too():
+    from loadbayes.fit import fit_im
+    from loadbayes.models.motor_fit import DATA_COLUMNS
+
+    n = 200
+    cols = {c: np.full(n, 0.5) for c in DATA_COLUMNS}
+    cols["w"] = np.full(n, 376.99)  # rad/s, not per unit
+    with pytest.raises(DataError) as err:
+        fit_im(pd.DataFrame(cols), **FAST)
+    msg = str(err.value)
+    assert "rotor speed" in msg and "accept_units=True" in msg and "--" not in msg
+
+
+def test_the_composite_fit_from_python_names_the_keyword():
+    from loadbayes.fit.composite import fit_composite
+    from loadbayes.models.composite import EventRecord
+
+    t = np.arange(0.0, 2.0, 1 / 60)
+    v = 11.0 * np.where((t >= 0.5) & (t < 0.7), 0.7, 1.0)
+    ev = EventRecord(t, v, 0.6 * (v / 11) ** 2 + 0.4, 0.3 * (v / 11) ** 2, None, "sag.csv")
+    with pytest.raises(DataError) as err:
+        fit_composite([ev], draws=200, burn=100, chains=2)
+    msg = str(err.value)
+    assert "v_base=11" in msg and "accept_units=True" in msg and "--" not in msg

@@ -261,6 +261,7 @@ def fit_composite_cmd(
                 nu=nu_value,
                 accept_units=accept_units,
                 progress=bar,
+                wording="cli",
             )
     finally:
         bar.close()

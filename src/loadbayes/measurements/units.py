@@ -255,13 +255,17 @@ _MOTOR = (
 )
 
 
-def check_motor_units(cols: Mapping[str, np.ndarray]) -> list[UnitProblem]:
+def check_motor_units(
+    cols: Mapping[str, np.ndarray], *, wording: Wording = "cli"
+) -> list[UnitProblem]:
     """Problems with the units of an induction motor's states (``fit im``'s columns).
 
     Parameters
     ----------
     cols : mapping
         Arrays ``ud, uq, w, id, iq, ed, eq`` (those present are checked).
+    wording : {"cli", "python"}
+        The option that accepts them anyway, as ``--accept-units`` or ``accept_units=True``.
 
     Returns
     -------
@@ -292,6 +296,7 @@ def check_motor_units(cols: Mapping[str, np.ndarray]) -> list[UnitProblem]:
                     f"{what} has median {med:.4g}{hint}: not per unit",
                     "convert the recording to per unit of the motor's base (fit im reads "
                     "per-unit states and derivatives per second)",
+                    wording,
                 )
             )
     return out

@@ -81,12 +81,15 @@ def check_run(*, f_hz: float, draws: int, burn: int, thin: int, seed: object) ->
         raise OptionError(f"--seed {seed}: the seed must be a non-negative integer")
 
 
-def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) -> list[str]:
+def check_units(
+    events: Sequence[EventRecord], *, accept_units: bool = False, wording: str = "cli"
+) -> list[str]:
     """The unit check of ``fit zip``, per event: V per unit, P and Q of a sensible size.
 
     The composite's nominal powers are estimated (``p0``, ``q0`` per event), so P and Q
     are checked as ``fit zip --p0 auto`` checks them; a negative median P (a load that
     generates) is refused too. With ``accept_units`` the problems become warnings.
+    ``wording`` names the fixes as the CLI's options or Python's keywords.
 
     Returns
     -------
@@ -99,11 +102,11 @@ def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) ->
         The first problem, naming the event's file (and event id) and the column.
     """
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import ACCEPT, UnitProblem, check_power_units
+    from loadbayes.measurements.units import UnitProblem, accept, check_power_units
 
     out: list[str] = []
     for e in events:
-        problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto")
+        problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto", wording=wording)
         med_p = float(np.median(e.p))
         if not problems and med_p < 0:
             problems.append(
@@ -112,6 +115,7 @@ def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) ->
                     f"P has median {med_p:.4g} < 0: the bus exports power, and a composite "
                     "load (ZIP + motor) consumes it",
                     "give P as the power into the load (check the meter's sign convention)",
+                    wording,  # type: ignore[arg-type]
                 )
             )
         if not problems:
@@ -120,7 +124,7 @@ def check_units(events: Sequence[EventRecord], *, accept_units: bool = False) ->
             first = problems[0]
             raise DataError(str(first), path=e.name or None, column=first.column)
         out += [f"{e.name or 'event'}: column '{pr.column}': {pr.seen} (fitted anyway: "
-                f"{ACCEPT})" for pr in problems]  # fmt: skip
+                f"{accept(wording)})" for pr in problems]  # type: ignore[arg-type]  # fmt: skip
     return out
 
 

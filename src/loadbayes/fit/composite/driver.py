@@ -155,6 +155,7 @@ def fit_composite(
     workers: int | None = None,
     accept_units: bool = False,
     progress: SamplingProgress | None = None,
+    wording: str = "python",
     **overrides: Any,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -195,6 +196,9 @@ def fit_composite(
     progress : SamplingProgress, optional
         Told the estimated cost before sampling (a short timed run) and the iterations
         as they are done.
+    wording : {"python", "cli"}
+        Whose names the unit check's messages give (``accept_units=True`` or the CLI's
+        ``--accept-units``; ``loadbayes fit composite`` passes "cli").
     **overrides
         ``draws``, ``burn``, ``thin``, ``chains``, ``seed``: change those of ``sampler``
         (``SamplerSettings.of``).
@@ -218,7 +222,7 @@ def fit_composite(
     if not events:
         raise ValueError("no events to fit")
     check_run(f_hz=f_hz, draws=run.draws, burn=run.burn, thin=run.thin, seed=run.seed)
-    unit_warnings = check_units(events, accept_units=accept_units)
+    unit_warnings = check_units(events, accept_units=accept_units, wording=wording)
     prior = prior or CompositePrior.default(events)
     estimate = isinstance(torque, str)
     if estimate and torque != "estimate":
