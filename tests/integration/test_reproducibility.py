@@ -69,7 +69,7 @@ def _stats(n=200, seed=1):
 @pytest.mark.parametrize("scheme", ["blocked", "single-site", "exact"])
 def test_same_seed_same_draws_and_another_seed_others(scheme, tmp_path):
     path = _bus(tmp_path / "bus.csv")
-    kw = {"scheme": scheme, "draws": 3000, "burn": 500, "chains": 3}
+    kw = {"scheme": scheme, "draws": 3000, "burn": 500, "chains": 3, "p0": 1.0, "q0": 1.0}
     if scheme == "exact":
         from loadbayes.fit import zip_priors
 
@@ -84,7 +84,7 @@ def test_same_seed_same_draws_and_another_seed_others(scheme, tmp_path):
 def test_any_chunk_size_gives_the_same_bits(tmp_path):
     path = _bus(tmp_path / "bus.csv", n=1000)
     runs = [
-        fit_zip_file(str(path), chunk_rows=size, draws=2000, burn=200, seed=3)[0]
+        fit_zip_file(str(path), chunk_rows=size, draws=2000, burn=200, seed=3, p0=1.0, q0=1.0)[0]
         for size in (1_000_000, 1000, 333, 7, 1)
     ]
     for post in runs[1:]:

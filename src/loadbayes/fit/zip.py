@@ -350,8 +350,8 @@ def fit_zip_file(
     q_col: str | None = "q",
     q_required: bool = False,
     v0: float = 1.0,
-    p0: float | str = 1.0,
-    q0: float | str = 1.0,
+    p0: float | str = "auto",
+    q0: float | str = "auto",
     v_base: float | None = None,
     s_base: float | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
@@ -378,7 +378,8 @@ def fit_zip_file(
         Column names; ``q_col=None`` fits P only. A missing Q column is an error only
         with ``q_required``; otherwise P alone is fitted.
     v0, p0, q0 : float or "auto"
-        Nominal values, in per unit when bases are given, else in the data's units.
+        Nominal values, in per unit when bases are given, else in the data's units
+        (``p0``/``q0``: estimated by default, as in the CLI and :func:`fit_zip`).
     v_base, s_base : float, optional
         Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
     priors : mapping, optional
