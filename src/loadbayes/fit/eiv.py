@@ -56,8 +56,10 @@ __all__ = ["EIV_DEFAULTS", "check_v_noise", "fit_zip_eiv"]
 #: iteration O(n), and the chains mix in a few hundred iterations (measured R-hat < 1.01
 #: at 4 x 3000 draws on 2000 samples), so the plain fit's 40 000 draws are not needed.
 EIV_DEFAULTS = SamplerSettings(draws=4_000, burn=1_000)
-#: Iterations whose random numbers are drawn in one piece (memory ~ 2 n SEGMENT floats).
+#: Iterations whose random numbers are drawn in one piece (memory ~ 2 n SEGMENT floats),
+#: fewer when 2 n SEGMENT would pass SEGMENT_NUMBERS (a day at 1 s: 23 iterations).
 SEGMENT = 256
+SEGMENT_NUMBERS = 2_000_000
 #: Gamma prior of the V-noise precision with ``auto``, and of the precision of the true
 #: voltages about their mean: weak, as the plain fit's tau.
 TAU_V_PRIOR = (1e-3, 1e-9)
@@ -281,8 +283,10 @@ def _chain(
     accepted = np.zeros(2)
     shape_v = TAU_V_PRIOR[0] + 0.5 * n
     hyper = np.array([float(np.mean(x_obs)), 1.0 / max(float(np.var(x_obs)), 1e-12)])
-    for start in range(0, settings.draws, SEGMENT):
-        m = min(SEGMENT, settings.draws - start)
+    # at most SEGMENT iterations, and about 32 MB of random numbers, at a time
+    seg = max(1, min(SEGMENT, SEGMENT_NUMBERS // max(n, 1)))
+    for start in range(0, settings.draws, seg):
+        m = min(seg, settings.draws - start)
         z_beta = gen.standard_normal((m, nc, 3))
         g_tau = gen.standard_gamma(shape, size=(m, nc))
         g_tau_v = gen.standard_gamma(shape_v, size=m)
