@@ -130,7 +130,7 @@ def fit_file(path: str, chunk_rows: int) -> dict:
     before = current_rss_mb()
     with PeakRSS() as mem:
         t0, c0 = time.perf_counter(), time.process_time()
-        post, _ = fit_zip_file(path, chunk_rows=chunk_rows)
+        post, _ = fit_zip_file(path, chunk_rows=chunk_rows, p0=1.0, q0=1.0)
         seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     digest = hashlib.sha256()
     gram = post.constant["gram"]

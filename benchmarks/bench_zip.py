@@ -429,7 +429,7 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
         data = {"v": v, "p": p}
 
         def fit():
-            return fit_zip(data, priors=priors, scheme=scheme, seed=seed, **g)
+            return fit_zip(data, p0=1.0, priors=priors, scheme=scheme, seed=seed, **g)
 
         base_rss = current_rss_mb()
         with PeakRSS() as mem:

@@ -34,6 +34,7 @@ from loadbayes.commands import recordings as _recordings
 from loadbayes.commands import report as _report
 from loadbayes.commands import reproduce as _reproduce
 from loadbayes.commands import simulate as _simulate
+from loadbayes.commands import steps as _steps
 from loadbayes.commands import track as _track
 from loadbayes.commands import validate as _validate
 from loadbayes.commands import zip as _zip
@@ -185,3 +186,4 @@ main.add_command(_report.report_cmd)
 main.add_command(_example.example_cmd)
 main.add_command(_validate.validate_cmd)
 main.add_command(_playback.playback_cmd)
+main.add_command(_steps.steps_cmd)

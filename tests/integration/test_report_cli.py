@@ -103,7 +103,7 @@ def test_reports_of_an_exponential_and_a_motor_fit(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
         exp = fit_exp({"v": v, "p": v**1.3 + rng.normal(0, 0.01, v.size)}, draws=800, burn=200,
-                      chains=2)  # fmt: skip
+                      chains=2, p0=1.0, q0=1.0)  # fmt: skip
         im = fit_im(simulate("krause_3hp", noise=0.02, seed=1, t_end_s=1.0), draws=800,
                     burn=200, chains=2)  # fmt: skip
     for name, post in (("exp", exp), ("im", im)):

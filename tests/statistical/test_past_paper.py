@@ -81,7 +81,7 @@ def test_robust_beats_gaussian_and_stays_within_target():
         pc = _corrupt(p, seed)
         for tag, y in (("clean", p), ("bad", pc)):
             d = {"v": v, "p": y}
-            g = fit_zip(d, with_q=False, seed=seed, **SAMPLER)
+            g = fit_zip(d, with_q=False, seed=seed, **SAMPLER, p0=1.0, q0=1.0)
             t = fit_robust(ZIPModel(with_q=False), d, seed=seed, **SAMPLER)
             errs[f"g_{tag}"].append(_a(g) - TRUE)
             errs[f"t_{tag}"].append(_a(t) - TRUE)
@@ -103,7 +103,9 @@ def test_exponential_interval_coverage(noise):
             p = shape + rng.normal(0, 0.02, v.size)
         else:
             p = shape * np.exp(rng.normal(0, 0.02, v.size))
-        post = fit_exp({"v": v, "p": p}, noise=noise, seed=i, chains=2, draws=1500, burn=400)
+        post = fit_exp(
+            {"v": v, "p": p}, noise=noise, seed=i, chains=2, draws=1500, burn=400, p0=1.0, q0=1.0
+        )
         lo, hi = np.quantile(post.draws["np"], [0.025, 0.975])
         covered += lo <= true_np <= hi
     assert covered >= 14, covered
@@ -134,8 +136,8 @@ def test_loo_picks_the_true_model():
     bowl = {"v": v, "p": 2 * v**2 - 3 * v + 2 + rng.normal(0, 0.002, v.size)}
     for data, truth in ((cubic, "exponential"), (bowl, "zip")):
         posts = {
-            "zip": fit_zip(data, with_q=False, seed=0, **SAMPLER),
-            "exponential": fit_exp(data, with_q=False, seed=0, **SAMPLER),
+            "zip": fit_zip(data, with_q=False, seed=0, **SAMPLER, p0=1.0, q0=1.0),
+            "exponential": fit_exp(data, with_q=False, seed=0, **SAMPLER, p0=1.0, q0=1.0),
         }
         table = compare(posts, data)
         assert table.index[0] == truth, table
@@ -149,7 +151,7 @@ def test_student_t_likelihood_in_loo_prefers_t_on_spiky_data():
     p[idx] += rng.choice([-1, 1], 20) * stats.uniform(0.5, 0.5).rvs(20, random_state=rng)
     d = {"v": v, "p": p}
     posts = {
-        "gauss": fit_zip(d, with_q=False, seed=0, **SAMPLER),
+        "gauss": fit_zip(d, with_q=False, seed=0, **SAMPLER, p0=1.0, q0=1.0),
         "student-t": fit_robust(ZIPModel(with_q=False), d, seed=0,
                                 settings={"v0": 1.0, "p0": 1.0}, **SAMPLER),
     }  # fmt: skip

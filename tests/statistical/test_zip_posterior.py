@@ -79,7 +79,7 @@ def test_gibbs_matches_the_exact_normal_gamma_posterior(scheme, lo, hi, draws):
 
 def test_weak_prior_mean_agrees_with_least_squares():
     v, p = _data(1000, seed=3)
-    post = fit_zip({"v": v, "p": p}, draws=20_000, burn=2000, seed=7)
+    post = fit_zip({"v": v, "p": p}, draws=20_000, burn=2000, seed=7, p0=1.0, q0=1.0)
     s = post.summary()
     z = np.column_stack([v**2 - 1, v - 1])
     ls = np.linalg.lstsq(z, p - 1, rcond=None)[0]
@@ -97,7 +97,7 @@ def test_known_coefficients_are_recovered(truth):
     v, p = _data(4000, a=truth, noise=0.02, lo=0.85, hi=1.1, seed=5)
     rng = np.random.default_rng(8)
     q = truth[2] * v**2 + truth[0] * v + truth[1] + rng.normal(0, 0.02, v.size)
-    post = fit_zip({"v": v, "p": p, "q": q}, draws=6000, burn=1000, seed=1)
+    post = fit_zip({"v": v, "p": p, "q": q}, draws=6000, burn=1000, seed=1, p0=1.0, q0=1.0)
     s = post.summary(hdi_prob=0.999)
     names = ("a1", "a2", "a3", "a4", "a5", "a6")
     expected = dict(zip(names, truth + (truth[2], truth[0], truth[1]), strict=True))
@@ -109,8 +109,8 @@ def test_known_coefficients_are_recovered(truth):
 def test_blocked_mixes_on_the_ridge_single_site_does_not():
     v, p = _data(1000, seed=1)
     kw = dict(draws=40_000, burn=5000, chains=4, seed=0)
-    blocked = fit_zip({"v": v, "p": p}, scheme="blocked", **kw).summary()
-    single = fit_zip({"v": v, "p": p}, scheme="single-site", **kw).summary()
+    blocked = fit_zip({"v": v, "p": p}, scheme="blocked", **kw, p0=1.0, q0=1.0).summary()
+    single = fit_zip({"v": v, "p": p}, scheme="single-site", **kw, p0=1.0, q0=1.0).summary()
     kept = 4 * 35_000
     assert blocked.loc["a1", "ess_bulk"] > 0.5 * kept
     assert single.loc["a1", "ess_bulk"] < 0.05 * kept

@@ -32,7 +32,7 @@ def _bus(n=400, seed=0):
 def _fit(data, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
-        return fit_zip(data, **{**FAST, **kw})
+        return fit_zip(data, **{"p0": 1.0, "q0": 1.0, **FAST, **kw})
 
 
 NAMES = {"v_col": "V_kV", "p_col": "P_MW", "q_col": "Q_Mvar", "v_base": 11.0, "s_base": 5.0}
@@ -50,7 +50,7 @@ def test_column_names_bases_and_an_unused_timestamp_column():
 
 
 def test_predict_takes_and_returns_the_data_units():
-    post = _fit(_bus(), q0=0.4, **NAMES)
+    post = _fit(_bus(), p0=1.0, q0=0.4, **NAMES)  # a given P0 (the default estimates it)
     pred = post.predict([9.9, 11.0, 12.0])
     assert list(pred["v"]) == [9.9, 11.0, 12.0]
     # At V = v_base the ZIP curve is P0 = 1 p.u. = 5 MW exactly, Q0 = 0.4 p.u. = 2 Mvar.
@@ -107,11 +107,11 @@ def test_fit_warnings_are_python_warnings_too():
     rng = np.random.default_rng(0)
     data = {"v": x, "p": 0.3 * x**2 + 0.2 * x + 0.5 + rng.normal(0, 1e-3, x.size)}
     with pytest.warns(FitWarning, match="cannot be told apart"):
-        post = fit_zip(data, **FAST)
+        post = fit_zip(data, **FAST, p0=1.0, q0=1.0)
     assert post.warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        fit_zip(data, warn=False, **FAST)  # and silent on request
+        fit_zip(data, warn=False, **FAST, p0=1.0, q0=1.0)  # and silent on request
 
 
 def test_exp_has_the_same_options():
@@ -121,7 +121,7 @@ def test_exp_has_the_same_options():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
         post = fit_exp(df, v_col="V_kV", p_col="P_MW", q_col=None, v_base=11, s_base=5,
-                       **FAST)  # fmt: skip
+                       **FAST, p0=1.0, q0=1.0)  # fmt: skip
     assert abs(post.mean()["np"] - 1.4) < 0.1
     assert post.predict([11.0])["p_mean"].iloc[0] == pytest.approx(5.0, rel=1e-9)
 

@@ -47,7 +47,7 @@ def test_multiplicative_refuses_non_positive_power_with_its_row():
 @pytest.mark.parametrize("noise", ["additive", "multiplicative"])
 def test_recovers_exponents(noise):
     d = _data()
-    post = fit_exp(d, q0=0.5, with_f=False, noise=noise, seed=1, **FAST)
+    post = fit_exp(d, q0=0.5, with_f=False, noise=noise, seed=1, **FAST, p0=1.0)
     m, s = post.mean(), post.summary()
     assert set(post.names) == {"np", "nq", "tau_p", "tau_q"}
     assert abs(m["np"] - 1.3) < 4 * s.loc["np", "sd"] + 0.01
@@ -67,8 +67,8 @@ def test_auto_nominal_and_frequency():
 
 def test_seed_reproducibility_and_predict():
     d = _data(100)
-    a = fit_exp(d, q0=0.5, seed=3, **FAST)
-    b = fit_exp(d, q0=0.5, seed=3, **FAST)
+    a = fit_exp(d, q0=0.5, seed=3, **FAST, p0=1.0)
+    b = fit_exp(d, q0=0.5, seed=3, **FAST, p0=1.0)
     assert np.array_equal(a.draws["np"], b.draws["np"])
     model = ExponentialModel(q0=0.5)
     pred = model.predict(a.draws, np.linspace(0.9, 1.0, 5), rng=0)
@@ -80,15 +80,15 @@ def test_seed_reproducibility_and_predict():
 def test_bad_input():
     d = _data(50)
     with pytest.raises(DataError, match="'p'"):
-        fit_exp({"v": d["v"]}, **FAST)
+        fit_exp({"v": d["v"]}, **FAST, p0=1.0, q0=1.0)
     d2 = dict(d, v=d["v"].copy())
     d2["v"][3] = -1
     with pytest.raises(DataError, match="row 4"):
-        fit_exp(d2, **FAST)
+        fit_exp(d2, **FAST, p0=1.0, q0=1.0)
     with pytest.raises(DataError, match="fewer"):
         fit_exp({"v": d["v"][:2], "p": d["p"][:2]}, p0="auto", with_f=False, **FAST)
     with pytest.raises(DataError, match="spread"):
-        fit_exp({"v": np.ones(10), "p": np.ones(10)}, **FAST)
+        fit_exp({"v": np.ones(10), "p": np.ones(10)}, **FAST, p0=1.0, q0=1.0)
 
 
 # ------------------------------------------------ pointwise likelihoods (model choice)
@@ -137,8 +137,8 @@ def test_same_scale_as_zip():
     """A ZIP fit and an exponential fit of the same data give log-likelihoods of one scale."""
     d = _data(200, np_=2.0)
     d = {"v": d["v"], "p": d["p"]}
-    z = fit_zip(d, with_q=False, seed=0, **FAST)
-    e = fit_exp(d, with_q=False, seed=0, **FAST)
+    z = fit_zip(d, with_q=False, seed=0, **FAST, p0=1.0, q0=1.0)
+    e = fit_exp(d, with_q=False, seed=0, **FAST, p0=1.0, q0=1.0)
     lz = pointwise_loglik(z, d, max_draws=200).mean()
     le = pointwise_loglik(e, d, max_draws=200).mean()
     # x^2 is both a ZIP (a1 = 1) and an exponential (np = 2) load: equal fits

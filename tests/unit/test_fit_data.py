@@ -33,14 +33,16 @@ def test_data_of_without_a_spec_returns_the_keywords():
 
 def test_data_of_takes_the_spec_unless_a_keyword_changed():
     spec = DataSpec(v_col="V", p_col="P", q_col=None, v_base=400.0, p0=None, q0=-0.5)
-    got = data_of(spec, fit_zip, v_col="v", p_col="W", q_col="q", v_base=None, p0=1.0, q0=1.0)
+    got = data_of(spec, fit_zip, v_col="v", p_col="W", q_col="q", v_base=None, p0="auto", q0="auto")
     assert got == ("V", "W", None, 400.0, "auto", -0.5)
 
 
 def test_fit_zip_with_a_spec_is_the_fit_with_its_keywords(tmp_path):
     df = _frame()
     spec = DataSpec(v_col="V", p_col="P", q_col="Q", v_base=400.0, s_base=1e3, p0=1.0, q0=1.0)
-    loose = fit_zip(df, v_col="V", p_col="P", q_col="Q", v_base=400.0, s_base=1e3, **FAST)
+    loose = fit_zip(
+        df, v_col="V", p_col="P", q_col="Q", v_base=400.0, s_base=1e3, **FAST, p0=1.0, q0=1.0
+    )
     _same(fit_zip(df, spec=spec, **FAST), loose)
     path = tmp_path / "bus.csv"
     df.to_csv(path, index=False)
@@ -54,7 +56,9 @@ def test_fit_zip_with_a_spec_is_the_fit_with_its_keywords(tmp_path):
 def test_fit_exp_with_a_spec_is_the_fit_with_its_keywords():
     df = _frame()
     spec = DataSpec(v_col="V", p_col="P", q_col=None, v_base=400.0, s_base=1e3, p0=1.0)
-    loose = fit_exp(df, v_col="V", p_col="P", q_col=None, v_base=400.0, s_base=1e3, **FAST)
+    loose = fit_exp(
+        df, v_col="V", p_col="P", q_col=None, v_base=400.0, s_base=1e3, **FAST, p0=1.0, q0=1.0
+    )
     _same(fit_exp(df, spec=spec, **FAST), loose)
 
 

@@ -38,11 +38,13 @@ def test_keywords_override_and_seed_none_is_kept():
 
 def test_settings_or_keywords_give_the_same_draws():
     data = _data()
-    a = fit_zip(data, with_q=False, draws=600, burn=100, chains=2, seed=3, warn=False)
+    a = fit_zip(
+        data, with_q=False, draws=600, burn=100, chains=2, seed=3, warn=False, p0=1.0, q0=1.0
+    )
     b = fit_zip(data, with_q=False, sampler=SamplerSettings(draws=600, burn=100, chains=2,
-                seed=3), warn=False)  # fmt: skip
+                seed=3), warn=False, p0=1.0, q0=1.0)  # fmt: skip
     c = fit_zip(data, with_q=False, sampler=SamplerSettings(draws=600, burn=100, chains=2),
-                seed=3, warn=False)  # fmt: skip
+                seed=3, warn=False, p0=1.0, q0=1.0)  # fmt: skip
     for name in ("a1", "a2", "tau_p"):
         np.testing.assert_array_equal(a.draws[name], b.draws[name])
         np.testing.assert_array_equal(a.draws[name], c.draws[name])
@@ -50,13 +52,13 @@ def test_settings_or_keywords_give_the_same_draws():
 
 def test_a_bad_burn_is_the_one_line_option_error():
     with pytest.raises(OptionError, match=r"burn \(10\) must be smaller than draws \(10\)"):
-        fit_zip(_data(), draws=10, burn=10)
+        fit_zip(_data(), draws=10, burn=10, p0=1.0, q0=1.0)
 
 
 def test_student_t_zip_flags_the_bad_row_as_a_data_row():
     data = _data(outlier=41)
     post = fit_zip(data, with_q=False, likelihood="student-t", nu=4.0, draws=800, burn=200,
-                   chains=2, seed=0, warn=False)  # fmt: skip
+                   chains=2, seed=0, warn=False, p0=1.0, q0=1.0)  # fmt: skip
     assert 42 in post.settings["flagged_rows"]
     assert post.extra_json["flagged"] == post.settings["flagged_rows"]
     # the same draws as fit_robust on the same columns
@@ -66,4 +68,4 @@ def test_student_t_zip_flags_the_bad_row_as_a_data_row():
     ref = fit_robust(model, data, nu=4.0, draws=800, burn=200, chains=2, seed=0)
     np.testing.assert_array_equal(post.draws["a1"], ref.draws["a1"])
     with pytest.raises(OptionError, match="Gaussian-likelihood scheme"):
-        fit_zip(data, likelihood="student-t", scheme="exact")
+        fit_zip(data, likelihood="student-t", scheme="exact", p0=1.0, q0=1.0)

@@ -358,6 +358,7 @@ def fit_composite_cmd(
                 noise=noise,
                 coefficient_prior=coef_priors,
                 window_s=window_s,
+                wording="cli",
             )
     finally:
         bar.close()

@@ -162,7 +162,7 @@ def fit_exp_cmd(
     names = {"v": v_col, "p": p_col, "q": q_name, "f": f_col}
     # The exponential model is near the ZIP one at V0 (P = P0 at V = V0): the same check.
     warnings = data_checks(
-        pc.cols, path=data, names=names, accept_units=accept_units,
+        pc.cols, path=data, names=names, accept_units=accept_units, eiv=False,
         v0=v0, p0=p0_val, q0=q0_val, v_base=v_base, s_base=s_base,
     )  # fmt: skip
     if pc.n_dropped:
@@ -180,6 +180,7 @@ def fit_exp_cmd(
             priors=priors,
             sampler=sampler,
             warnings=warnings,
+            unit_check=False,  # done above on the file, worded with the options
             warn=False,
             settings={
                 "data": str(data),

@@ -168,6 +168,7 @@ def fit_im_cmd(
             progress=progress,
             scheme=scheme,
             sampler=sampler,
+            wording="cli",
         )
     finally:
         progress.close()

@@ -26,10 +26,11 @@ def fit_exp(
     f_col: str | None = "f",
     t_col: str | None = None,
     v0: float = 1.0,
-    p0: Nominal = 1.0,
-    q0: Nominal = 1.0,
+    p0: Nominal = "auto",
+    q0: Nominal = "auto",
     v_base: float | None = None,
     s_base: float | None = None,
+    accept_units: bool = False,
     with_q: bool | None = None,
     with_f: bool | None = None,
     f0: float = 60.0,
@@ -42,6 +43,7 @@ def fit_exp(
     settings: Mapping[str, Any] | None = None,
     warnings: list[str] | None = None,
     warn: bool = True,
+    unit_check: bool = True,
     **overrides: Any,
 ):
     """Posterior of the exponential load model: the Python twin of ``loadbayes fit exp``.
@@ -56,9 +58,13 @@ def fit_exp(
     t_col : str, optional
         Timestamp column (or a DataFrame's DatetimeIndex), recorded, not fitted.
     v0, p0, q0 : float or "auto"
-        Nominal values (``auto`` estimates P0 / Q0), in per unit when bases are given.
+        Nominal values (``auto``, the default as in the CLI, estimates P0 / Q0), in per
+        unit when bases are given.
     v_base, s_base : float, optional
         Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
+    accept_units : bool
+        Fit data that do not look like per unit of the nominal point (a warning instead
+        of a :class:`DataError`): the check of ``fit_zip``, on files and tables alike.
     with_q, with_f : bool, optional
         ``False`` leaves Q / the frequency coefficients out even when the column is there.
     f0 : float
@@ -82,6 +88,9 @@ def fit_exp(
         Recorded with the result.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
+    unit_check : bool
+        ``False`` skips the unit and V-noise checks: for a caller that has run them on
+        the raw file already (``loadbayes fit exp`` does, to word them with its options).
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings of
         ``sampler``; ``draws`` includes burn-in.
@@ -109,9 +118,12 @@ def fit_exp(
     from loadbayes.fit.zip import check_bases
     from loadbayes.measurements.frame import is_path, read_frame
 
-    v_col, p_col, q_col, f_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid = data_of(
-        spec, fit_exp, v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col, t_col=t_col,
-        v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+    v_col, p_col, q_col, f_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid, accept_units = (
+        data_of(
+            spec, fit_exp, v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col, t_col=t_col,
+            v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+            accept_units=accept_units,
+        )
     )  # fmt: skip
     smp = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
@@ -150,6 +162,16 @@ def fit_exp(
             cols["f"] = d[f_col]
         base.update(table.time)
         base.setdefault("data", "DataFrame" if hasattr(data, "iloc") else "mapping")
+    from loadbayes.fit.zip import data_checks
+
+    # The exponential model is near the ZIP one at V0 (P = P0 at V = V0): the same check.
+    names = {"v": v_col, "p": p_col, "q": q_col, "f": f_col}
+    where = str(data) if is_path(data) else "data"
+    if unit_check:
+        warn_list += data_checks(
+            cols, path=where, names=names, accept_units=accept_units, eiv=False, wording="python",
+            v0=v0, p0=p0, q0=q0 if "q" in cols else "auto", v_base=v_base, s_base=s_base,
+        )  # fmt: skip
     if dropped and not warnings:
         warn_list.append(f"{dropped} rows with invalid values were dropped (drop_invalid=True)")
     base.setdefault("columns", {"v": v_col, "p": p_col, "q": q_col, "f": f_col})
@@ -169,8 +191,6 @@ def fit_exp(
     except DataError as exc:
         from loadbayes.measurements.columns import relocate
 
-        names = {"v": v_col, "p": p_col, "q": q_col, "f": f_col}
-        where = str(data) if is_path(data) else "data"
         raise relocate(exc, where, rows, names) from None
     if warn:
         post.warn(stacklevel=2)

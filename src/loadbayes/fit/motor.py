@@ -25,6 +25,7 @@ from loadbayes.fit.data import bases, data_of
 from loadbayes.fit.sampler import sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
+from loadbayes.measurements.units import Wording
 from loadbayes.posterior import Posterior
 
 __all__ = ["fit_im", "fit_im_file", "im_priors"]
@@ -175,6 +176,7 @@ def fit_im(
     scheme: Scheme = "blocked",
     sampler: SamplerSettings | None = None,
     drop_invalid: bool = False,
+    accept_units: bool = False,
     warn: bool = True,
     **overrides: Any,
 ) -> Posterior:
@@ -205,6 +207,10 @@ def fit_im(
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     drop_invalid : bool
         Drop rows with NaN or inf instead of refusing the data.
+    accept_units : bool
+        Fit states that do not look like per unit (a warning instead of a
+        :class:`DataError`): the CLI's check, on files and tables alike, worded with
+        this keyword.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
     **overrides
@@ -238,8 +244,8 @@ def fit_im(
     smp = sampler_of(sampler, overrides, check=True)
     if is_path(data):
         post, _ = fit_im_file(str(data), t0=t0, f_hz=f_hz, currents=currents, priors=priors,
-                              drop_invalid=drop_invalid, scheme=scheme,
-                              sampler=smp)  # fmt: skip
+                              drop_invalid=drop_invalid, scheme=scheme, sampler=smp,
+                              accept_units=accept_units)  # fmt: skip
         if warn:
             post.warn(stacklevel=2)
         return post
@@ -250,7 +256,12 @@ def fit_im(
         model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
     except ValueError as exc:
         raise OptionError(str(exc)) from None
-    warnings = []
+    from loadbayes.measurements.units import check_motor_units, refuse
+
+    problems = check_motor_units(cols, wording="python")
+    if not accept_units:
+        refuse(problems, path="data")
+    warnings = [f"units: {pr}" for pr in problems]
     if table.n_dropped:
         warnings.append(f"{table.n_dropped} rows with invalid values were dropped")
     n = table.rows.size
@@ -293,6 +304,7 @@ def fit_im_file(
     scheme: Scheme = "blocked",
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
+    wording: Wording = "python",
     **overrides: Any,
 ):
     """Fit the induction motor to a CSV or Parquet file read in chunks.
@@ -320,6 +332,8 @@ def fit_im_file(
         keywords, when changed from their defaults, override them.
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+    wording : {"python", "cli"}
+        Whose names the unit check's message gives (``loadbayes fit im`` passes "cli").
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -358,7 +372,7 @@ def fit_im_file(
             state["first_row"] = chunk.row_of(0)
             state["unit_notes"] = _first_chunk_checks(
                 chunk.data, path=str(path), t0=t0, accept_units=accept_units,
-                row=state["first_row"],
+                row=state["first_row"], wording=wording,
             )  # fmt: skip
         rows = model.rows(chunk.data)
         acc.update(rows)
@@ -447,11 +461,11 @@ def steady_start_problem(data: Mapping[str, np.ndarray], *, head: int = 5) -> st
     return None
 
 
-def _first_chunk_checks(data, *, path, t0, accept_units, row) -> list[str]:
+def _first_chunk_checks(data, *, path, t0, accept_units, row, wording="cli") -> list[str]:
     from loadbayes.io.errors import DataError
     from loadbayes.measurements.units import check_motor_units, refuse
 
-    problems = check_motor_units(data)
+    problems = check_motor_units(data, wording=wording)
     if not accept_units:
         refuse(problems, path=path)
     if t0 is None:

@@ -20,6 +20,7 @@ from loadbayes.fit.data import bases, data_of
 from loadbayes.fit.sampler import check_sampler, sampler_of
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import OptionError
+from loadbayes.measurements.units import Wording, option
 from loadbayes.posterior import Posterior
 
 __all__ = [
@@ -43,10 +44,11 @@ def fit_zip(
     q_col: str | None = "q",
     t_col: str | None = None,
     v0: float = 1.0,
-    p0: float | str = 1.0,
-    q0: float | str = 1.0,
+    p0: float | str = "auto",
+    q0: float | str = "auto",
     v_base: float | None = None,
     s_base: float | None = None,
+    accept_units: bool = False,
     with_q: bool | None = None,
     units: Mapping[str, str] | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
@@ -54,6 +56,7 @@ def fit_zip(
     scheme: Scheme = "blocked",
     likelihood: Likelihood = "normal",
     nu: float | Literal["auto"] = "auto",
+    v_noise: float | Literal["auto"] | None = None,
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     warn: bool = True,
@@ -74,8 +77,15 @@ def fit_zip(
         are recorded with the result, it is not fitted.
     v0, p0, q0 : float or "auto"
         Nominal values, in per unit when bases are given, else in the data's units.
+        ``p0``/``q0`` default to ``"auto"`` (estimated, as the CLI does): a number is
+        a claim about the load, checked against the data.
     v_base, s_base : float, optional
         Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
+    accept_units : bool
+        Fit data that do not look like per unit of the nominal point (a warning instead
+        of a :class:`DataError`). Files and tables in memory get the same check
+        (:func:`loadbayes.measurements.units.check_power_units`), worded with these
+        keywords (``v_base=13.8``) where the CLI names its options.
     with_q : bool, optional
         ``False`` fits P only even when there is a Q column.
     units : mapping, optional
@@ -94,13 +104,20 @@ def fit_zip(
         data rows.
     nu : float or "auto"
         Student-t degrees of freedom (``auto``: sampled).
+    v_noise : float or "auto", optional
+        Noise on V (errors in variables, :mod:`loadbayes.fit.eiv`): the sd of the
+        voltage's measurement noise in per unit of ``v0`` (from the instrument class),
+        or ``"auto"`` to sample it (needs Q as well as P). A latent true voltage per
+        sample removes the bias toward a flat load that noise on V gives the plain fit;
+        each iteration then costs O(n). Gaussian likelihood, blocked scheme only.
     spec : DataSpec, optional
         Columns, bases, nominal point and drop policy in one object; the keywords above
         that a call changes from their defaults override its fields
         (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run; :data:`loadbayes.fit.core.MODEL_DEFAULTS` (40 000 draws
-        including a 5 000 burn-in, the paper's M and m) by default.
+        including a 5 000 burn-in, the paper's M and m) by default, and
+        :data:`loadbayes.fit.eiv.EIV_DEFAULTS` (4 000 and 1 000) with ``v_noise``.
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: change single
         settings of ``sampler``; ``draws`` counts iterations including burn-in.
@@ -138,10 +155,18 @@ def fit_zip(
     from loadbayes.measurements.frame import is_path, read_frame
     from loadbayes.models.zip import ZIPModel
 
-    v_col, p_col, q_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid = data_of(
-        spec, fit_zip, v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col, v0=v0, p0=p0,
-        q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+    v_col, p_col, q_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid, accept_units = (
+        data_of(
+            spec, fit_zip, v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col, v0=v0, p0=p0,
+            q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+            accept_units=accept_units,
+        )
     )  # fmt: skip
+    v_noise = check_v_noise(v_noise, likelihood, scheme)
+    if sampler is None and v_noise is not None:
+        from loadbayes.fit.eiv import EIV_DEFAULTS
+
+        sampler = EIV_DEFAULTS
     settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     check_likelihood(likelihood, scheme)
@@ -153,7 +178,7 @@ def fit_zip(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, v0=v0,
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
             drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
-            sampler=settings, accept_units=spec.accept_units if spec is not None else False,
+            sampler=settings, accept_units=accept_units, v_noise=v_noise,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -169,7 +194,13 @@ def fit_zip(
         if q_col and q_col in table.data:
             cols["q"] = table.data[q_col] / (s_base or 1.0)
         model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
-        warnings = []
+        names = {"v": v_col, "p": p_col, "q": q_col}
+        # the file's unit and V-noise checks, on the whole table, worded for Python
+        warnings = data_checks(
+            cols, path="data", names=names, accept_units=accept_units, wording="python",
+            v0=v0, p0=p0, q0=q0 if model.with_q else "auto", v_base=v_base, s_base=s_base,
+            v_noise=v_noise,
+        )  # fmt: skip
         if table.n_dropped:
             warnings.append(
                 f"{table.n_dropped} rows with invalid values were dropped (drop_invalid=True)"
@@ -188,7 +219,12 @@ def fit_zip(
             **table.time,
         }
         try:
-            if likelihood == "student-t":
+            if v_noise is not None:
+                post = _fit_eiv(
+                    model, cols, v_noise=v_noise, priors=priors, sampler=settings,
+                    settings=record, warnings=warnings,
+                )  # fmt: skip
+            elif likelihood == "student-t":
                 warnings += model.check(accumulate(model, [cols]))
                 post = _fit_student_t(
                     model, cols, table.rows, priors=priors, nu=nu, sampler=settings,
@@ -214,6 +250,36 @@ def fit_zip(
     if warn:
         post.warn(stacklevel=2)
     return post
+
+
+def check_v_noise(v_noise: Any, likelihood: str, scheme: str) -> float | str | None:
+    """The errors-in-variables option checked: None, a positive sd or "auto"."""
+    from loadbayes.fit.eiv import check_v_noise as check
+
+    value = check(v_noise)
+    if value is not None and (likelihood != "normal" or scheme != "blocked"):
+        raise OptionError(
+            "v_noise (errors in variables) has its own Gibbs sampler with the Gaussian "
+            "likelihood: leave likelihood at 'normal' and scheme at 'blocked'"
+        )
+    return value
+
+
+def _fit_eiv(model, cols, *, v_noise, priors, sampler, settings, warnings):
+    """The errors-in-variables fit of columns in memory (:mod:`loadbayes.fit.eiv`)."""
+    from loadbayes.fit.eiv import fit_zip_eiv
+
+    if v_noise == "auto" and not model.with_q:
+        raise OptionError(
+            "v_noise='auto' needs Q as well as P: with P alone the noise on V is not "
+            "identified (give the instrument's sd, e.g. v_noise=0.005)"
+        )
+    warnings = list(warnings) + model.check(accumulate(model, [cols]))
+    return fit_zip_eiv(
+        model, cols, v_noise=v_noise, priors=priors, sampler=sampler,
+        observed=cols if cols["v"].size <= MAX_OBSERVED else None,
+        settings=settings, warnings=warnings,
+    )  # fmt: skip
 
 
 def check_likelihood(likelihood: str, scheme: str) -> None:
@@ -285,8 +351,8 @@ def fit_zip_file(
     q_col: str | None = "q",
     q_required: bool = False,
     v0: float = 1.0,
-    p0: float | str = 1.0,
-    q0: float | str = 1.0,
+    p0: float | str = "auto",
+    q0: float | str = "auto",
     v_base: float | None = None,
     s_base: float | None = None,
     priors: Mapping[str, BlockPrior] | None = None,
@@ -299,6 +365,8 @@ def fit_zip_file(
     nu: float | Literal["auto"] = "auto",
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
+    wording: Wording = "python",
+    v_noise: float | Literal["auto"] | None = None,
     **overrides: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
@@ -311,7 +379,8 @@ def fit_zip_file(
         Column names; ``q_col=None`` fits P only. A missing Q column is an error only
         with ``q_required``; otherwise P alone is fitted.
     v0, p0, q0 : float or "auto"
-        Nominal values, in per unit when bases are given, else in the data's units.
+        Nominal values, in per unit when bases are given, else in the data's units
+        (``p0``/``q0``: estimated by default, as in the CLI and :func:`fit_zip`).
     v_base, s_base : float, optional
         Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
     priors : mapping, optional
@@ -335,6 +404,12 @@ def fit_zip_file(
         (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+    wording : {"python", "cli"}
+        Whose names the messages give for a fix: these keywords, or the CLI's options
+        (``loadbayes fit zip`` passes ``"cli"``).
+    v_noise : float or "auto", optional
+        Errors in variables (as :func:`fit_zip`): the file is read into memory (the
+        latent voltages are visited at every iteration) and checked whole.
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -356,6 +431,7 @@ def fit_zip_file(
         spec, fit_zip_file, v_col=v_col, p_col=p_col, q_col=q_col, v0=v0, p0=p0, q0=q0,
         v_base=v_base, s_base=s_base, drop_invalid=drop_invalid, accept_units=accept_units,
     )  # fmt: skip
+    v_noise = check_v_noise(v_noise, likelihood, scheme)
     settings = sampler_of(sampler, overrides)
     check_likelihood(likelihood, scheme)
     read = dict(
@@ -363,10 +439,10 @@ def fit_zip_file(
         s_base=s_base, drop_invalid=drop_invalid, chunk_rows=chunk_rows,
     )  # fmt: skip
     nominal = dict(v0=v0, p0=p0, q0=q0)
-    if likelihood == "student-t":
+    if likelihood == "student-t" or v_noise is not None:
         return _fit_file_student_t(
             path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
-            progress=progress, accept_units=accept_units,
+            progress=progress, accept_units=accept_units, wording=wording, v_noise=v_noise,
         )  # fmt: skip
     state: dict[str, Any] = {"dropped": 0}
     names = {"v": v_col, "p": p_col, "q": q_col}
@@ -382,7 +458,7 @@ def fit_zip_file(
                 # the first chunk with rows (one whose rows were all dropped says nothing)
                 state["first_warnings"] = data_checks(
                     cols, path=path, names=names, accept_units=accept_units,
-                    v_base=v_base, s_base=s_base, **nominal,
+                    v_base=v_base, s_base=s_base, wording=wording, **nominal,
                 )  # fmt: skip
             if sum(a.size for a in keep_obs["v"]) <= MAX_OBSERVED:
                 for k, a in cols.items():
@@ -404,7 +480,8 @@ def fit_zip_file(
     warnings = list(state.get("first_warnings", []))
     if state["dropped"]:
         warnings.append(
-            f"{state['dropped']} rows with invalid values were dropped (--drop-invalid)"
+            f"{state['dropped']} rows with invalid values were dropped "
+            f"({option('drop-invalid', wording=wording).removesuffix('=...')})"
         )
     observed = None
     if gram.n <= MAX_OBSERVED:
@@ -445,8 +522,13 @@ def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
     }
 
 
-def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, accept_units):
-    """The Student-t ZIP of a file: read into memory, checked whole, flagged as file rows."""
+def _fit_file_student_t(
+    path, *, read, nominal, priors, nu, sampler, progress, accept_units, wording, v_noise=None
+):
+    """The Student-t or errors-in-variables ZIP of a file: read into memory, checked whole.
+
+    The samples the Student-t fit flags are given as file rows.
+    """
     from loadbayes.io.errors import DataError
     from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.models.zip import ZIPModel
@@ -456,11 +538,20 @@ def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, a
     names = {"v": read["v_col"], "p": read["p_col"], "q": read["q_col"]}
     warnings = data_checks(
         pc.cols, path=path, names=names, accept_units=accept_units,
-        v_base=read["v_base"], s_base=read["s_base"], **nominal,
+        v_base=read["v_base"], s_base=read["s_base"], wording=wording, v_noise=v_noise,
+        **nominal,
     )  # fmt: skip
     if pc.n_dropped:
-        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+        drop = option("drop-invalid", wording=wording).removesuffix("=...")
+        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped ({drop})")
     try:
+        if v_noise is not None:
+            post = _fit_eiv(
+                model, pc.cols, v_noise=v_noise, priors=priors, sampler=sampler,
+                settings=_file_record(path, model, read, nominal, pc.n_dropped),
+                warnings=warnings,
+            )  # fmt: skip
+            return post, model
         warnings += model.check(accumulate(model, [pc.cols]))
         post = _fit_student_t(
             model, pc.cols, pc.rows, priors=priors, nu=nu, sampler=sampler,
@@ -505,16 +596,25 @@ def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings
     return post
 
 
-def data_checks(cols, *, path, names, accept_units, **nominal) -> list[str]:
-    """The unit check (refuse, or warn with ``accept_units``) and the V-noise check."""
+def data_checks(
+    cols, *, path, names, accept_units, wording="cli", v_noise=None, eiv=True, **nominal
+) -> list[str]:
+    """The unit check (refuse, or warn with ``accept_units``) and the V-noise check.
+
+    ``wording`` names the fixes as the CLI's options or as Python's keywords; with
+    ``v_noise`` (the noise on V modelled) the V-noise check has nothing to say;
+    ``eiv=False``: the fit has no such option (the exponential one), not offered.
+    """
     from loadbayes.diagnostics import voltage_noise_warning
     from loadbayes.measurements.units import check_power_units, refuse
 
-    problems = check_power_units(cols["v"], cols.get("p"), cols.get("q"), **nominal)
+    problems = check_power_units(
+        cols["v"], cols.get("p"), cols.get("q"), wording=wording, **nominal
+    )
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]
-    noise = voltage_noise_warning(cols["v"])
+    noise = voltage_noise_warning(cols["v"], wording=wording, eiv=eiv) if v_noise is None else None
     return out + ([noise] if noise else [])
 
 

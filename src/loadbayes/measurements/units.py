@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from loadbayes.io.errors import DataError
 
 __all__ = [
     "UnitProblem",
+    "Wording",
     "check_gram_units",
     "check_motor_units",
     "check_power_units",
@@ -38,6 +40,34 @@ NOMINAL_RANGE = (1 / 1.5, 1.5)
 AUTO_MAX = 1e3
 #: The option that accepts unusual data.
 ACCEPT = "--accept-units"
+#: Whose names the fixes give: the command line's options or Python's keywords.
+Wording = Literal["cli", "python"]
+#: The keyword that accepts unusual data, from Python.
+ACCEPT_PY = "accept_units=True"
+
+
+def option(name: str, value: object = None, *, wording: Wording = "cli") -> str:
+    """An option as the user types it: ``--v-base 13.8`` (CLI) or ``v_base=13.8`` (Python).
+
+    ``name`` is the CLI spelling without the dashes (``"v-base"``); a ``value`` of
+    None gives the bare option (``--s-base``, ``s_base=...``).
+    """
+    if wording == "cli":
+        return f"--{name}" + ("" if value is None else f" {value}")
+    key = name.replace("-", "_")
+    if value is None:
+        return f"{key}=..."
+    try:
+        float(str(value))
+    except ValueError:
+        return f"{key}={str(value)!r}"
+    return f"{key}={value}"
+
+
+def accept(wording: Wording = "cli") -> str:
+    """The option that fits unusual data anyway, in the caller's wording."""
+    return ACCEPT if wording == "cli" else ACCEPT_PY
+
 
 # Common nominal voltages (kV and V) offered as the --v-base a median is close to.
 _STANDARD_V = (
@@ -64,23 +94,24 @@ class UnitProblem:
     column: str
     seen: str
     fix: str
+    wording: Wording = "cli"
 
     def __str__(self) -> str:
-        return f"{self.seen}; {self.fix} (or {ACCEPT} if the data are right)"
+        return f"{self.seen}; {self.fix} (or {accept(self.wording)} if the data are right)"
 
 
-def _suggest_base(raw_median: float) -> str:
+def _suggest_base(raw_median: float, wording: Wording = "cli") -> str:
     """``--v-base X`` for the data's median V: a standard voltage when one is close."""
     near = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median / s)))
     if abs(raw_median / near - 1) < 0.08:
-        return f"--v-base {near:g}"
+        return option("v-base", f"{near:g}", wording=wording)
     line = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median * np.sqrt(3) / s)))
     if abs(raw_median * np.sqrt(3) / line - 1) < 0.05:
         return (
-            f"--v-base {raw_median:.4g} (line-to-neutral data of a {line:g} system: "
-            f"{line:g}/sqrt(3))"
+            f"{option('v-base', f'{raw_median:.4g}', wording=wording)} (line-to-neutral "
+            f"data of a {line:g} system: {line:g}/sqrt(3))"
         )
-    return f"--v-base {raw_median:.4g}"
+    return option("v-base", f"{raw_median:.4g}", wording=wording)
 
 
 def level_at_nominal(x: np.ndarray, y: np.ndarray) -> float:
@@ -118,6 +149,7 @@ def check_power_units(
     q0: float | str = 1.0,
     v_base: float | None = None,
     s_base: float | None = None,
+    wording: Wording = "cli",
 ) -> list[UnitProblem]:
     """Problems with the units of V, P, Q as a ZIP or exponential model sees them.
 
@@ -130,6 +162,9 @@ def check_power_units(
         The nominal point the model uses, in the same units.
     v_base, s_base : float, optional
         The bases already applied (to suggest a better one in the data's own units).
+    wording : {"cli", "python"}
+        Name the fixes as the command line's options (``--v-base 13.8``) or as Python's
+        keywords (``v_base=13.8``): each user reads the names they type.
 
     Returns
     -------
@@ -151,21 +186,27 @@ def check_power_units(
         return out
     x = v[ok] / v0
     med = float(np.median(x))
+
+    def opt(name: str, value: object = None) -> str:
+        return option(name, value, wording=wording)
+
     if not V_RANGE[0] <= med <= V_RANGE[1]:
         raw = med * v0 * (v_base or 1.0)
-        given = f" with --v-base {v_base:g}" if v_base else ""
-        v0_txt = f" and --v0 {v0:g}" if v0 != 1.0 else ""
+        given = f" with {opt('v-base', f'{v_base:g}')}" if v_base else ""
+        v0_txt = f" and {opt('v0', f'{v0:g}')}" if v0 != 1.0 else ""
         out.append(
             UnitProblem(
                 "v",
                 f"V / V0 has median {med:.4g}{given}{v0_txt}, not about 1: the voltage is "
                 "not per unit",
-                f"give the system's nominal voltage in the data's units with --v-base (V's "
-                f"median is {raw:.4g}: {_suggest_base(raw)} if that is near nominal)",
+                f"give the system's nominal voltage in the data's units with "
+                f"{opt('v-base').removesuffix('=...')} (V's median is {raw:.4g}: "
+                f"{_suggest_base(raw, wording)} if that is near nominal)",
+                wording,
             )
         )
         return out  # the power checks need a per-unit x
-    for ch, y, nom, opt in (("p", p, p0, "--p0"), ("q", q, q0, "--q0")):
+    for ch, y, nom in (("p", p, p0), ("q", q, q0)):
         if y is None:
             continue
         y = np.asarray(y, dtype=float)[ok]
@@ -180,8 +221,10 @@ def check_power_units(
                         ch,
                         f"{ch.upper()} has median magnitude {big:.4g}: not per unit of any "
                         "sensible power base",
-                        f"give the power base in the data's units with --s-base (e.g. "
-                        f"--s-base {10 ** np.floor(np.log10(big)):g})",
+                        f"give the power base in the data's units with "
+                        f"{opt('s-base').removesuffix('=...')} (e.g. "
+                        f"{opt('s-base', f'{10 ** np.floor(np.log10(big)):g}')})",
+                        wording,
                     )
                 )
             continue
@@ -192,10 +235,12 @@ def check_power_units(
                 UnitProblem(
                     ch,
                     f"{ch.upper()} / {ch.upper()}0 is about {level:.4g} at V = V0 (from the "
-                    f"data), not 1: {opt} {nom:g} is not the load's {ch.upper()} at V0 "
-                    f"(the data say about {raw:.4g} in their own units)",
-                    f"let loadbayes estimate it with {opt} auto, or give the right {opt} "
-                    "(with --s-base for data in MW, kW or kvar)",
+                    f"data), not 1: {opt(f'{ch}0', f'{nom:g}')} is not the load's "
+                    f"{ch.upper()} at V0 (the data say about {raw:.4g} in their own units)",
+                    f"let loadbayes estimate it with {opt(f'{ch}0', 'auto')}, or give the "
+                    f"right {opt(f'{ch}0').removesuffix('=...')} (with "
+                    f"{opt('s-base').removesuffix('=...')} for data in MW, kW or kvar)",
+                    wording,
                 )
             )
     return out
@@ -210,13 +255,17 @@ _MOTOR = (
 )
 
 
-def check_motor_units(cols: Mapping[str, np.ndarray]) -> list[UnitProblem]:
+def check_motor_units(
+    cols: Mapping[str, np.ndarray], *, wording: Wording = "cli"
+) -> list[UnitProblem]:
     """Problems with the units of an induction motor's states (``fit im``'s columns).
 
     Parameters
     ----------
     cols : mapping
         Arrays ``ud, uq, w, id, iq, ed, eq`` (those present are checked).
+    wording : {"cli", "python"}
+        The option that accepts them anyway, as ``--accept-units`` or ``accept_units=True``.
 
     Returns
     -------
@@ -247,6 +296,7 @@ def check_motor_units(cols: Mapping[str, np.ndarray]) -> list[UnitProblem]:
                     f"{what} has median {med:.4g}{hint}: not per unit",
                     "convert the recording to per unit of the motor's base (fit im reads "
                     "per-unit states and derivatives per second)",
+                    wording,
                 )
             )
     return out

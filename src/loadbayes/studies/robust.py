@@ -92,7 +92,7 @@ def _fit(method: str, data: dict[str, np.ndarray], sampler: dict, seed: int):
 
     model = ZIPModel(with_q=False)
     if method == "gibbs":
-        post = fit_zip(data, with_q=False, seed=seed, warn=False, **sampler)
+        post = fit_zip(data, with_q=False, p0=1.0, seed=seed, warn=False, **sampler)
         m = post.mean()
         return np.array([m["a1"], m["a2"]]), None
     if method == "student-t":

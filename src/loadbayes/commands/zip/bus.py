@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from loadbayes.commands.options import (
@@ -38,6 +40,22 @@ from loadbayes.commands.zip.fleet import (
 
 #: Parameters stored per draw and channel: three shares, tau, P0 (auto); Student-t adds nu.
 PER_CHANNEL = 5
+#: The draws and burn-in of --v-noise where the user gave none (its iterations are O(n)).
+EIV_DRAWS, EIV_BURN = 4_000, 1_000
+
+
+def zip_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
+    """The fleet's defaults with --by, the errors-in-variables ones with --v-noise."""
+    values = fleet_sampler_defaults(values, options)
+    if options.get("by") or options.get("v_noise") is None:
+        return values
+    ctx = click.get_current_context()
+    src = click.core.ParameterSource.DEFAULT
+    draws = EIV_DRAWS if ctx.get_parameter_source("draws") == src else values["draws"]
+    burn = values["burn"]
+    if ctx.get_parameter_source("burn") == src:
+        burn = min(EIV_BURN, draws - 1)
+    return {**values, "draws": draws, "burn": burn}
 
 
 @click.command("zip", cls=OneLineCommand)
@@ -52,7 +70,15 @@ PER_CHANNEL = 5
     show_default=True,
 )
 @likelihood_options()
-@sampler_settings(adjust=fleet_sampler_defaults)
+@click.option(
+    "--v-noise",
+    default=None,
+    metavar="SD|auto",
+    help="Noise on V (errors in variables): the voltage's measurement-noise sd in per unit "
+    "(instrument class), or 'auto' to sample it (needs Q). Fits a latent true voltage; "
+    f"default draws {EIV_DRAWS}, burn {EIV_BURN}.",
+)
+@sampler_settings(adjust=zip_sampler_defaults)
 @click.option(
     "--prior-mean",
     type=float,
@@ -96,6 +122,7 @@ def fit_zip_cmd(
     scheme,
     likelihood,
     nu,
+    v_noise,
     sampler,
     prior_mean,
     prior_sd,
@@ -150,6 +177,8 @@ def fit_zip_cmd(
         )
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
+    v_noise_val = parse_v_noise(v_noise, likelihood=likelihood, scheme=scheme,
+                                conjugate=conjugate, with_q=q_name is not None)  # fmt: skip
     check_cost(
         chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
         n_params=PER_CHANNEL * (1 if q_name is None else 2)
@@ -200,6 +229,8 @@ def fit_zip_cmd(
             chunk_rows=chunk_rows,
             progress=progress,
             accept_units=accept_units,
+            wording="cli",
+            v_noise=v_noise_val,
         )
     finally:
         progress.close()
@@ -218,3 +249,31 @@ def fit_zip_cmd(
 
 # --json is optional (the table goes to stdout); a fleet writes --out instead.
 next(p for p in fit_zip_cmd.params if p.name == "json_out").required = False
+
+
+def parse_v_noise(text, *, likelihood, scheme, conjugate, with_q):
+    """--v-noise as the fit takes it: None, a positive sd, or "auto" (one-line errors)."""
+    if text is None:
+        return None
+    from loadbayes.fit.eiv import check_v_noise
+    from loadbayes.io.errors import OptionError
+
+    try:
+        value = check_v_noise(text)
+    except OptionError as exc:
+        raise click.BadParameter(
+            str(exc).replace("v_noise must be", "must be"), param_hint="--v-noise"
+        ) from None
+    for bad, why in (
+        (likelihood != "normal", "--likelihood student-t"),
+        (scheme != "blocked", f"--scheme {scheme}"),
+        (conjugate, "--conjugate"),
+    ):
+        if bad:
+            raise UserError(f"--v-noise has its own Gibbs sampler: drop {why}")
+    if value == "auto" and not with_q:
+        raise UserError(
+            "--v-noise auto needs Q as well as P: with P alone the noise on V is not "
+            "identified (give the instrument's sd, e.g. --v-noise 0.005)"
+        )
+    return value

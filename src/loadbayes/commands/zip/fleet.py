@@ -86,6 +86,8 @@ def _refuse_single_bus_options(p: dict[str, Any]) -> None:
         raise UserError("a fleet is fitted with the Gaussian likelihood; drop --likelihood")
     if p.get("conjugate"):
         raise UserError("--conjugate is not available for fleets")
+    if p.get("v_noise") is not None:
+        raise UserError("--v-noise is for one bus (a fleet keeps no rows to visit)")
 
 
 def fleet_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:

@@ -205,7 +205,8 @@ def fit_composite(
         The noise of P and Q; ``nu`` (a number or "auto") only with "student-t".
     priors : mapping of str to (float, float), optional
         Log-normal priors ``{name: (median, sd_log)}`` of ``rs, x_prime, dx, t_prime_s,
-        h_s, t0`` (``--prior NAME=MEDIAN,SD_LOG``).
+        h_s, t0`` (``--prior NAME=MEDIAN,SD_LOG``), and normal priors ``{name: (mean,
+        sd)}`` of ``a1..a6, f_m, p0, q0`` (``--prior NAME=MEAN,SD``).
     prior : CompositePrior, optional
         A whole prior instead (not with ``priors``).
     settings : dict, optional
@@ -213,7 +214,8 @@ def fit_composite(
     **options
         Passed to :func:`loadbayes.fit.composite.driver.fit_composite`: ``sampler``,
         ``draws``, ``burn``, ``chains``, ``thin``, ``seed``, ``steps``, ``accept_units``,
-        ``progress``, ``workers`` ...
+        ``progress``, ``workers``, ``shares`` ("free" or "bounded"), ``noise`` ("white"
+        or "ar1"), ``window_s``, ``max_seconds``, ``until_converged`` ...
 
     Returns
     -------
@@ -260,18 +262,28 @@ def fit_composite(
             if isinstance(exc, LoadbayesError):
                 raise
             raise OptionError(str(exc)) from None
-        check_run(f_hz=f_hz, draws=s.draws, burn=s.burn, thin=s.thin, seed=s.seed)
+        check_run(f_hz=f_hz, draws=s.draws, burn=s.burn, thin=s.thin, seed=s.seed,
+                  max_seconds=options.get("max_seconds", 1.0))  # fmt: skip
     items = list(data) if isinstance(data, (list, tuple)) else [data]
     files = [str(x) for x in items if isinstance(x, str) or hasattr(x, "__fspath__")]
     events = read(data, t_col=t_col, v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col,
                   angle_col=angle_col, event_col=event_col, v_base=v_base, s_base=s_base,
                   f_hz=f_hz)  # fmt: skip
+    # Priors by name: the motor's (log-normal) set the prior; a1..a6, f_m, p0, q0 (normal)
+    # are the coefficients' factors (driver's coefficient_prior).
+    from loadbayes.models.composite_prior import COEFFICIENT_PRIOR_NAMES
+
+    priors = dict(priors or {})
+    coef = {n: priors.pop(n) for n in list(priors) if n in COEFFICIENT_PRIOR_NAMES}
+    if coef:
+        options["coefficient_prior"] = {**coef, **(options.get("coefficient_prior") or {})}
     if prior is None:
         from loadbayes.fit.composite.checks import check_units
 
         # The units first: the default prior reads the events' levels.
         check_units(events, accept_units=bool(options.get("accept_units", False)),
-                    columns={"v": v_col, "p": p_col, "q": q_col})  # fmt: skip
+                    columns={"v": v_col, "p": p_col, "q": q_col},
+                    wording=options.get("wording", "python"))  # fmt: skip
         prior = prior_with(events, priors)
     extra = {**({"files": files} if files else {}), **(settings or {})}
     return _fit_events(events, prior=prior, f_hz=f_hz, torque=torque_abc, likelihood=likelihood,

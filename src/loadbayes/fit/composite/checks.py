@@ -92,6 +92,7 @@ def check_units(
     *,
     accept_units: bool = False,
     columns: dict[str, str] | None = None,
+    wording: str = "cli",
 ) -> list[str]:
     """The unit check of ``fit zip``, per event: V per unit, P and Q of a sensible size.
 
@@ -101,6 +102,7 @@ def check_units(
     The composite's nominal powers are estimated (``p0``, ``q0`` per event), so P and Q
     are checked as ``fit zip --p0 auto`` checks them; a negative median P (a load that
     generates) is refused too. With ``accept_units`` the problems become warnings.
+    ``wording`` names the fixes as the CLI's options or Python's keywords.
 
     Returns
     -------
@@ -113,12 +115,12 @@ def check_units(
         The first problem, naming the event's file (and event id) and the column.
     """
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import ACCEPT, UnitProblem, check_power_units
+    from loadbayes.measurements.units import UnitProblem, accept, check_power_units
 
     names = {"v": "v", "p": "p", "q": "q", **(columns or {})}
     out: list[str] = []
     for e in events:
-        problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto")
+        problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto", wording=wording)
         med_p = float(np.median(e.p))
         if not problems and med_p < 0:
             problems.append(
@@ -127,6 +129,7 @@ def check_units(
                     f"P has median {med_p:.4g} < 0: the bus exports power, and a composite "
                     "load (ZIP + motor) consumes it",
                     "give P as the power into the load (check the meter's sign convention)",
+                    wording,  # type: ignore[arg-type]
                 )
             )
         if not problems:
@@ -136,7 +139,7 @@ def check_units(
             column = names.get(first.column, first.column)
             raise DataError(str(first), path=e.name or None, column=column)
         out += [f"{e.name or 'event'}: column '{names.get(pr.column, pr.column)}': {pr.seen} "
-                f"(fitted anyway: {ACCEPT})" for pr in problems]  # fmt: skip
+                f"(fitted anyway: {accept(wording)})" for pr in problems]  # type: ignore[arg-type]  # fmt: skip
     return out
 
 

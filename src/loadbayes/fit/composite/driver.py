@@ -227,6 +227,7 @@ def fit_composite(
     shares: str = "free",
     noise: str = "white",
     coefficient_prior: dict[str, tuple[float, float]] | None = None,
+    wording: str = "python",
     **overrides: Any,
 ) -> CompositeFit:
     """Fit the composite load to one or more events of the same load.
@@ -293,6 +294,9 @@ def fit_composite(
         says so): :mod:`loadbayes.fit.composite.until`. Default: True when the number
         of draws was left at its default (neither ``sampler`` nor ``draws`` given),
         False when it was given (that many iterations, as asked).
+    wording : {"python", "cli"}
+        Whose names the unit check's messages give (``accept_units=True`` or the CLI's
+        ``--accept-units``; ``loadbayes fit composite`` passes "cli").
     **overrides
         ``draws``, ``burn``, ``thin``, ``chains``, ``seed``: change those of ``sampler``
         (``SamplerSettings.of``).
@@ -321,7 +325,7 @@ def fit_composite(
         f_hz=f_hz, draws=run.draws, burn=run.burn, thin=run.thin, seed=run.seed,
         max_seconds=max_seconds,
     )  # fmt: skip
-    unit_warnings = check_units(events, accept_units=accept_units)
+    unit_warnings = check_units(events, accept_units=accept_units, wording=wording)
     prior = prior or CompositePrior.default(events)
     estimate = isinstance(torque, str)
     if estimate and torque != "estimate":
