@@ -87,3 +87,22 @@ def test_a_fitted_composite_gives_one_motor_mw_in_pandapower_and_psse(tmp_path):
     mw["cim5bl"] = read_loads(tmp_path / "b.raw")["M"]["pl"]
     for route, value in mw.items():
         assert value == pytest.approx(expected, rel=1e-9), route
+
+
+def test_andes_case_motor_draws_the_same_mw(tmp_path):
+    # ANDES solves the exported case's power flow on its own; its Motor3 must draw
+    # f_m x P0 x s_base at the load bus, as the other two exports write.
+    import andes
+
+    p_m, mva, _ = _expected()
+    out = tmp_path / "case.json"
+    get("andes").write(DRAW, out, model="composite", header=HEADER,
+                       options={"s_base_mva": S_BASE})  # fmt: skip
+    ss = andes.load(str(out), setup=True, no_output=True, default_config=False)
+    assert ss.Motor3.Sn.v[0] == pytest.approx(mva, rel=1e-6)
+    ss.PFlow.run()
+    assert ss.PFlow.converged
+    v = ss.Bus.v.v[ss.Bus.idx2uid(ss.Motor3.bus.v[0])]
+    assert v == pytest.approx(0.98, abs=1e-6)
+    # Motor3's p is on the system base (ss.config.mva).
+    assert ss.Motor3.p.v[0] * ss.config.mva == pytest.approx(p_m, rel=1e-4)

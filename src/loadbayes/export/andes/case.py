@@ -31,7 +31,6 @@ import numpy as np
 
 from loadbayes.export.andes.conventions import motor3_fields, zip_fields
 from loadbayes.models.motor import MotorParams, steady_state
-from loadbayes.models.motor_library import motor_from_values
 
 __all__ = [
     "CASE_IDS",
@@ -116,8 +115,16 @@ class CompositeCase:
             f_m = float(values["f_m"])
             if not (0 < f_m <= 1 and p0 > 0):
                 raise ValueError(f"need 0 < f_m <= 1 and p0 > 0, got f_m={f_m}, p0={p0}")
-            motor, t0 = motor_from_values(values), float(values["t0"])
-            mva_m = f_m * p0 / steady_state(motor, v_pu=v0, t0=t0).p
+            # The one conversion every export uses (export/loadparts.py): the motor
+            # draws f_m p0 at v0, its rating follows from its own-base P there.
+            from loadbayes.export.loadparts import load_parts
+
+            part = load_parts(
+                {**values, "p0": p0, "q0": q0, "v0": v0},
+                model="composite",
+                options={"s_base_mva": base_mva, "v0": v0},
+            ).motor
+            motor, t0, mva_m = part.params, part.t0, part.mva / base_mva
         return cls(p0, q0, v0, a_p, a_q, q_c, motor, t0, mva_m, base_mva, z_src, float(vn_kv))
 
     @property
