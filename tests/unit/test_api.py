@@ -170,7 +170,7 @@ def test_fit_composite_is_the_top_package_s_with_the_cli_checks(tmp_path):
         with pytest.raises(OptionError, match=match):
             loadbayes.fit_composite(str(path), **COMPOSITE_COLS, v_base=11, s_base=5, **kw)
     # kV without --v-base: the one-line unit error of `fit zip` (a traceback before).
-    with pytest.raises(DataError, match=r"sag.csv: column 'V_kV'.*not per unit.*v-base"):
+    with pytest.raises(DataError, match=r"sag.csv: column 'V_kV'.*not per unit.*v_base"):
         loadbayes.fit_composite(str(path), **COMPOSITE_COLS)
     # A table is checked as a file is: column and 1-based row.
     bad = _sag_kv()
