@@ -23,6 +23,7 @@ from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
 
 __all__ = [
+    "add_derived",
     "check_bases",
     "check_likelihood",
     "check_sampler",
@@ -210,8 +211,16 @@ def fit_zip(
 
             names = {"v": v_col, "p": p_col, "q": q_col}
             raise relocate(exc, "data", table.rows, names) from None
+        add_derived(post, model)
     if warn:
         post.warn(stacklevel=2)
+    return post
+
+
+def add_derived(post: Posterior, model: Any) -> Posterior:
+    """Attach the model's derived quantities (dP/dV, dQ/dV at v0) to ``post``; returns it."""
+    post.derived.update(model.derived(post.draws))
+    post.derived_units.update({k: model.DERIVED_UNIT for k in post.derived})
     return post
 
 
@@ -422,7 +431,7 @@ def fit_zip_file(
     except DataError as exc:
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
         raise DataError(exc.message, path=str(path), column=column, row=exc.row) from None
-    return post, model
+    return add_derived(post, model), model
 
 
 def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
@@ -466,7 +475,7 @@ def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, a
         )  # fmt: skip
     except DataError as exc:
         raise relocate(exc, path, pc.rows, names) from None
-    return post, model
+    return add_derived(post, model), model
 
 
 def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings):

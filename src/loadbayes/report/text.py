@@ -39,6 +39,8 @@ DESCRIPTIONS = {
     "nq": "exponent of Q",
     "kpf": "frequency coefficient of P",
     "kqf": "frequency coefficient of Q",
+    "dP/dV": "dP/dV at v0 (pu of P0/pu V)",
+    "dQ/dV": "dQ/dV at v0 (pu of Q0/pu V)",
     "tau_p": "noise precision of P",
     "tau_q": "noise precision of Q",
     "b1": "flux coefficient b1",
@@ -161,7 +163,7 @@ def summary_table(
     width : int
         Longest line; the description column is cut to fit.
     """
-    rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary)
+    rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary) + _derived_rows(post, hdi_prob)
     pct = f"{hdi_prob:.0%}"
     head = {"name": "", "mean": "mean", "sd": "sd", "low": f"{pct} low", "high": f"{pct} high",
             "ess": "ESS", "r_hat": "R-hat"}  # fmt: skip
@@ -182,6 +184,28 @@ def summary_table(
     lines.append(line(head))
     lines.extend(line(r, r["what"]) for r in rows)
     return "\n".join(lines)
+
+
+def _derived_rows(post: Any, hdi_prob: float) -> list[dict]:
+    """The table's rows of the derived quantities (dP/dV at v0 ...), formatted as the rest."""
+    if not getattr(post, "derived", None):
+        return []
+    rows = []
+    for name, r in post.derived_summary(hdi_prob=hdi_prob).items():
+        sd = r["sd"] if r["sd"] is not None else float("nan")
+        rows.append(
+            {
+                "name": name,
+                "mean": fmt_like(r["mean"], sd),
+                "sd": fmt(sd, 2),
+                "low": fmt_like(r["hdi_low"], sd),
+                "high": fmt_like(r["hdi_high"], sd),
+                "ess": f"{r['ess_bulk']:,.0f}" if r["ess_bulk"] is not None else "–",
+                "r_hat": f"{r['r_hat']:.3f}" if r["r_hat"] is not None else "–",
+                "what": DESCRIPTIONS.get(name, ""),
+            }
+        )
+    return rows
 
 
 def _wrap(text: str, width: int) -> str:
