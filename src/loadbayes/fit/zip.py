@@ -307,6 +307,8 @@ def fit_zip_file(
     nu: float | Literal["auto"] = "auto",
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
+    t_col: str | None = None,
+    level: Literal["fixed", "drift"] = "fixed",
     **overrides: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
@@ -343,6 +345,13 @@ def fit_zip_file(
         (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+    t_col : str, optional
+        Time column (numbers of seconds or ISO timestamps), increasing: the data are
+        then read into memory, the fixed-level fit is checked for a level that drifts
+        (:func:`loadbayes.fit.drift.confounding_warnings`), and ``level="drift"`` can run.
+    level : {"fixed", "drift"}
+        One nominal level (the paper's model), or a level that drifts in time
+        (:func:`loadbayes.fit.drift.fit_zip_drift`; needs ``t_col``).
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -371,6 +380,16 @@ def fit_zip_file(
         s_base=s_base, drop_invalid=drop_invalid, chunk_rows=chunk_rows,
     )  # fmt: skip
     nominal = dict(v0=v0, p0=p0, q0=q0)
+    if level not in ("fixed", "drift"):
+        raise OptionError(f"level must be 'fixed' or 'drift', got {level!r}")
+    if level == "drift" and t_col is None:
+        raise OptionError("a drifting level needs the time of each sample: give the time column")
+    if t_col is not None:
+        return _fit_file_timed(
+            path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
+            progress=progress, accept_units=accept_units, t_col=t_col, level=level,
+            scheme=scheme, likelihood=likelihood,
+        )  # fmt: skip
     if likelihood == "student-t":
         return _fit_file_student_t(
             path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
@@ -432,6 +451,63 @@ def fit_zip_file(
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
         raise DataError(exc.message, path=str(path), column=column, row=exc.row) from None
     return add_derived(post, model), model
+
+
+def _fit_file_timed(path, *, read, nominal, priors, nu, sampler, progress, accept_units,
+                    t_col, level, scheme, likelihood):  # fmt: skip
+    """A file with a time column: read whole, its time checked, then fitted.
+
+    A fixed level is checked for confounding with the voltage; a drifting level is fitted
+    by :func:`loadbayes.fit.drift.fit_zip_drift`.
+    """
+    from loadbayes.fit.drift import confounding_warnings, fit_zip_drift
+    from loadbayes.io.errors import DataError
+    from loadbayes.measurements.columns import read_power_columns, relocate
+    from loadbayes.measurements.times import check_increasing, read_times, time_facts
+    from loadbayes.models.zip import ZIPModel
+
+    pc = read_power_columns(path, progress=progress, **read)
+    t = read_times(str(path), t_col, pc.rows)
+    check_increasing(t, pc.rows, path=str(path), column=t_col)
+    model = ZIPModel(**nominal, with_q="q" in pc.cols)
+    names = {"v": read["v_col"], "p": read["p_col"], "q": read["q_col"]}
+    warnings = data_checks(
+        pc.cols, path=path, names=names, accept_units=accept_units,
+        v_base=read["v_base"], s_base=read["s_base"], **nominal,
+    )  # fmt: skip
+    if pc.n_dropped:
+        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+    record = _file_record(path, model, read, nominal, pc.n_dropped)
+    record.update(time_column=t_col, **time_facts(t))
+    try:
+        if level == "drift":
+            if likelihood != "normal":
+                raise OptionError("a drifting level has a Gaussian likelihood only")
+            post = fit_zip_drift(
+                pc.cols, t, v0=nominal["v0"], chains=sampler.chains, draws=sampler.draws,
+                burn=sampler.burn, thin=sampler.thin, seed=sampler.seed, settings=record,
+                warnings=warnings,
+            )  # fmt: skip
+            return post, model
+        warnings += model.check(accumulate(model, [pc.cols]))
+        if likelihood == "student-t":
+            post = _fit_student_t(
+                model, pc.cols, pc.rows, priors=priors, nu=nu, sampler=sampler,
+                settings=record, warnings=warnings,
+            )  # fmt: skip
+        else:
+            post = fit_gram(
+                model, accumulate(model, [pc.cols]), priors=priors or model.default_priors(),
+                observed=pc.cols if pc.rows.size <= MAX_OBSERVED else None, settings=record,
+                warnings=warnings, scheme=scheme, sampler=sampler,
+            )  # fmt: skip
+    except DataError as exc:
+        raise relocate(exc, path, pc.rows, names) from None
+    add_derived(post, model)
+    for w in confounding_warnings(post, pc.cols, t, model):
+        if w not in post.warnings:
+            post.warnings.append(w)
+    return post, model
 
 
 def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:

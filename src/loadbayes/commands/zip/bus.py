@@ -39,6 +39,26 @@ from loadbayes.commands.zip.fleet import (
 #: Parameters stored per draw and channel: three shares, tau, P0 (auto); Student-t adds nu.
 PER_CHANNEL = 5
 
+#: Iterations, burn-in and chains of a drifting-level fit where the user gave none: each
+#: iteration runs two Kalman filters per channel over the whole record (docs/zip.md).
+DRIFT_DRAWS, DRIFT_BURN, DRIFT_CHAINS = 2500, 500, 2
+
+
+def zip_sampler_defaults(values, options):
+    """The drifting level's (or the fleet's) draws where the user gave none."""
+    if options.get("level") == "drift" and not options.get("by"):
+        ctx = click.get_current_context()
+        src = click.core.ParameterSource.DEFAULT
+        values = dict(values)
+        if ctx.get_parameter_source("draws") == src:
+            values["draws"] = DRIFT_DRAWS
+        if ctx.get_parameter_source("burn") == src:
+            values["burn"] = min(DRIFT_BURN, values["draws"] - 1)
+        if ctx.get_parameter_source("chains") == src:
+            values["chains"] = DRIFT_CHAINS
+        return values
+    return fleet_sampler_defaults(values, options)
+
 
 @click.command("zip", cls=OneLineCommand)
 @click.argument("data", type=str)
@@ -52,7 +72,20 @@ PER_CHANNEL = 5
     show_default=True,
 )
 @likelihood_options()
-@sampler_settings(adjust=fleet_sampler_defaults)
+@click.option(
+    "--t-col",
+    default=None,
+    help="Time column (seconds, or ISO timestamps), increasing: checks the fit for a load "
+    "level that drifts; needed by --level drift.",
+)
+@click.option(
+    "--level",
+    type=click.Choice(["fixed", "drift"]),
+    default="fixed",
+    show_default=True,
+    help="One load level P0 (Q0), or a level that drifts in time (a random walk; needs --t-col).",
+)
+@sampler_settings(adjust=zip_sampler_defaults)
 @click.option(
     "--prior-mean",
     type=float,
@@ -96,6 +129,8 @@ def fit_zip_cmd(
     scheme,
     likelihood,
     nu,
+    t_col,
+    level,
     sampler,
     prior_mean,
     prior_sd,
@@ -128,7 +163,11 @@ def fit_zip_cmd(
         force,
         stdout_ok=("--json",),
     )
-    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col)
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col)
+    if level == "drift" and not t_col:
+        raise UserError("--level drift needs the time of each sample: give --t-col")
+    if level == "drift" and likelihood != "normal":
+        raise UserError("--level drift has a Gaussian likelihood only (drop --likelihood)")
     check_prior_sd(prior_sd, "--prior-sd")
     q_name, q_required = q_column(q_col)
     note = nominal_note(p0, q0, with_q=q_name is not None)
@@ -200,6 +239,8 @@ def fit_zip_cmd(
             chunk_rows=chunk_rows,
             progress=progress,
             accept_units=accept_units,
+            t_col=t_col,
+            level=level,
         )
     finally:
         progress.close()
