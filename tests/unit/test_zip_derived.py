@@ -39,3 +39,28 @@ def test_derived_printed_in_table(post):
     text = summary_table(post)
     assert "dP/dV" in text and "dQ/dV" in text
     assert max(len(line) for line in text.splitlines()) <= 80
+
+
+def test_report_shows_no_green_box_over_a_confounded_fit(post):
+    from loadbayes.report.fit_report import fit_report
+
+    d = json.loads(json.dumps(post.to_dict()))
+    page = fit_report(d)
+    assert "<p class='ok'>Chains agree" in page and "dP/dV" in page
+    d["warnings"].append(
+        "the load level changes over the record and the voltage follows it: the fit "
+        "confuses the two; use --level drift or fit the voltage steps (dP/dV < 0)."
+    )
+    page = fit_report(d)
+    assert "<p class='ok'>Chains agree" not in page
+    assert "<p class='warn'>The chains agree, but on a confounded answer" in page
+
+
+def test_negative_dp_dv_is_said_without_a_time_column():
+    # A load whose power falls as the voltage rises (dP/dV = -1): not a load.
+    rng = np.random.default_rng(8)
+    v = rng.uniform(0.95, 1.05, 300)
+    p = 1.0 - (v - 1.0) + rng.normal(0, 0.002, v.size)
+    fit = fit_zip({"v": v, "p": p}, q_col=None, draws=800, burn=200, chains=2, warn=False)
+    said = [w for w in fit.warnings if "the load level changes over the record" in w]
+    assert said and "dP/dV at v0 is negative" in said[0] and "--t-col" in said[0]

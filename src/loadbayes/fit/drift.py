@@ -85,7 +85,8 @@ def confounding_warnings(
                            f"variance follows the hour, p = {pval:.1g})")  # fmt: skip
     if not reasons:
         return []
-    return [f"{CONFOUNDED} ({'; '.join(reasons)})."]
+    hint = "" if t is not None else " (the time column: --t-col)"
+    return [f"{CONFOUNDED}{hint} ({'; '.join(reasons)})."]
 
 
 def fit_zip_drift(

@@ -58,6 +58,7 @@ def fit_zip(
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     warn: bool = True,
+    level: Literal["fixed", "drift"] = "fixed",
     **overrides: Any,
 ) -> Posterior:
     """Posterior of the ZIP coefficients: the Python twin of ``loadbayes fit zip``.
@@ -71,8 +72,9 @@ def fit_zip(
         Column names (the CLI's ``--v-col`` ...). ``q_col=None`` fits P only; the default
         ``"q"`` is used when present, a Q column named otherwise is required.
     t_col : str, optional
-        Timestamp column of a DataFrame (or its DatetimeIndex): its first and last values
-        are recorded with the result, it is not fitted.
+        Time column (seconds, or timestamps; a DataFrame's DatetimeIndex when absent),
+        increasing: its first and last values are recorded; a fixed-level fit is checked
+        for a level that drifts (a warning); ``level="drift"`` needs it.
     v0, p0, q0 : float or "auto"
         Nominal values, in per unit when bases are given, else in the data's units.
     v_base, s_base : float, optional
@@ -107,6 +109,10 @@ def fit_zip(
         settings of ``sampler``; ``draws`` counts iterations including burn-in.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
+    level : {"fixed", "drift"}
+        One nominal level P0 (Q0), or a level that drifts in time as a random walk
+        (:func:`loadbayes.fit.drift.fit_zip_drift`; needs ``t_col``; the nominal powers
+        are then the level's path, ``p0``/``q0`` unused). Sampler defaults as set.
 
     Returns
     -------
@@ -155,6 +161,7 @@ def fit_zip(
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
             drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
             sampler=settings, accept_units=spec.accept_units if spec is not None else False,
+            t_col=t_col, level=level,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -169,7 +176,8 @@ def fit_zip(
         cols = {"v": table.data[v_col] / (v_base or 1.0), "p": table.data[p_col] / (s_base or 1.0)}
         if q_col and q_col in table.data:
             cols["q"] = table.data[q_col] / (s_base or 1.0)
-        model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
+        nom = ("auto", "auto") if level == "drift" else (p0, q0)  # drift: the level is P0(t)
+        model = ZIPModel(v0=v0, p0=nom[0], q0=nom[1], with_q="q" in cols)  # type: ignore[arg-type]
         warnings = []
         if table.n_dropped:
             warnings.append(
@@ -187,8 +195,24 @@ def fit_zip(
             "n_dropped": table.n_dropped,
             **table.time,
         }
+        t = _frame_times(data, t_col, table.rows, level)
+        if t is not None:
+            from loadbayes.measurements.times import time_facts
+
+            record.update(time_column=t_col, **time_facts(t))
         try:
-            if likelihood == "student-t":
+            if level == "drift":
+                from loadbayes.fit.drift import fit_zip_drift
+
+                if likelihood != "normal":
+                    raise OptionError("a drifting level has a Gaussian likelihood only")
+                warnings += model.check(accumulate(model, [cols]))
+                post = fit_zip_drift(
+                    cols, t, v0=v0, chains=settings.chains, draws=settings.draws,
+                    burn=settings.burn, thin=settings.thin, seed=settings.seed,
+                    settings=record, warnings=warnings,
+                )  # fmt: skip
+            elif likelihood == "student-t":
                 warnings += model.check(accumulate(model, [cols]))
                 post = _fit_student_t(
                     model, cols, table.rows, priors=priors, nu=nu, sampler=settings,
@@ -211,10 +235,31 @@ def fit_zip(
 
             names = {"v": v_col, "p": p_col, "q": q_col}
             raise relocate(exc, "data", table.rows, names) from None
-        add_derived(post, model)
+        if level == "fixed":
+            _said_confounded(add_derived(post, model), model, cols, t)
     if warn:
         post.warn(stacklevel=2)
     return post
+
+
+def _frame_times(data, t_col, rows, level):
+    """Seconds of a table's kept rows from ``t_col`` (or a DatetimeIndex); checked."""
+    import pandas as pd
+
+    from loadbayes.measurements.times import check_increasing, parse_times
+
+    values = None
+    if t_col is not None and hasattr(data, "keys") and t_col in data.keys():
+        values = np.asarray(data[t_col])
+    elif isinstance(getattr(data, "index", None), pd.DatetimeIndex):
+        values, t_col = np.asarray(data.index), str(data.index.name or "index")
+    if values is None:
+        if level == "drift":
+            raise OptionError("level='drift' needs the time of each sample: give t_col")
+        return None
+    t = parse_times(values[rows - 1], path="data", column=t_col, rows=rows)
+    check_increasing(t, rows, path="data", column=t_col)
+    return t
 
 
 def add_derived(post: Posterior, model: Any) -> Posterior:
@@ -450,7 +495,7 @@ def fit_zip_file(
     except DataError as exc:
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
         raise DataError(exc.message, path=str(path), column=column, row=exc.row) from None
-    return add_derived(post, model), model
+    return _said_confounded(add_derived(post, model), model), model
 
 
 def _fit_file_timed(path, *, read, nominal, priors, nu, sampler, progress, accept_units,
@@ -460,12 +505,15 @@ def _fit_file_timed(path, *, read, nominal, priors, nu, sampler, progress, accep
     A fixed level is checked for confounding with the voltage; a drifting level is fitted
     by :func:`loadbayes.fit.drift.fit_zip_drift`.
     """
-    from loadbayes.fit.drift import confounding_warnings, fit_zip_drift
+    from loadbayes.fit.drift import fit_zip_drift
     from loadbayes.io.errors import DataError
     from loadbayes.measurements.columns import read_power_columns, relocate
     from loadbayes.measurements.times import check_increasing, read_times, time_facts
     from loadbayes.models.zip import ZIPModel
 
+    if level == "drift":
+        # the level's path is the nominal power: nothing to check P0, Q0 against
+        nominal = dict(nominal, p0="auto", q0="auto")
     pc = read_power_columns(path, progress=progress, **read)
     t = read_times(str(path), t_col, pc.rows)
     check_increasing(t, pc.rows, path=str(path), column=t_col)
@@ -483,6 +531,7 @@ def _fit_file_timed(path, *, read, nominal, priors, nu, sampler, progress, accep
         if level == "drift":
             if likelihood != "normal":
                 raise OptionError("a drifting level has a Gaussian likelihood only")
+            warnings += model.check(accumulate(model, [pc.cols]))
             post = fit_zip_drift(
                 pc.cols, t, v0=nominal["v0"], chains=sampler.chains, draws=sampler.draws,
                 burn=sampler.burn, thin=sampler.thin, seed=sampler.seed, settings=record,
@@ -503,11 +552,17 @@ def _fit_file_timed(path, *, read, nominal, priors, nu, sampler, progress, accep
             )  # fmt: skip
     except DataError as exc:
         raise relocate(exc, path, pc.rows, names) from None
-    add_derived(post, model)
-    for w in confounding_warnings(post, pc.cols, t, model):
+    return _said_confounded(add_derived(post, model), model, pc.cols, t), model
+
+
+def _said_confounded(post, model, cols=None, t=None):
+    """Add the confounded-level warning (dP/dV < 0, or residuals that drift with time)."""
+    from loadbayes.fit.drift import confounding_warnings
+
+    for w in confounding_warnings(post, cols or {}, t, model):
         if w not in post.warnings:
             post.warnings.append(w)
-    return post, model
+    return post
 
 
 def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
@@ -551,7 +606,7 @@ def _fit_file_student_t(path, *, read, nominal, priors, nu, sampler, progress, a
         )  # fmt: skip
     except DataError as exc:
         raise relocate(exc, path, pc.rows, names) from None
-    return add_derived(post, model), model
+    return _said_confounded(add_derived(post, model), model), model
 
 
 def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings):

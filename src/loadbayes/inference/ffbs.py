@@ -70,22 +70,29 @@ def ffbs(y, h, dt, r, q, m0, v0, z, out, m, p):  # pragma: no cover - compiled
 def kf_loglik(y, x1, x2, dt, b1, b2, r, q, m0, v0):  # pragma: no cover - compiled
     """Log p(y | b, r, q), the level integrated out: the Kalman filter's forward pass."""
     n = y.size
-    ll = 0.0
+    quad = 0.0
+    logdet = 0.0
+    prod = 1.0
     a = m0
     big_r = v0
-    mt = m0
-    pt = v0
+    p_filt = 0.0
     for t in range(n):
         if t > 0:
-            a = mt
-            big_r = pt + q * dt[t]
+            big_r = p_filt + q * dt[t]
         ht = 1.0 + b1 * x1[t] + b2 * x2[t]
         s = ht * ht * big_r + r
+        inv = 1.0 / s
         e = y[t] - ht * a
-        ll -= 0.5 * (math.log(s) + e * e / s)
-        mt = a + big_r * ht / s * e
-        pt = big_r * r / s
-    return ll - 0.5 * n * math.log(2.0 * math.pi)
+        quad += e * e * inv
+        a = a + big_r * ht * inv * e
+        p_filt = big_r * r * inv
+        # one log per 8 steps: the product of 8 variances stays well inside float64
+        prod *= s
+        if (t & 7) == 7:
+            logdet += math.log(prod)
+            prod = 1.0
+    logdet += math.log(prod)
+    return -0.5 * (logdet + quad + n * math.log(2.0 * math.pi))
 
 
 @njit(cache=True, nogil=True)
@@ -113,10 +120,10 @@ def _sweep(y, x1, x2, dt, b1, b2, r, q, m0, v0, z, path, m, p, h):  # pragma: no
     return s11, s12, s22, s1r, s2r, srr, sdl
 
 
-def _laplace_cov(f, x: np.ndarray, step: np.ndarray) -> np.ndarray:
+def _laplace_cov(f, x: np.ndarray, step: np.ndarray, fallback: np.ndarray) -> np.ndarray:
     """Inverse of minus the finite-difference Hessian of ``f`` at ``x`` (a proposal's start).
 
-    Falls back to ``diag(step^2)`` when the Hessian is not negative definite there.
+    ``fallback`` when the Hessian is not negative definite there.
     """
     d = x.size
     hess = np.empty((d, d))
@@ -138,7 +145,11 @@ def _laplace_cov(f, x: np.ndarray, step: np.ndarray) -> np.ndarray:
             return cov
     except np.linalg.LinAlgError:
         pass
-    return np.diag(step**2)
+    return fallback
+
+
+#: The Metropolis blocks of (b1, b2, log tau, log q).
+BLOCKS: tuple[tuple[int, ...], ...] = ((0, 1), (2, 3))
 
 
 @dataclass
@@ -271,9 +282,24 @@ def sample_level_regression(
         lp = log_post(th)
         # Two blocks, each a Metropolis step with the level integrated out: (b1, b2), and
         # (log tau, log q); each proposal adapted in the burn-in from its own history.
-        blocks = ((0, 1), (2, 3))
-        start = [np.linalg.inv(prec) * 4.0, np.eye(2) * 8.0 / n]
-        props = [np.linalg.cholesky(c_) * (2.38 / math.sqrt(2.0)) for c_ in start]
+        blocks = BLOCKS
+        diag_all = np.zeros((4, 4))
+        diag_all[:2, :2] = np.linalg.inv(prec) * 4.0
+        diag_all[2:, 2:] = np.eye(2) * 8.0 / n
+        fallback = [diag_all[np.ix_(list(idx), list(idx))] for idx in blocks]
+        start = []
+        for j, idx in enumerate(blocks):
+            # The block's curvature where the warm-up ended (the marginal of b is far wider
+            # along the a1-a2 ridge than b given the path): the proposal's starting shape.
+            def f(u, idx=idx):
+                v = th.copy()
+                v[list(idx)] = u
+                return log_post(v)
+
+            step = np.sqrt(np.diag(fallback[j]) / 4.0)
+            start.append(_laplace_cov(f, th[list(idx)], step, fallback[j]))
+        scale = [2.38 / math.sqrt(len(idx)) for idx in blocks]
+        props = [np.linalg.cholesky(c_) * scale[j] for j, c_ in enumerate(start)]
         hist = np.empty((max(burn, 1), 4))
         out_b = np.empty((kept, 2))
         out_tau = np.empty(kept)
@@ -285,7 +311,7 @@ def sample_level_regression(
             check_stop(None)
             for j, idx in enumerate(blocks):
                 cand = th.copy()
-                cand[list(idx)] += props[j] @ gen.standard_normal(2)
+                cand[list(idx)] += props[j] @ gen.standard_normal(len(idx))
                 lp_c = log_post(cand)
                 if math.log(gen.random()) < lp_c - lp:
                     th, lp = cand, lp_c
@@ -298,7 +324,7 @@ def sample_level_regression(
                         emp = np.cov(recent[:, list(idx)].T)
                         mix = 0.9 * emp + 0.1 * start[j] / 4.0
                         try:
-                            props[j] = np.linalg.cholesky(mix) * (2.38 / math.sqrt(2.0))
+                            props[j] = np.linalg.cholesky(mix) * scale[j]
                         except np.linalg.LinAlgError:
                             pass
             if it >= burn and (it - burn) % thin == 0:

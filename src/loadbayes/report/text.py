@@ -19,6 +19,7 @@ __all__ = [
     "DESCRIPTIONS",
     "fmt",
     "fmt_like",
+    "derived_lines",
     "headline",
     "summary_html",
     "summary_rows",
@@ -148,7 +149,12 @@ def headline(post: Any) -> str:
 
 
 def summary_table(
-    post: Any, *, hdi_prob: float = 0.95, summary: Any = None, width: int = 80
+    post: Any,
+    *,
+    hdi_prob: float = 0.95,
+    summary: Any = None,
+    width: int = 80,
+    derived: bool = True,
 ) -> str:
     """The table ``loadbayes fit`` prints: one row a parameter, at most ``width`` columns.
 
@@ -162,8 +168,12 @@ def summary_table(
         A :meth:`Posterior.summary` already computed (the costly part).
     width : int
         Longest line; the description column is cut to fit.
+    derived : bool
+        Add the rows of :attr:`Posterior.derived` (dP/dV ...) after the parameters.
     """
-    rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary) + _derived_rows(post, hdi_prob)
+    rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary)
+    if derived:
+        rows += _derived_rows(post, hdi_prob)
     pct = f"{hdi_prob:.0%}"
     head = {"name": "", "mean": "mean", "sd": "sd", "low": f"{pct} low", "high": f"{pct} high",
             "ess": "ESS", "r_hat": "R-hat"}  # fmt: skip
@@ -184,6 +194,16 @@ def summary_table(
     lines.append(line(head))
     lines.extend(line(r, r["what"]) for r in rows)
     return "\n".join(lines)
+
+
+def derived_lines(post: Any, *, hdi_prob: float = 0.95) -> list[str]:
+    """One line per derived quantity: ``dP/dV at v0 = 1.16 (95% 0.94 to 1.37; ...)``."""
+    out = []
+    pct = f"{hdi_prob:.0%}"
+    for r in _derived_rows(post, hdi_prob):
+        out.append(f"{r['name']} = {r['mean']} (sd {r['sd']}, {pct} {r['low']} to "
+                   f"{r['high']}; ESS {r['ess']}, R-hat {r['r_hat']}): {r['what']}")  # fmt: skip
+    return out
 
 
 def _derived_rows(post: Any, hdi_prob: float) -> list[dict]:
