@@ -110,3 +110,45 @@ def test_bad_time_cell_and_missing_t_col_are_one_line(day):
     assert "bad.csv: column 'time', row 8: 'noon'" in r.stderr
     r = run("fit", "zip", "day.csv", *COLS, "--level", "drift", cwd=day)
     assert r.returncode == 2 and "--t-col" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_track_zip_reads_iso_times(tmp_path):
+    df = feeder_day(n=300)
+    df.to_csv(tmp_path / "day.csv", index=False)
+    r = run("track", "zip", "day.csv", *COLS, "--t-col", "time", "--p0", "auto", "--q0",
+            "auto", "--out", "tr.csv", "--window", "60", "--quiet", cwd=tmp_path)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    out = pd.read_csv(tmp_path / "tr.csv")
+    # ISO timestamps as seconds from the first kept row
+    assert out["t"].iloc[0] == 0.0 and out["t"].iloc[1] == 60.0
+    df.iloc[[5, 6], 0] = df.iloc[[6, 5], 0].to_numpy()  # two rows out of order
+    df.to_csv(tmp_path / "swapped.csv", index=False)
+    r = run("track", "zip", "swapped.csv", *COLS, "--t-col", "time", "--out", "tr2.csv",
+            cwd=tmp_path)  # fmt: skip
+    assert (
+        r.returncode == 2
+        and "swapped.csv: column 'time', row 7: time does not increase" in r.stderr
+    )
+
+
+def test_fleet_checks_time_within_a_bus(tmp_path):
+    parts = []
+    for bus in ("a", "b"):
+        d = feeder_day(n=200, seed=ord(bus))
+        d.insert(0, "bus_id", bus)
+        parts.append(d)
+    # interleaved buses: time increases within each bus, not across the file
+    df = pd.concat(parts).sort_values("time", kind="stable").reset_index(drop=True)
+    df.to_csv(tmp_path / "fleet.csv", index=False)
+    args = ["fit", "zip", "fleet.csv", *COLS, "--p0", "auto", "--q0", "auto", "--by", "bus_id",
+            "--t-col", "time", "--quiet"]  # fmt: skip
+    r = run(*args, "--out", "f.parquet", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    last_a = df.index[df["bus_id"] == "a"][-1]
+    df.loc[last_a, "time"] = df.loc[df.index[df["bus_id"] == "a"][0], "time"]
+    df.to_csv(tmp_path / "fleet.csv", index=False)
+    r = run(*args, "--out", "g.parquet", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert f"fleet.csv: column 'time', row {last_a + 1}: time does not increase" in r.stderr
+    r = run(*args, "--out", "h.parquet", "--level", "drift", cwd=tmp_path)
+    assert r.returncode == 2 and "fixed level" in r.stderr

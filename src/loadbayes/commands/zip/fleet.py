@@ -86,6 +86,9 @@ def _refuse_single_bus_options(p: dict[str, Any]) -> None:
         raise UserError("a fleet is fitted with the Gaussian likelihood; drop --likelihood")
     if p.get("conjugate"):
         raise UserError("--conjugate is not available for fleets")
+    if p.get("level", "fixed") != "fixed":
+        raise UserError("a fleet is fitted with a fixed level (from its sums); fit one bus "
+                        "with --level drift")  # fmt: skip
 
 
 def fleet_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
@@ -139,6 +142,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
         s_base=p["s_base"],
         drop_invalid=p["drop_invalid"],
         chunk_rows=p["chunk_rows"],
+        t_col=p.get("t_col"),
     )
     priors = zip_priors(
         p0=p0,
