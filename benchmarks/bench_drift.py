@@ -14,7 +14,9 @@ LTC holding the voltage with 0.625% tap steps, a 3% CVR window of 30 minutes eac
 
 How it is counted: every row runs in its own Python process (its peak RSS is its own);
 imports come before the clock, which covers the one fit call (numba's on-disk cache load
-included; the kernels are compiled once beforehand). ESS is the bulk ESS of dP/dV over
+included; the kernels are compiled once beforehand); ``cpu_s`` is the process's CPU time
+over all its threads (on a shared machine, ``cpu_s / 2`` is what 2 free cores would
+take). ESS is the bulk ESS of dP/dV over
 all chains; ESS/s divides it by the wall time. The drift fit runs P and Q, 2 chains (one a
 core), with the defaults of ``fit zip --level drift`` (2,500 iterations, 500 burn-in)
 unless the row says otherwise; the plain fit is ``fit_zip(..., p0="auto")`` with its
@@ -87,6 +89,7 @@ def run_row(case: str, method: str) -> dict:
     tw, vw, pw, qw = feeder(1, 600.0, seed=9)
     fit_zip_drift({"v": vw, "p": pw}, tw, chains=1, draws=20, burn=10, seed=0)
     t0 = time.perf_counter()
+    c0 = time.process_time()
     if method == "drift":
         post = fit_zip_drift({"v": v, "p": p, "q": q}, t, chains=2, draws=2500, burn=500, seed=1)
         settings = "2 chains x 2500 (burn 500), P and Q"
@@ -94,6 +97,7 @@ def run_row(case: str, method: str) -> dict:
         post = fit_zip({"v": v, "p": p, "q": q}, p0="auto", q0="auto", seed=1, warn=False)
         settings = "4 chains x 40000 (burn 5000), P and Q"
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     d = post.derived["dP/dV"]
     s = summarize(d[None])
     lo, hi = float(s["hdi_low"][0]), float(s["hdi_high"][0])
@@ -103,6 +107,7 @@ def run_row(case: str, method: str) -> dict:
         "method": method,
         "settings": settings,
         "wall_s": wall,
+        "cpu_s": cpu,
         "dpdv_mean": float(d.mean()),
         "dpdv_low": lo,
         "dpdv_high": hi,
@@ -141,7 +146,7 @@ def main() -> None:
         return
     cases = ["day-1min"] if args.quick else ["day-1min", "day-1s", "year-1min"]
     info = {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "versions": {"numpy": np.__version__},
         "results": [],
@@ -167,8 +172,9 @@ def main() -> None:
             r = json.loads(proc.stdout.strip().splitlines()[-1])
             info["results"].append(r)
             ci = f"{r['dpdv_mean']:.3f} [{r['dpdv_low']:.3f}, {r['dpdv_high']:.3f}]"
-            print(f"{case:>10} {r['n']:>8,} {method:>6} {r['wall_s']:>8.2f} {ci:>24} "
-                  f"{r['ess_dpdv']:>7.0f} {r['ess_per_s']:>8.1f} {r['peak_rss_mb']:>7.0f}")  # fmt: skip
+            cells = (f"{case:>10} {r['n']:>8,} {method:>6} {r['wall_s']:>8.2f} {ci:>24} "
+                     f"{r['ess_dpdv']:>7.0f} {r['ess_per_s']:>8.1f}")  # fmt: skip
+            print(f"{cells} {r['peak_rss_mb']:>7.0f}")
     rows = {(r["case"], r["method"]): r for r in info["results"] if "wall_s" in r}
     for case, limit, what in (("day-1s", 60.0, "a day at 1 s"),
                               ("year-1min", 30.0, "a year at 1 min")):  # fmt: skip
