@@ -40,6 +40,8 @@ DESCRIPTIONS = {
     "nq": "exponent of Q",
     "kpf": "frequency coefficient of P",
     "kqf": "frequency coefficient of Q",
+    "drift_p": "sd of the P level's change in 1 h",
+    "drift_q": "sd of the Q level's change in 1 h",
     "dP/dV": "dP/dV at v0 (pu of P0/pu V)",
     "dQ/dV": "dQ/dV at v0 (pu of Q0/pu V)",
     "tau_p": "noise precision of P",
