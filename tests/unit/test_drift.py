@@ -11,14 +11,13 @@ from loadbayes.io.errors import DataError
 from loadbayes.measurements.times import check_increasing, parse_times
 
 
-def _dense(y, h, dt, r, q, m0, v0):
+def _dense(y, h, dt, w, r, q, m0, v0):
     """Exact joint Gaussian of the path x given y, and the prior covariance of y."""
-    n = y.size
-    # x_t = x_0' + sum of steps: prior mean m0, covariance v0 + q * cumulative dt
-    tcum = np.cumsum(np.r_[0.0, dt[1:]])
+    # x_t = x_0' + sum of steps: prior mean m0, covariance v0 + q * cumulative dt w
+    tcum = np.cumsum(np.r_[0.0, dt[1:] * w[1:]])
     cx = v0 + q * np.minimum.outer(tcum, tcum)
     hm = np.diag(h)
-    cy = hm @ cx @ hm + r * np.eye(n)
+    cy = hm @ cx @ hm + r * np.diag(w)
     gain = cx @ hm @ np.linalg.inv(cy)
     mean = m0 + gain @ (y - h * m0)
     cov = cx - gain @ hm @ cx
@@ -31,14 +30,15 @@ def test_ffbs_draws_match_the_exact_posterior():
     y = rng.normal(1.0, 0.3, n)
     h = 1.0 + rng.normal(0, 0.1, n)
     dt = np.array([1.0, 1.0, 3.0, 0.5, 2.0])  # a gap and a short step
+    w = np.array([1.0, 0.5, 2.0, 1.5, 0.8])  # the load's local scale, squared
     r, q, m0, v0 = 0.04, 0.02, 0.9, 0.5
-    mean, cov, _, _ = _dense(y, h, dt, r, q, m0, v0)
+    mean, cov, _, _ = _dense(y, h, dt, w, r, q, m0, v0)
     m_draws = 40_000
     out = np.empty((m_draws, n))
     m, p, z = np.empty(n), np.empty(n), np.empty(n)
     for i in range(m_draws):
         z[:] = rng.standard_normal(n)
-        ffbs(y, h, dt, r, q, m0, v0, z, out[i], m, p)
+        ffbs(y, h, dt, w, r, q, m0, v0, z, out[i], m, p)
     # Monte Carlo tolerance: 5 standard errors (false alarm < 1e-5 per entry)
     se_mean = np.sqrt(np.diag(cov) / m_draws)
     assert np.all(np.abs(out.mean(0) - mean) < 5 * se_mean)
@@ -55,10 +55,12 @@ def test_kalman_likelihood_is_the_dense_gaussian_density():
     b1, b2 = 0.4, -0.3
     h = 1.0 + b1 * x1 + b2 * x2
     dt = np.r_[1.0, rng.uniform(0.5, 3.0, n - 1)]
+    w = rng.uniform(0.3, 3.0, n)
     r, q, m0, v0 = 0.01, 0.003, 2.0, 1.0
-    _, _, my, cy = _dense(y, h, dt, r, q, m0, v0)
+    _, _, my, cy = _dense(y, h, dt, w, r, q, m0, v0)
     exact = stats.multivariate_normal(my, cy).logpdf(y)
-    assert kf_loglik(y, x1, x2, dt, b1, b2, r, q, m0, v0) == pytest.approx(exact, rel=1e-10)
+    got = kf_loglik(y, x1, x2, dt, w, b1, b2, r, q, m0, v0)
+    assert got == pytest.approx(exact, rel=1e-10)
 
 
 def test_residual_drift_false_alarm_rate_on_white_noise():
