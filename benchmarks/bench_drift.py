@@ -152,8 +152,7 @@ def main() -> None:
         "results": [],
         "targets": [],
         "notes": [
-            f"true dP/dV at v0 = {TRUE_DPDV}; the plain fit reads the daily profile as "
-            "voltage dependence (its interval misses the truth), the drift fit does not."
+            f"true dP/dV at v0 = {TRUE_DPDV}; covers_true says whether each 95% interval holds it."
         ],
     }
     print(f"{'case':>10} {'n':>8} {'method':>6} {'wall s':>8} {'dP/dV [95%]':>24} "
