@@ -23,13 +23,34 @@ import numpy as np
 
 from loadbayes.posterior import Posterior
 
-__all__ = ["CONFOUNDED", "confounding_warnings", "fit_zip_drift", "residual_drift"]
+__all__ = [
+    "CONFOUNDED",
+    "DRIFT_DEFAULTS",
+    "confounding_warnings",
+    "drift_overrides",
+    "fit_zip_drift",
+    "residual_drift",
+]
 
 #: The issue's words, said when a fixed level is confounded with the voltage.
 CONFOUNDED = (
     "the load level changes over the record and the voltage follows it: the fit "
     "confuses the two; use --level drift or fit the voltage steps"
 )
+
+#: Iterations, burn-in and chains of a drifting-level fit where the caller gives none: each
+#: iteration runs two Kalman filters per channel over the whole record.
+DRIFT_DEFAULTS = {"draws": 2500, "burn": 500, "chains": 2}
+
+
+def drift_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The sampler overrides of a drifting-level fit: :data:`DRIFT_DEFAULTS` under the caller's."""
+    out = dict(overrides)
+    out.setdefault("chains", DRIFT_DEFAULTS["chains"])
+    out.setdefault("draws", DRIFT_DEFAULTS["draws"])
+    out.setdefault("burn", min(DRIFT_DEFAULTS["burn"], out["draws"] // 4))
+    return out
+
 
 #: Level path points kept in the JSON.
 LEVEL_POINTS = 500

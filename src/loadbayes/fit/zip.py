@@ -112,7 +112,8 @@ def fit_zip(
     level : {"fixed", "drift"}
         One nominal level P0 (Q0), or a level that drifts in time as a random walk
         (:func:`loadbayes.fit.drift.fit_zip_drift`; needs ``t_col``; the nominal powers
-        are then the level's path, ``p0``/``q0`` unused). Sampler defaults as set.
+        are then the level's path, ``p0``/``q0`` unused). Without ``sampler``, 2 chains x
+        2,500 iterations (500 burn-in) unless ``chains``, ``draws``, ``burn`` say otherwise.
 
     Returns
     -------
@@ -149,6 +150,10 @@ def fit_zip(
         spec, fit_zip, v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col, v0=v0, p0=p0,
         q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
     )  # fmt: skip
+    if level == "drift" and sampler is None:
+        from loadbayes.fit.drift import drift_overrides
+
+        overrides = drift_overrides(overrides)
     settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     check_likelihood(likelihood, scheme)

@@ -39,8 +39,8 @@ from loadbayes.commands.zip.fleet import (
 #: Parameters stored per draw and channel: three shares, tau, P0 (auto); Student-t adds nu.
 PER_CHANNEL = 5
 
-#: Iterations, burn-in and chains of a drifting-level fit where the user gave none: each
-#: iteration runs two Kalman filters per channel over the whole record (docs/zip.md).
+#: Iterations, burn-in and chains of a drifting-level fit where the user gave none
+#: (:data:`loadbayes.fit.drift.DRIFT_DEFAULTS`, repeated: commands import the library lazily).
 DRIFT_DRAWS, DRIFT_BURN, DRIFT_CHAINS = 2500, 500, 2
 
 
