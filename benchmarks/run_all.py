@@ -36,6 +36,7 @@ SCRIPTS = [
     ("bench_im.py", "im"),
     ("bench_composite.py", "composite"),
     ("bench_cli.py", "cli"),
+    ("bench_drift.py", "drift"),
 ]
 
 

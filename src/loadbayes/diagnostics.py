@@ -133,6 +133,13 @@ def _pair_note(post, a: str, b: str, r: float, hdi_prob: float) -> str:
     known += f"({100 * hdi_prob:g}% interval {lo:.4g} to {hi:.4g})"
     sd_a, sd_b = xa.std(), xb.std()
     alone = all(s <= 0.05 * max(1.0, abs(m)) for s, m in ((sd_a, xa.mean()), (sd_b, xb.mean())))
+    if any("the load level changes over the record" in w for w in post.warnings):
+        # A wider voltage range would not help a fit whose level is confounded with V:
+        # the advice is the confounding warning's (issue 22).
+        return (
+            f"{a} and {b} cannot be told apart on these data (posterior correlation "
+            f"{r:+.4f}); {known}, but see the warning on the load level: it is confounded."
+        )
     if alone:
         return (
             f"{a} and {b} are strongly correlated (posterior correlation {r:+.4f}) but each "

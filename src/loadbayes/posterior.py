@@ -142,6 +142,11 @@ class Posterior:
         self.free = list(free) if free is not None else list(self.coefficients)
         #: Extra top-level keys of the JSON (e.g. the samples a robust fit flags).
         self.extra_json: dict[str, Any] = {}
+        #: Quantities computed draw by draw from the parameters (e.g. dP/dV at V0), shaped
+        #: (chain, draw): the JSON's ``derived`` section and the table's last rows.
+        self.derived: dict[str, np.ndarray] = {}
+        #: What the derived quantities are, in words (their units).
+        self.derived_units: dict[str, str] = {}
         self.warnings = list(warnings)
         self.warnings.extend(w for w in self._identifiability_warnings() if w not in self.warnings)
 
@@ -501,7 +506,26 @@ class Posterior:
             "loadbayes_version": __version__,
             "settings": json.loads(json.dumps(self.settings, default=_json_default)),
         }
+        if self.derived:
+            out["derived"] = self.derived_summary(hdi_prob=hdi_prob)
         out.update(json.loads(json.dumps(self.extra_json, default=_json_default)))
+        return out
+
+    def derived_summary(self, *, hdi_prob: float = 0.95) -> dict[str, dict[str, Any]]:
+        """Mean, sd, HDI (and ESS, R-hat) of each :attr:`derived` quantity, with its unit."""
+        from loadbayes.core.convergence import summarize
+
+        names = list(self.derived)
+        stats = summarize(np.stack([self.derived[n] for n in names]), hdi_prob=hdi_prob)
+        out: dict[str, dict[str, Any]] = {}
+        for i, name in enumerate(names):
+            row: dict[str, Any] = {
+                key: _finite_or_none(float(stats[key][i]))
+                for key in ("mean", "sd", "hdi_low", "hdi_high", "r_hat", "ess_bulk")
+            }
+            if name in self.derived_units:
+                row["unit"] = self.derived_units[name]
+            out[name] = row
         return out
 
     def to_json(
@@ -560,7 +584,7 @@ class Posterior:
 
     def with_draws(self, extra: Mapping[str, np.ndarray]) -> Posterior:
         """A copy with transformed parameters added (e.g. a3 = 1 - a1 - a2)."""
-        return Posterior(
+        out = Posterior(
             {**self.draws, **extra},
             model=self.model,
             method=self.method,
@@ -571,6 +595,8 @@ class Posterior:
             settings=self.settings,
             warnings=self.warnings,
         )
+        out.derived, out.derived_units = dict(self.derived), dict(self.derived_units)
+        return out
 
 
 def _json_default(obj: Any) -> Any:

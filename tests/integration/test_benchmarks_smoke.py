@@ -16,7 +16,10 @@ import pytest
 pytestmark = pytest.mark.integration
 
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
-SCRIPTS = ["bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py", "bench_cli.py"]
+SCRIPTS = [
+    "bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py", "bench_cli.py",
+    "bench_drift.py",
+]  # fmt: skip
 
 
 def _run_all():

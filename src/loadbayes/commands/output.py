@@ -448,7 +448,7 @@ def write_outputs(
     """
     from loadbayes.diagnostics import fit_warnings
     from loadbayes.io.transaction import OutputSet
-    from loadbayes.report.text import summary_table
+    from loadbayes.report.text import derived_lines, summary_table
 
     if not quiet:
         click.echo("loadbayes: summarising the draws (R-hat, ESS)...", err=True)
@@ -488,7 +488,12 @@ def write_outputs(
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
         # The 80-column table of loadbayes.report.text (stderr when the JSON is on stdout).
-        click.echo(summary_table(post, hdi_prob=hdi_prob, summary=table), err=json_out == "-")
+        click.echo(summary_table(post, hdi_prob=hdi_prob, summary=table, derived=False),
+                   err=json_out == "-")  # fmt: skip
+        # The derived quantities (dP/dV at v0 ...) after the table, on stderr: the table on
+        # stdout keeps one row per sampled parameter, as scripts parse it.
+        for line in derived_lines(post, hdi_prob=hdi_prob):
+            click.echo(f"loadbayes: {line}", err=True)
 
 
 def sidecar(path: str) -> Path | None:

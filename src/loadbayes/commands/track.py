@@ -61,7 +61,8 @@ _PLOT_MAX_POINTS = 20_000
     "--t-col",
     default="t",
     show_default=True,
-    help="Time column, copied to the output when present (else the row number).",
+    help="Time column (seconds, or ISO timestamps as seconds from the first), increasing; "
+    "copied to the output when present (else the row number).",
 )
 @nominal_options()
 @accept_units_option

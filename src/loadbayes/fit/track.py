@@ -123,11 +123,14 @@ def track_zip(
     from loadbayes.measurements.columns import power_chunks
 
     track = ZIPTrack(p0=p0, q0=q0)
+    times = _times_of(path, t_col)
     chunks = power_chunks(
-        path, v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required, t_col=t_col,
-        extra=extra, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
-        chunk_rows=chunk_rows,
+        path, v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_required,
+        t_col=t_col if times is None else None, extra=extra, v_base=v_base, s_base=s_base,
+        drop_invalid=drop_invalid, chunk_rows=chunk_rows,
     )  # fmt: skip
+    if times is not None:
+        chunks = _with_times(chunks, times, path=str(path), t_col=t_col)
     opts = dict(
         path=path, names={"v": v_col, "p": p_col, "q": q_col}, v0=v0, v_base=v_base,
         s_base=s_base, accept_units=accept_units, tracker=dict(
@@ -136,6 +139,42 @@ def track_zip(
     )  # fmt: skip
     track._chunks = _tables(track, chunks, **opts)
     return track
+
+
+def _times_of(path, t_col):
+    """The time column in seconds (numbers or ISO timestamps), or None when it is absent.
+
+    Standard input is read once: its time column, if any, is read as numbers with the rest.
+    """
+    from loadbayes.io.errors import DataError
+    from loadbayes.measurements.times import read_times
+
+    if not t_col or str(path) == "-":
+        return None
+    try:
+        return read_times(str(path), t_col)
+    except DataError as exc:
+        if exc.message.startswith("no column"):
+            return None  # the time column is optional here: rows are numbered instead
+        raise
+    except (OSError, ValueError):
+        return None  # unreadable here: the table reader says why, in its words
+
+
+def _with_times(chunks, times, *, path, t_col):
+    """Each chunk with its rows' times, checked increasing across chunks."""
+    from loadbayes.measurements.times import check_increasing
+
+    last_t, last_row = None, None
+    for part in chunks:
+        t = times[part.rows - 1]
+        if t.size:
+            both_t = t if last_t is None else np.r_[last_t, t]
+            both_rows = part.rows if last_row is None else np.r_[last_row, part.rows]
+            check_increasing(both_t, both_rows, path=path, column=t_col)
+            last_t, last_row = t[-1], part.rows[-1]
+        part.cols["t"] = t
+        yield part
 
 
 def _tables(track: ZIPTrack, chunks, *, path, names, v0, v_base, s_base, accept_units,

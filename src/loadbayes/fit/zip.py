@@ -24,6 +24,7 @@ from loadbayes.measurements.units import Wording, option
 from loadbayes.posterior import Posterior
 
 __all__ = [
+    "add_derived",
     "check_bases",
     "check_likelihood",
     "check_sampler",
@@ -60,6 +61,7 @@ def fit_zip(
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     warn: bool = True,
+    level: Literal["fixed", "drift"] = "fixed",
     **overrides: Any,
 ) -> Posterior:
     """Posterior of the ZIP coefficients: the Python twin of ``loadbayes fit zip``.
@@ -73,8 +75,9 @@ def fit_zip(
         Column names (the CLI's ``--v-col`` ...). ``q_col=None`` fits P only; the default
         ``"q"`` is used when present, a Q column named otherwise is required.
     t_col : str, optional
-        Timestamp column of a DataFrame (or its DatetimeIndex): its first and last values
-        are recorded with the result, it is not fitted.
+        Time column (seconds, or timestamps; a DataFrame's DatetimeIndex when absent),
+        increasing: its first and last values are recorded; a fixed-level fit is checked
+        for a level that drifts (a warning); ``level="drift"`` needs it.
     v0, p0, q0 : float or "auto"
         Nominal values, in per unit when bases are given, else in the data's units.
         ``p0``/``q0`` default to ``"auto"`` (estimated, as the CLI does): a number is
@@ -123,6 +126,11 @@ def fit_zip(
         settings of ``sampler``; ``draws`` counts iterations including burn-in.
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
+    level : {"fixed", "drift"}
+        One nominal level P0 (Q0), or a level that drifts in time as a random walk
+        (:func:`loadbayes.fit.drift.fit_zip_drift`; needs ``t_col``; the nominal powers
+        are then the level's path, ``p0``/``q0`` unused). Without ``sampler``, 2 chains x
+        2,500 iterations (500 burn-in) unless ``chains``, ``draws``, ``burn`` say otherwise.
 
     Returns
     -------
@@ -167,6 +175,12 @@ def fit_zip(
         from loadbayes.fit.eiv import EIV_DEFAULTS
 
         sampler = EIV_DEFAULTS
+    if v_noise is not None and level == "drift":
+        raise OptionError("v_noise and level='drift' are not combined: give one of them")
+    if level == "drift" and sampler is None:
+        from loadbayes.fit.drift import drift_overrides
+
+        overrides = drift_overrides(overrides)
     settings = sampler_of(sampler, overrides, check=True)
     check_bases(v_base, s_base)
     check_likelihood(likelihood, scheme)
@@ -179,6 +193,7 @@ def fit_zip(
             p0=p0, q0=q0, v_base=v_base, s_base=s_base, priors=priors,
             drop_invalid=drop_invalid, scheme=scheme, likelihood=likelihood, nu=nu,
             sampler=settings, accept_units=accept_units, v_noise=v_noise,
+            t_col=t_col, level=level,
         )  # fmt: skip
         post.settings["units"] = dict(units or {})
     else:
@@ -193,13 +208,14 @@ def fit_zip(
         cols = {"v": table.data[v_col] / (v_base or 1.0), "p": table.data[p_col] / (s_base or 1.0)}
         if q_col and q_col in table.data:
             cols["q"] = table.data[q_col] / (s_base or 1.0)
-        model = ZIPModel(v0=v0, p0=p0, q0=q0, with_q="q" in cols)  # type: ignore[arg-type]
+        nom = ("auto", "auto") if level == "drift" else (p0, q0)  # drift: the level is P0(t)
+        model = ZIPModel(v0=v0, p0=nom[0], q0=nom[1], with_q="q" in cols)  # type: ignore[arg-type]
         names = {"v": v_col, "p": p_col, "q": q_col}
         # the file's unit and V-noise checks, on the whole table, worded for Python
         warnings = data_checks(
             cols, path="data", names=names, accept_units=accept_units, wording="python",
-            v0=v0, p0=p0, q0=q0 if model.with_q else "auto", v_base=v_base, s_base=s_base,
-            v_noise=v_noise,
+            v0=v0, p0=nom[0], q0=nom[1] if model.with_q else "auto", v_base=v_base,
+            s_base=s_base, v_noise=v_noise,
         )  # fmt: skip
         if table.n_dropped:
             warnings.append(
@@ -218,10 +234,26 @@ def fit_zip(
             "n_dropped": table.n_dropped,
             **table.time,
         }
+        t = _frame_times(data, t_col, table.rows, level)
+        if t is not None:
+            from loadbayes.measurements.times import time_facts
+
+            record.update(time_column=t_col, **time_facts(t))
         try:
             if v_noise is not None:
                 post = _fit_eiv(
                     model, cols, v_noise=v_noise, priors=priors, sampler=settings,
+                    settings=record, warnings=warnings,
+                )  # fmt: skip
+            elif level == "drift":
+                from loadbayes.fit.drift import fit_zip_drift
+
+                if likelihood != "normal":
+                    raise OptionError("a drifting level has a Gaussian likelihood only")
+                warnings += model.check(accumulate(model, [cols]))
+                post = fit_zip_drift(
+                    cols, t, v0=v0, chains=settings.chains, draws=settings.draws,
+                    burn=settings.burn, thin=settings.thin, seed=settings.seed,
                     settings=record, warnings=warnings,
                 )  # fmt: skip
             elif likelihood == "student-t":
@@ -247,6 +279,8 @@ def fit_zip(
 
             names = {"v": v_col, "p": p_col, "q": q_col}
             raise relocate(exc, "data", table.rows, names) from None
+        if level == "fixed":
+            _said_confounded(add_derived(post, model), model, cols, t)
     if warn:
         post.warn(stacklevel=2)
     return post
@@ -280,6 +314,33 @@ def _fit_eiv(model, cols, *, v_noise, priors, sampler, settings, warnings):
         observed=cols if cols["v"].size <= MAX_OBSERVED else None,
         settings=settings, warnings=warnings,
     )  # fmt: skip
+
+
+def _frame_times(data, t_col, rows, level):
+    """Seconds of a table's kept rows from ``t_col`` (or a DatetimeIndex); checked."""
+    import pandas as pd
+
+    from loadbayes.measurements.times import check_increasing, parse_times
+
+    values = None
+    if t_col is not None and hasattr(data, "keys") and t_col in data.keys():
+        values = np.asarray(data[t_col])
+    elif isinstance(getattr(data, "index", None), pd.DatetimeIndex):
+        values, t_col = np.asarray(data.index), str(data.index.name or "index")
+    if values is None:
+        if level == "drift":
+            raise OptionError("level='drift' needs the time of each sample: give t_col")
+        return None
+    t = parse_times(values[rows - 1], path="data", column=t_col, rows=rows)
+    check_increasing(t, rows, path="data", column=t_col)
+    return t
+
+
+def add_derived(post: Posterior, model: Any) -> Posterior:
+    """Attach the model's derived quantities (dP/dV, dQ/dV at v0) to ``post``; returns it."""
+    post.derived.update(model.derived(post.draws))
+    post.derived_units.update({k: model.DERIVED_UNIT for k in post.derived})
+    return post
 
 
 def check_likelihood(likelihood: str, scheme: str) -> None:
@@ -367,6 +428,8 @@ def fit_zip_file(
     sampler: SamplerSettings | None = None,
     wording: Wording = "python",
     v_noise: float | Literal["auto"] | None = None,
+    t_col: str | None = None,
+    level: Literal["fixed", "drift"] = "fixed",
     **overrides: Any,
 ):
     """Fit ZIP to a CSV or Parquet file read in chunks (memory independent of its size).
@@ -410,6 +473,13 @@ def fit_zip_file(
     v_noise : float or "auto", optional
         Errors in variables (as :func:`fit_zip`): the file is read into memory (the
         latent voltages are visited at every iteration) and checked whole.
+    t_col : str, optional
+        Time column (numbers of seconds or ISO timestamps), increasing: the data are
+        then read into memory, the fixed-level fit is checked for a level that drifts
+        (:func:`loadbayes.fit.drift.confounding_warnings`), and ``level="drift"`` can run.
+    level : {"fixed", "drift"}
+        One nominal level (the paper's model), or a level that drifts in time
+        (:func:`loadbayes.fit.drift.fit_zip_drift`; needs ``t_col``).
     **overrides
         ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
@@ -439,6 +509,16 @@ def fit_zip_file(
         s_base=s_base, drop_invalid=drop_invalid, chunk_rows=chunk_rows,
     )  # fmt: skip
     nominal = dict(v0=v0, p0=p0, q0=q0)
+    if level not in ("fixed", "drift"):
+        raise OptionError(f"level must be 'fixed' or 'drift', got {level!r}")
+    if level == "drift" and t_col is None:
+        raise OptionError("a drifting level needs the time of each sample: give the time column")
+    if t_col is not None and v_noise is None:
+        return _fit_file_timed(
+            path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
+            progress=progress, accept_units=accept_units, t_col=t_col, level=level,
+            scheme=scheme, likelihood=likelihood,
+        )  # fmt: skip
     if likelihood == "student-t" or v_noise is not None:
         return _fit_file_student_t(
             path, read=read, nominal=nominal, priors=priors, nu=nu, sampler=settings,
@@ -500,7 +580,74 @@ def fit_zip_file(
     except DataError as exc:
         column = {"v": v_col, "p": p_col, "q": q_col}.get(exc.column or "", exc.column)
         raise DataError(exc.message, path=str(path), column=column, row=exc.row) from None
-    return post, model
+    return _said_confounded(add_derived(post, model), model), model
+
+
+def _fit_file_timed(path, *, read, nominal, priors, nu, sampler, progress, accept_units,
+                    t_col, level, scheme, likelihood):  # fmt: skip
+    """A file with a time column: read whole, its time checked, then fitted.
+
+    A fixed level is checked for confounding with the voltage; a drifting level is fitted
+    by :func:`loadbayes.fit.drift.fit_zip_drift`.
+    """
+    from loadbayes.fit.drift import fit_zip_drift
+    from loadbayes.io.errors import DataError
+    from loadbayes.measurements.columns import read_power_columns, relocate
+    from loadbayes.measurements.times import check_increasing, read_times, time_facts
+    from loadbayes.models.zip import ZIPModel
+
+    if level == "drift":
+        # the level's path is the nominal power: nothing to check P0, Q0 against
+        nominal = dict(nominal, p0="auto", q0="auto")
+    pc = read_power_columns(path, progress=progress, **read)
+    t = read_times(str(path), t_col, pc.rows)
+    check_increasing(t, pc.rows, path=str(path), column=t_col)
+    model = ZIPModel(**nominal, with_q="q" in pc.cols)
+    names = {"v": read["v_col"], "p": read["p_col"], "q": read["q_col"]}
+    warnings = data_checks(
+        pc.cols, path=path, names=names, accept_units=accept_units,
+        v_base=read["v_base"], s_base=read["s_base"], **nominal,
+    )  # fmt: skip
+    if pc.n_dropped:
+        warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+    record = _file_record(path, model, read, nominal, pc.n_dropped)
+    record.update(time_column=t_col, **time_facts(t))
+    try:
+        if level == "drift":
+            if likelihood != "normal":
+                raise OptionError("a drifting level has a Gaussian likelihood only")
+            warnings += model.check(accumulate(model, [pc.cols]))
+            post = fit_zip_drift(
+                pc.cols, t, v0=nominal["v0"], chains=sampler.chains, draws=sampler.draws,
+                burn=sampler.burn, thin=sampler.thin, seed=sampler.seed, settings=record,
+                warnings=warnings,
+            )  # fmt: skip
+            return post, model
+        warnings += model.check(accumulate(model, [pc.cols]))
+        if likelihood == "student-t":
+            post = _fit_student_t(
+                model, pc.cols, pc.rows, priors=priors, nu=nu, sampler=sampler,
+                settings=record, warnings=warnings,
+            )  # fmt: skip
+        else:
+            post = fit_gram(
+                model, accumulate(model, [pc.cols]), priors=priors or model.default_priors(),
+                observed=pc.cols if pc.rows.size <= MAX_OBSERVED else None, settings=record,
+                warnings=warnings, scheme=scheme, sampler=sampler,
+            )  # fmt: skip
+    except DataError as exc:
+        raise relocate(exc, path, pc.rows, names) from None
+    return _said_confounded(add_derived(post, model), model, pc.cols, t), model
+
+
+def _said_confounded(post, model, cols=None, t=None):
+    """Add the confounded-level warning (dP/dV < 0, or residuals that drift with time)."""
+    from loadbayes.fit.drift import confounding_warnings
+
+    for w in confounding_warnings(post, cols or {}, t, model):
+        if w not in post.warnings:
+            post.warnings.append(w)
+    return post
 
 
 def _file_record(path, model, read, nominal, n_dropped) -> dict[str, Any]:
@@ -559,7 +706,7 @@ def _fit_file_student_t(
         )  # fmt: skip
     except DataError as exc:
         raise relocate(exc, path, pc.rows, names) from None
-    return post, model
+    return _said_confounded(add_derived(post, model), model), model
 
 
 def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings):

@@ -58,6 +58,9 @@ class ReadSpec:
     s_base: float | None = None
     drop_invalid: bool = False
     chunk_rows: int = 1 << 18
+    #: Time column (seconds or ISO timestamps): read and checked increasing within a bus
+    #: and a file; the sums do not use it.
+    t_col: str | None = None
 
 
 @dataclass(frozen=True)

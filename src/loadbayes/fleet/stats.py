@@ -170,10 +170,18 @@ def partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> Partial
     bad = np.zeros(0, bool)
     since = 0
     dropped = 0
+    times = None
+    if spec.t_col:
+        from loadbayes.measurements.times import read_times
+
+        times = read_times(str(part.path), spec.t_col)
+    last_time: dict[str, tuple[float, int]] = {}
     for ch in read_partition(part, spec):
         dropped += ch.n_dropped
         if not ch.rows.size:
             continue
+        if times is not None:
+            _check_bus_times(times, ch, last_time, str(part.path), spec.t_col)
         if model.with_q and "q" not in ch.cols:
             raise DataError(f"no column {spec.q_col!r} (other files have one)", part.path)
         bus_codes, bus_names = _codes(ch.bus)
@@ -215,6 +223,22 @@ def partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> Partial
         np.array(where, dtype=object)[order],
         dropped,
     )
+
+
+def _check_bus_times(times, ch, last_time, path, t_col) -> None:
+    """Times increase within each bus of a file (across chunks too); DataError names the row."""
+    from loadbayes.measurements.times import check_increasing
+
+    t = times[ch.rows - 1]
+    codes, names = _codes(ch.bus)
+    for j, b in enumerate(names):
+        sel = np.flatnonzero(codes == j)
+        tb, rb = t[sel], ch.rows[sel]
+        if b in last_time:
+            t0, r0 = last_time[b]
+            tb, rb = np.r_[t0, tb], np.r_[r0, rb]
+        check_increasing(tb, rb, path=path, column=t_col)
+        last_time[b] = (float(tb[-1]), int(rb[-1]))
 
 
 def _check_classes(ch, bus_codes, bus_names, local, cls_of, path, col) -> None:

@@ -235,6 +235,23 @@ class ZIPModel:
                 out[f"{ch}0"] = draws[f"{ch}0"]
         return out
 
+    def derived(self, draws: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """dP/dV (dQ/dV) at V = v0, draw by draw, in per unit of P0 (Q0) per unit of v0.
+
+        ``d(a1 x^2 + a2 x + a3)/dx`` at ``x = 1`` is ``2 a1 + a2`` (``2 a4 + a5`` for Q):
+        the sensitivity a CVR study quotes (1.15 means 1.15% less power for 1% less
+        voltage). It is what fast voltage changes determine even when a1 and a2 are not
+        separable.
+        """
+        out = {}
+        for ch, _, (c1, c2, _) in self._channels():
+            if c1 in draws and c2 in draws:
+                out[f"d{ch.upper()}/dV"] = 2.0 * np.asarray(draws[c1]) + np.asarray(draws[c2])
+        return out
+
+    #: The unit of :meth:`derived`'s quantities.
+    DERIVED_UNIT = "per unit of P0 (Q0) per unit of v0, at V = v0"
+
     def predict(
         self,
         draws: Mapping[str, np.ndarray],

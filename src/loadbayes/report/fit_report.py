@@ -91,6 +91,11 @@ def _what(d: Mapping[str, Any]) -> str:
     return f"A {model} ({chans}) fitted to {int(n):,} samples{src}{span}, {how}."
 
 
+#: The words of a fit whose load level is confounded with the voltage
+#: (:data:`loadbayes.fit.drift.CONFOUNDED`).
+CONFOUNDED_MARK = "the load level changes over the record and the voltage follows it"
+
+
 def _verdict(d: Mapping[str, Any]) -> tuple[bool, str]:
     ps = d["parameters"]
     rh = [v.get("r_hat") for v in ps.values() if v.get("r_hat") is not None]
@@ -199,12 +204,17 @@ def fit_report(
         if truth:
             row += [fmt(truth[n]) if n in truth else "", _flag_text(flags.get(n))]
         head_rows.append(row)
+    for n, p in (d.get("derived") or {}).items():
+        lo, hi = fmt_like(p["hdi_low"], p["sd"]), fmt_like(p["hdi_high"], p["sd"])
+        row = [n, DESCRIPTIONS.get(n, ""), fmt_like(p["mean"], p["sd"]), f"{lo} to {hi}"]
+        head_rows.append(row + (["", ""] if truth else []))
     header = ["parameter", "meaning", "mean", f"{pct} interval"] + (
         ["true value", "check"] if truth else []
     )
     summary = [f"<p>{e(_what(d))}</p>"]
     summary.append(table_html(header, head_rows, text_cols=(0, 1, 5),
-                              flags=[bool(flags.get(n)) for n in coefs]))  # fmt: skip
+                              flags=[bool(flags.get(n)) for n in coefs]
+                              + [False] * (len(head_rows) - len(coefs))))  # fmt: skip
     if truth:
         missed = [n for n, bad in flags.items() if bad]
         cls = "warn" if missed else "ok"
@@ -216,8 +226,14 @@ def fit_report(
             else f"Every one of the {len(flags)} true values lies inside its {pct} interval."
         )
         summary.append(f"<p class='{cls}'>{e(text)}</p>")
-    summary.append(f"<p class='{'ok' if ok else 'warn'}'>{e(verdict)}</p>")
     warnings = list(d.get("warnings") or [])
+    confounded = [w for w in warnings if CONFOUNDED_MARK in w]
+    if confounded:
+        # No green box over an unphysical result: the chains may agree on a wrong answer.
+        ok = False
+        verdict = ("The chains agree, but on a confounded answer: " + confounded[0]
+                   + " " + verdict)  # fmt: skip
+    summary.append(f"<p class='{'ok' if ok else 'warn'}'>{e(verdict)}</p>")
     if warnings:
         items = "".join(f"<li>{e(w)}</li>" for w in warnings)
         summary.append(f"<div class='warn'><b>Warnings ({len(warnings)})</b><ul>{items}</ul></div>")

@@ -20,6 +20,7 @@ __all__ = [
     "DESCRIPTIONS",
     "fmt",
     "fmt_like",
+    "derived_lines",
     "headline",
     "summary_html",
     "summary_rows",
@@ -40,6 +41,10 @@ DESCRIPTIONS = {
     "nq": "exponent of Q",
     "kpf": "frequency coefficient of P",
     "kqf": "frequency coefficient of Q",
+    "drift_p": "sd of the P level's change in 1 h",
+    "drift_q": "sd of the Q level's change in 1 h",
+    "dP/dV": "dP/dV at v0 (pu of P0/pu V)",
+    "dQ/dV": "dQ/dV at v0 (pu of Q0/pu V)",
     "tau_p": "noise precision of P",
     "tau_q": "noise precision of Q",
     "b1": "flux coefficient b1",
@@ -165,6 +170,7 @@ def summary_table(
     width: int = 80,
     describe: Callable[[str], str] | None = None,
     title: str | None = None,
+    derived: bool = True,
 ) -> str:
     """The table ``loadbayes fit`` prints: one row a parameter, at most ``width`` columns.
 
@@ -183,8 +189,12 @@ def summary_table(
         A name's meaning (default :data:`DESCRIPTIONS`).
     title : str, optional
         The first line (default :func:`headline`).
+    derived : bool
+        Add the rows of :attr:`Posterior.derived` (dP/dV ...) after the parameters.
     """
     rows = summary_rows(post, hdi_prob=hdi_prob, summary=summary, describe=describe)
+    if derived:
+        rows += _derived_rows(post, hdi_prob)
     pct = f"{hdi_prob:.0%}"
     head = {"name": "", "mean": "mean", "sd": "sd", "low": f"{pct} low", "high": f"{pct} high",
             "ess": "ESS", "r_hat": "R-hat"}  # fmt: skip
@@ -216,6 +226,38 @@ def _cut(what: str, room: int) -> str:
         unit = sep + unit
         return words[: room - len(unit) - 1] + "…" + unit
     return what[: room - 1] + "…"
+
+
+def derived_lines(post: Any, *, hdi_prob: float = 0.95) -> list[str]:
+    """One line per derived quantity: ``dP/dV at v0 = 1.16 (95% 0.94 to 1.37; ...)``."""
+    out = []
+    pct = f"{hdi_prob:.0%}"
+    for r in _derived_rows(post, hdi_prob):
+        out.append(f"{r['name']} = {r['mean']} (sd {r['sd']}, {pct} {r['low']} to "
+                   f"{r['high']}; ESS {r['ess']}, R-hat {r['r_hat']}): {r['what']}")  # fmt: skip
+    return out
+
+
+def _derived_rows(post: Any, hdi_prob: float) -> list[dict]:
+    """The table's rows of the derived quantities (dP/dV at v0 ...), formatted as the rest."""
+    if not getattr(post, "derived", None):
+        return []
+    rows = []
+    for name, r in post.derived_summary(hdi_prob=hdi_prob).items():
+        sd = r["sd"] if r["sd"] is not None else float("nan")
+        rows.append(
+            {
+                "name": name,
+                "mean": fmt_like(r["mean"], sd),
+                "sd": fmt(sd, 2),
+                "low": fmt_like(r["hdi_low"], sd),
+                "high": fmt_like(r["hdi_high"], sd),
+                "ess": f"{r['ess_bulk']:,.0f}" if r["ess_bulk"] is not None else "–",
+                "r_hat": f"{r['r_hat']:.3f}" if r["r_hat"] is not None else "–",
+                "what": DESCRIPTIONS.get(name, ""),
+            }
+        )
+    return rows
 
 
 def _wrap(text: str, width: int) -> str:

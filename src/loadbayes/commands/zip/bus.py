@@ -44,17 +44,34 @@ PER_CHANNEL = 5
 EIV_DRAWS, EIV_BURN = 4_000, 1_000
 
 
+#: Iterations, burn-in and chains of a drifting-level fit where the user gave none
+#: (:data:`loadbayes.fit.drift.DRIFT_DEFAULTS`, repeated: commands import the library lazily).
+DRIFT_DRAWS, DRIFT_BURN, DRIFT_CHAINS = 2500, 500, 2
+
+
 def zip_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
-    """The fleet's defaults with --by, the errors-in-variables ones with --v-noise."""
+    """The draws, burn-in and chains of a run where the user gave none.
+
+    The drifting level's with --level drift, the fleet's with --by, the errors-in-variables
+    ones with --v-noise.
+    """
+    ctx = click.get_current_context()
+    src = click.core.ParameterSource.DEFAULT
+    default = {k: ctx.get_parameter_source(k) == src for k in ("draws", "burn", "chains")}
+    if options.get("level") == "drift" and not options.get("by"):
+        values = dict(values)
+        if default["draws"]:
+            values["draws"] = DRIFT_DRAWS
+        if default["burn"]:
+            values["burn"] = min(DRIFT_BURN, values["draws"] - 1)
+        if default["chains"]:
+            values["chains"] = DRIFT_CHAINS
+        return values
     values = fleet_sampler_defaults(values, options)
     if options.get("by") or options.get("v_noise") is None:
         return values
-    ctx = click.get_current_context()
-    src = click.core.ParameterSource.DEFAULT
-    draws = EIV_DRAWS if ctx.get_parameter_source("draws") == src else values["draws"]
-    burn = values["burn"]
-    if ctx.get_parameter_source("burn") == src:
-        burn = min(EIV_BURN, draws - 1)
+    draws = EIV_DRAWS if default["draws"] else values["draws"]
+    burn = min(EIV_BURN, draws - 1) if default["burn"] else values["burn"]
     return {**values, "draws": draws, "burn": burn}
 
 
@@ -70,6 +87,19 @@ def zip_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dic
     show_default=True,
 )
 @likelihood_options()
+@click.option(
+    "--t-col",
+    default=None,
+    help="Time column (seconds, or ISO timestamps), increasing: checks the fit for a load "
+    "level that drifts; needed by --level drift.",
+)
+@click.option(
+    "--level",
+    type=click.Choice(["fixed", "drift"]),
+    default="fixed",
+    show_default=True,
+    help="One load level P0 (Q0), or a level that drifts in time (a random walk; needs --t-col).",
+)
 @click.option(
     "--v-noise",
     default=None,
@@ -123,6 +153,8 @@ def fit_zip_cmd(
     likelihood,
     nu,
     v_noise,
+    t_col,
+    level,
     sampler,
     prior_mean,
     prior_sd,
@@ -155,7 +187,11 @@ def fit_zip_cmd(
         force,
         stdout_ok=("--json",),
     )
-    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col)
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col)
+    if level == "drift" and not t_col:
+        raise UserError("--level drift needs the time of each sample: give --t-col")
+    if level == "drift" and likelihood != "normal":
+        raise UserError("--level drift has a Gaussian likelihood only (drop --likelihood)")
     check_prior_sd(prior_sd, "--prior-sd")
     q_name, q_required = q_column(q_col)
     note = nominal_note(p0, q0, with_q=q_name is not None)
@@ -231,6 +267,8 @@ def fit_zip_cmd(
             accept_units=accept_units,
             wording="cli",
             v_noise=v_noise_val,
+            t_col=t_col,
+            level=level,
         )
     finally:
         progress.close()

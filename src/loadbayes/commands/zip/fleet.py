@@ -88,6 +88,9 @@ def _refuse_single_bus_options(p: dict[str, Any]) -> None:
         raise UserError("--conjugate is not available for fleets")
     if p.get("v_noise") is not None:
         raise UserError("--v-noise is for one bus (a fleet keeps no rows to visit)")
+    if p.get("level", "fixed") != "fixed":
+        raise UserError("a fleet is fitted with a fixed level (from its sums); fit one bus "
+                        "with --level drift")  # fmt: skip
 
 
 def fleet_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
@@ -141,6 +144,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
         s_base=p["s_base"],
         drop_invalid=p["drop_invalid"],
         chunk_rows=p["chunk_rows"],
+        t_col=p.get("t_col"),
     )
     priors = zip_priors(
         p0=p0,
