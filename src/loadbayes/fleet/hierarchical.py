@@ -238,7 +238,8 @@ def prepare(stats: FleetStats, model: ZIPModel) -> tuple[HierData, pd.DataFrame]
     labels = np.array(["all" if c is None else str(c) for c in stats.classes[idx]], dtype=object)
     class_names, cls = np.unique(labels.astype(str), return_inverse=True)
     data = HierData(
-        stats.buses[idx], list(class_names), cls.astype(np.int64), stats.n[idx].astype(float),
+        stats.buses[idx], [str(c) for c in class_names], cls.astype(np.int64),
+        stats.n[idx].astype(float),
         np.ascontiguousarray(ztz), identified=identified, params=tuple(model.free),
         taus=tuple(b.tau_name for b in model.blocks), warnings=warn, v0=float(model.v0),
         **arrays,

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -36,6 +37,7 @@ class FleetResult:
     stats: FleetStats
     files: int
     engine: str
+    settings: dict = field(default_factory=dict)
 
 
 def _has_column(part: Partition, col: str) -> bool:
@@ -129,6 +131,7 @@ def run_fleet(
     on_stats: Callable[[FleetStats], None] | None = None,
     batch_buses: int = BATCH_BUSES,
     accept_units: bool = False,
+    max_seconds: float | None = None,
 ) -> FleetResult:
     """Fit ZIP to every bus of a fleet.
 
@@ -161,10 +164,16 @@ def run_fleet(
         Fit buses whose data do not look per unit instead of refusing them.
     batch_buses : int
         Buses per fitting task (results do not depend on it).
+    max_seconds : float, optional
+        Pooled fits: continue the chains (each round ``draws - burn`` more sweeps, the
+        earlier ones then counted as burn-in) until every class-level R-hat < 1.01, or
+        until this budget would be exceeded. None or 0: one round.
 
     Returns
     -------
     FleetResult
+        Its ``settings`` (also in ``table.attrs["loadbayes"]``) say how the chains ran
+        and stopped, and hold the fleet-level warnings.
     """
     if pool not in ("none", "class"):
         raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
@@ -187,8 +196,12 @@ def run_fleet(
         progress_buses=progress_buses,
         batch_buses=batch_buses,
         accept_units=accept_units,
+        max_seconds=max_seconds,
     )
-    return FleetResult(table, stats, files, eng.name)
+    settings = dict(table.attrs.get("loadbayes", {}))
+    settings.update({"files": files, "engine": eng.name})
+    table.attrs["loadbayes"] = settings
+    return FleetResult(table, stats, files, eng.name, settings)
 
 
 def fit_fleet(
@@ -205,6 +218,7 @@ def fit_fleet(
     progress_buses: Callable[[int], None] | None = None,
     batch_buses: int = BATCH_BUSES,
     accept_units: bool = False,
+    max_seconds: float | None = None,
 ) -> pd.DataFrame:
     """The fits of :func:`run_fleet` from statistics already computed (same options).
 
@@ -221,9 +235,52 @@ def fit_fleet(
         check_netcdf_targets(stats.buses, netcdf_dir, force=force)
     if not accept_units:
         stats, refused = _refuse_unit_errors(stats, model)
+    info: dict = {}
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
-                   progress_buses, batch_buses)  # fmt: skip
-    return concat(list(frames) + ([refused] if refused is not None else []))
+                   progress_buses, batch_buses, max_seconds, info)  # fmt: skip
+    table = concat(list(frames) + ([refused] if refused is not None else []))
+    table.attrs["loadbayes"] = _settings(table, model, pool, hyper, sampler, max_seconds, info)
+    return table
+
+
+def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
+    """What produced the table, and the fleet-level sentences (JSON-able)."""
+    from dataclasses import asdict
+
+    def nominal(v):
+        return "sampled" if v == "auto" and pool == "class" else v
+
+    warn = list(info.get("warnings", []))
+    bus = table[(table["level"] == "bus") & table["parameter"].notna()]
+    slow = bus.loc[bus["warnings"].str.contains("not converged", regex=False), "bus"].unique()
+    if len(slow):
+        shown = ", ".join(map(str, slow[:5])) + (", ..." if len(slow) > 5 else "")
+        warn.append(
+            f"{len(slow)} of {bus['bus'].nunique()} buses have not converged ({shown}): "
+            "see their rows' warnings"
+        )
+    return {
+        "kind": "fleet",
+        "model": "zip",
+        "pool": pool,
+        "v0": model.v0,
+        "p0": nominal(model.p0),
+        "q0": nominal(model.q0) if model.with_q else None,
+        "chains": sampler.chains,
+        "draws": sampler.draws,
+        "burn": sampler.burn,
+        "thin": sampler.thin,
+        "seed": sampler.seed,
+        "hdi_prob": sampler.hdi_prob,
+        "buses": int(table.loc[table["level"] == "bus", "bus"].nunique()),
+        "prior": asdict(hyper or hier.HierPrior()) if pool == "class" else None,
+        "sweeps": info.get("sweeps", sampler.draws),
+        "max_seconds": max_seconds,
+        "seconds": info.get("seconds"),
+        "converged": info.get("converged"),
+        "stop": info.get("stop", ""),
+        "warnings": warn,
+    }
 
 
 def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
@@ -249,7 +306,7 @@ def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
 
 
 def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
-          progress_buses, batch_buses):  # fmt: skip
+          progress_buses, batch_buses, max_seconds=None, info=None):  # fmt: skip
     """The per-bus or pooled fits of the buses that passed the checks (frames)."""
     if pool == "none":
         nb = stats.buses.size
@@ -273,12 +330,71 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
         if not data_h.buses.size:
             frames = [failed]
         else:
-            seeds = hier.chain_seeds(sampler.seed, sampler.chains)
-            chains = eng.map(hier.run_chain, seeds, data_h, hyper or hier.HierPrior(), sampler)
+            chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
+                                    max_seconds, info if info is not None else {})  # fmt: skip
             frames = [hier.summarize_chains(data_h, chains, sampler), failed]
         if progress_buses:
             progress_buses(stats.buses.size)
     return frames
+
+
+def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info):
+    """The pooled chains, continued until every class R-hat < 1.01 or the budget is spent.
+
+    Each round after the first runs ``draws - burn`` more sweeps per chain from where
+    the chain stopped and keeps only those (the earlier sweeps become burn-in), so the
+    kept draws, and the memory, stay ``draws - burn`` per chain. The decision to go on
+    depends on the draws only, except when the time budget ends it: then (and only then)
+    two machines may stop at different rounds.
+    """
+    from loadbayes.diagnostics import RHAT_MAX
+    from loadbayes.fleet.summary import convergence_note
+
+    t0 = time.monotonic()
+    seeds = hier.chain_seeds(sampler.seed, sampler.chains)
+    chains = eng.map(hier.run_chain, seeds, data_h, prior, sampler)
+    first = time.monotonic() - t0
+    rounds = 1
+    while True:
+        summ = hier.class_convergence(data_h, chains, sampler.hdi_prob)
+        r_hat = np.nanmax(np.stack([v["r_hat"] for v in summ.values()]), axis=0)
+        ok = bool(np.all(r_hat < RHAT_MAX)) if sampler.chains > 1 else None
+        spent = time.monotonic() - t0
+        per_round = first * (sampler.draws - sampler.burn) / sampler.draws
+        if ok or ok is None or not max_seconds:
+            why = "every class's R-hat < 1.01" if ok else "one round (no --max-seconds)"
+            if ok is None:
+                why = "one chain: R-hat needs two or more"
+            break
+        if spent + per_round > max_seconds:
+            why = (
+                f"the {max_seconds:g} s budget (--max-seconds) would run out before another "
+                f"round of {sampler.draws - sampler.burn} sweeps"
+            )
+            break
+        chains = eng.map(hier.run_chain, [c.state for c in chains], data_h, prior, sampler)
+        rounds += 1
+    sweeps = chains[0].state.sweeps
+    info.update(
+        sweeps=int(sweeps),
+        rounds=rounds,
+        seconds=round(time.monotonic() - t0, 3),
+        converged=ok,
+        stop=f"stopped after {sweeps} sweeps per chain: {why}",
+    )
+    warn = []
+    for j, name in enumerate(data_h.class_names):
+        note = convergence_note(summ, j)
+        if note:
+            warn.append(f"class {str(name)!r} {note}")
+    if ok is False:
+        warn.append(
+            f"the class-level R-hat is still {np.nanmax(r_hat):.3f} (>= {RHAT_MAX}) after "
+            f"{sweeps} sweeps per chain ({why}): the class means and spreads are not "
+            "reliable yet; give more --max-seconds or --draws"
+        )
+    info["warnings"] = warn
+    return chains
 
 
 def _fit_batch(idx, stats, model, priors, sampler, netcdf_dir, force):
