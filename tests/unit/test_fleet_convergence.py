@@ -1,6 +1,7 @@
 """Pooled fleets say when they have not converged, continue chains exactly, keep a given P0."""
 
 import numpy as np
+import pandas as pd
 import pytest
 from click.testing import CliRunner
 
@@ -106,3 +107,26 @@ def test_the_p0_draw_is_the_conditional_normal():
     a = np.array([1.0, 0.2, 0.3])
     gg, gy = a @ g3[0] @ a, a @ xy[0, 0]
     assert s[0, 0] == pytest.approx(gy / gg + 1.5 / np.sqrt(4.0 * gg), rel=1e-6)
+
+
+def test_draws_streamed_to_disk_are_the_draws_in_memory(fleet, tmp_path):
+    data = _data(fleet)
+    seed = H.chain_seeds(2, 1)[0]
+    sampler = SamplerSettings(chains=1, draws=250, burn=20, thin=2)  # 115 kept: 2 blocks
+    here = H.run_chain(seed, data, H.HierPrior(), sampler)
+    there = H.run_chain(seed, data, H.HierPrior(), sampler, store=str(tmp_path / "c.nc"))
+    assert isinstance(there.theta, H.StoredDraws)
+    for name in ("theta", "tau", "p0"):
+        np.testing.assert_array_equal(getattr(there, name)[:, 3:9], getattr(here, name)[:, 3:9])
+    np.testing.assert_array_equal(there.mu, here.mu)
+
+
+def test_a_streamed_pooled_fit_gives_the_same_table(fleet, monkeypatch):
+    from loadbayes.fleet import run
+
+    sampler = SamplerSettings(chains=2, draws=120, burn=20, seed=4)
+    here = run_fleet(fleet, SPEC, pool="class", sampler=sampler)
+    monkeypatch.setattr(run, "STREAM_BYTES", 0)  # stream every draw to disk
+    there = run_fleet(fleet, SPEC, pool="class", sampler=sampler, max_seconds=1e-9)
+    assert there.settings["streamed"] and not here.settings["streamed"]
+    pd.testing.assert_frame_equal(here.table, there.table, check_exact=True)

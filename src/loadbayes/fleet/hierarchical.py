@@ -73,6 +73,7 @@ from loadbayes.models.zip import ZIPModel
 __all__ = [
     "ChainState",
     "HierData",
+    "StoredDraws",
     "HierPrior",
     "class_convergence",
     "prepare",
@@ -404,6 +405,53 @@ class ChainState:
     sweeps: int
 
 
+#: Kept draws written to disk per block (``store``): the memory a chain holds.
+STORE_BLOCK = 100
+
+
+class StoredDraws:
+    """Draws of one variable of a chain in a NetCDF file, read by slices (``x[:, b0:b1]``)."""
+
+    def __init__(self, path: str, name: str, shape: tuple[int, ...]) -> None:
+        self.path, self.name, self.shape = path, name, shape
+
+    def __getitem__(self, key):
+        import h5netcdf
+
+        with h5netcdf.File(self.path, "r") as f:
+            return np.asarray(f.variables[self.name][key])
+
+
+class _Store:
+    """A chain's bus-level draws streamed to a NetCDF-4 file in blocks of draws.
+
+    Chunks are (block, 512 buses, k): the summary reads all draws of a batch of buses.
+    """
+
+    def __init__(self, path: str, kept: int, nb: int, shapes: dict[str, int]) -> None:
+        import h5netcdf
+
+        self.path = path
+        self.f = h5netcdf.File(path, "w")
+        self.f.dimensions = {"draw": kept, "bus": nb, **{f"{k}_dim": n for k, n in shapes.items()}}
+        self.vars = {
+            k: self.f.create_variable(
+                k, ("draw", "bus", f"{k}_dim"), np.float32,
+                chunks=(max(1, min(STORE_BLOCK, kept)), max(1, min(512, nb)), n),
+            )
+            for k, n in shapes.items()
+        }  # fmt: skip
+        self.shapes = {k: (kept, nb, n) for k, n in shapes.items()}
+
+    def write(self, start: int, blocks: dict[str, np.ndarray], count: int) -> None:
+        for k, buf in blocks.items():
+            self.vars[k][start : start + count] = buf[:count]
+
+    def close(self) -> dict[str, StoredDraws]:
+        self.f.close()
+        return {k: StoredDraws(self.path, k, shp) for k, shp in self.shapes.items()}
+
+
 @dataclass
 class ChainDraws:
     """Kept draws of one chain, and its state at the end.
@@ -429,6 +477,7 @@ def run_chain(
     sampler: SamplerSettings,
     *,
     sweeps: int | None = None,
+    store: str | None = None,
 ) -> ChainDraws:
     """Run one Gibbs chain of the pooled model (see the module notes).
 
@@ -436,6 +485,9 @@ def run_chain(
     ``sampler.burn`` (every ``thin``-th); a chain continued from its :class:`ChainState`
     runs ``sweeps`` more (default ``draws - burn``) and keeps them all (thinned). A chain
     run in two calls gives the same draws as one call of the same total length.
+    With ``store`` (a file path), the bus-level draws go to that NetCDF file in blocks of
+    :data:`STORE_BLOCK` draws (the chain then holds one block in memory) and the result's
+    ``theta``, ``tau``, ``p0`` are :class:`StoredDraws`; the draws are the same.
     """
     nb = data.buses.size
     nch = data.xy.shape[1]
@@ -468,13 +520,15 @@ def run_chain(
     sums = np.zeros((ncls, d))
     scatter = np.zeros((ncls, d, d))
     kept = len(range(burn, total, sampler.thin))
+    rows = min(kept, STORE_BLOCK) if store else kept
     out = ChainDraws(
-        np.empty((kept, nb, d), np.float32),
-        np.empty((kept, nb, nch), np.float32),
+        np.empty((rows, nb, d), np.float32),
+        np.empty((rows, nb, nch), np.float32),
         np.empty((kept, ncls, d)),
         np.empty((kept, ncls, d, d)),
-        np.empty((kept, nb, nch), np.float32),
+        np.empty((rows, nb, nch), np.float32),
     )
+    sink = _Store(store, kept, nb, {"theta": d, "tau": nch, "p0": nch}) if store else None
     k = 0
     prec_data = np.zeros((ncls, d, d))
     lin_data = np.zeros((ncls, d))
@@ -500,12 +554,18 @@ def run_chain(
         _class_sums(data.cls, theta, mu, nc, sums, scatter)
         sigma, sig_inv = _draw_sigma(gen, nu0 + nc, psi0[None] + scatter)
         if it >= burn and (it - burn) % sampler.thin == 0:
-            out.theta[k] = theta
-            out.tau[k] = t * s**2
-            out.p0[k] = s * data.scale
+            r = k % rows
+            out.theta[r] = theta
+            out.tau[r] = t * s**2
+            out.p0[r] = s * data.scale
             out.mu[k] = mu
             out.sigma[k] = sigma
             k += 1
+            if sink is not None and (r == rows - 1 or k == kept):
+                sink.write(k - r - 1, {"theta": out.theta, "tau": out.tau, "p0": out.p0}, r + 1)
+    if sink is not None:
+        stored = sink.close()
+        out.theta, out.tau, out.p0 = stored["theta"], stored["tau"], stored["p0"]
     out.state = ChainState(
         gen.bit_generator.state, mu, sigma, sig_inv, theta, s, t, done + total
     )  # fmt: skip

@@ -279,6 +279,8 @@ def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
         "seconds": info.get("seconds"),
         "converged": info.get("converged"),
         "stop": info.get("stop", ""),
+        "draws_bytes": info.get("draws_bytes"),
+        "streamed": info.get("streamed"),
         "warnings": warn,
     }
 
@@ -330,15 +332,47 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
         if not data_h.buses.size:
             frames = [failed]
         else:
-            chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
-                                    max_seconds, info if info is not None else {})  # fmt: skip
-            frames = [hier.summarize_chains(data_h, chains, sampler), failed]
+            info = info if info is not None else {}
+            folder = _draws_folder(data_h, sampler, info)
+            try:
+                chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
+                                        max_seconds, info, folder)  # fmt: skip
+                frames = [hier.summarize_chains(data_h, chains, sampler), failed]
+            finally:
+                if folder is not None:
+                    import shutil
+
+                    shutil.rmtree(folder, ignore_errors=True)
         if progress_buses:
             progress_buses(stats.buses.size)
     return frames
 
 
-def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info):
+#: Above this many bytes of bus-level draws (all chains), they are streamed to disk.
+STREAM_BYTES = 256 * 2**20
+
+
+def _draws_folder(data_h, sampler, info) -> str | None:
+    """A temporary folder for the chains' draws when holding them would cost too much."""
+    import tempfile
+
+    kept = len(range(sampler.burn, sampler.draws, sampler.thin))
+    width = 2 * data_h.xy.shape[1] + 2 * data_h.xy.shape[1]  # theta, tau, p0
+    size = 4 * kept * data_h.buses.size * width * sampler.chains
+    info["draws_bytes"] = int(size)
+    info["streamed"] = size > STREAM_BYTES
+    if not info["streamed"]:
+        return None
+    return tempfile.mkdtemp(prefix="loadbayes-draws-")
+
+
+def _chain_task(job, data_h, prior, sampler):
+    """One chain's round: ``job`` = (seed or state, NetCDF path or None)."""
+    start, store = job
+    return hier.run_chain(start, data_h, prior, sampler, store=store)
+
+
+def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     """The pooled chains, continued until every class R-hat < 1.01 or the budget is spent.
 
     Each round after the first runs ``draws - burn`` more sweeps per chain from where
@@ -347,12 +381,19 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info):
     depends on the draws only, except when the time budget ends it: then (and only then)
     two machines may stop at different rounds.
     """
+    import os
+
     from loadbayes.diagnostics import RHAT_MAX
     from loadbayes.fleet.summary import convergence_note
 
+    def stores(r):
+        if folder is None:
+            return [None] * sampler.chains
+        return [os.path.join(folder, f"chain{i}-round{r}.nc") for i in range(sampler.chains)]
+
     t0 = time.monotonic()
     seeds = hier.chain_seeds(sampler.seed, sampler.chains)
-    chains = eng.map(hier.run_chain, seeds, data_h, prior, sampler)
+    chains = eng.map(_chain_task, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
     first = time.monotonic() - t0
     rounds = 1
     while True:
@@ -372,7 +413,11 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info):
                 f"round of {sampler.draws - sampler.burn} sweeps"
             )
             break
-        chains = eng.map(hier.run_chain, [c.state for c in chains], data_h, prior, sampler)
+        jobs = list(zip([c.state for c in chains], stores(rounds + 1), strict=True))
+        chains = eng.map(_chain_task, jobs, data_h, prior, sampler)
+        for old in stores(rounds):
+            if old is not None and os.path.exists(old):
+                os.remove(old)  # the earlier round is burn-in now
         rounds += 1
     sweeps = chains[0].state.sweeps
     info.update(
