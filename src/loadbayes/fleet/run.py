@@ -21,7 +21,38 @@ from loadbayes.fleet.summary import concat
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 
-__all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "run_fleet"]
+__all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "one_process_note", "run_fleet"]
+
+#: CPU seconds, measured (docs/fleet.md, Speed): one pooled sweep of one bus, one per-bus
+#: fit of 4 x 2,500 iterations with its summary, one pooled bus's summary per 8,000 draws.
+_POOLED_SWEEP_S = 1e-6
+_PER_BUS_FIT_S = 11e-3
+_POOLED_SUMMARY_S = 9e-3
+
+
+def one_process_note(buses: int, pool: str, sampler: SamplerSettings, engine: Engine) -> str:
+    """A sentence when the fits would take less than starting the cluster did ("" if not).
+
+    The fits' CPU time is estimated from the measured costs above; with ``N`` workers the
+    best saving is that time times ``1 - 1/N``, which must beat the start-up paid.
+    """
+    workers = engine.workers or 0
+    if workers < 2 or not engine.startup_seconds:
+        return ""
+    draws = sampler.chains * sampler.draws
+    if pool == "class":
+        work = buses * draws * _POOLED_SWEEP_S + buses * _POOLED_SUMMARY_S * draws / 8000
+    else:
+        work = buses * _PER_BUS_FIT_S * draws / 10_000
+    saving = work * (1.0 - 1.0 / workers)
+    if saving >= engine.startup_seconds:
+        return ""
+    return (
+        f"this fleet is small: its fits take about {work:.1f} s of CPU, so {workers} workers "
+        f"save at most {saving:.1f} s, less than the {engine.startup_seconds:.1f} s it took to "
+        "start them; one process (no --workers) would be faster"
+    )
+
 
 #: Buses fitted per task: large enough to amortise a task, small enough for memory
 #: (4 chains x 2,500 draws x 8 parameters x 8 bytes = 640 kB per bus). Each bus's

@@ -133,7 +133,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     from loadbayes.fleet.engine import Engine
     from loadbayes.fleet.hierarchical import HierPrior
     from loadbayes.fleet.partitions import ReadSpec
-    from loadbayes.fleet.run import run_fleet
+    from loadbayes.fleet.run import one_process_note, run_fleet
 
     q_name, q_required = q_column(p["q_col"])
     spec = ReadSpec(
@@ -174,8 +174,13 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     nc = _NetcdfStaging(p.get("netcdf_dir"), p["force"])
 
+    engines: list = []
+
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
+        note = one_process_note(result_size["buses"], p["pool"], sampler, engines[0])
+        if note and not quiet:
+            click.echo(f"loadbayes: note: {note}", err=True)
         nc.check(stats.buses)
         if not quiet:  # the size of the work before it starts; the bar then says the time left
             click.echo(
@@ -186,6 +191,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     try:
         with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
+            engines.append(engine)
             res = run_fleet(
                 p["data"],
                 spec,
