@@ -98,6 +98,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.quick:
         args.stats_buses, args.rows, args.fit_buses = 40, 500, 60
+        args.engines = "inproc,2"
     sampler = SamplerSettings(chains=4, draws=2500, burn=500)
     if args.quick:
         sampler = SamplerSettings(chains=4, draws=300, burn=100)
