@@ -53,44 +53,45 @@ def _mu_terms(cls, chol, u, ok, sig_inv, prec, lin):  # pragma: no cover - compi
 
     With ``theta_b`` integrated out, bus ``b`` adds ``Sigma^-1 - Sigma^-1 L_b^-1
     Sigma^-1`` to the precision and ``Sigma^-1 L_b^-1 u_b`` to the linear term
-    (``L_b`` factorised by :func:`_factor`).
+    (``L_b = R R'`` factorised by :func:`_factor`). With ``W = R^-1 Sigma^-1`` and
+    ``w = R^-1 u_b`` these are ``W'W`` and ``W'w``: d + 1 triangular solves a bus, no
+    inverse.
     """
     d = sig_inv.shape[1]
     prec[:] = 0.0
     lin[:] = 0.0
-    inv = np.empty((d, d))
-    e = np.empty(d)
-    col = np.empty(d)
-    mrow = np.empty(d)
+    wm = np.empty((d, d))
+    wv = np.empty(d)
     for b in range(cls.shape[0]):
         c = cls[b]
-        # inv = L^-1, column by column from the Cholesky factor; NaN if L is not
-        # positive definite (as a failed factor gives)
-        if ok[b]:
-            for j in range(d):
-                for i in range(d):
-                    e[i] = 1.0 if i == j else 0.0
-                solve_lower(chol[b], e, col)
-                solve_upper(chol[b], col, col)
-                for i in range(d):
-                    inv[i, j] = col[i]
-        else:
-            inv[:] = np.nan
-        # prec += S^-1 - M S^-1, lin += M u, with M = S^-1 A (S^-1 = sig_inv[c], A = inv)
-        for i in range(d):
-            for k in range(d):
-                acc = 0.0
+        if not ok[b]:
+            # L is not positive definite (a failed factor): NaN, as before
+            for i in range(d):
+                lin[c, i] = np.nan
                 for j in range(d):
-                    acc += sig_inv[c, i, j] * inv[j, k]
-                mrow[k] = acc
+                    prec[c, i, j] = np.nan
+            continue
+        r = chol[b]
+        # forward substitution, for the columns of Sigma^-1 and for u
+        for i in range(d):
+            for j in range(d):
+                acc = sig_inv[c, i, j]
+                for k in range(i):
+                    acc -= r[i, k] * wm[k, j]
+                wm[i, j] = acc / r[i, i]
+            acc = u[b, i]
+            for k in range(i):
+                acc -= r[i, k] * wv[k]
+            wv[i] = acc / r[i, i]
+        for i in range(d):
             acc = 0.0
             for k in range(d):
-                acc += mrow[k] * u[b, k]
+                acc += wm[k, i] * wv[k]
             lin[c, i] += acc
             for j in range(d):
                 acc = 0.0
                 for k in range(d):
-                    acc += mrow[k] * sig_inv[c, k, j]
+                    acc += wm[k, i] * wm[k, j]
                 prec[c, i, j] += sig_inv[c, i, j] - acc
 
 
