@@ -18,7 +18,7 @@ pytestmark = pytest.mark.integration
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
 SCRIPTS = [
     "bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py", "bench_cli.py",
-    "bench_drift.py",
+    "bench_drift.py", "bench_fleet.py",
 ]  # fmt: skip
 
 
@@ -63,6 +63,10 @@ def test_script_runs_quick(script, tmp_path):
                 assert rows[name]["check"] in ("ok", "low ESS"), rows[name]
     if script == "bench_stream.py":
         assert info["bit_identical"]
+    if script == "bench_fleet.py":
+        stages = {(r["stage"], r["engine"]) for r in info["results"]}
+        assert {("pooled fit", "inproc"), ("pooled fit", "2")} <= stages
+        assert "Identical tables across engines: True" in info["notes"][0]
     if script == "bench_cli.py":
         cases = {r["case"] for r in info["results"]}
         assert {"fit zip, cold cache (compiles)", "fit zip, warm cache"} <= cases
@@ -90,3 +94,13 @@ def test_readme_is_written_from_results(tmp_path):
     text = readme.read_text()
     assert "test cpu" in text and "**not met**" in text and "emcee not installed" in text
     assert "best_s 1.50" in text
+
+
+def test_readme_keeps_its_hand_written_tail(tmp_path):
+    run_all = _run_all()
+    readme = tmp_path / "README.md"
+    readme.write_text(f"old\n{run_all.HAND_WRITTEN}\n\n## by hand\n\nkept\n")
+    run_all.write_readme(tmp_path, readme)
+    text = readme.read_text()
+    assert "old" not in text.split(run_all.HAND_WRITTEN)[0]
+    assert text.count(run_all.HAND_WRITTEN) == 1 and text.endswith("## by hand\n\nkept\n")

@@ -25,7 +25,8 @@ def _run(*args):
 def test_fleet_table_from_a_hive_folder(hive, tmp_path):
     out = tmp_path / "fleet.parquet"
     res = _run(hive, "--by", "bus_id", "--class-col", "customer_class", "--out", out,
-               "--pool", "class", "--draws", "300", "--burn", "100", "--quiet")  # fmt: skip
+               "--pool", "class", "--draws", "300", "--burn", "100", "--max-seconds", "5",
+               "--quiet")  # fmt: skip
     assert res.exit_code == 0, res.output
     t = pd.read_parquet(out)
     assert set(t.level) == {"bus", "class"}

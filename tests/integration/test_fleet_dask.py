@@ -67,3 +67,17 @@ def test_a_killed_worker_loses_and_duplicates_no_bus(client, fleet):
     pd.testing.assert_frame_equal(here, there, check_exact=True)
     assert there.groupby(["bus", "parameter"]).size().max() == 1
     client.wait_for_workers(2, timeout=60)
+
+
+def test_pooled_fit_on_one_worker_with_draws_on_disk_is_bit_identical(fleet, monkeypatch):
+    # One worker process (the chains run there in turn), the draws streamed to disk
+    # by the worker and read back by the client: the same table as in process.
+    from loadbayes.fleet import run
+
+    sampler = SamplerSettings(chains=2, draws=200, burn=50, seed=9)
+    here = run_fleet(fleet, SPEC, pool="class", sampler=sampler).table
+    monkeypatch.setattr(run, "STREAM_BYTES", 0)
+    with Engine(workers=1) as eng:
+        there = run_fleet(fleet, SPEC, pool="class", sampler=sampler, engine=eng)
+    assert there.engine == "dask (1 workers)" and there.settings["streamed"]
+    pd.testing.assert_frame_equal(here, there.table, check_exact=True)

@@ -10,6 +10,28 @@ def _spd(rng, d):
     return a @ a.T + d * np.eye(d)
 
 
+def _regression(rng, ztz, ztr):
+    """X'X and X'y of X = [1, z1, z2] whose shares see Z'Z = ztz and Z'r = ztr (P0 = 1)."""
+    nb = ztz.shape[0]
+    g3 = np.zeros((nb, 3, 3))
+    g3[:, 1:, 1:] = ztz
+    z1 = rng.standard_normal((nb, 2))
+    g3[:, 0, 1:] = g3[:, 1:, 0] = z1
+    g3[:, 0, 0] = 50.0
+    xy = np.zeros((nb, 2, 3))
+    xy[:, :, 1:] = ztr + z1[:, None, :]  # Z'y = Z'r + Z'1 with y = r + 1
+    return g3, xy
+
+
+def _factored(rng, ztz, ztr, tau, sig_inv, g3xy=None):
+    """The factors and linear terms of the sweep at P0 = 1 (the kernels' inputs)."""
+    nb, d = ztz.shape[0], sig_inv.shape[1]
+    g3, xy = g3xy if g3xy is not None else _regression(rng, ztz, ztr)
+    chol, u, ok = np.empty((nb, d, d)), np.empty((nb, d)), np.empty(nb, bool)
+    H._factor(np.zeros(nb, np.int64), g3, xy, np.ones((nb, 2)), tau, sig_inv, chol, u, ok)
+    return chol, u, ok
+
+
 def test_collapsed_mu_terms_match_the_marginal_of_each_bus():
     rng = np.random.default_rng(0)
     nb, d = 5, 4
@@ -20,7 +42,7 @@ def test_collapsed_mu_terms_match_the_marginal_of_each_bus():
     sig_inv = np.linalg.inv(sig)
     prec = np.zeros((1, d, d))
     lin = np.zeros((1, d))
-    H._mu_terms(np.zeros(nb, np.int64), ztz, ztr, tau, sig_inv, prec, lin)
+    H._mu_terms(np.zeros(nb, np.int64), *_factored(rng, ztz, ztr, tau, sig_inv), sig_inv, prec, lin)
     # theta_b integrated out: bus b is a Gaussian "observation" of mu with covariance
     # Sigma + J_b^-1 centred on J_b^-1 u_b.
     want_p = np.zeros((d, d))
@@ -50,9 +72,12 @@ def test_bus_draw_has_the_conditional_mean_and_tau_the_gamma_rate():
     mu = rng.standard_normal((1, d))
     theta = np.zeros((nb, d))
     tau_in = tau.copy()
-    H._bus_sweep(np.zeros(nb, np.int64), ztz, ztr, ssr_min, theta_ls, sig_inv,
-                 (sig_inv[0] @ mu[0])[None],
-                 0.5, tau, theta, np.zeros((nb, d)), np.ones((nb, 2)))  # fmt: skip
+    g3, xy = _regression(rng, ztz, ztr)
+    beta_ls = np.concatenate([np.ones((nb, 2, 1)), theta_ls], axis=2)  # (1, theta_ls)
+    H._bus_sweep(np.zeros(nb, np.int64), *_factored(rng, ztz, ztr, tau, sig_inv, (g3, xy)),
+                 (sig_inv[0] @ mu[0])[None], g3, xy, beta_ls, ssr_min,
+                 np.ones((nb, 2), bool), np.full((nb, 2), 0.5), theta, np.ones((nb, 2)),
+                 tau, np.zeros((nb, d)), np.zeros((nb, 2)), np.ones((nb, 2)))  # fmt: skip
     for b in range(nb):
         lm = sig_inv[0].copy()
         h = sig_inv[0] @ mu[0]

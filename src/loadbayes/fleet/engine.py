@@ -67,6 +67,8 @@ class Engine:
         self.workers = workers
         self.client = client
         self._own: list[Any] = []
+        #: Seconds it took to start (or reach) the cluster; 0 in process.
+        self.startup_seconds = 0.0
 
     @property
     def name(self) -> str:
@@ -78,6 +80,9 @@ class Engine:
     def __enter__(self) -> Engine:
         if self.client is not None or not (self.scheduler or self.workers):
             return self
+        import time
+
+        t0 = time.monotonic()
         _quiet_dask()
         try:
             from dask.distributed import Client, LocalCluster
@@ -104,6 +109,7 @@ class Engine:
             self._own.append(cluster)
             self.client = Client(cluster)
         self._own.insert(0, self.client)
+        self.startup_seconds = time.monotonic() - t0
         return self
 
     def __exit__(self, *exc: object) -> None:

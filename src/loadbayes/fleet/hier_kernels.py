@@ -1,7 +1,12 @@
 """Compiled loops over buses of the pooled model's Gibbs sweep (see :mod:`.hierarchical`).
 
 Each works on small dense matrices per bus (``d`` = 2 or 4) without allocating inside
-the loop, so a sweep costs about a microsecond per bus.
+the loop. Per bus and channel the data enter through ``G = X'X`` and ``X'y`` of the
+regression of ``y`` (P, or P / P0 when P0 is given) on ``X = [1, z1, z2]``, the
+least-squares ``beta_hat`` and ``SSR_min``; the state is the shares ``theta``, the
+level ``s`` (P0) and the absolute noise precision ``t`` (of ``y``). Given ``s``, the
+shares see the per-unit regression ``y / s - 1 = Z theta + e`` with precision
+``t s^2``: ``J = t s^2 Z'Z`` and ``u = t (s Z'y - s^2 Z'1)``.
 """
 
 from __future__ import annotations
@@ -9,108 +14,138 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from loadbayes.inference.linalg import cholesky, precision_draw, solve_lower, solve_upper
+from loadbayes.inference.linalg import cholesky, solve_lower, solve_upper
 
-__all__ = ["_bus_sweep", "_class_sums", "_mu_terms"]
+__all__ = ["_bus_sweep", "_class_sums", "_factor", "_mu_terms", "_scale_apply", "_scale_terms"]
 
 _TAU_FLOOR = 1e-100  # a gamma draw can underflow to 0; keep the precision positive
 
 
 @njit(cache=True, nogil=True)
-def _bus_sweep(
-    cls, ztz, ztr, ssr_min, theta_ls, sig_inv, sig_inv_mu, rate0, tau, theta, z, g
-):  # pragma: no cover - compiled
-    """Steps 2 and 3 of the sweep for every bus: theta_b given mu, Sigma, tau_b, then tau_b.
+def _factor(cls, g3, xy, s, t, sig_inv, chol, u, ok):  # pragma: no cover - compiled
+    """Per bus: the Cholesky factor of ``L_b = Sigma_c^-1 + J_b`` (in ``chol``) and ``u_b``.
 
-    ``z`` holds standard normals and ``g`` standard gammas of shape ``a0 + n_b / 2``.
+    ``L_b`` and ``u_b`` are shared by the collapsed draw of ``mu`` and the draw of
+    ``theta_b`` (same ``Sigma``, ``s``, ``t``), so they are built and factorised once a
+    sweep. ``ok[b]`` is False when ``L_b`` is not positive definite.
     """
-    nb = theta.shape[0]
-    d = theta.shape[1]
-    nch = tau.shape[1]
-    lm = np.empty((d, d))
-    h = np.empty(d)
-    w = np.empty(d)
-    for b in range(nb):
+    d = chol.shape[1]
+    nch = t.shape[1]
+    for b in range(cls.shape[0]):
         c = cls[b]
+        lm = chol[b]
         for i in range(d):
-            h[i] = sig_inv_mu[c, i]
             for j in range(d):
                 lm[i, j] = sig_inv[c, i, j]
         for ch in range(nch):
-            t = tau[b, ch]
+            sc = s[b, ch]
+            w = t[b, ch] * sc * sc
             for i in range(2):
-                h[2 * ch + i] += t * ztr[b, ch, i]
+                u[b, 2 * ch + i] = t[b, ch] * (sc * xy[b, ch, 1 + i] - sc * sc * g3[b, 1 + i, 0])
                 for j in range(2):
-                    lm[2 * ch + i, 2 * ch + j] += t * ztz[b, i, j]
-        # theta = R'^-1 (R^-1 h + z) with lm = R R' (factorised in place): mean L^-1 h,
-        # covariance L^-1; NaN if lm is not positive definite (as a failed factor gives)
-        if not precision_draw(lm, h, z[b], lm, w, theta[b]):
-            theta[b, :] = np.nan
-        for ch in range(nch):
-            e0 = theta[b, 2 * ch] - theta_ls[b, ch, 0]
-            e1 = theta[b, 2 * ch + 1] - theta_ls[b, ch, 1]
-            q = ztz[b, 0, 0] * e0 * e0 + 2.0 * ztz[b, 0, 1] * e0 * e1 + ztz[b, 1, 1] * e1 * e1
-            ssr = ssr_min[b, ch] + max(q, 0.0)
-            tau[b, ch] = max(g[b, ch] / (rate0 + 0.5 * ssr), _TAU_FLOOR)
+                    lm[2 * ch + i, 2 * ch + j] += w * g3[b, 1 + i, 1 + j]
+        ok[b] = cholesky(lm, lm)
 
 
 @njit(cache=True, nogil=True)
-def _mu_terms(cls, ztz, ztr, tau, sig_inv, prec, lin):  # pragma: no cover - compiled
-    """Per class: the precision and linear term of ``mu_c | Sigma_c, tau, data``.
+def _mu_terms(cls, chol, u, ok, sig_inv, prec, lin):  # pragma: no cover - compiled
+    """Per class: the precision and linear term of ``mu_c | Sigma_c, s, t, data``.
 
     With ``theta_b`` integrated out, bus ``b`` adds ``Sigma^-1 - Sigma^-1 L_b^-1
-    Sigma^-1`` to the precision and ``Sigma^-1 L_b^-1 u_b`` to the linear term, where
-    ``L_b = Sigma^-1 + J_b``, ``J_b = diag_ch(tau_ch Z'Z)`` and ``u_b = (tau_ch Z'r_ch)``.
+    Sigma^-1`` to the precision and ``Sigma^-1 L_b^-1 u_b`` to the linear term
+    (``L_b = R R'`` factorised by :func:`_factor`). With ``W = R^-1 Sigma^-1`` and
+    ``w = R^-1 u_b`` these are ``W'W`` and ``W'w``: d + 1 triangular solves a bus, no
+    inverse.
     """
     d = sig_inv.shape[1]
-    nch = tau.shape[1]
     prec[:] = 0.0
     lin[:] = 0.0
-    lm = np.empty((d, d))
-    inv = np.empty((d, d))
-    u = np.empty(d)
-    e = np.empty(d)
-    col = np.empty(d)
-    mrow = np.empty(d)
+    wm = np.empty((d, d))
+    wv = np.empty(d)
     for b in range(cls.shape[0]):
         c = cls[b]
-        for i in range(d):
-            for j in range(d):
-                lm[i, j] = sig_inv[c, i, j]
-        for ch in range(nch):
-            t = tau[b, ch]
-            for i in range(2):
-                u[2 * ch + i] = t * ztr[b, ch, i]
-                for j in range(2):
-                    lm[2 * ch + i, 2 * ch + j] += t * ztz[b, i, j]
-        # inv = L^-1, column by column from the Cholesky factor (in place in lm); NaN if
-        # L is not positive definite (as a failed factor gives)
-        if cholesky(lm, lm):
-            for j in range(d):
-                for i in range(d):
-                    e[i] = 1.0 if i == j else 0.0
-                solve_lower(lm, e, col)
-                solve_upper(lm, col, col)
-                for i in range(d):
-                    inv[i, j] = col[i]
-        else:
-            inv[:] = np.nan
-        # prec += S^-1 - M S^-1, lin += M u, with M = S^-1 A (S^-1 = sig_inv[c], A = inv)
-        for i in range(d):
-            for k in range(d):
-                acc = 0.0
+        if not ok[b]:
+            # L is not positive definite (a failed factor): NaN, as before
+            for i in range(d):
+                lin[c, i] = np.nan
                 for j in range(d):
-                    acc += sig_inv[c, i, j] * inv[j, k]
-                mrow[k] = acc
+                    prec[c, i, j] = np.nan
+            continue
+        r = chol[b]
+        # forward substitution, for the columns of Sigma^-1 and for u
+        for i in range(d):
+            for j in range(d):
+                acc = sig_inv[c, i, j]
+                for k in range(i):
+                    acc -= r[i, k] * wm[k, j]
+                wm[i, j] = acc / r[i, i]
+            acc = u[b, i]
+            for k in range(i):
+                acc -= r[i, k] * wv[k]
+            wv[i] = acc / r[i, i]
+        for i in range(d):
             acc = 0.0
             for k in range(d):
-                acc += mrow[k] * u[k]
+                acc += wm[k, i] * wv[k]
             lin[c, i] += acc
             for j in range(d):
                 acc = 0.0
                 for k in range(d):
-                    acc += mrow[k] * sig_inv[c, k, j]
+                    acc += wm[k, i] * wm[k, j]
                 prec[c, i, j] += sig_inv[c, i, j] - acc
+
+
+@njit(cache=True, nogil=True)
+def _bus_sweep(
+    cls, chol, u, ok, sig_inv_mu, g3, xy, beta_ls, ssr_min, fixed, rate, theta, s, t, z, zs, g
+):  # pragma: no cover - compiled
+    """Per bus: ``theta_b | mu, Sigma, s, t``, then ``s_b | theta_b, t``, then ``t_b | .``.
+
+    ``z`` (bus, d) and ``zs`` (bus, channel) hold standard normals, ``g`` standard gammas
+    of shape ``a0 + n_b / 2``; ``rate`` the gamma prior's rate per bus and channel.
+    With ``a = (1, theta_ch)``, ``y = s X a + e``: ``s | . ~ N(a'X'y / a'Ga, 1 / (t a'Ga))``
+    (flat prior; skipped where ``fixed``) and ``SSR = SSR_min + (s a - beta_ls)' G
+    (s a - beta_ls)``, exact for any least-squares solution ``beta_ls``.
+    """
+    d = theta.shape[1]
+    nch = t.shape[1]
+    h = np.empty(d)
+    w = np.empty(d)
+    a = np.empty(3)
+    e = np.empty(3)
+    for b in range(cls.shape[0]):
+        c = cls[b]
+        if ok[b]:
+            # theta = R'^-1 (R^-1 h + z) with L = R R': mean L^-1 h, covariance L^-1
+            for i in range(d):
+                h[i] = sig_inv_mu[c, i] + u[b, i]
+            solve_lower(chol[b], h, w)
+            for i in range(d):
+                w[i] += z[b, i]
+            solve_upper(chol[b], w, theta[b])
+        else:
+            theta[b, :] = np.nan
+        for ch in range(nch):
+            a[0] = 1.0
+            a[1] = theta[b, 2 * ch]
+            a[2] = theta[b, 2 * ch + 1]
+            gg = 0.0
+            gy = 0.0
+            for i in range(3):
+                gy += a[i] * xy[b, ch, i]
+                for j in range(3):
+                    gg += a[i] * g3[b, i, j] * a[j]
+            if not fixed[b, ch] and gg > 0.0:
+                s[b, ch] = gy / gg + zs[b, ch] / np.sqrt(t[b, ch] * gg)
+            sc = s[b, ch]
+            for i in range(3):
+                e[i] = sc * a[i] - beta_ls[b, ch, i]
+            q = 0.0
+            for i in range(3):
+                for j in range(3):
+                    q += e[i] * g3[b, i, j] * e[j]
+            ssr = ssr_min[b, ch] + max(q, 0.0)
+            t[b, ch] = max(g[b, ch] / (rate[b, ch] + 0.5 * ssr), _TAU_FLOOR)
 
 
 @njit(cache=True, nogil=True)
@@ -126,3 +161,54 @@ def _class_sums(cls, theta, mu, nc, sums, scatter):  # pragma: no cover - compil
             di = theta[b, i] - mu[c, i]
             for j in range(d):
                 scatter[c, i, j] += di * (theta[b, j] - mu[c, j])
+
+
+@njit(cache=True, nogil=True)
+def _scale_terms(cls, g3, xy, s, t, theta, mu, v, a_out, b_out):  # pragma: no cover - compiled
+    """Per class, ``A`` and ``B`` of the scale move's log-likelihood ``-k^2 A / 2 + k B``.
+
+    The move is ``theta_b -> theta_b + k (v'delta_b) v`` (``delta_b = theta_b - mu_c``):
+    ``A = sum (v'delta)^2 v'J v``, ``B = sum (v'delta) v'(u - J theta)``, with ``J``, ``u``
+    of the bus's data given ``s``, ``t``.
+    """
+    d = theta.shape[1]
+    nch = t.shape[1]
+    a_out[:] = 0.0
+    b_out[:] = 0.0
+    jv = np.empty(d)
+    for b in range(cls.shape[0]):
+        c = cls[b]
+        vd = 0.0
+        for i in range(d):
+            vd += v[i] * (theta[b, i] - mu[c, i])
+        vjv = 0.0
+        res = 0.0
+        for ch in range(nch):
+            sc = s[b, ch]
+            w = t[b, ch] * sc * sc
+            for i in range(2):
+                acc = 0.0
+                for j in range(2):
+                    acc += w * g3[b, 1 + i, 1 + j] * v[2 * ch + j]
+                jv[2 * ch + i] = acc
+                ui = t[b, ch] * (sc * xy[b, ch, 1 + i] - sc * sc * g3[b, 1 + i, 0])
+                res += v[2 * ch + i] * ui - acc * theta[b, 2 * ch + i]
+                vjv += v[2 * ch + i] * acc
+        a_out[c] += vd * vd * vjv
+        b_out[c] += vd * res
+
+
+@njit(cache=True, nogil=True)
+def _scale_apply(cls, theta, mu, v, factor):  # pragma: no cover - compiled
+    """``theta_b <- theta_b + (factor_c - 1) (v'(theta_b - mu_c)) v`` for every bus."""
+    d = theta.shape[1]
+    for b in range(cls.shape[0]):
+        c = cls[b]
+        k = factor[c] - 1.0
+        if k == 0.0:
+            continue
+        vd = 0.0
+        for i in range(d):
+            vd += v[i] * (theta[b, i] - mu[c, i])
+        for i in range(d):
+            theta[b, i] += k * vd * v[i]

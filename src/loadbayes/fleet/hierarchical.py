@@ -57,13 +57,29 @@ import pandas as pd
 
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
-from loadbayes.fleet.hier_kernels import _bus_sweep, _class_sums, _mu_terms
+from loadbayes.fleet.hier_kernels import (
+    _bus_sweep,
+    _class_sums,
+    _factor,
+    _mu_terms,
+    _scale_apply,
+    _scale_terms,
+)
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.fleet.summary import failed_rows, stat_rows
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 
-__all__ = ["HierData", "HierPrior", "prepare", "run_chain", "summarize_chains"]
+__all__ = [
+    "ChainState",
+    "HierData",
+    "StoredDraws",
+    "HierPrior",
+    "class_convergence",
+    "prepare",
+    "run_chain",
+    "summarize_chains",
+]
 
 #: Condition number of a bus's scaled Z'Z above which its own data do not identify it.
 _ILL = 1e12
@@ -103,20 +119,36 @@ class HierPrior:
 
 @dataclass(frozen=True)
 class HierData:
-    """What the sampler needs of the buses it pools (per-bus statistics, class codes)."""
+    """What the sampler needs of the buses it pools (per-bus statistics, class codes).
+
+    Per bus and channel, ``y`` is the measured P (Q) when its nominal value is sampled,
+    or ``P / P0`` when P0 is given (then ``s`` stays 1 and ``scale`` is the given P0);
+    ``X = [1, z1, z2]``.
+    """
 
     buses: np.ndarray
     class_names: list[str]
     cls: np.ndarray  # int64 (B,)
     n: np.ndarray  # (B,)
     ztz: np.ndarray  # (B, 2, 2)
-    ztr: np.ndarray  # (B, nch, 2)
-    ssr_min: np.ndarray  # (B, nch)
-    theta_ls: np.ndarray  # (B, nch, 2)
+    theta_ls: np.ndarray  # (B, nch, 2): own least-squares shares at the LS level
     identified: np.ndarray  # bool (B,): own data identify the coefficients
     params: tuple[str, ...]  # coefficient names in theta order
     taus: tuple[str, ...]
     warnings: list[str]
+    g3: np.ndarray  # (B, 3, 3): X'X
+    xy: np.ndarray  # (B, nch, 3): X'y
+    beta_ls: np.ndarray  # (B, nch, 3): a least-squares solution of y on X
+    ssr_min: np.ndarray  # (B, nch): its residual sum of squares
+    fixed: np.ndarray  # bool (B, nch): the nominal value is given
+    level: np.ndarray  # (B, nch): the LS level of y at V0 (1 where fixed): the start
+    scale: np.ndarray  # (B, nch): y units -> reported P0 (the given P0, or 1)
+    v0: float = 1.0
+
+    @property
+    def nominals(self) -> tuple[str, ...]:
+        """Names of the nominal values: ``p0`` (and ``q0``)."""
+        return ("p0", "q0")[: self.xy.shape[1]]
 
 
 def _known_nominal(stats: FleetStats, model: ZIPModel) -> tuple[FleetStats, dict[int, list[str]]]:
@@ -173,9 +205,10 @@ def prepare(stats: FleetStats, model: ZIPModel) -> tuple[HierData, pd.DataFrame]
     a warning (its coefficients then come from its class). Rows beyond that are refused
     for the same reasons as a single-bus fit (:meth:`ZIPModel.check`).
     """
-    stats, nominal_notes = _known_nominal(stats, model)
-    if nominal_notes:
-        model = ZIPModel(v0=model.v0, p0=1.0, q0=1.0, with_q=model.with_q)
+    # The refusals and warnings of one bus, on its statistics per unit of its LS level
+    # (a bus of 3 rows is pooled: its shares come mostly from its class).
+    unit, notes = _known_nominal(stats, model)
+    checker = ZIPModel(v0=model.v0, p0=1.0, q0=1.0, with_q=model.with_q) if notes else model
     iz = stats.names.index("z2")
     keep, warn, failed = [], [], []
     for i in range(stats.buses.size):
@@ -190,39 +223,79 @@ def prepare(stats: FleetStats, model: ZIPModel) -> tuple[HierData, pd.DataFrame]
             w.append("voltage has no spread: the coefficients come from the class alone")
         else:
             try:
-                w = model.check(stats.bus_gram(i))
+                w = checker.check(unit.bus_gram(i))
             except DataError as exc:
                 failed.append((i, f"not fitted: {exc.message}"))
                 continue
         keep.append(i)
-        warn.append(" | ".join(w + nominal_notes.get(i, [])))
+        warn.append(" | ".join(w))
     idx = np.array(keep, dtype=np.int64)
-    g = stats.gram[idx]
-    ix = [stats.names.index(c) for c in ("z1", "z2")]
-    chans = ["rp", "rq"] if model.with_q else ["rp"]
-    ir = [stats.names.index(c) for c in chans]
-    ztz = g[:, ix][:, :, ix]
-    ztr = np.stack([g[:, ix, r] for r in ir], axis=1)
-    rtr = np.stack([g[:, r, r] for r in ir], axis=1)
-    pinv = np.linalg.pinv(ztz)
-    theta_ls = np.einsum("bij,bcj->bci", pinv, ztr)
-    ssr_min = np.maximum(rtr - np.einsum("bci,bci->bc", theta_ls, ztr), 0.0)
+    arrays = _regressions(stats.subset(idx), model)
+    ztz = arrays["g3"][:, 1:, 1:]
     scale = np.sqrt(np.maximum(np.einsum("bii->bi", ztz), 1e-300))
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.linalg.cond(ztz / (scale[:, :, None] * scale[:, None, :]))
     identified = np.isfinite(cond) & (cond < _ILL)
     labels = np.array(["all" if c is None else str(c) for c in stats.classes[idx]], dtype=object)
     class_names, cls = np.unique(labels.astype(str), return_inverse=True)
-    params = tuple(model.free)
     data = HierData(
-        stats.buses[idx], list(class_names), cls.astype(np.int64), stats.n[idx].astype(float),
-        np.ascontiguousarray(ztz), np.ascontiguousarray(ztr), np.ascontiguousarray(ssr_min),
-        np.ascontiguousarray(theta_ls), identified, params,
-        tuple(b.tau_name for b in model.blocks), warn,
+        stats.buses[idx], [str(c) for c in class_names], cls.astype(np.int64),
+        stats.n[idx].astype(float),
+        np.ascontiguousarray(ztz), identified=identified, params=tuple(model.free),
+        taus=tuple(b.tau_name for b in model.blocks), warnings=warn, v0=float(model.v0),
+        **arrays,
     )  # fmt: skip
     fi = np.array([i for i, _ in failed], dtype=np.int64)
     rows = failed_rows(stats.buses[fi], stats.classes[fi], stats.n[fi], [r for _, r in failed])
     return data, rows
+
+
+def _regressions(stats: FleetStats, model: ZIPModel) -> dict[str, np.ndarray]:
+    """Per bus and channel: the regression of ``y`` on ``X = [1, z1, z2]`` (HierData's arrays).
+
+    ``y`` is P (Q) when its nominal value is ``auto`` (then sampled), else ``P / P0 =
+    r + 1`` from the Gram column ``r = P / P0 - 1``: ``X'y = X'r + X'1`` and ``y'y = r'r +
+    2 1'r + n``, exactly.
+    """
+    names = list(stats.names)
+    ix = [names.index(c) for c in ("1", "z1", "z2")]
+    one = ix[0]
+    g = stats.gram
+    g3 = g[:, ix][:, :, ix]
+    chans = [("p", model.p0)] + ([("q", model.q0)] if model.with_q else [])
+    xy, yy, fixed, scale = [], [], [], []
+    for ch, nom in chans:
+        j = names.index(ch if nom == "auto" else f"r{ch}")
+        if nom == "auto":
+            xy.append(g[:, ix, j])
+            yy.append(g[:, j, j])
+        else:
+            xy.append(g[:, ix, j] + g[:, ix, one])
+            yy.append(g[:, j, j] + 2.0 * g[:, one, j] + g[:, one, one])
+        fixed.append(np.full(stats.buses.size, nom != "auto"))
+        scale.append(np.full(stats.buses.size, 1.0 if nom == "auto" else float(nom)))
+    xy_a = np.stack(xy, axis=1)  # (B, nch, 3)
+    beta = np.einsum("bij,bcj->bci", np.linalg.pinv(g3), xy_a)
+    ssr_min = np.maximum(np.stack(yy, axis=1) - np.einsum("bci,bci->bc", beta, xy_a), 0.0)
+    fixed_a = np.stack(fixed, axis=1)
+    n = np.maximum(stats.n.astype(float), 1.0)[:, None]
+    level = np.where(fixed_a, 1.0, beta[:, :, 0])
+    bad = ~np.isfinite(level) | (level == 0.0)
+    level = np.where(bad, xy_a[:, :, 0] / n, level)  # the mean of y
+    level = np.where(~np.isfinite(level) | (level == 0.0), 1.0, level)
+    ztz = g3[:, 1:, 1:]
+    ztr = xy_a[:, :, 1:] / level[:, :, None] - g3[:, None, 1:, 0]
+    theta_ls = np.einsum("bij,bcj->bci", np.linalg.pinv(ztz), ztr)
+    return {
+        "theta_ls": np.ascontiguousarray(theta_ls),
+        "g3": np.ascontiguousarray(g3),
+        "xy": np.ascontiguousarray(xy_a),
+        "beta_ls": np.ascontiguousarray(beta),
+        "ssr_min": np.ascontiguousarray(ssr_min),
+        "fixed": np.ascontiguousarray(fixed_a),
+        "level": np.ascontiguousarray(level),
+        "scale": np.ascontiguousarray(np.stack(scale, axis=1)),
+    }
 
 
 def _draw_mu(gen, s0_inv, s0_inv_m0, prec_data, lin_data):
@@ -257,78 +330,273 @@ def _draw_sigma(gen, nu, psi):
     return np.linalg.inv(sig_inv), sig_inv
 
 
+#: Log-sd of the proposals of the scale moves, and the tries per direction and sweep.
+_SCALE_STEP = 0.25
+_SCALE_TRIES = 2
+
+
+def _directions(nch: int) -> np.ndarray:
+    """The scale moves' directions: per channel, along and across the ZIP ridge.
+
+    On a narrow band the data fix ``2 a1 + a2`` (the slope dP/dV) and barely ``a1 - 2 a2``
+    (the curvature); the spread of a class along the second direction is what the
+    centred Gibbs steps move slowly.
+    """
+    out = np.zeros((2 * nch, 2 * nch))
+    for ch in range(nch):
+        out[2 * ch, 2 * ch : 2 * ch + 2] = (2.0, 1.0)
+        out[2 * ch + 1, 2 * ch : 2 * ch + 2] = (1.0, -2.0)
+    return out / np.sqrt(5.0)
+
+
+def _scale_moves(gen, data, nu0, psi0, mu, theta, s, t, sigma, sig_inv, dirs, acc_a, acc_b):
+    """Metropolis moves that stretch a class's spread along a direction (parameter expansion).
+
+    The map ``theta_b -> mu_c + C (theta_b - mu_c)``, ``Sigma_c -> C Sigma_c C'`` with
+    ``C = I + (c - 1) v v'`` leaves the normal prior's exponent unchanged; with its
+    Jacobian ``c^(B + d + 1)`` and the densities' determinants the target changes by
+    ``c^-nu0 exp(-tr(Psi0 (C^-1 Sigma^-1 C^-1 - Sigma^-1)) / 2)`` times the likelihood
+    ratio of the buses (quadratic in ``c``, :func:`_scale_terms`). ``log c`` is proposed
+    symmetrically (the Haar measure of the scalings), so this is a valid Metropolis step
+    on the joint state (Liu and Sabatti 2000). It moves the spread and every bus of the
+    class at once, which the centred Gibbs steps do only slowly when the buses' own data
+    say little (the funnel of hierarchical models).
+    """
+    ncls = mu.shape[0]
+    for v in dirs:
+        _scale_terms(data.cls, data.g3, data.xy, s, t, theta, mu, v, acc_a, acc_b)
+        a, b = acc_a.copy(), acc_b.copy()
+        total = np.ones(ncls)
+        vv = np.outer(v, v)
+        for _ in range(_SCALE_TRIES):
+            logc = _SCALE_STEP * gen.standard_normal(ncls)
+            logu = np.log(gen.random(ncls))
+            c = np.exp(logc)
+            k = c - 1.0
+            ci = np.eye(v.size)[None] + (1.0 / c - 1.0)[:, None, None] * vv[None]
+            new_inv = ci @ sig_inv @ ci
+            dtr = np.einsum("ij,cji->c", psi0, new_inv - sig_inv)
+            log_ratio = -0.5 * k * k * a + k * b - nu0 * logc - 0.5 * dtr
+            take = logu < log_ratio
+            if not take.any():
+                continue
+            cm = np.eye(v.size)[None] + np.where(take, k, 0.0)[:, None, None] * vv[None]
+            sigma = cm @ sigma @ cm
+            sig_inv = np.where(take[:, None, None], new_inv, sig_inv)
+            b = np.where(take, c * (b - k * a), b)
+            a = np.where(take, c * c * a, a)
+            total = np.where(take, total * c, total)
+        if np.any(total != 1.0):
+            _scale_apply(data.cls, theta, mu, v, total)
+    return sigma, sig_inv
+
+
+@dataclass
+class ChainState:
+    """Where a chain stopped: enough to continue it with the same draws as one long run."""
+
+    generator: dict
+    mu: np.ndarray
+    sigma: np.ndarray
+    sig_inv: np.ndarray
+    theta: np.ndarray
+    s: np.ndarray
+    t: np.ndarray
+    sweeps: int
+
+
+#: Kept draws written to disk per block (``store``): the memory a chain holds.
+STORE_BLOCK = 100
+
+
+class StoredDraws:
+    """Draws of one variable of a chain in a NetCDF file, read by slices (``x[:, b0:b1]``)."""
+
+    def __init__(self, path: str, name: str, shape: tuple[int, ...]) -> None:
+        self.path, self.name, self.shape = path, name, shape
+
+    def __getitem__(self, key):
+        import h5netcdf
+
+        with h5netcdf.File(self.path, "r") as f:
+            return np.asarray(f.variables[self.name][key])
+
+
+class _Store:
+    """A chain's bus-level draws streamed to a NetCDF-4 file in blocks of draws.
+
+    Chunks are (block, 512 buses, k): the summary reads all draws of a batch of buses.
+    """
+
+    def __init__(self, path: str, kept: int, nb: int, shapes: dict[str, int]) -> None:
+        import h5netcdf
+
+        self.path = path
+        self.f = h5netcdf.File(path, "w")
+        self.f.dimensions = {"draw": kept, "bus": nb, **{f"{k}_dim": n for k, n in shapes.items()}}
+        self.vars = {
+            k: self.f.create_variable(
+                k, ("draw", "bus", f"{k}_dim"), np.float32,
+                chunks=(max(1, min(STORE_BLOCK, kept)), max(1, min(512, nb)), n),
+            )
+            for k, n in shapes.items()
+        }  # fmt: skip
+        self.shapes = {k: (kept, nb, n) for k, n in shapes.items()}
+
+    def write(self, start: int, blocks: dict[str, np.ndarray], count: int) -> None:
+        for k, buf in blocks.items():
+            self.vars[k][start : start + count] = buf[:count]
+
+    def close(self) -> dict[str, StoredDraws]:
+        self.f.close()
+        return {k: StoredDraws(self.path, k, shp) for k, shp in self.shapes.items()}
+
+
 @dataclass
 class ChainDraws:
-    """Kept draws of one chain.
+    """Kept draws of one chain, and its state at the end.
 
-    ``theta`` (draw, bus, d) and ``tau`` (draw, bus, nch) as float32 (half the memory of a
-    large fleet; far below Monte Carlo error); ``mu`` (draw, class, d) and ``sigma``
-    (draw, class, d, d) as float64.
+    ``theta`` (draw, bus, d), ``tau`` (draw, bus, nch: precision per unit of P0) and
+    ``p0`` (draw, bus, nch: the nominal P, Q) as float32 (half the memory of a large
+    fleet; far below Monte Carlo error); ``mu`` (draw, class, d) and ``sigma`` (draw,
+    class, d, d) as float64.
     """
 
     theta: np.ndarray
     tau: np.ndarray
     mu: np.ndarray
     sigma: np.ndarray
+    p0: np.ndarray | None = None
+    state: ChainState | None = None
 
 
 def run_chain(
-    seed: np.random.SeedSequence,
+    start: np.random.SeedSequence | ChainState,
     data: HierData,
     prior: HierPrior,
     sampler: SamplerSettings,
+    *,
+    sweeps: int | None = None,
+    store: str | None = None,
 ) -> ChainDraws:
-    """Run one Gibbs chain of the pooled model (see the module notes)."""
-    gen = np.random.default_rng(seed)
+    """Run one Gibbs chain of the pooled model (see the module notes).
+
+    A new chain (``start`` a seed) runs ``sampler.draws`` sweeps and keeps those after
+    ``sampler.burn`` (every ``thin``-th); a chain continued from its :class:`ChainState`
+    runs ``sweeps`` more (default ``draws - burn``) and keeps them all (thinned). A chain
+    run in two calls gives the same draws as one call of the same total length.
+    With ``store`` (a file path), the bus-level draws go to that NetCDF file in blocks of
+    :data:`STORE_BLOCK` draws (the chain then holds one block in memory) and the result's
+    ``theta``, ``tau``, ``p0`` are :class:`StoredDraws`; the draws are the same.
+    """
     nb = data.buses.size
-    nch = data.ztr.shape[1]
+    nch = data.xy.shape[1]
     d = 2 * nch
     ncls = len(data.class_names)
     m0, s0_inv, nu0, psi0 = prior.matrices(d)
     nc = np.bincount(data.cls, minlength=ncls).astype(float)
     shape = prior.tau_shape + 0.5 * data.n
-    # Start: class means scattered about 0, Sigma at its prior mean, tau at a noise level
-    # of 0.1 per unit; the bus coefficients are drawn first, so need no start.
-    mu = gen.normal(0.0, 0.5, (ncls, d))
-    sigma = np.broadcast_to(psi0 / max(nu0 - d - 1.0, 1.0), (ncls, d, d)).copy()
-    sig_inv = np.linalg.inv(sigma)
-    tau = np.full((nb, nch), 100.0)
-    theta = np.zeros((nb, d))
+    # the gamma prior is on the precision per unit of P0 (as one bus's fit); on the
+    # precision of y it is Gamma(a0, b0 level^2), the level being the LS one
+    rate = prior.tau_rate * data.level**2
+    if isinstance(start, ChainState):
+        gen = np.random.Generator(np.random.PCG64())
+        gen.bit_generator.state = start.generator
+        mu, sigma, sig_inv = start.mu.copy(), start.sigma.copy(), start.sig_inv.copy()
+        theta, s, t = start.theta.copy(), start.s.copy(), start.t.copy()
+        total = sampler.draws - sampler.burn if sweeps is None else sweeps
+        burn, done = 0, start.sweeps
+    else:
+        gen = np.random.default_rng(start)
+        # Start: class means scattered about 0, Sigma at its prior mean, P0 at its LS
+        # level, the noise at 0.1 per unit; the bus coefficients are drawn first.
+        mu = gen.normal(0.0, 0.5, (ncls, d))
+        sigma = np.broadcast_to(psi0 / max(nu0 - d - 1.0, 1.0), (ncls, d, d)).copy()
+        sig_inv = np.linalg.inv(sigma)
+        theta = np.zeros((nb, d))
+        s = data.level.copy()
+        t = 100.0 / data.level**2
+        total, burn, done = sampler.draws, sampler.burn, 0
     sums = np.zeros((ncls, d))
     scatter = np.zeros((ncls, d, d))
-    kept = len(range(sampler.burn, sampler.draws, sampler.thin))
+    kept = len(range(burn, total, sampler.thin))
+    rows = min(kept, STORE_BLOCK) if store else kept
     out = ChainDraws(
-        np.empty((kept, nb, d), np.float32),
-        np.empty((kept, nb, nch), np.float32),
+        np.empty((rows, nb, d), np.float32),
+        np.empty((rows, nb, nch), np.float32),
         np.empty((kept, ncls, d)),
         np.empty((kept, ncls, d, d)),
+        np.empty((rows, nb, nch), np.float32),
     )
+    sink = _Store(store, kept, nb, {"theta": d, "tau": nch, "p0": nch}) if store else None
     k = 0
     prec_data = np.zeros((ncls, d, d))
     lin_data = np.zeros((ncls, d))
+    chol = np.empty((nb, d, d))
+    u = np.empty((nb, d))
+    ok = np.empty(nb, np.bool_)
     s0_inv_m0 = s0_inv @ m0
-    for it in range(sampler.draws):
-        _mu_terms(data.cls, data.ztz, data.ztr, tau, sig_inv, prec_data, lin_data)
+    gshape = np.ascontiguousarray(np.broadcast_to(shape[:, None], (nb, nch)))
+    dirs = _directions(nch)
+    acc_a, acc_b = np.zeros(ncls), np.zeros(ncls)
+    for it in range(total):
+        _factor(data.cls, data.g3, data.xy, s, t, sig_inv, chol, u, ok)
+        _mu_terms(data.cls, chol, u, ok, sig_inv, prec_data, lin_data)
         mu = _draw_mu(gen, s0_inv, s0_inv_m0, prec_data, lin_data)
         z = gen.standard_normal((nb, d))
-        g = gen.standard_gamma(np.broadcast_to(shape[:, None], (nb, nch)))
+        zs = gen.standard_normal((nb, nch))
+        g = gen.standard_gamma(gshape)
         sig_inv_mu = np.einsum("cij,cj->ci", sig_inv, mu)
-        _bus_sweep(data.cls, data.ztz, data.ztr, data.ssr_min, data.theta_ls, sig_inv,
-                   sig_inv_mu, prior.tau_rate, tau, theta, z, g)  # fmt: skip
+        _bus_sweep(data.cls, chol, u, ok, sig_inv_mu, data.g3, data.xy, data.beta_ls,
+                   data.ssr_min, data.fixed, rate, theta, s, t, z, zs, g)  # fmt: skip
+        sigma, sig_inv = _scale_moves(gen, data, nu0, psi0, mu, theta, s, t, sigma, sig_inv,
+                                      dirs, acc_a, acc_b)  # fmt: skip
         _class_sums(data.cls, theta, mu, nc, sums, scatter)
         sigma, sig_inv = _draw_sigma(gen, nu0 + nc, psi0[None] + scatter)
-        if it >= sampler.burn and (it - sampler.burn) % sampler.thin == 0:
-            out.theta[k] = theta
-            out.tau[k] = tau
+        if it >= burn and (it - burn) % sampler.thin == 0:
+            r = k % rows
+            out.theta[r] = theta
+            out.tau[r] = t * s**2
+            out.p0[r] = s * data.scale
             out.mu[k] = mu
             out.sigma[k] = sigma
             k += 1
+            if sink is not None and (r == rows - 1 or k == kept):
+                sink.write(k - r - 1, {"theta": out.theta, "tau": out.tau, "p0": out.p0}, r + 1)
+    if sink is not None:
+        stored = sink.close()
+        out.theta, out.tau, out.p0 = stored["theta"], stored["tau"], stored["p0"]
+    out.state = ChainState(
+        gen.bit_generator.state, mu, sigma, sig_inv, theta, s, t, done + total
+    )  # fmt: skip
     return out
 
 
 def chain_seeds(seed: int, chains: int) -> list[np.random.SeedSequence]:
     """One seed per chain, spawned from the run's seed."""
     return np.random.SeedSequence(seed).spawn(chains)
+
+
+def _class_series(data: HierData, chains: Sequence[ChainDraws]) -> dict[str, np.ndarray]:
+    """Class-level draws, each (class, chain, draw): means a1..a6 and spreads sd_a1.."""
+    d = len(data.params)
+    col = {p: i for i, p in enumerate(data.params)}
+    mu = np.stack([c.mu for c in chains])  # (ch, dr, C, d)
+    sd = np.sqrt(np.stack([np.diagonal(c.sigma, axis1=2, axis2=3) for c in chains]))
+    series = {p: mu[..., col[p]] for p in data.params}
+    for p3, (p1, p2) in _third(data.params).items():
+        series[p3] = 1.0 - series[p1] - series[p2]
+    names = ["a1", "a2", "a3"] + (["a4", "a5", "a6"] if d == 4 else [])
+    out = {p: np.moveaxis(series[p], 2, 0) for p in names}
+    out.update({f"sd_{p}": np.moveaxis(sd[..., col[p]], 2, 0) for p in data.params})
+    return out
+
+
+def class_convergence(
+    data: HierData, chains: Sequence[ChainDraws], hdi_prob: float = 0.95
+) -> dict[str, dict[str, np.ndarray]]:
+    """Summaries (mean, sd, HDI, R-hat, ESS) of the class-level parameters, per class."""
+    return {p: summarize(v, hdi_prob=hdi_prob) for p, v in _class_series(data, chains).items()}
 
 
 def _third(params: Sequence[str]) -> dict[str, tuple[str, str]]:
@@ -369,7 +637,15 @@ def summarize_chains(
             series[p3] = 1.0 - series[p1] - series[p2]
         for j, t in enumerate(data.taus):
             series[t] = ta[..., j]
-        order = names + list(data.taus)
+        nom = np.stack([c.p0[:, b0:b1] for c in chains]).astype(float)  # (ch, dr, m, nch)
+        for j, (p0n, slope, (c1, c2)) in enumerate(
+            zip(data.nominals, ("dp_dv", "dq_dv"), (("a1", "a2"), ("a4", "a5")), strict=False)
+        ):
+            series[p0n] = nom[..., j]
+            # dP/dV at V0 of P = P0 (a1 x^2 + a2 x + a3), x = V / V0
+            series[slope] = nom[..., j] * (2.0 * series[c1] + series[c2]) / data.v0
+        order = names + list(data.taus) + list(data.nominals)
+        order += ["dp_dv", "dq_dv"][: len(data.nominals)]
         summ = {p: summarize(np.moveaxis(series[p], 2, 0), hdi_prob=hp) for p in order}
         post_mean = np.stack([summ[p]["mean"] for p in data.params], axis=1)  # (m, d)
         mu_mean = np.mean([c.mu.mean(axis=0) for c in chains], axis=0)  # (C, d)
@@ -392,18 +668,7 @@ def summarize_chains(
                 shrinkage={p: shrink for p in names},
             )
         )
-    mu = np.stack([c.mu for c in chains])  # (ch, dr, C, d)
-    sd = np.sqrt(np.stack([np.diagonal(c.sigma, axis1=2, axis2=3) for c in chains]))
-    series = {p: mu[..., col[p]] for p in data.params}
-    for p3, (p1, p2) in _third(data.params).items():
-        series[p3] = 1.0 - series[p1] - series[p2]
-    cls_stats = {p: summarize(np.moveaxis(series[p], 2, 0), hdi_prob=hp) for p in names}
-    cls_stats.update(
-        {
-            f"sd_{p}": summarize(np.moveaxis(sd[..., col[p]], 2, 0), hdi_prob=hp)
-            for p in data.params
-        }  # fmt: skip
-    )
+    cls_stats = class_convergence(data, chains, hp)
     ncls = len(data.class_names)
     frames.insert(
         0,

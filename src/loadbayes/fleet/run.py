@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -20,7 +21,38 @@ from loadbayes.fleet.summary import concat
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 
-__all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "run_fleet"]
+__all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "one_process_note", "run_fleet"]
+
+#: CPU seconds, measured (docs/fleet.md, Speed): one pooled sweep of one bus, one per-bus
+#: fit of 4 x 2,500 iterations with its summary, one pooled bus's summary per 8,000 draws.
+_POOLED_SWEEP_S = 1e-6
+_PER_BUS_FIT_S = 11e-3
+_POOLED_SUMMARY_S = 9e-3
+
+
+def one_process_note(buses: int, pool: str, sampler: SamplerSettings, engine: Engine) -> str:
+    """A sentence when the fits would take less than starting the cluster did ("" if not).
+
+    The fits' CPU time is estimated from the measured costs above; with ``N`` workers the
+    best saving is that time times ``1 - 1/N``, which must beat the start-up paid.
+    """
+    workers = engine.workers or 0
+    if workers < 2 or not engine.startup_seconds:
+        return ""
+    draws = sampler.chains * sampler.draws
+    if pool == "class":
+        work = buses * draws * _POOLED_SWEEP_S + buses * _POOLED_SUMMARY_S * draws / 8000
+    else:
+        work = buses * _PER_BUS_FIT_S * draws / 10_000
+    saving = work * (1.0 - 1.0 / workers)
+    if saving >= engine.startup_seconds:
+        return ""
+    return (
+        f"this fleet is small: its fits take about {work:.1f} s of CPU, so {workers} workers "
+        f"save at most {saving:.1f} s, less than the {engine.startup_seconds:.1f} s it took to "
+        "start them; one process (no --workers) would be faster"
+    )
+
 
 #: Buses fitted per task: large enough to amortise a task, small enough for memory
 #: (4 chains x 2,500 draws x 8 parameters x 8 bytes = 640 kB per bus). Each bus's
@@ -36,6 +68,7 @@ class FleetResult:
     stats: FleetStats
     files: int
     engine: str
+    settings: dict = field(default_factory=dict)
 
 
 def _has_column(part: Partition, col: str) -> bool:
@@ -129,6 +162,7 @@ def run_fleet(
     on_stats: Callable[[FleetStats], None] | None = None,
     batch_buses: int = BATCH_BUSES,
     accept_units: bool = False,
+    max_seconds: float | None = None,
 ) -> FleetResult:
     """Fit ZIP to every bus of a fleet.
 
@@ -161,10 +195,16 @@ def run_fleet(
         Fit buses whose data do not look per unit instead of refusing them.
     batch_buses : int
         Buses per fitting task (results do not depend on it).
+    max_seconds : float, optional
+        Pooled fits: continue the chains (each round ``draws - burn`` more sweeps, the
+        earlier ones then counted as burn-in) until every class-level R-hat < 1.01, or
+        until this budget would be exceeded. None or 0: one round.
 
     Returns
     -------
     FleetResult
+        Its ``settings`` (also in ``table.attrs["loadbayes"]``) say how the chains ran
+        and stopped, and hold the fleet-level warnings.
     """
     if pool not in ("none", "class"):
         raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
@@ -187,8 +227,12 @@ def run_fleet(
         progress_buses=progress_buses,
         batch_buses=batch_buses,
         accept_units=accept_units,
+        max_seconds=max_seconds,
     )
-    return FleetResult(table, stats, files, eng.name)
+    settings = dict(table.attrs.get("loadbayes", {}))
+    settings.update({"files": files, "engine": eng.name})
+    table.attrs["loadbayes"] = settings
+    return FleetResult(table, stats, files, eng.name, settings)
 
 
 def fit_fleet(
@@ -205,6 +249,7 @@ def fit_fleet(
     progress_buses: Callable[[int], None] | None = None,
     batch_buses: int = BATCH_BUSES,
     accept_units: bool = False,
+    max_seconds: float | None = None,
 ) -> pd.DataFrame:
     """The fits of :func:`run_fleet` from statistics already computed (same options).
 
@@ -221,9 +266,54 @@ def fit_fleet(
         check_netcdf_targets(stats.buses, netcdf_dir, force=force)
     if not accept_units:
         stats, refused = _refuse_unit_errors(stats, model)
+    info: dict = {}
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
-                   progress_buses, batch_buses)  # fmt: skip
-    return concat(list(frames) + ([refused] if refused is not None else []))
+                   progress_buses, batch_buses, max_seconds, info)  # fmt: skip
+    table = concat(list(frames) + ([refused] if refused is not None else []))
+    table.attrs["loadbayes"] = _settings(table, model, pool, hyper, sampler, max_seconds, info)
+    return table
+
+
+def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
+    """What produced the table, and the fleet-level sentences (JSON-able)."""
+    from dataclasses import asdict
+
+    def nominal(v):
+        return "sampled" if v == "auto" and pool == "class" else v
+
+    warn = list(info.get("warnings", []))
+    bus = table[(table["level"] == "bus") & table["parameter"].notna()]
+    slow = bus.loc[bus["warnings"].str.contains("not converged", regex=False), "bus"].unique()
+    if len(slow):
+        shown = ", ".join(map(str, slow[:5])) + (", ..." if len(slow) > 5 else "")
+        warn.append(
+            f"{len(slow)} of {bus['bus'].nunique()} buses have not converged ({shown}): "
+            "see their rows' warnings"
+        )
+    return {
+        "kind": "fleet",
+        "model": "zip",
+        "pool": pool,
+        "v0": model.v0,
+        "p0": nominal(model.p0),
+        "q0": nominal(model.q0) if model.with_q else None,
+        "chains": sampler.chains,
+        "draws": sampler.draws,
+        "burn": sampler.burn,
+        "thin": sampler.thin,
+        "seed": sampler.seed,
+        "hdi_prob": sampler.hdi_prob,
+        "buses": int(table.loc[table["level"] == "bus", "bus"].nunique()),
+        "prior": asdict(hyper or hier.HierPrior()) if pool == "class" else None,
+        "sweeps": info.get("sweeps", sampler.draws),
+        "max_seconds": max_seconds,
+        "seconds": info.get("seconds"),
+        "converged": info.get("converged"),
+        "stop": info.get("stop", ""),
+        "draws_bytes": info.get("draws_bytes"),
+        "streamed": info.get("streamed"),
+        "warnings": warn,
+    }
 
 
 def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
@@ -249,7 +339,7 @@ def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
 
 
 def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
-          progress_buses, batch_buses):  # fmt: skip
+          progress_buses, batch_buses, max_seconds=None, info=None):  # fmt: skip
     """The per-bus or pooled fits of the buses that passed the checks (frames)."""
     if pool == "none":
         nb = stats.buses.size
@@ -273,12 +363,114 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
         if not data_h.buses.size:
             frames = [failed]
         else:
-            seeds = hier.chain_seeds(sampler.seed, sampler.chains)
-            chains = eng.map(hier.run_chain, seeds, data_h, hyper or hier.HierPrior(), sampler)
-            frames = [hier.summarize_chains(data_h, chains, sampler), failed]
+            info = info if info is not None else {}
+            folder = _draws_folder(data_h, sampler, info)
+            try:
+                chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
+                                        max_seconds, info, folder)  # fmt: skip
+                frames = [hier.summarize_chains(data_h, chains, sampler, batch=256), failed]
+            finally:
+                if folder is not None:
+                    import shutil
+
+                    shutil.rmtree(folder, ignore_errors=True)
         if progress_buses:
             progress_buses(stats.buses.size)
     return frames
+
+
+#: Above this many bytes of bus-level draws (all chains), they are streamed to disk.
+STREAM_BYTES = 256 * 2**20
+
+
+def _draws_folder(data_h, sampler, info) -> str | None:
+    """A temporary folder for the chains' draws when holding them would cost too much."""
+    import tempfile
+
+    kept = len(range(sampler.burn, sampler.draws, sampler.thin))
+    width = 2 * data_h.xy.shape[1] + 2 * data_h.xy.shape[1]  # theta, tau, p0
+    size = 4 * kept * data_h.buses.size * width * sampler.chains
+    info["draws_bytes"] = int(size)
+    info["streamed"] = size > STREAM_BYTES
+    if not info["streamed"]:
+        return None
+    return tempfile.mkdtemp(prefix="loadbayes-draws-")
+
+
+def _chain_task(job, data_h, prior, sampler):
+    """One chain's round: ``job`` = (seed or state, NetCDF path or None)."""
+    start, store = job
+    return hier.run_chain(start, data_h, prior, sampler, store=store)
+
+
+def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
+    """The pooled chains, continued until every class R-hat < 1.01 or the budget is spent.
+
+    Each round after the first runs ``draws - burn`` more sweeps per chain from where
+    the chain stopped and keeps only those (the earlier sweeps become burn-in), so the
+    kept draws, and the memory, stay ``draws - burn`` per chain. The decision to go on
+    depends on the draws only, except when the time budget ends it: then (and only then)
+    two machines may stop at different rounds.
+    """
+    import os
+
+    from loadbayes.diagnostics import RHAT_MAX
+    from loadbayes.fleet.summary import convergence_note
+
+    def stores(r):
+        if folder is None:
+            return [None] * sampler.chains
+        return [os.path.join(folder, f"chain{i}-round{r}.nc") for i in range(sampler.chains)]
+
+    t0 = time.monotonic()
+    seeds = hier.chain_seeds(sampler.seed, sampler.chains)
+    chains = eng.map(_chain_task, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
+    first = time.monotonic() - t0
+    rounds = 1
+    while True:
+        summ = hier.class_convergence(data_h, chains, sampler.hdi_prob)
+        r_hat = np.nanmax(np.stack([v["r_hat"] for v in summ.values()]), axis=0)
+        ok = bool(np.all(r_hat < RHAT_MAX)) if sampler.chains > 1 else None
+        spent = time.monotonic() - t0
+        per_round = first * (sampler.draws - sampler.burn) / sampler.draws
+        if ok or ok is None or not max_seconds:
+            why = "every class's R-hat < 1.01" if ok else "one round (no --max-seconds)"
+            if ok is None:
+                why = "one chain: R-hat needs two or more"
+            break
+        if spent + per_round > max_seconds:
+            why = (
+                f"the {max_seconds:g} s budget (--max-seconds) would run out before another "
+                f"round of {sampler.draws - sampler.burn} sweeps"
+            )
+            break
+        jobs = list(zip([c.state for c in chains], stores(rounds + 1), strict=True))
+        chains = eng.map(_chain_task, jobs, data_h, prior, sampler)
+        for old in stores(rounds):
+            if old is not None and os.path.exists(old):
+                os.remove(old)  # the earlier round is burn-in now
+        rounds += 1
+    sweeps = chains[0].state.sweeps
+    info.update(
+        sweeps=int(sweeps),
+        rounds=rounds,
+        seconds=round(time.monotonic() - t0, 3),
+        converged=ok,
+        stop=f"stopped after {sweeps} sweeps per chain: {why}",
+    )
+    warn = []
+    for j, name in enumerate(data_h.class_names):
+        note = convergence_note(summ, j)
+        if note:
+            warn.append(f"class {str(name)!r} {note}")
+    if ok is False:
+        warn.append(
+            f"the class-level R-hat is still {np.nanmax(r_hat):.3f} (>= {RHAT_MAX}) after "
+            f"{sweeps} sweeps per chain ({why}): the class means and spreads are not "
+            "reliable yet; give more --max-seconds or --draws"
+        )
+    info["warnings"] = warn
+    return chains
 
 
 def _fit_batch(idx, stats, model, priors, sampler, netcdf_dir, force):

@@ -3,8 +3,9 @@
 Columns (:data:`COLUMNS`): ``level`` ("bus" or "class"), ``bus``, ``class``,
 ``parameter``, ``mean``, ``sd``, ``hdi_low``, ``hdi_high``, ``r_hat``, ``ess_bulk``,
 ``n`` (rows of the bus; buses of the class on class rows), ``warnings`` (plain words,
-joined by " | "; empty when none) and ``shrinkage`` (pooled fits only, see
-:mod:`loadbayes.fleet.hierarchical`).
+joined by " | "; empty when none), ``shrinkage`` (pooled fits only, see
+:mod:`loadbayes.fleet.hierarchical`) and ``converged`` (R-hat < 1.01 and bulk ESS >= 400
+on that row; a unit with a row that is not says so in its ``warnings``).
 
 A bus that cannot be fitted (too few rows, no voltage spread without pooling, values in
 the wrong units) gets one row with ``parameter`` null, NaN statistics and the reason in
@@ -19,10 +20,47 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["COLUMNS", "STATS", "concat", "failed_rows", "stat_rows", "write_parquet"]
+from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
+
+__all__ = [
+    "COLUMNS",
+    "STATS",
+    "concat",
+    "convergence_note",
+    "failed_rows",
+    "read_fleet",
+    "stat_rows",
+    "write_parquet",
+]
+
+
+def convergence_note(stats: Mapping[str, Mapping[str, np.ndarray]], j: int) -> str:
+    """Plain words for unit ``j`` of ``stats`` when some parameter has not converged ("" if none).
+
+    Names the worst R-hat and the lowest bulk ESS among the parameters that miss
+    R-hat < 1.01 or ESS >= 400 (Vehtari et al. 2021).
+    """
+    rh = {p: float(v["r_hat"][j]) for p, v in stats.items()}
+    es = {p: float(v["ess_bulk"][j]) for p, v in stats.items()}
+    bad_r = {p: r for p, r in rh.items() if np.isfinite(r) and r >= RHAT_MAX}
+    bad_e = {p: e for p, e in es.items() if np.isfinite(e) and e < ESS_MIN}
+    if not bad_r and not bad_e:
+        return ""
+    parts = []
+    if bad_r:
+        p = max(bad_r, key=bad_r.get)
+        parts.append(f"R-hat {bad_r[p]:.3f} on {p}")
+    if bad_e:
+        p = min(bad_e, key=bad_e.get)
+        parts.append(f"ESS {bad_e[p]:.0f} on {p}")
+    return (
+        f"not converged: {', '.join(parts)} (R-hat < {RHAT_MAX} and ESS >= {ESS_MIN} wanted; "
+        "run longer: --draws, --max-seconds)"
+    )
+
 
 STATS = ("mean", "sd", "hdi_low", "hdi_high", "r_hat", "ess_bulk")
-COLUMNS = ("level", "bus", "class", "parameter", *STATS, "n", "warnings", "shrinkage")
+COLUMNS = ("level", "bus", "class", "parameter", *STATS, "n", "warnings", "shrinkage", "converged")
 
 
 def stat_rows(
@@ -59,11 +97,18 @@ def stat_rows(
     for s in STATS:
         cols[s] = np.concatenate([np.asarray(stats[p][s], dtype=float) for p in names])
     cols["n"] = np.tile(np.asarray(n, dtype=np.int64), rep)
-    cols["warnings"] = np.tile(np.asarray(warnings if warnings else [""] * m, dtype=object), rep)
+    given = list(warnings) if warnings else [""] * m
+    notes = [convergence_note(stats, j) for j in range(m)]
+    joined = [" | ".join(w for w in (a, b) if w) for a, b in zip(given, notes, strict=True)]
+    cols["warnings"] = np.tile(np.asarray(joined, dtype=object), rep)
     nan = np.full(m, np.nan)
     cols["shrinkage"] = np.concatenate(
         [np.asarray((shrinkage or {}).get(p, nan), dtype=float) for p in names]
     )
+    r_hat, ess = np.asarray(cols["r_hat"]), np.asarray(cols["ess_bulk"])
+    with np.errstate(invalid="ignore"):
+        # a constant series (a given P0) has nothing to converge
+        cols["converged"] = ((r_hat < RHAT_MAX) & (ess >= ESS_MIN)) | (np.asarray(cols["sd"]) == 0)
     df = pd.DataFrame(cols, columns=list(COLUMNS))
     # bus-major order: the rows of one bus together, parameters in model order
     order = np.lexsort((np.repeat(np.arange(rep), m), np.tile(np.arange(m), rep)))
@@ -86,6 +131,7 @@ def failed_rows(
     cols["n"] = np.asarray(n, dtype=np.int64)
     cols["warnings"] = np.asarray(reasons, dtype=object)
     cols["shrinkage"] = nan.copy()
+    cols["converged"] = np.zeros(m, bool)
     return pd.DataFrame(cols, columns=list(COLUMNS))
 
 
@@ -103,22 +149,45 @@ def concat(frames: Sequence[pd.DataFrame]) -> pd.DataFrame:
 
 
 def write_parquet(
-    df: pd.DataFrame, path: str | Path, *, force: bool = False, atomic: bool = True
+    df: pd.DataFrame,
+    path: str | Path,
+    *,
+    force: bool = False,
+    atomic: bool = True,
+    settings: Mapping[str, object] | None = None,
 ) -> Path:
     """Write the table atomically (never overwrites without ``force``).
 
     ``atomic=False`` writes straight into ``path``, a temporary the caller renames (an
-    :class:`~loadbayes.io.transaction.OutputSet`'s).
+    :class:`~loadbayes.io.transaction.OutputSet`'s). ``settings`` (JSON-able) go into the
+    file's key-value metadata under ``loadbayes`` (read back by :func:`read_fleet`).
     """
+    import json
+
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     from loadbayes.io.atomic import atomic_write
 
     table = pa.Table.from_pandas(df, preserve_index=False)
+    if settings is not None:
+        meta = dict(table.schema.metadata or {})
+        meta[b"loadbayes"] = json.dumps(settings, default=str).encode()
+        table = table.replace_schema_metadata(meta)
     if not atomic:
         pq.write_table(table, path)
         return Path(path)
     with atomic_write(path, force=force) as tmp:
         pq.write_table(table, tmp)
     return Path(path)
+
+
+def read_fleet(path: str | Path) -> tuple[pd.DataFrame, dict]:
+    """A fleet table and its settings (``{}`` for a file written without them)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    raw = (table.schema.metadata or {}).get(b"loadbayes")
+    return table.to_pandas(), (json.loads(raw) if raw else {})

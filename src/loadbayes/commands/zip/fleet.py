@@ -29,7 +29,7 @@ FLEET_BURN = 500
 
 
 def fleet_options(func):
-    """--by --class-col --out --pool --scheduler --workers --netcdf-dir."""
+    """--by --class-col --out --pool --scheduler --workers --max-seconds --netcdf-dir."""
     opts = [
         click.option(
             "--by",
@@ -64,6 +64,14 @@ def fleet_options(func):
             "--workers",
             type=click.IntRange(min=1),
             help="Run on a local Dask cluster of this many worker processes.",
+        ),
+        click.option(
+            "--max-seconds",
+            type=click.FloatRange(min=0),
+            default=300.0,
+            show_default=True,
+            help="--pool class: continue the chains until every class R-hat < 1.01 or this "
+            "time budget would run out (0: one round of --draws).",
         ),
         click.option(
             "--netcdf-dir",
@@ -130,7 +138,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     from loadbayes.fleet.engine import Engine
     from loadbayes.fleet.hierarchical import HierPrior
     from loadbayes.fleet.partitions import ReadSpec
-    from loadbayes.fleet.run import run_fleet
+    from loadbayes.fleet.run import one_process_note, run_fleet
 
     q_name, q_required = q_column(p["q_col"])
     spec = ReadSpec(
@@ -172,8 +180,13 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     nc = _NetcdfStaging(p.get("netcdf_dir"), p["force"])
 
+    engines: list = []
+
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
+        note = one_process_note(result_size["buses"], p["pool"], sampler, engines[0])
+        if note and not quiet:
+            click.echo(f"loadbayes: note: {note}", err=True)
         nc.check(stats.buses)
         if not quiet:  # the size of the work before it starts; the bar then says the time left
             click.echo(
@@ -184,6 +197,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     try:
         with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
+            engines.append(engine)
             res = run_fleet(
                 p["data"],
                 spec,
@@ -201,8 +215,9 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
                 progress_files=file_progress,
                 progress_buses=bus_progress,
                 on_stats=stats_hook,
+                max_seconds=p.get("max_seconds") if p["pool"] == "class" else None,
             )
-        _commit(res.table, p["fleet_out"], p["force"], nc)
+        _commit(res.table, p["fleet_out"], p["force"], nc, res.settings)
     finally:
         files.close()
         if "bar" in buses:
@@ -211,7 +226,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     _report(res, p["fleet_out"], quiet)
 
 
-def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging) -> None:
+def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging, settings=None) -> None:
     """The fleet table and the per-bus NetCDF files, renamed into place together."""
     from loadbayes.commands.signals import _STOP, stop_if_signalled
     from loadbayes.fleet.summary import write_parquet
@@ -221,7 +236,7 @@ def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging) -> None:
     stop_if_signalled()
     with OutputSet({"--out": out_path}, force=force) as out:
         _STOP["outputs"] = out
-        write_parquet(table, out.temp("--out"), atomic=False)
+        write_parquet(table, out.temp("--out"), atomic=False, settings=settings)
         stop_if_signalled()
         moves = nc.moves()
         with held_signals():
@@ -315,14 +330,27 @@ def _report(res, out: str, quiet: bool) -> None:
             f"{failed['warnings'].iloc[0]}",
             err=True,
         )
+    # convergence, in words, whatever --quiet says: a result not to be trusted yet
+    for line in res.settings.get("warnings", []):
+        click.echo(f"loadbayes: warning: {line}", err=True)
     if quiet:
         return
+    stop = res.settings.get("stop")
+    if stop and res.settings.get("pool") == "class":
+        click.echo(f"loadbayes: note: chains {stop}", err=True)
     click.echo(
         f"{n_bus} buses from {res.files} files ({res.engine}); "
         f"{n_bus - len(failed)} fitted, {warned['bus'].nunique()} with warnings -> {out}"
     )
-    cls = t[(t["level"] == "class") & t["parameter"].isin(["a1", "a2", "a3"])]
+    cls = t[t["level"] == "class"]
     if len(cls):
-        table = cls.pivot(index="class", columns="parameter", values="mean")
-        click.echo("class mean mix (P):")
-        click.echo(table.to_string(float_format=lambda x: f"{x:.3f}"))
+        hp = res.settings.get("hdi_prob", 0.95)
+        click.echo(f"class means and spreads (mean [{100 * hp:.0f}% interval], R-hat):")
+        for name, rows in cls.groupby("class", sort=True):
+            click.echo(f"  {name} ({int(rows['n'].iloc[0])} buses)")
+            for _, r in rows.iterrows():
+                flag = "" if r["converged"] else "  not converged"
+                click.echo(
+                    f"    {r['parameter']:<6} {r['mean']:7.3f} [{r['hdi_low']:7.3f}, "
+                    f"{r['hdi_high']:7.3f}]  R-hat {r['r_hat']:.3f}{flag}"
+                )

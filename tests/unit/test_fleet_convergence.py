@@ -1,0 +1,132 @@
+"""Pooled fleets say when they have not converged, continue chains exactly, keep a given P0."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from loadbayes.cli import main
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fleet import hierarchical as H
+from loadbayes.fleet.generate import fleet_truth, write_fleet
+from loadbayes.fleet.partitions import ReadSpec, find_partitions
+from loadbayes.fleet.run import run_fleet
+from loadbayes.fleet.stats import finish, partition_stats
+from loadbayes.fleet.summary import read_fleet
+from loadbayes.models.zip import ZIPModel
+
+SPEC = ReadSpec(class_col="customer_class")
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fleet")
+    write_fleet(fleet_truth(30, seed=4, rows=(10, 400)), folder, layout="table")
+    return str(folder / "fleet.parquet")
+
+
+def test_too_few_draws_name_the_unconverged_classes(fleet):
+    # 2 chains x 40 kept draws: no class can reach ESS 400, so every class is named.
+    sampler = SamplerSettings(chains=2, draws=60, burn=20, seed=1)
+    res = run_fleet(fleet, SPEC, pool="class", sampler=sampler)
+    cls = res.table[res.table["level"] == "class"]
+    assert (cls["warnings"].str.contains("not converged")).all()
+    assert not cls["converged"].all()
+    said = " ".join(res.settings["warnings"])
+    for name in cls["class"].unique():
+        assert f"class {name!r} not converged" in said
+    assert res.settings["stop"].startswith("stopped after 60 sweeps")
+
+
+def test_the_cli_says_it_on_stderr_and_in_the_file(fleet, tmp_path):
+    out = tmp_path / "f.parquet"
+    args = ["fit", "zip", fleet, "--by", "bus_id", "--class-col", "customer_class",
+            "--pool", "class", "--draws", "60", "--burn", "20", "--chains", "2",
+            "--max-seconds", "0", "--out", str(out)]  # fmt: skip
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    assert "warning: class 'residential' not converged" in res.stderr
+    assert "class means and spreads" in res.stdout and "not converged" in res.stdout
+    table, settings = read_fleet(out)
+    assert settings["pool"] == "class" and settings["converged"] is False
+    assert any("not converged" in w for w in settings["warnings"])
+    assert {"p0", "q0", "dp_dv", "dq_dv"} <= set(table["parameter"].dropna())
+
+
+def test_a_budget_continues_the_chains_until_the_classes_converge(fleet):
+    sampler = SamplerSettings(chains=2, draws=60, burn=20, seed=1)
+    one = run_fleet(fleet, SPEC, pool="class", sampler=sampler).settings
+    more = run_fleet(fleet, SPEC, pool="class", sampler=sampler, max_seconds=3).settings
+    assert more["sweeps"] > one["sweeps"] == 60
+    assert ("R-hat < 1.01" in more["stop"]) or ("budget" in more["stop"])
+
+
+def _data(fleet, p0="auto"):
+    model = ZIPModel(p0=p0, q0=p0)
+    stats = finish(partition_stats(find_partitions(fleet)[0], SPEC, model))
+    return H.prepare(stats, model)[0]
+
+
+def test_a_continued_chain_is_one_long_chain(fleet):
+    data = _data(fleet)
+    seed = H.chain_seeds(3, 1)[0]
+    prior = H.HierPrior()
+    first = H.run_chain(seed, data, prior, SamplerSettings(chains=1, draws=30, burn=10))
+    rest = H.run_chain(first.state, data, prior, SamplerSettings(chains=1, draws=30, burn=10))
+    whole = H.run_chain(seed, data, prior, SamplerSettings(chains=1, draws=50, burn=10))
+    for name in ("theta", "tau", "p0", "mu", "sigma"):
+        joined = np.concatenate([getattr(first, name), getattr(rest, name)])
+        np.testing.assert_array_equal(joined, getattr(whole, name))
+    assert rest.state.sweeps == 50
+
+
+def test_a_given_p0_stays_fixed(fleet):
+    data = _data(fleet, p0=2.0)
+    draws = H.run_chain(
+        H.chain_seeds(0, 1)[0], data, H.HierPrior(), SamplerSettings(draws=20, burn=5)
+    )
+    assert np.all(draws.p0 == np.float32(2.0))
+
+
+def test_the_p0_draw_is_the_conditional_normal():
+    # One bus, P only, theta pinned by a tight prior: s | theta, t ~ N(a'X'y / a'Ga, 1/(t a'Ga)).
+    rng = np.random.default_rng(0)
+    x = np.column_stack([np.ones(50), rng.uniform(-0.05, 0.05, (50, 2))])
+    y = 3.0 * (x @ np.array([1.0, 0.2, 0.3])) + 0.01 * rng.standard_normal(50)
+    g3, xy = (x.T @ x)[None], (x.T @ y)[None, None]
+    beta = np.linalg.solve(g3[0], xy[0, 0])[None, None]
+    ssr = np.array([[y @ y - beta[0, 0] @ xy[0, 0]]])
+    theta = np.array([[0.2, 0.3]])
+    s, t = np.array([[1.0]]), np.array([[4.0]])
+    chol = np.array([[[1e6, 0.0], [0.0, 1e6]]])  # sqrt of a huge prior precision
+    u = np.zeros((1, 2))
+    zs = np.array([[1.5]])
+    H._bus_sweep(np.zeros(1, np.int64), chol, u, np.ones(1, bool), (1e12 * theta), g3, xy,
+                 beta, ssr, np.zeros((1, 1), bool), np.full((1, 1), 1e-9), theta.copy(), s, t,
+                 np.zeros((1, 2)), zs, np.ones((1, 1)))  # fmt: skip
+    a = np.array([1.0, 0.2, 0.3])
+    gg, gy = a @ g3[0] @ a, a @ xy[0, 0]
+    assert s[0, 0] == pytest.approx(gy / gg + 1.5 / np.sqrt(4.0 * gg), rel=1e-6)
+
+
+def test_draws_streamed_to_disk_are_the_draws_in_memory(fleet, tmp_path):
+    data = _data(fleet)
+    seed = H.chain_seeds(2, 1)[0]
+    sampler = SamplerSettings(chains=1, draws=250, burn=20, thin=2)  # 115 kept: 2 blocks
+    here = H.run_chain(seed, data, H.HierPrior(), sampler)
+    there = H.run_chain(seed, data, H.HierPrior(), sampler, store=str(tmp_path / "c.nc"))
+    assert isinstance(there.theta, H.StoredDraws)
+    for name in ("theta", "tau", "p0"):
+        np.testing.assert_array_equal(getattr(there, name)[:, 3:9], getattr(here, name)[:, 3:9])
+    np.testing.assert_array_equal(there.mu, here.mu)
+
+
+def test_a_streamed_pooled_fit_gives_the_same_table(fleet, monkeypatch):
+    from loadbayes.fleet import run
+
+    sampler = SamplerSettings(chains=2, draws=120, burn=20, seed=4)
+    here = run_fleet(fleet, SPEC, pool="class", sampler=sampler)
+    monkeypatch.setattr(run, "STREAM_BYTES", 0)  # stream every draw to disk
+    there = run_fleet(fleet, SPEC, pool="class", sampler=sampler, max_seconds=1e-9)
+    assert there.settings["streamed"] and not here.settings["streamed"]
+    pd.testing.assert_frame_equal(here.table, there.table, check_exact=True)
