@@ -21,6 +21,7 @@ import numpy as np
 
 from loadbayes.core.parallel import chain_generators, check_stop, run_chains
 from loadbayes.core.settings import check_iterations
+from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.inference.ar1 import draw_rho
@@ -58,6 +59,10 @@ class ChainResult:
     rho: np.ndarray | None = None
 
 
+#: Share-only Metropolis steps per iteration with bounded shares (no motor solve each).
+SHARE_STEPS = 10
+#: Their target acceptance (a 4-coordinate random walk).
+SHARE_ACCEPT = 0.3
 #: Candidates per event of the importance step that handles a coefficient prior factor.
 TILT_TRIES = 512
 
@@ -158,6 +163,7 @@ class _Chain:
             self.sums = self.wt.sums
         self.tilted = None
         self.betas = None
+        self.share_scale = None  # bounded shares: the share-only steps' scale per event
         if factor is not None and factor.active:
             self.tilted = _Tilted(problem, factor)
             self.betas = self.tilted.feasible(self.sums, self.tau, self.u, rng)
@@ -190,6 +196,8 @@ class _Chain:
                 lp, logp = wt.current(u, tau), wt.logp(tau)
             if self.tilted is None:
                 u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
+                if problem.n_share_coords:
+                    u = self._share_steps(u, lp, sums, tau, it)
                 betas = problem.draw_coefficients(sums, tau, u, rng)
             else:
                 u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it)
@@ -215,6 +223,29 @@ class _Chain:
         if self.progress is not None:
             self.progress(end - told)
         self.u, self.sums, self.tau, self.rho, self.it = u, sums, tau, rho, end
+
+    def _share_steps(self, u, lp, sums, tau, it):
+        # Bounded shares: SHARE_STEPS random-walk Metropolis steps on each event's share
+        # coordinates alone. They need no motor solve (the motor's sums do not depend on
+        # the shares), so the shares settle given the motor at a tenth of the cost of a
+        # joint step; each step leaves the posterior invariant. The scale adapts toward
+        # SHARE_ACCEPT during burn-in, then stays.
+        p, rng = self.problem, self.rng
+        i0 = 5 + p.n_steps
+        if self.share_scale is None:
+            self.share_scale = np.full(len(p.events), 0.3)
+        for _ in range(SHARE_STEPS):
+            for e in range(len(p.events)):
+                cand = u.copy()
+                sl = slice(i0 + SHARE_COORDS * e, i0 + SHARE_COORDS * (e + 1))
+                cand[sl] += self.share_scale[e] * rng.standard_normal(SHARE_COORDS)
+                lc = p.log_collapsed(sums, cand, tau)
+                ok = math.log(rng.uniform()) < lc - lp
+                if ok:
+                    u, lp = cand, lc
+                if it < self.burn:
+                    self.share_scale[e] *= math.exp(0.02 * (float(ok) - SHARE_ACCEPT))
+        return u
 
     def _tilted_step(self, u, lp, logp, sums, tau, it):
         # The u-move and the coefficients with a prior factor (_Tilted's notes).
