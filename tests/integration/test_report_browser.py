@@ -177,8 +177,9 @@ def report(tmp_path_factory) -> Path:
 
     with open(root / "bus.csv", "w") as fh:
         run("example", "zip", stdout=fh)
-    run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1", "--q0", "0.4",
-        "--draws", "3000", "--burn", "500", "--netcdf", "fit.nc", "--quiet")  # fmt: skip
+    run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--t-col", "time",
+        "--level", "drift", "--draws", "3000", "--burn", "500", "--netcdf", "fit.nc",
+        "--quiet")  # fmt: skip
     run("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", "--truth", "a2=0.25",
         "--truth", "a3=0.45", "--quiet")  # fmt: skip
     return root / "report.html"
