@@ -165,7 +165,8 @@ FIGURES_JS = """
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory) -> Path:
-    """The quick start of the README: example data, a fit, its report."""
+    """The README's example data, a one-level fit (all four figures, load curves among
+    them: the quick start's drift fit has no single P0 to draw P(V) at), its report."""
     root = tmp_path_factory.mktemp("browser")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
 
@@ -177,9 +178,8 @@ def report(tmp_path_factory) -> Path:
 
     with open(root / "bus.csv", "w") as fh:
         run("example", "zip", stdout=fh)
-    run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--t-col", "time",
-        "--level", "drift", "--draws", "3000", "--burn", "500", "--netcdf", "fit.nc",
-        "--quiet")  # fmt: skip
+    run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1", "--q0", "0.4",
+        "--draws", "3000", "--burn", "500", "--netcdf", "fit.nc", "--quiet")  # fmt: skip
     run("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", "--truth", "a2=0.25",
         "--truth", "a3=0.45", "--quiet")  # fmt: skip
     return root / "report.html"
