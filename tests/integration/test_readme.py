@@ -163,6 +163,35 @@ def test_day_is_the_zip_load_its_truth_columns_say(tmp_path):
         assert abs(resid.mean()) < 5e-4 and 0.002 < resid.std() < 0.004
 
 
+def test_zip_example_is_the_realistic_day_its_readme_states(tmp_path):
+    # The shipped file is what its generator writes (regenerated, not edited by hand), and
+    # it has the shape data/README.md states: 1-minute rows with an hour missing, 3-7 MW
+    # on a daily profile, six 0.625 % taps and a 3 % CVR window of 45 minutes.
+    proc = _example("zip", cwd=tmp_path)
+    assert proc.returncode == 0
+    import io
+
+    import numpy as np
+    import pandas as pd
+
+    from loadbayes.cases.examples import zip_day_frame
+
+    assert proc.stdout == zip_day_frame().to_csv(index=False, lineterminator="\n")
+    day = pd.read_csv(io.StringIO(proc.stdout), parse_dates=["time"])
+    assert list(day.columns) == ["time", "v", "p", "q"] and len(day) == 1380
+    gaps = day["time"].diff().dt.total_seconds().to_numpy()[1:]
+    assert sorted(set(gaps)) == [60.0, 3660.0]
+    assert day["time"][np.argmax(gaps)].strftime("%H:%M") == "09:59"
+    assert 3.0 < day["p"].min() < 3.6 and 6.5 < day["p"].max() < 7.2
+    jumps = np.diff(day["v"].to_numpy() / 11.0)
+    big = jumps[np.abs(jumps) > 0.004]
+    assert np.sum(np.abs(np.abs(big) - 0.00625) < 0.0015) == 6
+    cvr = np.abs(np.abs(big) - 0.03) < 0.002
+    assert cvr.sum() == 2 and big[cvr][0] < 0 < big[cvr][1]
+    at = day["time"][1:][np.abs(jumps) > 0.025].dt.strftime("%H:%M").tolist()
+    assert at == ["17:00", "17:45"]
+
+
 def test_pmu_example_is_the_stated_load(tmp_path):
     # The historian's phasors give back 5 MW and 2 Mvar at 11 kV before the sag.
     assert _example("pmu", "--out", "pmu", cwd=tmp_path).returncode == 0

@@ -165,7 +165,8 @@ FIGURES_JS = """
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory) -> Path:
-    """The quick start of the README: example data, a fit, its report."""
+    """The README's example data, a one-level fit (all four figures, load curves among
+    them: the quick start's drift fit has no single P0 to draw P(V) at), its report."""
     root = tmp_path_factory.mktemp("browser")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
 

@@ -23,12 +23,12 @@ def run(*args, cwd, stdout=None):
 
 @pytest.fixture(scope="module")
 def quick_start(tmp_path_factory):
-    """`loadbayes example zip > bus.csv` then a fit with no --json at all."""
+    """The README quick start: `loadbayes example zip > bus.csv`, a drift fit, no --json."""
     root = tmp_path_factory.mktemp("quick")
     with open(root / "bus.csv", "w") as fh:
         assert run("example", "zip", cwd=root, stdout=fh).returncode == 0
-    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1",
-              "--q0", "0.4", *FAST, "--netcdf", "fit.nc", cwd=root)  # fmt: skip
+    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--t-col", "time",
+              "--level", "drift", *FAST, "--netcdf", "fit.nc", cwd=root)  # fmt: skip
     assert res.returncode == 0, res.stderr
     return root, res
 
@@ -39,21 +39,32 @@ def test_the_example_fits_as_written_and_prints_an_80_column_table(quick_start):
     assert lines[0].startswith("zip posterior from bus.csv")
     assert max(len(line) for line in lines) <= 80, res.stdout
     rows = {line.split()[0]: line.split() for line in lines[2:]}
-    assert set(rows) == {"a1", "a2", "a3", "a4", "a5", "a6", "tau_p", "tau_q"}
-    # The shipped example's true shares (data/README.md) lie in their intervals.
-    for name, true in (("a1", 0.30), ("a3", 0.45), ("a4", 0.60), ("a6", 0.30)):
-        low, high = float(rows[name][3]), float(rows[name][4])
-        assert low <= true <= high, (name, rows[name])
-    # Three significant digits, no exponent: '0.268', not '0.26812' or '2.68e-01'.
-    assert re.fullmatch(r"-?\d\.\d{3}", rows["a1"][1])
+    assert set(rows) == {"a1", "a2", "a3", "a4", "a5", "a6", "tau_p", "tau_q", "drift_p",
+                         "drift_q"}  # fmt: skip
+    # The shipped example's true slopes (data/README.md: dP/dV = 2 a1 + a2 = 0.85, dQ/dV =
+    # 1.30) lie in their intervals; the day determines them, not the shares one by one.
+    for name, true in (("dP/dV", 0.85), ("dQ/dV", 1.30)):
+        said = re.search(rf"{name} = (\S+) \(sd \S+, 95% (\S+) to (\S+);", res.stderr)
+        assert said, res.stderr
+        assert float(said[2]) <= true <= float(said[3]), (name, said[0])
+        # Three significant digits, no exponent: '0.786', not '0.78634' or '7.86e-01'.
+        assert re.fullmatch(r"-?\d\.\d{2,3}", said[1]), said[0]
+    assert not any("the load level changes" in line for line in res.stderr.splitlines())
     assert "summarising the draws" in res.stderr
     assert not (root / "post.json").exists()
 
 
-def test_report_from_netcdf_has_summary_figures_and_truth_flags(quick_start):
+def test_report_from_netcdf_has_summary_figures_and_truth_flags(quick_start, tmp_path):
     root, _ = quick_start
-    res = run("report", "fit.nc", "--out", "r.html", "--truth", "a1=0.9", "--truth", "a4=0.6",
+    # A one-level fit of the same day (confounded, and said so) draws all four figures,
+    # the load curves P(V), Q(V) among them.
+    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1",
+              "--q0", "0.4", *FAST, "--quiet", "--netcdf", tmp_path / "plain.nc",
               cwd=root)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    # a1 = 20 lies far outside the fit's interval of a1; a4 = 0.6 inside.
+    res = run("report", tmp_path / "plain.nc", "--out", "r.html", "--truth", "a1=20",
+              "--truth", "a4=0.6", cwd=root)  # fmt: skip
     assert res.returncode == 0, res.stderr
     html = (root / "r.html").read_text()
     assert (
@@ -62,10 +73,25 @@ def test_report_from_netcdf_has_summary_figures_and_truth_flags(quick_start):
     assert html.count("<figure>") >= 4
     assert html.count("<figure>") == html.count("<figcaption>Figure ") == html.count(" alt='")
     assert not re.search(r"(src|href)=['\"]?(https?:)?//", html)  # nothing fetched
-    # a1 = 0.9 is far outside its interval: flagged in the summary; a4 = 0.6 is not.
+    # a1 = 20 is flagged in the summary; a4 = 0.6 is not.
     assert "1 of 2 true values lie outside their 95% interval: a1." in html
     assert html.count("OUTSIDE the interval") == 1
     assert "Warnings (" in html or "No warnings" in html
+    assert "the load level changes over the record" in html  # the one level is confounded
+
+
+def test_report_of_the_quick_start_drift_fit(quick_start):
+    # The README's third line: the drift fit's report has the marginals, pairs and traces
+    # (no load curves: a drifting level has no single P0 to draw P(V) at) and no
+    # confounding warning.
+    root, _ = quick_start
+    res = run("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", cwd=root)
+    assert res.returncode == 0, res.stderr
+    html = (root / "report.html").read_text()
+    assert html.count("<figure>") == html.count("<figcaption>Figure ") >= 3
+    assert "Marginal posteriors" in html and "Pair plots" in html
+    assert "the load level changes over the record" not in html
+    assert "OUTSIDE the interval" not in html  # the true a1 = 0.3 lies in its wide interval
 
 
 def test_report_from_json_says_where_the_figures_are(quick_start, tmp_path):

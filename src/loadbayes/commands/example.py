@@ -15,7 +15,7 @@ FOLDERS = ("composite", "fleet", "comtrade", "pmu")
 
 
 def _text(name: str) -> str:
-    if name == "zip":  # shipped as a file: its numbers are quoted in the docs
+    if name == "zip":  # shipped (cases.examples.zip_day_frame): its numbers are quoted
         from importlib.resources import files
 
         return files("loadbayes").joinpath("data", "zip_example.csv").read_text(encoding="utf-8")
@@ -71,9 +71,11 @@ def example_cmd(name, out, force):
     11 kV, 5 MVA: fit with --v-base 11 --s-base 5 where the columns are kV and MW).
 
     \b
-    zip        a day of 1-minute V (kV), P (MW), Q (Mvar) at an 11 kV bus; a ZIP load
-               a1..a3 = 0.30, 0.25, 0.45, a4..a6 = 0.60, 0.10, 0.30 at 5 MW, 2 Mvar
-               (loadbayes fit zip bus.csv --v-base 11 --s-base 5 --p0 1 --q0 0.4)
+    zip        a SCADA day at an 11 kV bus: time, V (kV), P (MW), Q (Mvar) each
+               minute; a daily load profile (3.2-6.8 MW), tap steps, a CVR window,
+               an hour missing; ZIP a1..a3 = 0.30, 0.25, 0.45, a4..a6 = 0.60, 0.10,
+               0.30, dP/dV = 0.85 (loadbayes fit zip bus.csv --v-base 11 --s-base 5
+               --t-col time --level drift)
     day        a day whose ZIP shares drift and jump, with the true shares as
                a1_true.. columns (loadbayes track zip)
     composite  sag1.csv, sag2.csv: two sags at a ZIP + induction-motor load, motor
