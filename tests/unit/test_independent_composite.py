@@ -139,3 +139,26 @@ def test_noise_angle_and_two_sags():
     assert truth["t_fault_s"] == pytest.approx([0.5, 0.6, 1.5, 1.62])
     with pytest.raises(ValueError, match="overlaps"):
         ic.simulate(sags=(ic.Sag(0.5, 0.3, 0.2), ic.Sag(0.6, 0.2, 0.1)))
+
+
+def test_the_study_s_cases_cross_every_cell():
+    from loadbayes.studies.calibration.composite_independent import independent_cases
+
+    def cell(c):
+        return (c["motor"], c["rate_hz"], c["ramp_s"], c["sampling"])
+
+    cases = independent_cases(96, seed=3)
+    assert len({cell(c) for c in cases[:48]}) == 48
+    assert [cell(c) for c in cases[:48]] == [cell(c) for c in cases[48:]]
+    for k in range(0, 48, 12):
+        block = cases[k : k + 12]
+        assert len({(c["rate_hz"], c["ramp_s"]) for c in block}) == 12
+        assert sum(c["motor"] == "small_fast" for c in block) == 6
+        assert sum(c["sampling"] == "point" for c in block) == 6
+    for c in cases:
+        # The fault's instant lies strictly inside a sample interval.
+        frac = (c["start_s"] * c["rate_hz"]) % 1.0
+        assert 0.04 < frac < 0.96
+        assert sum(c["shares"]) == pytest.approx(1.0) and min(c["shares"]) >= 0.0
+    # A prefix of a longer run is the shorter run (the CI test's 12 are validate's first).
+    assert independent_cases(12, seed=3) == cases[:12]
