@@ -39,7 +39,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CHECKED", "fit_case", "independent_cases", "run_independent", "table"]
+__all__ = [
+    "CHECKED",
+    "event_records",
+    "fit_case",
+    "independent_cases",
+    "run_independent",
+    "table",
+]
 
 #: The quantities whose 95% interval is checked (issue 21).
 CHECKED: tuple[str, ...] = ("f_m", "t_prime_s")
@@ -123,7 +130,8 @@ def simulate_case(case: dict[str, Any], *, generator: str | None = None) -> tupl
     )
 
 
-def _event(df: Any, label: str) -> list:
+def event_records(df: Any, label: str) -> list:
+    """The package's EventRecord(s) of a generated ``t_s, v, p, q`` DataFrame (checked)."""
     from loadbayes.measurements.events import events_from_arrays
 
     cols = {k: df[c].to_numpy(float) for k, c in (("t", "t_s"), ("v", "v"), ("p", "p"), ("q", "q"))}
@@ -143,7 +151,7 @@ def fit_case(case: dict[str, Any], seed: int, generator: str | None = None) -> d
 
     df, truth = simulate_case(case, generator=generator)
     wall, cpu = time.perf_counter(), time.process_time()
-    fit = fit_composite(_event(df, "independent.csv"), seed=seed, workers=1)
+    fit = fit_composite(event_records(df, "independent.csv"), seed=seed, workers=1)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     draws = fit.posterior.draws
     out: dict[str, Any] = {"hits": {}, "bias": {}, "interval": {}}
@@ -167,7 +175,12 @@ def fit_case(case: dict[str, Any], seed: int, generator: str | None = None) -> d
 
 
 def run_independent(
-    n_events: int, *, seed: int = 0, workers: int = 1, generator: str | None = None
+    n_events: int,
+    *,
+    seed: int = 0,
+    workers: int = 1,
+    generator: str | None = None,
+    log: str | None = None,
 ) -> dict[str, Any]:
     """Fit ``n_events`` independent events at the defaults and count coverage.
 
@@ -182,6 +195,9 @@ def run_independent(
         depend on it.
     generator : str, optional
         Folder of ``independent_composite.py`` (default: the checkout's tests/).
+    log : str, optional
+        A JSON-lines file that gets each event's case and result as soon as it is done
+        (a long run's partial results survive an interruption).
 
     Returns
     -------
@@ -193,6 +209,13 @@ def run_independent(
     cases = independent_cases(n_events, seed=seed)
     seeds = [seed + i for i in range(n_events)]
     gens = [generator] * n_events
+
+    def done(i: int, r: dict[str, Any]) -> dict[str, Any]:
+        if log:
+            with open(log, "a") as fh:
+                fh.write(json.dumps({"i": i, "case": cases[i], **r}) + "\n")
+        return r
+
     if workers > 1:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
@@ -200,9 +223,9 @@ def run_independent(
         # forkserver, not fork: the caller may hold threads (see composite_recovery).
         ctx = multiprocessing.get_context("forkserver")
         with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            per = list(pool.map(fit_case, cases, seeds, gens))
+            per = [done(i, r) for i, r in enumerate(pool.map(fit_case, cases, seeds, gens))]
     else:
-        per = [fit_case(c, s, g) for c, s, g in zip(cases, seeds, gens, strict=True)]
+        per = [done(i, fit_case(c, seeds[i], generator)) for i, c in enumerate(cases)]
     return {
         "events": n_events,
         "coverage": {k: float(np.mean([r["hits"][k] for r in per])) for k in CHECKED},
@@ -259,9 +282,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--output", required=True)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--generator", default=None, help="folder of independent_composite.py")
+    ap.add_argument("--log", default=None, help="JSON lines, one per event as it is done")
     args = ap.parse_args(argv)
     res = run_independent(
-        args.events, seed=args.seed, workers=args.workers, generator=args.generator
+        args.events, seed=args.seed, workers=args.workers, generator=args.generator, log=args.log
     )
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     with open(args.output, "w") as fh:
