@@ -46,6 +46,8 @@ validate: $(STAMP)
 	$(PY) -m loadbayes.studies.calibration.run --out results/validation
 	$(PY) -m loadbayes.studies.calibration.composite_recovery --events 200 \
 		--output results/validation/composite_recovery.json
+	$(PY) -m loadbayes.studies.calibration.composite_independent --events 144 \
+		--output results/validation/composite_independent.json
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) results .pytest_cache .ruff_cache

@@ -80,12 +80,14 @@ def _ess_rhat(draws: dict[str, np.ndarray]) -> tuple[float, float, str]:
     return float(s["ess_bulk"].min()), float(s["r_hat"].max()), str(worst)
 
 
-def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True):
+def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True, event=None):
+    """One fit; ``draws=None``: at the defaults (the sizes, chains and move the user gets)."""
     from loadbayes.fit.composite.driver import fit_composite
 
-    ev, truth = _event(fs, t_end)
+    ev, truth = _event(fs, t_end) if event is None else event
+    sizes = {} if draws is None else {"draws": draws, "burn": burn, "chains": 4, "move": move}
     t0 = time.perf_counter()
-    fit = fit_composite([ev], draws=draws, burn=burn, chains=4, seed=seed, move=move, steps=steps)
+    fit = fit_composite([ev], seed=seed, steps=steps, **sizes)
     wall = time.perf_counter() - t0
     ess, rhat, worst = _ess_rhat(fit.posterior.draws)
     post_mean = fit.posterior.mean()
@@ -94,12 +96,13 @@ def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True):
         k: float(fit.baseline.mean()[k] - truth[k]) for k in TRUTH_KEYS if k in fit.baseline.draws
     }
     return {
-        "sampler": f"loadbayes-{move}" + ("" if steps else "-ramp"),
+        "sampler": ("loadbayes-defaults" if draws is None else f"loadbayes-{move}")
+        + ("" if steps else "-ramp"),
         "move": move,
         "steps": steps,
         "fs": fs,
         "n": ev.n,
-        "settings": f"4 chains x {draws} (burn {burn})",
+        "settings": "defaults" if draws is None else f"4 chains x {draws} (burn {burn})",
         "wall_s": wall,
         "nls_s": fit.seconds["nls"],
         "min_ess_bulk": ess,
@@ -116,18 +119,17 @@ def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True):
     }
 
 
-def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
+def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp", event=None):
     import emcee
     from scipy.integrate import solve_ivp
 
-    from loadbayes.fit.composite.naming import named_draws
     from loadbayes.fit.composite.problem import theta_of
     from loadbayes.models.composite import design
     from loadbayes.models.composite_prior import CompositePrior
     from loadbayes.models.motor import MotorParams, currents, derivatives, power
     from loadbayes.models.motor import steady_state as ss
 
-    ev, truth = _event(fs, t_end)
+    ev, truth = _event(fs, t_end) if event is None else event
     prior = CompositePrior.default([ev])
     mean_u, cov_u, _, _ = prior.scale_free()
     prec_u = np.linalg.inv(cov_u)
@@ -209,12 +211,7 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
     log_t0 = np.array([prior.draw_log_t0(ui, rng) for ui in x[..., :5].reshape(-1, 5)])
     theta = theta_of(x[..., :5], log_t0.reshape(x.shape[:2]))
 
-    class _P:  # the same transforms as the package's sampler
-        events = [ev]
-        f_hz = 60.0
-        torque = (1.0, 0.0, 0.0)
-
-    named = named_draws(_P, theta, x[..., 5:12][:, :, None, :], np.exp(x[..., 12:]))
+    named = _named(ev, theta, x[..., 5:12], np.exp(x[..., 12:]))
     try:
         ess, rhat, worst = _ess_rhat(named)
     except Exception:  # too few steps for ArviZ's diagnostics
@@ -255,6 +252,18 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp"):
     }
 
 
+def _named(ev, theta, beta, tau):
+    """Named draws from a joint sampler's (chain, draw, ...) blocks, as the package's."""
+    from loadbayes.fit.composite.naming import named_draws
+
+    class _P:  # the same transforms as the package's sampler
+        events = [ev]
+        f_hz = 60.0
+        torque = (1.0, 0.0, 0.0)
+
+    return named_draws(_P, theta, beta[:, :, None, :], tau)
+
+
 def _stationary_rate(em: dict, ek: dict) -> None:
     # emcee + solve_ivp's ESS/s in its stationary phase: walkers / (tau * seconds per
     # step), tau measured on the long run with the kernel (a property of the posterior and
@@ -267,6 +276,120 @@ def _stationary_rate(em: dict, ek: dict) -> None:
     )
 
 
+def _independent_event(fs: float, t_end: float, seed: int = 0):
+    """A 10 s event from tests/independent_composite.py (SciPy only, no loadbayes code).
+
+    The large slow motor (T' 0.70 s, not in the library), f_m 0.4, a 30% sag at
+    1.0123 s (inside a sample interval) held 0.2 s with 20 ms ramps, point samples,
+    0.5% noise; returned as the package's EventRecord with the generator's truth.
+    """
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import independent_composite as ic
+    from loadbayes.studies.calibration.composite_independent import event_records
+
+    sag = ic.Sag(1.0123, 0.3, 0.2, 0.02, 0.02)
+    df, truth = ic.simulate_event(
+        motor="large_slow", f_m=0.4, sags=(sag,), rate_hz=fs, t_end_s=t_end, seed=seed
+    )
+    return event_records(df, f"independent {fs:g}/s")[0], truth
+
+
+def run_nuts(event, warmup, draws, seed=0):
+    """NumPyro NUTS + diffrax (composite_peers.py) on ``steps=False``'s posterior."""
+    from composite_peers import nuts_diffrax
+    from loadbayes.fit.composite.nls import nls
+    from loadbayes.fit.composite.problem import CompositeProblem, theta_of
+    from loadbayes.models.composite_prior import CompositePrior
+
+    ev, _ = event
+    prior = CompositePrior.default([ev])
+    st = nls(CompositeProblem([ev], prior, steps=False))
+    start = {"u": st.u, "beta": st.betas[0], "tau": 1.0 / st.sigma**2}
+    r = nuts_diffrax(ev, prior, start, warmup=warmup, draws=draws, chains=2, seed=seed)
+    rng = np.random.default_rng(seed)
+    u = r["u"]
+    log_t0 = np.array([prior.draw_log_t0(ui, rng) for ui in u.reshape(-1, 5)])
+    theta = theta_of(u, log_t0.reshape(u.shape[:2]))
+    ess, rhat, worst = _ess_rhat(_named(ev, theta, r["beta"], r["tau"]))
+    return {
+        "sampler": "numpyro-nuts-diffrax",
+        "fs": float(round(1.0 / np.median(np.diff(ev.t)))),
+        "n": ev.n,
+        "settings": f"2 chains x {draws} (warm-up {warmup}), sequential",
+        "wall_s": r["wall_s"],
+        "compile_s": r["compile_s"],
+        "min_ess_bulk": ess,
+        "worst": worst,
+        "max_r_hat": rhat,
+        "ess_per_s": ess / r["wall_s"],
+        "grads_per_iteration": r["grads_per_iteration"],
+        "divergences": r["divergences"],
+    }
+
+
+def run_independent_part(quick: bool) -> tuple[list[dict], list[dict]]:
+    """Issue 21's benchmark: independent 10 s events at 60 and 120/s, and the peers.
+
+    For each rate: ``fit_composite`` at the defaults (the target: R-hat < 1.01, min bulk
+    ESS >= 400 in < 30 s wall) and with ``steps=False`` (the posterior the peers
+    sample: the voltage read as the line between samples); emcee with ``solve_ivp``
+    (its seconds per step, its autocorrelation time from a long run with the kernel, as
+    in the library rows); NumPyro NUTS with diffrax. ESS per second of each, and the
+    ratios of loadbayes' (``steps=False``) to each peer's.
+    """
+    t_end = 3.0 if quick else 10.0
+    rates = (60.0,) if quick else (60.0, 120.0)
+    emcee_s, long_steps = (20.0, 100) if quick else (60.0, 2000)
+    # NUTS + diffrax costs ~0.08 s a gradient on the 10 s event at 60/s (measured) and
+    # tens of gradients an iteration: a short run at 60/s only, to keep the bench under
+    # an hour on 2 shared cores; its ESS is a rough estimate (said in the notes).
+    warmup, draws = (10, 10) if quick else (50, 50)
+    rows, targets = [], []
+    run_loadbayes(60.0, 2.0, 100, 50, event=_independent_event(60.0, 2.0))  # compile
+    for fs in rates:
+        ev = _independent_event(fs, t_end)
+        lb = run_loadbayes(fs, t_end, None, None, event=ev)
+        lr = run_loadbayes(fs, t_end, None, None, steps=False, event=ev)
+        em = run_emcee(fs, t_end, 10**6, seconds=emcee_s, event=ev)
+        ek = run_emcee(fs, t_end, long_steps, seconds=900.0, motor="kernel", event=ev)
+        _stationary_rate(em, ek)
+        nu = run_nuts(ev, warmup, draws) if fs == 60.0 else None
+        for r in (lb, lr, em, ek) + ((nu,) if nu else ()):
+            r["part"] = "independent"
+            rows.append(r)
+            print(_line(r), flush=True)
+        ok = lb["max_r_hat"] < 1.01 and lb["min_ess_bulk"] >= 400 and lb["wall_s"] < 30
+        targets.append(
+            {
+                "target": f"independent 10 s event, {fs:g}/s, defaults: R-hat < 1.01, bulk "
+                "ESS >= 400 for every parameter, < 30 s wall",
+                "measured": f"R-hat max {lb['max_r_hat']:.3f}, min ESS "
+                f"{lb['min_ess_bulk']:.0f} ({lb['worst']}), {lb['wall_s']:.1f} s",
+                "met": bool(ok),
+            }
+        )
+        r_em = lr["ess_per_s"] / em["ess_per_s_from_long_tau"]
+        nuts_text = "NUTS not run at this rate"
+        if nu:
+            nuts_text = (
+                f"{lr['ess_per_s'] / nu['ess_per_s']:,.0f}x NUTS ({nu['ess_per_s']:.3g} ESS/s: "
+                f"min ESS {nu['min_ess_bulk']:.0f}, R-hat {nu['max_r_hat']:.3f}, "
+                f"{nu['wall_s']:.0f} s, {nu['grads_per_iteration']:.0f} gradients per "
+                "iteration)"
+            )
+        targets.append(
+            {
+                "target": f"independent event, {fs:g}/s: ESS/s >= 100x emcee + solve_ivp on "
+                "the same posterior (loadbayes steps=False); NumPyro NUTS + diffrax reported",
+                "measured": f"{r_em:,.0f}x emcee ({lr['ess_per_s']:.3g} vs "
+                f"{em['ess_per_s_from_long_tau']:.3g} ESS/s, tau "
+                f"{ek['autocorr_time_max']:.0f} steps); {nuts_text}",
+                "met": bool(r_em >= 100),
+            }
+        )
+    return rows, targets
+
+
 def _line(r) -> str:
     return (
         f"{r['sampler']:16s} fs {r['fs']:5g} n {r['n']:6d} wall {r['wall_s']:7.2f} s "
@@ -275,12 +398,8 @@ def _line(r) -> str:
     )
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="Smoke sizes.")
-    ap.add_argument("--output", default=str(Path(__file__).parent / "results" / "composite.json"))
-    ap.add_argument("--slice", action="store_true", help="Also the factor slice move.")
-    args = ap.parse_args(argv)
+def run_library_part(args) -> tuple[list[dict], list[dict]]:
+    """The package's own event (small industrial motor): moves, rates, emcee."""
     t_end = 3.0 if args.quick else 10.0
     # The default move at the package's default sizes (fit_composite: 16,000 iterations,
     # 4,000 burn-in); factor slice costs ~20 density evaluations per iteration, so fewer
@@ -291,10 +410,9 @@ def main(argv=None) -> int:
     if not args.slice:
         del sizes["slice"]
     steps = 20 if args.quick else 2000
-    load = os.getloadavg()
     # Warm-up: compile the numba kernels (both rates, both moves) outside the timed runs.
     for move in sizes:
-        run_loadbayes(60.0, 2.0, 40, 20, move=move)
+        run_loadbayes(60.0, 2.0, 100, 50, move=move)
     rows = []
     for fs in (60.0, 960.0):
         for move, (draws, burn) in sizes.items():
@@ -342,6 +460,51 @@ def main(argv=None) -> int:
             "met": bool(ratio >= 100),
         }
     )
+    for r in rows:
+        r["part"] = "library"
+    return rows, targets
+
+
+def _peer_versions(nuts: bool) -> dict[str, str]:
+    if not nuts:
+        return {}
+    import diffrax
+    import jax
+    import numpyro
+
+    return {"jax": jax.__version__, "numpyro": numpyro.__version__, "diffrax": diffrax.__version__}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="Smoke sizes.")
+    ap.add_argument("--output", default=str(Path(__file__).parent / "results" / "composite.json"))
+    ap.add_argument("--slice", action="store_true", help="Also the factor slice move.")
+    ap.add_argument(
+        "--part",
+        choices=("all", "library", "independent"),
+        default="all",
+        help="Run one part only; the other part's rows in --output are kept.",
+    )
+    args = ap.parse_args(argv)
+    load = os.getloadavg()
+    rows, targets = [], []
+    parts = ("library", "independent") if args.part == "all" else (args.part,)
+    if "library" in parts:
+        r, t = run_library_part(args)
+        rows, targets = rows + r, targets + t
+    if "independent" in parts:
+        r, t = run_independent_part(args.quick)
+        rows, targets = rows + r, targets + t
+    old = Path(args.output)
+    if args.part != "all" and old.exists():
+        prev = json.loads(old.read_text())
+        keep = [r for r in prev["results"] if r.get("part", "library") not in parts]
+        rows = keep + rows
+        mine = {t["target"].startswith("independent") for t in targets}
+        targets = [
+            t for t in prev.get("targets", []) if t["target"].startswith("independent") not in mine
+        ] + targets
     import numba
     import scipy
 
@@ -360,6 +523,7 @@ def main(argv=None) -> int:
             "scipy": scipy.__version__,
             "numba": numba.__version__,
             "emcee": __import__("emcee").__version__,
+            **_peer_versions("independent" in parts),
         },
         "results": [
             {k: (json.dumps(v) if isinstance(v, dict) else v) for k, v in r.items()} for r in rows
@@ -383,6 +547,18 @@ def main(argv=None) -> int:
             "every reported parameter (constants left out); wall time from the call of "
             "fit_composite (NLS start included) to its return (naming, diagnostics and "
             "the baseline included), after a warm-up fit that compiled the numba kernels.",
+            "Independent rows (part independent): 10 s events from "
+            "tests/independent_composite.py (SciPy only; the large slow motor, T' 0.70 s, "
+            "not in the library; a 30% sag at 1.0123 s held 0.2 s, 20 ms ramps, f_m 0.4, "
+            "0.5% noise, point samples), fitted at the defaults (loadbayes-defaults) and "
+            "with steps=False (loadbayes-defaults-ramp: the voltage read as the line "
+            "between samples, the posterior the peers sample). emcee as in the library "
+            "rows on the same event. numpyro-nuts-diffrax: benchmarks/composite_peers.py, "
+            "NUTS (target acceptance 0.8, tree depth <= 6) from the NLS start, 2 chains x "
+            "(50 warm-up + 50 draws) one after the other (a short run: its ESS is rough), "
+            "the ODE by diffrax Tsit5 (rtol 1e-6, atol 1e-9, a step on every sample, "
+            "float64); its wall time excludes JAX's compilation (compile_s, a 1-iteration "
+            "run timed on its own) and includes the warm-up.",
             "Moves: am = adaptive Metropolis (1 collapsed-density evaluation per "
             "iteration), slice = factor slice sampling in the eigenbasis of the burn-in "
             "covariance (evaluations_per_iteration says how many).",
