@@ -90,6 +90,15 @@ class LoadbayesGroup(click.Group):
             code = _EXIT_CODE[late]
         if code in (130, 143):
             _forget_unhandled_interrupt()
+            # A run a signal ended has said so and left every output or none: end the
+            # process here, without the interpreter's finalisation, where a native
+            # library's thread (a compiled pool, HDF5) still running at the signal can
+            # abort it (seen once in 40 signalled runs: "PyThreadState_Get ... the GIL
+            # is released", exit -6 after the one line).
+            with contextlib.suppress(Exception):
+                sys.stdout.flush()
+                sys.stderr.flush()
+            os._exit(code)
         sys.exit(code)
 
 

@@ -107,12 +107,21 @@ def test_the_pooled_page_has_class_mixes_shrinkage_flags_and_settings(fleet):
 def test_sensitivity_is_2a1_plus_a2_unless_the_table_has_it(fleet, tmp_path):
     _, _, out = fleet
     ft = load_fleet(out["class"])
-    s, where, unit = ft.sensitivity("dp_dv")
     w = ft.wide()
+    # A fleet run writes its own dp_dv rows (2 a1 + a2 per draw): used, with intervals;
+    # their mean is 2 a1 + a2 of the means (linear).
+    s, where, _ = ft.sensitivity("dp_dv")
+    assert where == "the table's dp_dv rows"
+    np.testing.assert_allclose(s["mean"], 2 * w["a1"] + w["a2"], rtol=1e-6, atol=1e-9)
+    # A table without them (an older run): 2 a1 + a2 from the means, said so.
+    t0 = ft.table[~ft.table.parameter.str.lower().isin(["dp_dv", "dq_dv"])]
+    ft0 = load_fleet(write_parquet(t0, tmp_path / "older.parquet"))
+    s, where, unit = ft0.sensitivity("dp_dv")
     np.testing.assert_allclose(s["mean"], 2 * w["a1"] + w["a2"])
     assert where == "2 a1 + a2 (the means only)" and unit == "per unit of P0 per p.u. of V"
-    # A later table with dP/dV rows (and a column the report does not know): used as is.
-    t = ft.table.copy()
+    # A table with dP/dV rows named otherwise (and a column the report does not know):
+    # used as is.
+    t = t0.copy()
     extra = t[(t.level == "bus") & (t.parameter == "a1")].copy()
     extra["parameter"], extra["mean"] = "dP_dV", 0.777
     t = pd.concat([t, extra], ignore_index=True)
