@@ -209,6 +209,15 @@ class Posterior:
         model = model_of(self)
         if model is None:
             raise ValueError(f"a {self.model!r} fit has no P(V) curve to predict")
+        if "level" in self.extra_json and "p0" not in self.draws:
+            from loadbayes.io.errors import OptionError
+
+            raise OptionError(
+                "a drifting-level fit has no single P0 to predict with: its load is "
+                "P0(t) (a1 x^2 + a2 x + a3) with the level of each moment; use the shares "
+                "and post.derived (dP/dV, dQ/dV at v0), or the level's path in "
+                "post.extra_json['level']"
+            )
         vb = float(self.settings.get("v_base") or 1.0)
         sb = float(self.settings.get("s_base") or 1.0)
         v = np.asarray(v, dtype=float)

@@ -154,3 +154,15 @@ def test_fleet_checks_time_within_a_bus(tmp_path):
     assert f"fleet.csv: column 'time', row {last_a + 1}: time does not increase" in r.stderr
     r = run(*args, "--out", "h.parquet", "--level", "drift", cwd=tmp_path)
     assert r.returncode == 2 and "fixed level" in r.stderr
+
+
+def test_predict_on_a_drifting_level_says_why_it_cannot(day):
+    # A drift fit has no single P0: predict says so in words (it raised KeyError 'p0').
+    from loadbayes import fit_zip
+    from loadbayes.io.errors import OptionError
+
+    frame = pd.read_csv(day / "day.csv")
+    post = fit_zip(frame, v_col=COLS[1], p_col=COLS[3], q_col=COLS[5], t_col="time",
+                   level="drift", v_base=13.8, draws=300, burn=100, chains=2, seed=1)  # fmt: skip
+    with pytest.raises(OptionError, match="no single P0"):
+        post.predict([13.2, 13.8])
