@@ -204,3 +204,21 @@ def test_bad_input_exit_2_one_line_nothing_written(event, tmp_path):
                  d / "fit.json", "--force"))  # fmt: skip
     assert (d / "fit.json").read_bytes() == before
     assert not out.exists()
+
+
+def test_the_fit_s_frequency_reaches_the_event_reader(tmp_path):
+    # A 50 Hz fit's events are read against 50 Hz (the default 60 would refuse a 50 Hz
+    # record's own frequency), and a bad recorded frequency is refused naming the file.
+    import json
+
+    from loadbayes.export.andes.playback import read_fit
+    from loadbayes.io.errors import DataError
+
+    doc = {"model": "composite", "parameters": {"p0": {"mean": 1.0}}, "settings": {"f_hz": 50}}
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(doc))
+    assert read_fit(path).f_hz == 50.0
+    doc["settings"]["f_hz"] = "fifty"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(DataError, match="settings.f_hz"):
+        read_fit(path)

@@ -75,6 +75,7 @@ def playback_cmd(
         angle_col=angle_col,
         v_base=v_base,
         s_base=s_base,
+        f_hz=fit.f_hz,
     )
     if len(evs) != 1:
         raise UserError(f"{event}: holds {len(evs)} events (an event column); give one")

@@ -119,6 +119,8 @@ class FitResult:
     steps: dict[str, dict[int, float]]
     p0_by_event: dict[str, float] = field(default_factory=dict)
     s_base_mva: float | None = None
+    #: The fit's nominal frequency (Hz): the events are read against it, as the fit read them.
+    f_hz: float = 60.0
 
     def fitted_event(self, name: str) -> str | None:
         """The fitted event whose file has the name of ``name``, or None (held out)."""
@@ -200,9 +202,13 @@ def read_fit(path: str | Path) -> FitResult:
         isinstance(s_base, int | float) and not isinstance(s_base, bool) and s_base > 0
     ):
         raise DataError(f"settings.s_base_mva is {s_base!r}, expected MVA > 0", where)
+    f_hz = settings.get("f_hz", 60.0)
+    if not (isinstance(f_hz, int | float) and not isinstance(f_hz, bool) and 10 <= f_hz <= 1000):
+        raise DataError(f"settings.f_hz is {f_hz!r}, expected 10-1000 Hz", where)
     return FitResult(
-        p0, sigma[0], sigma[1], names, steps, p0s, None if s_base is None else float(s_base)
-    )
+        p0, sigma[0], sigma[1], names, steps, p0s, None if s_base is None else float(s_base),
+        float(f_hz),
+    )  # fmt: skip
 
 
 def load_devices(case: str | Path) -> dict[str, list[dict[str, Any]]]:
