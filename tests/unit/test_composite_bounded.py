@@ -69,11 +69,11 @@ def test_share_coordinates_cover_the_simplex():
 
 
 def test_coefficient_prior_factor():
-    f = CoefficientPrior(bounded=True, normal=(("f_m", 0.4, 0.1),))
-    beta = np.array([[0.1, 0.2, 0.3, 0.1, 0.1, 0.1, 0.4], [-0.1, 0.2, 0.3, 0.1, 0.1, 0.1, 0.4]])
+    f = CoefficientPrior(normal=(("f_m", 0.4, 0.1),))
+    beta = np.array([[0.1, 0.2, 0.3, 0.1, 0.1, 0.1, 0.4], [-0.4, 0.0, 0.0, 0.1, 0.1, 0.1, 0.4]])
     lr = f.log_factor(beta)
-    assert math.isfinite(lr[0]) and lr[1] == -math.inf
     assert lr[0] == pytest.approx(-0.5 * ((0.4 / 1.0 - 0.4) / 0.1) ** 2)
+    assert lr[1] == -math.inf  # P0 = 0: f_m is not a number
     with pytest.raises(ValueError, match="no prior on"):
         CoefficientPrior(normal=(("a7", 0.1, 0.1),))
 
@@ -144,3 +144,18 @@ def test_residuals_that_run_in_stretches_are_reported():
     good = fit_composite([ev], draws=300, burn=150, chains=2, seed=2)
     assert abs(good.posterior.settings["residuals"]["lag1_autocorrelation"]["p"]) < 0.3
     assert residual_warning({"p": 0.1, "q": 0.05}) is None
+
+
+def test_a_prior_on_the_motor_share_with_free_shares_pulls_it(inadmissible_event):
+    # Free shares with a normal factor: the importance-weighted (tilted) path. A tight
+    # prior 0.15 below what the data say must move f_m most of the way and be recorded.
+    ev, _ = inadmissible_event
+    kw = dict(draws=300, burn=200, chains=2, seed=5)
+    plain = float(np.mean(fit_composite([ev], **kw).posterior.draws["f_m"]))
+    fit = fit_composite([ev], coefficient_prior={"f_m": (plain - 0.15, 0.005)}, **kw)
+    pulled = float(np.mean(fit.posterior.draws["f_m"]))
+    assert pulled < plain - 0.1, (plain, pulled)
+    assert fit.posterior.settings["coefficient_prior"] == {
+        "shares": "free",
+        "normal": {"f_m": [plain - 0.15, 0.005]},
+    }

@@ -154,21 +154,17 @@ class CoefficientPrior:
 
     The coefficients' Gaussian prior (:class:`CompositePrior`) keeps them conjugate, so
     the sampler integrates them out; this factor ``r(beta)`` multiplies it, and the
-    sampler handles it exactly by importance weights (fit/composite/sampler.py):
-
-    - ``bounded``: every static share in [0, 1] (``a1..a3 >= 0`` with ``a1 + a2 + a3 =
-      1``, the same for ``a4..a6``; with ``p_m0 > 0`` this also holds ``0 < f_m < 1``):
-      what a simulator's static load and a planner's export need;
-    - ``normal``: ``{name: (mean, sd)}``, a normal factor on a named quantity
-      (:data:`COEFFICIENT_PRIOR_NAMES`): prior knowledge of a share, of the motor
-      share or of the operating point.
+    sampler handles it exactly by importance weights (fit/composite/sampler.py): a normal
+    factor ``{name: (mean, sd)}`` on a named quantity (:data:`COEFFICIENT_PRIOR_NAMES`),
+    prior knowledge of a share, of the motor share or of the operating point. (Shares
+    held in [0, 1] are not a factor: ``--shares bounded`` is its own parametrisation,
+    fit/composite/bounded.py.)
 
     Each factor multiplies the Gaussian prior, so the stated normal is the prior of that
     quantity only where the Gaussian one is flat at its scale (it is: ten times the
     data's largest apparent power).
     """
 
-    bounded: bool = False
     normal: tuple[tuple[str, float, float], ...] = ()
 
     def __post_init__(self) -> None:
@@ -181,26 +177,23 @@ class CoefficientPrior:
     @property
     def active(self) -> bool:
         """Whether there is any factor (else the plain conjugate sampler runs)."""
-        return self.bounded or bool(self.normal)
+        return bool(self.normal)
 
     def log_factor(self, beta: np.ndarray) -> np.ndarray:
-        """``log r(beta)`` of coefficients (..., 7): ``-inf`` outside the bounds."""
+        """``log r(beta)`` of coefficients (..., 7).
+
+        ``-inf`` where a named quantity is not finite (a share of a zero static part).
+        """
         b = np.asarray(beta, dtype=float)
         out = np.zeros(b.shape[:-1])
-        if self.bounded:
-            cp, cq = b[..., 0:3], b[..., 3:6]
-            ok = np.all(cp >= 0, -1) & (np.all(cq >= 0, -1) | np.all(cq <= 0, -1))
-            out = np.where(ok, out, -np.inf)
-        if self.normal:
-            named = named_coefficients(b)
-            for name, mean, sd in self.normal:
-                z = (named[name] - mean) / sd
-                out = out - 0.5 * np.where(np.isfinite(z), z * z, np.inf)
+        named = named_coefficients(b)
+        for name, mean, sd in self.normal:
+            z = (named[name] - mean) / sd
+            out = out - 0.5 * np.where(np.isfinite(z), z * z, np.inf)
         return out
 
     def to_dict(self) -> dict[str, Any]:
         """For the JSON's settings."""
         return {
-            "shares": "bounded" if self.bounded else "free",
             "normal": {name: [mean, sd] for name, mean, sd in self.normal},
         }

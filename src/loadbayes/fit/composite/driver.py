@@ -166,7 +166,6 @@ def _factor(shares: str, normal: dict | None, move: str) -> CoefficientPrior | N
         # Bounded shares are the bounded model's parametrisation (fit/composite/bounded.py),
         # not a factor; the normal factors stay factors.
         factor = CoefficientPrior(
-            bounded=False,
             normal=tuple((n, float(m), float(s)) for n, (m, s) in (normal or {}).items()),
         )
     except ValueError as exc:

@@ -110,18 +110,13 @@ class _Tilted:
         return out
 
     def feasible(self, sums, tau, u, rng) -> list[np.ndarray]:
-        """Starting coefficients with ``r > 0`` (drawn; else a draw moved inside)."""
+        """Starting coefficients drawn with probability proportional to ``r``."""
         cands, logr, est = self.candidates(sums, tau, u, rng)
-        if math.isfinite(est):
-            return self.select(cands, logr, rng)
-        out = []
-        for b in self.problem.draw_coefficients(sums, tau, u, rng):
-            tiny = 1e-9 * max(1.0, float(np.max(np.abs(b))))
-            b[0:3] = np.maximum(b[0:3], tiny)
-            sign = 1.0 if b[3:6].sum() >= 0 else -1.0
-            b[3:6] = sign * np.maximum(sign * b[3:6], tiny)
-            out.append(b)
-        return out
+        if not math.isfinite(est):
+            # A normal factor is positive wherever its quantity is finite: only a start
+            # whose every candidate has a zero static part (a share 0/0) lands here.
+            raise ValueError("no starting coefficients where the coefficient prior is positive")
+        return self.select(cands, logr, rng)
 
 
 #: Decides, after a round of sampling, how many more iterations every chain runs (0:
