@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -306,6 +306,10 @@ def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
         "buses": int(table.loc[table["level"] == "bus", "bus"].nunique()),
         "prior": asdict(hyper or hier.HierPrior()) if pool == "class" else None,
         "sweeps": info.get("sweeps", sampler.draws),
+        # Rounds run (each as long as all before it); the kept draws are the last
+        # round's, one in ``kept_thin`` (``thin`` in a one-round run).
+        "rounds": info.get("rounds", 1),
+        "kept_thin": info.get("kept_thin", sampler.thin),
         "max_seconds": max_seconds,
         "seconds": info.get("seconds"),
         "converged": info.get("converged"),
@@ -398,19 +402,27 @@ def _draws_folder(data_h, sampler, info) -> str | None:
 
 
 def _chain_task(job, data_h, prior, sampler):
-    """One chain's round: ``job`` = (seed or state, NetCDF path or None)."""
-    start, store = job
-    return hier.run_chain(start, data_h, prior, sampler, store=store)
+    """One chain's round: ``job`` = (seed or state, NetCDF path or None[, sweeps, thin])."""
+    start, store, *more = job
+    if not more:
+        return hier.run_chain(start, data_h, prior, sampler, store=store)
+    sweeps, thin = more
+    return hier.run_chain(start, data_h, prior, replace(sampler, thin=thin), sweeps=sweeps,
+                          store=store)  # fmt: skip
 
 
 def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     """The pooled chains, continued until every class R-hat < 1.01 or the budget is spent.
 
-    Each round after the first runs ``draws - burn`` more sweeps per chain from where
-    the chain stopped and keeps only those (the earlier sweeps become burn-in), so the
-    kept draws, and the memory, stay ``draws - burn`` per chain. The decision to go on
-    depends on the draws only, except when the time budget ends it: then (and only then)
-    two machines may stop at different rounds.
+    Each round after the first runs as many sweeps per chain as all rounds before it,
+    from where the chain stopped, and keeps only those (the earlier half of the chain
+    becomes burn-in, as in Stan's warm-up rule), thinned to ``draws - burn`` kept draws
+    so that the memory stays as in the first round. So R-hat is judged on the later half
+    of ever longer chains: the ESS behind it doubles each round (a fixed-length window,
+    as before, let a fleet whose spreads mix slowly run on for dozens of rounds, each too
+    short to show R-hat < 1.01). The decision to go on depends on the draws only, except
+    when the time budget ends it: then (and only then) two machines may stop at
+    different rounds.
     """
     import os
 
@@ -425,14 +437,14 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     t0 = time.monotonic()
     seeds = hier.chain_seeds(sampler.seed, sampler.chains)
     chains = eng.map(_chain_task, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
-    first = time.monotonic() - t0
-    rounds = 1
+    rounds, thin = 1, sampler.thin
     while True:
         summ = hier.class_convergence(data_h, chains, sampler.hdi_prob)
         r_hat = np.nanmax(np.stack([v["r_hat"] for v in summ.values()]), axis=0)
         ok = bool(np.all(r_hat < RHAT_MAX)) if sampler.chains > 1 else None
         spent = time.monotonic() - t0
-        per_round = first * (sampler.draws - sampler.burn) / sampler.draws
+        done = int(chains[0].state.sweeps)
+        per_round = spent  # the next round runs as many sweeps as all before it
         if ok or ok is None or not max_seconds:
             why = "every class's R-hat < 1.01" if ok else "one round (no --max-seconds)"
             if ok is None:
@@ -441,10 +453,12 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
         if spent + per_round > max_seconds:
             why = (
                 f"the {max_seconds:g} s budget (--max-seconds) would run out before another "
-                f"round of {sampler.draws - sampler.burn} sweeps"
+                f"round of {done} sweeps"
             )
             break
-        jobs = list(zip([c.state for c in chains], stores(rounds + 1), strict=True))
+        keep = max(1, sampler.draws - sampler.burn)
+        thin = max(1, -(-done // keep))
+        jobs = [(c.state, st, done, thin) for c, st in zip(chains, stores(rounds + 1), strict=True)]
         chains = eng.map(_chain_task, jobs, data_h, prior, sampler)
         for old in stores(rounds):
             if old is not None and os.path.exists(old):
@@ -454,6 +468,7 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     info.update(
         sweeps=int(sweeps),
         rounds=rounds,
+        kept_thin=thin,
         seconds=round(time.monotonic() - t0, 3),
         converged=ok,
         stop=f"stopped after {sweeps} sweeps per chain: {why}",
