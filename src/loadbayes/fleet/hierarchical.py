@@ -49,12 +49,14 @@ buses are in :mod:`loadbayes.fleet.hier_kernels`.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from loadbayes.core.parallel import check_stop
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.hier_kernels import (
@@ -478,6 +480,7 @@ def run_chain(
     *,
     sweeps: int | None = None,
     store: str | None = None,
+    stop: threading.Event | None = None,
 ) -> ChainDraws:
     """Run one Gibbs chain of the pooled model (see the module notes).
 
@@ -488,6 +491,8 @@ def run_chain(
     With ``store`` (a file path), the bus-level draws go to that NetCDF file in blocks of
     :data:`STORE_BLOCK` draws (the chain then holds one block in memory) and the result's
     ``theta``, ``tau``, ``p0`` are :class:`StoredDraws`; the draws are the same.
+    The chain checks ``stop`` (and a signal's stop request) every sweep and raises
+    :class:`~loadbayes.core.parallel.ChainsStopped` when it is set (chains run in threads).
     """
     nb = data.buses.size
     nch = data.xy.shape[1]
@@ -540,6 +545,7 @@ def run_chain(
     dirs = _directions(nch)
     acc_a, acc_b = np.zeros(ncls), np.zeros(ncls)
     for it in range(total):
+        check_stop(stop)
         _factor(data.cls, data.g3, data.xy, s, t, sig_inv, chol, u, ok)
         _mu_terms(data.cls, chol, u, ok, sig_inv, prec_data, lin_data)
         mu = _draw_mu(gen, s0_inv, s0_inv_m0, prec_data, lin_data)

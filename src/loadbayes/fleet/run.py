@@ -397,10 +397,40 @@ def _draws_folder(data_h, sampler, info) -> str | None:
     return tempfile.mkdtemp(prefix="loadbayes-draws-")
 
 
-def _chain_task(job, data_h, prior, sampler):
+def _chain_task(job, data_h, prior, sampler, stop=None):
     """One chain's round: ``job`` = (seed or state, NetCDF path or None)."""
     start, store = job
-    return hier.run_chain(start, data_h, prior, sampler, store=store)
+    return hier.run_chain(start, data_h, prior, sampler, store=store, stop=stop)
+
+
+def _map_chains(eng, jobs, data_h, prior, sampler):
+    """The chains' rounds: on the Dask workers, or in this process one thread per core.
+
+    In process the chains run in ``min(chains, num_threads())`` threads (the sweep's
+    compiled loops release the GIL; chain ``i`` runs in thread ``i % threads``). Each
+    chain draws only from its own generator and owns its arrays and its NetCDF file, so
+    its draws are the same bits in any thread (``tests/unit/test_fleet_threads.py``).
+    """
+    import threading
+
+    from loadbayes.core.parallel import num_threads, run_threads
+
+    threads = min(len(jobs), num_threads())
+    if eng.client is not None or threads <= 1:
+        return eng.map(_chain_task, jobs, data_h, prior, sampler)
+    out: list = [None] * len(jobs)
+    # set when a chain fails or this thread is interrupted: the others stop within a sweep
+    stop = threading.Event()
+
+    def lane(k: int):
+        def run() -> None:
+            for i in range(k, len(jobs), threads):
+                out[i] = _chain_task(jobs[i], data_h, prior, sampler, stop)
+
+        return run
+
+    run_threads([lane(k) for k in range(threads)], stop=stop)
+    return out
 
 
 def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
@@ -424,7 +454,7 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
 
     t0 = time.monotonic()
     seeds = hier.chain_seeds(sampler.seed, sampler.chains)
-    chains = eng.map(_chain_task, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
+    chains = _map_chains(eng, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
     first = time.monotonic() - t0
     rounds = 1
     while True:
@@ -445,7 +475,7 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
             )
             break
         jobs = list(zip([c.state for c in chains], stores(rounds + 1), strict=True))
-        chains = eng.map(_chain_task, jobs, data_h, prior, sampler)
+        chains = _map_chains(eng, jobs, data_h, prior, sampler)
         for old in stores(rounds):
             if old is not None and os.path.exists(old):
                 os.remove(old)  # the earlier round is burn-in now
