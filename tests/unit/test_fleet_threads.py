@@ -85,3 +85,14 @@ def test_a_set_stop_flag_ends_a_chain_within_a_sweep():
     stop.set()
     with pytest.raises(ChainsStopped):
         H.run_chain(H.chain_seeds(1, 1)[0], data, H.HierPrior(), SAMPLER, stop=stop)
+
+
+def test_summary_batches_in_threads_change_nothing(monkeypatch):
+    data, _ = H.prepare(_stats(), ZIPModel(with_q=True))
+    chains = [H.run_chain(s, data, H.HierPrior(), SAMPLER) for s in H.chain_seeds(2, 3)]
+    monkeypatch.setenv("LOADBAYES_NUM_THREADS", "1")
+    one = H.summarize_chains(data, chains, SAMPLER, batch=128)
+    monkeypatch.setenv("LOADBAYES_NUM_THREADS", "2")
+    many = H.summarize_chains(data, chains, SAMPLER, batch=7)
+    assert len(one) == 3 * 10 + 30 * 12  # classes: 6 shares, 4 spreads
+    pd.testing.assert_frame_equal(one, many, check_exact=True)

@@ -281,11 +281,14 @@ def summarize_bulk(x: np.ndarray, hdi_prob: float) -> dict[str, np.ndarray]:
     return out
 
 
-def summarize(draws: np.ndarray, *, hdi_prob: float = 0.95) -> dict[str, np.ndarray]:
+def summarize(
+    draws: np.ndarray, *, hdi_prob: float = 0.95, threads: int | None = None
+) -> dict[str, np.ndarray]:
     """``convergence.summarize(draws, hdi_prob=hdi_prob, tail=False)``, faster.
 
-    The series are split between :func:`~loadbayes.core.parallel.num_threads` threads
-    (the compiled passes release the GIL); the numbers do not depend on the threads.
+    The series are split between ``threads`` (default
+    :func:`~loadbayes.core.parallel.num_threads`) threads (the compiled passes release
+    the GIL); the numbers do not depend on the threads.
     """
     from loadbayes.core.convergence import summarize as general
     from loadbayes.core.parallel import num_threads, run_threads
@@ -294,7 +297,7 @@ def summarize(draws: np.ndarray, *, hdi_prob: float = 0.95) -> dict[str, np.ndar
     if not applies(x):
         return general(x, hdi_prob=hdi_prob, tail=False)
     m = x.shape[0]
-    groups = min(num_threads(), m, max(1, x.size // _MIN_DRAWS_PER_THREAD))
+    groups = min(threads or num_threads(), m, max(1, x.size // _MIN_DRAWS_PER_THREAD))
     bounds = np.linspace(0, m, groups + 1).astype(int)
     parts: list[dict[str, np.ndarray]] = [{} for _ in range(groups)]
 

@@ -17,7 +17,9 @@ from loadbayes.core import bulk_summary
 __all__ = ["summarize"]
 
 
-def summarize(draws: np.ndarray, *, hdi_prob: float = 0.95) -> dict[str, np.ndarray]:
+def summarize(
+    draws: np.ndarray, *, hdi_prob: float = 0.95, threads: int | None = None
+) -> dict[str, np.ndarray]:
     """Mean, sd, HDI, rank-normalised R-hat and bulk ESS of many series.
 
     Parameters
@@ -26,6 +28,9 @@ def summarize(draws: np.ndarray, *, hdi_prob: float = 0.95) -> dict[str, np.ndar
         ``m`` independent series (say, a parameter of ``m`` buses).
     hdi_prob : float
         Probability of the highest-density interval.
+    threads : int, optional
+        Threads to split the series between (default
+        :func:`~loadbayes.core.parallel.num_threads`); the numbers do not depend on it.
 
     Returns
     -------
@@ -34,4 +39,4 @@ def summarize(draws: np.ndarray, *, hdi_prob: float = 0.95) -> dict[str, np.ndar
         NaN with one chain, R-hat and ESS are NaN with fewer than 4 draws; a constant
         series has ESS equal to its number of split draws (as ArviZ).
     """
-    return bulk_summary.summarize(draws, hdi_prob=hdi_prob)
+    return bulk_summary.summarize(draws, hdi_prob=hdi_prob, threads=threads)

@@ -368,7 +368,7 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
             try:
                 chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
                                         max_seconds, info, folder)  # fmt: skip
-                frames = [hier.summarize_chains(data_h, chains, sampler, batch=256), failed]
+                frames = [hier.summarize_chains(data_h, chains, sampler), failed]
             finally:
                 if folder is not None:
                     import shutil
