@@ -64,21 +64,25 @@ def applies(x: np.ndarray) -> bool:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _bucket_argsort(v, order, keys, starts, fill):  # pragma: no cover - compiled
-    """``order`` such that ``v[order]`` is sorted (ties in any order); finite ``v``."""
+def _bucket_sort(v, order, srt, keys, starts, fill):  # pragma: no cover - compiled
+    """``srt`` = ``v`` sorted and ``order`` with ``v[order] == srt`` (ties in any order).
+
+    ``v`` finite. Values travel with their indices, so the sorts inside the buckets read
+    contiguous memory.
+    """
     n = v.size
     lo = v[0]
     hi = v[0]
     for i in range(n):
         lo = min(lo, v[i])
         hi = max(hi, v[i])
-    if not hi > lo:
+    scale = n / (hi - lo) if hi > lo else 0.0
+    if not (np.isfinite(scale) and scale > 0.0):
+        # constant, or a range too small or too large for the buckets
+        o = np.argsort(v)
         for i in range(n):
-            order[i] = i
-        return
-    scale = n / (hi - lo)
-    if not np.isfinite(scale) or scale <= 0.0:
-        order[:] = np.argsort(v)
+            order[i] = o[i]
+            srt[i] = v[o[i]]
         return
     for b in range(n + 1):
         starts[b] = 0
@@ -95,6 +99,7 @@ def _bucket_argsort(v, order, keys, starts, fill):  # pragma: no cover - compile
     for i in range(n):
         b = keys[i]
         order[fill[b]] = i
+        srt[fill[b]] = v[i]
         fill[b] += 1
     for b in range(n):
         a = starts[b]
@@ -105,17 +110,20 @@ def _bucket_argsort(v, order, keys, starts, fill):  # pragma: no cover - compile
         if k <= _SMALL_BUCKET:
             for i in range(a + 1, e):
                 o = order[i]
-                val = v[o]
+                val = srt[i]
                 j = i - 1
-                while j >= a and v[order[j]] > val:
+                while j >= a and srt[j] > val:
+                    srt[j + 1] = srt[j]
                     order[j + 1] = order[j]
                     j -= 1
+                srt[j + 1] = val
                 order[j + 1] = o
         else:
             seg = order[a:e].copy()
-            sub = np.argsort(v[seg])
+            sub = np.argsort(srt[a:e])
             for i in range(k):
                 order[a + i] = seg[sub[i]]
+                srt[a + i] = v[seg[sub[i]]]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -168,9 +176,7 @@ def _rank_pass(x, inc, table, half_table, z, zf, hdi_lo, hdi_hi):  # pragma: no 
             off = 0 if k < c else half
             for i in range(half):
                 v[k * half + i] = x[s, ch, off + i]
-        _bucket_argsort(v, order, keys, starts, fill)
-        for i in range(n):
-            srt[i] = v[order[i]]
+        _bucket_sort(v, order, srt, keys, starts, fill)
         # HDI: np.argmin of the widths (the first minimum)
         best = 0
         wbest = srt[inc] - srt[0]
