@@ -73,14 +73,41 @@ def _fleet(folder: Path, buses: int, rows: int) -> Path:
 
 
 def _measure(row: dict, func):
+    row["date"] = datetime.datetime.now(datetime.UTC).isoformat(timespec="minutes")
+    row["load_1min"] = os.getloadavg()[0]
     with PeakRSS() as peak:
         t, c = time.perf_counter(), cpu_seconds()
         out = func()
         row["wall_s"] = time.perf_counter() - t
         row["cpu_s"] = cpu_seconds() - c
     row["peak_mb"] = peak.mb
+    # What the stage would take on 2 idle cores if its threads (or workers) never waited
+    # for each other: a lower bound, not a measurement (labelled so in the notes).
+    row["cpu_s_over_2"] = row["cpu_s"] / 2
     print(row, flush=True)
     return out
+
+
+def _kept_rows(path: Path, results: list[dict]) -> list[dict]:
+    """Rows of an earlier run of ``path`` for stages and engines this run did not measure.
+
+    Each keeps its own date (the earlier file's, when the row has none) and says so in
+    its engine column, so a table never passes old numbers off as new.
+    """
+    if not path.exists():
+        return []
+    old = json.loads(path.read_text())
+    done = {(r["stage"], str(r["engine"]).split(" ")[0]) for r in results}
+    kept = []
+    for r in old.get("results", []):
+        if (r["stage"], str(r["engine"]).split(" ")[0]) in done:
+            continue
+        r = dict(r)
+        r.setdefault("date", str(old.get("date", "?"))[:16])
+        if "earlier" not in str(r["engine"]):
+            r["engine"] = f"{r['engine']} (earlier run)"
+        kept.append(r)
+    return kept
 
 
 def fleet_targets(results: list[dict]) -> list[dict]:
@@ -122,6 +149,11 @@ def main() -> None:
     ap.add_argument("--data", type=str, help="folder to keep (or reuse) the fleets in")
     ap.add_argument("--engines", default="inproc,1,2")
     ap.add_argument("--stages", default="stats,none,class")
+    ap.add_argument(
+        "--keep",
+        action="store_true",
+        help="keep the output file's rows of stages and engines not measured now (dated)",
+    )
     ap.add_argument(
         "--output", type=str, default=str(Path(__file__).parent / "results" / "fleet.json")
     )
@@ -166,6 +198,8 @@ def main() -> None:
                 tables.setdefault(pool, []).append(table)
                 results.append(row)
     identical = all(t.equals(ts[0]) for ts in tables.values() for t in ts[1:])
+    compared = sum(len(ts) > 1 for ts in tables.values())
+    kept = _kept_rows(Path(args.output), results) if args.keep else []
     targets = fleet_targets(results)
     out = {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
@@ -176,16 +210,31 @@ def main() -> None:
         },  # fmt: skip
         "quick": args.quick,
         "sampler": {"chains": sampler.chains, "draws": sampler.draws, "burn": sampler.burn},
-        "results": results,
+        "results": results + kept,
         "targets": targets,
         "notes": [
-            f"Identical tables across engines: {identical}. Load average at start "
+            (
+                f"Identical tables across engines: {identical}."
+                if compared
+                else "Tables across engines: not compared (one engine measured in this run)."
+            )
+            + " Load average at start "
             f"{', '.join(f'{x:.1f}' for x in load_start)}, at the end "
             f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}: on a shared machine wall time "
             "measures the neighbours too; CPU seconds are the fleet's own cost. Peak memory "
             "is this process's high-water mark plus its workers' (so it never goes down from "
             "one stage to the next within an engine). The fits run on buses of 100 rows: a "
-            "fit sees each bus's Gram matrix only, so its cost does not depend on the rows.",
+            "fit sees each bus's Gram matrix only, so its cost does not depend on the rows. "
+            "cpu_s_over_2 is CPU / 2: the wall time on 2 idle cores if the stage's threads "
+            "never waited for each other (a lower bound, not a measurement); date and "
+            "load_1min are each row's own (start of the stage)."
+            + (
+                " Rows marked (earlier run) are kept from an earlier run of this script "
+                "(--keep), with their own dates, for stages this run did not measure; the "
+                "targets are judged on this run's rows only."
+                if kept
+                else ""
+            ),
         ],
     }
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)

@@ -418,10 +418,12 @@ class StoredDraws:
         self.path, self.name, self.shape = path, name, shape
 
     def __getitem__(self, key):
-        import h5netcdf
+        # h5py, not h5netcdf: opening through h5netcdf (its dimensions) cost more than the
+        # read itself, at one open per variable, chain and batch of buses
+        import h5py
 
-        with h5netcdf.File(self.path, "r") as f:
-            return np.asarray(f.variables[self.name][key])
+        with h5py.File(self.path, "r") as f:
+            return np.asarray(f[self.name][key])
 
 
 class _Store:

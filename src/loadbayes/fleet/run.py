@@ -27,28 +27,36 @@ __all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "one_process_note", "
 #: fit of 4 x 2,500 iterations with its summary, one pooled bus's summary per 8,000 draws.
 _POOLED_SWEEP_S = 1e-6
 _PER_BUS_FIT_S = 11e-3
-_POOLED_SUMMARY_S = 9e-3
+_POOLED_SUMMARY_S = 5.5e-3
 
 
 def one_process_note(buses: int, pool: str, sampler: SamplerSettings, engine: Engine) -> str:
     """A sentence when the fits would take less than starting the cluster did ("" if not).
 
-    The fits' CPU time is estimated from the measured costs above; with ``N`` workers the
-    best saving is that time times ``1 - 1/N``, which must beat the start-up paid.
+    The fits' CPU time is estimated from the measured costs above. Per-bus fits run one
+    after another in process, on ``N`` workers ``N`` at a time; a pooled fit's chains run
+    in ``min(chains, cores)`` threads in process and ``min(chains, N)`` at a time on the
+    workers (its summary runs here either way). The saving must beat the start-up paid.
     """
+    from loadbayes.core.parallel import num_threads
+
     workers = engine.workers or 0
     if workers < 2 or not engine.startup_seconds:
         return ""
     draws = sampler.chains * sampler.draws
     if pool == "class":
-        work = buses * draws * _POOLED_SWEEP_S + buses * _POOLED_SUMMARY_S * draws / 8000
+        work = buses * draws * _POOLED_SWEEP_S
+        here, there = min(sampler.chains, num_threads()), min(workers, sampler.chains)
+        total = work + buses * _POOLED_SUMMARY_S * draws / 8000
     else:
         work = buses * _PER_BUS_FIT_S * draws / 10_000
-    saving = work * (1.0 - 1.0 / workers)
+        here, there = 1, workers
+        total = work
+    saving = max(work / here - work / there, 0.0)
     if saving >= engine.startup_seconds:
         return ""
     return (
-        f"this fleet is small: its fits take about {work:.1f} s of CPU, so {workers} workers "
+        f"this fleet is small: its fits take about {total:.1f} s of CPU, so {workers} workers "
         f"save at most {saving:.1f} s, less than the {engine.startup_seconds:.1f} s it took to "
         "start them; one process (no --workers) would be faster"
     )
