@@ -26,7 +26,7 @@ __all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "one_process_note", "
 #: CPU seconds, measured (docs/fleet.md, Speed): one pooled sweep of one bus, one per-bus
 #: fit of 4 x 2,500 iterations with its summary, one pooled bus's summary per 8,000 draws.
 _POOLED_SWEEP_S = 1e-6
-_PER_BUS_FIT_S = 11e-3
+_PER_BUS_FIT_S = 5.5e-3
 _POOLED_SUMMARY_S = 5.5e-3
 
 
