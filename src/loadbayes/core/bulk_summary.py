@@ -22,6 +22,9 @@ against the general path and against ArviZ); only the work is arranged different
   order by a compiled loop (it was a Python loop over every lag: half the old cost).
 
 Average ranks do not depend on how ties are ordered, so any sort gives the same scores.
+The compiled functions here call ``convergence``'s (``_geyer``, ``_pairwise_sum``) and
+numba's cache keys a kernel on its own file only: after editing ``convergence.py``,
+delete this module's cached ``*.nbi``/``*.nbc`` files.
 """
 
 from __future__ import annotations
