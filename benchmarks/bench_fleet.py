@@ -111,7 +111,8 @@ def _kept_rows(path: Path, results: list[dict]) -> list[dict]:
 
 
 def fleet_targets(results: list[dict]) -> list[dict]:
-    """The issue's targets from the result rows (the fastest engine of each stage).
+    """The issue's targets from the result rows (the largest size of each stage measured,
+    on its fastest engine).
 
     Peak memory is judged on the in-process pooled fit: with workers, the high-water
     marks of the client and of every worker are added up, which says little about
@@ -122,7 +123,10 @@ def fleet_targets(results: list[dict]) -> list[dict]:
         rows = [r for r in results if r["stage"] == stage]
         if not rows:
             continue
-        r = min(rows, key=lambda r: r["wall_s"])
+        # the largest size measured (the target's), then its fastest engine
+        size_of = (lambda r: r["rows"]) if stage == "statistics" else (lambda r: r["buses"])
+        largest = max(size_of(r) for r in rows)
+        r = min((r for r in rows if size_of(r) == largest), key=lambda r: r["wall_s"])
         size = f"{r['rows']:.0e} rows" if stage == "statistics" else f"{r['buses']:.0e} buses"
         targets.append({
             "target": f"{stage} of {size} < 60 s (2 cores)",
@@ -160,7 +164,22 @@ def main() -> None:
     ap.add_argument(
         "--output", type=str, default=str(Path(__file__).parent / "results" / "fleet.json")
     )
+    ap.add_argument(
+        "--rejudge",
+        action="store_true",
+        help="measure nothing: recompute the targets of the output file from its rows",
+    )
     args = ap.parse_args()
+    if args.rejudge:
+        path = Path(args.output)
+        out = json.loads(path.read_text())
+        rows = out["results"]
+        new = [r for r in rows if "earlier" not in str(r["engine"])]
+        now = {r["stage"] for r in new}
+        out["targets"] = fleet_targets(new + [r for r in rows if r["stage"] not in now])
+        path.write_text(json.dumps(out, indent=2))
+        print("rejudged", path)
+        return
     if args.quick:
         args.stats_buses, args.rows, args.fit_buses = 40, 500, 60
         args.engines = "inproc,2"
