@@ -345,12 +345,60 @@ def write_readme(results_dir: Path, readme: Path, status: dict | None = None) ->
     print(f"wrote {readme}")
 
 
+def splice_sections(readme: Path, fresh: str, names: list[str]) -> None:
+    """Replace in ``readme`` only the sections and target rows of the scripts ``names``.
+
+    ``fresh`` is a README rendered whole from the results; the rest of ``readme`` (other
+    scripts' sections, with any paragraph written by hand into them) is kept as it is.
+    """
+    scripts = [script for script, name in SCRIPTS if name in names]
+    old = readme.read_text().split("\n")
+    new = fresh.split("\n")
+
+    def section(lines: list[str], script: str) -> tuple[int, int]:
+        start = lines.index(f"## {script}")
+        end = start + 1
+        while end < len(lines) and not (lines[end].startswith("## ") or lines[end] == HAND_WRITTEN):
+            end += 1
+        return start, end
+
+    for script in scripts:
+        prefix = f"| {script} |"
+        at = [i for i, x in enumerate(old) if x.startswith(prefix)]
+        if at:  # the script's target rows, where its first one was
+            rest = [x for x in old if not x.startswith(prefix)]
+            old = rest[: at[0]] + [x for x in new if x.startswith(prefix)] + rest[at[0] :]
+        a, b = section(new, script)
+        try:
+            c, d = section(old, script)
+        except ValueError:
+            c = d = old.index(HAND_WRITTEN) if HAND_WRITTEN in old else len(old)
+        old = old[:c] + new[a:b] + old[d:]
+    readme.write_text("\n".join(old))
+    print(f"wrote {readme} (sections: {', '.join(scripts)})")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke sizes; README not touched")
     parser.add_argument("--only", nargs="*", default=None, help="zip, stream, powerflow, im")
     parser.add_argument("--readme-only", action="store_true")
+    parser.add_argument(
+        "--sections",
+        nargs="*",
+        default=None,
+        help="with --readme-only: re-render only these scripts' sections and target rows "
+        "(fleet, zip, ...), keeping the rest of the README as it is",
+    )
     args = parser.parse_args(argv)
+    if args.readme_only and args.sections:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            fresh = Path(tmp) / "README.md"
+            write_readme(RESULTS, fresh)
+            splice_sections(HERE / "README.md", fresh.read_text(), args.sections)
+        return 0
     status = None
     if not args.readme_only:
         status = run_scripts(args.quick, args.only)

@@ -49,12 +49,14 @@ buses are in :mod:`loadbayes.fleet.hier_kernels`.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from loadbayes.core.parallel import check_stop
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.hier_kernels import (
@@ -416,10 +418,12 @@ class StoredDraws:
         self.path, self.name, self.shape = path, name, shape
 
     def __getitem__(self, key):
-        import h5netcdf
+        # h5py, not h5netcdf: opening through h5netcdf (its dimensions) cost more than the
+        # read itself, at one open per variable, chain and batch of buses
+        import h5py
 
-        with h5netcdf.File(self.path, "r") as f:
-            return np.asarray(f.variables[self.name][key])
+        with h5py.File(self.path, "r") as f:
+            return np.asarray(f[self.name][key])
 
 
 class _Store:
@@ -478,6 +482,7 @@ def run_chain(
     *,
     sweeps: int | None = None,
     store: str | None = None,
+    stop: threading.Event | None = None,
 ) -> ChainDraws:
     """Run one Gibbs chain of the pooled model (see the module notes).
 
@@ -488,6 +493,8 @@ def run_chain(
     With ``store`` (a file path), the bus-level draws go to that NetCDF file in blocks of
     :data:`STORE_BLOCK` draws (the chain then holds one block in memory) and the result's
     ``theta``, ``tau``, ``p0`` are :class:`StoredDraws`; the draws are the same.
+    The chain checks ``stop`` (and a signal's stop request) every sweep and raises
+    :class:`~loadbayes.core.parallel.ChainsStopped` when it is set (chains run in threads).
     """
     nb = data.buses.size
     nch = data.xy.shape[1]
@@ -540,6 +547,7 @@ def run_chain(
     dirs = _directions(nch)
     acc_a, acc_b = np.zeros(ncls), np.zeros(ncls)
     for it in range(total):
+        check_stop(stop)
         _factor(data.cls, data.g3, data.xy, s, t, sig_inv, chol, u, ok)
         _mu_terms(data.cls, chol, u, ok, sig_inv, prec_data, lin_data)
         mu = _draw_mu(gen, s0_inv, s0_inv_m0, prec_data, lin_data)
@@ -614,60 +622,100 @@ def _data_distance(e: np.ndarray, ztz: np.ndarray, tau: np.ndarray) -> np.ndarra
     return np.sqrt(np.maximum((tau * q).sum(axis=1), 0.0))
 
 
+def _bus_series(data: HierData, chains: Sequence[ChainDraws], b0: int, b1: int):
+    """Every bus-level series of buses ``b0:b1``, each C-contiguous (bus, chain, draw).
+
+    The draws are stored (draw, bus, k) per chain; they are transposed here once, into
+    float64 (exact from float32), so the summary reads each series contiguously. The
+    derived series (a3, a6, dP/dV, dQ/dV) are the same elementwise operations as ever.
+    """
+    m, nchain = b1 - b0, len(chains)
+    kept = chains[0].mu.shape[0]
+    raw = {}
+    for name in ("theta", "tau", "p0"):
+        first = np.asarray(getattr(chains[0], name)[:, b0:b1])
+        out = np.empty((first.shape[2], m, nchain, kept))
+        for ci, c in enumerate(chains):
+            block = first if ci == 0 else np.asarray(getattr(c, name)[:, b0:b1])
+            out[:, :, ci, :] = block.transpose(2, 1, 0)
+        raw[name] = out
+    col = {p: i for i, p in enumerate(data.params)}
+    series = {p: raw["theta"][col[p]] for p in data.params}
+    for p3, (p1, p2) in _third(data.params).items():
+        series[p3] = 1.0 - series[p1] - series[p2]
+    for j, t in enumerate(data.taus):
+        series[t] = raw["tau"][j]
+    for j, (p0n, slope, (c1, c2)) in enumerate(
+        zip(data.nominals, ("dp_dv", "dq_dv"), (("a1", "a2"), ("a4", "a5")), strict=False)
+    ):
+        series[p0n] = raw["p0"][j]
+        # dP/dV at V0 of P = P0 (a1 x^2 + a2 x + a3), x = V / V0
+        series[slope] = raw["p0"][j] * (2.0 * series[c1] + series[c2]) / data.v0
+    return series
+
+
+def _bus_rows(data, chains, hp, b0, b1, threads):
+    """The bus rows of buses ``b0:b1`` (summaries, shrinkage, warnings)."""
+    d = len(data.params)
+    names = ["a1", "a2", "a3"] + (["a4", "a5", "a6"] if d == 4 else [])
+    series = _bus_series(data, chains, b0, b1)
+    order = names + list(data.taus) + list(data.nominals)
+    order += ["dp_dv", "dq_dv"][: len(data.nominals)]
+    summ = {p: summarize(series.pop(p), hdi_prob=hp, threads=threads) for p in order}
+    post_mean = np.stack([summ[p]["mean"] for p in data.params], axis=1)  # (m, d)
+    mu_mean = np.mean([c.mu.mean(axis=0) for c in chains], axis=0)  # (C, d)
+    own = data.theta_ls[b0:b1].reshape(b1 - b0, d)
+    tau_mean = np.stack([summ[t]["mean"] for t in data.taus], axis=1)  # (m, nch)
+    ztz = data.ztz[b0:b1]
+
+    to_own = _data_distance(post_mean - own, ztz, tau_mean)
+    to_cls = _data_distance(post_mean - mu_mean[data.cls[b0:b1]], ztz, tau_mean)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shrink = np.where(data.identified[b0:b1], to_own / (to_own + to_cls), 1.0)
+    return stat_rows(
+        "bus",
+        data.buses[b0:b1],
+        np.asarray(data.class_names, dtype=object)[data.cls[b0:b1]],
+        data.n[b0:b1].astype(np.int64),
+        summ,
+        warnings=data.warnings[b0:b1],
+        shrinkage={p: shrink for p in names},
+    )
+
+
 def summarize_chains(
     data: HierData,
     chains: Sequence[ChainDraws],
     sampler: SamplerSettings,
     *,
-    batch: int = 512,
+    batch: int = 128,
 ) -> pd.DataFrame:
-    """The fleet table of a pooled fit: bus rows with shrinkage, then class rows."""
-    nb = data.buses.size
-    d = len(data.params)
-    names = ["a1", "a2", "a3"] + (["a4", "a5", "a6"] if d == 4 else [])
-    col = {p: i for i, p in enumerate(data.params)}
-    frames = []
-    hp = sampler.hdi_prob
-    for b0 in range(0, nb, batch):
-        b1 = min(b0 + batch, nb)
-        th = np.stack([c.theta[:, b0:b1] for c in chains]).astype(float)  # (ch, dr, m, d)
-        ta = np.stack([c.tau[:, b0:b1] for c in chains]).astype(float)
-        series = {p: th[..., col[p]] for p in data.params}
-        for p3, (p1, p2) in _third(data.params).items():
-            series[p3] = 1.0 - series[p1] - series[p2]
-        for j, t in enumerate(data.taus):
-            series[t] = ta[..., j]
-        nom = np.stack([c.p0[:, b0:b1] for c in chains]).astype(float)  # (ch, dr, m, nch)
-        for j, (p0n, slope, (c1, c2)) in enumerate(
-            zip(data.nominals, ("dp_dv", "dq_dv"), (("a1", "a2"), ("a4", "a5")), strict=False)
-        ):
-            series[p0n] = nom[..., j]
-            # dP/dV at V0 of P = P0 (a1 x^2 + a2 x + a3), x = V / V0
-            series[slope] = nom[..., j] * (2.0 * series[c1] + series[c2]) / data.v0
-        order = names + list(data.taus) + list(data.nominals)
-        order += ["dp_dv", "dq_dv"][: len(data.nominals)]
-        summ = {p: summarize(np.moveaxis(series[p], 2, 0), hdi_prob=hp) for p in order}
-        post_mean = np.stack([summ[p]["mean"] for p in data.params], axis=1)  # (m, d)
-        mu_mean = np.mean([c.mu.mean(axis=0) for c in chains], axis=0)  # (C, d)
-        own = data.theta_ls[b0:b1].reshape(b1 - b0, d)
-        tau_mean = np.stack([summ[t]["mean"] for t in data.taus], axis=1)  # (m, nch)
-        ztz = data.ztz[b0:b1]
+    """The fleet table of a pooled fit: class rows, then bus rows with shrinkage.
 
-        to_own = _data_distance(post_mean - own, ztz, tau_mean)
-        to_cls = _data_distance(post_mean - mu_mean[data.cls[b0:b1]], ztz, tau_mean)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            shrink = np.where(data.identified[b0:b1], to_own / (to_own + to_cls), 1.0)
-        frames.append(
-            stat_rows(
-                "bus",
-                data.buses[b0:b1],
-                np.asarray(data.class_names, dtype=object)[data.cls[b0:b1]],
-                data.n[b0:b1].astype(np.int64),
-                summ,
-                warnings=data.warnings[b0:b1],
-                shrinkage={p: shrink for p in names},
-            )
-        )
+    Buses are summarised ``batch`` at a time (what the memory holds: 12 series of 8,000
+    float64 draws are 768 kB a bus), the batches shared between
+    :func:`~loadbayes.core.parallel.num_threads` threads (reading and transposing the
+    draws is half the work, so whole batches run in parallel, not only their compiled
+    summaries). Each bus's numbers depend on its own draws only: not on the batches or
+    the threads.
+    """
+    from loadbayes.core.parallel import num_threads, run_threads
+
+    nb = data.buses.size
+    hp = sampler.hdi_prob
+    bounds = [(b0, min(b0 + batch, nb)) for b0 in range(0, nb, batch)]
+    threads = max(1, min(num_threads(), len(bounds)))
+    frames: list = [None] * len(bounds)
+    inner = None if threads == 1 else 1
+
+    def lane(k: int):
+        def run() -> None:
+            for i in range(k, len(bounds), threads):
+                frames[i] = _bus_rows(data, chains, hp, *bounds[i], inner)
+
+        return run
+
+    run_threads([lane(k) for k in range(threads)])
     cls_stats = class_convergence(data, chains, hp)
     ncls = len(data.class_names)
     frames.insert(

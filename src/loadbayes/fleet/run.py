@@ -26,29 +26,37 @@ __all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "one_process_note", "
 #: CPU seconds, measured (docs/fleet.md, Speed): one pooled sweep of one bus, one per-bus
 #: fit of 4 x 2,500 iterations with its summary, one pooled bus's summary per 8,000 draws.
 _POOLED_SWEEP_S = 1e-6
-_PER_BUS_FIT_S = 11e-3
-_POOLED_SUMMARY_S = 9e-3
+_PER_BUS_FIT_S = 5.5e-3
+_POOLED_SUMMARY_S = 5.5e-3
 
 
 def one_process_note(buses: int, pool: str, sampler: SamplerSettings, engine: Engine) -> str:
     """A sentence when the fits would take less than starting the cluster did ("" if not).
 
-    The fits' CPU time is estimated from the measured costs above; with ``N`` workers the
-    best saving is that time times ``1 - 1/N``, which must beat the start-up paid.
+    The fits' CPU time is estimated from the measured costs above. Per-bus fits run one
+    after another in process, on ``N`` workers ``N`` at a time; a pooled fit's chains run
+    in ``min(chains, cores)`` threads in process and ``min(chains, N)`` at a time on the
+    workers (its summary runs here either way). The saving must beat the start-up paid.
     """
+    from loadbayes.core.parallel import num_threads
+
     workers = engine.workers or 0
     if workers < 2 or not engine.startup_seconds:
         return ""
     draws = sampler.chains * sampler.draws
     if pool == "class":
-        work = buses * draws * _POOLED_SWEEP_S + buses * _POOLED_SUMMARY_S * draws / 8000
+        work = buses * draws * _POOLED_SWEEP_S
+        here, there = min(sampler.chains, num_threads()), min(workers, sampler.chains)
+        total = work + buses * _POOLED_SUMMARY_S * draws / 8000
     else:
         work = buses * _PER_BUS_FIT_S * draws / 10_000
-    saving = work * (1.0 - 1.0 / workers)
+        here, there = 1, workers
+        total = work
+    saving = max(work / here - work / there, 0.0)
     if saving >= engine.startup_seconds:
         return ""
     return (
-        f"this fleet is small: its fits take about {work:.1f} s of CPU, so {workers} workers "
+        f"this fleet is small: its fits take about {total:.1f} s of CPU, so {workers} workers "
         f"save at most {saving:.1f} s, less than the {engine.startup_seconds:.1f} s it took to "
         "start them; one process (no --workers) would be faster"
     )
@@ -372,7 +380,7 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
             try:
                 chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
                                         max_seconds, info, folder)  # fmt: skip
-                frames = [hier.summarize_chains(data_h, chains, sampler, batch=256), failed]
+                frames = [hier.summarize_chains(data_h, chains, sampler), failed]
             finally:
                 if folder is not None:
                     import shutil
@@ -401,14 +409,44 @@ def _draws_folder(data_h, sampler, info) -> str | None:
     return tempfile.mkdtemp(prefix="loadbayes-draws-")
 
 
-def _chain_task(job, data_h, prior, sampler):
+def _chain_task(job, data_h, prior, sampler, stop=None):
     """One chain's round: ``job`` = (seed or state, NetCDF path or None[, sweeps, thin])."""
     start, store, *more = job
     if not more:
-        return hier.run_chain(start, data_h, prior, sampler, store=store)
+        return hier.run_chain(start, data_h, prior, sampler, store=store, stop=stop)
     sweeps, thin = more
     return hier.run_chain(start, data_h, prior, replace(sampler, thin=thin), sweeps=sweeps,
-                          store=store)  # fmt: skip
+                          store=store, stop=stop)  # fmt: skip
+
+
+def _map_chains(eng, jobs, data_h, prior, sampler):
+    """The chains' rounds: on the Dask workers, or in this process one thread per core.
+
+    In process the chains run in ``min(chains, num_threads())`` threads (the sweep's
+    compiled loops release the GIL; chain ``i`` runs in thread ``i % threads``). Each
+    chain draws only from its own generator and owns its arrays and its NetCDF file, so
+    its draws are the same bits in any thread (``tests/unit/test_fleet_threads.py``).
+    """
+    import threading
+
+    from loadbayes.core.parallel import num_threads, run_threads
+
+    threads = min(len(jobs), num_threads())
+    if eng.client is not None or threads <= 1:
+        return eng.map(_chain_task, jobs, data_h, prior, sampler)
+    out: list = [None] * len(jobs)
+    # set when a chain fails or this thread is interrupted: the others stop within a sweep
+    stop = threading.Event()
+
+    def lane(k: int):
+        def run() -> None:
+            for i in range(k, len(jobs), threads):
+                out[i] = _chain_task(jobs[i], data_h, prior, sampler, stop)
+
+        return run
+
+    run_threads([lane(k) for k in range(threads)], stop=stop)
+    return out
 
 
 def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
@@ -436,7 +474,7 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
 
     t0 = time.monotonic()
     seeds = hier.chain_seeds(sampler.seed, sampler.chains)
-    chains = eng.map(_chain_task, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
+    chains = _map_chains(eng, list(zip(seeds, stores(1), strict=True)), data_h, prior, sampler)
     rounds, thin = 1, sampler.thin
     while True:
         summ = hier.class_convergence(data_h, chains, sampler.hdi_prob)
@@ -459,7 +497,7 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
         keep = max(1, sampler.draws - sampler.burn)
         thin = max(1, -(-done // keep))
         jobs = [(c.state, st, done, thin) for c, st in zip(chains, stores(rounds + 1), strict=True)]
-        chains = eng.map(_chain_task, jobs, data_h, prior, sampler)
+        chains = _map_chains(eng, jobs, data_h, prior, sampler)
         for old in stores(rounds):
             if old is not None and os.path.exists(old):
                 os.remove(old)  # the earlier round is burn-in now

@@ -1,0 +1,320 @@
+"""The bulk summary of many series in one compiled pass: mean, sd, HDI, R-hat, bulk ESS.
+
+What a fleet asks for (twelve series per bus, tens of thousands of buses):
+:func:`summarize` gives ``convergence.summarize(..., tail=False)``'s numbers, through a
+compiled pass (:func:`summarize_bulk`) for finite draws of 2 or more chains and an even
+number (4 or more) of draws per chain, through the general path otherwise. Same
+formulas, same numbers to the last bit (``tests/unit/test_bulk_summary.py`` checks it
+against the general path and against ArviZ); only the work is arranged differently:
+
+- each series is sorted once by a bucket sort (buckets equally wide between its minimum
+  and maximum, one per draw; insertion sort inside a bucket, numba's quicksort for a
+  bucket of more than 32). The bucket of ``x`` is ``floor((x - lo) * scale)``, which
+  never decreases as ``x`` grows (IEEE subtraction and multiplication are monotone), so
+  the result is a sort. A smooth posterior puts one or two draws in a bucket, so this
+  costs a few passes over the draws instead of numpy's argsort (measured on this
+  2-core machine: 350 us for 8,000 draws, the bucket sort about a third);
+- the ranks' normal scores, the HDI, the median, the folded draws' order (a merge of the
+  two sides of the median) and their scores are computed in the same loop, without
+  numpy's temporaries (``take_along_axis``, ``concatenate``: a third of the old cost);
+- the ESS that need more than :data:`~loadbayes.core.convergence.DIRECT_LAGS` lags get
+  their autocovariances from one batched FFT, averaged over chains in numpy's summation
+  order by a compiled loop (it was a Python loop over every lag: half the old cost).
+
+Average ranks do not depend on how ties are ordered, so any sort gives the same scores.
+The compiled functions here call ``convergence``'s (``_geyer``, ``_pairwise_sum``) and
+numba's cache keys a kernel on its own file only: after editing ``convergence.py``,
+delete this module's cached ``*.nbi``/``*.nbc`` files.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from loadbayes.core.convergence import (
+    _MIN_DRAWS_PER_THREAD,
+    DIRECT_LAGS,
+    _ess_direct,
+    _geyer,
+    _pairwise_sum,
+    _rhat,
+    _scores,
+)
+
+__all__ = ["applies", "summarize", "summarize_bulk"]
+
+#: Series per compiled pass (their scores take 2 x 8 bytes x draws each).
+_BLOCK = 256
+
+#: A bucket of more than this many draws is sorted by quicksort, not insertion.
+_SMALL_BUCKET = 32
+
+
+def applies(x: np.ndarray) -> bool:
+    """Whether :func:`summarize_bulk` gives the general path's numbers for ``x``.
+
+    ``x`` (series, chain, draw), float64: 2 or more chains, an even number of draws (4 or
+    more) and no NaN or infinity (those take the general path, which handles them).
+    """
+    return (
+        x.ndim == 3
+        and x.shape[1] >= 2
+        and x.shape[2] >= 4
+        and x.shape[2] % 2 == 0
+        and bool(np.isfinite(x).all())
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bucket_sort(v, order, srt, keys, starts, fill):  # pragma: no cover - compiled
+    """``srt`` = ``v`` sorted and ``order`` with ``v[order] == srt`` (ties in any order).
+
+    ``v`` finite. Values travel with their indices, so the sorts inside the buckets read
+    contiguous memory.
+    """
+    n = v.size
+    lo = v[0]
+    hi = v[0]
+    for i in range(n):
+        lo = min(lo, v[i])
+        hi = max(hi, v[i])
+    scale = n / (hi - lo) if hi > lo else 0.0
+    if not (np.isfinite(scale) and scale > 0.0):
+        # constant, or a range too small or too large for the buckets
+        o = np.argsort(v)
+        for i in range(n):
+            order[i] = o[i]
+            srt[i] = v[o[i]]
+        return
+    for b in range(n + 1):
+        starts[b] = 0
+    for i in range(n):
+        b = int((v[i] - lo) * scale)
+        if b >= n:
+            b = n - 1
+        keys[i] = b
+        starts[b + 1] += 1
+    for b in range(n):
+        starts[b + 1] += starts[b]
+    for b in range(n):
+        fill[b] = starts[b]
+    for i in range(n):
+        b = keys[i]
+        order[fill[b]] = i
+        srt[fill[b]] = v[i]
+        fill[b] += 1
+    for b in range(n):
+        a = starts[b]
+        e = starts[b + 1]
+        k = e - a
+        if k < 2:
+            continue
+        if k <= _SMALL_BUCKET:
+            for i in range(a + 1, e):
+                o = order[i]
+                val = srt[i]
+                j = i - 1
+                while j >= a and srt[j] > val:
+                    srt[j + 1] = srt[j]
+                    order[j + 1] = order[j]
+                    j -= 1
+                srt[j + 1] = val
+                order[j + 1] = o
+        else:
+            seg = order[a:e].copy()
+            sub = np.argsort(srt[a:e])
+            for i in range(k):
+                order[a + i] = seg[sub[i]]
+                srt[a + i] = v[seg[sub[i]]]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _scores_sorted(srt, order, table, half_table, out):  # pragma: no cover - compiled
+    """Normal scores of average ranks: ``srt`` sorted, ``out[order[k]]`` gets rank ``k``'s.
+
+    A tie group at sorted positions ``i..j`` gets rank ``(i + j) / 2 + 1``: an integer
+    rank's score is ``table``, a half-integer one's ``half_table``.
+    """
+    n = srt.size
+    i = 0
+    while i < n:
+        j = i
+        vi = srt[i]
+        while j + 1 < n and srt[j + 1] == vi:
+            j += 1
+        if (i + j) % 2 == 0:
+            z = table[(i + j) // 2]
+        else:
+            z = half_table[(i + j - 1) // 2]
+        for k in range(i, j + 1):
+            out[order[k]] = z
+        i = j + 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rank_pass(x, inc, table, half_table, z, zf, hdi_lo, hdi_hi):  # pragma: no cover
+    """Per series of ``x`` (m, c, d), ``d`` even: the split chains' rank scores and HDI.
+
+    ``z`` and ``zf`` (m, c d) receive the normal scores of the ranks of the draws and of
+    the folded draws ``|x - median|``, in ``az.summary``'s split order (the first halves
+    of every chain, then the second halves: reshape to (m, 2c, d / 2)); ``hdi_lo``,
+    ``hdi_hi`` the HDI of ``inc + 1`` draws (``arviz.hdi``: the first narrowest).
+    """
+    m, c, d = x.shape
+    half = d // 2
+    n = c * d
+    v = np.empty(n)
+    order = np.empty(n, np.int64)
+    keys = np.empty(n, np.int64)
+    starts = np.empty(n + 1, np.int64)
+    fill = np.empty(n, np.int64)
+    srt = np.empty(n)
+    fsrt = np.empty(n)
+    forder = np.empty(n, np.int64)
+    for s in range(m):
+        # the split chains, flattened as numpy's concatenate + reshape
+        for k in range(2 * c):
+            ch = k % c
+            off = 0 if k < c else half
+            for i in range(half):
+                v[k * half + i] = x[s, ch, off + i]
+        _bucket_sort(v, order, srt, keys, starts, fill)
+        # HDI: np.argmin of the widths (the first minimum)
+        best = 0
+        wbest = srt[inc] - srt[0]
+        for i in range(1, n - inc):
+            w = srt[i + inc] - srt[i]
+            if w < wbest:
+                wbest = w
+                best = i
+        hdi_lo[s] = srt[best]
+        hdi_hi[s] = srt[best + inc]
+        _scores_sorted(srt, order, table, half_table, z[s])
+        # The median of all draws (n even); |x - med| in increasing order is the merge of
+        # the two sides of the median (IEEE subtraction is monotone and med - x equals
+        # -(x - med) exactly, so these are numpy's abs(x - med) values).
+        k2 = n // 2
+        med = (srt[k2 - 1] + srt[k2]) / 2
+        hi = np.searchsorted(srt, med)
+        lo = hi - 1
+        for k in range(n):
+            if lo < 0 or (hi < n and srt[hi] - med <= med - srt[lo]):
+                fsrt[k] = srt[hi] - med
+                forder[k] = order[hi]
+                hi += 1
+            else:
+                fsrt[k] = med - srt[lo]
+                forder[k] = order[lo]
+                lo -= 1
+        _scores_sorted(fsrt, forder, table, half_table, zf[s])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _ess_from_acov(y, acov, mean_var, var_plus, out):  # pragma: no cover - compiled
+    """ESS of series ``y`` (k, chains, draws) from every lag's autocovariance per chain.
+
+    ``acov`` (k, chains, lags): the mean over chains is summed as ``np.mean`` sums a
+    column (numpy's pairwise order), then :func:`_geyer` runs on it.
+    """
+    k, c, d = y.shape
+    col = np.empty(c)
+    mean_acov = np.empty(d)
+    xc = np.empty((c, d))
+    for s in range(k):
+        for t in range(d):
+            for ch in range(c):
+                col[ch] = acov[s, ch, t]
+            mean_acov[t] = _pairwise_sum(col, 0, c) / c
+        out[s] = _geyer(xc, mean_acov, mean_var[s], var_plus[s], d)
+
+
+def _ess(y: np.ndarray) -> np.ndarray:
+    """ESS of each series of ``y`` (m, chains, draws), as ArviZ's ``_ess``; FFT batched."""
+    from scipy.fft import next_fast_len
+
+    m, c, d = y.shape
+    mean_var = np.zeros(m)
+    var_plus = np.zeros(m)
+    means = y.mean(axis=2)
+    out = _ess_direct(y, means, DIRECT_LAGS, mean_var, var_plus)
+    idx = np.flatnonzero(out == -1.0)
+    if idx.size:
+        n_fft = next_fast_len(2 * d)
+        for b0 in range(0, idx.size, 64):
+            sel = idx[b0 : b0 + 64]
+            # as ArviZ's _autocov, series by series (the same numbers in a batch)
+            xc = y[sel] - means[sel][:, :, None]
+            f = np.fft.rfft(xc, n=n_fft, axis=2)
+            f *= np.conjugate(f)
+            acov = np.ascontiguousarray(np.fft.irfft(f, n=n_fft, axis=2)[:, :, :d] / d)
+            res = np.empty(sel.size)
+            _ess_from_acov(np.ascontiguousarray(y[sel]), acov, mean_var[sel], var_plus[sel], res)
+            out[sel] = res
+    return out
+
+
+def summarize_bulk(x: np.ndarray, hdi_prob: float) -> dict[str, np.ndarray]:
+    """``mean, sd, hdi_low, hdi_high, ess_bulk, r_hat`` of each series of ``x``.
+
+    ``x`` (m, chain, draw) float64, C-contiguous, with :func:`applies` true. The numbers
+    are those of ``convergence.summarize(x, tail=False)``.
+    """
+    m, c, d = x.shape
+    half = d // 2
+    n = c * d
+    inc = int(np.floor(hdi_prob * n))
+    table, half_table = _scores(n, False), _scores(n, True)
+    out = {
+        "mean": x.mean(axis=(1, 2)),
+        "sd": x.std(axis=(1, 2), ddof=1),
+        "hdi_low": np.empty(m),
+        "hdi_high": np.empty(m),
+        "ess_bulk": np.empty(m),
+        "r_hat": np.empty(m),
+    }
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for b0 in range(0, m, _BLOCK):
+            b1 = min(b0 + _BLOCK, m)
+            z2 = np.empty((b1 - b0, n))
+            zf2 = np.empty_like(z2)
+            _rank_pass(x[b0:b1], inc, table, half_table, z2, zf2,
+                       out["hdi_low"][b0:b1], out["hdi_high"][b0:b1])  # fmt: skip
+            z = z2.reshape(b1 - b0, 2 * c, half)
+            zf = zf2.reshape(b1 - b0, 2 * c, half)
+            out["ess_bulk"][b0:b1] = _ess(z)
+            bulk = _rhat(z, z.mean(axis=2))
+            fold = _rhat(zf, zf.mean(axis=2))
+            # Python's max(bulk, fold), as ArviZ (NaN first wins, NaN second loses)
+            out["r_hat"][b0:b1] = np.where(fold > bulk, fold, bulk)
+    return out
+
+
+def summarize(
+    draws: np.ndarray, *, hdi_prob: float = 0.95, threads: int | None = None
+) -> dict[str, np.ndarray]:
+    """``convergence.summarize(draws, hdi_prob=hdi_prob, tail=False)``, faster.
+
+    The series are split between ``threads`` (default
+    :func:`~loadbayes.core.parallel.num_threads`) threads (the compiled passes release
+    the GIL); the numbers do not depend on the threads.
+    """
+    from loadbayes.core.convergence import summarize as general
+    from loadbayes.core.parallel import num_threads, run_threads
+
+    x = np.ascontiguousarray(draws, dtype=float)
+    if not applies(x):
+        return general(x, hdi_prob=hdi_prob, tail=False)
+    m = x.shape[0]
+    groups = min(threads or num_threads(), m, max(1, x.size // _MIN_DRAWS_PER_THREAD))
+    bounds = np.linspace(0, m, groups + 1).astype(int)
+    parts: list[dict[str, np.ndarray]] = [{} for _ in range(groups)]
+
+    def task(i: int):
+        def run() -> None:
+            parts[i] = summarize_bulk(x[bounds[i] : bounds[i + 1]], hdi_prob)
+
+        return run
+
+    run_threads([task(i) for i in range(groups)])
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
