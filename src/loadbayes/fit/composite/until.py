@@ -37,6 +37,9 @@ _MIN_GROWTH = 0.25
 _MAX_GROWTH = 4.0
 #: Aim this far above the ESS target (the rate estimated from a run is noisy).
 _MARGIN = 1.15
+#: Plan an extension to use at most this share of the time left: the time per iteration
+#: is the previous round's, and a busier machine in the next one overran the budget.
+_TIME_SHARE = 0.85
 
 
 @dataclass
@@ -113,7 +116,7 @@ class UntilConverged:
         growth = min(max(growth, _MIN_GROWTH), _MAX_GROWTH)
         more = math.ceil(kept * growth) * self.thin
         left = self.max_seconds - elapsed
-        affordable = int(left / per_iteration) if per_iteration > 0 else more
+        affordable = int(_TIME_SHARE * left / per_iteration) if per_iteration > 0 else more
         if affordable < max(1, math.ceil(_MIN_GROWTH * kept * self.thin)):
             self.stopped_by_budget = True
             return 0
