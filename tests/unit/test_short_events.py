@@ -76,3 +76,47 @@ def test_the_identifiability_text_of_a_short_window():
     # A long event says nothing of the kind.
     assert short_window(MIN_SPAN_S, theta) is None
     assert identifiability(theta, np.full((2, 50), 0.4), prior, 1)["short_window"] is None
+
+
+def test_times_in_milliseconds_are_refused_in_words():
+    # 60 samples/s written in ms: read as seconds, 16.7 s apart and 2,000 s long.
+    cols = _cols(2.0, fault_s=0.5, rate=60.0)
+    cols["t"] = cols["t"] * 1000
+    with pytest.raises(DataError, match=r"samples 16\.67 s apart .*milliseconds") as e:
+        _read(cols)
+    assert e.value.column == "t" and e.value.path == "ev.csv"
+    # 1 kHz in ms: 1 "s" apart and 2,000 "s" long.
+    cols = _cols(2.0, fault_s=0.5, rate=1000.0)
+    cols["t"] = cols["t"] * 1000
+    with pytest.raises(DataError, match="milliseconds"):
+        _read(cols)
+    # A long record at a recorder's rate: cut it into events first.
+    cols = _cols(700.0, fault_s=300.0, rate=4.0)
+    with pytest.raises(DataError, match=r"lasts 700 s.*loadbayes events") as e:
+        _read(cols)
+    assert e.value.row == cols["t"].size
+
+
+def test_the_file_is_named_once():
+    cols = _cols(0.4)
+    few = {k: v[:5] for k, v in cols.items()}
+    with pytest.raises(DataError) as e:
+        _read(few)
+    assert str(e.value) == "ev.csv: column 't', row 5: only 5 samples; an event needs at least 20"
+    flat = dict(cols, v=np.ones_like(cols["v"]))
+    with pytest.raises(DataError) as e:
+        _read(flat)
+    assert str(e.value).count("ev.csv") == 1
+
+
+def test_an_event_whose_power_is_zero_is_refused_even_with_accept_units():
+    from loadbayes.fit.composite.checks import check_units
+
+    cols = _cols(2.0, fault_s=0.5)
+    (ev,) = _read(dict(cols, p=np.zeros_like(cols["p"])))
+    for accept in (False, True):
+        with pytest.raises(DataError, match="P is 0 in all 401 rows") as e:
+            check_units([ev], accept_units=accept, columns={"p": "P_MW"})
+        assert e.value.column == "P_MW" and e.value.path == "ev.csv"
+    (ev,) = _read(cols)
+    assert check_units([ev]) == []

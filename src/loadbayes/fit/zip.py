@@ -538,7 +538,7 @@ def fit_zip_file(
                 # the first chunk with rows (one whose rows were all dropped says nothing)
                 state["first_warnings"] = data_checks(
                     cols, path=path, names=names, accept_units=accept_units,
-                    v_base=v_base, s_base=s_base, wording=wording, **nominal,
+                    v_base=v_base, s_base=s_base, wording=wording, whole=False, **nominal,
                 )  # fmt: skip
             if sum(a.size for a in keep_obs["v"]) <= MAX_OBSERVED:
                 for k, a in cols.items():
@@ -744,17 +744,30 @@ def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings
 
 
 def data_checks(
-    cols, *, path, names, accept_units, wording="cli", v_noise=None, eiv=True, **nominal
+    cols,
+    *,
+    path,
+    names,
+    accept_units,
+    wording="cli",
+    v_noise=None,
+    eiv=True,
+    whole=True,
+    **nominal,
 ) -> list[str]:
     """The unit check (refuse, or warn with ``accept_units``) and the V-noise check.
 
     ``wording`` names the fixes as the CLI's options or as Python's keywords; with
     ``v_noise`` (the noise on V modelled) the V-noise check has nothing to say;
     ``eiv=False``: the fit has no such option (the exponential one), not offered.
+    ``whole=False``: ``cols`` are the first chunk of a longer file, so a power that is 0
+    there may not be 0 throughout (the model's Gram check refuses it then).
     """
     from loadbayes.diagnostics import voltage_noise_warning
-    from loadbayes.measurements.units import check_power_units, refuse
+    from loadbayes.measurements.units import check_power_units, refuse, require_power
 
+    if whole:
+        require_power(cols.get("p"), cols.get("q"), path=str(path), names=names, wording=wording)
     problems = check_power_units(
         cols["v"], cols.get("p"), cols.get("q"), wording=wording, **nominal
     )

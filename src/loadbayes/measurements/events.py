@@ -49,6 +49,14 @@ MIN_SAMPLES = 20
 MIN_DV = 0.01
 #: A sampling interval larger than this multiple of the median interval is a gap.
 MAX_GAP = 2.5
+#: Longest median sampling interval (s): at 2 samples/s the motor's transients (T' of
+#: 0.05-1 s, the first cycles after a step) fall between samples. Times in milliseconds
+#: read as seconds (16.7 for 60 samples/s) land far above it.
+MAX_STEP_S = 0.5
+#: Longest event (s): a disturbance and the load's recovery last seconds, not hours; a
+#: longer span is a unit error (2 s at 1 kHz in ms spans 2,000) or a whole day's
+#: record, whose motor response the fit would integrate at great cost for nothing.
+MAX_EVENT_S = 600.0
 #: The record's own frequency (median of f, or from the angle's drift) this far off the
 #: nominal is another system's frequency (50 Hz data at --f-hz 60 is 17% off), not a
 #: disturbance: refused, since the motor's time base would be wrong.
@@ -102,16 +110,25 @@ def events_from_arrays(
     return out
 
 
+def _in(label: str, path: str) -> str:
+    """Say ' in f.csv[event=2]' for one event of several, '' for a file's only one.
+
+    The message already starts with the file.
+    """
+    return "" if label == path else f" in {label}"
+
+
 def _fmt(x: float) -> str:
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
 def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
     t, v = cols["t"], cols["v"]
-    where = f"{path}" if label == path else label
+    where = _in(label, path)
     if t.size < MIN_SAMPLES:
         raise DataError(
-            f"{where}: only {t.size} samples; an event needs at least {MIN_SAMPLES}",
+            f"only {t.size} sample{'s' * (t.size != 1)}{_in(label, path)}; an event needs "
+            f"at least {MIN_SAMPLES}",
             path,
             names["t"],
             int(rows[-1]) if rows.size else None,
@@ -139,9 +156,25 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
             int(rows[k]),
         )
     span = float(t[-1] - t[0])
+    if step > MAX_STEP_S or span > MAX_EVENT_S:
+        what = (
+            f"samples {step:.4g} s apart (median)"
+            if step > MAX_STEP_S
+            else f"an event that lasts {span:g} s"
+        )
+        raise DataError(
+            f"{what}{_in(label, path)}: a disturbance record samples faster than "
+            f"{1 / MAX_STEP_S:g}/s and lasts under {MAX_EVENT_S:g} s; is the time in "
+            "milliseconds (give seconds), or a long record (cut its sags with "
+            "loadbayes events)?",
+            path,
+            names["t"],
+            int(rows[-1]) if span > MAX_EVENT_S else None,
+        )
     if span < MIN_SHORT_SPAN_S:
         raise DataError(
-            f"{where}: the event lasts {span:g} s, shorter than the motor's time constants "
+            f"the event{_in(label, path)} lasts {span:g} s, shorter than the motor's time "
+            "constants "
             f"(at least {MIN_SHORT_SPAN_S:g} s that start in steady state, or "
             f"{MIN_SPAN_S:g} s, is needed)",
             path,
@@ -166,7 +199,7 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
     dv = float(np.max(v) - np.min(v)) / v0
     if dv < MIN_DV:
         raise DataError(
-            f"{where}: the voltage never changes by more than {100 * MIN_DV:g}% "
+            f"the voltage{_in(label, path)} never changes by more than {100 * MIN_DV:g}% "
             f"(range {100 * dv:.3g}%): there is no disturbance to identify the motor from",
             path,
             names["v"],
@@ -201,7 +234,7 @@ def _check_steady_start(t, v, rows, *, where, path, col, f_hz) -> None:
     k = int(moved[0]) if moved.size else t.size
     if k < STEADY_SAMPLES or t[k - 1] - t[0] < 1.0 / f_hz:
         raise DataError(
-            f"{where}: the event lasts {t[-1] - t[0]:g} s, under {MIN_SPAN_S:g} s, and its "
+            f"the event{where} lasts {t[-1] - t[0]:g} s, under {MIN_SPAN_S:g} s, and its "
             f"voltage moves by more than {100 * STEADY_DV:g}% at t = {t[k] - t[0]:g} s, "
             f"before {STEADY_SAMPLES} samples and one cycle of steady state: a short event "
             "must start in steady state (cut it earlier, before the disturbance)",

@@ -29,6 +29,7 @@ __all__ = [
     "check_power_units",
     "level_at_nominal",
     "refuse",
+    "require_power",
 ]
 
 #: ``median(V / V0)`` outside this range is not per unit of V0.
@@ -302,6 +303,45 @@ def check_motor_units(
     return out
 
 
+def require_power(
+    p: np.ndarray | None,
+    q: np.ndarray | None,
+    *,
+    path: str | None = None,
+    names: Mapping[str, str | None] | None = None,
+    wording: Wording = "cli",
+) -> None:
+    """Refuse a power column that is 0 in every row (``--accept-units`` does not help).
+
+    A load model's shares are fractions of the power at V0: with P (or Q) 0 throughout
+    they are 0 / 0, and the fit, which "fits exactly", reports any numbers at all. An
+    open breaker, a current channel that was not recorded (a PMU's zero current), or
+    the wrong column gives such data.
+
+    Raises
+    ------
+    DataError
+        Naming the file and the column.
+    """
+    for ch, y in (("p", p), ("q", q)):
+        if y is None:
+            continue
+        y = np.asarray(y, dtype=float)
+        fin = y[np.isfinite(y)]
+        if fin.size and not np.any(fin):
+            fix = (
+                f"name the column that holds it with {option('p-col', wording=wording)}"
+                if ch == "p"
+                else "fit P alone with " + ("--q-col none" if wording == "cli" else "q_col=None")
+            )
+            raise DataError(
+                f"{ch.upper()} is 0 in all {fin.size} rows: there is no load to fit (an open "
+                f"breaker, a current that was not recorded, or the wrong column?); {fix}",
+                path=path,
+                column=(names or {}).get(ch) or ch,
+            )
+
+
 def refuse(
     problems: list[UnitProblem],
     *,
@@ -368,6 +408,12 @@ def check_gram_units(gram, *, v0: float, nominal: Mapping[str, object]) -> list[
     for ch, nom in nominal.items():
         col = ch if nom == "auto" else f"r{ch}"
         if col not in names:
+            continue
+        if ch in names and float(gram.matrix[names.index(ch), names.index(ch)]) == 0.0:
+            out.append(
+                f"{ch.upper()} is 0 in every row: no load to fit (an open breaker, or the "
+                "wrong column?)"
+            )
             continue
         coef = np.linalg.lstsq(a, gram.matrix[idx, names.index(col)], rcond=None)[0]
         level = float(coef[0])

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.io.encoding import SNIFF_BYTES, detect_encoding
 from loadbayes.io.errors import DataError
 
 __all__ = ["PmuMap", "PmuRecord", "load_map", "read_pmu"]
@@ -337,6 +338,27 @@ def _separator(path: Path) -> tuple[str, str]:
     return ",", "."
 
 
+def _bad_row(head: bytes) -> int | None:
+    """The data row (1-based, after the header) of the first byte that is not UTF-8."""
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = head[: exc.start].count(b"\n")
+        return line if line >= 1 else None
+    return None
+
+
+def _not_utf8(head: bytes) -> str:
+    if _bad_row(head) is None and b"\n" in head:
+        try:
+            head.split(b"\n", 1)[1].decode("utf-8")
+        except UnicodeDecodeError:
+            pass
+        else:
+            return "header is not UTF-8 text (saved in another encoding?): save it as UTF-8"
+    return "not UTF-8 text (saved in another encoding?): save it as UTF-8"
+
+
 def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     """Read a PMU phasor CSV into per-unit ``t_s, v, angle_rad, p, q[, f, rocof]``.
 
@@ -365,8 +387,21 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     if not p.is_file():
         raise DataError("file not found", name)
     sep, decimal = _separator(p)
+    with open(p, "rb") as fh:
+        head = fh.read(SNIFF_BYTES)
+    # A historian export in the Chinese code page (column names in GB18030) is read as
+    # such; other bytes that are not UTF-8 are refused below.
+    found = detect_encoding(head, complete=len(head) < SNIFF_BYTES)
+    encoding = "gb18030" if found == "gb18030" else "utf-8-sig"
     try:
-        df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True, sep=sep)
+        df = pd.read_csv(
+            p,
+            dtype=str,
+            keep_default_na=False,
+            skipinitialspace=True,
+            sep=sep,
+            encoding=encoding,
+        )
     except pd.errors.ParserError as exc:
         import re
 
@@ -378,7 +413,9 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
                 f"{saw} fields, expected {want} (as in the header)", name, row=line - 1
             ) from None
         raise DataError(f"cannot be read as CSV: {msg}", name) from None
-    except (UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
+    except UnicodeDecodeError:
+        raise DataError(_not_utf8(head), name, row=_bad_row(head)) from None
+    except pd.errors.EmptyDataError as exc:
         raise DataError(f"cannot be read as CSV: {str(exc).splitlines()[0]}", name) from None
     df.attrs["decimal"] = decimal
     m = mapping

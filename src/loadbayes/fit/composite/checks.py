@@ -115,11 +115,17 @@ def check_units(
         The first problem, naming the event's file (and event id) and the column.
     """
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import UnitProblem, accept, check_power_units
+    from loadbayes.measurements.units import (
+        UnitProblem,
+        accept,
+        check_power_units,
+        require_power,
+    )
 
     names = {"v": "v", "p": "p", "q": "q", **(columns or {})}
     out: list[str] = []
     for e in events:
+        require_power(e.p, e.q, path=e.name or None, names=names, wording=wording)  # type: ignore[arg-type]
         problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto", wording=wording)
         med_p = float(np.median(e.p))
         if not problems and med_p < 0:
