@@ -120,3 +120,38 @@ def test_an_event_whose_power_is_zero_is_refused_even_with_accept_units():
         assert e.value.column == "P_MW" and e.value.path == "ev.csv"
     (ev,) = _read(cols)
     assert check_units([ev]) == []
+
+
+def _event_frame(t0=0.0):
+    import pandas as pd
+
+    cols = _cols(2.0, fault_s=0.5, rate=60.0)
+    return pd.DataFrame({"t_s": cols["t"] + t0, "v": cols["v"], "p": cols["p"], "q": cols["q"]})
+
+
+def test_event_ids_as_text_and_times_as_timestamps_are_read(tmp_path):
+    import pandas as pd
+
+    from loadbayes.measurements.events import read_events
+
+    # Two events in one file, named in words (they used to be refused as non-numeric).
+    both = pd.concat([_event_frame().assign(event="sag A"), _event_frame().assign(event="B")])
+    both.to_csv(tmp_path / "two.csv", index=False)
+    a, b = read_events([str(tmp_path / "two.csv")], f_hz=50.0)
+    assert (a.name, b.name) == (
+        f"{tmp_path / 'two.csv'}[event=sag A]",
+        f"{tmp_path / 'two.csv'}[event=B]",
+    )
+    assert a.n == b.n == 121
+    # Times as ISO timestamps: seconds from the first.
+    df = _event_frame()
+    df["t_s"] = (pd.Timestamp("2026-01-01 10:00") + pd.to_timedelta(df.t_s, unit="s")).astype(str)
+    df.to_csv(tmp_path / "stamps.csv", index=False)
+    (ev,) = read_events([str(tmp_path / "stamps.csv")], f_hz=50.0)
+    np.testing.assert_allclose(ev.t, _event_frame().t_s.to_numpy(), atol=1e-6)
+    # A stray word among numbers is named by its row.
+    df = _event_frame().astype({"t_s": object})
+    df.loc[7, "t_s"] = "abc"
+    df.to_csv(tmp_path / "bad.csv", index=False)
+    with pytest.raises(DataError, match=r"bad.csv: column 't_s', row 8: 'abc' is neither"):
+        read_events([str(tmp_path / "bad.csv")], f_hz=50.0)

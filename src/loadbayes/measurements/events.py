@@ -81,7 +81,8 @@ def events_from_arrays(
     ----------
     cols : dict of str to ndarray
         Per-unit columns keyed ``t, v, p, q`` and optionally ``f`` (Hz), ``angle`` (rad),
-        ``event`` (any numbers: one event per distinct value, in order of appearance).
+        ``event`` (numbers or text: one event per distinct value, in order of
+        appearance).
     rows : ndarray of int
         The 1-based data row of each sample in the file (for error messages).
     path : str
@@ -118,7 +119,9 @@ def _in(label: str, path: str) -> str:
     return "" if label == path else f" in {label}"
 
 
-def _fmt(x: float) -> str:
+def _fmt(x: float | str) -> str:
+    if isinstance(x, str):
+        return x
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
@@ -286,22 +289,40 @@ def read_events(
     wins when both are); ``event_col`` is used when present.
     """
     from loadbayes.measurements.columns import read_power_columns
+    from loadbayes.measurements.times import parse_times, read_text_column
 
     out: list[EventRecord] = []
     for path in paths:
         extra = tuple(c for c in (f_col or "f", angle_col or "angle_rad", event_col) if c)
-        pc = read_power_columns(
-            path,
-            v_col=v_col,
-            p_col=p_col,
-            q_col=q_col,
-            q_required=True,
-            t_col=t_col,
-            extra=extra,
-            v_base=v_base,
-            s_base=s_base,
-        )
+        # Times as ISO timestamps and event ids as text ('sag1') are read as text, the
+        # rest as numbers; first as numbers, the common case, read once.
+        as_text: set[str] = set()
+        while True:
+            try:
+                pc = read_power_columns(
+                    path,
+                    v_col=v_col,
+                    p_col=p_col,
+                    q_col=q_col,
+                    q_required=True,
+                    t_col=None if t_col in as_text else t_col,
+                    extra=tuple(c for c in extra if c not in as_text),
+                    v_base=v_base,
+                    s_base=s_base,
+                )
+                break
+            except DataError as exc:
+                text = exc.column in (t_col, event_col) and exc.column not in as_text
+                if not (text and "non-numeric" in exc.message):
+                    raise
+                as_text.add(exc.column)  # type: ignore[arg-type]
         cols = dict(pc.cols)
+        if t_col in as_text:
+            whole = read_text_column(str(path), t_col)
+            cols["t"] = parse_times(whole, path=str(path), column=t_col)[pc.rows - 1]
+        if event_col in as_text:
+            ids = read_text_column(str(path), event_col).to_numpy(dtype=str)
+            pc.extra[event_col] = np.char.strip(ids)[pc.rows - 1]
         f_name, a_name = f_col or "f", angle_col or "angle_rad"
         for want, given, key in ((f_col, f_name, "f"), (angle_col, a_name, "angle")):
             if given in pc.extra:
