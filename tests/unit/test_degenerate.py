@@ -184,3 +184,14 @@ def test_reactive_power_zero_in_every_row_says_fit_p_alone():
     with pytest.raises(DataError, match=r"Q is 0 in all 40 rows.*q_col=None") as e:
         fit_zip({"v": v, "p": v, "q": np.zeros_like(v)}, **FAST)
     assert e.value.column == "q"
+
+
+def test_power_that_flows_out_is_fitted_and_said():
+    # Generation (or a meter counting the other way): fitted as a negative load, said.
+    v = np.linspace(0.95, 1.05, 60)
+    data = _zip(v)
+    data["p"] = -data["p"]
+    post = fit_zip(data, **FAST)
+    assert _says(post, "P has median", "< 0: the bus exports power")
+    assert post.mean()["p0"] < 0
+    assert not _says(fit_zip(_zip(v), **FAST), "exports power")

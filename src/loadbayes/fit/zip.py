@@ -774,6 +774,15 @@ def data_checks(
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]
+    p = cols.get("p")
+    if p is not None and p.size and float(np.median(p)) < 0:
+        # Fitted as it is (a negative load: the shares are fractions of a negative P0),
+        # but said: a sign convention the other way round reads as generation.
+        out.append(
+            f"P has median {float(np.median(p)):.4g} < 0: the bus exports power (generation, "
+            "or a meter that counts the other way); the shares are fractions of the exported "
+            "P0, a negative load. Give P as the power into the load if that is what is meant"
+        )
     noise = voltage_noise_warning(cols["v"], wording=wording, eiv=eiv) if v_noise is None else None
     return out + ([noise] if noise else [])
 
