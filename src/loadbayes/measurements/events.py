@@ -263,7 +263,8 @@ def _check_frequency(cols, rows, dt, *, path, label, names, f_hz) -> None:
     if abs(f / f_hz - 1) > MAX_F_OFF:
         raise DataError(
             f"the record's frequency is about {f:.4g} Hz ({how}){where}, not the nominal "
-            f"{f_hz:g} Hz: give --f-hz {round(f):g} if the system runs at {round(f):g} Hz",
+            f"{f_hz:g} Hz: fit composite --f-hz {round(f):g} (f_hz={round(f):g}) if the "
+            f"system runs at {round(f):g} Hz",
             path,
             column,
         )
