@@ -174,14 +174,11 @@ def read_times(path: str, t_col: str, rows: np.ndarray) -> tuple[np.ndarray, np.
     import pandas as pd
 
     from loadbayes.io.errors import DataError
+    from loadbayes.measurements.times import read_text_column
 
-    try:
-        if str(path).lower().endswith((".parquet", ".pq")):
-            raw = pd.read_parquet(path, columns=[t_col])[t_col]
-        else:
-            raw = pd.read_csv(path, usecols=[t_col], dtype=str)[t_col]
-    except (KeyError, ValueError):
-        raise DataError(f"no time column {t_col!r} (--t-col)", path=str(path)) from None
+    # The shared reader: the file's separator (';' too) and a GB18030 header, as the
+    # V, P, Q reader takes them (pandas' defaults read neither).
+    raw = read_text_column(str(path), t_col)
     raw = raw.iloc[rows - 1].reset_index(drop=True)
     nums = pd.to_numeric(raw, errors="coerce")
     if nums.notna().all():
