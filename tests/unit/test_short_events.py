@@ -149,6 +149,10 @@ def test_event_ids_as_text_and_times_as_timestamps_are_read(tmp_path):
     df.to_csv(tmp_path / "stamps.csv", index=False)
     (ev,) = read_events([str(tmp_path / "stamps.csv")], f_hz=50.0)
     np.testing.assert_allclose(ev.t, _event_frame().t_s.to_numpy(), atol=1e-6)
+    # The same as a Parquet timestamp column.
+    df.assign(t_s=pd.to_datetime(df["t_s"])).to_parquet(tmp_path / "stamps.parquet")
+    (ev,) = read_events([str(tmp_path / "stamps.parquet")], f_hz=50.0)
+    np.testing.assert_allclose(ev.t, _event_frame().t_s.to_numpy(), atol=1e-6)
     # A stray word among numbers is named by its row.
     df = _event_frame().astype({"t_s": object})
     df.loc[7, "t_s"] = "abc"

@@ -314,7 +314,8 @@ def read_events(
                 break
             except DataError as exc:
                 text = exc.column in (t_col, event_col) and exc.column not in as_text
-                if not (text and "non-numeric" in exc.message):
+                stamped = exc.column == t_col and "has type timestamp" in exc.message
+                if not (text and ("non-numeric" in exc.message or stamped)):
                     raise
                 as_text.add(exc.column)  # type: ignore[arg-type]
         cols = dict(pc.cols)
