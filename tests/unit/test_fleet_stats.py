@@ -179,3 +179,23 @@ def test_a_bus_whose_power_is_zero_is_not_fitted_and_said_so(tmp_path):
     )
     rows = res.table[res.table.bus == "dead"]
     assert rows.parameter.isna().all() and "P is 0 in every row" in rows.warnings.iloc[0]
+
+
+def test_spaces_around_a_bus_id_do_not_make_another_bus(tmp_path):
+    rng = np.random.default_rng(7)
+    df = _fleet_frame(rng, 200)
+    df.loc[df.index[:30], "bus_id"] = " " + df["bus_id"].iloc[:30] + "  "
+    df.to_csv(tmp_path / "f.csv", index=False)
+    df.to_parquet(tmp_path / "f.parquet")
+    for name in ("f.csv", "f.parquet"):
+        (part,) = find_partitions(str(tmp_path / name))
+        stats = finish(partition_stats(part, ReadSpec(), ZIPModel()))
+        assert sorted(stats.buses.tolist()) == ["a", "b", "c", "d"]
+        assert int(stats.n.sum()) == 200
+    # An id of spaces only is a missing id, named by its row.
+    df.loc[df.index[4], "bus_id"] = "   "
+    df.to_csv(tmp_path / "g.csv", index=False)
+    (part,) = find_partitions(str(tmp_path / "g.csv"))
+    with pytest.raises(DataError) as err:
+        partition_stats(part, ReadSpec(), ZIPModel())
+    assert (err.value.column, err.value.row) == ("bus_id", 5)

@@ -241,13 +241,23 @@ class _Aligned:
         return out
 
 
+def _trimmed(labels: pa.Array) -> pa.Array:
+    """Ids without the spaces around them; an id of spaces only is missing.
+
+    A spreadsheet's ' bus07 ' and 'bus07' are one bus: read as written they became two,
+    each fitted on part of its rows.
+    """
+    labels = pc.utf8_trim_whitespace(labels)
+    return pc.if_else(pc.equal(labels, ""), pa.scalar(None, pa.string()), labels)
+
+
 def _labels(part: Partition, col: str | None, name: str, what: str) -> _Aligned | str | None:
     """Labels from a column, else a constant from a hive folder, else None."""
     if col is None:
         return None
     batches = _label_batches(part, col, name)
     if batches is not None:
-        return _Aligned(batches, name, col)
+        return _Aligned((_trimmed(b) for b in batches), name, col)
     if col in part.hive:
         return part.hive[col]
     if what == "bus":
