@@ -135,7 +135,8 @@ def test_event_ids_as_text_and_times_as_timestamps_are_read(tmp_path):
     from loadbayes.measurements.events import read_events
 
     # Two events in one file, named in words (they used to be refused as non-numeric).
-    both = pd.concat([_event_frame().assign(event="sag A"), _event_frame().assign(event="B")])
+    deeper = _event_frame().assign(v=lambda d: np.where(d.v < 1, 0.8, 1.0))
+    both = pd.concat([_event_frame().assign(event="sag A"), deeper.assign(event="B")])
     both.to_csv(tmp_path / "two.csv", index=False)
     a, b = read_events([str(tmp_path / "two.csv")], f_hz=50.0)
     assert (a.name, b.name) == (
@@ -159,3 +160,19 @@ def test_event_ids_as_text_and_times_as_timestamps_are_read(tmp_path):
     df.to_csv(tmp_path / "bad.csv", index=False)
     with pytest.raises(DataError, match=r"bad.csv: column 't_s', row 8: 'abc' is neither"):
         read_events([str(tmp_path / "bad.csv")], f_hz=50.0)
+
+
+def test_one_recording_given_twice_is_refused(tmp_path):
+    from loadbayes.measurements.events import read_events
+
+    df = _event_frame()
+    df.to_csv(tmp_path / "a.csv", index=False)
+    (tmp_path / "copy.csv").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "a.csv").read_bytes())
+    for second in ("a.csv", "copy.csv"):
+        with pytest.raises(DataError, match=r"the same recording as .*a\.csv") as e:
+            read_events([str(tmp_path / "a.csv"), str(tmp_path / second)], f_hz=50.0)
+        assert e.value.path == str(tmp_path / second)
+    # Two events of one load, the second a different sag: both read.
+    other = df.assign(v=np.where(df.v < 1, 0.8, 1.0))
+    other.to_csv(tmp_path / "b.csv", index=False)
+    assert len(read_events([str(tmp_path / "a.csv"), str(tmp_path / "b.csv")], f_hz=50.0)) == 2

@@ -343,7 +343,33 @@ def read_events(
             "event": event_col,
         }
         out += events_from_arrays(cols, pc.rows, path=str(path), names=names, f_hz=f_hz)
+    _refuse_repeats(out, v_col)
     return out
+
+
+def _refuse_repeats(events: Sequence[EventRecord], v_col: str) -> None:
+    """Refuse one recording given twice (the same file, or a copy of it).
+
+    Fitted jointly, each event's evidence is counted once per copy: the intervals come
+    out narrower by the square root of the count, as if the load had been seen again.
+    """
+    import hashlib
+
+    seen: dict[bytes, str] = {}
+    for ev in events:
+        digest = hashlib.sha256()
+        for x in (ev.v, ev.p, ev.q):
+            digest.update(np.ascontiguousarray(x, dtype=float).tobytes())
+        key = digest.digest()
+        if key in seen:
+            raise DataError(
+                f"the same recording as {seen[key]} (every V, P and Q sample equal): fitted "
+                "twice, its evidence would count twice and the intervals shrink as if the "
+                "load had been seen again; give each event once",
+                ev.name or None,
+                v_col,
+            )
+        seen[key] = ev.name or "an earlier event"
 
 
 def index_bases(paths: Sequence[str]) -> tuple[float, float] | None:
