@@ -199,3 +199,20 @@ def test_spaces_around_a_bus_id_do_not_make_another_bus(tmp_path):
     with pytest.raises(DataError) as err:
         partition_stats(part, ReadSpec(), ZIPModel())
     assert (err.value.column, err.value.row) == ("bus_id", 5)
+
+
+def test_a_copy_of_a_file_in_the_fleet_folder_is_refused(tmp_path):
+    # 'part (1).parquet' left beside 'part.parquet': every bus in it counted twice.
+    rng = np.random.default_rng(8)
+    d = tmp_path / "d"
+    d.mkdir()
+    _fleet_frame(rng, 200).to_parquet(d / "part.parquet")
+    _fleet_frame(rng, 200).to_csv(d / "other.csv", index=False)
+    (d / "part (1).parquet").write_bytes((d / "part.parquet").read_bytes())
+    with pytest.raises(DataError, match=r"the same rows as .*part.*remove one"):
+        run_fleet(str(d), ReadSpec(), sampler=SamplerSettings(draws=50, burn=10))
+    # The same rows in another order or format are the same rows, too.
+    pd.read_parquet(d / "part.parquet").iloc[::-1].to_csv(d / "part (1).csv", index=False)
+    (d / "part (1).parquet").unlink()
+    with pytest.raises(DataError, match="the same rows as"):
+        run_fleet(str(d), ReadSpec(), sampler=SamplerSettings(draws=50, burn=10))
