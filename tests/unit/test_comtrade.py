@@ -237,3 +237,14 @@ def test_a_single_phase_record_says_what_it_lacks(tmp_path):
         "".join(f"{k + 1},{round(t[k] * 1e6)},{a},{a}\n" for k, a in enumerate(va))
     )
     _error(cfg, str(cfg), "1 voltage channel ('VA')", "single-phase")
+
+
+def test_a_dat_or_cff_given_for_the_cfg_says_what_to_give(rec):
+    cfg, dat = rec
+    with pytest.raises(DataError) as err:
+        read_comtrade(dat)
+    assert str(err.value) == f"{dat}: expected a COMTRADE .cfg file: give its .cfg ({cfg})"
+    cff = cfg.with_suffix(".cff")
+    cff.write_bytes(cfg.read_bytes())
+    with pytest.raises(DataError, match="single-file .cff form of 2013 is not read"):
+        read_comtrade(cff)
