@@ -753,6 +753,7 @@ def data_checks(
     v_noise=None,
     eiv=True,
     whole=True,
+    f0=None,
     **nominal,
 ) -> list[str]:
     """The unit check (refuse, or warn with ``accept_units``) and the V-noise check.
@@ -761,16 +762,24 @@ def data_checks(
     ``v_noise`` (the noise on V modelled) the V-noise check has nothing to say;
     ``eiv=False``: the fit has no such option (the exponential one), not offered.
     ``whole=False``: ``cols`` are the first chunk of a longer file, so a power that is 0
-    there may not be 0 throughout (the model's Gram check refuses it then).
+    there may not be 0 throughout (the model's Gram check refuses it then). ``f0``: the
+    nominal frequency an ``f`` column is read against (the exponential model's ``kpf``).
     """
     from loadbayes.diagnostics import voltage_noise_warning
-    from loadbayes.measurements.units import check_power_units, refuse, require_power
+    from loadbayes.measurements.units import (
+        check_frequency,
+        check_power_units,
+        refuse,
+        require_power,
+    )
 
     if whole:
         require_power(cols.get("p"), cols.get("q"), path=str(path), names=names, wording=wording)
     problems = check_power_units(
         cols["v"], cols.get("p"), cols.get("q"), wording=wording, **nominal
     )
+    if f0 is not None and cols.get("f") is not None:
+        problems += check_frequency(cols["f"], f0, wording=wording)
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]

@@ -24,6 +24,7 @@ from loadbayes.io.errors import DataError
 __all__ = [
     "UnitProblem",
     "Wording",
+    "check_frequency",
     "check_gram_units",
     "check_motor_units",
     "check_power_units",
@@ -301,6 +302,33 @@ def check_motor_units(
                 )
             )
     return out
+
+
+#: A record's median frequency this far from the nominal is another system's (50 Hz data
+#: read against 60 Hz is 17% off), or not in Hz; the same bound as the composite's.
+F_OFF = 0.03
+
+
+def check_frequency(f: np.ndarray, f0: float, *, wording: Wording = "cli") -> list[UnitProblem]:
+    """A frequency column against the nominal frequency ``f0`` (Hz).
+
+    ``df = (f - f0) / f0`` is the regressor of ``kpf``: a 50 Hz record at ``f0 = 60``
+    makes every sample a 17% frequency excursion, a column in per unit one of -98%.
+    """
+    f = np.asarray(f, dtype=float)
+    f = f[np.isfinite(f)]
+    if not f.size:
+        return []
+    med = float(np.median(f))
+    if abs(med / f0 - 1) <= F_OFF:
+        return []
+    if 0.5 <= med <= 2.0:
+        fix = "give the frequency in Hz (the column looks per unit)"
+    else:
+        near = min((50.0, 60.0), key=lambda x: abs(x - med))
+        fix = f"give {option('f0', f'{near:g}', wording=wording)} if the system runs at {near:g} Hz"
+    seen = f"the frequency has median {med:.4g}, not about the nominal {f0:g} Hz"
+    return [UnitProblem("f", seen, fix, wording)]
 
 
 def require_power(
