@@ -184,3 +184,17 @@ def test_pmu_names_in_a_spreadsheets_code_page(tmp_path):
     path.write_bytes(df.to_csv(index=False).encode("latin-1"))
     with pytest.raises(DataError, match=r"pmu.csv: row 5: not UTF-8 text"):
         read_pmu(path, load_map(None))
+
+
+def test_pmu_a_european_export_with_comma_fractions(tmp_path):
+    # ';' between fields, ',' as the decimal mark, and the timestamps' fraction of a
+    # second after a comma (ISO 8601 allows it): the timestamps were refused.
+    df, s = _pmu_frame()
+    text = df.to_csv(index=False, sep=";").replace(".", ",")
+    path = tmp_path / "pmu.csv"
+    path.write_text(text)
+    assert "T00:59:59,020000+01:00" in text
+    m = load_map(None, voltage="kV", current="kA", freq="freq", v_kv=230.0, s_mva=100.0)
+    rec = read_pmu(path, m)
+    np.testing.assert_allclose(rec.data["t_s"], np.arange(50) * 0.02, atol=1e-9)
+    np.testing.assert_allclose(rec.data["p"], s / 100 * math.cos(math.pi / 6), rtol=1e-9)

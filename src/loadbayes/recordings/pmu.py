@@ -219,6 +219,9 @@ def _times(df, m: PmuMap, name: str) -> np.ndarray:
     if m.time_format == "epoch":
         return _epoch(_numeric(df, m.time, name), df.attrs, name, m.time)
     text = raw.astype(str).str.strip()
+    # ISO 8601 allows a comma before the fraction of a second (14:00:00,033), as
+    # historians set to a European locale write it; pandas reads only the point.
+    text = text.str.replace(r"(\d{2}:\d{2}:\d{2}),(\d)", r"\1.\2", regex=True)
     leap = text.str.contains(r"[T ]\d{2}:\d{2}:60", regex=True).to_numpy()
     if leap.any():
         k = int(np.flatnonzero(leap)[0])
