@@ -150,6 +150,14 @@ def test_event_ids_as_text_and_times_as_timestamps_are_read(tmp_path):
     df.to_csv(tmp_path / "stamps.csv", index=False)
     (ev,) = read_events([str(tmp_path / "stamps.csv")], f_hz=50.0)
     np.testing.assert_allclose(ev.t, _event_frame().t_s.to_numpy(), atol=1e-6)
+    # With a comma before the fraction of a second (ISO 8601 allows it), ';' between.
+    df.assign(t_s=df["t_s"].str.replace(".", ",", regex=False)).to_csv(
+        tmp_path / "comma.csv", index=False, sep=";"
+    )
+    text = (tmp_path / "comma.csv").read_text()
+    assert "10:00:00,016666" in text and "0,9" not in text.splitlines()[1]
+    (ev,) = read_events([str(tmp_path / "comma.csv")], f_hz=50.0)
+    np.testing.assert_allclose(ev.t, _event_frame().t_s.to_numpy(), atol=1e-6)
     # The same as a Parquet timestamp column.
     df.assign(t_s=pd.to_datetime(df["t_s"])).to_parquet(tmp_path / "stamps.parquet")
     (ev,) = read_events([str(tmp_path / "stamps.parquet")], f_hz=50.0)

@@ -47,6 +47,8 @@ def parse_times(values: Any, *, path: str, column: str, rows: np.ndarray | None 
     if num.notna().any() and num.notna().sum() > len(s) // 2:
         # a column of numbers with a stray text cell: name the cell
         _refuse_bad(num.isna().to_numpy(), s, where, path, column)
+    # ISO 8601 allows a comma before the fraction of a second (10:00:00,5).
+    text = text.str.replace(r"(\d{2}:\d{2}:\d{2}),(\d)", r"\1.\2", regex=True)
     aware = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
     ts = pd.to_datetime(text, errors="coerce", utc=bool(aware.any()), format="ISO8601")
     _refuse_bad(ts.isna().to_numpy(), s, where, path, column)
