@@ -100,3 +100,14 @@ def test_the_time_column_of_a_spreadsheets_csv(tmp_path, how):
     assert pd.read_csv(out)["time"].iloc[0] == "2026-06-01T01:40:00"
     bad = CliRunner().invoke(main, [*args[:-3], "--t-col", "nope", "--quiet"])
     assert bad.exit_code == 2 and "no column 'nope'" in bad.output
+
+
+def test_timestamps_with_a_comma_before_the_fraction(tmp_path):
+    df = _csv(tmp_path / "day.csv")
+    df["time"] = df["time"] + ",5"  # ISO 8601: 01:40:00,5
+    df.to_csv(tmp_path / "comma.csv", index=False)
+    out = tmp_path / "steps.csv"
+    res = CliRunner().invoke(main, ["steps", str(tmp_path / "comma.csv"), *COLS, "--t-col",
+                                    "time", "--out", str(out), "--quiet"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert pd.read_csv(out)["time"].iloc[0] == "2026-06-01T01:40:00,5"

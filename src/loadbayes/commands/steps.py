@@ -184,7 +184,9 @@ def read_times(path: str, t_col: str, rows: np.ndarray) -> tuple[np.ndarray, np.
     if nums.notna().all():
         secs = nums.to_numpy(dtype=float)
     else:
-        stamps = pd.to_datetime(raw, errors="coerce", format="ISO8601")
+        # ISO 8601 allows a comma before the fraction of a second (10:00:00,5).
+        comma = raw.astype(str).str.replace(r"(\d{2}:\d{2}:\d{2}),(\d)", r"\1.\2", regex=True)
+        stamps = pd.to_datetime(comma, errors="coerce", format="ISO8601")
         bad = np.flatnonzero(stamps.isna().to_numpy())
         if bad.size:
             i = int(bad[0])
