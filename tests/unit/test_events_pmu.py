@@ -198,3 +198,16 @@ def test_pmu_a_european_export_with_comma_fractions(tmp_path):
     rec = read_pmu(path, m)
     np.testing.assert_allclose(rec.data["t_s"], np.arange(50) * 0.02, atol=1e-9)
     np.testing.assert_allclose(rec.data["p"], s / 100 * math.cos(math.pi / 6), rtol=1e-9)
+
+
+def test_pmu_zero_current_is_said(tmp_path):
+    df, _ = _pmu_frame()
+    df["i1_mag"] = 0.0
+    path = tmp_path / "pmu.csv"
+    df.to_csv(path, index=False)
+    m = load_map(None, voltage="kV", current="kA", v_kv=230.0, s_mva=100.0)
+    rec = read_pmu(path, m)
+    assert any("is 0 in every row: P and Q are 0" in r for r in rec.report)
+    assert not np.any(rec.data["p"])
+    with pytest.raises(DataError, match=r"first sample has zero power \(the current is 0\)"):
+        read_pmu(path, load_map(None, voltage="kV", current="kA"))

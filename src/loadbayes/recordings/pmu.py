@@ -492,7 +492,14 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     v_base = m.v_kv * 1e3 / math.sqrt(3) if m.v_kv else float(np.abs(v1[0]))
     s_base = m.s_mva * 1e6 if m.s_mva else float(np.abs(s[0]))
     if not (v_base > 0 and s_base > 0):
-        raise DataError("first sample has zero voltage or power; give the bases", name)
+        what = "voltage" if not v_base > 0 else "power (the current is 0)"
+        raise DataError(f"first sample has zero {what}; give the bases", name)
+    if not np.any(s):
+        # Read as asked (the voltage may be all one wants), but a fit of it has no load.
+        report.append(
+            f"the current ({', '.join(m.i_mag)}) is 0 in every row: P and Q are 0 (an open "
+            "breaker, or a channel not recorded?); no load model can be fitted to them"
+        )
     data = {
         "t_s": (t_ns - t_ns[0]) / 1e9,
         "v": np.abs(v1) / v_base,
