@@ -177,7 +177,8 @@ def test_one_recording_given_twice_is_refused(tmp_path):
     df.to_csv(tmp_path / "a.csv", index=False)
     (tmp_path / "copy.csv").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "a.csv").read_bytes())
     for second in ("a.csv", "copy.csv"):
-        with pytest.raises(DataError, match=r"the same recording as .*a\.csv") as e:
+        said = "this recording is given twice" if second == "a.csv" else "the same recording as"
+        with pytest.raises(DataError, match=said) as e:
             read_events([str(tmp_path / "a.csv"), str(tmp_path / second)], f_hz=50.0)
         assert e.value.path == str(tmp_path / second)
     # Two events of one load, the second a different sag: both read.

@@ -27,6 +27,7 @@ __all__ = [
     "STEADY_SAMPLES",
     "events_from_arrays",
     "read_events",
+    "refuse_repeats",
 ]
 
 #: An event this long (s) is taken as it is: about twice the typical motor's T' (0.5 s),
@@ -343,11 +344,11 @@ def read_events(
             "event": event_col,
         }
         out += events_from_arrays(cols, pc.rows, path=str(path), names=names, f_hz=f_hz)
-    _refuse_repeats(out, v_col)
+    refuse_repeats(out, v_col)
     return out
 
 
-def _refuse_repeats(events: Sequence[EventRecord], v_col: str) -> None:
+def refuse_repeats(events: Sequence[EventRecord], v_col: str) -> None:
     """Refuse one recording given twice (the same file, or a copy of it).
 
     Fitted jointly, each event's evidence is counted once per copy: the intervals come
@@ -362,8 +363,13 @@ def _refuse_repeats(events: Sequence[EventRecord], v_col: str) -> None:
             digest.update(np.ascontiguousarray(x, dtype=float).tobytes())
         key = digest.digest()
         if key in seen:
+            same = (
+                "this recording is given twice"
+                if seen[key] == ev.name
+                else f"the same recording as {seen[key]}"
+            )
             raise DataError(
-                f"the same recording as {seen[key]} (every V, P and Q sample equal): fitted "
+                f"{same} (every V, P and Q sample equal): fitted "
                 "twice, its evidence would count twice and the intervals shrink as if the "
                 "load had been seen again; give each event once",
                 ev.name or None,
