@@ -81,6 +81,18 @@ def test_another_fit_or_a_cut_json_is_refused(tmp_path, monkeypatch, case, fmt):
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+def test_a_fleet_table_is_refused_as_a_table(tmp_path, monkeypatch):
+    # A fleet's Parquet table holds per-bus summaries; it read as "not ... JSON".
+    import pandas as pd
+
+    pd.DataFrame({"level": ["bus"], "bus": ["b1"], "parameter": ["a1"], "mean": [0.3]}).to_parquet(
+        tmp_path / "fleet.parquet"
+    )
+    r = _run(tmp_path, monkeypatch, "fleet.parquet", "--to", "pandapower", "--out", "o.json")
+    _one_line(r, "fleet.parquet", "but a table", "fit zip on that bus's rows")
+    assert not (tmp_path / "o.json").exists()
+
+
 def test_out_over_the_input_is_refused(tmp_path, monkeypatch):
     from loadbayes.posterior import Posterior
 

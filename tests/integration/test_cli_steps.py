@@ -79,3 +79,35 @@ def test_no_steps_no_fit(tmp_path):
     res = CliRunner().invoke(main, ["steps", str(path), *COLS, "--json", "-", *FAST])
     assert res.exit_code == 2
     assert "0 voltage step(s) found" in res.output and "at least two" in res.output
+
+
+@pytest.mark.parametrize("how", ["semicolon", "gb18030"])
+def test_the_time_column_of_a_spreadsheets_csv(tmp_path, how):
+    # A ';'-separated file, and one with Chinese names in GB18030: the V, P, Q reader
+    # took them; the time column's own reader said "no time column 'time'".
+    df = _csv(tmp_path / "day.csv")
+    path = tmp_path / f"{how}.csv"
+    if how == "semicolon":
+        df.to_csv(path, index=False, sep=";")
+    else:
+        df = df.rename(columns={"time": "时间"})
+        path.write_bytes(df.to_csv(index=False).encode("gb18030"))
+    t_col = "time" if how == "semicolon" else "时间"
+    out = tmp_path / "steps.csv"
+    args = ["steps", str(path), *COLS, "--t-col", t_col, "--out", str(out), "--quiet"]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    assert pd.read_csv(out)["time"].iloc[0] == "2026-06-01T01:40:00"
+    bad = CliRunner().invoke(main, [*args[:-3], "--t-col", "nope", "--quiet"])
+    assert bad.exit_code == 2 and "no column 'nope'" in bad.output
+
+
+def test_timestamps_with_a_comma_before_the_fraction(tmp_path):
+    df = _csv(tmp_path / "day.csv")
+    df["time"] = df["time"] + ",5"  # ISO 8601: 01:40:00,5
+    df.to_csv(tmp_path / "comma.csv", index=False)
+    out = tmp_path / "steps.csv"
+    res = CliRunner().invoke(main, ["steps", str(tmp_path / "comma.csv"), *COLS, "--t-col",
+                                    "time", "--out", str(out), "--quiet"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert pd.read_csv(out)["time"].iloc[0] == "2026-06-01T01:40:00,5"

@@ -199,6 +199,15 @@ def test_bad_input_exit_2_one_line_nothing_written(event, tmp_path):
         (tmp_path / "bad.json").write_text(json.dumps(bad))
         one_line(cli("playback", tmp_path / "bad.json", d / "case.json", d / "noisy.csv",
                      "--json", out), "bad.json", needle)  # fmt: skip
+    # P that flows out, and kV / MW without bases: said as such before ANDES runs (they
+    # were reported as power bases that disagree with the case's).
+    noisy = pd.read_csv(d / "noisy.csv")
+    noisy.assign(p=-noisy["p"]).to_csv(tmp_path / "neg.csv", index=False)
+    one_line(cli("playback", d / "fit.json", d / "case.json", tmp_path / "neg.csv", "--json",
+                 out), "neg.csv", "column 'p'", "P has median", "sign convention")  # fmt: skip
+    noisy.assign(v=noisy["v"] * 110).to_csv(tmp_path / "kv.csv", index=False)
+    one_line(cli("playback", d / "fit.json", d / "case.json", tmp_path / "kv.csv", "--json",
+                 out), "kv.csv", "column 'v'", "--v-base")  # fmt: skip
     before = (d / "fit.json").read_bytes()
     one_line(cli("playback", d / "fit.json", d / "case.json", d / "noisy.csv", "--json",
                  d / "fit.json", "--force"))  # fmt: skip

@@ -237,3 +237,11 @@ def test_bad_inputs_exit_2_in_one_line(held_out, tmp_path):
     longer = _event(depth=0.3, jump=0.12, t_fault=0.1527, hold=0.071, p0=0.8, q0=0.2, span=0.7)
     longer.iloc[43:].to_csv(tmp_path / "cut.csv", index=False)
     assert "must start in steady state" in _bad(nc, tmp_path / "cut.csv")
+    # P that flows out, and kV without --v-base: refused in words (they were scored, and
+    # kV data printed an RMS of 40 P0 as a result), without offering an absent option.
+    df.assign(p=-df["p"]).to_csv(tmp_path / "neg.csv", index=False)
+    line = _bad(nc, tmp_path / "neg.csv")
+    assert "neg.csv: column 'p'" in line and "sign convention" in line
+    assert "accept-units" not in line
+    df.assign(v=df["v"] * 11).to_csv(tmp_path / "kv.csv", index=False)
+    assert "--v-base 11" in _bad(nc, tmp_path / "kv.csv")

@@ -177,6 +177,25 @@ def test_fit_composite_is_the_top_package_s_with_the_cli_checks(tmp_path):
     bad.loc[10, "time"] = bad.loc[8, "time"]
     with pytest.raises(DataError, match=r"column 'time', row 11.*does not increase"):
         loadbayes.fit_composite(bad, **COMPOSITE_COLS, v_base=11, s_base=5)
+    # One recording given twice (a table twice, or a file and its copy): refused, from
+    # Python as from the CLI (it was fitted as two events, intervals narrower by sqrt 2).
+    with pytest.raises(DataError, match="this recording is given twice"):
+        loadbayes.fit_composite([_sag_kv(), _sag_kv()], **COMPOSITE_COLS, v_base=11, s_base=5)
+    (tmp_path / "copy.csv").write_bytes(path.read_bytes())
+    with pytest.raises(DataError, match=r"copy.csv: column 'V_kV': the same recording as"):
+        loadbayes.fit_composite([str(path), str(tmp_path / "copy.csv")], **COMPOSITE_COLS,
+                                v_base=11, s_base=5)  # fmt: skip
+
+
+def test_fit_composite_takes_event_ids_written_as_text():
+    from loadbayes.fit.composite.api import read
+
+    a, b = _sag_kv(), _sag_kv()
+    b["V_kV"] = 11.0 - (11.0 - b["V_kV"]) * 1.5  # a deeper sag of the same load
+    both = pd.concat([a.assign(event="sag A"), b.assign(event=" sag B ")])
+    events = read(both, **COMPOSITE_COLS, v_base=11.0, s_base=5.0)
+    assert [e.name for e in events] == ["data[event=sag A]", "data[event=sag B]"]
+    assert events[0].n == len(a) and events[1].n == len(b)
 
 
 def test_fit_composite_reads_files_and_tables_alike(tmp_path):

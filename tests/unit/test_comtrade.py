@@ -221,3 +221,30 @@ def test_time_stamps_checked_and_a_missing_fraction_accepted(rec):
     assert read_comtrade(cfg).t_s.size == 320
     _rewrite(cfg, 13, "01/02/2024,99999999999")
     _error(cfg, "line 13", "time '99999999999' is not hh:mm:ss.ssssss")
+
+
+def test_a_single_phase_record_says_what_it_lacks(tmp_path):
+    # One voltage and one current (a single-phase recorder): no set of three to name.
+    t = np.arange(64) / 3200
+    va = np.round(1000 * np.sin(2 * math.pi * 50 * t)).astype(int)
+    cfg = tmp_path / "one.cfg"
+    cfg.write_text(
+        "st,dev,1999\n2,2A,0D\n1,VA,A,,V,0.1,0,0,-32767,32767,1,1,P\n"
+        "2,IA,A,,A,0.01,0,0,-32767,32767,1,1,P\n50\n1\n3200,64\n"
+        "01/02/2024,10:00:00.000000\n01/02/2024,10:00:00.000000\nASCII\n1\n"
+    )
+    (tmp_path / "one.dat").write_text(
+        "".join(f"{k + 1},{round(t[k] * 1e6)},{a},{a}\n" for k, a in enumerate(va))
+    )
+    _error(cfg, str(cfg), "1 voltage channel ('VA')", "single-phase")
+
+
+def test_a_dat_or_cff_given_for_the_cfg_says_what_to_give(rec):
+    cfg, dat = rec
+    with pytest.raises(DataError) as err:
+        read_comtrade(dat)
+    assert str(err.value) == f"{dat}: expected a COMTRADE .cfg file: give its .cfg ({cfg})"
+    cff = cfg.with_suffix(".cff")
+    cff.write_bytes(cfg.read_bytes())
+    with pytest.raises(DataError, match="single-file .cff form of 2013 is not read"):
+        read_comtrade(cff)

@@ -149,3 +149,49 @@ def test_very_large_n_through_the_statistics(rows, scheme):
 def test_no_spread_at_all_stays_an_error():
     with pytest.raises(DataError, match="no spread"):
         fit_zip(_zip(np.full(20, 0.95)), **FAST, p0=1.0, q0=1.0)
+
+
+@pytest.mark.parametrize("chunk_rows", [None, 7])
+def test_power_zero_in_every_row_is_refused(tmp_path, chunk_rows):
+    # An open breaker, or a PMU's current channel not recorded: P = 0 throughout. The
+    # shares are fractions of P0 = 0; the fit used to "fit exactly" and report noise.
+    from click.testing import CliRunner
+
+    from loadbayes.cli import main
+
+    v = np.linspace(0.95, 1.05, 40)
+    data = {"v": v, "p": np.zeros_like(v), "q": 0.3 * v}
+    with pytest.raises(DataError, match=r"P is 0 in all 40 rows: there is no load") as e:
+        fit_zip(data, **FAST)
+    assert e.value.column == "p"
+    # From a file, streamed in chunks: the whole file is checked, not its first chunk.
+    path = tmp_path / "dead.csv"
+    path.write_text("v,p,q\n" + "".join(f"{x},0,{0.3 * x}\n" for x in v))
+    chunks = [] if chunk_rows is None else ["--chunk-rows", str(chunk_rows)]
+    args = ["fit", "zip", str(path), "--draws", "300", "--burn", "50", "--quiet", *chunks]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2 and "dead.csv: column 'p'" in res.output
+    assert "P is 0 in every row" in res.output and "Traceback" not in res.output
+    # A load that is off for its first rows (the first chunk) and then on is fitted.
+    path.write_text(
+        "v,p,q\n" + "".join(f"{x},{0.0 if i < 10 else x},{0.3 * x}\n" for i, x in enumerate(v))
+    )
+    assert CliRunner().invoke(main, args).exit_code == 0
+
+
+def test_reactive_power_zero_in_every_row_says_fit_p_alone():
+    v = np.linspace(0.95, 1.05, 40)
+    with pytest.raises(DataError, match=r"Q is 0 in all 40 rows.*q_col=None") as e:
+        fit_zip({"v": v, "p": v, "q": np.zeros_like(v)}, **FAST)
+    assert e.value.column == "q"
+
+
+def test_power_that_flows_out_is_fitted_and_said():
+    # Generation (or a meter counting the other way): fitted as a negative load, said.
+    v = np.linspace(0.95, 1.05, 60)
+    data = _zip(v)
+    data["p"] = -data["p"]
+    post = fit_zip(data, **FAST)
+    assert _says(post, "P has median", "< 0: the bus exports power")
+    assert post.mean()["p0"] < 0
+    assert not _says(fit_zip(_zip(v), **FAST), "exports power")

@@ -329,3 +329,28 @@ def test_the_phasor_windows_are_counted_for_the_progress_bar():
     # Two passes (at f0, then at the segment's frequency) over every window.
     assert sum(seen) == 2 * phasor_rows_fitted
     assert phasor_windows(w, 4) == pytest.approx(sum(seen), rel=0.05)
+
+
+def test_currents_of_zero_are_named_and_the_voltages_still_read_with_a_base(tmp_path):
+    # Every current channel's multiplier 0 (or a bay not recorded): no power to take a
+    # base from. The error says why and what to do; with --s-base the voltages are read.
+    t = np.arange(0, 0.2, 1 / 3200)
+    v, i = _load(t)
+    names = ["VA", "VB", "VC", "IA", "IB", "IC"]
+    units = ["V"] * 3 + ["A"] * 3
+    cfg = _write(tmp_path / "dead", t, np.vstack([v, i]), [(3200, t.size)], names, units)
+    lines = cfg.read_bytes().decode("gb18030").split("\n")
+    for k in (5, 6, 7):  # the current channels' lines: multiplier a = 0
+        fields = lines[k].split(",")
+        fields[5] = "0"
+        lines[k] = ",".join(fields)
+    cfg.write_bytes("\n".join(lines).encode("gb18030"))
+    w = read_comtrade(cfg)
+    assert np.all(w.i == 0)
+    with pytest.raises(DataError) as err:
+        record_table(w, source=str(cfg))
+    msg = str(err.value)
+    assert msg.startswith(f"{cfg}: the first cycle has no power (the currents are 0")
+    assert "--s-base" in msg and "\n" not in msg
+    rec = record_table(w, source=str(cfg), s_base_mva=10.0)
+    assert np.nanmax(np.abs(rec.columns["p"])) == 0.0 and np.nanmin(rec.columns["v"]) > 0.5

@@ -161,3 +161,53 @@ def test_pmu_mixed_zoned_and_naive_timestamps(tmp_path):
     df.to_csv(tmp_path / "pmu.csv", index=False)
     rec = read_pmu(tmp_path / "pmu.csv", load_map(None, timezone="Europe/Paris"))
     np.testing.assert_allclose(rec.data["t_s"], [0.0, 0.02, 0.04, 0.06], atol=1e-9)
+
+
+def test_pmu_names_in_a_spreadsheets_code_page(tmp_path):
+    # A historian export with Chinese column names, saved in GB18030: read as written.
+    df, s = _pmu_frame()
+    df = df.rename(columns={"v1_mag": "电压幅值"})
+    path = tmp_path / "pmu.csv"
+    path.write_bytes(df.to_csv(index=False).encode("gb18030"))
+    m = load_map(None, v_mag="电压幅值", voltage="kV", current="kA", v_kv=230.0, s_mva=100.0)
+    rec = read_pmu(path, m)
+    np.testing.assert_allclose(rec.data["p"], s / 100 * math.cos(math.pi / 6), rtol=1e-9)
+    # Latin-1 is not guessed: one line that says what to do, no traceback.
+    df = df.rename(columns={"电压幅值": "Spannung_µ"})
+    path.write_bytes(df.to_csv(index=False).encode("latin-1"))
+    with pytest.raises(DataError, match=r"pmu.csv: header is not UTF-8 text.*save it as UTF-8"):
+        read_pmu(path, load_map(None, v_mag="Spannung_µ"))
+    # A bad byte in a row is located.
+    df, _ = _pmu_frame()
+    df["note"] = "ok"
+    df.loc[4, "note"] = "é"
+    path.write_bytes(df.to_csv(index=False).encode("latin-1"))
+    with pytest.raises(DataError, match=r"pmu.csv: row 5: not UTF-8 text"):
+        read_pmu(path, load_map(None))
+
+
+def test_pmu_a_european_export_with_comma_fractions(tmp_path):
+    # ';' between fields, ',' as the decimal mark, and the timestamps' fraction of a
+    # second after a comma (ISO 8601 allows it): the timestamps were refused.
+    df, s = _pmu_frame()
+    text = df.to_csv(index=False, sep=";").replace(".", ",")
+    path = tmp_path / "pmu.csv"
+    path.write_text(text)
+    assert "T00:59:59,020000+01:00" in text
+    m = load_map(None, voltage="kV", current="kA", freq="freq", v_kv=230.0, s_mva=100.0)
+    rec = read_pmu(path, m)
+    np.testing.assert_allclose(rec.data["t_s"], np.arange(50) * 0.02, atol=1e-9)
+    np.testing.assert_allclose(rec.data["p"], s / 100 * math.cos(math.pi / 6), rtol=1e-9)
+
+
+def test_pmu_zero_current_is_said(tmp_path):
+    df, _ = _pmu_frame()
+    df["i1_mag"] = 0.0
+    path = tmp_path / "pmu.csv"
+    df.to_csv(path, index=False)
+    m = load_map(None, voltage="kV", current="kA", v_kv=230.0, s_mva=100.0)
+    rec = read_pmu(path, m)
+    assert any("is 0 in every row: P and Q are 0" in r for r in rec.report)
+    assert not np.any(rec.data["p"])
+    with pytest.raises(DataError, match=r"first sample has zero power \(the current is 0\)"):
+        read_pmu(path, load_map(None, voltage="kV", current="kA"))

@@ -143,3 +143,16 @@ def test_same_scale_as_zip():
     le = pointwise_loglik(e, d, max_draws=200).mean()
     # x^2 is both a ZIP (a1 = 1) and an exponential (np = 2) load: equal fits
     assert lz == pytest.approx(le, abs=0.05)
+
+
+def test_a_frequency_column_of_another_system_or_per_unit_is_refused():
+    # 50 Hz data at the default f0 = 60: every sample a -17% excursion, kpf and kqf
+    # fitted to it (it ran, silently); a column in per unit: -98%.
+    data = _data(n=120)
+    with pytest.raises(DataError, match=r"column 'f': the frequency has median 49.97.*give f0=50"):
+        fit_exp(dict(data, f=data["f"] - 10.0), **FAST)
+    with pytest.raises(DataError, match=r"median 0.9995, .*looks per unit"):
+        fit_exp(dict(data, f=data["f"] / 60.0), **FAST)
+    # Right as given: 50 Hz data with f0=50, and the default on 60 Hz data.
+    fit_exp(dict(data, f=data["f"] - 10.0), f0=50.0, **FAST)
+    fit_exp(data, **FAST)

@@ -55,3 +55,18 @@ def test_no_valid_rows_is_a_data_error(tmp_path):
     (tmp_path / "e.csv").write_text("v,p,q\n-1,1,1\nnan,1,1\n", encoding="utf-8")
     with pytest.raises(DataError, match="no valid rows"):
         _run(tmp_path / "e.csv", drop_invalid=True)
+
+
+def test_power_zero_in_the_rows_p0_comes_from_is_refused(tmp_path):
+    # P0 'auto' is estimated from the first rows and divides every later sample: 0 there
+    # ended in "z and r must be finite", naming nothing.
+    _bus(tmp_path / "b.csv")
+    df = pd.read_csv(tmp_path / "b.csv")
+    df.assign(p=0.0).to_csv(tmp_path / "dead.csv", index=False)
+    with pytest.raises(DataError, match=r"dead.csv: column 'p': P is 0 in all 600 rows"):
+        _run(tmp_path / "dead.csv")
+    # Q 0 throughout: refused, and tracked with P alone when asked.
+    df.assign(q=0.0).to_csv(tmp_path / "noq.csv", index=False)
+    with pytest.raises(DataError, match=r"column 'q': Q is 0"):
+        _run(tmp_path / "noq.csv")
+    _run(tmp_path / "noq.csv", q_col=None)

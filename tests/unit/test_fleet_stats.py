@@ -139,3 +139,80 @@ def test_diagnostics_agree_with_arviz():
         lo, hi = az.hdi(x[i].ravel(), hdi_prob=0.9)
         assert (s["hdi_low"][i], s["hdi_high"][i]) == (lo, hi)
         assert s["sd"][i] == pytest.approx(np.std(x[i], ddof=1), rel=1e-12)
+
+
+def test_bus_names_in_a_spreadsheets_code_page(tmp_path):
+    # Chinese bus names saved in GB18030 (the header itself is ASCII): read as written.
+    rng = np.random.default_rng(5)
+    df = _fleet_frame(rng, 200)
+    df["bus_id"] = "母线" + df["bus_id"]
+    (tmp_path / "gb.csv").write_bytes(df.to_csv(index=False).encode("gb18030"))
+    (part,) = find_partitions(str(tmp_path / "gb.csv"))
+    stats = finish(partition_stats(part, ReadSpec(chunk_rows=64), ZIPModel()))
+    assert sorted(stats.buses.tolist()) == ["母线a", "母线b", "母线c", "母线d"]
+    # Latin-1 names are not guessed: refused at the first such row, by column and row.
+    df = _fleet_frame(rng, 20)
+    df.loc[6:, "bus_id"] = "Büs"
+    (tmp_path / "l1.csv").write_bytes(df.to_csv(index=False).encode("latin-1"))
+    (part,) = find_partitions(str(tmp_path / "l1.csv"))
+    with pytest.raises(DataError) as err:
+        partition_stats(part, ReadSpec(), ZIPModel())
+    assert (err.value.column, err.value.row) == ("bus_id", 7)
+    assert "not UTF-8 text" in str(err.value)
+
+
+def test_a_bus_whose_power_is_zero_is_not_fitted_and_said_so(tmp_path):
+    # An open breaker: P and Q 0 in every row. Its shares would be 0 / 0.
+    rng = np.random.default_rng(6)
+    good = _fleet_frame(rng, 400)
+    dead = pd.DataFrame(
+        {"bus_id": "dead", "customer_class": "x", "v": rng.uniform(0.95, 1.05, 60),
+         "p": 0.0, "q": 0.0}
+    )  # fmt: skip
+    pd.concat([good, dead]).to_parquet(tmp_path / "f.parquet")
+    res = run_fleet(
+        str(tmp_path / "f.parquet"),
+        ReadSpec(),
+        p0="auto",
+        q0="auto",
+        sampler=SamplerSettings(draws=200, burn=50),
+    )
+    rows = res.table[res.table.bus == "dead"]
+    assert rows.parameter.isna().all() and "P is 0 in every row" in rows.warnings.iloc[0]
+
+
+def test_spaces_around_a_bus_id_do_not_make_another_bus(tmp_path):
+    rng = np.random.default_rng(7)
+    df = _fleet_frame(rng, 200)
+    df.loc[df.index[:30], "bus_id"] = " " + df["bus_id"].iloc[:30] + "  "
+    df.to_csv(tmp_path / "f.csv", index=False)
+    df.to_parquet(tmp_path / "f.parquet")
+    for name in ("f.csv", "f.parquet"):
+        (part,) = find_partitions(str(tmp_path / name))
+        stats = finish(partition_stats(part, ReadSpec(), ZIPModel()))
+        assert sorted(stats.buses.tolist()) == ["a", "b", "c", "d"]
+        assert int(stats.n.sum()) == 200
+    # An id of spaces only is a missing id, named by its row.
+    df.loc[df.index[4], "bus_id"] = "   "
+    df.to_csv(tmp_path / "g.csv", index=False)
+    (part,) = find_partitions(str(tmp_path / "g.csv"))
+    with pytest.raises(DataError) as err:
+        partition_stats(part, ReadSpec(), ZIPModel())
+    assert (err.value.column, err.value.row) == ("bus_id", 5)
+
+
+def test_a_copy_of_a_file_in_the_fleet_folder_is_refused(tmp_path):
+    # 'part (1).parquet' left beside 'part.parquet': every bus in it counted twice.
+    rng = np.random.default_rng(8)
+    d = tmp_path / "d"
+    d.mkdir()
+    _fleet_frame(rng, 200).to_parquet(d / "part.parquet")
+    _fleet_frame(rng, 200).to_csv(d / "other.csv", index=False)
+    (d / "part (1).parquet").write_bytes((d / "part.parquet").read_bytes())
+    with pytest.raises(DataError, match=r"the same rows as .*part.*remove one"):
+        run_fleet(str(d), ReadSpec(), sampler=SamplerSettings(draws=50, burn=10))
+    # The same rows in another order or format are the same rows, too.
+    pd.read_parquet(d / "part.parquet").iloc[::-1].to_csv(d / "part (1).csv", index=False)
+    (d / "part (1).parquet").unlink()
+    with pytest.raises(DataError, match="the same rows as"):
+        run_fleet(str(d), ReadSpec(), sampler=SamplerSettings(draws=50, burn=10))

@@ -262,3 +262,16 @@ def test_default_priors_are_weak() -> None:
     for p in priors.values():
         assert isinstance(p, BlockPrior) and not p.conjugate
         np.testing.assert_allclose(np.diag(p.precision), 1e-4)
+
+
+def test_a_record_with_no_stator_current_is_refused_in_words(noisy, tmp_path) -> None:
+    # id = iq = 0 throughout (an open breaker, current channels not recorded): the
+    # equations are singular; it ended in the solver's bare "SVD did not converge".
+    cols = _cols(noisy)
+    dead = dict(cols, id=np.zeros_like(cols["id"]), iq=np.zeros_like(cols["iq"]))
+    with pytest.raises(DataError, match=r"column 'id': the stator current \(id, iq\) is 0"):
+        fit_im(dead, **FAST)
+    path = tmp_path / "dead.csv"
+    pd.DataFrame(dead).to_csv(path, index=False)
+    with pytest.raises(DataError, match=r"dead.csv: column 'id': the stator current"):
+        fit_im_file(str(path), **FAST)

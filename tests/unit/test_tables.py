@@ -613,3 +613,41 @@ def test_abandoned_iteration_closes_the_file(tmp_path, name):
         assert next(chunks).n_rows == 10
         del chunks
         gc.collect()
+
+
+# --- files in a spreadsheet's code page (red-team cases) ------------------------------
+
+
+def test_gb18030_header_is_read_by_its_names(tmp_path):
+    # A Chinese spreadsheet saves its CSV in GB18030: the names are read as written.
+    text = "电压,有功\n1.01,0.5\n0.99,0.48\n"
+    path = write(tmp_path, "bus.csv", text.encode("gb18030"))
+    cols, n_dropped = read_columns(path, ["电压", "有功"])
+    assert n_dropped == 0
+    np.testing.assert_array_equal(cols["电压"], [1.01, 0.99])
+    # Asked for a name it lacks, the message lists the names as the user wrote them.
+    assert "the columns are '电压', '有功'" in str(error_of(path))
+
+
+def test_latin1_header_is_refused_with_what_it_reads_as(tmp_path):
+    # Latin-1 decodes any byte (a binary file too), so it is not guessed; the message
+    # shows the header as Latin-1 and says what to do.
+    path = write(tmp_path, "bus.csv", "Spannung_µ,p\n1,2\n".encode("latin-1"))
+    text = str(error_of(path))
+    assert "header is not UTF-8 text (byte 0xb5)" in text
+    assert "as Latin-1 it reads 'Spannung_µ,p'" in text and "save the file as UTF-8" in text
+    # Latin-1 letters before ASCII ones decode as GB18030 ideographs: still Latin-1.
+    path = write(tmp_path, "b2.csv", "Büs,p\n1,2\n".encode("latin-1"))
+    assert "as Latin-1 it reads 'Büs,p'" in str(error_of(path))
+
+
+def test_utf16_is_named(tmp_path):
+    path = write(tmp_path, "bus.csv", "v,p\n1,2\n".encode("utf-16"))
+    assert "UTF-16 text" in str(error_of(path))
+
+
+def test_decimal_comma_is_said(tmp_path):
+    path = write(tmp_path, "bus.csv", "v;p\n1,5;2\n")
+    assert "(a decimal comma: save the file with '.' as the decimal mark)" in str(error_of(path))
+    path = write(tmp_path, "b2.csv", "v,p\nabc,2\n")
+    assert "decimal comma" not in str(error_of(path))

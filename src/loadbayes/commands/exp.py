@@ -163,7 +163,7 @@ def fit_exp_cmd(
     # The exponential model is near the ZIP one at V0 (P = P0 at V = V0): the same check.
     warnings = data_checks(
         pc.cols, path=data, names=names, accept_units=accept_units, eiv=False,
-        v0=v0, p0=p0_val, q0=q0_val, v_base=v_base, s_base=s_base,
+        v0=v0, p0=p0_val, q0=q0_val, v_base=v_base, s_base=s_base, f0=f0,
     )  # fmt: skip
     if pc.n_dropped:
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")

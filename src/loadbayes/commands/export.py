@@ -52,6 +52,13 @@ def _read_posterior(path: str):
             for k, d in draws.items()
         }  # fmt: skip
         return post.model, draws, summary, dict(post.settings), "2.5% and 97.5% quantiles"
+    if p.suffix.lower() in (".parquet", ".pq", ".csv"):
+        # A fleet's table (or a data file) holds summaries per bus, not one posterior.
+        raise DataError(
+            "not a loadbayes posterior JSON or NetCDF but a table: export takes one fit's "
+            "result (a fleet's bus: fit zip on that bus's rows with --json or --netcdf)",
+            path,
+        )
     try:
         doc = json.loads(p.read_text(encoding="utf-8"))
         params = doc["parameters"]

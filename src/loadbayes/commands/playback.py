@@ -79,6 +79,11 @@ def playback_cmd(
     )
     if len(evs) != 1:
         raise UserError(f"{event}: holds {len(evs)} events (an event column); give one")
+    from loadbayes.fit.composite.checks import check_units
+
+    # The fit's unit and sign checks: data in kV or MW without bases, or P that flows
+    # out, said as such (not as a disagreement with the case's power).
+    check_units(evs, columns={"v": v_col, "p": p_col, "q": q_col}, overridable=False)
     steps = fit.steps_for(event)
     # MVA per p.u. of the event: --s-base, else the fit's recorded base, else the case's.
     s_event = s_base if s_base is not None else fit.s_base_mva

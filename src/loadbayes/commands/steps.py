@@ -174,20 +174,19 @@ def read_times(path: str, t_col: str, rows: np.ndarray) -> tuple[np.ndarray, np.
     import pandas as pd
 
     from loadbayes.io.errors import DataError
+    from loadbayes.measurements.times import read_text_column
 
-    try:
-        if str(path).lower().endswith((".parquet", ".pq")):
-            raw = pd.read_parquet(path, columns=[t_col])[t_col]
-        else:
-            raw = pd.read_csv(path, usecols=[t_col], dtype=str)[t_col]
-    except (KeyError, ValueError):
-        raise DataError(f"no time column {t_col!r} (--t-col)", path=str(path)) from None
+    # The shared reader: the file's separator (';' too) and a GB18030 header, as the
+    # V, P, Q reader takes them (pandas' defaults read neither).
+    raw = read_text_column(str(path), t_col)
     raw = raw.iloc[rows - 1].reset_index(drop=True)
     nums = pd.to_numeric(raw, errors="coerce")
     if nums.notna().all():
         secs = nums.to_numpy(dtype=float)
     else:
-        stamps = pd.to_datetime(raw, errors="coerce", format="ISO8601")
+        # ISO 8601 allows a comma before the fraction of a second (10:00:00,5).
+        comma = raw.astype(str).str.replace(r"(\d{2}:\d{2}:\d{2}),(\d)", r"\1.\2", regex=True)
+        stamps = pd.to_datetime(comma, errors="coerce", format="ISO8601")
         bad = np.flatnonzero(stamps.isna().to_numpy())
         if bad.size:
             i = int(bad[0])

@@ -151,6 +151,7 @@ def validate_cmd(
     inputs = [result, *events] + ([netcdf_in] if netcdf_in else [])
     check_outputs(outputs, inputs, force)
 
+    from loadbayes.fit.composite.checks import check_units
     from loadbayes.fit.composite.validate import read_exclusions, validate_events
     from loadbayes.io.transaction import OutputSet
     from loadbayes.measurements.events import read_events
@@ -173,6 +174,9 @@ def validate_cmd(
         )
         if len(evs) != 1:
             raise UserError(f"{path}: holds {len(evs)} events (an event column); give one each")
+        # The fit's unit and sign checks: kV or MW without bases, or P that flows out,
+        # would be scored as a (meaningless) miss of the band.
+        check_units(evs, columns={"v": v_col, "p": p_col, "q": q_col}, overridable=False)
         recs += evs
         masks.append(read_exclusions(path, straddle_col, evs[0].n))
     scores = validate_events(

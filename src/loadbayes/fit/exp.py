@@ -171,6 +171,7 @@ def fit_exp(
         warn_list += data_checks(
             cols, path=where, names=names, accept_units=accept_units, eiv=False, wording="python",
             v0=v0, p0=p0, q0=q0 if "q" in cols else "auto", v_base=v_base, s_base=s_base,
+            f0=f0,
         )  # fmt: skip
     if dropped and not warnings:
         warn_list.append(f"{dropped} rows with invalid values were dropped (drop_invalid=True)")

@@ -410,6 +410,14 @@ def fit_im_file(
         )
     except DataError as exc:
         raise DataError(exc.message, path=str(path), column=exc.column, row=exc.row) from None
+    except np.linalg.LinAlgError as exc:
+        # A record the checks let through whose equations are still singular: said with
+        # its file, not as the solver's bare message.
+        raise DataError(
+            f"the motor's equations are singular on this record ({exc}): a column that is "
+            "constant or a copy of another?",
+            path=str(path),
+        ) from None
 
 
 #: The first rows are a steady state when their derivatives are below this share of the

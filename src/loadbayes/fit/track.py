@@ -183,7 +183,12 @@ def _tables(track: ZIPTrack, chunks, *, path, names, v0, v_base, s_base, accept_
 
     from loadbayes.inference.online import OnlinePrior, OnlineTracker
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import check_power_units, level_at_nominal, refuse
+    from loadbayes.measurements.units import (
+        check_power_units,
+        level_at_nominal,
+        refuse,
+        require_power,
+    )
     from loadbayes.models.zip import ZIPModel
 
     parts, head = _head(chunks)
@@ -200,6 +205,15 @@ def _tables(track: ZIPTrack, chunks, *, path, names, v0, v_base, s_base, accept_
                 c["v"], c["p"], c.get("q"), v0=v0, p0=track.p0, q0=track.q0,
                 v_base=v_base, s_base=s_base,
             )  # fmt: skip
+            if "auto" in (track.p0, track.q0):
+                # P0 (Q0) is estimated from these rows and divides every later one.
+                auto = {ch: c.get(ch) for ch, nom in (("p", track.p0), ("q", track.q0))}
+                require_power(
+                    auto["p"] if track.p0 == "auto" else None,
+                    auto["q"] if track.q0 == "auto" else None,
+                    path=str(path),
+                    names=names,
+                )
             if not accept_units:
                 refuse(problems, path=str(path), names=names)
             track.unit_notes = [f"units: {pr}" for pr in problems]

@@ -538,7 +538,7 @@ def fit_zip_file(
                 # the first chunk with rows (one whose rows were all dropped says nothing)
                 state["first_warnings"] = data_checks(
                     cols, path=path, names=names, accept_units=accept_units,
-                    v_base=v_base, s_base=s_base, wording=wording, **nominal,
+                    v_base=v_base, s_base=s_base, wording=wording, whole=False, **nominal,
                 )  # fmt: skip
             if sum(a.size for a in keep_obs["v"]) <= MAX_OBSERVED:
                 for k, a in cols.items():
@@ -744,23 +744,54 @@ def _fit_student_t(model, cols, rows, *, priors, nu, sampler, settings, warnings
 
 
 def data_checks(
-    cols, *, path, names, accept_units, wording="cli", v_noise=None, eiv=True, **nominal
+    cols,
+    *,
+    path,
+    names,
+    accept_units,
+    wording="cli",
+    v_noise=None,
+    eiv=True,
+    whole=True,
+    f0=None,
+    **nominal,
 ) -> list[str]:
     """The unit check (refuse, or warn with ``accept_units``) and the V-noise check.
 
     ``wording`` names the fixes as the CLI's options or as Python's keywords; with
     ``v_noise`` (the noise on V modelled) the V-noise check has nothing to say;
     ``eiv=False``: the fit has no such option (the exponential one), not offered.
+    ``whole=False``: ``cols`` are the first chunk of a longer file, so a power that is 0
+    there may not be 0 throughout (the model's Gram check refuses it then). ``f0``: the
+    nominal frequency an ``f`` column is read against (the exponential model's ``kpf``).
     """
     from loadbayes.diagnostics import voltage_noise_warning
-    from loadbayes.measurements.units import check_power_units, refuse
+    from loadbayes.measurements.units import (
+        check_frequency,
+        check_power_units,
+        refuse,
+        require_power,
+    )
 
+    if whole:
+        require_power(cols.get("p"), cols.get("q"), path=str(path), names=names, wording=wording)
     problems = check_power_units(
         cols["v"], cols.get("p"), cols.get("q"), wording=wording, **nominal
     )
+    if f0 is not None and cols.get("f") is not None:
+        problems += check_frequency(cols["f"], f0, wording=wording)
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]
+    p = cols.get("p")
+    if p is not None and p.size and float(np.median(p)) < 0:
+        # Fitted as it is (a negative load: the shares are fractions of a negative P0),
+        # but said: a sign convention the other way round reads as generation.
+        out.append(
+            f"P has median {float(np.median(p)):.4g} < 0: the bus exports power (generation, "
+            "or a meter that counts the other way); the shares are fractions of the exported "
+            "P0, a negative load. Give P as the power into the load if that is what is meant"
+        )
     noise = voltage_noise_warning(cols["v"], wording=wording, eiv=eiv) if v_noise is None else None
     return out + ([noise] if noise else [])
 

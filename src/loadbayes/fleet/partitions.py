@@ -28,6 +28,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from loadbayes.io.encoding import detect_encoding
 from loadbayes.io.errors import DataError
 from loadbayes.io.tables import CSV_SUFFIXES, PARQUET_SUFFIXES, iter_chunks
 
@@ -151,7 +152,12 @@ def _label_batches(part: Partition, col: str, name: str) -> Iterator[pa.Array] |
             head = fh.read(_HEADER_BYTES)
     except (OSError, pa.ArrowException):
         return None
-    first = head.split(b"\n", 1)[0].decode("utf-8-sig", "replace").rstrip("\r")
+    # Bus names in a spreadsheet's code page (GB18030) are read as such; any other
+    # bytes that are not UTF-8 are refused by row below.
+    encoding = detect_encoding(head, complete=len(head) < _HEADER_BYTES)
+    encoding = "gb18030" if encoding == "gb18030" else "utf-8"
+    codec = "utf-8-sig" if encoding == "utf-8" else encoding
+    first = head.split(b"\n", 1)[0].decode(codec, "replace").lstrip("\ufeff").rstrip("\r")
     sep = next((c for c in ",\t;" if c in first), ",")
     import csv
 
@@ -166,14 +172,37 @@ def _label_batches(part: Partition, col: str, name: str) -> Iterator[pa.Array] |
             parse_options=pacsv.ParseOptions(delimiter=sep),
             convert_options=pacsv.ConvertOptions(
                 include_columns=[col],
-                column_types={col: pa.string()},
+                column_types={col: pa.binary()},
                 strings_can_be_null=True,
             ),
         )
+        row = 1
         for batch in reader:
-            yield batch.column(0)
+            yield _as_text(batch.column(0), encoding, name, col, row)
+            row += batch.num_rows
 
     return csv_batches()
+
+
+def _as_text(cells: pa.Array, encoding: str, name: str, col: str, row: int) -> pa.Array:
+    """Raw cells as strings in the file's encoding; a cell that is not refused by row."""
+    if encoding == "utf-8":
+        try:
+            return pc.cast(cells, pa.string())
+        except pa.ArrowInvalid:
+            pass  # find the cell below
+    out = []
+    for i, cell in enumerate(cells.to_pylist()):
+        try:
+            out.append(None if cell is None else cell.decode(encoding))
+        except UnicodeDecodeError:
+            raise DataError(
+                f"not {encoding.upper()} text: {cell[:20]!r} (save the file as UTF-8)",
+                name,
+                col,
+                row + i,
+            ) from None
+    return pa.array(out, pa.string())
 
 
 class _Aligned:
@@ -212,13 +241,23 @@ class _Aligned:
         return out
 
 
+def _trimmed(labels: pa.Array) -> pa.Array:
+    """Ids without the spaces around them; an id of spaces only is missing.
+
+    A spreadsheet's ' bus07 ' and 'bus07' are one bus: read as written they became two,
+    each fitted on part of its rows.
+    """
+    labels = pc.utf8_trim_whitespace(labels)
+    return pc.if_else(pc.equal(labels, ""), pa.scalar(None, pa.string()), labels)
+
+
 def _labels(part: Partition, col: str | None, name: str, what: str) -> _Aligned | str | None:
     """Labels from a column, else a constant from a hive folder, else None."""
     if col is None:
         return None
     batches = _label_batches(part, col, name)
     if batches is not None:
-        return _Aligned(batches, name, col)
+        return _Aligned((_trimmed(b) for b in batches), name, col)
     if col in part.hive:
         return part.hive[col]
     if what == "bus":

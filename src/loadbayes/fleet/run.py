@@ -98,6 +98,33 @@ def _has_column(part: Partition, col: str) -> bool:
     return col in next(csv.reader([line], delimiter=sep), [])
 
 
+def _refuse_copies(parts, partials) -> None:
+    """Refuse a file whose rows are another's (a copy left in the folder, a glob twice).
+
+    Its buses' rows would be added twice: every such bus seen twice over, its intervals
+    narrower by sqrt 2 as if it had been measured again. Two files hold the same rows of
+    the same buses exactly when their exact sums, counts and bus ids are equal.
+    """
+    import hashlib
+
+    seen: dict[bytes, str] = {}
+    for part, stats in zip(parts, partials, strict=True):
+        if not stats.buses.size:
+            continue
+        digest = hashlib.sha256()
+        digest.update("\0".join(map(str, stats.buses)).encode())
+        digest.update(np.ascontiguousarray(stats.n).tobytes())
+        digest.update(np.ascontiguousarray(stats.digits).tobytes())
+        key = digest.digest()
+        if key in seen:
+            raise DataError(
+                f"the same rows as {seen[key]} (every bus, count and sum equal): a copy would "
+                "count each of its buses twice and narrow their intervals; remove one",
+                part.path,
+            )
+        seen[key] = part.path
+
+
 def _warn_mixed_ids(parts: list[Partition], col: str) -> None:
     """Say so when the files store the bus ids as different types (they merge as text)."""
     import warnings
@@ -145,6 +172,7 @@ def fleet_statistics(
         model,
         done=(lambda i, r: progress(1)) if progress else None,
     )
+    _refuse_copies(parts, partials)
     merged = merge(partials)
     if not merged.buses.size:
         raise DataError("no valid rows in any file", data)

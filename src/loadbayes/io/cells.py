@@ -37,6 +37,9 @@ _NUMBER = re.compile(
     re.IGNORECASE | re.ASCII,
 )
 _SPACE = " \t\n\v\f\r"
+# A number written with a decimal comma ('1,0234', '-0,5'): said, not guessed (in a
+# comma-separated file '1,5' could as well be two fields).
+_COMMA_NUMBER = re.compile(r"[+-]?[0-9]*,[0-9]+(?:[eE][+-]?[0-9]+)?", re.ASCII)
 _FLOAT64 = pa.float64()
 
 
@@ -180,7 +183,10 @@ def _to_float_slowly(arr: pa.Array) -> tuple[np.ndarray, tuple[int, str] | None]
                 return vals, (i, f"not UTF-8 text: {_show(cell)} (saved in another encoding?)")
         x = _parse_cell(cell)
         if x is None:
-            return vals, (i, f"non-numeric value {_show(cell)}")
+            hint = ""
+            if _COMMA_NUMBER.fullmatch(cell.strip(_SPACE)):
+                hint = " (a decimal comma: save the file with '.' as the decimal mark)"
+            return vals, (i, f"non-numeric value {_show(cell)}{hint}")
         vals[i] = x
     return vals, None
 

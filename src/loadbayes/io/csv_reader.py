@@ -19,6 +19,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from loadbayes.io.cells import _one_line, _Piece, _show, select_columns, validate_batch
+from loadbayes.io.encoding import SNIFF_BYTES, detect_encoding
 from loadbayes.io.errors import DataError
 from loadbayes.io.sources import STDIN, _open_binary
 
@@ -38,16 +39,11 @@ def _read_header(fh: Any, name: str) -> tuple[list[str], str]:
         raise DataError("empty file", name)
     if len(line) > _HEADER_MAX_BYTES:
         raise DataError("first line longer than 1 MiB: not a CSV file?", name)
+    if line.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise DataError("UTF-16 text (a spreadsheet's 'Unicode text'): save it as UTF-8 CSV", name)
     if b"\0" in line:
         raise DataError("header contains NUL bytes: a binary file, not CSV text?", name)
-    try:
-        text = line.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise DataError(
-            f"header is not UTF-8 text (byte {line[err.start]:#04x}): "
-            "a binary file, or saved in another encoding?",
-            name,
-        ) from None
+    text = _decode_header(line, _sniff(fh, line), name)
     text = text.rstrip("\r\n")
     if not text.strip():
         raise DataError("first line is empty; expected a header with the column names", name)
@@ -59,6 +55,48 @@ def _read_header(fh: Any, name: str) -> tuple[list[str], str]:
     except csv.Error as err:
         raise DataError(f"cannot parse the header: {err}", name) from None
     return header, sep
+
+
+def _sniff(fh: Any, line: bytes) -> tuple[bytes, bool]:
+    """The header and the bytes after it (up to 1 MiB), ``fh`` left where it was.
+
+    Returns the sample and whether it is the whole file. Standard input cannot be
+    rewound: the header alone is the sample there.
+    """
+    try:
+        if not fh.seekable():
+            return line, False
+        pos = fh.tell()
+        try:
+            more = fh.read(SNIFF_BYTES)
+        finally:
+            fh.seek(pos)
+    except (OSError, EOFError, zlib.error, ValueError, AttributeError):
+        return line, False
+    return line + more, len(more) < SNIFF_BYTES
+
+
+def _decode_header(line: bytes, sniffed: tuple[bytes, bool], name: str) -> str:
+    """The header's text: UTF-8, or GB18030 when the file's first bytes are (CJK names).
+
+    Latin-1 is not guessed: it decodes any byte, so a binary file or a file in another
+    code page would pass with garbled names; the message says what it would read as.
+    """
+    try:
+        return line.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        byte = line[err.start]
+    sample, complete = sniffed
+    if b"\0" not in sample and detect_encoding(sample, complete=complete) == "gb18030":
+        return line.decode("gb18030").lstrip("\ufeff")
+    shown = line.decode("latin-1").rstrip("\r\n")
+    readable = shown.isprintable() and b"\0" not in sample
+    hint = (
+        f" (as Latin-1 it reads {_show(shown)}: save the file as UTF-8)"
+        if readable
+        else ": a binary file, or saved in another encoding?"
+    )
+    raise DataError(f"header is not UTF-8 text (byte {byte:#04x}){hint}", name)
 
 
 def _csv_pieces(

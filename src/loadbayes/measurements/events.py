@@ -27,6 +27,7 @@ __all__ = [
     "STEADY_SAMPLES",
     "events_from_arrays",
     "read_events",
+    "refuse_repeats",
 ]
 
 #: An event this long (s) is taken as it is: about twice the typical motor's T' (0.5 s),
@@ -49,6 +50,14 @@ MIN_SAMPLES = 20
 MIN_DV = 0.01
 #: A sampling interval larger than this multiple of the median interval is a gap.
 MAX_GAP = 2.5
+#: Longest median sampling interval (s): at 2 samples/s the motor's transients (T' of
+#: 0.05-1 s, the first cycles after a step) fall between samples. Times in milliseconds
+#: read as seconds (16.7 for 60 samples/s) land far above it.
+MAX_STEP_S = 0.5
+#: Longest event (s): a disturbance and the load's recovery last seconds, not hours; a
+#: longer span is a unit error (2 s at 1 kHz in ms spans 2,000) or a whole day's
+#: record, whose motor response the fit would integrate at great cost for nothing.
+MAX_EVENT_S = 600.0
 #: The record's own frequency (median of f, or from the angle's drift) this far off the
 #: nominal is another system's frequency (50 Hz data at --f-hz 60 is 17% off), not a
 #: disturbance: refused, since the motor's time base would be wrong.
@@ -73,7 +82,8 @@ def events_from_arrays(
     ----------
     cols : dict of str to ndarray
         Per-unit columns keyed ``t, v, p, q`` and optionally ``f`` (Hz), ``angle`` (rad),
-        ``event`` (any numbers: one event per distinct value, in order of appearance).
+        ``event`` (numbers or text: one event per distinct value, in order of
+        appearance).
     rows : ndarray of int
         The 1-based data row of each sample in the file (for error messages).
     path : str
@@ -102,16 +112,27 @@ def events_from_arrays(
     return out
 
 
-def _fmt(x: float) -> str:
+def _in(label: str, path: str) -> str:
+    """Say ' in f.csv[event=2]' for one event of several, '' for a file's only one.
+
+    The message already starts with the file.
+    """
+    return "" if label == path else f" in {label}"
+
+
+def _fmt(x: float | str) -> str:
+    if isinstance(x, str):
+        return x
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
 def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
     t, v = cols["t"], cols["v"]
-    where = f"{path}" if label == path else label
+    where = _in(label, path)
     if t.size < MIN_SAMPLES:
         raise DataError(
-            f"{where}: only {t.size} samples; an event needs at least {MIN_SAMPLES}",
+            f"only {t.size} sample{'s' * (t.size != 1)}{_in(label, path)}; an event needs "
+            f"at least {MIN_SAMPLES}",
             path,
             names["t"],
             int(rows[-1]) if rows.size else None,
@@ -139,9 +160,25 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
             int(rows[k]),
         )
     span = float(t[-1] - t[0])
+    if step > MAX_STEP_S or span > MAX_EVENT_S:
+        what = (
+            f"samples {step:.4g} s apart (median)"
+            if step > MAX_STEP_S
+            else f"an event that lasts {span:g} s"
+        )
+        raise DataError(
+            f"{what}{_in(label, path)}: a disturbance record samples faster than "
+            f"{1 / MAX_STEP_S:g}/s and lasts under {MAX_EVENT_S:g} s; is the time in "
+            "milliseconds (give seconds), or a long record (cut its sags with "
+            "loadbayes events)?",
+            path,
+            names["t"],
+            int(rows[-1]) if span > MAX_EVENT_S else None,
+        )
     if span < MIN_SHORT_SPAN_S:
         raise DataError(
-            f"{where}: the event lasts {span:g} s, shorter than the motor's time constants "
+            f"the event{_in(label, path)} lasts {span:g} s, shorter than the motor's time "
+            "constants "
             f"(at least {MIN_SHORT_SPAN_S:g} s that start in steady state, or "
             f"{MIN_SPAN_S:g} s, is needed)",
             path,
@@ -166,7 +203,7 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
     dv = float(np.max(v) - np.min(v)) / v0
     if dv < MIN_DV:
         raise DataError(
-            f"{where}: the voltage never changes by more than {100 * MIN_DV:g}% "
+            f"the voltage{_in(label, path)} never changes by more than {100 * MIN_DV:g}% "
             f"(range {100 * dv:.3g}%): there is no disturbance to identify the motor from",
             path,
             names["v"],
@@ -201,7 +238,7 @@ def _check_steady_start(t, v, rows, *, where, path, col, f_hz) -> None:
     k = int(moved[0]) if moved.size else t.size
     if k < STEADY_SAMPLES or t[k - 1] - t[0] < 1.0 / f_hz:
         raise DataError(
-            f"{where}: the event lasts {t[-1] - t[0]:g} s, under {MIN_SPAN_S:g} s, and its "
+            f"the event{where} lasts {t[-1] - t[0]:g} s, under {MIN_SPAN_S:g} s, and its "
             f"voltage moves by more than {100 * STEADY_DV:g}% at t = {t[k] - t[0]:g} s, "
             f"before {STEADY_SAMPLES} samples and one cycle of steady state: a short event "
             "must start in steady state (cut it earlier, before the disturbance)",
@@ -227,7 +264,8 @@ def _check_frequency(cols, rows, dt, *, path, label, names, f_hz) -> None:
     if abs(f / f_hz - 1) > MAX_F_OFF:
         raise DataError(
             f"the record's frequency is about {f:.4g} Hz ({how}){where}, not the nominal "
-            f"{f_hz:g} Hz: give --f-hz {round(f):g} if the system runs at {round(f):g} Hz",
+            f"{f_hz:g} Hz: fit composite --f-hz {round(f):g} (f_hz={round(f):g}) if the "
+            f"system runs at {round(f):g} Hz",
             path,
             column,
         )
@@ -253,22 +291,41 @@ def read_events(
     wins when both are); ``event_col`` is used when present.
     """
     from loadbayes.measurements.columns import read_power_columns
+    from loadbayes.measurements.times import parse_times, read_text_column
 
     out: list[EventRecord] = []
     for path in paths:
         extra = tuple(c for c in (f_col or "f", angle_col or "angle_rad", event_col) if c)
-        pc = read_power_columns(
-            path,
-            v_col=v_col,
-            p_col=p_col,
-            q_col=q_col,
-            q_required=True,
-            t_col=t_col,
-            extra=extra,
-            v_base=v_base,
-            s_base=s_base,
-        )
+        # Times as ISO timestamps and event ids as text ('sag1') are read as text, the
+        # rest as numbers; first as numbers, the common case, read once.
+        as_text: set[str] = set()
+        while True:
+            try:
+                pc = read_power_columns(
+                    path,
+                    v_col=v_col,
+                    p_col=p_col,
+                    q_col=q_col,
+                    q_required=True,
+                    t_col=None if t_col in as_text else t_col,
+                    extra=tuple(c for c in extra if c not in as_text),
+                    v_base=v_base,
+                    s_base=s_base,
+                )
+                break
+            except DataError as exc:
+                text = exc.column in (t_col, event_col) and exc.column not in as_text
+                stamped = exc.column == t_col and "has type timestamp" in exc.message
+                if not (text and ("non-numeric" in exc.message or stamped)):
+                    raise
+                as_text.add(exc.column)  # type: ignore[arg-type]
         cols = dict(pc.cols)
+        if t_col in as_text:
+            whole = read_text_column(str(path), t_col)
+            cols["t"] = parse_times(whole, path=str(path), column=t_col)[pc.rows - 1]
+        if event_col in as_text:
+            ids = read_text_column(str(path), event_col).to_numpy(dtype=str)
+            pc.extra[event_col] = np.char.strip(ids)[pc.rows - 1]
         f_name, a_name = f_col or "f", angle_col or "angle_rad"
         for want, given, key in ((f_col, f_name, "f"), (angle_col, a_name, "angle")):
             if given in pc.extra:
@@ -287,7 +344,38 @@ def read_events(
             "event": event_col,
         }
         out += events_from_arrays(cols, pc.rows, path=str(path), names=names, f_hz=f_hz)
+    refuse_repeats(out, v_col)
     return out
+
+
+def refuse_repeats(events: Sequence[EventRecord], v_col: str) -> None:
+    """Refuse one recording given twice (the same file, or a copy of it).
+
+    Fitted jointly, each event's evidence is counted once per copy: the intervals come
+    out narrower by the square root of the count, as if the load had been seen again.
+    """
+    import hashlib
+
+    seen: dict[bytes, str] = {}
+    for ev in events:
+        digest = hashlib.sha256()
+        for x in (ev.v, ev.p, ev.q):
+            digest.update(np.ascontiguousarray(x, dtype=float).tobytes())
+        key = digest.digest()
+        if key in seen:
+            same = (
+                "this recording is given twice"
+                if seen[key] == ev.name
+                else f"the same recording as {seen[key]}"
+            )
+            raise DataError(
+                f"{same} (every V, P and Q sample equal): fitted "
+                "twice, its evidence would count twice and the intervals shrink as if the "
+                "load had been seen again; give each event once",
+                ev.name or None,
+                v_col,
+            )
+        seen[key] = ev.name or "an earlier event"
 
 
 def index_bases(paths: Sequence[str]) -> tuple[float, float] | None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["check_increasing", "parse_times", "read_times", "time_facts"]
+__all__ = ["check_increasing", "parse_times", "read_text_column", "read_times", "time_facts"]
 
 
 def parse_times(values: Any, *, path: str, column: str, rows: np.ndarray | None = None):
@@ -47,6 +47,8 @@ def parse_times(values: Any, *, path: str, column: str, rows: np.ndarray | None 
     if num.notna().any() and num.notna().sum() > len(s) // 2:
         # a column of numbers with a stray text cell: name the cell
         _refuse_bad(num.isna().to_numpy(), s, where, path, column)
+    # ISO 8601 allows a comma before the fraction of a second (10:00:00,5).
+    text = text.str.replace(r"(\d{2}:\d{2}:\d{2}),(\d)", r"\1.\2", regex=True)
     aware = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
     ts = pd.to_datetime(text, errors="coerce", utc=bool(aware.any()), format="ISO8601")
     _refuse_bad(ts.isna().to_numpy(), s, where, path, column)
@@ -65,16 +67,17 @@ def _refuse_bad(bad: np.ndarray, s, where, path, column) -> None:
         )
 
 
-def read_times(path: str, t_col: str, rows: np.ndarray | None = None) -> np.ndarray:
-    """The time column of a CSV or Parquet file in seconds, at the 1-based data ``rows``.
+def read_text_column(path: str, column: str):
+    """One column of a CSV or Parquet file as text (pandas Series), every row.
 
-    The whole column is parsed (a bad cell is refused even in a row dropped later), then
-    cut to ``rows`` (the rows the V, P, Q reader kept).
+    CSV headers in GB18030 (a Chinese spreadsheet's) are read as the table reader reads
+    them (:mod:`loadbayes.io.encoding`).
     """
     import pandas as pd
 
     if path == "-":
-        raise DataError("a time column needs a file, not standard input", path="-", column=t_col)
+        raise DataError("this column needs a file, not standard input", path="-", column=column)
+    from loadbayes.io.encoding import SNIFF_BYTES, detect_encoding
     from loadbayes.io.sources import PARQUET_SUFFIXES
 
     name = str(path)
@@ -82,20 +85,40 @@ def read_times(path: str, t_col: str, rows: np.ndarray | None = None) -> np.ndar
         import pyarrow.parquet as pq
 
         schema = pq.read_schema(name)
-        if t_col not in schema.names:
-            raise DataError(f"no column {t_col!r} (columns: {', '.join(schema.names)})", path=name)
-        values = pq.read_table(name, columns=[t_col]).column(0).to_pandas()
-    else:
-        with open(name, "rb") as fh:
-            head = fh.readline().decode("utf-8-sig", errors="replace").rstrip("\r\n")
-        sep = next((c for c in ",\t;" if c in head), ",")
-        header = [h.strip().strip('"') for h in head.split(sep)]
-        if t_col not in header:
-            raise DataError(f"no column {t_col!r} (columns: {', '.join(header)})", path=name)
-        values = pd.read_csv(
-            name, sep=sep, usecols=[t_col], dtype=str, keep_default_na=False, engine="c"
-        )[t_col]
-    t = parse_times(values, path=name, column=t_col)
+        if column not in schema.names:
+            raise DataError(f"no column {column!r} (columns: {', '.join(schema.names)})", path=name)
+        return pq.read_table(name, columns=[column]).column(0).to_pandas()
+    with open(name, "rb") as fh:
+        sample = fh.read(SNIFF_BYTES)
+    found = detect_encoding(sample, complete=len(sample) < SNIFF_BYTES)
+    encoding = "gb18030" if found == "gb18030" else "utf-8-sig"
+    head = sample.split(b"\n", 1)[0].decode(encoding, errors="replace").rstrip("\r\n")
+    sep = next((c for c in ",\t;" if c in head), ",")
+    header = [h.strip().strip('"') for h in head.split(sep)]
+    if column not in header:
+        raise DataError(f"no column {column!r} (columns: {', '.join(header)})", path=name)
+    return pd.read_csv(
+        name,
+        sep=sep,
+        usecols=[column],
+        dtype=str,
+        keep_default_na=False,
+        engine="c",
+        encoding=encoding,
+        encoding_errors="replace",
+    )[column]
+
+
+def read_times(path: str, t_col: str, rows: np.ndarray | None = None) -> np.ndarray:
+    """The time column of a CSV or Parquet file in seconds, at the 1-based data ``rows``.
+
+    The whole column is parsed (a bad cell is refused even in a row dropped later), then
+    cut to ``rows`` (the rows the V, P, Q reader kept).
+    """
+    if path == "-":
+        raise DataError("a time column needs a file, not standard input", path="-", column=t_col)
+    name = str(path)
+    t = parse_times(read_text_column(name, t_col), path=name, column=t_col)
     return t if rows is None else t[np.asarray(rows) - 1]
 
 

@@ -24,11 +24,13 @@ from loadbayes.io.errors import DataError
 __all__ = [
     "UnitProblem",
     "Wording",
+    "check_frequency",
     "check_gram_units",
     "check_motor_units",
     "check_power_units",
     "level_at_nominal",
     "refuse",
+    "require_power",
 ]
 
 #: ``median(V / V0)`` outside this range is not per unit of V0.
@@ -302,6 +304,72 @@ def check_motor_units(
     return out
 
 
+#: A record's median frequency this far from the nominal is another system's (50 Hz data
+#: read against 60 Hz is 17% off), or not in Hz; the same bound as the composite's.
+F_OFF = 0.03
+
+
+def check_frequency(f: np.ndarray, f0: float, *, wording: Wording = "cli") -> list[UnitProblem]:
+    """A frequency column against the nominal frequency ``f0`` (Hz).
+
+    ``df = (f - f0) / f0`` is the regressor of ``kpf``: a 50 Hz record at ``f0 = 60``
+    makes every sample a 17% frequency excursion, a column in per unit one of -98%.
+    """
+    f = np.asarray(f, dtype=float)
+    f = f[np.isfinite(f)]
+    if not f.size:
+        return []
+    med = float(np.median(f))
+    if abs(med / f0 - 1) <= F_OFF:
+        return []
+    if 0.5 <= med <= 2.0:
+        fix = "give the frequency in Hz (the column looks per unit)"
+    else:
+        near = min((50.0, 60.0), key=lambda x: abs(x - med))
+        fix = f"give {option('f0', f'{near:g}', wording=wording)} if the system runs at {near:g} Hz"
+    seen = f"the frequency has median {med:.4g}, not about the nominal {f0:g} Hz"
+    return [UnitProblem("f", seen, fix, wording)]
+
+
+def require_power(
+    p: np.ndarray | None,
+    q: np.ndarray | None,
+    *,
+    path: str | None = None,
+    names: Mapping[str, str | None] | None = None,
+    wording: Wording = "cli",
+) -> None:
+    """Refuse a power column that is 0 in every row (``--accept-units`` does not help).
+
+    A load model's shares are fractions of the power at V0: with P (or Q) 0 throughout
+    they are 0 / 0, and the fit, which "fits exactly", reports any numbers at all. An
+    open breaker, a current channel that was not recorded (a PMU's zero current), or
+    the wrong column gives such data.
+
+    Raises
+    ------
+    DataError
+        Naming the file and the column.
+    """
+    for ch, y in (("p", p), ("q", q)):
+        if y is None:
+            continue
+        y = np.asarray(y, dtype=float)
+        fin = y[np.isfinite(y)]
+        if fin.size and not np.any(fin):
+            fix = (
+                f"name the column that holds it with {option('p-col', wording=wording)}"
+                if ch == "p"
+                else "fit P alone with " + ("--q-col none" if wording == "cli" else "q_col=None")
+            )
+            raise DataError(
+                f"{ch.upper()} is 0 in all {fin.size} rows: there is no load to fit (an open "
+                f"breaker, a current that was not recorded, or the wrong column?); {fix}",
+                path=path,
+                column=(names or {}).get(ch) or ch,
+            )
+
+
 def refuse(
     problems: list[UnitProblem],
     *,
@@ -368,6 +436,12 @@ def check_gram_units(gram, *, v0: float, nominal: Mapping[str, object]) -> list[
     for ch, nom in nominal.items():
         col = ch if nom == "auto" else f"r{ch}"
         if col not in names:
+            continue
+        if ch in names and float(gram.matrix[names.index(ch), names.index(ch)]) == 0.0:
+            out.append(
+                f"{ch.upper()} is 0 in every row: no load to fit (an open breaker, or the "
+                "wrong column?)"
+            )
             continue
         coef = np.linalg.lstsq(a, gram.matrix[idx, names.index(col)], rcond=None)[0]
         level = float(coef[0])

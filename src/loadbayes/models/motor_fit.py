@@ -283,6 +283,18 @@ class InductionMotorModel:
                 "steady state); the motor coefficients need a disturbance (sag, ramp, walk)",
                 column="ud",
             )
+        names = set(gram.names)
+        if {"id", "iq"} <= names and all(
+            gram.col_min[gram.index(c)] == 0.0 == gram.col_max[gram.index(c)] for c in ("id", "iq")
+        ):
+            # No stator current: no motor (a breaker open, a channel not recorded). The
+            # equations are then singular and the solver's own message ("SVD did not
+            # converge") names nothing.
+            raise DataError(
+                "the stator current (id, iq) is 0 in every row: there is no motor to fit (an "
+                "open breaker, a current that was not recorded, or the wrong columns?)",
+                column="id",
+            )
         warnings = []
         model = self if self.t0 is not None else self.with_t0(1.0)
         g = model.complete(gram)

@@ -181,6 +181,15 @@ class ZIPModel:
                     "for their sums of squares; check the units (--s-base, --p0, --q0)",
                     column=cols.get(name, v_col),
                 )
+        for name in [c for c in ("p", "q") if c in gram.names]:
+            i = gram.index(name)
+            if gram.col_min[i] == 0.0 == gram.col_max[i]:
+                # P (Q) 0 throughout: the shares, fractions of P0 = 0, are 0 / 0.
+                raise DataError(
+                    f"{name.upper()} is 0 in every row: there is no load to fit (an open "
+                    "breaker, a current that was not recorded, or the wrong column?)",
+                    column=name,
+                )
         if hi == lo:
             raise DataError(
                 f"voltage has no spread (every sample is {lo * self.v0:g}): the ZIP "

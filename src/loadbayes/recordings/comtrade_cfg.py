@@ -247,7 +247,13 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
     if not p.is_file():
         raise DataError("file not found" if not p.exists() else "not a file", name)
     if p.suffix.lower() != ".cfg":
-        raise DataError("expected a COMTRADE .cfg file", name)
+        hint = ""
+        if p.suffix.lower() == ".dat":
+            beside = [c for c in (p.with_suffix(".cfg"), p.with_suffix(".CFG")) if c.is_file()]
+            hint = f": give its .cfg ({beside[0]})" if beside else ": give its .cfg"
+        elif p.suffix.lower() == ".cff":
+            hint = ": the single-file .cff form of 2013 is not read (split it into .cfg and .dat)"
+        raise DataError("expected a COMTRADE .cfg file" + hint, name)
     text, used = _decode(p.read_bytes(), encoding, name)
     if "\0" in text:
         raise DataError("line 1: NUL bytes: a binary file, not a .cfg?", name)

@@ -140,6 +140,16 @@ def pick_channels(
         )
     if not trios:
         odd = [ch for ch in info.analog if unit_factor(ch.unit) is None]
+        if len(cands) < 3 and not odd:
+            # A single-phase (or a currents- or voltages-only) record: nothing to name.
+            have = ", ".join(repr(ch.name) for ch in cands) or "none"
+            raise DataError(
+                f"{len(cands)} {kind} channel{'s' * (len(cands) != 1)} ({have}"
+                f"{' in bay ' + repr(bay) if bay is not None and cands else ''}): the positive "
+                f"sequence, P and Q need the three phases' {kind}s; a single-phase or "
+                f"{'current' if kind == 'voltage' else 'voltage'}-only record cannot be read",
+                info.path,
+            )
         hint = (
             f"; line {odd[0].line}: channel {odd[0].name!r} has unit {odd[0].unit.strip()[:20]!r}"
             f", not one of {', '.join(sorted(set(_UNIT_SCALE)))}"

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.io.encoding import SNIFF_BYTES, detect_encoding
 from loadbayes.io.errors import DataError
 
 __all__ = ["PmuMap", "PmuRecord", "load_map", "read_pmu"]
@@ -218,6 +219,9 @@ def _times(df, m: PmuMap, name: str) -> np.ndarray:
     if m.time_format == "epoch":
         return _epoch(_numeric(df, m.time, name), df.attrs, name, m.time)
     text = raw.astype(str).str.strip()
+    # ISO 8601 allows a comma before the fraction of a second (14:00:00,033), as
+    # historians set to a European locale write it; pandas reads only the point.
+    text = text.str.replace(r"(\d{2}:\d{2}:\d{2}),(\d)", r"\1.\2", regex=True)
     leap = text.str.contains(r"[T ]\d{2}:\d{2}:60", regex=True).to_numpy()
     if leap.any():
         k = int(np.flatnonzero(leap)[0])
@@ -337,6 +341,27 @@ def _separator(path: Path) -> tuple[str, str]:
     return ",", "."
 
 
+def _bad_row(head: bytes) -> int | None:
+    """The data row (1-based, after the header) of the first byte that is not UTF-8."""
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = head[: exc.start].count(b"\n")
+        return line if line >= 1 else None
+    return None
+
+
+def _not_utf8(head: bytes) -> str:
+    if _bad_row(head) is None and b"\n" in head:
+        try:
+            head.split(b"\n", 1)[1].decode("utf-8")
+        except UnicodeDecodeError:
+            pass
+        else:
+            return "header is not UTF-8 text (saved in another encoding?): save it as UTF-8"
+    return "not UTF-8 text (saved in another encoding?): save it as UTF-8"
+
+
 def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     """Read a PMU phasor CSV into per-unit ``t_s, v, angle_rad, p, q[, f, rocof]``.
 
@@ -365,8 +390,21 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     if not p.is_file():
         raise DataError("file not found", name)
     sep, decimal = _separator(p)
+    with open(p, "rb") as fh:
+        head = fh.read(SNIFF_BYTES)
+    # A historian export in the Chinese code page (column names in GB18030) is read as
+    # such; other bytes that are not UTF-8 are refused below.
+    found = detect_encoding(head, complete=len(head) < SNIFF_BYTES)
+    encoding = "gb18030" if found == "gb18030" else "utf-8-sig"
     try:
-        df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True, sep=sep)
+        df = pd.read_csv(
+            p,
+            dtype=str,
+            keep_default_na=False,
+            skipinitialspace=True,
+            sep=sep,
+            encoding=encoding,
+        )
     except pd.errors.ParserError as exc:
         import re
 
@@ -378,7 +416,9 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
                 f"{saw} fields, expected {want} (as in the header)", name, row=line - 1
             ) from None
         raise DataError(f"cannot be read as CSV: {msg}", name) from None
-    except (UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
+    except UnicodeDecodeError:
+        raise DataError(_not_utf8(head), name, row=_bad_row(head)) from None
+    except pd.errors.EmptyDataError as exc:
         raise DataError(f"cannot be read as CSV: {str(exc).splitlines()[0]}", name) from None
     df.attrs["decimal"] = decimal
     m = mapping
@@ -452,7 +492,14 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     v_base = m.v_kv * 1e3 / math.sqrt(3) if m.v_kv else float(np.abs(v1[0]))
     s_base = m.s_mva * 1e6 if m.s_mva else float(np.abs(s[0]))
     if not (v_base > 0 and s_base > 0):
-        raise DataError("first sample has zero voltage or power; give the bases", name)
+        what = "voltage" if not v_base > 0 else "power (the current is 0)"
+        raise DataError(f"first sample has zero {what}; give the bases", name)
+    if not np.any(s):
+        # Read as asked (the voltage may be all one wants), but a fit of it has no load.
+        report.append(
+            f"the current ({', '.join(m.i_mag)}) is 0 in every row: P and Q are 0 (an open "
+            "breaker, or a channel not recorded?); no load model can be fitted to them"
+        )
     data = {
         "t_s": (t_ns - t_ns[0]) / 1e9,
         "v": np.abs(v1) / v_base,

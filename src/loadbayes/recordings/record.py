@@ -224,10 +224,10 @@ def record_table(
     Raises
     ------
     DataError
-        If a segment labelled as waveform holds no waveform at the nominal frequency.
+        If a segment labelled as waveform holds no waveform at the nominal frequency, or
+        the first row has no voltage or power and no base is given.
     ValueError
-        If the record has no waveform segment, or the first row has no voltage or power
-        and no base is given.
+        If the record has no waveform segment.
     """
     segs = w.segments or ()
     if not segs:
@@ -272,8 +272,21 @@ def record_table(
     first = next(r for s, r in parts if s.kind == "waveform")
     vb = v_base_kv * 1e3 / math.sqrt(3) if v_base_kv else float(first["v"][0])
     sb = s_base_mva * 1e6 if s_base_mva else float(np.hypot(first["p"][0], first["q"][0]))
-    if not (vb > 0 and sb > 0 and math.isfinite(vb) and math.isfinite(sb)):
-        raise ValueError("the first cycle has no voltage or power: give the bases")
+    if not (vb > 0 and math.isfinite(vb)):
+        raise DataError(
+            "the first cycle has no voltage (a dead or unscaled VT): give --v-base "
+            "(v_base_kv=) in kV line to line, or name other channels with --voltage",
+            source or None,
+        )
+    if not (sb > 0 and math.isfinite(sb)):
+        # Every current 0 at the start: multipliers of 0, a bay not recorded, or an open
+        # breaker. The voltages can still be read against a power base that is given.
+        raise DataError(
+            "the first cycle has no power (the currents are 0: a multiplier of 0, a bay "
+            "not recorded, or an open breaker?): name other currents with --current or "
+            "--bay, or give --s-base (s_base_mva=) to read the voltages anyway",
+            source or None,
+        )
     ib = sb / (3.0 * vb)
     cols: dict[str, list] = {c: [] for c in COLUMNS}
     for k, (_, rows) in enumerate(parts):

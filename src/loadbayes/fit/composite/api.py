@@ -16,6 +16,8 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from loadbayes.fit.composite.driver import CompositeFit
 from loadbayes.fit.composite.driver import fit_composite as _fit_events
 from loadbayes.io.errors import DataError, OptionError
@@ -123,7 +125,7 @@ def read(
     ``data`` is a file name, a DataFrame (or mapping of columns), an
     :class:`EventRecord`, or a list of any of them.
     """
-    from loadbayes.measurements.events import events_from_arrays, read_events
+    from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
     from loadbayes.measurements.frame import is_path, read_frame
 
     items = list(data) if isinstance(data, (list, tuple)) else [data]
@@ -144,9 +146,14 @@ def read(
             names = {"t": t_col, "v": v_col, "p": p_col, "q": q_col, "f": f_col or "f",
                      "angle": angle_col or "angle_rad", "event": event_col}  # fmt: skip
             optional = [names["f"], names["angle"], event_col]
+            ids = _text_ids(item, event_col)
+            if ids is not None:  # event ids written as text ('sag A'): not numbers
+                optional.remove(event_col)
             tab = read_frame(item, [t_col, v_col, p_col, q_col], optional=optional,
                              positive=[v_col])  # fmt: skip
             arrays = {k: tab.data[c] for k, c in names.items() if c in tab.data}
+            if ids is not None:
+                arrays["event"] = ids[np.asarray(tab.rows) - 1]
             for want, key in ((f_col, "f"), (angle_col, "angle")):
                 if want and key not in arrays:
                     raise DataError("missing column", "data", want)
@@ -155,7 +162,19 @@ def read(
             if s_base is not None:
                 arrays["p"], arrays["q"] = arrays["p"] / s_base, arrays["q"] / s_base
             out += events_from_arrays(arrays, tab.rows, path="data", names=names, f_hz=f_hz)
+    refuse_repeats(out, v_col)
     return out
+
+
+def _text_ids(table: Any, column: str) -> np.ndarray | None:
+    """A table's event ids as stripped text, when they are text; else None."""
+    try:
+        raw = np.asarray(table[column])
+    except (KeyError, IndexError, TypeError, ValueError):
+        return None
+    if raw.dtype.kind not in "OUS" or raw.ndim != 1:
+        return None
+    return np.char.strip(raw.astype(str))
 
 
 def fit_composite(

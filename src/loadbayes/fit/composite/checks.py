@@ -93,8 +93,12 @@ def check_units(
     accept_units: bool = False,
     columns: dict[str, str] | None = None,
     wording: str = "cli",
+    overridable: bool = True,
 ) -> list[str]:
     """The unit check of ``fit zip``, per event: V per unit, P and Q of a sensible size.
+
+    ``overridable=False``: the caller has no ``--accept-units`` (``playback``,
+    ``validate``), so the message does not offer it.
 
     ``columns`` maps ``v``, ``p``, ``q`` to the data's own column names (the ones a
     message names; default the short names).
@@ -115,11 +119,17 @@ def check_units(
         The first problem, naming the event's file (and event id) and the column.
     """
     from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import UnitProblem, accept, check_power_units
+    from loadbayes.measurements.units import (
+        UnitProblem,
+        accept,
+        check_power_units,
+        require_power,
+    )
 
     names = {"v": "v", "p": "p", "q": "q", **(columns or {})}
     out: list[str] = []
     for e in events:
+        require_power(e.p, e.q, path=e.name or None, names=names, wording=wording)  # type: ignore[arg-type]
         problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto", wording=wording)
         med_p = float(np.median(e.p))
         if not problems and med_p < 0:
@@ -137,7 +147,8 @@ def check_units(
         if not accept_units:
             first = problems[0]
             column = names.get(first.column, first.column)
-            raise DataError(str(first), path=e.name or None, column=column)
+            said = str(first) if overridable else f"{first.seen}; {first.fix}"
+            raise DataError(said, path=e.name or None, column=column)
         out += [f"{e.name or 'event'}: column '{names.get(pr.column, pr.column)}': {pr.seen} "
                 f"(fitted anyway: {accept(wording)})" for pr in problems]  # type: ignore[arg-type]  # fmt: skip
     return out
