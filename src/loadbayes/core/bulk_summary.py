@@ -37,9 +37,9 @@ from loadbayes.core.convergence import (
     DIRECT_LAGS,
     _ess_direct,
     _geyer,
-    _pairwise_sum,
     _rhat,
     _scores,
+    fft_mean_acov,
 )
 
 __all__ = ["applies", "summarize", "summarize_bulk"]
@@ -211,46 +211,28 @@ def _rank_pass(x, inc, table, half_table, z, zf, hdi_lo, hdi_hi):  # pragma: no 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _ess_from_acov(y, acov, mean_var, var_plus, out):  # pragma: no cover - compiled
-    """ESS of series ``y`` (k, chains, draws) from every lag's autocovariance per chain.
-
-    ``acov`` (k, chains, lags): the mean over chains is summed as ``np.mean`` sums a
-    column (numpy's pairwise order), then :func:`_geyer` runs on it.
-    """
-    k, c, d = y.shape
-    col = np.empty(c)
-    mean_acov = np.empty(d)
-    xc = np.empty((c, d))
+def _ess_from_acov(mean_acov, chains, mean_var, var_plus, out):  # pragma: no cover
+    """ESS of each series (of ``chains`` chains) from its chain-mean autocovariances."""
+    k, d = mean_acov.shape
+    xc = np.empty((chains, d))
     for s in range(k):
-        for t in range(d):
-            for ch in range(c):
-                col[ch] = acov[s, ch, t]
-            mean_acov[t] = _pairwise_sum(col, 0, c) / c
-        out[s] = _geyer(xc, mean_acov, mean_var[s], var_plus[s], d)
+        out[s] = _geyer(xc, mean_acov[s], mean_var[s], var_plus[s], d)
 
 
 def _ess(y: np.ndarray) -> np.ndarray:
-    """ESS of each series of ``y`` (m, chains, draws), as ArviZ's ``_ess``; FFT batched."""
-    from scipy.fft import next_fast_len
-
+    """ESS of each series of ``y`` (m, chains, draws), as ``convergence``'s; FFT batched."""
     m, c, d = y.shape
     mean_var = np.zeros(m)
     var_plus = np.zeros(m)
     means = y.mean(axis=2)
     out = _ess_direct(y, means, DIRECT_LAGS, mean_var, var_plus)
     idx = np.flatnonzero(out == -1.0)
-    if idx.size:
-        n_fft = next_fast_len(2 * d)
-        for b0 in range(0, idx.size, 64):
-            sel = idx[b0 : b0 + 64]
-            # as ArviZ's _autocov, series by series (the same numbers in a batch)
-            xc = y[sel] - means[sel][:, :, None]
-            f = np.fft.rfft(xc, n=n_fft, axis=2)
-            f *= np.conjugate(f)
-            acov = np.ascontiguousarray(np.fft.irfft(f, n=n_fft, axis=2)[:, :, :d] / d)
-            res = np.empty(sel.size)
-            _ess_from_acov(np.ascontiguousarray(y[sel]), acov, mean_var[sel], var_plus[sel], res)
-            out[sel] = res
+    for b0 in range(0, idx.size, 64):
+        sel = idx[b0 : b0 + 64]
+        mean_acov = np.ascontiguousarray(fft_mean_acov(y[sel] - means[sel][:, :, None]))
+        res = np.empty(sel.size)
+        _ess_from_acov(mean_acov, c, mean_var[sel], var_plus[sel], res)
+        out[sel] = res
     return out
 
 
