@@ -79,9 +79,15 @@ def _bucket_sort(v, order, srt, keys, starts, fill):  # pragma: no cover - compi
     for i in range(n):
         lo = min(lo, v[i])
         hi = max(hi, v[i])
-    scale = n / (hi - lo) if hi > lo else 0.0
+    if hi == lo:
+        # constant (a given P0): already sorted
+        for i in range(n):
+            order[i] = i
+            srt[i] = v[i]
+        return
+    scale = n / (hi - lo)
     if not (np.isfinite(scale) and scale > 0.0):
-        # constant, or a range too small or too large for the buckets
+        # a range too small or too large for the buckets
         o = np.argsort(v)
         for i in range(n):
             order[i] = o[i]
