@@ -20,10 +20,10 @@ against the general path and against ArviZ); only the work is arranged different
   numpy's temporaries (``take_along_axis``, ``concatenate``: a third of the old cost);
 - the ESS that need more than :data:`~loadbayes.core.convergence.DIRECT_LAGS` lags get
   their autocovariances from one batched FFT
-  (:func:`~loadbayes.core.convergence.fft_mean_acov`, as the general path).
+  (:func:`~loadbayes.core.convergence.ess_fft`, as the general path).
 
 Average ranks do not depend on how ties are ordered, so any sort gives the same scores.
-The compiled functions here call ``convergence``'s (``_geyer``, ``_ess_direct``) and
+The compiled functions here call ``convergence``'s (``_ess_direct``) and
 numba's cache keys a kernel on its own file only: after editing ``convergence.py``,
 delete this module's cached ``*.nbi``/``*.nbc`` files.
 """
@@ -37,10 +37,9 @@ from loadbayes.core.convergence import (
     _MIN_DRAWS_PER_THREAD,
     DIRECT_LAGS,
     _ess_direct,
-    _geyer,
     _rhat,
     _scores,
-    fft_mean_acov,
+    ess_fft,
 )
 
 __all__ = ["applies", "summarize", "summarize_bulk"]
@@ -228,29 +227,16 @@ def _rank_pass(x, inc, table, half_table, z, zf, hdi_lo, hdi_hi):  # pragma: no 
         _scores_sorted(fsrt, forder, table, half_table, zf[s])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _ess_from_acov(mean_acov, chains, mean_var, var_plus, out):  # pragma: no cover
-    """ESS of each series (of ``chains`` chains) from its chain-mean autocovariances."""
-    k, d = mean_acov.shape
-    xc = np.empty((chains, d))
-    for s in range(k):
-        out[s] = _geyer(xc, mean_acov[s], mean_var[s], var_plus[s], d)
-
-
 def _ess(y: np.ndarray) -> np.ndarray:
     """ESS of each series of ``y`` (m, chains, draws), as ``convergence``'s; FFT batched."""
     m, c, d = y.shape
     mean_var = np.zeros(m)
     var_plus = np.zeros(m)
-    means = y.mean(axis=2)
-    out = _ess_direct(y, means, DIRECT_LAGS, mean_var, var_plus)
+    out = _ess_direct(y, y.mean(axis=2), DIRECT_LAGS, mean_var, var_plus)
     idx = np.flatnonzero(out == -1.0)
     for b0 in range(0, idx.size, 64):
         sel = idx[b0 : b0 + 64]
-        mean_acov = np.ascontiguousarray(fft_mean_acov(y[sel] - means[sel][:, :, None]))
-        res = np.empty(sel.size)
-        _ess_from_acov(mean_acov, c, mean_var[sel], var_plus[sel], res)
-        out[sel] = res
+        out[sel] = ess_fft(y[sel], mean_var[sel], var_plus[sel])
     return out
 
 
