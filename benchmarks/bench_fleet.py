@@ -15,7 +15,8 @@ Parquet files of 100 buses each:
 - the fits on ``--fit-buses`` buses (default 1e4) of 100 rows each (a fit costs the same
   whatever the rows: it sees each bus's Gram matrix only): per-bus fits and the pooled
   fit, 4 chains x 2,000 kept draws (500 burn-in), summaries included; the pooled fit with
-  P0 sampled and its draws streamed to disk (they would take 2.6 GB).
+  P0 and Q0 given (``fleet_statistics``' default of 1 per unit, not the CLI's ``auto``,
+  which samples them) and its draws streamed to disk (they would take 2.6 GB).
 
 Wall and CPU seconds (this process and its Dask workers, psutil) and peak memory per
 stage; every engine must give the same table to the last bit. Writes the JSON of

@@ -96,3 +96,28 @@ def test_odd_short_single_chain_or_nan_draws_take_the_general_path(x):
     want = convergence.summarize(x, tail=False)
     for k in KEYS:
         assert np.array_equal(got[k], want[k], equal_nan=True), k
+
+
+def test_shapes_far_from_the_buckets_are_still_sorted():
+    # The bucket sort assumes a roughly normal posterior; far from it (two tight modes
+    # far apart, a heavy tail, a spike with outliers) it must still sort exactly (by its
+    # insertion pass, or numpy's sort after too many moves).
+    rng = np.random.default_rng(9)
+    e = rng.standard_normal((4, 4, 500))
+    x = np.empty_like(e)
+    x[0] = np.where(e[0] > 0, 1e6, 0.0) + 1e-3 * rng.standard_normal((4, 500))
+    x[1] = rng.standard_cauchy((4, 500))
+    x[2] = np.where(np.abs(e[2]) > 2.5, 1e9 * e[2], 1e-9 * e[2])
+    x[3] = np.exp(8 * e[3])
+    got = summarize_bulk(x, 0.95)
+    want = _general(x, 0.95)
+    for k in KEYS:
+        assert np.array_equal(got[k], want[k], equal_nan=True), k
+    order = np.empty(2000, np.int64)
+    srt = np.empty(2000)
+    keys = np.empty(2000, np.int64)
+    starts = np.empty(bulk_summary._BUCKETS * 2000 + 1, np.int64)
+    for s in x:
+        v = s.reshape(-1).copy()
+        bulk_summary._bucket_sort(v, order, srt, keys, starts)
+        assert np.array_equal(srt, np.sort(v)) and np.array_equal(v[order], srt)

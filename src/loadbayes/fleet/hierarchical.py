@@ -365,24 +365,25 @@ def _scale_moves(gen, data, nu0, psi0, mu, theta, s, t, sigma, sig_inv, dirs, ac
     say little (the funnel of hierarchical models).
     """
     ncls = mu.shape[0]
+    eye = np.eye(dirs.shape[1])[None]
     for v in dirs:
+        vv = np.outer(v, v)
         _scale_terms(data.cls, data.g3, data.xy, s, t, theta, mu, v, acc_a, acc_b)
         a, b = acc_a.copy(), acc_b.copy()
         total = np.ones(ncls)
-        vv = np.outer(v, v)
         for _ in range(_SCALE_TRIES):
             logc = _SCALE_STEP * gen.standard_normal(ncls)
             logu = np.log(gen.random(ncls))
             c = np.exp(logc)
             k = c - 1.0
-            ci = np.eye(v.size)[None] + (1.0 / c - 1.0)[:, None, None] * vv[None]
+            ci = eye + (1.0 / c - 1.0)[:, None, None] * vv[None]
             new_inv = ci @ sig_inv @ ci
             dtr = np.einsum("ij,cji->c", psi0, new_inv - sig_inv)
             log_ratio = -0.5 * k * k * a + k * b - nu0 * logc - 0.5 * dtr
             take = logu < log_ratio
             if not take.any():
                 continue
-            cm = np.eye(v.size)[None] + np.where(take, k, 0.0)[:, None, None] * vv[None]
+            cm = eye + np.where(take, k, 0.0)[:, None, None] * vv[None]
             sigma = cm @ sigma @ cm
             sig_inv = np.where(take[:, None, None], new_inv, sig_inv)
             b = np.where(take, c * (b - k * a), b)
