@@ -14,9 +14,9 @@ Parquet files of 100 buses each:
   read on a shared 2-core machine; give ``--stats-buses 10000`` for them);
 - the fits on ``--fit-buses`` buses (default 1e4) of 100 rows each (a fit costs the same
   whatever the rows: it sees each bus's Gram matrix only): per-bus fits and the pooled
-  fit, 4 chains x 2,000 kept draws (500 burn-in), summaries included; the pooled fit with
-  P0 and Q0 given (``fleet_statistics``' default of 1 per unit, not the CLI's ``auto``,
-  which samples them) and its draws streamed to disk (they would take 2.6 GB).
+  fit, 4 chains x 2,000 kept draws (500 burn-in), summaries included; P0 and Q0 of every
+  bus unknown (``auto``, the CLI's default: the pooled fit samples them), the pooled
+  fit's draws streamed to disk (they would take 2.6 GB).
 
 Wall and CPU seconds (this process and its Dask workers, psutil) and peak memory per
 stage; every engine must give the same table to the last bit. Writes the JSON of
@@ -205,7 +205,9 @@ def main() -> None:
             fit_stages = [p for p in ("none", "class") if p in stages]
             if fit_stages:
                 folder = _fleet(base / f"fit-{args.fit_buses}", args.fit_buses, 100)
-                stats, model, _ = fleet_statistics(str(folder), SPEC, engine=eng)
+                # P0 and Q0 of every bus unknown and sampled, as the CLI's default does
+                stats, model, _ = fleet_statistics(str(folder), SPEC, engine=eng, p0="auto",
+                                                   q0="auto")  # fmt: skip
             for pool in fit_stages:
                 row = {"stage": "per-bus fits" if pool == "none" else "pooled fit",
                        "buses": args.fit_buses, "rows": args.fit_buses * 100,
