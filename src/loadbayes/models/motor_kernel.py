@@ -471,6 +471,7 @@ def integrate(
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
     h_max: float = H_MAX_S,
     window_s: float = 0.0,
+    real: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None] | None:
     """Motor P, Q (own base) at the samples, from its steady state at the first sample.
 
@@ -498,6 +499,9 @@ def integrate(
         0 (default): ``p``, ``q`` at the sample instants. Above 0: each sample's mean over
         ``[t_k - window_s / 2, t_k + window_s / 2]`` (:func:`integrate_window_into`), as a
         phasor estimator stamped at its window's centre gives it.
+    real : ndarray of int, optional
+        With ``window_s > 0``: the samples whose window means are wanted (the others are
+        knots of the input only); ``p``, ``q`` then have one entry per ``real`` sample.
 
     Returns
     -------
@@ -515,11 +519,13 @@ def integrate(
     p, q, states = np.empty(n), np.empty(n), np.empty((3, n))
     a, b, c = (float(x) for x in torque)
     if window_s > 0.0:
+        real = np.arange(n, dtype=np.int64) if real is None else np.asarray(real, np.int64)
+        p, q = np.empty(real.size), np.empty(real.size)
         ok = integrate_window_into(
             t,
             v,
             d,
-            np.arange(n, dtype=np.int64),
+            real,
             float(window_s),
             float(rs),
             float(xp),
