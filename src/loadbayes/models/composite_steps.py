@@ -64,8 +64,10 @@ RATIO = 3.0
 #: Width of the virtual ramp, as a fraction of the interval.
 EPS_FRACTION = 1e-5
 #: An interval next to a step joins its edge when it moves the same way by more than
-#: this share of the step's change ...
-GROW = 0.05
+#: this share of the step's change ... (2%: a phasor whose window catches the first few
+#: ms of a 20 ms ramp moves about 3% of the step; read as a level it biased f_m low,
+#: docs/composite.md, "Phasor samples: window means")
+GROW = 0.02
 #: ... and by more than this many times the record's interval-to-interval noise sd.
 NOISE_SIGMAS = 4.0
 
@@ -75,9 +77,12 @@ def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
 
     A step spreads over the samples whose window holds it (``window / dt`` of them)
     plus the interval it fell in; at least two intervals (a short ramp across a sample).
+    With a window (phasor samples), one interval more: a short ramp's own, which the
+    window smears further (a 20 ms ramp and a one-cycle window touch four 60/s samples).
     """
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1)
+    ramp = 1 if window_s > 0 else 0
+    return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1 + ramp)
 
 
 def edge_runs(
