@@ -318,6 +318,23 @@ def integrate_into(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q,
 
 
 @numba.njit(cache=True, nogil=True)
+def _rk4_from(k1, ed, eq, w, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c):  # pragma: no cover
+    # _rk4 with its first stage given: the derivative at the start, which the window
+    # path has already (the previous sub-step's end), so each sub-step costs four
+    # right-hand sides with the end derivative the Hermite mid-state needs.
+    k2 = _rhs(ed + 0.5 * hs * k1[0], eq + 0.5 * hs * k1[1], w + 0.5 * hs * k1[2], um[0], um[1],
+              rs, xp, dx, tp, h, wb, t0, a, b, c)  # fmt: skip
+    k3 = _rhs(ed + 0.5 * hs * k2[0], eq + 0.5 * hs * k2[1], w + 0.5 * hs * k2[2], um[0], um[1],
+              rs, xp, dx, tp, h, wb, t0, a, b, c)  # fmt: skip
+    k4 = _rhs(ed + hs * k3[0], eq + hs * k3[1], w + hs * k3[2], ub[0], ub[1],
+              rs, xp, dx, tp, h, wb, t0, a, b, c)  # fmt: skip
+    ed += hs / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+    eq += hs / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+    w += hs / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+    return ed, eq, w
+
+
+@numba.njit(cache=True, nogil=True)
 def _pq_at(ed, eq, ud, uq, rs, xp, den):  # pragma: no cover - compiled
     # The algebraic output: P, Q at state (Ed', Eq') and terminal voltage (Ud, Uq).
     dd = ud - ed
@@ -431,12 +448,13 @@ def integrate_window_into(
             fine_until = tm[j] + FAST_SPAN * tau_fast
         hs = span / m
         for r in range(m):
-            fa, fm, fb = r / m, (r + 0.5) / m, (r + 1.0) / m
-            ua = _u(vm[k] + fa * (vm[j] - vm[k]), dm[k] + fa * (dm[j] - dm[k]), has_angle)
+            fm, fb = (r + 0.5) / m, (r + 1.0) / m
             um = _u(vm[k] + fm * (vm[j] - vm[k]), dm[k] + fm * (dm[j] - dm[k]), has_angle)
             ub = _u(vm[k] + fb * (vm[j] - vm[k]), dm[k] + fb * (dm[j] - dm[k]), has_angle)
             e0, q0_ = ed, eq
-            ed, eq, w, _ = _rk4(ed, eq, w, ua, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c)
+            # The start's derivative f0 is the previous sub-step's end (the input is
+            # continuous): RK4's first stage.
+            ed, eq, w = _rk4_from(f0, ed, eq, w, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c)
             f1 = _rhs(ed, eq, w, ub[0], ub[1], rs, xp, dx, tp, h, wb, t0, a, b, c)
             # Cubic Hermite at the mid-step: (y0 + y1) / 2 + h (f0 - f1) / 8.
             em = 0.5 * (e0 + ed) + 0.125 * hs * (f0[0] - f1[0])
