@@ -23,8 +23,8 @@ phasor, which averages over a window (one cycle, often several samples), spreads
 two or more intervals, and the samples inside it are neither the level before nor the
 one after. :func:`edge_runs` finds such **edges**: a run of consecutive intervals in
 which the voltage moves the same way, at least one of them by more than ``JUMP v0``, the
-others by more than ``GROW`` of that (and more than ``NOISE_SIGMAS`` times the record's
-interval-to-interval noise), no longer than the window allows (``max_intervals``). The
+others by more than ``GROW`` of that (``GROW_WINDOW`` with a window; and more than
+``NOISE_SIGMAS`` times the record's interval-to-interval noise), no longer than the window allows (``max_intervals``). The
 samples inside an edge are left out of the fit (their window straddles the change; how
 many is reported), and the edge becomes one step interval from the sample before it to
 the sample after it, the step at an unknown instant in it as above. A run longer than
@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 __all__ = [
     "EPS_FRACTION",
     "GROW",
+    "GROW_WINDOW",
     "JUMP",
     "NOISE_SIGMAS",
     "RATIO",
@@ -64,10 +65,12 @@ RATIO = 3.0
 #: Width of the virtual ramp, as a fraction of the interval.
 EPS_FRACTION = 1e-5
 #: An interval next to a step joins its edge when it moves the same way by more than
-#: this share of the step's change ... (2%: a phasor whose window catches the first few
-#: ms of a 20 ms ramp moves about 3% of the step; read as a level it biased f_m low,
-#: docs/composite.md, "Phasor samples: window means")
-GROW = 0.02
+#: this share of the step's change (point samples) ...
+GROW = 0.05
+#: ... or this share with phasor samples (a window): one whose window catches the first
+#: few ms of a 20 ms ramp moves about 3% of the step, and read as a level it biased f_m
+#: low (docs/composite.md, "Phasor samples: window means").
+GROW_WINDOW = 0.02
 #: ... and by more than this many times the record's interval-to-interval noise sd.
 NOISE_SIGMAS = 4.0
 
@@ -324,7 +327,8 @@ class FitSamples:
         """The edges of every event (``detect=False``: none, every sample kept)."""
         keep, intervals, edges = [], [], []
         for t, v in zip(ts, vs, strict=True):
-            runs = edge_runs(v, longest=max_intervals(t, window_s)) if detect else []
+            grow = GROW_WINDOW if window_s > 0 else GROW
+            runs = edge_runs(v, longest=max_intervals(t, window_s), grow=grow) if detect else []
             mask = np.ones(t.size, dtype=bool)
             for k0, k1 in runs:
                 mask[k0 + 1 : k1] = False
