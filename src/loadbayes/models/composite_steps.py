@@ -27,8 +27,9 @@ others by more than ``GROW`` of that (``GROW_WINDOW`` with a window; and more th
 ``NOISE_SIGMAS`` times the record's interval-to-interval noise), no longer than the
 window allows (``max_intervals``). The samples inside an edge are left out of the fit
 (their window straddles the change; how many is reported), and the edge becomes one
-step interval from the sample before it to the sample after it, the step at an unknown instant in it as above. A run longer than
-the window (a ramp that the samples resolve) is left as the samples draw it.
+step interval from the sample before it to the sample after it, the step at an unknown
+instant in it as above. A run longer than the window (a ramp that the samples resolve)
+is left as the samples draw it.
 
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 (fit/composite/problem.py).
