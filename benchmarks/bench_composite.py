@@ -87,7 +87,8 @@ def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True, event=N
     ev, truth = _event(fs, t_end) if event is None else event
     sizes = {} if draws is None else {"draws": draws, "burn": burn, "chains": 4, "move": move}
     t0 = time.perf_counter()
-    fit = fit_composite([ev], seed=seed, steps=steps, **sizes)
+    # The events are point samples (and the peers' models point models): window_s=0.
+    fit = fit_composite([ev], seed=seed, steps=steps, window_s=0, **sizes)
     wall = time.perf_counter() - t0
     ess, rhat, worst = _ess_rhat(fit.posterior.draws)
     post_mean = fit.posterior.mean()
@@ -185,7 +186,7 @@ def run_emcee(fs, t_end, steps, seed=0, seconds=math.inf, motor="solve_ivp", eve
     from loadbayes.fit.composite.nls import nls
     from loadbayes.fit.composite.problem import CompositeProblem
 
-    start = nls(CompositeProblem([ev], prior, steps=False))  # emcee's (ramp) posterior
+    start = nls(CompositeProblem([ev], prior, steps=False, window_s=0))  # emcee's (ramp) posterior
     centre = np.concatenate([start.u, start.betas[0], np.log(1 / start.sigma**2)])
     cov = np.zeros((14, 14))
     cov[:12, :12] = start.cov
@@ -303,7 +304,7 @@ def run_nuts(event, warmup, draws, seed=0):
 
     ev, _ = event
     prior = CompositePrior.default([ev])
-    st = nls(CompositeProblem([ev], prior, steps=False))
+    st = nls(CompositeProblem([ev], prior, steps=False, window_s=0))
     start = {"u": st.u, "beta": st.betas[0], "tau": 1.0 / st.sigma**2}
     r = nuts_diffrax(ev, prior, start, warmup=warmup, draws=draws, chains=2, seed=seed)
     rng = np.random.default_rng(seed)

@@ -46,7 +46,7 @@ def test_fit_composite_covers_the_andes_load(tmp_path):
     out = tmp_path / "comp.json"
     res = CliRunner().invoke(
         main,
-        ["fit", "composite", str(ev), "--json", str(out), "--hdi-prob", "0.99",
+        ["fit", "composite", str(ev), "--json", str(out), "--hdi-prob", "0.99", "--window-s", "0",
          "--draws", "12000", "--burn", "4000", "--seed", "2", "--quiet"],
         catch_exceptions=False,
     )  # fmt: skip

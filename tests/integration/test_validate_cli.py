@@ -165,8 +165,10 @@ def test_fit_composite_then_validate_round_trips(held_out, tmp_path):
     fitted = _event(depth=0.35, jump=0.08, t_fault=0.1012, hold=0.06, p0=0.9, q0=0.25, seed=2)
     fitted.to_csv(tmp_path / "fitted.csv", index=False)  # fit composite ignores straddle
     js, nc = tmp_path / "fit.json", tmp_path / "fit.nc"
+    # Point samples (the generator's values at t_k): --window-s 0.
     res = CliRunner().invoke(main, ["fit", "composite", str(tmp_path / "fitted.csv"), "--f-hz",
-                                    "50", "--draws", "1500", "--burn", "700", "--chains", "2",
+                                    "50", "--window-s", "0", "--draws", "1500", "--burn", "700",
+                                    "--chains", "2",
                                     "--json", str(js), "--netcdf", str(nc), "--quiet"])  # fmt: skip
     assert res.exit_code == 0, res.output
     ident = json.loads(js.read_text())["identifiability"]

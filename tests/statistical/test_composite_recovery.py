@@ -69,7 +69,7 @@ def test_the_motor_share_and_t_prime_contract_on_a_30_percent_sag(motor):
     # step placed (its instant unknown), 0.037 with the step read as a ramp (the model
     # that does not know the instant is over-confident about f_m).
     ev, truth = simulate_event(motor, depth=0.3, noise=0.01, seed=8, t_end_s=3.0)
-    fit = fit_composite([ev], draws=3000, burn=1000, chains=2, seed=3)
+    fit = fit_composite([ev], window_s=0, draws=3000, burn=1000, chains=2, seed=3)
     post = fit.posterior
     assert np.std(post.draws["f_m"]) < 0.1
     ratio = np.std(post.draws["log_t_prime"]) / fit.problem.prior.theta_sd[3]

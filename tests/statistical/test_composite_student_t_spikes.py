@@ -22,7 +22,9 @@ def _interval(post, name):
 
 
 def _fit(ev, likelihood):
-    return fit_composite([ev], draws=4000, burn=1500, chains=2, seed=1, likelihood=likelihood)
+    return fit_composite(
+        [ev], window_s=0, draws=4000, burn=1500, chains=2, seed=1, likelihood=likelihood
+    )
 
 
 def test_spikes_bias_the_gaussian_fit_and_the_student_t_fit_covers_the_truth():

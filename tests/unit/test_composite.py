@@ -57,7 +57,7 @@ def test_a_step_inside_a_sample_interval_is_reproduced_where_it_fell(name, frac)
     ev, truth = simulate_event(
         name, depth=0.4, noise=0.0, start_s=start + 1e-9, t_end_s=1.5, fs=fs, recovery_s=0.0
     )
-    prob = CompositeProblem([ev], CompositePrior.default([ev]))
+    prob = CompositeProblem([ev], CompositePrior.default([ev]), window_s=0)
     assert prob.n_steps == 2 and prob.grid.k_of.tolist()[0] == k
     eps = EPS_FRACTION
     phis = [((t - left) / w - 1.5 * eps) / (1 - 3 * eps) for t, left, w in zip(
@@ -128,7 +128,7 @@ def test_prior_conditional_of_t0_is_the_gaussian_conditional():
 
 def test_nls_recovers_the_motor_share_and_the_ratio_b2():
     ev, truth = simulate_event("small_industrial", depth=0.4, noise=0.002, seed=4)
-    prob = CompositeProblem([ev], CompositePrior.default([ev]))
+    prob = CompositeProblem([ev], CompositePrior.default([ev]), window_s=0)
     res = nls(prob)
     th = theta_of(res.u[:5], np.log(0.6))
     pm, qm = motor_response(ev, th)
@@ -172,7 +172,7 @@ def test_the_figure_has_no_empty_panel(n_events):
         simulate_event("small_industrial", depth=d, t_end_s=1.5, fs=30, seed=k)[0]
         for k, d in enumerate((0.3, 0.45)[:n_events])
     ]
-    fit = fit_composite(evs, draws=120, burn=60, chains=1, seed=0)
+    fit = fit_composite(evs, window_s=0, draws=120, burn=60, chains=1, seed=0)
     fig = plot_composite(
         fit.posterior, evs, predictive_band(fit.posterior, evs), baseline=fit.baseline
     )

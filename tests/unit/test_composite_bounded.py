@@ -89,9 +89,9 @@ def inadmissible_event():
 
 def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event):
     ev, truth = inadmissible_event
-    free = fit_composite([ev], draws=400, burn=200, chains=2, seed=5)
+    free = fit_composite([ev], window_s=0, draws=400, burn=200, chains=2, seed=5)
     assert any("--shares bounded" in w for w in free.posterior.warnings)
-    fit = fit_composite([ev], draws=400, burn=200, chains=2, seed=5, shares="bounded")
+    fit = fit_composite([ev], window_s=0, draws=400, burn=200, chains=2, seed=5, shares="bounded")
     d = fit.posterior.draws
     for n in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
         assert np.all(d[n] >= 0) and np.all(d[n] <= 1), n
@@ -104,8 +104,8 @@ def test_a_prior_on_a_share_pulls_it(inadmissible_event):
     # The data put a1 near 0 (truth 0); a tight prior at 0.6 must move it most of the way.
     ev, _ = inadmissible_event
     kw = dict(draws=400, burn=200, chains=2, seed=5, shares="bounded")
-    plain = fit_composite([ev], **kw).posterior.draws["a1"]
-    fit = fit_composite([ev], coefficient_prior={"a1": (0.6, 0.02)}, **kw)
+    plain = fit_composite([ev], window_s=0, **kw).posterior.draws["a1"]
+    fit = fit_composite([ev], window_s=0, coefficient_prior={"a1": (0.6, 0.02)}, **kw)
     pulled = fit.posterior.draws["a1"]
     assert float(np.mean(plain)) < 0.2
     assert float(np.mean(pulled)) > 0.45
@@ -115,17 +115,19 @@ def test_a_prior_on_a_share_pulls_it(inadmissible_event):
 def test_bad_share_and_budget_options_are_refused(inadmissible_event):
     ev, _ = inadmissible_event
     with pytest.raises(OptionError, match="--shares"):
-        fit_composite([ev], draws=200, burn=100, shares="loose")
+        fit_composite([ev], window_s=0, draws=200, burn=100, shares="loose")
     with pytest.raises(OptionError, match="--max-seconds"):
-        fit_composite([ev], draws=200, burn=100, max_seconds=-1)
+        fit_composite([ev], window_s=0, draws=200, burn=100, max_seconds=-1)
     with pytest.raises(OptionError, match="normal only"):
-        fit_composite([ev], draws=200, burn=100, shares="bounded", likelihood="student-t")
+        fit_composite(
+            [ev], window_s=0, draws=200, burn=100, shares="bounded", likelihood="student-t"
+        )
 
 
 def test_a_run_out_of_time_says_so(inadmissible_event):
     ev, _ = inadmissible_event
-    fit = fit_composite([ev], draws=200, burn=100, chains=2, seed=1, until_converged=True,
-                        max_seconds=0.01)  # fmt: skip
+    fit = fit_composite([ev], window_s=0, draws=200, burn=100, chains=2, seed=1,
+                        until_converged=True, max_seconds=0.01)  # fmt: skip
     rec = fit.posterior.settings["until_converged"]
     assert rec["stopped_by_budget"] is True
     assert any("time budget" in w and "not converged" in w for w in fit.posterior.warnings)
@@ -137,11 +139,11 @@ def test_residuals_that_run_in_stretches_are_reported():
     from dataclasses import replace
 
     bad = replace(ev, p=ev.p + 0.04 * np.sin(2 * np.pi * 2.0 * ev.t))
-    fit = fit_composite([bad], draws=300, burn=150, chains=2, seed=2)
+    fit = fit_composite([bad], window_s=0, draws=300, burn=150, chains=2, seed=2)
     lag = fit.posterior.settings["residuals"]["lag1_autocorrelation"]
     assert lag["p"] > 0.5
     assert any("run in stretches" in w for w in fit.posterior.warnings)
-    good = fit_composite([ev], draws=300, burn=150, chains=2, seed=2)
+    good = fit_composite([ev], window_s=0, draws=300, burn=150, chains=2, seed=2)
     assert abs(good.posterior.settings["residuals"]["lag1_autocorrelation"]["p"]) < 0.3
     assert residual_warning({"p": 0.1, "q": 0.05}) is None
 

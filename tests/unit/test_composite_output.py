@@ -141,7 +141,7 @@ def test_a_fit_keeps_its_recordings_and_the_figure_draws_them(tmp_path):
     from loadbayes.plots.fit import pyplot
 
     ev = simulate_event("small_industrial", depth=0.3, t_end_s=1.5, fs=30, seed=0)[0]
-    fit = fit_composite([ev], draws=120, burn=60, chains=1, seed=0)
+    fit = fit_composite([ev], window_s=0, draws=120, burn=60, chains=1, seed=0)
     fit.posterior.to_netcdf(tmp_path / "c.nc")
     back = Posterior.from_netcdf(tmp_path / "c.nc")
     (kept,) = events_of(back)

@@ -43,7 +43,7 @@ def test_step_rule_caps_the_step_at_a_fraction_of_t_prime():
 @pytest.mark.parametrize("move", sorted(MOVES))
 def test_same_seed_same_draws_whatever_the_workers(move):
     ev, _ = simulate_event("small_industrial", depth=0.4, noise=0.01, seed=2, t_end_s=1.5)
-    prob = CompositeProblem([ev], CompositePrior.default([ev]))
+    prob = CompositeProblem([ev], CompositePrior.default([ev]), window_s=0)
     start = nls(prob)
     kw = {"start": start, "draws": 30, "burn": 10, "chains": 3, "seed": 9, "move": move}
     a = sample(prob, workers=1, **kw)
@@ -59,6 +59,6 @@ def test_same_seed_same_draws_whatever_the_workers(move):
 
 def test_unknown_move_is_refused():
     ev, _ = simulate_event("small_industrial", depth=0.4, seed=2, t_end_s=1.5)
-    prob = CompositeProblem([ev], CompositePrior.default([ev]))
+    prob = CompositeProblem([ev], CompositePrior.default([ev]), window_s=0)
     with pytest.raises(ValueError, match="move must be one of"):
         sample(prob, start=nls(prob), draws=10, burn=2, move="hmc")

@@ -19,7 +19,7 @@ from loadbayes.models.composite_prior import CompositePrior
 
 def _problem():
     ev, _ = simulate_event("small_industrial", depth=0.3, noise=0.01, seed=3, t_end_s=1.5, fs=30.0)
-    return CompositeProblem([ev], CompositePrior.default([ev]))
+    return CompositeProblem([ev], CompositePrior.default([ev]), window_s=0)
 
 
 def test_weighted_collapsed_density_equals_a_direct_computation():

@@ -55,8 +55,8 @@ def test_torque_problem_is_the_fixed_problem_at_its_shares_plus_the_prior():
     u5 = (SCALE_FREE_MATRIX @ _theta("small_industrial"))[:5]
     z = np.array([-0.7, 0.4])
     tau = np.array([1e3, 2e3])
-    lp, sums = TorqueProblem([ev], prior).collapsed(np.concatenate([u5, z]), tau)
-    fixed = CompositeProblem([ev], prior, torque=shares(z))
+    lp, sums = TorqueProblem([ev], prior, window_s=0).collapsed(np.concatenate([u5, z]), tau)
+    fixed = CompositeProblem([ev], prior, torque=shares(z), window_s=0)
     assert lp == pytest.approx(fixed.collapsed(u5, tau)[0] + log_prior_z(z), rel=1e-12)
     np.testing.assert_allclose(sums[0].ztz, fixed.sums(u5)[0].ztz, rtol=1e-12)
 

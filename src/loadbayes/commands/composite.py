@@ -161,8 +161,10 @@ def _parse_torque(text: str) -> tuple[float, float, float] | str:
     "--window-s",
     type=click.FloatRange(min=0, max=1),
     default=None,
-    help="The recorder's phasor window in s (default one cycle of --f-hz): samples inside "
-    "a fault's edge, whose window straddles the change, are left out of the fit.",
+    help="The recorder's phasor window in s (default one cycle of --f-hz): each sample is "
+    "read as the motor's mean over this window centred on its stamp, and the samples inside "
+    "a fault's edge, whose window straddles the change, are left out of the fit. 0: point "
+    "samples (instantaneous values, as simulators write them).",
 )
 @sampler_settings(
     draws=16_000,

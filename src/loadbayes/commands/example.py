@@ -79,7 +79,7 @@ def example_cmd(name, out, force):
     day        a day whose ZIP shares drift and jump, with the true shares as
                a1_true.. columns (loadbayes track zip)
     composite  sag1.csv, sag2.csv: two sags at a ZIP + induction-motor load, motor
-               share f_m = 0.5 (loadbayes fit composite)
+               share f_m = 0.5, point samples (loadbayes fit composite --window-s 0)
     fleet      part-*.parquet: 24 buses in three customer classes, per unit
                (loadbayes fit zip DIR --by bus_id --class-col customer_class)
     comtrade   event.cfg, event.dat: 8 s of 50 Hz waveforms with two sags

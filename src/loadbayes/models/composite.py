@@ -131,6 +131,8 @@ def motor_response(
     f_hz: float = 60.0,
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
     h_max: float = H_MAX_S,
+    window_s: float = 0.0,
+    real: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """The motor's own-base P, Q at the samples for log-parameters ``theta``.
 
@@ -142,6 +144,10 @@ def motor_response(
         Values of :data:`THETA_NAMES`.
     f_hz, torque, h_max
         Nominal frequency, ``(A, B, C)`` and the RK4 sub-step (see ``motor_kernel``).
+    window_s : float
+        0: the values at the sample instants. Above 0: each sample's mean over the
+        ``window_s`` window centred on it (a phasor sample); only at the samples ``real``
+        when given (``motor_kernel.integrate``).
 
     Returns
     -------
@@ -165,6 +171,8 @@ def motor_response(
         f_hz=f_hz,
         torque=torque,
         h_max=h_max,
+        window_s=window_s,
+        real=real,
     )
     return None if out is None else (out[0], out[1])
 
@@ -270,9 +278,14 @@ def predict(
     f_hz: float = 60.0,
     torque: tuple[float, float, float] = (1.0, 0.0, 0.0),
     h_max: float = H_MAX_S,
+    window_s: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-    """Total P(t), Q(t) of the composite load for one parameter set (None: no steady state)."""
-    resp = motor_response(event, theta, f_hz=f_hz, torque=torque, h_max=h_max)
+    """Total P(t), Q(t) of the composite load for one parameter set (None: no steady state).
+
+    ``window_s > 0``: the motor's part as window means centred on the samples
+    (:func:`motor_response`).
+    """
+    resp = motor_response(event, theta, f_hz=f_hz, torque=torque, h_max=h_max, window_s=window_s)
     if resp is None:
         return None
     zp, zq = design(event, *resp)

@@ -23,12 +23,13 @@ phasor, which averages over a window (one cycle, often several samples), spreads
 two or more intervals, and the samples inside it are neither the level before nor the
 one after. :func:`edge_runs` finds such **edges**: a run of consecutive intervals in
 which the voltage moves the same way, at least one of them by more than ``JUMP v0``, the
-others by more than ``GROW`` of that (and more than ``NOISE_SIGMAS`` times the record's
-interval-to-interval noise), no longer than the window allows (``max_intervals``). The
-samples inside an edge are left out of the fit (their window straddles the change; how
-many is reported), and the edge becomes one step interval from the sample before it to
-the sample after it, the step at an unknown instant in it as above. A run longer than
-the window (a ramp that the samples resolve) is left as the samples draw it.
+others by more than ``GROW`` of that (``GROW_WINDOW`` with a window; and more than
+``NOISE_SIGMAS`` times the record's interval-to-interval noise), no longer than the
+window allows (``max_intervals``). The samples inside an edge are left out of the fit
+(their window straddles the change; how many is reported), and the edge becomes one
+step interval from the sample before it to the sample after it, the step at an unknown
+instant in it as above. A run longer than the window (a ramp that the samples resolve)
+is left as the samples draw it.
 
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 (fit/composite/problem.py).
@@ -46,6 +47,7 @@ from numpy.typing import NDArray
 __all__ = [
     "EPS_FRACTION",
     "GROW",
+    "GROW_WINDOW",
     "JUMP",
     "NOISE_SIGMAS",
     "RATIO",
@@ -64,8 +66,12 @@ RATIO = 3.0
 #: Width of the virtual ramp, as a fraction of the interval.
 EPS_FRACTION = 1e-5
 #: An interval next to a step joins its edge when it moves the same way by more than
-#: this share of the step's change ...
+#: this share of the step's change (point samples) ...
 GROW = 0.05
+#: ... or this share with phasor samples (a window): one whose window catches the first
+#: few ms of a 20 ms ramp moves about 3% of the step, and read as a level it biased f_m
+#: low (docs/composite.md, "Phasor samples: window means").
+GROW_WINDOW = 0.02
 #: ... and by more than this many times the record's interval-to-interval noise sd.
 NOISE_SIGMAS = 4.0
 
@@ -75,9 +81,12 @@ def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
 
     A step spreads over the samples whose window holds it (``window / dt`` of them)
     plus the interval it fell in; at least two intervals (a short ramp across a sample).
+    With a window (phasor samples), one interval more: a short ramp's own, which the
+    window smears further (a 20 ms ramp and a one-cycle window touch four 60/s samples).
     """
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1)
+    ramp = 1 if window_s > 0 else 0
+    return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1 + ramp)
 
 
 def edge_runs(
@@ -319,7 +328,8 @@ class FitSamples:
         """The edges of every event (``detect=False``: none, every sample kept)."""
         keep, intervals, edges = [], [], []
         for t, v in zip(ts, vs, strict=True):
-            runs = edge_runs(v, longest=max_intervals(t, window_s)) if detect else []
+            grow = GROW_WINDOW if window_s > 0 else GROW
+            runs = edge_runs(v, longest=max_intervals(t, window_s), grow=grow) if detect else []
             mask = np.ones(t.size, dtype=bool)
             for k0, k1 in runs:
                 mask[k0 + 1 : k1] = False

@@ -61,7 +61,7 @@ def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
         events.append(ev)
         truth = truth or tr
     draws, burn = (2000, 1000) if quick else (8000, 3000)
-    fit = fit_composite(events, draws=draws, burn=burn, chains=4, seed=seed)
+    fit = fit_composite(events, window_s=0, draws=draws, burn=burn, chains=4, seed=seed)
     post, nls = fit.posterior, fit.baseline
     rows = []
     for name in SHOWN:

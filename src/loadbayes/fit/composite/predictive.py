@@ -22,10 +22,22 @@ from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_r
 from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.posterior import Posterior
 
-__all__ = ["event_arrays", "events_of", "fault_times", "predictive_band"]
+__all__ = ["event_arrays", "events_of", "fault_times", "predictive_band", "window_of"]
 
 #: Prefix of the recordings' arrays in the posterior's constants (``rec_v``, ``rec_v_e1``).
 REC = "rec_"
+
+
+def window_of(settings: dict, f_hz: float) -> float:
+    """The phasor window (s) a fit read its samples with: 0 for point samples.
+
+    A result written before the window was recorded (no ``steps.window_s``) read one
+    cycle of ``f_hz`` for its edges and point values for the motor: 0 then.
+    """
+    samples = settings.get("samples")
+    if not isinstance(samples, dict):
+        return 0.0
+    return float(samples.get("window_s") or 0.0)
 
 
 def predictive_band(
@@ -56,13 +68,15 @@ def predictive_band(
     pick = rng.choice(theta.shape[0], size=min(n_draws, theta.shape[0]), replace=False)
     out = []
     steps = post.settings.get("steps") or {}
-    window = steps.get("window_s") or 1.0 / f_hz
+    edge_window = steps.get("window_s")
+    edge_window = 1.0 / f_hz if edge_window is None else float(edge_window)
+    window = window_of(post.settings, f_hz)
     for k, recorded in enumerate(events):
         beta = beta_from_named(post.draws, k).reshape(-1, 7)
         # The steps where each draw put them (none when the fit read them as ramps).
         sfx = event_suffix(k)
         detect = f"t_step0{sfx}" in post.draws
-        fs = FitSamples.find([recorded.t], [recorded.v], window_s=window, detect=detect)
+        fs = FitSamples.find([recorded.t], [recorded.v], window_s=edge_window, detect=detect)
         keep = fs.keep[0]
         ev = replace(
             recorded, t=recorded.t[keep], v=recorded.v[keep], p=recorded.p[keep],
@@ -76,9 +90,11 @@ def predictive_band(
         for i in pick:
             t_aug = grid.times(grid.phi_of(times[i])) if names else grid.t
             aug, real = grid.motor_input(0, t_aug)
-            r = motor_response(aug, theta[i], f_hz=f_hz, torque=tuple(abc[i]))
+            # Phasor samples: window means at the real samples (as the fit read them).
+            r = motor_response(aug, theta[i], f_hz=f_hz, torque=tuple(abc[i]), window_s=window,
+                               real=real)  # fmt: skip
             if r is not None:
-                zp, zq = design(ev, r[0][real], r[1][real])
+                zp, zq = design(ev, *r) if window > 0 else design(ev, r[0][real], r[1][real])
                 ps.append(zp @ beta[i])
                 qs.append(zq @ beta[i])
                 used.append(i)

@@ -45,7 +45,12 @@ from loadbayes.inference.condlinear import (
 from loadbayes.models.composite import SCALE_FREE_MATRIX, EventRecord, motor_response
 from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
 from loadbayes.models.composite_steps import FitSamples, StepGrid
-from loadbayes.models.motor_kernel import H_MAX_S, integrate_into, step_size
+from loadbayes.models.motor_kernel import (
+    H_MAX_S,
+    integrate_into,
+    integrate_window_into,
+    step_size,
+)
 
 __all__ = ["CompositeProblem", "KernelResult", "Samples", "theta_of"]
 
@@ -115,7 +120,8 @@ class CompositeProblem:
     h_max: float = H_MAX_S
     steps: bool = True
     #: The recorder's phasor window (s); None: one cycle of ``f_hz``. Sets how long an
-    #: edge can be (models/composite_steps.py).
+    #: edge can be (models/composite_steps.py), and each sample is read as the motor's
+    #: mean over the window centred on its stamp (0: point samples, the values at t_k).
     window_s: float | None = None
     #: Static shares held in [0, 1] (fit/composite/bounded.py): four more sampled
     #: coordinates per event, after the steps' fractions.
@@ -131,7 +137,7 @@ class CompositeProblem:
         # The samples inside a fault's edge (a ramp, or a phasor window across the
         # change) are left out; ``recorded`` keeps the events as given.
         self.recorded = list(self.events)
-        window = 1.0 / self.f_hz if self.window_s is None else float(self.window_s)
+        self.window = window = 1.0 / self.f_hz if self.window_s is None else float(self.window_s)
         self.fit_samples = FitSamples.find(
             [e.t for e in self.recorded], [e.v for e in self.recorded], window_s=window,
             detect=self.steps,
@@ -288,7 +294,7 @@ class CompositeProblem:
                 float(self.h_max), self._xsums, weighted,
                 weights if weighted else _NO_WEIGHTS, pm, qm, ztz, zty, yty,
                 rho is not None, _NO_RHO if rho is None else np.asarray(rho, dtype=float),
-                self.seg,
+                self.seg, self.window,
             )  # fmt: skip
         except np.linalg.LinAlgError:
             return None
@@ -343,6 +349,14 @@ class CompositeProblem:
         tq = self.torque if torque is None else torque
         for k in range(len(self.events)):
             aug, real = self.grid.motor_input(k, t_aug)
+            if self.window > 0.0:
+                # Window means at the real samples only, as _collapsed computes them.
+                r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max,
+                                   window_s=self.window, real=real)  # fmt: skip
+                if r is None:
+                    return None
+                out.append(r)
+                continue
             r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max)
             if r is None:
                 return None
@@ -443,7 +457,7 @@ _NO_WEIGHTS = np.ones((2, 0))
 def _collapsed(  # pragma: no cover - compiled
     u, params, tau, t, v, delta, starts_aug, real, x, p, q, starts, n, mean_u, prec_u,
     m0, p0, pos, wb, a, b, c, h_max, xsums, weighted, lam, pm, qm, ztz, zty, yty,
-    ar, rho, seg,
+    ar, rho, seg, window,
 ):  # fmt: skip
     # The motor on the base where T0 = 1 (log T0 = 0), exponentiated by the caller with
     # NumPy as motor_response does: the log marginal is so ill-conditioned in the design
@@ -459,16 +473,25 @@ def _collapsed(  # pragma: no cover - compiled
         s0, s1 = starts[e], starts[e + 1]
         a0, a1 = starts_aug[e], starts_aug[e + 1]
         m = a1 - a0
-        pa, qa, states = np.empty(m), np.empty(m), np.empty((3, m))
-        ok = integrate_into(
-            t[a0:a1], v[a0:a1], delta[a0:a1], rs, xp, dx, tp, h, wb, t0, a, b, c, hm,
-            pa, qa, states,
-        )  # fmt: skip
-        if not ok:
-            return -math.inf
         idx = real[s0:s1]
-        for i in range(s1 - s0):
-            pm[s0 + i], qm[s0 + i] = pa[idx[i]], qa[idx[i]]
+        if window > 0.0:
+            # Phasor samples: the motor's mean over each real sample's centred window.
+            ok = integrate_window_into(
+                t[a0:a1], v[a0:a1], delta[a0:a1], idx, window, rs, xp, dx, tp, h, wb, t0,
+                a, b, c, hm, pm[s0:s1], qm[s0:s1],
+            )  # fmt: skip
+            if not ok:
+                return -math.inf
+        else:
+            pa, qa, states = np.empty(m), np.empty(m), np.empty((3, m))
+            ok = integrate_into(
+                t[a0:a1], v[a0:a1], delta[a0:a1], rs, xp, dx, tp, h, wb, t0, a, b, c, hm,
+                pa, qa, states,
+            )  # fmt: skip
+            if not ok:
+                return -math.inf
+            for i in range(s1 - s0):
+                pm[s0 + i], qm[s0 + i] = pa[idx[i]], qa[idx[i]]
         xe, pme, qme, pe, qe = x[s0:s1], pm[s0:s1], qm[s0:s1], p[s0:s1], q[s0:s1]
         if weighted:
             zz, zy, yy = weighted_sums(xe, pme, qme, pe, qe, lam[0, s0:s1], lam[1, s0:s1])

@@ -15,7 +15,14 @@ from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.sampler import ChainResult
 from loadbayes.models.composite import SCALE_FREE_NAMES
 
-__all__ = ["METHOD", "MOVE_NAME", "baseline_record", "problem_settings", "sampler_record"]
+__all__ = [
+    "METHOD",
+    "MOVE_NAME",
+    "baseline_record",
+    "problem_settings",
+    "sampler_record",
+    "samples_record",
+]
 
 #: The posterior's ``method`` for each u-move (``-student-t`` appended with that noise).
 METHOD = {"am": "mwg-adaptive-metropolis", "slice": "mwg-factor-slice"}
@@ -80,10 +87,24 @@ def problem_settings(
                 ],
             },
         },
+        "samples": samples_record(problem.window),
         "shunt": "q_c = mva_m * q_m(0): the motor's initial Q compensated at v0",
         "closure": "xs = xr",
         **(extra or {}),
     }
+
+
+def samples_record(window_s: float) -> dict[str, Any]:
+    """How the fit read each sample: a window mean centred on its stamp, or a point value."""
+    if window_s > 0:
+        text = (
+            f"samples read as {window_s:.6g}-s window means centred on the stamp (the "
+            "motor's P and Q averaged over [t - W/2, t + W/2], as a phasor estimator "
+            "gives them)"
+        )
+    else:
+        text = "point samples (the motor's P and Q at the sample instants)"
+    return {"window_s": float(window_s), "read_as": text}
 
 
 def sampler_record(

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.fit.composite.predictive import window_of
 from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_response
 from loadbayes.posterior import Posterior
 
@@ -111,6 +112,7 @@ def validate_event(
     *,
     exclude: np.ndarray | None = None,
     f_hz: float | None = None,
+    window_s: float | None = None,
     n_draws: int = N_DRAWS,
     prob: float = 0.95,
     seed: int = 0,
@@ -127,6 +129,9 @@ def validate_event(
         Samples driven but not scored (their phasor window straddles a step).
     f_hz : float, optional
         Nominal frequency; by default the fit's (``f_hz`` draws or settings).
+    window_s : float, optional
+        The phasor window the samples are read with (0: point samples); by default the
+        fit's (``settings["samples"]``).
     n_draws, prob, seed
         Posterior draws used, the band's probability and the seed picking the draws and
         the noise.
@@ -138,6 +143,8 @@ def validate_event(
     d = _draws(post)
     if f_hz is None:
         f_hz = float(d["f_hz"][0]) if "f_hz" in d else float(post.settings.get("f_hz", 60.0))
+    if window_s is None:
+        window_s = window_of(post.settings, f_hz)
     rng = np.random.default_rng(seed)
     total = d["f_m"].size
     pick = rng.choice(total, size=min(n_draws, total), replace=False)
@@ -157,7 +164,7 @@ def validate_event(
     )
     means_p, means_q, noisy_p, noisy_q = [], [], [], []
     for i in pick:
-        r = motor_response(ev, theta[i], f_hz=f_hz, torque=tuple(abc[i]))
+        r = motor_response(ev, theta[i], f_hz=f_hz, torque=tuple(abc[i]), window_s=window_s)
         if r is None or not (np.all(np.isfinite(r[0])) and abs(r[0][0]) > 0):
             continue
         zp, zq = design(ev, *r)

@@ -12,7 +12,8 @@ mistake shared by the fit and the package's own simulator cannot hide. The cases
 with the fault's instant drawn anywhere inside a sample interval, a 25-45% sag held
 0.1-0.25 s, f_m in 0.3-0.6, ZIP shares in [0, 1], the motor's loading T0 in 0.5-0.8 and
 0.5% noise. Each event is fitted by :func:`loadbayes.fit_composite` **at its defaults**
-(the point: what a user gets), and the 95% central intervals of ``f_m`` and ``t_prime_s``
+(the point: what a user gets; point samples with ``window_s=0``, as a user says of
+simulator output), and the 95% central intervals of ``f_m`` and ``t_prime_s``
 are checked against the truth; the bias (f_m: posterior mean minus truth; T': posterior
 median over truth, minus one) and the largest
 R-hat are kept per event, and :func:`table` sums them up per case.
@@ -41,6 +42,7 @@ import numpy as np
 
 __all__ = [
     "CHECKED",
+    "ISSUE_CASE",
     "event_records",
     "fit_case",
     "independent_cases",
@@ -57,6 +59,25 @@ SAMPLINGS = ("point", "phasor")
 #: Record length (s): the sag starts at 1.0-1.1 s and the motor is back by then.
 T_END_S = 2.5
 _GENERATOR = "independent_composite"
+#: The event of issue 21's window-mean measurement: ``small_fast`` (T' 0.060 s), one-cycle
+#: phasors at 60/s, a 36% sag of 0.2 s at 1.0123 s with 20 ms ramps, f_m 0.400, the
+#: generator's default loading and shares, 0.5% noise. Read as points its f_m interval
+#: was 0.352-0.394 (docs/composite.md, "Phasor samples: window means").
+ISSUE_CASE: dict[str, Any] = {
+    "motor": "small_fast",
+    "rate_hz": 60.0,
+    "ramp_s": 0.020,
+    "sampling": "phasor",
+    "start_s": 1.0123,
+    "depth": 0.36,
+    "duration_s": 0.2,
+    "f_m": 0.4,
+    "t0": 0.7,
+    "q0": 0.3,
+    "shares": (0.3, 0.3, 0.4),
+    "shares_q": (0.4, 0.3, 0.3),
+    "seed": 1,
+}
 
 
 def _generator(directory: str | None = None) -> Any:
@@ -151,7 +172,11 @@ def fit_case(case: dict[str, Any], seed: int, generator: str | None = None) -> d
 
     df, truth = simulate_case(case, generator=generator)
     wall, cpu = time.perf_counter(), time.process_time()
-    fit = fit_composite(event_records(df, "independent.csv"), seed=seed, workers=1)
+    # Point samples are said to be point samples (--window-s 0); phasor samples are read
+    # at the default, one-cycle window means (the generator stamps them at the window's
+    # end, the model at its centre: only the fitted step instants move, by half a cycle).
+    window = 0.0 if case["sampling"] == "point" else None
+    fit = fit_composite(event_records(df, "independent.csv"), seed=seed, workers=1, window_s=window)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     draws = fit.posterior.draws
     out: dict[str, Any] = {"hits": {}, "bias": {}, "interval": {}}
@@ -181,6 +206,7 @@ def run_independent(
     workers: int = 1,
     generator: str | None = None,
     log: str | None = None,
+    extra: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """Fit ``n_events`` independent events at the defaults and count coverage.
 
@@ -198,6 +224,9 @@ def run_independent(
     log : str, optional
         A JSON-lines file that gets each event's case and result as soon as it is done
         (a long run's partial results survive an interruption).
+    extra : list of dict, optional
+        More cases (such as :data:`ISSUE_CASE`) fitted in the same pool after the
+        ``n_events``; their results follow in ``per_event``, and ``coverage`` counts them.
 
     Returns
     -------
@@ -207,8 +236,9 @@ def run_independent(
     """
     _generator(generator)
     cases = independent_cases(n_events, seed=seed)
-    seeds = [seed + i for i in range(n_events)]
-    gens = [generator] * n_events
+    cases = cases + list(extra or [])
+    seeds = [seed + i for i in range(len(cases))]
+    gens = [generator] * len(cases)
 
     def done(i: int, r: dict[str, Any]) -> dict[str, Any]:
         if log:
@@ -227,7 +257,7 @@ def run_independent(
     else:
         per = [done(i, fit_case(c, seeds[i], generator)) for i, c in enumerate(cases)]
     return {
-        "events": n_events,
+        "events": len(cases),
         "coverage": {k: float(np.mean([r["hits"][k] for r in per])) for k in CHECKED},
         "per_event": per,
         "cases": cases,

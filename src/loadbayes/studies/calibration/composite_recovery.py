@@ -110,6 +110,7 @@ def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[
     )
     fit = fit_composite(
         [ev],
+        window_s=0,
         draws=settings["draws"],
         burn=settings["burn"],
         chains=settings["chains"],

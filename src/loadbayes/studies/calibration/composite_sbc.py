@@ -81,7 +81,7 @@ def composite_sampler(
 
     event = _event()
     prior = _prior(event)
-    problem = CompositeProblem([event], prior)
+    problem = CompositeProblem([event], prior, window_s=0)
     assert problem.n_steps == 1, "the SBC event has one step (into the sag)"
     mean_u, cov_u, _, _ = prior.scale_free()
     root_u = np.linalg.cholesky(cov_u)
@@ -119,7 +119,7 @@ def composite_sampler(
         return EventRecord(event.t, event.v, p, q, None, "sbc")
 
     def fit(data, seed: int) -> dict[str, np.ndarray]:
-        prob = CompositeProblem([data], prior)
+        prob = CompositeProblem([data], prior, window_s=0)
         # One NLS start (the prior median): the chain's burn-in does the rest.
         start = nls(prob, starts=[mean_u])  # (the step starts mid-interval)
         res = sample(
