@@ -146,8 +146,10 @@ def motor_response(
         Nominal frequency, ``(A, B, C)`` and the RK4 sub-step (see ``motor_kernel``).
     window_s : float
         0: the values at the sample instants. Above 0: each sample's mean over the
-        ``window_s`` window centred on it (a phasor sample); only at the samples ``real``
-        when given (``motor_kernel.integrate``).
+        ``window_s`` window centred on it (a phasor sample).
+    real : ndarray of int, optional
+        Only the samples ``real`` (the others knots of the input); default all
+        (``motor_kernel.integrate``).
 
     Returns
     -------

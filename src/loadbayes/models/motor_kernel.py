@@ -160,63 +160,20 @@ def _u(vv, dd, has_angle):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _rk4(ed, eq, w, ua, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c):  # pragma: no cover
-    # One classical RK4 step; ua, um, ub: (Ud, Uq) at the start, middle and end.
+    # One classical RK4 step; ua, um, ub: (Ud, Uq) at the start, middle and end. Returns
+    # the state at the end and the first stage (the derivative at the start).
     k1 = _rhs(ed, eq, w, ua[0], ua[1], rs, xp, dx, tp, h, wb, t0, a, b, c)
-    k2 = _rhs(
-        ed + 0.5 * hs * k1[0],
-        eq + 0.5 * hs * k1[1],
-        w + 0.5 * hs * k1[2],
-        um[0],
-        um[1],
-        rs,
-        xp,
-        dx,
-        tp,
-        h,
-        wb,
-        t0,
-        a,
-        b,
-        c,
-    )
-    k3 = _rhs(
-        ed + 0.5 * hs * k2[0],
-        eq + 0.5 * hs * k2[1],
-        w + 0.5 * hs * k2[2],
-        um[0],
-        um[1],
-        rs,
-        xp,
-        dx,
-        tp,
-        h,
-        wb,
-        t0,
-        a,
-        b,
-        c,
-    )
-    k4 = _rhs(
-        ed + hs * k3[0],
-        eq + hs * k3[1],
-        w + hs * k3[2],
-        ub[0],
-        ub[1],
-        rs,
-        xp,
-        dx,
-        tp,
-        h,
-        wb,
-        t0,
-        a,
-        b,
-        c,
-    )
-    ed += hs / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-    eq += hs / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-    w += hs / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+    ed, eq, w = _rk4_from(k1, ed, eq, w, ub, um, hs, rs, xp, dx, tp, h, wb, t0, a, b, c)
     return ed, eq, w, k1
+
+
+@numba.njit(cache=True, nogil=True)
+def _has_angle(delta):  # pragma: no cover - compiled
+    # Whether the input has an angle at all (else U is real: no cos/sin, see _u).
+    for k in range(delta.size):
+        if delta[k] != 0.0:
+            return True
+    return False
 
 
 @numba.njit(cache=True, nogil=True)
@@ -245,11 +202,7 @@ def integrate_into(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q,
     if not math.isfinite(ed):
         return False
     den = rs * rs + xp * xp
-    has_angle = False
-    for k in range(n):
-        if delta[k] != 0.0:
-            has_angle = True
-            break
+    has_angle = _has_angle(delta)
     states[0, 0], states[1, 0], states[2, 0] = ed, eq, w
     tau_fast = tp * xp / (xp + dx)
     fine_until = -math.inf
@@ -308,12 +261,7 @@ def integrate_into(t, v, delta, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max, p, q,
     for i in range(n):
         # The algebraic output exactly at every sample, from the states and the sampled U.
         ud, uq = _u(v[i], delta[i], has_angle)
-        dd = ud - states[0, i]
-        dq = uq - states[1, i]
-        id_ = (rs * dd + xp * dq) / den
-        iq = (rs * dq - xp * dd) / den
-        p[i] = ud * id_ + uq * iq
-        q[i] = uq * id_ - ud * iq
+        p[i], q[i] = _pq_at(states[0, i], states[1, i], ud, uq, rs, xp, den)
     return True
 
 
@@ -423,11 +371,7 @@ def integrate_window_into(
     if not math.isfinite(ed):
         return False
     den = rs * rs + xp * xp
-    has_angle = False
-    for k in range(n):
-        if dm[k] != 0.0:
-            has_angle = True
-            break
+    has_angle = _has_angle(dm[:n])
     # Running integrals of P and Q from tm[0], at every merged knot.
     ip, iq_ = np.empty(n), np.empty(n)
     ip[0], iq_[0] = 0.0, 0.0
@@ -523,15 +467,17 @@ def integrate(
         ``[t_k - window_s / 2, t_k + window_s / 2]`` (:func:`integrate_window_into`), as a
         phasor estimator stamped at its window's centre gives it.
     real : ndarray of int, optional
-        With ``window_s > 0``: the samples whose window means are wanted (the others are
-        knots of the input only); ``p``, ``q`` then have one entry per ``real`` sample.
+        The samples whose values (or window means) are wanted, the others being knots of
+        the input only; ``p``, ``q`` (and the states) then have one entry per ``real``
+        sample. Default: every sample.
 
     Returns
     -------
     (p, q, states) or None
-        ``p``, ``q`` shaped (n,) and the states ``(Ed', Eq', w)`` shaped (3, n) (None for
-        window means); None when the load torque exceeds the breakdown torque at ``v[0]``
-        (no steady state) or the integration leaves the finite numbers.
+        ``p``, ``q`` shaped (n,) (or one per ``real`` sample) and the states ``(Ed', Eq',
+        w)`` shaped (3, n) at the same samples (None for window means); None when the
+        load torque exceeds the breakdown torque at ``v[0]`` (no steady state) or the
+        integration leaves the finite numbers.
     """
     t = np.ascontiguousarray(t, dtype=float)
     v = np.ascontiguousarray(v, dtype=float)
@@ -539,49 +485,18 @@ def integrate(
     d = np.zeros_like(t) if delta is None else np.asarray(delta, dtype=float) - float(delta[0])
     d = np.ascontiguousarray(d)
     n = t.size
-    p, q, states = np.empty(n), np.empty(n), np.empty((3, n))
     a, b, c = (float(x) for x in torque)
+    motor = (float(rs), float(xp), float(dx), float(tp_s), float(h_s),
+             2.0 * math.pi * float(f_hz), float(t0), a, b, c,
+             float(step_size(float(tp_s), float(h_max))))  # fmt: skip
     if window_s > 0.0:
         real = np.arange(n, dtype=np.int64) if real is None else np.asarray(real, np.int64)
         p, q = np.empty(real.size), np.empty(real.size)
-        ok = integrate_window_into(
-            t,
-            v,
-            d,
-            real,
-            float(window_s),
-            float(rs),
-            float(xp),
-            float(dx),
-            float(tp_s),
-            float(h_s),
-            2.0 * math.pi * float(f_hz),
-            float(t0),
-            a,
-            b,
-            c,
-            float(step_size(float(tp_s), float(h_max))),
-            p,
-            q,
-        )
+        ok = integrate_window_into(t, v, d, real, float(window_s), *motor, p, q)
         return (p, q, None) if ok else None
-    ok = integrate_into(
-        t,
-        v,
-        d,
-        float(rs),
-        float(xp),
-        float(dx),
-        float(tp_s),
-        float(h_s),
-        2.0 * math.pi * float(f_hz),
-        float(t0),
-        a,
-        b,
-        c,
-        float(step_size(float(tp_s), float(h_max))),
-        p,
-        q,
-        states,
-    )
-    return (p, q, states) if ok else None
+    p, q, states = np.empty(n), np.empty(n), np.empty((3, n))
+    if not integrate_into(t, v, d, *motor, p, q, states):
+        return None
+    if real is None:
+        return p, q, states
+    return p[real], q[real], states[:, real]

@@ -28,11 +28,11 @@ __all__ = ["event_arrays", "events_of", "fault_times", "predictive_band", "windo
 REC = "rec_"
 
 
-def window_of(settings: dict, f_hz: float) -> float:
+def window_of(settings: dict) -> float:
     """The phasor window (s) a fit read its samples with: 0 for point samples.
 
-    A result written before the window was recorded (no ``steps.window_s``) read one
-    cycle of ``f_hz`` for its edges and point values for the motor: 0 then.
+    A result written before the window was recorded (no ``samples`` in its settings)
+    read point values for the motor: 0 then.
     """
     samples = settings.get("samples")
     if not isinstance(samples, dict):
@@ -70,7 +70,7 @@ def predictive_band(
     steps = post.settings.get("steps") or {}
     edge_window = steps.get("window_s")
     edge_window = 1.0 / f_hz if edge_window is None else float(edge_window)
-    window = window_of(post.settings, f_hz)
+    window = window_of(post.settings)
     for k, recorded in enumerate(events):
         beta = beta_from_named(post.draws, k).reshape(-1, 7)
         # The steps where each draw put them (none when the fit read them as ramps).
@@ -94,7 +94,7 @@ def predictive_band(
             r = motor_response(aug, theta[i], f_hz=f_hz, torque=tuple(abc[i]), window_s=window,
                                real=real)  # fmt: skip
             if r is not None:
-                zp, zq = design(ev, *r) if window > 0 else design(ev, r[0][real], r[1][real])
+                zp, zq = design(ev, *r)
                 ps.append(zp @ beta[i])
                 qs.append(zq @ beta[i])
                 used.append(i)

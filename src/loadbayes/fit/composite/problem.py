@@ -349,18 +349,12 @@ class CompositeProblem:
         tq = self.torque if torque is None else torque
         for k in range(len(self.events)):
             aug, real = self.grid.motor_input(k, t_aug)
-            if self.window > 0.0:
-                # Window means at the real samples only, as _collapsed computes them.
-                r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max,
-                                   window_s=self.window, real=real)  # fmt: skip
-                if r is None:
-                    return None
-                out.append(r)
-                continue
-            r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max)
+            # At the real samples only (window means with a window), as _collapsed does.
+            r = motor_response(aug, theta, f_hz=self.f_hz, torque=tq, h_max=self.h_max,
+                               window_s=self.window, real=real)  # fmt: skip
             if r is None:
                 return None
-            out.append((r[0][real], r[1][real]))
+            out.append(r)
         return out
 
     def sums(

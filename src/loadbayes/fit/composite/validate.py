@@ -144,7 +144,7 @@ def validate_event(
     if f_hz is None:
         f_hz = float(d["f_hz"][0]) if "f_hz" in d else float(post.settings.get("f_hz", 60.0))
     if window_s is None:
-        window_s = window_of(post.settings, f_hz)
+        window_s = window_of(post.settings)
     rng = np.random.default_rng(seed)
     total = d["f_m"].size
     pick = rng.choice(total, size=min(n_draws, total), replace=False)
