@@ -39,6 +39,7 @@ from loadbayes.core.convergence import (
     _ess_direct,
     _rhat,
     _scores,
+    _scores_sorted,
     ess_fft,
 )
 
@@ -145,29 +146,6 @@ def _argsort_into(v, order, srt):  # pragma: no cover - compiled
     for i in range(v.size):
         order[i] = o[i]
         srt[i] = v[o[i]]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _scores_sorted(srt, order, table, half_table, out):  # pragma: no cover - compiled
-    """Normal scores of average ranks: ``srt`` sorted, ``out[order[k]]`` gets rank ``k``'s.
-
-    A tie group at sorted positions ``i..j`` gets rank ``(i + j) / 2 + 1``: an integer
-    rank's score is ``table``, a half-integer one's ``half_table``.
-    """
-    n = srt.size
-    i = 0
-    while i < n:
-        j = i
-        vi = srt[i]
-        while j + 1 < n and srt[j + 1] == vi:
-            j += 1
-        if (i + j) % 2 == 0:
-            z = table[(i + j) // 2]
-        else:
-            z = half_table[(i + j - 1) // 2]
-        for k in range(i, j + 1):
-            out[order[k]] = z
-        i = j + 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -118,29 +118,35 @@ def _var_seq(a, ddof):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _z_scores(values, order, table, half_table):  # pragma: no cover - compiled
-    """Normal scores of the average ranks of each row of ``values`` (rows sorted by order).
+def _scores_sorted(srt, order, table, half_table, out):  # pragma: no cover - compiled
+    """Normal scores of average ranks: ``srt`` sorted, ``out[order[k]]`` gets rank ``k``'s.
 
     A tie group at sorted positions ``i..j`` gets rank ``(i + j) / 2 + 1``: an integer
     rank's score is ``table``, a half-integer one's ``half_table``.
     """
+    n = srt.size
+    i = 0
+    while i < n:
+        j = i
+        vi = srt[i]
+        while j + 1 < n and srt[j + 1] == vi:
+            j += 1
+        if (i + j) % 2 == 0:
+            z = table[(i + j) // 2]
+        else:
+            z = half_table[(i + j - 1) // 2]
+        for k in range(i, j + 1):
+            out[order[k]] = z
+        i = j + 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _z_scores(values, order, table, half_table):  # pragma: no cover - compiled
+    """:func:`_scores_sorted` of each row of ``values`` (rows sorted by ``order``)."""
     m, n = values.shape
     out = np.empty((m, n))
     for r in range(m):
-        v = values[r]
-        o = order[r]
-        i = 0
-        while i < n:
-            j = i
-            while j + 1 < n and v[o[j + 1]] == v[o[i]]:
-                j += 1
-            if (i + j) % 2 == 0:
-                z = table[(i + j) // 2]
-            else:
-                z = half_table[(i + j - 1) // 2]
-            for k in range(i, j + 1):
-                out[r, o[k]] = z
-            i = j + 1
+        _scores_sorted(values[r][order[r]], order[r], table, half_table, out[r])
     return out
 
 
