@@ -64,6 +64,17 @@ def test_a_budget_continues_the_chains_until_the_classes_converge(fleet):
     assert more["sweeps"] == 60 * 2 ** (more["rounds"] - 1), more
 
 
+def test_continued_rounds_keep_the_first_rounds_number_of_draws(fleet):
+    # A thinned run: the first round keeps 20 of 60 (one in 2 after 20); every later
+    # round keeps no more (memory as in the first round), and never thins less.
+    sampler = SamplerSettings(chains=2, draws=60, burn=20, thin=2, seed=1)
+    more = run_fleet(fleet, SPEC, pool="class", sampler=sampler, max_seconds=3).settings
+    assert more["rounds"] > 1, more
+    last = more["sweeps"] // 2
+    assert more["kept_thin"] >= 2
+    assert len(range(0, last, more["kept_thin"])) <= 20, more
+
+
 def _data(fleet, p0="auto"):
     model = ZIPModel(p0=p0, q0=p0)
     stats = finish(partition_stats(find_partitions(fleet)[0], SPEC, model))

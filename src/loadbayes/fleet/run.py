@@ -482,8 +482,8 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
 
     Each round after the first runs as many sweeps per chain as all rounds before it,
     from where the chain stopped, and keeps only those (the earlier half of the chain
-    becomes burn-in, as in Stan's warm-up rule), thinned to ``draws - burn`` kept draws
-    so that the memory stays as in the first round. So R-hat is judged on the later half
+    becomes burn-in, as in Stan's warm-up rule), thinned to as many kept draws as the
+    first round's so that the memory stays as in the first round. So R-hat is judged on the later half
     of ever longer chains: the ESS behind it doubles each round (a fixed-length window,
     as before, let a fleet whose spreads mix slowly run on for dozens of rounds, each too
     short to show R-hat < 1.01). The decision to go on depends on the draws only, except
@@ -522,8 +522,9 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
                 f"round of {done} sweeps"
             )
             break
-        keep = max(1, sampler.draws - sampler.burn)
-        thin = max(1, -(-done // keep))
+        # As many kept draws as the first round (its thinning included), never thinner.
+        keep = max(1, len(range(sampler.burn, sampler.draws, sampler.thin)))
+        thin = max(sampler.thin, -(-done // keep))
         jobs = [(c.state, st, done, thin) for c, st in zip(chains, stores(rounds + 1), strict=True)]
         chains = _map_chains(eng, jobs, data_h, prior, sampler)
         for old in stores(rounds):
