@@ -18,14 +18,20 @@ def _results(kept: int, seed: int = 0):
     return res, {"x": x}
 
 
-def test_an_extension_is_planned_inside_the_time_left():
+def _after(elapsed_s: float, round_s: float):
+    """Unconverged chains of 400 kept draws, as if the last round of 1000 iterations took
+    ``round_s`` and ``elapsed_s`` of a 100 s budget are gone: the policy and the results."""
     res, named = _results(400)
     policy = UntilConverged(lambda _: named, max_seconds=100.0, thin=1)
     policy.start(1000)
-    # As if the first round of 1000 iterations took 10 s and 90 s of the budget are gone
-    # (the ESS asks for 1600 more, 16 s: more than is left).
     now = time.perf_counter()
-    policy.t_start, policy._t_round = now - 90.0, now - 10.0
+    policy.t_start, policy._t_round = now - elapsed_s, now - round_s
+    return policy, res
+
+
+def test_an_extension_is_planned_inside_the_time_left():
+    # 90 s gone (the ESS asks for 1600 more iterations, 16 s: more than is left).
+    policy, res = _after(90.0, 10.0)
     more = policy(res)
     assert more > 0
     per_iteration = 10.0 / 1000
@@ -34,11 +40,7 @@ def test_an_extension_is_planned_inside_the_time_left():
 
 
 def test_no_time_for_a_useful_extension_stops_and_says_so():
-    res, named = _results(400)
-    policy = UntilConverged(lambda _: named, max_seconds=100.0, thin=1)
-    policy.start(1000)
-    now = time.perf_counter()
-    policy.t_start, policy._t_round = now - 99.5, now - 10.0
+    policy, res = _after(99.5, 10.0)
     assert policy(res) == 0
     assert policy.stopped_by_budget
     assert "ran out" in policy.warning(res)
