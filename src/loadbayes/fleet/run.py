@@ -483,12 +483,12 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     Each round after the first runs as many sweeps per chain as all rounds before it,
     from where the chain stopped, and keeps only those (the earlier half of the chain
     becomes burn-in, as in Stan's warm-up rule), thinned to as many kept draws as the
-    first round's so that the memory stays as in the first round. So R-hat is judged on the later half
-    of ever longer chains: the ESS behind it doubles each round (a fixed-length window,
-    as before, let a fleet whose spreads mix slowly run on for dozens of rounds, each too
-    short to show R-hat < 1.01). The decision to go on depends on the draws only, except
-    when the time budget ends it: then (and only then) two machines may stop at
-    different rounds.
+    first round's so that the memory stays as in the first round. So R-hat is judged on
+    the later half of ever longer chains: the ESS behind it doubles each round (a
+    fixed-length window, as before, let a fleet whose spreads mix slowly run on for
+    dozens of rounds, each too short to show R-hat < 1.01). The decision to go on
+    depends on the draws only, except when the time budget ends it: then (and only
+    then) two machines may stop at different rounds.
     """
     import os
 
