@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.io.errors import DataError
+from loadbayes.measurements.units import F_OFF
 from loadbayes.models.composite import EventRecord
 
 __all__ = [
@@ -60,8 +61,9 @@ MAX_STEP_S = 0.5
 MAX_EVENT_S = 600.0
 #: The record's own frequency (median of f, or from the angle's drift) this far off the
 #: nominal is another system's frequency (50 Hz data at --f-hz 60 is 17% off), not a
-#: disturbance: refused, since the motor's time base would be wrong.
-MAX_F_OFF = 0.03
+#: disturbance: refused, since the motor's time base would be wrong. The bound of
+#: ``fit exp``'s frequency check too (one number for both).
+MAX_F_OFF = F_OFF
 #: A value further than this from its column's median (in units of the median's size,
 #: at least 1) is a corrupt cell, not a measurement (it made the fit's linear algebra
 #: singular, with no location).

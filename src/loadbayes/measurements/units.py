@@ -305,7 +305,8 @@ def check_motor_units(
 
 
 #: A record's median frequency this far from the nominal is another system's (50 Hz data
-#: read against 60 Hz is 17% off), or not in Hz; the same bound as the composite's.
+#: read against 60 Hz is 17% off), or not in Hz: the composite's events use the same
+#: bound (measurements/events.py).
 F_OFF = 0.03
 
 
