@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from loadbayes.io.encoding import has_cjk
 from loadbayes.io.errors import DataError
 
 __all__ = ["ENCODINGS", "FORMATS", "REVISIONS", "AnalogChannel", "CfgInfo", "parse_cfg"]
@@ -189,10 +190,6 @@ def _stamp(cells: list[str], line: int, path: str) -> str:
 ENCODINGS = ("utf-8-sig", "gb18030", "latin-1")
 
 
-def _has_cjk(text: str) -> bool:
-    return any("\u4e00" <= ch <= "\u9fff" or "\u3000" <= ch <= "\u303f" for ch in text)
-
-
 def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
     """The text and the encoding it was read with (``encoding``, or detected)."""
     if encoding is not None:
@@ -213,7 +210,7 @@ def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
         pass
     try:
         text = raw.decode("gb18030")
-        if _has_cjk(text):
+        if has_cjk(text):
             return text, "gb18030"
     except UnicodeDecodeError:
         pass
