@@ -116,3 +116,21 @@ def test_prior_validation():
         BlockPrior.weak(2, sd=0.0)
     with pytest.raises(ValueError):
         BlockPrior(mean=[0, 0], precision=[0.0, 1.0], conjugate=True)
+
+
+@pytest.mark.parametrize("scheme", ["blocked", "single-site"])
+def test_a_requested_stop_ends_the_chains(scheme):
+    # The CLI's signal handler calls request_stop; when a library swallows the
+    # KeyboardInterrupt (a bare except during an import), the sampler must still stop
+    # rather than run its draws and go on to summarise them (CI saw exactly that).
+    from loadbayes.core.parallel import ChainsStopped, clear_stop, request_stop
+
+    request_stop()
+    try:
+        with pytest.raises(ChainsStopped):
+            sample_block(_stats(), BlockPrior.weak(2), scheme=scheme,
+                         settings=SamplerSettings(chains=2, draws=200_000, seed=1))  # fmt: skip
+    finally:
+        clear_stop()
+    sample_block(_stats(), BlockPrior.weak(2), scheme=scheme,
+                 settings=SamplerSettings(chains=2, draws=500, burn=100, seed=1))  # fmt: skip

@@ -450,6 +450,7 @@ def write_outputs(
     from loadbayes.io.transaction import OutputSet
     from loadbayes.report.text import derived_lines, summary_table
 
+    stop_if_signalled()  # a signal a library swallowed: not one more line of progress
     if not quiet:
         click.echo("loadbayes: summarising the draws (R-hat, ESS)...", err=True)
     table = post.summary(hdi_prob=hdi_prob)

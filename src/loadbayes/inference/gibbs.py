@@ -53,7 +53,7 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
-from loadbayes.core.parallel import chain_generators, num_threads, run_threads
+from loadbayes.core.parallel import chain_generators, check_stop, num_threads, run_threads
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import RegressionStats
@@ -410,6 +410,9 @@ def sample_block(
         g = np.empty((c1 - c0, min(SEGMENT, draws)))
         sl = slice(c0, c1)
         for start in range(0, draws, SEGMENT):
+            # A signal whose KeyboardInterrupt a library swallowed (a bare except during
+            # an import) still stops the run here, within one segment.
+            check_stop(None)
             m = min(SEGMENT, draws - start)
             for j, c in enumerate(range(c0, c1)):  # per chain: the normals, then the gammas
                 gens[c].standard_normal(out=z[j, :m])
