@@ -179,25 +179,71 @@ def draw_beta(
     j = positive
     sd = math.sqrt(cov[j, j])
     bj = mu[j] + sd * _truncated_standard(-mu[j] / sd, rng)
-    rest = [i for i in range(k) if i != j]
-    c_rj = cov[rest, j]
-    mean_r = mu[rest] + c_rj / cov[j, j] * (bj - mu[j])
-    cov_r = cov[np.ix_(rest, rest)] - np.outer(c_rj, c_rj) / cov[j, j]
-    out = np.empty(k)
-    out[j] = bj
     z = rng.standard_normal(k - 1)
     try:
-        out[rest] = mean_r + np.linalg.cholesky(cov_r) @ z
+        return _given_one(mu, cov, j, bj, z)
     except np.linalg.LinAlgError:  # rounding made it semi-definite: fall back to eigh
+        rest = [i for i in range(k) if i != j]
+        c_rj = cov[rest, j]
+        mean_r = mu[rest] + c_rj / cov[j, j] * (bj - mu[j])
+        cov_r = cov[np.ix_(rest, rest)] - np.outer(c_rj, c_rj) / cov[j, j]
+        out = np.empty(k)
+        out[j] = bj
         w, v = np.linalg.eigh((cov_r + cov_r.T) / 2)
         out[rest] = mean_r + v @ (np.sqrt(np.clip(w, 0.0, None)) * z)
+        return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _given_one(mu, cov, j, bj, z):  # pragma: no cover - compiled
+    # The other coordinates of N(mu, cov) given coordinate j = bj, drawn with the
+    # standard normals z (k - 1): mean and covariance of the conditional, its Cholesky
+    # factor (numpy.linalg.LinAlgError when rounding made it semi-definite). Compiled:
+    # k is 7, where NumPy's fancy indexing cost more than the arithmetic (issue 21).
+    k = mu.size
+    m = k - 1
+    rest = np.empty(m, dtype=np.int64)
+    r = 0
+    for i in range(k):
+        if i != j:
+            rest[r] = i
+            r += 1
+    cjj = cov[j, j]
+    mean_r = np.empty(m)
+    cov_r = np.empty((m, m))
+    for a in range(m):
+        ca = cov[rest[a], j]
+        mean_r[a] = mu[rest[a]] + ca / cjj * (bj - mu[j])
+        for b in range(m):
+            cov_r[a, b] = cov[rest[a], rest[b]] - ca * cov[rest[b], j] / cjj
+    chol = np.linalg.cholesky(cov_r)
+    out = np.empty(k)
+    out[j] = bj
+    for a in range(m):
+        acc = mean_r[a]
+        for b in range(a + 1):
+            acc += chol[a, b] * z[b]
+        out[rest[a]] = acc
     return out
 
 
 def residual_ss(sums: GroupSums, beta: np.ndarray) -> np.ndarray:
     """Each group's sum of squared residuals ``|y_g - Z_g beta|^2`` from the sums."""
-    ssr = sums.yty - 2.0 * sums.zty @ beta + np.einsum("i,gij,j->g", beta, sums.ztz, beta)
-    return np.clip(ssr, 0.0, None)
+    return _residual_ss(sums.ztz, sums.zty, sums.yty, np.asarray(beta, dtype=float))
+
+
+@numba.njit(cache=True, nogil=True)
+def _residual_ss(ztz, zty, yty, beta):  # pragma: no cover - compiled
+    out = np.empty(yty.size)
+    k = beta.size
+    for g in range(yty.size):
+        acc = yty[g]
+        for i in range(k):
+            acc -= 2.0 * zty[g, i] * beta[i]
+            for j in range(k):
+                acc += beta[i] * ztz[g, i, j] * beta[j]
+        out[g] = max(acc, 0.0)
+    return out
 
 
 def draw_tau(
@@ -207,7 +253,13 @@ def draw_tau(
 
     ``ssr`` and ``n`` may be summed over several independent blocks sharing the ``tau_g``.
     """
-    return rng.gamma(shape + 0.5 * np.asarray(n), 1.0 / (rate + 0.5 * np.asarray(ssr)))
+    # One scalar call per group: the same stream as one call with arrays, at a fraction
+    # of its cost for the two groups of a sampler's every iteration.
+    nb, sb = np.broadcast_arrays(np.asarray(n, dtype=float), np.asarray(ssr, dtype=float))
+    return np.array([
+        rng.gamma(shape + 0.5 * ni, 1.0 / (rate + 0.5 * si))
+        for ni, si in zip(nb.ravel().tolist(), sb.ravel().tolist(), strict=True)
+    ]).reshape(nb.shape)  # fmt: skip
 
 
 def draw_betas(

@@ -55,15 +55,14 @@ from loadbayes.models.motor_kernel import (
 __all__ = ["CompositeProblem", "KernelResult", "Samples", "theta_of"]
 
 _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
+_T_INV_U = np.ascontiguousarray(_T_INV[:, :5].T)
 
 
 def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
     """``THETA_NAMES`` values from the scale-free ``u`` (..., 5) and ``log T0`` (...)."""
     u = np.asarray(u, dtype=float)
-    full = np.concatenate(
-        [u, np.expand_dims(np.asarray(log_t0, dtype=float) + 0 * u[..., 0], -1)], -1
-    )
-    return full @ _T_INV.T
+    # theta = T^-1 (u, log T0): the first five columns act on u, the last on log T0.
+    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV[:, 5])
 
 
 @dataclass(frozen=True)
@@ -253,8 +252,11 @@ class CompositeProblem:
         a step at an interval's very edge (a fault at a sample instant, as simulators
         put it) reachable, where a logit would send it to infinity.
         """
-        phi = np.asarray(u, dtype=float)[5 : 5 + self.n_steps]
-        return bool(np.all((phi >= 0.0) & (phi <= 1.0)))
+        if not self.n_steps:
+            return True
+        # Plain floats: a handful of fractions, checked every iteration (twice).
+        phi = np.asarray(u, dtype=float)[5 : 5 + self.n_steps].tolist()
+        return all(0.0 <= f <= 1.0 for f in phi)
 
     def kernel(
         self,
@@ -275,14 +277,14 @@ class CompositeProblem:
         linear block. Counts one evaluation.
         """
         self.evaluations += 1
-        if not np.all(np.isfinite(u)) or not self.in_support(u):
+        u = np.asarray(u, dtype=float)
+        if not np.isfinite(u).all() or not self.in_support(u):
             return None
         n_ev = len(self.events)
         ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
         d = self.samples
         pm, qm = np.empty(d.size), np.empty(d.size)
         a, b, c = self.torque if torque is None else torque
-        u = np.asarray(u, dtype=float)
         weighted = weights is not None
         g = self.grid
         try:
@@ -396,7 +398,7 @@ class CompositeProblem:
 
     def log_collapsed(self, sums: list[GroupSums] | None, u, tau) -> float:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
-        if sums is None or not np.all(np.isfinite(u)):
+        if sums is None or not np.isfinite(u).all():
             return -math.inf
         if u.size > 5 and not self.in_support(u):
             return -math.inf
