@@ -151,7 +151,7 @@ class CompositeProblem:
         # (models/composite_steps.py); the likelihood sees the real samples only.
         self.grid = StepGrid.build(
             [e.t for e in ev], [e.v for e in ev], deltas, detect=self.steps,
-            intervals=self.fit_samples.intervals,
+            intervals=self.fit_samples.intervals, ends=self.fit_samples.ends,
         )  # fmt: skip
         self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
             np.int64
