@@ -90,9 +90,10 @@ def test_noise_alone_and_detect_false_give_no_edge():
     "rate, ramp", [(30.0, 0.050), (60.0, 0.020), (60.0, 0.050), (120.0, 0.010), (120.0, 0.050)]
 )
 def test_point_samples_on_a_ramp_are_kept_and_the_knots_draw_the_ramp(rate, ramp):
-    # Point samples of a linear ramp: every sample kept, the edge a ramp whose start knot,
-    # put at the true start (phi), and whose end knot (by linearity through the inside
-    # samples) reproduce the continuous voltage between the samples.
+    # Point samples of a linear ramp: every sample kept, the edge a ramp whose knots
+    # reproduce the continuous voltage between the samples: with one sample on it, the
+    # start (phi) put at the true start and the end by linearity; with more, both ends
+    # fixed by the line through them (no phi).
     start, depth = 0.4013, 0.3
     t, v = _record(rate, start, depth, ramp)
     fs = FitSamples.find([t], [v], window_s=0.0)
@@ -102,20 +103,20 @@ def test_point_samples_on_a_ramp_are_kept_and_the_knots_draw_the_ramp(rate, ramp
     assert k1 - k0 >= 2 and fs.ramps == 1
     angle = -0.2 * (1.0 - v) / depth  # the angle turns with the same shape
     grid = StepGrid.build([t], [v], [angle], intervals=fs.intervals, ends=fs.ends)
-    assert grid.n_steps == grid.n_ramps == 1
-    phi = grid.phi_of(np.array([start]))
-    t_aug = grid.times(phi)
-    assert np.all(np.diff(t_aug) > 0)
+    inside = k1 - k0 - 1
+    assert grid.n_steps == grid.n_ramps == (1 if inside == 1 else 0)
+    t_aug = grid.times(grid.phi_of(np.array([start])[: grid.n_steps]))
+    assert t_aug.size == t.size + 2 and np.all(np.diff(t_aug) > 0)
     np.testing.assert_array_equal(t_aug[grid.real], t)
     fine = np.linspace(0.3, 0.6, 3001)
-    np.testing.assert_allclose(np.interp(fine, t_aug, grid.v), _v_of(fine, start, depth, ramp),
+    want = _v_of(fine, start, depth, ramp)
+    np.testing.assert_allclose(np.interp(fine, t_aug, grid.v), want, atol=1e-9)
+    np.testing.assert_allclose(np.interp(fine, t_aug, grid.delta), -0.2 * (1 - want) / depth,
                                atol=1e-9)  # fmt: skip
-    np.testing.assert_allclose(np.interp(fine, t_aug, grid.delta),
-                               -0.2 * (1 - _v_of(fine, start, depth, ramp)) / depth,
-                               atol=1e-9)  # fmt: skip
-    # A start later in its interval moves the end earlier: the same line, steeper.
-    t_late = grid.times(np.array([0.9]))
-    assert t_late[grid.pos[0]] > t_aug[grid.pos[0]] and t_late[grid.pos_b[0]] < t_aug[grid.pos_b[0]]
+    if inside == 1:
+        # A start later in its interval moves the end earlier: the same line, steeper.
+        late = grid.times(np.array([0.9]))
+        assert late[grid.pos[0]] > t_aug[grid.pos[0]] and late[grid.pos_b[0]] < t_aug[grid.pos_b[0]]
 
 
 def test_a_step_between_point_samples_stays_a_step():

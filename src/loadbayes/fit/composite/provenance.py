@@ -90,8 +90,10 @@ def problem_settings(
             "ramps": {
                 "rule": "point samples (window 0): an edge of up to "
                 f"{RAMP_MAX_S:g} s with samples inside it is a straight ramp through them "
-                "(kept in the likelihood), from an unknown instant in its first interval "
-                "(its t_step) to where that line reaches the level after, in its last",
+                "(kept in the likelihood); with one inside, from an unknown instant in its "
+                "first interval (its t_step) to where that line reaches the level after; "
+                "with more, between where their least-squares line reaches the levels "
+                "before and after (fixed)",
                 "count": fs.ramps if problem.window <= 0 else 0,
                 "samples": [
                     {"event": e, "from_k": int(k0), "to_k": int(k1)}
