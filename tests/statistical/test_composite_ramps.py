@@ -82,6 +82,7 @@ def test_the_ramp_read_as_a_ramp_leaves_no_bias_in_f_m(motor):
             ev, truth = _event(motor, rate, ramp, start, noise=1e-5, seed=1, t_end=2.5)
             fit = fit_composite(ev, sampler=short, until_converged=False, window_s=0.0, workers=1)
             assert fit.problem.fit_samples.ramps == 2, (rate, ramp)
+            assert fit.posterior.settings["steps"]["ramps"]["count"] == 2
             # The NLS estimate (the baseline's draws are its Gaussian, sd ~1e-4 here).
             got[rate, 1e3 * ramp] = float(np.mean(fit.baseline.draws["f_m"]))
     err = {k: round(v - truth["f_m"], 4) for k, v in got.items()}

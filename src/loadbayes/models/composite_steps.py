@@ -241,7 +241,7 @@ class StepGrid:
 
     @property
     def n_ramps(self) -> int:
-        """Edges read as ramps (samples inside them, kept in the fit)."""
+        """Ramps with a sampled start (one kept sample inside; longer ones are fixed knots)."""
         return int(np.sum(self.pos_b != self.pos + 1))
 
     @classmethod

@@ -134,8 +134,8 @@ class CompositeProblem:
     def __post_init__(self) -> None:
         self.m0 = np.zeros(7)
         self.p0 = 1.0 / self.prior.beta_sd**2
-        # The samples inside a fault's edge (a ramp, or a phasor window across the
-        # change) are left out; ``recorded`` keeps the events as given.
+        # With a phasor window the samples inside a fault's edge are left out (point
+        # samples keep them: the edge is a ramp); ``recorded`` keeps the events as given.
         self.recorded = list(self.events)
         self.window = window = 1.0 / self.f_hz if self.window_s is None else float(self.window_s)
         self.fit_samples = FitSamples.find(
