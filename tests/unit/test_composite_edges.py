@@ -7,7 +7,7 @@ ramp) sampled as points or as one-cycle window means, so the edges are known exa
 import numpy as np
 import pytest
 
-from loadbayes.models.composite_steps import FitSamples, edge_runs, max_intervals
+from loadbayes.models.composite_steps import FitSamples, StepGrid, edge_runs, max_intervals
 
 F_HZ = 60.0
 
@@ -84,3 +84,51 @@ def test_noise_alone_and_detect_false_give_no_edge():
     t, v = _record(60.0, 0.4013, 0.3, 0.02)
     fs = FitSamples.find([t], [v], window_s=1 / F_HZ, detect=False)
     assert fs.left_out == 0 and fs.keep[0].size == t.size
+
+
+@pytest.mark.parametrize(
+    "rate, ramp", [(30.0, 0.050), (60.0, 0.020), (60.0, 0.050), (120.0, 0.010), (120.0, 0.050)]
+)
+def test_point_samples_on_a_ramp_are_kept_and_the_knots_draw_the_ramp(rate, ramp):
+    # Point samples of a linear ramp: every sample kept, the edge a ramp whose knots
+    # reproduce the continuous voltage between the samples: with one sample on it, the
+    # start (phi) put at the true start and the end by linearity; with more, both ends
+    # fixed by the line through them (no phi).
+    start, depth = 0.4013, 0.3
+    t, v = _record(rate, start, depth, ramp)
+    fs = FitSamples.find([t], [v], window_s=0.0)
+    assert fs.left_out == 0 and fs.keep[0].size == t.size
+    ((k0, k1),) = fs.edges[0]
+    assert t[k0] < start < t[k0 + 1] and t[k1 - 1] < start + ramp < t[k1]
+    assert k1 - k0 >= 2 and fs.ramps == 1
+    angle = -0.2 * (1.0 - v) / depth  # the angle turns with the same shape
+    grid = StepGrid.build([t], [v], [angle], intervals=fs.intervals, ends=fs.ends)
+    inside = k1 - k0 - 1
+    assert grid.n_steps == grid.n_ramps == (1 if inside == 1 else 0)
+    t_aug = grid.times(grid.phi_of(np.array([start])[: grid.n_steps]))
+    assert t_aug.size == t.size + 2 and np.all(np.diff(t_aug) > 0)
+    np.testing.assert_array_equal(t_aug[grid.real], t)
+    fine = np.linspace(0.3, 0.6, 3001)
+    want = _v_of(fine, start, depth, ramp)
+    np.testing.assert_allclose(np.interp(fine, t_aug, grid.v), want, atol=1e-9)
+    np.testing.assert_allclose(np.interp(fine, t_aug, grid.delta), -0.2 * (1 - want) / depth,
+                               atol=1e-9)  # fmt: skip
+    if inside == 1:
+        # A start later in its interval moves the end earlier: the same line, steeper.
+        late = grid.times(np.array([0.9]))
+        assert late[grid.pos[0]] > t_aug[grid.pos[0]] and late[grid.pos_b[0]] < t_aug[grid.pos_b[0]]
+
+
+def test_a_step_between_point_samples_stays_a_step():
+    # No sample inside the edge: the two knots sit side by side, V_k then V_k+1.
+    t, v = _record(60.0, 0.4013, 0.3, 0.0)
+    fs = FitSamples.find([t], [v], window_s=0.0)
+    ((k0, k1),) = fs.edges[0]
+    assert k1 == k0 + 1 and fs.ramps == 0
+    grid = StepGrid.build([t], [v], [np.zeros(t.size)], intervals=fs.intervals, ends=fs.ends)
+    assert grid.n_ramps == 0 and grid.pos_b[0] == grid.pos[0] + 1
+    t_aug = grid.times(grid.phi_of(np.array([0.4013])))
+    fine = np.linspace(0.3, 0.6, 3001)
+    fine = fine[np.abs(fine - 0.4013) > 1e-6]
+    np.testing.assert_allclose(np.interp(fine, t_aug, grid.v), _v_of(fine, 0.4013, 0.3, 0.0),
+                               atol=1e-12)  # fmt: skip

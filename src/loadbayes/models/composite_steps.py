@@ -31,6 +31,22 @@ step interval from the sample before it to the sample after it, the step at an u
 instant in it as above. A run longer than the window (a ramp that the samples resolve)
 is left as the samples draw it.
 
+That holds for phasor samples (a window mean straddling the change is neither level).
+A **point** sample (``window_s == 0``) inside an edge is the exact voltage at its
+instant, on the ramp: left out, and the ramp replaced by a step, it biased the motor
+share (issue 21's event at 60/s, 20 ms ramps: NLS on the noise-free event f_m 0.393 for
+0.400, residual sd 1.3e-3; docs/composite.md, "Ramps between point samples"). So with
+point samples every sample is kept, an edge may be as long as a ramp of
+:data:`RAMP_MAX_S`, and an edge with samples inside it is a **ramp**: the voltage holds
+``V_k0`` until an unknown instant ``t_a`` in the first interval (the same ``phi``), is
+linear through the inside samples, and reaches ``V_k1`` at ``t_b`` in the last interval,
+where the line from ``(t_a, V_k0)`` through the last inside sample gets there (a
+straight ramp: no second unknown). With two or more samples inside, the line is theirs
+(least squares) and both ends are fixed where it reaches ``V_k0`` and ``V_k1``
+(:func:`ramp_ends`): no unknown at all (a sampled ``phi`` there cut the ESS of a 50 ms
+ramp at 120/s from 133 to 25). The angle follows the same knots. An edge of one
+interval (no sample inside) stays a step.
+
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 (fit/composite/problem.py).
 """
@@ -38,7 +54,7 @@ Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -50,12 +66,15 @@ __all__ = [
     "GROW_WINDOW",
     "JUMP",
     "NOISE_SIGMAS",
+    "RAMP_MAX_S",
     "RATIO",
     "FitSamples",
     "StepGrid",
     "edge_runs",
     "fill_times",
     "max_intervals",
+    "ramp_ends",
+    "ramp_intervals",
     "step_intervals",
 ]
 
@@ -74,6 +93,18 @@ GROW = 0.05
 GROW_WINDOW = 0.02
 #: ... and by more than this many times the record's interval-to-interval noise sd.
 NOISE_SIGMAS = 4.0
+#: Point samples: the longest fault edge read as a ramp through its inside samples (s);
+#: a longer run is left as the samples draw it (a recovery the samples resolve).
+RAMP_MAX_S = 0.06
+
+
+def ramp_intervals(t: NDArray[np.float64]) -> int:
+    """The longest edge, in intervals, of point samples: a ramp of :data:`RAMP_MAX_S`.
+
+    The ramp's own intervals plus the two it starts and ends inside.
+    """
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    return max(2, int(np.ceil(RAMP_MAX_S / dt - 1e-9)) + 1)
 
 
 def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
@@ -157,7 +188,11 @@ def step_intervals(v: NDArray[np.float64], *, jump: float = JUMP, ratio: float =
 
 @dataclass(frozen=True)
 class StepGrid:
-    """Events' samples with two virtual knots in every step interval, concatenated.
+    """Events' samples with two virtual knots in every edge, concatenated.
+
+    A step interval's two knots sit side by side inside it; a ramp's (point samples
+    inside the edge, kept) sit in its first and its last interval, the ramp's start and
+    end (:func:`fill_times`).
 
     Attributes
     ----------
@@ -168,11 +203,18 @@ class StepGrid:
     real : ndarray of int
         Positions of the real samples in the augmented arrays, event after event.
     pos : ndarray of int
-        Position of each step's first virtual knot (the second follows it).
+        Position of each edge's first virtual knot (a step's second follows it).
     left, width : ndarray
-        ``t_k`` and ``t_k+1 - t_k`` of each step interval.
+        ``t_k`` and ``t_k+1 - t_k`` of each edge's first interval.
     event_of, k_of : ndarray of int
-        Each step's event and interval index ``k`` in that event.
+        Each edge's event and first sample ``k`` in that event.
+    pos_b : ndarray of int
+        Position of each edge's second virtual knot (``pos + 1`` for a step).
+    last, right : ndarray
+        A ramp's last inside sample's time and its end sample's time (a step: the
+        interval's end, twice).
+    v_a, v_l, v_b : ndarray
+        The voltage at the edge's first sample, its last inside sample and its end.
     """
 
     t: NDArray[np.float64]
@@ -185,11 +227,22 @@ class StepGrid:
     width: NDArray[np.float64]
     event_of: NDArray[np.int64]
     k_of: NDArray[np.int64]
+    pos_b: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    last: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    right: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    v_a: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    v_l: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    v_b: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n_steps(self) -> int:
-        """Number of step intervals over all events."""
+        """Number of edges (steps and ramps) over all events."""
         return int(self.pos.size)
+
+    @property
+    def n_ramps(self) -> int:
+        """Ramps with a sampled start (one kept sample inside; longer ones are fixed knots)."""
+        return int(np.sum(self.pos_b != self.pos + 1))
 
     @classmethod
     def build(
@@ -200,13 +253,18 @@ class StepGrid:
         *,
         detect: bool = True,
         intervals: Sequence[NDArray[np.int64]] | None = None,
+        ends: Sequence[NDArray[np.int64]] | None = None,
     ) -> StepGrid:
         """Augment each event's ``t, v, delta`` (``detect=False``: no steps, real only).
 
-        ``intervals`` gives each event's step intervals (from :func:`edge_runs`, on the
-        samples the fit keeps) instead of :func:`step_intervals`.
+        ``intervals`` gives each event's edges' first samples (from :func:`edge_runs`,
+        on the samples the fit keeps) instead of :func:`step_intervals`; ``ends`` their
+        last samples (default: the next sample, a step interval). An edge with samples
+        inside it is a ramp: knot ``A`` (``V_k0``) after its first sample, knot ``B``
+        (``V_k1``) before its last.
         """
         t_out, v_out, d_out, real, pos, left, width, ev_of, k_of = ([] for _ in range(9))
+        pos_b, last, right, v_a, v_l, v_b = ([] for _ in range(6))
         starts, offset = [0], 0
         for e, (t, v, d) in enumerate(zip(ts, vs, deltas, strict=True)):
             if not detect:
@@ -215,20 +273,34 @@ class StepGrid:
                 ks = np.asarray(intervals[e], dtype=np.int64)
             else:
                 ks = step_intervals(v)
+            k1s = ks + 1 if ends is None or not detect else np.asarray(ends[e], dtype=np.int64)
             n = t.size
-            # Each real sample k moves right by 2 for every step interval before it.
-            shift = np.searchsorted(ks, np.arange(n), side="left") * 2
-            idx = np.arange(n) + shift
+            # Each real sample k moves right by one for every edge that starts before it
+            # (knot A) and one for every edge that ends at or before it (knot B).
+            ar = np.arange(n)
+            shift = np.searchsorted(ks, ar, side="left") + np.searchsorted(k1s, ar, side="right")
+            idx = ar + shift
             m = n + 2 * ks.size
             ta, va, da = np.empty(m), np.empty(m), np.empty(m)
             ta[idx], va[idx], da[idx] = t, v, d
-            for k in ks:
-                p = idx[k] + 1
-                va[p], va[p + 1] = v[k], v[k + 1]
-                da[p], da[p + 1] = d[k], d[k + 1]
-                pos.append(offset + p)
+            for k, k1 in zip(ks, k1s, strict=True):
+                pa, pb = idx[k] + 1, idx[k1] - 1
+                va[pa], va[pb] = v[k], v[k1]
+                da[pa], da[pb] = d[k], d[k1]
+                if k1 - k > 2:
+                    # Two or more samples on the ramp: its line is theirs, and its ends
+                    # are fixed knots, not sampled (a fraction there mixed slowly).
+                    ta[pa], ta[pb] = ramp_ends(t[k : k1 + 1], v[k : k1 + 1])
+                    continue
+                pos.append(offset + pa)
+                pos_b.append(offset + pb)
                 left.append(t[k])
                 width.append(t[k + 1] - t[k])
+                last.append(t[k1 - 1] if k1 > k + 1 else t[k + 1])
+                right.append(t[k1])
+                v_a.append(v[k])
+                v_l.append(v[k1 - 1])
+                v_b.append(v[k1])
                 ev_of.append(e)
                 k_of.append(k)
             t_out.append(ta)
@@ -248,23 +320,30 @@ class StepGrid:
             np.array(width, dtype=float),
             np.array(ev_of, dtype=np.int64),
             np.array(k_of, dtype=np.int64),
+            np.array(pos_b, dtype=np.int64),
+            np.array(last, dtype=float),
+            np.array(right, dtype=float),
+            np.array(v_a, dtype=float),
+            np.array(v_l, dtype=float),
+            np.array(v_b, dtype=float),
         )
-        fill_times(grid.t, grid.pos, grid.left, grid.width, np.full(grid.n_steps, 0.5))
+        grid._fill(grid.t, np.full(grid.n_steps, 0.5))
         return grid
+
+    def _fill(self, t: NDArray[np.float64], phi: NDArray[np.float64]) -> None:
+        fill_times(t, self.pos, self.left, self.width, np.asarray(phi, dtype=float),
+                   self.pos_b, self.last, self.right, self.v_a, self.v_l, self.v_b)  # fmt: skip
 
     def times(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
         """A copy of the augmented times with the steps at fractions ``phi``."""
         t = self.t.copy()
-        fill_times(t, self.pos, self.left, self.width, np.asarray(phi, dtype=float))
+        self._fill(t, phi)
         return t
 
     def real_local(self, k: int) -> NDArray[np.int64]:
         """Positions of event ``k``'s real samples within its own augmented arrays."""
-        per_event = np.diff(self.starts) - 2 * np.bincount(
-            self.event_of, minlength=self.starts.size - 1
-        )
-        r0 = int(np.sum(per_event[:k]))
-        return self.real[r0 : r0 + per_event[k]] - self.starts[k]
+        r0, r1 = np.searchsorted(self.real, self.starts[k : k + 2])
+        return self.real[r0:r1] - self.starts[k]
 
     def motor_input(self, k: int, t: NDArray[np.float64]):
         """Event ``k``'s augmented input (times ``t`` from :meth:`times`) and its real samples.
@@ -279,42 +358,95 @@ class StepGrid:
         return EventRecord(t[s0:s1], v, v, v, self.delta[s0:s1]), self.real_local(k)
 
     def step_time(self, phi: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The instant of each step (s, the event's own clock), vectorised over draws."""
-        return self.left + self.width * (EPS_FRACTION * 1.5 + phi * (1 - 3 * EPS_FRACTION))
+        """The instant of each step (s, the event's own clock), vectorised over draws.
+
+        A step's is the middle of its ``eps`` ramp; a ramp's, its start (knot ``A``).
+        """
+        return self.left + self.width * (self._eps_offset() + phi * (1 - 3 * EPS_FRACTION))
+
+    def _eps_offset(self) -> NDArray[np.float64]:
+        # Where phi = 0 puts the instant, in intervals: 1.5 eps (a step), eps (a ramp).
+        step = self.pos_b == self.pos + 1 if self.pos_b.size else np.ones(self.pos.size, bool)
+        return np.where(step, 1.5, 1.0) * EPS_FRACTION
 
     def phi_of(self, times: NDArray[np.float64]) -> NDArray[np.float64]:
         """Inverse of :meth:`step_time`: each step's fraction from its instant."""
         frac = (np.asarray(times, dtype=float) - self.left) / self.width
-        return np.clip((frac - 1.5 * EPS_FRACTION) / (1 - 3 * EPS_FRACTION), 0.0, 1.0)
+        return np.clip((frac - self._eps_offset()) / (1 - 3 * EPS_FRACTION), 0.0, 1.0)
+
+
+def ramp_ends(t: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[float, float]:
+    """A ramp's start and end from its samples ``t[0] .. t[-1]`` (two or more inside).
+
+    The least-squares line through the inside samples ``1 .. -2`` reaches ``v[0]`` at
+    the start, kept inside the first interval, and ``v[-1]`` at the end, inside the last.
+    """
+    c1, c0 = np.polyfit(t[1:-1], v[1:-1], 1)
+    eps_a, eps_b = EPS_FRACTION * (t[1] - t[0]), EPS_FRACTION * (t[-1] - t[-2])
+    if c1 == 0.0 or not np.isfinite(c1):
+        return 0.5 * (t[0] + t[1]), 0.5 * (t[-2] + t[-1])
+    ta = min(max((v[0] - c0) / c1, t[0] + eps_a), t[1] - eps_a)
+    tb = min(max((v[-1] - c0) / c1, t[-2] + eps_b), t[-1] - eps_b)
+    return float(ta), float(tb)
 
 
 @numba.njit(cache=True, nogil=True)
-def fill_times(t, pos, left, width, phi):  # pragma: no cover - compiled
-    """Put each step's two virtual knots at fraction ``phi`` of its interval (in place)."""
+def fill_times(t, pos, left, width, phi, pos_b, last, right, v_a, v_l, v_b):  # pragma: no cover
+    """Put each edge's two virtual knots where ``phi`` puts them (in place).
+
+    A step (``pos_b == pos + 1``): both at fraction ``phi`` of its interval, ``eps``
+    apart. A ramp (samples inside it): its start ``A`` at fraction ``phi`` of the first
+    interval; its end ``B`` in the last interval where the line from ``A`` through the
+    last inside sample ``(last, v_l)`` reaches the level after, ``v_b`` (kept inside
+    that interval; at its start when the inside sample is already past ``v_b``).
+    """
     for j in range(pos.size):
         eps = EPS_FRACTION * width[j]
         a = left[j] + eps + phi[j] * (width[j] - 3.0 * eps)
         t[pos[j]] = a
-        t[pos[j] + 1] = a + eps
+        if pos_b[j] == pos[j] + 1:
+            t[pos_b[j]] = a + eps
+            continue
+        eps_b = EPS_FRACTION * (right[j] - last[j])
+        slope = (v_l[j] - v_a[j]) / (last[j] - a)
+        rest = v_b[j] - v_l[j]
+        tb = last[j] + rest / slope if rest * slope > 0.0 else last[j]
+        t[pos_b[j]] = min(max(tb, last[j] + eps_b), right[j] - eps_b)
 
 
 @dataclass(frozen=True)
 class FitSamples:
-    """Which samples of each event the fit reads, and its step intervals among them.
+    """Which samples of each event the fit reads, and its edges among them.
 
-    ``keep[e]``: indices of event ``e``'s samples in the fit (the samples inside an
-    edge left out); ``intervals[e]``: the step intervals, indices into the kept samples;
-    ``edges[e]``: the edges ``(k0, k1)`` in the event's own sample indices.
+    ``keep[e]``: indices of event ``e``'s samples in the fit (with a window, the samples
+    inside an edge left out; point samples keep them all); ``intervals[e]``: each
+    edge's first sample, ``ends[e]`` its last, indices into the kept samples (a step
+    interval: the next one); ``edges[e]``: the edges ``(k0, k1)`` in the event's own
+    sample indices.
     """
 
     keep: list[NDArray[np.int64]]
     intervals: list[NDArray[np.int64]]
     edges: list[list[tuple[int, int]]]
+    ends: list[NDArray[np.int64]] | None = None
 
     @property
     def left_out(self) -> int:
-        """Samples left out over all events."""
-        return int(sum(k1 - k0 - 1 for ev in self.edges for k0, k1 in ev))
+        """Samples left out over all events (those inside an edge, with a window)."""
+        return int(
+            sum(
+                k1 - k0 - 1
+                for ev, keep in zip(self.edges, self.keep, strict=True)
+                for k0, k1 in ev
+                if k1 - k0 > 1 and not np.isin(k0 + 1, keep)
+            )
+        )
+
+    @property
+    def ramps(self) -> int:
+        """Edges read as ramps through their kept inside samples, over all events."""
+        ends = self.intervals if self.ends is None else self.ends
+        return int(sum(np.sum(e - i > 1) for i, e in zip(self.intervals, ends, strict=True)))
 
     @classmethod
     def find(
@@ -325,17 +457,27 @@ class FitSamples:
         window_s: float,
         detect: bool = True,
     ) -> FitSamples:
-        """The edges of every event (``detect=False``: none, every sample kept)."""
-        keep, intervals, edges = [], [], []
+        """The edges of every event (``detect=False``: none, every sample kept).
+
+        With a window (``window_s > 0``) the samples inside an edge are left out and the
+        edge is one step interval between the kept ones. Point samples (``window_s ==
+        0``) are on the voltage's ramp: they are all kept, and an edge of up to
+        :data:`RAMP_MAX_S` (:func:`ramp_intervals`) is a ramp through them.
+        """
+        keep, intervals, ends, edges = [], [], [], []
         for t, v in zip(ts, vs, strict=True):
-            grow = GROW_WINDOW if window_s > 0 else GROW
-            runs = edge_runs(v, longest=max_intervals(t, window_s), grow=grow) if detect else []
+            point = window_s <= 0
+            grow = GROW if point else GROW_WINDOW
+            longest = ramp_intervals(t) if point else max_intervals(t, window_s)
+            runs = edge_runs(v, longest=longest, grow=grow) if detect else []
             mask = np.ones(t.size, dtype=bool)
-            for k0, k1 in runs:
-                mask[k0 + 1 : k1] = False
+            if not point:
+                for k0, k1 in runs:
+                    mask[k0 + 1 : k1] = False
             kept = np.flatnonzero(mask).astype(np.int64)
-            # Each edge's first sample k0 is kept: its position among the kept samples.
+            # Each edge's first sample k0 and last k1 are kept: their places among the kept.
             intervals.append(np.searchsorted(kept, [k0 for k0, _ in runs]).astype(np.int64))
+            ends.append(np.searchsorted(kept, [k1 for _, k1 in runs]).astype(np.int64))
             keep.append(kept)
             edges.append(runs)
-        return cls(keep, intervals, edges)
+        return cls(keep, intervals, edges, ends)

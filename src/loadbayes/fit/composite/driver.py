@@ -273,7 +273,9 @@ def fit_composite(
         The recorder's phasor window (s; default one cycle of ``f_hz``): the samples
         inside a fault's edge, whose window straddles the change, are left out
         (``models/composite_steps.py``), and the edge becomes a step at an unknown
-        instant. Point samples (a simulation) need no more than the default.
+        instant. ``0``: point samples (a simulation), each the value at its instant;
+        they are all kept, and an edge with samples inside it is a straight ramp
+        through them from an unknown instant (``models/composite_steps.py``).
     shares : {"free", "bounded"}
         ``"bounded"`` holds every static share in [0, 1] (and so ``f_m`` in (0, 1)) by
         its prior: a physically admissible load, as an export needs. ``"free"`` (the

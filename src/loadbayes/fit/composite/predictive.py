@@ -83,7 +83,8 @@ def predictive_band(
             q=recorded.q[keep], delta=None if recorded.delta is None else recorded.delta[keep],
         )  # fmt: skip
         delta = np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]
-        grid = StepGrid.build([ev.t], [ev.v], [delta], detect=detect, intervals=fs.intervals)
+        grid = StepGrid.build([ev.t], [ev.v], [delta], detect=detect, intervals=fs.intervals,
+                              ends=fs.ends)  # fmt: skip
         names = [f"t_step{j}{sfx}" for j in range(grid.n_steps)]
         times = np.stack([post.draws[n].ravel() for n in names], -1) if names else None
         ps, qs, used = [], [], []

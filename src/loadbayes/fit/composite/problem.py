@@ -133,8 +133,8 @@ class CompositeProblem:
     def __post_init__(self) -> None:
         self.m0 = np.zeros(7)
         self.p0 = 1.0 / self.prior.beta_sd**2
-        # The samples inside a fault's edge (a ramp, or a phasor window across the
-        # change) are left out; ``recorded`` keeps the events as given.
+        # With a phasor window the samples inside a fault's edge are left out (point
+        # samples keep them: the edge is a ramp); ``recorded`` keeps the events as given.
         self.recorded = list(self.events)
         self.window = window = 1.0 / self.f_hz if self.window_s is None else float(self.window_s)
         self.fit_samples = FitSamples.find(
@@ -150,7 +150,7 @@ class CompositeProblem:
         # (models/composite_steps.py); the likelihood sees the real samples only.
         self.grid = StepGrid.build(
             [e.t for e in ev], [e.v for e in ev], deltas, detect=self.steps,
-            intervals=self.fit_samples.intervals,
+            intervals=self.fit_samples.intervals, ends=self.fit_samples.ends,
         )  # fmt: skip
         self._real = np.concatenate([self.grid.real_local(k) for k in range(len(ev))]).astype(
             np.int64

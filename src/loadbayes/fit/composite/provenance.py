@@ -14,6 +14,7 @@ from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.sampler import ChainResult
 from loadbayes.models.composite import SCALE_FREE_NAMES
+from loadbayes.models.composite_steps import RAMP_MAX_S
 
 __all__ = [
     "METHOD",
@@ -83,7 +84,22 @@ def problem_settings(
                     {"event": e, "from_k": int(k0), "to_k": int(k1)}
                     for e, runs in enumerate(fs.edges)
                     for k0, k1 in runs
-                    if k1 - k0 > 1
+                    if k1 - k0 > 1 and problem.window > 0
+                ],
+            },
+            "ramps": {
+                "rule": "point samples (window 0): an edge of up to "
+                f"{RAMP_MAX_S:g} s with samples inside it is a straight ramp through them "
+                "(kept in the likelihood); with one inside, from an unknown instant in its "
+                "first interval (its t_step) to where that line reaches the level after; "
+                "with more, between where their least-squares line reaches the levels "
+                "before and after (fixed)",
+                "count": fs.ramps if problem.window <= 0 else 0,
+                "samples": [
+                    {"event": e, "from_k": int(k0), "to_k": int(k1)}
+                    for e, runs in enumerate(fs.edges)
+                    for k0, k1 in runs
+                    if k1 - k0 > 1 and problem.window <= 0
                 ],
             },
         },
