@@ -45,6 +45,16 @@ def problem_settings(
     estimate = isinstance(torque, str)
     grid = problem.grid
     fs = problem.fit_samples
+    # The edges with samples inside: left out with a phasor window, ramps through them
+    # with point samples (FitSamples.find keeps every point sample, so fs.ramps is 0
+    # with a window and fs.left_out 0 without).
+    point = problem.window <= 0
+    inside = [
+        {"event": e, "from_k": int(k0), "to_k": int(k1)}
+        for e, runs in enumerate(fs.edges)
+        for k0, k1 in runs
+        if k1 - k0 > 1
+    ]
     return {
         "n": int(sum(e.n for e in problem.events)),
         "events": [
@@ -80,12 +90,7 @@ def problem_settings(
                 "same way, no longer than the phasor window allows) are left out of the "
                 "likelihood; the edge is a step at an unknown instant between its ends",
                 "count": fs.left_out,
-                "samples": [
-                    {"event": e, "from_k": int(k0), "to_k": int(k1)}
-                    for e, runs in enumerate(fs.edges)
-                    for k0, k1 in runs
-                    if k1 - k0 > 1 and problem.window > 0
-                ],
+                "samples": [] if point else inside,
             },
             "ramps": {
                 "rule": "point samples (window 0): an edge of up to "
@@ -94,13 +99,8 @@ def problem_settings(
                 "first interval (its t_step) to where that line reaches the level after; "
                 "with more, between where their least-squares line reaches the levels "
                 "before and after (fixed)",
-                "count": fs.ramps if problem.window <= 0 else 0,
-                "samples": [
-                    {"event": e, "from_k": int(k0), "to_k": int(k1)}
-                    for e, runs in enumerate(fs.edges)
-                    for k0, k1 in runs
-                    if k1 - k0 > 1 and problem.window <= 0
-                ],
+                "count": fs.ramps,
+                "samples": inside if point else [],
             },
         },
         "samples": samples_record(problem.window),
