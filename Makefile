@@ -36,7 +36,7 @@ BENCH_VENV := .venv-bench
 $(BENCH_VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(BENCH_VENV)
 	$(BENCH_VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(BENCH_VENV)/bin/python -m pip install --quiet -e ".[grid,bench]"
+	$(BENCH_VENV)/bin/python -m pip install --quiet -e ".[grid,cluster,bench]"
 	touch $@
 
 bench: $(BENCH_VENV)/.installed
