@@ -44,6 +44,9 @@ def test_cluster_result_is_bit_identical_to_in_process(client, fleet, pool):
         there = run_fleet(fleet, SPEC, pool=pool, sampler=SAMPLER, engine=eng, batch_buses=5)
     assert there.engine.startswith("dask")
     pd.testing.assert_frame_equal(here, there.table, check_exact=True)
+    # the tasks' own CPU time and the wait for them are measured (the one-process note)
+    assert 0.0 < eng.task_cpu_seconds
+    assert 0.0 < eng.map_seconds
 
 
 def test_a_killed_worker_loses_and_duplicates_no_bus(client, fleet):

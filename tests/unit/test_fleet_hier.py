@@ -139,3 +139,88 @@ def test_auto_nominal_power_becomes_each_bus_own_per_unit_exactly():
     for b in range(2):
         np.testing.assert_allclose(out.gram[b], known[b].matrix, rtol=1e-9, atol=1e-9)
         assert f"p0 = {levels[b][0]:.6g}" in notes[b][0]
+
+
+def _scale_tries_dense(gen, psi0, nu0, v, sigma, sig_inv, a, b, tries=2, step=0.25):
+    """The scale move's tries in the matrix form the compiled kernel replaced."""
+    ncls = sigma.shape[0]
+    eye = np.eye(v.size)[None]
+    vv = np.outer(v, v)
+    total = np.ones(ncls)
+    for _ in range(tries):
+        logc = step * gen.standard_normal(ncls)
+        logu = np.log(gen.random(ncls))
+        c = np.exp(logc)
+        k = c - 1.0
+        ci = eye + (1.0 / c - 1.0)[:, None, None] * vv[None]
+        new_inv = ci @ sig_inv @ ci
+        dtr = np.einsum("ij,cji->c", psi0, new_inv - sig_inv)
+        take = logu < -0.5 * k * k * a + k * b - nu0 * logc - 0.5 * dtr
+        cm = eye + np.where(take, k, 0.0)[:, None, None] * vv[None]
+        sigma = cm @ sigma @ cm
+        sig_inv = np.where(take[:, None, None], new_inv, sig_inv)
+        b = np.where(take, c * (b - k * a), b)
+        a = np.where(take, c * c * a, a)
+        total = np.where(take, total * c, total)
+    return sigma, sig_inv, total
+
+
+def test_compiled_scale_tries_match_the_matrix_form():
+    # The same normals and uniforms (drawn in the matrix form's order) must give the same
+    # accepted scalings and the same Sigma and Sigma^-1 to rounding, for classes that
+    # accept and classes that refuse (A, B drawn so that both happen).
+    from loadbayes.fleet.hier_kernels import _scale_tries
+
+    rng = np.random.default_rng(3)
+    ncls, d = 7, 4
+    psi0 = _spd(rng, d) * 0.01
+    accepted = 0
+    for trial in range(40):
+        sigma = np.stack([_spd(rng, d) * 0.01 for _ in range(ncls)])
+        sig_inv = np.linalg.inv(sigma)
+        v = rng.standard_normal(d)
+        v /= np.linalg.norm(v)
+        a = rng.uniform(0.0, 50.0, ncls)
+        b = rng.normal(0.0, 5.0, ncls)
+        want = _scale_tries_dense(np.random.default_rng(trial), psi0, 6.0, v, sigma, sig_inv, a, b)
+        gen = np.random.default_rng(trial)
+        z, uni = np.empty((2, ncls)), np.empty((2, ncls))
+        for r in range(2):
+            z[r] = gen.standard_normal(ncls)
+            uni[r] = gen.random(ncls)
+        got_s, got_i, total = sigma.copy(), sig_inv.copy(), np.ones(ncls)
+        _scale_tries(psi0, 6.0, v, 0.25, got_s, got_i, a.copy(), b.copy(), z, uni, total)
+        np.testing.assert_allclose(total, want[2], rtol=1e-13)
+        np.testing.assert_allclose(got_s, want[0], rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(got_i, want[1], rtol=1e-10, atol=1e-10)
+        accepted += int(np.sum(total != 1.0))
+    assert 0 < accepted < 40 * ncls
+
+
+def test_compiled_mu_and_sigma_draws_match_the_dense_formulas():
+    # The same variates through the compiled kernels and through numpy's linear algebra.
+    rng = np.random.default_rng(4)
+    ncls, d = 3, 4
+    s0_inv, m0 = np.eye(d) / 100.0, rng.standard_normal(d)
+    prec = np.stack([_spd(rng, d) for _ in range(ncls)])
+    lin = rng.standard_normal((ncls, d))
+    mu = H._draw_mu(np.random.default_rng(9), s0_inv, s0_inv @ m0, prec, lin)
+    z = np.random.default_rng(9).standard_normal((ncls, d))
+    p = s0_inv[None] + 0.5 * (prec + np.swapaxes(prec, 1, 2))
+    lo = np.linalg.cholesky(p)
+    want = np.linalg.solve(p, (s0_inv @ m0 + lin)[..., None])[..., 0]
+    want += np.linalg.solve(np.swapaxes(lo, 1, 2), z[..., None])[..., 0]
+    np.testing.assert_allclose(mu, want, rtol=1e-10, atol=1e-12)
+
+    psi = np.stack([_spd(rng, d) for _ in range(ncls)])
+    nu = np.array([7.0, 9.0, 30.0])
+    sigma, sig_inv = H._draw_sigma(np.random.default_rng(5), nu, psi)
+    g = np.random.default_rng(5)
+    chi = g.chisquare(nu[:, None] - np.arange(d)[None, :])
+    a = np.tril(g.standard_normal((ncls, d, d)), -1)
+    a[:, np.arange(d), np.arange(d)] = np.sqrt(chi)
+    ca = np.linalg.cholesky(np.linalg.inv(psi)) @ a
+    want_inv = ca @ np.swapaxes(ca, 1, 2)
+    np.testing.assert_allclose(sig_inv, want_inv, rtol=1e-10)
+    np.testing.assert_allclose(sigma, np.linalg.inv(want_inv), rtol=1e-9)
+    np.testing.assert_allclose(sigma @ sig_inv, np.broadcast_to(np.eye(d), sigma.shape), atol=1e-9)

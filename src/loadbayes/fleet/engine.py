@@ -69,6 +69,10 @@ class Engine:
         self._own: list[Any] = []
         #: Seconds it took to start (or reach) the cluster; 0 in process.
         self.startup_seconds = 0.0
+        #: On a cluster: the tasks' own CPU seconds (each task's thread time, summed) and
+        #: the wall seconds spent waiting for them in :meth:`map` (what the cluster cost).
+        self.task_cpu_seconds = 0.0
+        self.map_seconds = 0.0
 
     @property
     def name(self) -> str:
@@ -139,17 +143,23 @@ class Engine:
                 if done is not None:
                     done(i, out[-1])
             return out
+        import time
+
+        t0 = time.monotonic()
         results: list[Any] = [None] * len(items)
         todo = list(range(len(items)))
-        for _ in range(_ATTEMPTS):
-            todo = self._run(func, items, todo, args, kwargs, results, done)
-            if not todo:
-                break
-        else:
-            raise RuntimeError(
-                f"{len(todo)} tasks lost their workers {_ATTEMPTS} times in a row; "
-                "the cluster is not stable enough to finish"
-            )
+        try:
+            for _ in range(_ATTEMPTS):
+                todo = self._run(func, items, todo, args, kwargs, results, done)
+                if not todo:
+                    break
+            else:
+                raise RuntimeError(
+                    f"{len(todo)} tasks lost their workers {_ATTEMPTS} times in a row; "
+                    "the cluster is not stable enough to finish"
+                )
+        finally:
+            self.map_seconds += time.monotonic() - t0
         return results
 
     def _run(self, func, items, todo, args, kwargs, results, done) -> list[int]:
@@ -168,20 +178,32 @@ class Engine:
         # Fresh keys (hash=False): a copy lost with a worker is not confused with a new one.
         shared = [self.client.scatter(a, broadcast=True, hash=False) for a in args]
         kw = {k: self.client.scatter(v, broadcast=True, hash=False) for k, v in kwargs.items()}
-        futures = [self.client.submit(func, items[i], *shared, pure=False, **kw) for i in todo]
+        futures = [
+            self.client.submit(_timed_call, func, items[i], *shared, pure=False, **kw) for i in todo
+        ]
         index = {f.key: i for f, i in zip(futures, todo, strict=True)}
         lost: list[int] = []
         try:
             for fut in as_completed(futures):
                 i = index[fut.key]
                 try:
-                    results[i] = fut.result()
+                    results[i], cpu = fut.result()
                 except (FutureCancelledError, KilledWorker):
                     lost.append(i)
                     continue
+                self.task_cpu_seconds += cpu
                 if done is not None:
                     done(i, results[i])
         finally:
             for f in futures:
                 f.release()
         return sorted(lost)
+
+
+def _timed_call(func: Callable[..., Any], item: Any, *args: Any, **kwargs: Any) -> tuple:
+    """``(func(item, *args, **kwargs), the CPU seconds of the worker thread that ran it)``."""
+    import time
+
+    c0 = time.thread_time()
+    out = func(item, *args, **kwargs)
+    return out, time.thread_time() - c0

@@ -14,9 +14,19 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from loadbayes.inference.linalg import cholesky, solve_lower, solve_upper
+from loadbayes.inference.linalg import cholesky, precision_draw, solve_lower, solve_upper
 
-__all__ = ["_bus_sweep", "_class_sums", "_factor", "_mu_terms", "_scale_apply", "_scale_terms"]
+__all__ = [
+    "_bartlett",
+    "_bus_sweep",
+    "_class_sums",
+    "_mu_draw",
+    "_factor",
+    "_mu_terms",
+    "_scale_apply",
+    "_scale_terms",
+    "_scale_tries",
+]
 
 _TAU_FLOOR = 1e-100  # a gamma draw can underflow to 0; keep the precision positive
 
@@ -212,3 +222,109 @@ def _scale_apply(cls, theta, mu, v, factor):  # pragma: no cover - compiled
             vd += v[i] * (theta[b, i] - mu[c, i])
         for i in range(d):
             theta[b, i] += k * vd * v[i]
+
+
+@njit(cache=True, nogil=True)
+def _rank_two(m, v, w, alpha, beta):  # pragma: no cover - compiled
+    """``m <- m + alpha (w v' + v w') + beta v v'`` (``m`` symmetric, in place)."""
+    d = v.shape[0]
+    for i in range(d):
+        for j in range(d):
+            m[i, j] += alpha * (w[i] * v[j] + v[i] * w[j]) + beta * v[i] * v[j]
+
+
+@njit(cache=True, nogil=True)
+def _scale_tries(psi0, nu0, v, step, sigma, sig_inv, a, b, z, uni, total):  # pragma: no cover
+    """The Metropolis tries of one direction's scale move, every class (in place).
+
+    The same move as the matrix form it replaces (``hierarchical._scale_moves``): with
+    ``C^-1 = I + al v v'`` (``al = 1/c - 1``, ``|v| = 1``) the proposed precision is
+    ``S + al (S v v' + v v' S) + al^2 (v'S v) v v'`` and ``tr(Psi0 (new - S))`` =
+    ``2 al v'Psi0 S v + al^2 (v'S v)(v'Psi0 v)``; an accepted ``c`` stretches ``Sigma``
+    the same way with ``k = c - 1``. ``z``, ``uni`` (tries x classes) are the normals and
+    uniforms the matrix form drew, in its order, so the chain's stream is unchanged.
+    ``total`` (per class) is multiplied by each accepted ``c``.
+    """
+    ncls, d = sigma.shape[0], sigma.shape[1]
+    pv = psi0 @ v
+    vpv = 0.0
+    for i in range(d):
+        vpv += v[i] * pv[i]
+    w = np.empty(d)
+    for c in range(ncls):
+        ac, bc = a[c], b[c]
+        for r in range(z.shape[0]):
+            logc = step * z[r, c]
+            logu = np.log(uni[r, c])
+            cc = np.exp(logc)
+            k = cc - 1.0
+            al = 1.0 / cc - 1.0
+            svv = 0.0
+            wpv = 0.0
+            for i in range(d):
+                acc = 0.0
+                for j in range(d):
+                    acc += sig_inv[c, i, j] * v[j]
+                w[i] = acc
+                svv += v[i] * acc
+                wpv += acc * pv[i]
+            dtr = 2.0 * al * wpv + al * al * svv * vpv
+            log_ratio = -0.5 * k * k * ac + k * bc - nu0 * logc - 0.5 * dtr
+            if not logu < log_ratio:
+                continue
+            _rank_two(sig_inv[c], v, w, al, al * al * svv)
+            s2 = 0.0
+            for i in range(d):
+                acc = 0.0
+                for j in range(d):
+                    acc += sigma[c, i, j] * v[j]
+                w[i] = acc
+                s2 += v[i] * acc
+            _rank_two(sigma[c], v, w, k, k * k * s2)
+            bc = cc * (bc - k * ac)
+            ac = cc * cc * ac
+            total[c] *= cc
+
+
+@njit(cache=True, nogil=True)
+def _mu_draw(s0_inv, s0_inv_m0, prec_data, lin_data, z, mu):  # pragma: no cover - compiled
+    """``mu_c ~ N(prec^-1 rhs, prec^-1)`` per class from the normals ``z`` (into ``mu``).
+
+    ``prec = S0^-1 + (P + P') / 2`` (the data part symmetrised), ``rhs = S0^-1 m0 + l``.
+    Returns False when a class's precision is not positive definite.
+    """
+    ncls, d = lin_data.shape
+    lam = np.empty((d, d))
+    h = np.empty(d)
+    w = np.empty(d)
+    for c in range(ncls):
+        for i in range(d):
+            h[i] = s0_inv_m0[i] + lin_data[c, i]
+            for j in range(d):
+                lam[i, j] = s0_inv[i, j] + 0.5 * (prec_data[c, i, j] + prec_data[c, j, i])
+        if not precision_draw(lam, h, z[c], lam, w, mu[c]):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _bartlett(chi, nrm, psi, sigma, sig_inv):  # pragma: no cover - compiled
+    """Inverse-Wishart draws per class from their Bartlett variates (into the outputs).
+
+    ``Sigma^-1 = C A A' C'`` with ``Psi^-1 = C C'`` (lower Cholesky factor), ``A`` lower
+    triangular with ``sqrt(chi)`` on its diagonal and ``nrm`` below it.
+    """
+    ncls, d = chi.shape
+    a = np.zeros((d, d))
+    for c in range(ncls):
+        cf = np.linalg.cholesky(np.linalg.inv(psi[c]))
+        for i in range(d):
+            for j in range(i):
+                a[i, j] = nrm[c, i, j]
+            a[i, i] = np.sqrt(chi[c, i])
+        ca = cf @ a
+        si = ca @ ca.T
+        for i in range(d):
+            for j in range(d):
+                sig_inv[c, i, j] = 0.5 * (si[i, j] + si[j, i])
+        sigma[c] = np.linalg.inv(sig_inv[c])

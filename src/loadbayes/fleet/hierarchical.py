@@ -60,12 +60,15 @@ from loadbayes.core.parallel import check_stop
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.hier_kernels import (
+    _bartlett,
     _bus_sweep,
     _class_sums,
     _factor,
+    _mu_draw,
     _mu_terms,
     _scale_apply,
     _scale_terms,
+    _scale_tries,
 )
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.fleet.summary import failed_rows, stat_rows
@@ -302,14 +305,11 @@ def _regressions(stats: FleetStats, model: ZIPModel) -> dict[str, np.ndarray]:
 
 def _draw_mu(gen, s0_inv, s0_inv_m0, prec_data, lin_data):
     """``mu_c ~ N(prec^-1 rhs, prec^-1)`` for every class."""
-    prec = s0_inv[None] + prec_data
-    prec = 0.5 * (prec + np.swapaxes(prec, 1, 2))
-    rhs = s0_inv_m0[None] + lin_data
-    chol = np.linalg.cholesky(prec)
-    mean = np.linalg.solve(prec, rhs[..., None])[..., 0]
-    z = gen.standard_normal(rhs.shape)
-    # mu = mean + R'^-1 z, prec = R R'
-    return mean + np.linalg.solve(np.swapaxes(chol, 1, 2), z[..., None])[..., 0]
+    z = gen.standard_normal(lin_data.shape)
+    mu = np.empty_like(lin_data)
+    if not _mu_draw(s0_inv, s0_inv_m0, prec_data, lin_data, z, mu):
+        raise np.linalg.LinAlgError("the class means' precision is not positive definite")
+    return mu
 
 
 def _draw_sigma(gen, nu, psi):
@@ -322,14 +322,9 @@ def _draw_sigma(gen, nu, psi):
     ncls, d, _ = psi.shape
     chi = gen.chisquare(nu[:, None] - np.arange(d)[None, :])
     nrm = gen.standard_normal((ncls, d, d))
-    a = np.tril(nrm, -1)
-    idx = np.arange(d)
-    a[:, idx, idx] = np.sqrt(chi)
-    c = np.linalg.cholesky(np.linalg.inv(psi))
-    ca = c @ a
-    sig_inv = ca @ np.swapaxes(ca, 1, 2)
-    sig_inv = 0.5 * (sig_inv + np.swapaxes(sig_inv, 1, 2))
-    return np.linalg.inv(sig_inv), sig_inv
+    sigma, sig_inv = np.empty_like(psi), np.empty_like(psi)
+    _bartlett(chi, nrm, np.ascontiguousarray(psi), sigma, sig_inv)
+    return sigma, sig_inv
 
 
 #: Log-sd of the proposals of the scale moves, and the tries per direction and sweep.
@@ -365,30 +360,16 @@ def _scale_moves(gen, data, nu0, psi0, mu, theta, s, t, sigma, sig_inv, dirs, ac
     say little (the funnel of hierarchical models).
     """
     ncls = mu.shape[0]
-    eye = np.eye(dirs.shape[1])[None]
+    z = np.empty((_SCALE_TRIES, ncls))
+    uni = np.empty((_SCALE_TRIES, ncls))
+    total = np.empty(ncls)
     for v in dirs:
-        vv = np.outer(v, v)
         _scale_terms(data.cls, data.g3, data.xy, s, t, theta, mu, v, acc_a, acc_b)
-        a, b = acc_a.copy(), acc_b.copy()
-        total = np.ones(ncls)
-        for _ in range(_SCALE_TRIES):
-            logc = _SCALE_STEP * gen.standard_normal(ncls)
-            logu = np.log(gen.random(ncls))
-            c = np.exp(logc)
-            k = c - 1.0
-            ci = eye + (1.0 / c - 1.0)[:, None, None] * vv[None]
-            new_inv = ci @ sig_inv @ ci
-            dtr = np.einsum("ij,cji->c", psi0, new_inv - sig_inv)
-            log_ratio = -0.5 * k * k * a + k * b - nu0 * logc - 0.5 * dtr
-            take = logu < log_ratio
-            if not take.any():
-                continue
-            cm = eye + np.where(take, k, 0.0)[:, None, None] * vv[None]
-            sigma = cm @ sigma @ cm
-            sig_inv = np.where(take[:, None, None], new_inv, sig_inv)
-            b = np.where(take, c * (b - k * a), b)
-            a = np.where(take, c * c * a, a)
-            total = np.where(take, total * c, total)
+        for r in range(_SCALE_TRIES):  # the stream's order: normals, then uniforms, per try
+            z[r] = gen.standard_normal(ncls)
+            uni[r] = gen.random(ncls)
+        total[:] = 1.0
+        _scale_tries(psi0, nu0, v, _SCALE_STEP, sigma, sig_inv, acc_a, acc_b, z, uni, total)
         if np.any(total != 1.0):
             _scale_apply(data.cls, theta, mu, v, total)
     return sigma, sig_inv

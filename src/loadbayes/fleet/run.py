@@ -23,42 +23,30 @@ from loadbayes.models.zip import ZIPModel
 
 __all__ = ["FleetResult", "fit_fleet", "fleet_statistics", "one_process_note", "run_fleet"]
 
-#: CPU seconds, measured (docs/fleet.md, Speed): one pooled sweep of one bus, one per-bus
-#: fit of 4 x 2,500 iterations with its summary, one pooled bus's summary per 8,000 draws.
-_POOLED_SWEEP_S = 1e-6
-_PER_BUS_FIT_S = 5.5e-3
-_POOLED_SUMMARY_S = 5.5e-3
 
+def one_process_note(engine: Engine) -> str:
+    """After a run on ``--workers N``: a sentence when one process would have been faster.
 
-def one_process_note(buses: int, pool: str, sampler: SamplerSettings, engine: Engine) -> str:
-    """A sentence when the fits would take less than starting the cluster did ("" if not).
-
-    The fits' CPU time is estimated from the measured costs above. Per-bus fits run one
-    after another in process, on ``N`` workers ``N`` at a time; a pooled fit's chains run
-    in ``min(chains, cores)`` threads in process and ``min(chains, N)`` at a time on the
-    workers (its summary runs here either way). The saving must beat the start-up paid.
+    Measured, not estimated: the tasks' own CPU seconds ``W`` (each task's thread time on
+    its worker, the statistics pass and the fits), against what the cluster cost, its
+    start-up plus the wall time spent waiting for those tasks. One process runs the same
+    tasks in at most ``W`` seconds (one after another; a large pooled fit's chains run on
+    every core there), so when ``W`` is less than that cost, one process would have
+    finished sooner. The converse is not claimed: the note is silent otherwise.
     """
-    from loadbayes.core.parallel import num_threads
-
     workers = engine.workers or 0
-    if workers < 2 or not engine.startup_seconds:
+    if not workers or not engine.map_seconds:
         return ""
-    draws = sampler.chains * sampler.draws
-    if pool == "class":
-        work = buses * draws * _POOLED_SWEEP_S
-        here, there = min(sampler.chains, num_threads()), min(workers, sampler.chains)
-        total = work + buses * _POOLED_SUMMARY_S * draws / 8000
-    else:
-        work = buses * _PER_BUS_FIT_S * draws / 10_000
-        here, there = 1, workers
-        total = work
-    saving = max(work / here - work / there, 0.0)
-    if saving >= engine.startup_seconds:
+    cost = engine.startup_seconds + engine.map_seconds
+    work = engine.task_cpu_seconds
+    if not work < cost:
         return ""
     return (
-        f"this fleet is small: its fits take about {total:.1f} s of CPU, so {workers} workers "
-        f"save at most {saving:.1f} s, less than the {engine.startup_seconds:.1f} s it took to "
-        "start them; one process (no --workers) would be faster"
+        f"this fleet is small: its tasks took {work:.1f} s of CPU in all, which one process "
+        f"runs in about that time, while {workers} worker{'s' if workers > 1 else ''} took "
+        f"{engine.map_seconds:.1f} "
+        f"s for them and {engine.startup_seconds:.1f} s to start; one process (no --workers) "
+        "would have been faster"
     )
 
 
@@ -447,11 +435,21 @@ def _chain_task(job, data_h, prior, sampler, stop=None):
                           store=store, stop=stop)  # fmt: skip
 
 
+#: Pooled chains run in threads in process from this many buses (measured, 4 x 1,500
+#: sweeps, docs/fleet.md: at 300 buses two threads and one took the same wall time, at
+#: 1,000 two were 1.45 times faster, at 3,000 1.8 times; at 200 buses, run on to 40,000
+#: sweeps, two threads took 47.6 s and one 29.4 s).
+THREADS_MIN_BUSES = 500
+
+
 def _map_chains(eng, jobs, data_h, prior, sampler):
     """The chains' rounds: on the Dask workers, or in this process one thread per core.
 
     In process the chains run in ``min(chains, num_threads())`` threads (the sweep's
-    compiled loops release the GIL; chain ``i`` runs in thread ``i % threads``). Each
+    compiled loops release the GIL; chain ``i`` runs in thread ``i % threads``), when
+    the fleet has at least :data:`THREADS_MIN_BUSES` buses; below that one thread runs
+    them, since each sweep's own Python steps (a class's draws) hold the GIL for longer
+    than the compiled loops over so few buses run, and two threads then only contend. Each
     chain draws only from its own generator and owns its arrays and its NetCDF file, so
     its draws are the same bits in any thread (``tests/unit/test_fleet_threads.py``).
     """
@@ -460,6 +458,8 @@ def _map_chains(eng, jobs, data_h, prior, sampler):
     from loadbayes.core.parallel import num_threads, run_threads
 
     threads = min(len(jobs), num_threads())
+    if data_h.buses.size < THREADS_MIN_BUSES:
+        threads = 1
     if eng.client is not None or threads <= 1:
         return eng.map(_chain_task, jobs, data_h, prior, sampler)
     out: list = [None] * len(jobs)

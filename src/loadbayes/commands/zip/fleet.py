@@ -180,13 +180,9 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     nc = _NetcdfStaging(p.get("netcdf_dir"), p["force"])
 
-    engines: list = []
 
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
-        note = one_process_note(result_size["buses"], p["pool"], sampler, engines[0])
-        if note and not quiet:
-            click.echo(f"loadbayes: note: {note}", err=True)
         nc.check(stats.buses)
         if not quiet:  # the size of the work before it starts; the bar then says the time left
             click.echo(
@@ -197,7 +193,6 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     try:
         with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
-            engines.append(engine)
             res = run_fleet(
                 p["data"],
                 spec,
@@ -217,6 +212,9 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
                 on_stats=stats_hook,
                 max_seconds=p.get("max_seconds") if p["pool"] == "class" else None,
             )
+            note = one_process_note(engine)
+            if note and not quiet:
+                click.echo(f"loadbayes: note: {note}", err=True)
         _commit(res.table, p["fleet_out"], p["force"], nc, res.settings)
     finally:
         files.close()
