@@ -73,6 +73,15 @@ def _fleet(folder: Path, buses: int, rows: int) -> Path:
     return folder
 
 
+def _warm_up(base: Path) -> None:
+    """Compile the kernels first (a 12-bus fleet, both pools): numba's cache is per source
+    file, so after an edit the first stage measured would include their compilation."""
+    folder = _fleet(base / "warm-12", 12, 100)
+    stats, model, _ = fleet_statistics(str(folder), SPEC, p0="auto", q0="auto")
+    for pool in ("none", "class"):
+        fit_fleet(stats, model, pool=pool, sampler=SamplerSettings(chains=2, draws=60, burn=20))
+
+
 def _measure(row: dict, func):
     row["date"] = datetime.datetime.now(datetime.UTC).isoformat(timespec="minutes")
     row["load_1min"] = os.getloadavg()[0]
@@ -190,6 +199,7 @@ def main() -> None:
     tmp = tempfile.TemporaryDirectory() if not args.data else None
     base = Path(args.data or tmp.name)
     stages = args.stages.split(",")
+    _warm_up(base)
     load_start = list(os.getloadavg())
     results, tables = [], {}
     for eng_name in args.engines.split(","):

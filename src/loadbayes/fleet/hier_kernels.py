@@ -308,23 +308,60 @@ def _mu_draw(s0_inv, s0_inv_m0, prec_data, lin_data, z, mu):  # pragma: no cover
 
 
 @njit(cache=True, nogil=True)
+def _spd_inverse(a, out, lo, e, w):  # pragma: no cover - compiled
+    """``out = a^-1`` of a symmetric positive definite ``a`` (its Cholesky factor in ``lo``).
+
+    Returns False when ``a`` is not positive definite.
+    """
+    d = a.shape[0]
+    if not cholesky(a, lo):
+        return False
+    for j in range(d):
+        e[:] = 0.0
+        e[j] = 1.0
+        solve_lower(lo, e, w)
+        solve_upper(lo, w, e)
+        for i in range(d):
+            out[i, j] = e[i]
+    return True
+
+
+@njit(cache=True, nogil=True)
 def _bartlett(chi, nrm, psi, sigma, sig_inv):  # pragma: no cover - compiled
     """Inverse-Wishart draws per class from their Bartlett variates (into the outputs).
 
     ``Sigma^-1 = C A A' C'`` with ``Psi^-1 = C C'`` (lower Cholesky factor), ``A`` lower
-    triangular with ``sqrt(chi)`` on its diagonal and ``nrm`` below it.
+    triangular with ``sqrt(chi)`` on its diagonal and ``nrm`` below it. Small loops, not
+    ``np.linalg`` (whose compilation took 5 s on a fresh install). Returns False when a
+    matrix is not positive definite.
     """
     ncls, d = chi.shape
-    a = np.zeros((d, d))
+    lo = np.zeros((d, d))
+    cf = np.zeros((d, d))
+    pinv = np.empty((d, d))
+    e = np.empty(d)
+    w = np.empty(d)
+    ca = np.empty((d, d))
     for c in range(ncls):
-        cf = np.linalg.cholesky(np.linalg.inv(psi[c]))
-        for i in range(d):
-            for j in range(i):
-                a[i, j] = nrm[c, i, j]
-            a[i, i] = np.sqrt(chi[c, i])
-        ca = cf @ a
-        si = ca @ ca.T
-        for i in range(d):
+        if not _spd_inverse(psi[c], pinv, lo, e, w):
+            return False
+        cf[:] = 0.0
+        if not cholesky(pinv, cf):
+            return False
+        for i in range(d):  # ca = cf A, both lower triangular
             for j in range(d):
-                sig_inv[c, i, j] = 0.5 * (si[i, j] + si[j, i])
-        sigma[c] = np.linalg.inv(sig_inv[c])
+                acc = 0.0
+                for k in range(j, i + 1):
+                    akj = np.sqrt(chi[c, j]) if k == j else nrm[c, k, j]
+                    acc += cf[i, k] * akj
+                ca[i, j] = acc
+        for i in range(d):  # Sigma^-1 = ca ca', symmetric by construction
+            for j in range(i + 1):
+                acc = 0.0
+                for k in range(d):
+                    acc += ca[i, k] * ca[j, k]
+                sig_inv[c, i, j] = acc
+                sig_inv[c, j, i] = acc
+        if not _spd_inverse(sig_inv[c], sigma[c], lo, e, w):
+            return False
+    return True

@@ -323,7 +323,8 @@ def _draw_sigma(gen, nu, psi):
     chi = gen.chisquare(nu[:, None] - np.arange(d)[None, :])
     nrm = gen.standard_normal((ncls, d, d))
     sigma, sig_inv = np.empty_like(psi), np.empty_like(psi)
-    _bartlett(chi, nrm, np.ascontiguousarray(psi), sigma, sig_inv)
+    if not _bartlett(chi, nrm, np.ascontiguousarray(psi), sigma, sig_inv):
+        raise np.linalg.LinAlgError("a class's inverse-Wishart scale is not positive definite")
     return sigma, sig_inv
 
 
