@@ -197,7 +197,8 @@ def test_andes_case_and_bus_place_the_load_in_that_case(tmp_path, monkeypatch):
             "kundur/kundur_full.xlsx", "--bus", 7, "--quiet", cwd=tmp_path,
             monkeypatch=monkeypatch)  # fmt: skip
     assert r.exit_code == 0, r.output
-    andes.config_logger(stream_level=50)
+    # quiet, with no log file: by default ANDES makes a new /tmp/andes-* folder for one
+    andes.config_logger(stream_level=50, file=False, log_path=str(tmp_path))
     ss = andes.load(str(tmp_path / "kundur.json"), no_output=True, default_config=True)
     orig = andes.load(andes.get_case("kundur/kundur_full.xlsx"), no_output=True,
                       default_config=True, setup=False)  # fmt: skip
