@@ -180,7 +180,6 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
 
     nc = _NetcdfStaging(p.get("netcdf_dir"), p["force"])
 
-
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
         nc.check(stats.buses)
