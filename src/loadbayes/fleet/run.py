@@ -512,7 +512,9 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
         done = int(chains[0].state.sweeps)
         per_round = spent  # the next round runs as many sweeps as all before it
         if ok or ok is None or not max_seconds:
-            why = "every class's R-hat < 1.01" if ok else "one round (no --max-seconds)"
+            why = "every class's R-hat < 1.01"
+            if not ok:
+                why = "one round (no time budget to run on: --max-seconds 0)"
             if ok is None:
                 why = "one chain: R-hat needs two or more"
             break
