@@ -144,3 +144,21 @@ def test_a_streamed_pooled_fit_gives_the_same_table(fleet, monkeypatch):
     there = run_fleet(fleet, SPEC, pool="class", sampler=sampler, max_seconds=1e-9)
     assert there.settings["streamed"] and not here.settings["streamed"]
     pd.testing.assert_frame_equal(here.table, there.table, check_exact=True)
+
+
+def test_the_chains_run_on_while_a_class_ess_is_short_of_400():
+    # The warnings call a class unconverged at ESS < 400 even with R-hat < 1.01; the
+    # run-on rule is the same (a one-class fleet stopped "converged" at ESS 398 before).
+    from loadbayes.fleet.run import classes_converged
+
+    s = SamplerSettings(chains=4, draws=2500, burn=500)
+    assert classes_converged([1.003, 1.004], [398.0, 2000.0], s) == (False, True)
+    assert classes_converged([1.003, 1.004], [400.0, 2000.0], s) == (True, True)
+    assert classes_converged([1.011, 1.004], [4000.0, 2000.0], s) == (False, True)
+    # too few kept draws for ESS 400 ever (a round keeps the first round's number): R-hat
+    small = SamplerSettings(chains=2, draws=60, burn=20)
+    assert classes_converged([1.003], [70.0], small) == (True, False)
+    assert classes_converged([1.003], [70.0], SamplerSettings(chains=1, draws=60, burn=20)) == (
+        None,
+        False,
+    )

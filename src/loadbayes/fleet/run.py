@@ -477,6 +477,24 @@ def _map_chains(eng, jobs, data_h, prior, sampler):
     return out
 
 
+def classes_converged(r_hat, ess, sampler: SamplerSettings) -> tuple[bool | None, bool]:
+    """``(converged, ESS judged)`` of the class-level quantities (None: one chain).
+
+    The rule the class rows' warnings use: every R-hat < 1.01 and bulk ESS >= 400. A
+    later round keeps as many draws as the first, so ESS is judged only when those
+    draws (all chains) are at least twice the target; with ``--draws`` too small for it,
+    R-hat alone decides when to stop (the rows still say which ESS fall short).
+    """
+    from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
+
+    if sampler.chains < 2:
+        return None, False
+    kept = sampler.chains * len(range(sampler.burn, sampler.draws, sampler.thin))
+    judge_ess = kept >= 2 * ESS_MIN
+    r_ok = bool(np.all(np.asarray(r_hat) < RHAT_MAX))
+    return r_ok and (not judge_ess or bool(np.all(np.asarray(ess) >= ESS_MIN))), judge_ess
+
+
 def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     """The pooled chains, continued until every class R-hat < 1.01 or the budget is spent.
 
@@ -492,7 +510,7 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     """
     import os
 
-    from loadbayes.diagnostics import RHAT_MAX
+    from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
     from loadbayes.fleet.summary import convergence_note
 
     def stores(r):
@@ -507,12 +525,15 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     while True:
         summ = hier.class_convergence(data_h, chains, sampler.hdi_prob)
         r_hat = np.nanmax(np.stack([v["r_hat"] for v in summ.values()]), axis=0)
-        ok = bool(np.all(r_hat < RHAT_MAX)) if sampler.chains > 1 else None
+        ess = np.nanmin(np.stack([v["ess_bulk"] for v in summ.values()]), axis=0)
+        ok, judge_ess = classes_converged(r_hat, ess, sampler)
         spent = time.monotonic() - t0
         done = int(chains[0].state.sweeps)
         per_round = spent  # the next round runs as many sweeps as all before it
         if ok or ok is None or not max_seconds:
-            why = "every class's R-hat < 1.01"
+            why = f"every class's R-hat < {RHAT_MAX}" + (
+                f" and bulk ESS >= {ESS_MIN}" if judge_ess else ""
+            )
             if not ok:
                 why = "one round (no time budget to run on: --max-seconds 0)"
             if ok is None:
@@ -549,9 +570,11 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
             warn.append(f"class {str(name)!r} {note}")
     if ok is False:
         warn.append(
-            f"the class-level R-hat is still {np.nanmax(r_hat):.3f} (>= {RHAT_MAX}) after "
-            f"{sweeps} sweeps per chain ({why}): the class means and spreads are not "
-            "reliable yet; give more --max-seconds or --draws"
+            f"the class-level chains have not converged (largest R-hat "
+            f"{np.nanmax(r_hat):.3f}, smallest bulk ESS {np.nanmin(ess):.0f}; R-hat < "
+            f"{RHAT_MAX} and ESS >= {ESS_MIN} wanted) after {sweeps} sweeps per chain "
+            f"({why}): the class means and spreads are not reliable yet; give more "
+            "--max-seconds or --draws"
         )
     info["warnings"] = warn
     return chains
