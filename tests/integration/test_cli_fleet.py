@@ -70,3 +70,13 @@ def test_a_bus_in_kv_gets_a_warning_row_and_the_others_are_fitted(tmp_path):
     assert len(kv) == 1 and "not per unit" in kv["warnings"].iloc[0]
     assert "--v-base 12.47" in kv["warnings"].iloc[0]
     assert (table[table["bus"] == "ok"]["parameter"] == "a1").any()
+
+
+def test_report_of_a_damaged_parquet_says_parquet_not_json(tmp_path):
+    """A .parquet without Parquet's magic bytes was read as JSON: 'not a JSON result'."""
+    bad = tmp_path / "fleet.parquet"
+    bad.write_bytes(b"")
+    res = CliRunner().invoke(main, ["report", str(bad), "--out", str(tmp_path / "r.html")])
+    assert res.exit_code == 2
+    assert "not a readable Parquet file" in res.stderr and "JSON" not in res.stderr
+    assert not (tmp_path / "r.html").exists()
