@@ -70,8 +70,8 @@ def fleet_options(func):
             type=click.FloatRange(min=0),
             default=300.0,
             show_default=True,
-            help="--pool class: continue the chains until every class R-hat < 1.01 or this "
-            "time budget would run out (0: one round of --draws).",
+            help="--pool class: continue the chains until every class R-hat < 1.01 and "
+            "bulk ESS >= 400, or this time budget would run out (0: one round of --draws).",
         ),
         click.option(
             "--netcdf-dir",
