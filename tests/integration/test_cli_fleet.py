@@ -72,6 +72,29 @@ def test_a_bus_in_kv_gets_a_warning_row_and_the_others_are_fitted(tmp_path):
     assert (table[table["bus"] == "ok"]["parameter"] == "a1").any()
 
 
+def _kv_fleet(path, buses=3, scale=11.0, nan_rows=()):
+    rng = np.random.default_rng(7)
+    frames = []
+    for i in range(buses):
+        v = rng.uniform(0.95, 1.05, 60)
+        p = 0.3 * v**2 + 0.2 * v + 0.5 + rng.normal(0, 0.005, v.size)
+        frames.append(pd.DataFrame({"bus_id": f"b{i}", "v": v * scale, "p": p}))
+    table = pd.concat(frames, ignore_index=True)
+    table.loc[list(nan_rows), "p"] = np.nan
+    table.to_csv(path, index=False)
+    return path
+
+
+def test_drop_invalid_says_how_many_rows_it_dropped_in_a_fleet(tmp_path):
+    """As for one bus (and as --help promises); the fleet dropped them silently."""
+    src = _kv_fleet(tmp_path / "m.csv", scale=1.0, nan_rows=(3, 70, 71))
+    out = tmp_path / "fleet.parquet"
+    res = _run(src, "--by", "bus_id", "--q-col", "none", "--out", out, "--drop-invalid",
+               "--draws", "200", "--burn", "50", "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "3 rows with invalid values were dropped (--drop-invalid)" in res.stderr
+
+
 def test_report_of_a_damaged_parquet_says_parquet_not_json(tmp_path):
     """A .parquet without Parquet's magic bytes was read as JSON: 'not a JSON result'."""
     bad = tmp_path / "fleet.parquet"

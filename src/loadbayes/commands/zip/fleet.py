@@ -183,6 +183,12 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
         nc.check(stats.buses)
+        if stats.n_dropped:  # as for one bus, whatever --quiet says
+            click.echo(
+                f"loadbayes: warning: {stats.n_dropped} rows with invalid values were "
+                "dropped (--drop-invalid)",
+                err=True,
+            )
         if not quiet:  # the size of the work before it starts; the bar then says the time left
             click.echo(
                 f"loadbayes: note: {result_size['buses']} buses x {sampler.chains} chains x "
