@@ -85,6 +85,22 @@ def _kv_fleet(path, buses=3, scale=11.0, nan_rows=()):
     return path
 
 
+def test_a_fleet_none_of_whose_buses_can_be_fitted_is_refused_and_nothing_written(tmp_path):
+    """A whole fleet in kV (no --v-base) exited 0 with a table of 'not fitted' rows only."""
+    src = _kv_fleet(tmp_path / "kv.csv")
+    out = tmp_path / "fleet.parquet"
+    res = _run(src, "--by", "bus_id", "--q-col", "none", "--out", out,
+               "--draws", "200", "--burn", "50", "--quiet")  # fmt: skip
+    assert res.exit_code == 2
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1 and "kv.csv: none of the 3 buses" in line
+    assert "--v-base 11" in line and not out.exists()
+    res = _run(src, "--by", "bus_id", "--q-col", "none", "--out", out, "--v-base", "11",
+               "--draws", "200", "--burn", "50", "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert out.exists()
+
+
 def test_drop_invalid_says_how_many_rows_it_dropped_in_a_fleet(tmp_path):
     """As for one bus (and as --help promises); the fleet dropped them silently."""
     src = _kv_fleet(tmp_path / "m.csv", scale=1.0, nan_rows=(3, 70, 71))

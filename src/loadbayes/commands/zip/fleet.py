@@ -217,6 +217,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
                 on_stats=stats_hook,
                 max_seconds=p.get("max_seconds") if p["pool"] == "class" else None,
             )
+            _refuse_if_none_fitted(res.table, p["data"])
             note = one_process_note(engine)
             if note and not quiet:
                 click.echo(f"loadbayes: note: {note}", err=True)
@@ -227,6 +228,17 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
             buses["bar"].close()
         nc.clean_up()
     _report(res, p["fleet_out"], quiet)
+
+
+def _refuse_if_none_fitted(table, data) -> None:
+    """No table when not one bus could be fitted (kV and MW without bases, say): exit 2."""
+    bus_rows = table[table["level"] == "bus"]
+    if len(bus_rows) and bus_rows["parameter"].isna().all():
+        first = bus_rows.iloc[0]
+        raise UserError(
+            f"{data}: none of the {bus_rows['bus'].nunique()} buses could be fitted, "
+            f"e.g. {first['bus']}: {first['warnings']}"
+        )
 
 
 def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging, settings=None) -> None:
