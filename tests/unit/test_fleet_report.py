@@ -193,3 +193,14 @@ def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     assert note in head and "The chains stopped: the time budget ran out" in head
     flagged = load_fleet(tmp_path / "later.parquet").flagged().set_index("bus")["reasons"]
     assert flagged["b2"] == ["unconverged (the table's converged column)"]
+
+
+def test_the_stop_sentence_of_run_fleet_is_not_stuttered(fleet, tmp_path):
+    """run_fleet writes "stopped after N sweeps ...": the page said "stopped: stopped after"."""
+    _, _, out = fleet
+    t = load_fleet(out["class"]).table
+    stop = "stopped after 2500 sweeps per chain: every class's R-hat < 1.01"
+    _write(t, tmp_path / "s.parquet", {"stop": stop})
+    head = _text(fleet_report(load_fleet(tmp_path / "s.parquet"))).split("Contents")[0]
+    assert "The chains stopped after 2500 sweeps per chain" in head
+    assert "stopped: stopped" not in head

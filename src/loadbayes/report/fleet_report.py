@@ -190,7 +190,11 @@ def fleet_report(
     if isinstance(run_warn, str):
         run_warn = [run_warn]
     if st.get("stop"):
-        summary.append(f"<p>{e('The chains stopped: ' + str(st['stop']))}</p>")
+        stop = str(st["stop"])  # run_fleet writes "stopped after N sweeps per chain: why"
+        words = (
+            "The chains " + stop if stop.startswith("stopped ") else "The chains stopped: " + stop
+        )
+        summary.append(f"<p>{e(words)}</p>")
     if run_warn:
         items = "".join(f"<li>{e(str(w))}</li>" for w in run_warn)
         summary.append(f"<div class='warn'><b>Run warnings</b><ul>{items}</ul></div>")
