@@ -119,3 +119,16 @@ def test_report_of_a_damaged_parquet_says_parquet_not_json(tmp_path):
     assert res.exit_code == 2
     assert "not a readable Parquet file" in res.stderr and "JSON" not in res.stderr
     assert not (tmp_path / "r.html").exists()
+
+
+def test_accept_units_fits_a_fleet_and_keeps_the_unit_checks_words_on_its_rows(tmp_path):
+    """--help: 'the unit check then warns instead of refusing'; a fleet dropped the words."""
+    src = _kv_fleet(tmp_path / "kv.csv", buses=2)
+    out = tmp_path / "fleet.parquet"
+    res = _run(src, "--by", "bus_id", "--q-col", "none", "--out", out, "--accept-units",
+               "--draws", "200", "--burn", "50", "--quiet")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    t = pd.read_parquet(out)
+    assert t["parameter"].notna().all()
+    assert t["warnings"].str.startswith("units: voltage averages 1").all()
+    assert t["warnings"].str.contains("not per unit (--v-base 11)", regex=False).all()

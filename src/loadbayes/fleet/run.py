@@ -290,10 +290,19 @@ def fit_fleet(
         check_netcdf_targets(stats.buses, netcdf_dir, force=force)
     if not accept_units:
         stats, refused = _refuse_unit_errors(stats, model)
+    else:  # fitted, but the unit check's words stay on the bus's rows, as for one bus
+        accepted = {
+            stats.buses[i]: "units: " + "; ".join(w) for i, w in _unit_problems(stats, model)
+        }
     info: dict = {}
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
                    progress_buses, batch_buses, max_seconds, info)  # fmt: skip
     table = concat(list(frames) + ([refused] if refused is not None else []))
+    if accept_units and accepted:
+        unit = table["bus"].map(accepted)
+        has = unit.notna() & (table["level"] == "bus")
+        old = table.loc[has, "warnings"]
+        table.loc[has, "warnings"] = unit[has].where(old == "", unit[has] + " | " + old)
     table.attrs["loadbayes"] = _settings(table, model, pool, hyper, sampler, max_seconds, info)
     return table
 
@@ -344,20 +353,29 @@ def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
     }
 
 
-def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
-    """Buses whose data do not look per unit get a warning row instead of a fit."""
-    from loadbayes.fleet.summary import failed_rows
+def _unit_problems(stats: FleetStats, model: ZIPModel) -> list[tuple[int, list[str]]]:
+    """(bus number, the unit check's sentences) of every bus whose data do not look per unit."""
     from loadbayes.measurements.units import check_gram_units
 
     nominal = {"p": model.p0, **({"q": model.q0} if model.with_q else {})}
-    bad, reasons = [], []
+    out = []
     for i in range(stats.buses.size):
         if stats.bad[i] or stats.n[i] < 3:
             continue  # refused with their own reasons by the fits
         problems = check_gram_units(stats.bus_gram(i), v0=model.v0, nominal=nominal)
         if problems:
-            bad.append(i)
-            reasons.append("not fitted: " + "; ".join(problems) + " (or --accept-units)")
+            out.append((i, problems))
+    return out
+
+
+def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
+    """Buses whose data do not look per unit get a warning row instead of a fit."""
+    from loadbayes.fleet.summary import failed_rows
+
+    bad, reasons = [], []
+    for i, problems in _unit_problems(stats, model):
+        bad.append(i)
+        reasons.append("not fitted: " + "; ".join(problems) + " (or --accept-units)")
     if not bad:
         return stats, None
     keep = np.setdiff1d(np.arange(stats.buses.size), bad)
