@@ -132,3 +132,17 @@ def test_accept_units_fits_a_fleet_and_keeps_the_unit_checks_words_on_its_rows(t
     assert t["parameter"].notna().all()
     assert t["warnings"].str.startswith("units: voltage averages 1").all()
     assert t["warnings"].str.contains("not per unit (--v-base 11)", regex=False).all()
+
+
+def test_a_bus_in_two_classes_across_files_is_named_as_written(tmp_path):
+    """The message read "bus np.str_('b0') is in class ...": NumPy's repr, not the id."""
+    (tmp_path / "m").mkdir()
+    rows = "\n".join(f"b0,{c},{1 + 0.01 * i},{1 + 0.01 * i}" for i, c in enumerate("xxxyyy"))
+    lines = rows.splitlines()
+    (tmp_path / "m" / "a.csv").write_text("bus_id,cls,v,p\n" + "\n".join(lines[:3]) + "\n")
+    (tmp_path / "m" / "b.csv").write_text("bus_id,cls,v,p\n" + "\n".join(lines[3:]) + "\n")
+    res = _run(tmp_path / "m", "--by", "bus_id", "--class-col", "cls", "--pool", "class",
+               "--q-col", "none", "--out", tmp_path / "f.parquet", "--quiet")  # fmt: skip
+    assert res.exit_code == 2
+    assert "bus 'b0' is in class 'y' at " in res.stderr and "np." not in res.stderr
+    assert "but in class 'x' at " in res.stderr
