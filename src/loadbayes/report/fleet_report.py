@@ -359,9 +359,17 @@ def write_fleet_report(
         ``out`` exists and ``force`` is False.
     """
     from loadbayes.io.atomic import atomic_write
+    from loadbayes.io.errors import DataError
 
     ft = load_fleet(result)
     other = load_fleet(unpooled) if unpooled else None
+    if other is not None:  # the figure calls them each bus's own, unpooled estimates
+        if other.settings.get("pool") == "class" or (other.table["level"] == "class").any():
+            raise DataError(
+                "a pooled fit (--pool class); --unpooled wants a --pool none table", str(unpooled)
+            )
+        if not set(ft.bus_rows["bus"]) & set(other.bus_rows["bus"]):
+            raise DataError(f"none of the buses of {Path(result).name} (--unpooled)", str(unpooled))
     xy, names = (None, ("x", "y"))
     if coords:
         xy, names = read_coords(coords, by=ft.settings.get("by"))
