@@ -146,3 +146,14 @@ def test_a_bus_in_two_classes_across_files_is_named_as_written(tmp_path):
     assert res.exit_code == 2
     assert "bus 'b0' is in class 'y' at " in res.stderr and "np." not in res.stderr
     assert "but in class 'x' at " in res.stderr
+
+
+def test_a_missing_bus_column_lists_the_files_columns_as_for_v_p_q(tmp_path):
+    """'no column bus_id' did not say the header had ' bus_id', nor that the file was empty."""
+    (tmp_path / "a.csv").write_text(" bus_id,v,p\nb1,1.0,1.0\n")
+    res = _run(tmp_path / "a.csv", "--by", "bus_id", "--out", tmp_path / "f.parquet")
+    assert res.exit_code == 2 and len(res.stderr.strip().splitlines()) == 1
+    assert "(the columns are ' bus_id', 'v', 'p' (did you mean ' bus_id'?))" in res.stderr
+    (tmp_path / "e.csv").write_text("")
+    res = _run(tmp_path / "e.csv", "--by", "bus_id", "--out", tmp_path / "f.parquet")
+    assert res.exit_code == 2 and "e.csv: no column 'bus_id' (the file is empty)" in res.stderr
