@@ -275,7 +275,7 @@ def _columns_said(path: str, col: str) -> str:
     """' (the columns are ...; did you mean ...?)' for a missing column, as for V, P, Q."""
     import csv
 
-    from loadbayes.io.cells import _hint, _list
+    from loadbayes.io.cells import columns_named
 
     try:
         if path.lower().endswith(PARQUET_SUFFIXES):
@@ -290,7 +290,7 @@ def _columns_said(path: str, col: str) -> str:
         return ""
     if not header:
         return " (the file is empty)"
-    return f" (the columns are {_list(header)}{_hint(col, header)})"
+    return f" ({columns_named(col, header)})"
 
 
 def _check_folder_key(arr: pa.Array, value: str, name: str, col: str, first_row: int) -> None:
