@@ -196,3 +196,6 @@ main.add_command(_example.example_cmd)
 main.add_command(_validate.validate_cmd)
 main.add_command(_playback.playback_cmd)
 main.add_command(_steps.steps_cmd)
+
+if __name__ == "__main__":  # python -m loadbayes.cli ... did nothing and exited 0
+    main(prog_name="loadbayes")

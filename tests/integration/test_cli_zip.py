@@ -227,3 +227,10 @@ def test_exact_scheme_and_informative_prior(tmp_path):
     )  # fmt: skip
     d = json.loads((tmp_path / "p.json").read_text())
     assert d["parameters"]["a1"]["mean"] == pytest.approx(0.3, abs=0.005)
+
+
+def test_python_m_loadbayes_cli_runs_the_command_too(tmp_path):
+    """`python -m loadbayes.cli fit zip ...` imported the module, ran nothing and exited 0."""
+    res = subprocess.run([sys.executable, "-m", "loadbayes.cli", "fit", "zip", "missing.csv"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert res.returncode == 2 and "missing.csv" in res.stderr

@@ -162,3 +162,24 @@ def test_the_chains_run_on_while_a_class_ess_is_short_of_400():
         None,
         False,
     )
+
+
+def test_a_class_whose_buses_all_have_flat_voltage_says_the_prior_decides_its_mean(tmp_path):
+    """Its class means were the hyperprior's (intervals of +/-15) on rows without a word."""
+    rng = np.random.default_rng(3)
+    frames = []
+    for i in range(8):
+        cls, width = ("flat", 1e-5) if i < 4 else ("moving", 0.05)
+        x = 1 + rng.uniform(-width, width, 150)
+        p = 1.5 * (0.3 * x**2 + 0.4 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
+        q = 0.5 * (0.5 * x**2 + 0.2 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
+        frames.append(pd.DataFrame({"bus_id": f"b{i}", "customer_class": cls, "v": x,
+                                    "p": p, "q": q}))  # fmt: skip
+    path = tmp_path / "f.parquet"
+    pd.concat(frames, ignore_index=True).to_parquet(path)
+    sampler = SamplerSettings(chains=2, draws=300, burn=100, seed=0)
+    res = run_fleet(str(path), SPEC, pool="class", p0="auto", q0="auto", sampler=sampler)
+    cls = res.table[res.table["level"] == "class"].groupby("class")["warnings"].first()
+    assert cls["flat"].startswith("the prior decides the class mean of a1, a2, a4, a5")
+    assert "the prior decides" not in cls["moving"]
+    assert any(w.startswith("class 'flat': the prior decides") for w in res.settings["warnings"])

@@ -193,3 +193,26 @@ def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     assert note in head and "The chains stopped: the time budget ran out" in head
     flagged = load_fleet(tmp_path / "later.parquet").flagged().set_index("bus")["reasons"]
     assert flagged["b2"] == ["unconverged (the table's converged column)"]
+
+
+def test_the_stop_sentence_of_run_fleet_is_not_stuttered(fleet, tmp_path):
+    """run_fleet writes "stopped after N sweeps ...": the page said "stopped: stopped after"."""
+    _, _, out = fleet
+    t = load_fleet(out["class"]).table
+    stop = "stopped after 2500 sweeps per chain: every class's R-hat < 1.01"
+    _write(t, tmp_path / "s.parquet", {"stop": stop})
+    head = _text(fleet_report(load_fleet(tmp_path / "s.parquet"))).split("Contents")[0]
+    assert "The chains stopped after 2500 sweeps per chain" in head
+    assert "stopped: stopped" not in head
+
+
+def test_unpooled_must_be_a_per_bus_fit_of_the_same_buses(fleet, tmp_path):
+    """A pooled table, or one of other buses, was drawn as 'each bus's own estimate'."""
+    _, _, out = fleet
+    with pytest.raises(DataError, match=r"class\.parquet: a pooled fit \(--pool class\)"):
+        write_fleet_report(out["class"], tmp_path / "a.html", unpooled=out["class"])
+    other = load_fleet(out["none"]).table.assign(bus=lambda t: "x" + t["bus"].astype(str))
+    _write(other, tmp_path / "other.parquet", {"pool": "none"})
+    with pytest.raises(DataError, match=r"other\.parquet: none of the buses of class\.parquet"):
+        write_fleet_report(out["class"], tmp_path / "b.html", unpooled=tmp_path / "other.parquet")
+    assert not (tmp_path / "a.html").exists() and not (tmp_path / "b.html").exists()

@@ -260,14 +260,37 @@ def _labels(part: Partition, col: str | None, name: str, what: str) -> _Aligned 
         return _Aligned((_trimmed(b) for b in batches), name, col)
     if col in part.hive:
         return part.hive[col]
+    have = _columns_said(part.path, col)
     if what == "bus":
         raise DataError(
-            f"no column {col!r} and no folder named {col}=...; --by names the bus column "
-            "(a file that is not data? name the data files with a glob, "
+            f"no column {col!r}{have} and no folder named {col}=...; --by names the bus "
+            "column (a file that is not data? name the data files with a glob, "
             "e.g. 'folder/**/*.parquet')",
             name,
         )
-    raise DataError(f"no column {col!r} and no folder named {col}=... (--class-col)", name)
+    raise DataError(f"no column {col!r}{have} and no folder named {col}=... (--class-col)", name)
+
+
+def _columns_said(path: str, col: str) -> str:
+    """' (the columns are ...; did you mean ...?)' for a missing column, as for V, P, Q."""
+    import csv
+
+    from loadbayes.io.cells import columns_named
+
+    try:
+        if path.lower().endswith(PARQUET_SUFFIXES):
+            header = list(pq.read_schema(path).names)
+        else:
+            with pa.input_stream(path, compression="detect") as fh:
+                first = fh.read(_HEADER_BYTES).split(b"\n", 1)[0]
+            line = first.decode("utf-8", "replace").lstrip("\ufeff").rstrip("\r")
+            sep = next((c for c in ",\t;" if c in line), ",")
+            header = next(csv.reader([line], delimiter=sep), []) if line.strip() else []
+    except (OSError, pa.ArrowException):
+        return ""
+    if not header:
+        return " (the file is empty)"
+    return f" ({columns_named(col, header)})"
 
 
 def _check_folder_key(arr: pa.Array, value: str, name: str, col: str, first_row: int) -> None:

@@ -290,10 +290,19 @@ def fit_fleet(
         check_netcdf_targets(stats.buses, netcdf_dir, force=force)
     if not accept_units:
         stats, refused = _refuse_unit_errors(stats, model)
+    else:  # fitted, but the unit check's words stay on the bus's rows, as for one bus
+        accepted = {
+            stats.buses[i]: "units: " + "; ".join(w) for i, w in _unit_problems(stats, model)
+        }
     info: dict = {}
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
                    progress_buses, batch_buses, max_seconds, info)  # fmt: skip
     table = concat(list(frames) + ([refused] if refused is not None else []))
+    if accept_units and accepted:
+        unit = table["bus"].map(accepted)
+        has = unit.notna() & (table["level"] == "bus")
+        old = table.loc[has, "warnings"]
+        table.loc[has, "warnings"] = unit[has].where(old == "", unit[has] + " | " + old)
     table.attrs["loadbayes"] = _settings(table, model, pool, hyper, sampler, max_seconds, info)
     return table
 
@@ -344,20 +353,29 @@ def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
     }
 
 
-def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
-    """Buses whose data do not look per unit get a warning row instead of a fit."""
-    from loadbayes.fleet.summary import failed_rows
+def _unit_problems(stats: FleetStats, model: ZIPModel) -> list[tuple[int, list[str]]]:
+    """(bus number, the unit check's sentences) of every bus whose data do not look per unit."""
     from loadbayes.measurements.units import check_gram_units
 
     nominal = {"p": model.p0, **({"q": model.q0} if model.with_q else {})}
-    bad, reasons = [], []
+    out = []
     for i in range(stats.buses.size):
         if stats.bad[i] or stats.n[i] < 3:
             continue  # refused with their own reasons by the fits
         problems = check_gram_units(stats.bus_gram(i), v0=model.v0, nominal=nominal)
         if problems:
-            bad.append(i)
-            reasons.append("not fitted: " + "; ".join(problems) + " (or --accept-units)")
+            out.append((i, problems))
+    return out
+
+
+def _refuse_unit_errors(stats: FleetStats, model: ZIPModel):
+    """Buses whose data do not look per unit get a warning row instead of a fit."""
+    from loadbayes.fleet.summary import failed_rows
+
+    bad, reasons = [], []
+    for i, problems in _unit_problems(stats, model):
+        bad.append(i)
+        reasons.append("not fitted: " + "; ".join(problems) + " (or --accept-units)")
     if not bad:
         return stats, None
     keep = np.setdiff1d(np.arange(stats.buses.size), bad)
@@ -394,9 +412,11 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
             info = info if info is not None else {}
             folder = _draws_folder(data_h, sampler, info)
             try:
-                chains = _pooled_chains(data_h, hyper or hier.HierPrior(), sampler, eng,
-                                        max_seconds, info, folder)  # fmt: skip
-                frames = [hier.summarize_chains(data_h, chains, sampler), failed]
+                hp = hyper or hier.HierPrior()
+                chains = _pooled_chains(data_h, hp, sampler, eng, max_seconds, info, folder)
+                table = hier.summarize_chains(data_h, chains, sampler)
+                _note_prior_decided(table, data_h.params, hp.mean_sd, info)
+                frames = [table, failed]
             finally:
                 if folder is not None:
                     import shutil
@@ -405,6 +425,33 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
         if progress_buses:
             progress_buses(stats.buses.size)
     return frames
+
+
+def _note_prior_decided(table: pd.DataFrame, params, mean_sd: float, info: dict) -> None:
+    """Warn on the class rows whose mean shares their buses barely inform.
+
+    As :func:`loadbayes.diagnostics.prior_dominance` does for one bus: a class mean whose
+    posterior sd is above half the hyperprior's (``mean_sd``) repeats the prior; a class
+    whose buses all have flat voltage gave intervals of +/-15 with clean rows.
+    """
+    from loadbayes.diagnostics import PRIOR_SHARE
+
+    is_cls = table["level"] == "class"
+    for name in pd.unique(table.loc[is_cls, "class"]):
+        rows = is_cls & (table["class"] == name)
+        sd = table.loc[rows].set_index("parameter")["sd"]
+        weak = [p for p in params if p in sd.index and sd[p] > PRIOR_SHARE * mean_sd]
+        if not weak:
+            continue
+        n = int(table.loc[rows, "n"].iloc[0])
+        words = (
+            f"the prior decides the class mean of {', '.join(weak)}: posterior sd "
+            f"{', '.join(f'{sd[p]:.3g}' for p in weak)} against the prior's {mean_sd:.3g}, "
+            f"so the data of its {n} bus{'es' if n != 1 else ''} add little (flat voltage?)"
+        )
+        old = table.loc[rows, "warnings"]
+        table.loc[rows, "warnings"] = np.where(old == "", words, words + " | " + old)
+        info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
 
 
 #: Above this many bytes of bus-level draws (all chains), they are streamed to disk.

@@ -315,8 +315,8 @@ def merge(parts: Iterable[PartialStats]) -> PartialStats:
                 where[i] = p.where[j]
             elif c is not None and c != classes[i]:
                 raise DataError(
-                    f"bus {uniq[i]!r} is in class {c!r} at {p.where[j]} but in class "
-                    f"{classes[i]!r} at {where[i]}; a bus belongs to one class"
+                    f"bus {str(uniq[i])!r} is in class {str(c)!r} at {p.where[j]} but in class "
+                    f"{str(classes[i])!r} at {where[i]}; a bus belongs to one class"
                 )
     exact.normalize(digits)
     return PartialStats(

@@ -65,9 +65,14 @@ def select_columns(
         if where:
             present[col] = where[0]
         elif col in required:
-            found = f"not found; the columns are {_list(header)}{_hint(col, header)}"
+            found = f"not found; {columns_named(col, header)}"
             raise DataError(found, name, col)
     return present
+
+
+def columns_named(col: str, header: Sequence[str]) -> str:
+    """'the columns are 'a', 'b' (did you mean 'b'?)': added to a missing column's message."""
+    return f"the columns are {_list(header)}{_hint(col, header)}"
 
 
 def _list(header: Sequence[str], limit: int = 12) -> str:

@@ -190,7 +190,11 @@ def fleet_report(
     if isinstance(run_warn, str):
         run_warn = [run_warn]
     if st.get("stop"):
-        summary.append(f"<p>{e('The chains stopped: ' + str(st['stop']))}</p>")
+        stop = str(st["stop"])  # run_fleet writes "stopped after N sweeps per chain: why"
+        words = (
+            "The chains " + stop if stop.startswith("stopped ") else "The chains stopped: " + stop
+        )
+        summary.append(f"<p>{e(words)}</p>")
     if run_warn:
         items = "".join(f"<li>{e(str(w))}</li>" for w in run_warn)
         summary.append(f"<div class='warn'><b>Run warnings</b><ul>{items}</ul></div>")
@@ -355,9 +359,17 @@ def write_fleet_report(
         ``out`` exists and ``force`` is False.
     """
     from loadbayes.io.atomic import atomic_write
+    from loadbayes.io.errors import DataError
 
     ft = load_fleet(result)
     other = load_fleet(unpooled) if unpooled else None
+    if other is not None:  # the figure calls them each bus's own, unpooled estimates
+        if other.settings.get("pool") == "class" or (other.table["level"] == "class").any():
+            raise DataError(
+                "a pooled fit (--pool class); --unpooled wants a --pool none table", str(unpooled)
+            )
+        if not set(ft.bus_rows["bus"]) & set(other.bus_rows["bus"]):
+            raise DataError(f"none of the buses of {Path(result).name} (--unpooled)", str(unpooled))
     xy, names = (None, ("x", "y"))
     if coords:
         xy, names = read_coords(coords, by=ft.settings.get("by"))

@@ -66,8 +66,14 @@ def _key(name: object) -> str:
 
 
 def is_parquet(path: str | Path) -> bool:
-    """True when ``path`` is a file that starts with Parquet's magic bytes."""
+    """True when ``path`` starts with Parquet's magic bytes, or is named ``.parquet``/``.pq``.
+
+    By name too, so that a damaged or empty ``fleet.parquet`` is reported as a Parquet
+    file that cannot be read, not as "not a JSON result".
+    """
     p = Path(path)
+    if p.suffix.lower() in (".parquet", ".pq") and p.is_file():
+        return True
     try:
         with open(p, "rb") as fh:
             return fh.read(4) == b"PAR1"

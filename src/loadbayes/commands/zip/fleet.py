@@ -70,8 +70,8 @@ def fleet_options(func):
             type=click.FloatRange(min=0),
             default=300.0,
             show_default=True,
-            help="--pool class: continue the chains until every class R-hat < 1.01 or this "
-            "time budget would run out (0: one round of --draws).",
+            help="--pool class: continue the chains until every class R-hat < 1.01 and "
+            "bulk ESS >= 400, or this time budget would run out (0: one round of --draws).",
         ),
         click.option(
             "--netcdf-dir",
@@ -183,6 +183,12 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     def stats_hook(stats) -> None:
         result_size["buses"] = int(stats.buses.size)
         nc.check(stats.buses)
+        if stats.n_dropped:  # as for one bus, whatever --quiet says
+            click.echo(
+                f"loadbayes: warning: {stats.n_dropped} rows with invalid values were "
+                "dropped (--drop-invalid)",
+                err=True,
+            )
         if not quiet:  # the size of the work before it starts; the bar then says the time left
             click.echo(
                 f"loadbayes: note: {result_size['buses']} buses x {sampler.chains} chains x "
@@ -211,6 +217,7 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
                 on_stats=stats_hook,
                 max_seconds=p.get("max_seconds") if p["pool"] == "class" else None,
             )
+            _refuse_if_none_fitted(res.table, p["data"])
             note = one_process_note(engine)
             if note and not quiet:
                 click.echo(f"loadbayes: note: {note}", err=True)
@@ -221,6 +228,17 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
             buses["bar"].close()
         nc.clean_up()
     _report(res, p["fleet_out"], quiet)
+
+
+def _refuse_if_none_fitted(table, data) -> None:
+    """No table when not one bus could be fitted (kV and MW without bases, say): exit 2."""
+    bus_rows = table[table["level"] == "bus"]
+    if len(bus_rows) and bus_rows["parameter"].isna().all():
+        first = bus_rows.iloc[0]
+        raise UserError(
+            f"{data}: none of the {bus_rows['bus'].nunique()} buses could be fitted, "
+            f"e.g. {first['bus']}: {first['warnings']}"
+        )
 
 
 def _commit(table, out_path: str, force: bool, nc: _NetcdfStaging, settings=None) -> None:
