@@ -769,6 +769,7 @@ def data_checks(
     from loadbayes.measurements.units import (
         check_frequency,
         check_power_units,
+        nominal_level_warnings,
         refuse,
         require_power,
     )
@@ -783,6 +784,11 @@ def data_checks(
     if not accept_units:
         refuse(problems, path=str(path), names=names)
     out = [f"units: {pr}" for pr in problems]
+    if not problems:  # a given P0 (Q0) inside the unit check's range but off (on the
+        # first chunk of a long file: its rows are the load's too)
+        out += nominal_level_warnings(
+            cols["v"], cols.get("p"), cols.get("q"), wording=wording, **nominal
+        )
     p = cols.get("p")
     if p is not None and p.size and float(np.median(p)) < 0:
         # Fitted as it is (a negative load: the shares are fractions of a negative P0),

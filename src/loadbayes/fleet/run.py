@@ -298,6 +298,12 @@ def fit_fleet(
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
                    progress_buses, batch_buses, max_seconds, info)  # fmt: skip
     table = concat(list(frames) + ([refused] if refused is not None else []))
+    level = _level_notes(stats, model, table)
+    if level:
+        has = table["bus"].isin(level.keys()) & (table["level"] == "bus")
+        note = table.loc[has, "bus"].map(level)
+        old = table.loc[has, "warnings"]
+        table.loc[has, "warnings"] = note.where(old == "", note + " | " + old)
     if accept_units and accepted:
         unit = table["bus"].map(accepted)
         has = unit.notna() & (table["level"] == "bus")
@@ -365,6 +371,28 @@ def _unit_problems(stats: FleetStats, model: ZIPModel) -> list[tuple[int, list[s
         problems = check_gram_units(stats.bus_gram(i), v0=model.v0, nominal=nominal)
         if problems:
             out.append((i, problems))
+    return out
+
+
+def _level_notes(stats: FleetStats, model: ZIPModel, table: pd.DataFrame) -> dict:
+    """``{bus: words}`` for fitted buses whose data put the given P0 (Q0) off their level.
+
+    ``measurements.units.nominal_level_warnings_gram``: inside the unit check's range, but
+    more than 5% and 4 standard errors off, where the shares take up the difference.
+    """
+    from loadbayes.measurements.units import nominal_level_warnings_gram
+
+    nominal = {"p": model.p0, **({"q": model.q0} if model.with_q else {})}
+    if all(v == "auto" for v in nominal.values()):
+        return {}
+    fitted = set(table.loc[(table["level"] == "bus") & table["parameter"].notna(), "bus"])
+    out = {}
+    for i in range(stats.buses.size):
+        if stats.buses[i] not in fitted or stats.bad[i] or stats.n[i] < 4:
+            continue
+        words = nominal_level_warnings_gram(stats.bus_gram(i), nominal=nominal)
+        if words:
+            out[stats.buses[i]] = "; ".join(words)
     return out
 
 

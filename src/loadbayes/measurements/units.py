@@ -26,6 +26,8 @@ __all__ = [
     "Wording",
     "check_frequency",
     "check_gram_units",
+    "nominal_level_warnings",
+    "nominal_level_warnings_gram",
     "check_motor_units",
     "check_power_units",
     "level_at_nominal",
@@ -245,6 +247,97 @@ def check_power_units(
                     wording,
                 )
             )
+    return out
+
+
+#: A given P0 (Q0) that the data put more than this far from the power at V0, and by
+#: more than LEVEL_SDS standard errors, is said in a warning: inside NOMINAL_RANGE the
+#: fit runs, but with a3 = 1 - a1 - a2 the model holds P(V0) = P0 and the shares take up
+#: the difference (the red-team's bus: P0 given 1.0 for a true 0.714 gave a1 30).
+LEVEL_WARN = 0.05
+LEVEL_SDS = 4.0
+
+
+def _level_and_se(a: np.ndarray, xy: np.ndarray, yy: float, n: int) -> tuple[float, float]:
+    """Least-squares intercept (the level at V0) and its standard error, from X'X, X'y, y'y."""
+    try:
+        coef = np.linalg.solve(a, xy)
+        cov = np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return float("nan"), float("inf")
+    rss = max(float(yy - coef @ xy), 0.0)
+    dof = n - a.shape[0]
+    if dof < 1:
+        return float(coef[0]), float("inf")
+    return float(coef[0]), float(np.sqrt(max(cov[0, 0], 0.0) * rss / dof))
+
+
+def _level_note(ch: str, level: float, se: float, opt) -> str | None:
+    off = abs(level - 1.0)
+    if not (np.isfinite(level) and off > LEVEL_WARN and off > LEVEL_SDS * se):
+        return None
+    big = ch.upper()
+    return (
+        f"{big} / {big}0 is about {level:.3g} at V = V0 (from the data, +/- {se:.2g}), not 1: "
+        f"with {ch}0 given the model holds {big} = {big}0 at V0 (the shares add up to 1), so "
+        f"the shares take up the difference and are not the load's; let loadbayes estimate "
+        f"it with {opt(f'{ch}0', 'auto')}, or give the right {ch}0"
+    )
+
+
+def nominal_level_warnings(
+    v: np.ndarray,
+    p: np.ndarray | None = None,
+    q: np.ndarray | None = None,
+    *,
+    v0: float = 1.0,
+    p0: float | str = 1.0,
+    q0: float | str = 1.0,
+    wording: Wording = "cli",
+    **_: object,
+) -> list[str]:
+    """Warnings for a given P0 (Q0) that the data place clearly away from the power at V0.
+
+    Within :data:`NOMINAL_RANGE` (outside it :func:`check_power_units` refuses) but more
+    than :data:`LEVEL_WARN` off and by more than :data:`LEVEL_SDS` standard errors of the
+    least-squares level (the model's own form, :func:`level_at_nominal`).
+    """
+    v = np.asarray(v, dtype=float)
+    out = []
+    for ch, y, nom in (("p", p, p0), ("q", q, q0)):
+        if y is None or nom == "auto" or not float(nom):
+            continue
+        y = np.asarray(y, dtype=float) / float(nom)
+        ok = np.isfinite(v) & np.isfinite(y)
+        x = v[ok] / v0
+        if ok.sum() < 4 or np.ptp(x) < 1e-9:
+            continue
+        dx = x - 1.0
+        a = np.column_stack([np.ones_like(x), dx * (x + 1.0), dx])
+        level, se = _level_and_se(a.T @ a, a.T @ y[ok], float(y[ok] @ y[ok]), int(ok.sum()))
+        note = _level_note(ch, level, se, lambda n, val: option(n, val, wording=wording))
+        if note:
+            out.append(note)
+    return out
+
+
+def nominal_level_warnings_gram(gram, *, nominal: Mapping[str, object]) -> list[str]:
+    """:func:`nominal_level_warnings` of one bus from its ZIP Gram matrix (fleets)."""
+    names = list(gram.names)
+    n = int(gram.n)
+    idx = [names.index(c) for c in ("1", "z1", "z2")]
+    a = gram.matrix[np.ix_(idx, idx)]
+    out = []
+    for ch, nom in nominal.items():
+        col = f"r{ch}"
+        if nom == "auto" or col not in names:
+            continue
+        j = names.index(col)
+        # r = P / P0 - 1: its level at V0 is 1 + the intercept
+        level, se = _level_and_se(a, gram.matrix[idx, j], float(gram.matrix[j, j]), n)
+        note = _level_note(ch, 1.0 + level, se, lambda k, val: option(k, val, wording="cli"))
+        if note:
+            out.append(note)
     return out
 
 
