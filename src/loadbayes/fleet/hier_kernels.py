@@ -233,6 +233,20 @@ def _rank_two(m, v, w, alpha, beta):  # pragma: no cover - compiled
             m[i, j] += alpha * (w[i] * v[j] + v[i] * w[j]) + beta * v[i] * v[j]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _times_v(m, v, w):  # pragma: no cover - compiled
+    """``w = m v``; returns ``v'm v``."""
+    d = v.shape[0]
+    out = 0.0
+    for i in range(d):
+        acc = 0.0
+        for j in range(d):
+            acc += m[i, j] * v[j]
+        w[i] = acc
+        out += v[i] * acc
+    return out
+
+
 @njit(cache=True, nogil=True)
 def _scale_tries(psi0, nu0, v, step, sigma, sig_inv, a, b, z, uni, total):  # pragma: no cover
     """The Metropolis tries of one direction's scale move, every class (in place).
@@ -259,27 +273,16 @@ def _scale_tries(psi0, nu0, v, step, sigma, sig_inv, a, b, z, uni, total):  # pr
             cc = np.exp(logc)
             k = cc - 1.0
             al = 1.0 / cc - 1.0
-            svv = 0.0
+            svv = _times_v(sig_inv[c], v, w)
             wpv = 0.0
             for i in range(d):
-                acc = 0.0
-                for j in range(d):
-                    acc += sig_inv[c, i, j] * v[j]
-                w[i] = acc
-                svv += v[i] * acc
-                wpv += acc * pv[i]
+                wpv += w[i] * pv[i]
             dtr = 2.0 * al * wpv + al * al * svv * vpv
             log_ratio = -0.5 * k * k * ac + k * bc - nu0 * logc - 0.5 * dtr
             if not logu < log_ratio:
                 continue
             _rank_two(sig_inv[c], v, w, al, al * al * svv)
-            s2 = 0.0
-            for i in range(d):
-                acc = 0.0
-                for j in range(d):
-                    acc += sigma[c, i, j] * v[j]
-                w[i] = acc
-                s2 += v[i] * acc
+            s2 = _times_v(sigma[c], v, w)
             _rank_two(sigma[c], v, w, k, k * k * s2)
             bc = cc * (bc - k * ac)
             ac = cc * cc * ac

@@ -284,7 +284,7 @@ def fit_fleet(
         raise ValueError(f"--pool must be 'none' or 'class', got {pool!r}")
     eng = engine or Engine()
     sampler = sampler or SamplerSettings()
-    refused = None
+    refused, accepted = None, {}
     if netcdf_dir:
         # Before any fit: an id that cannot be a file name, or a file in the way.
         check_netcdf_targets(stats.buses, netcdf_dir, force=force)
@@ -298,17 +298,9 @@ def fit_fleet(
     frames = _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
                    progress_buses, batch_buses, max_seconds, info)  # fmt: skip
     table = concat(list(frames) + ([refused] if refused is not None else []))
-    level = _level_notes(stats, model, table)
-    if level:
-        has = table["bus"].isin(level.keys()) & (table["level"] == "bus")
-        note = table.loc[has, "bus"].map(level)
-        old = table.loc[has, "warnings"]
-        table.loc[has, "warnings"] = note.where(old == "", note + " | " + old)
-    if accept_units and accepted:
-        unit = table["bus"].map(accepted)
-        has = unit.notna() & (table["level"] == "bus")
-        old = table.loc[has, "warnings"]
-        table.loc[has, "warnings"] = unit[has].where(old == "", unit[has] + " | " + old)
+    # the level words where the unit check had nothing to say (as for one bus)
+    _prefix_bus_words(table, _level_notes(stats, model, table, skip=accepted.keys()))
+    _prefix_bus_words(table, accepted)
     table.attrs["loadbayes"] = _settings(table, model, pool, hyper, sampler, max_seconds, info)
     return table
 
@@ -374,11 +366,27 @@ def _unit_problems(stats: FleetStats, model: ZIPModel) -> list[tuple[int, list[s
     return out
 
 
-def _level_notes(stats: FleetStats, model: ZIPModel, table: pd.DataFrame) -> dict:
+def _prefix_bus_words(table: pd.DataFrame, words: dict) -> None:
+    """Put ``{bus: words}`` in front of those buses' rows' ``warnings`` (in place)."""
+    if not words:
+        return
+    note = table["bus"].map(words)
+    _prefix(table, note.notna() & (table["level"] == "bus"), note)
+
+
+def _prefix(table: pd.DataFrame, rows, words) -> None:
+    """``words`` (a string, or a Series by row) in front of ``rows``' ``warnings``."""
+    note = words[rows] if isinstance(words, pd.Series) else words
+    old = table.loc[rows, "warnings"]
+    table.loc[rows, "warnings"] = np.where(old == "", note, note + " | " + old)
+
+
+def _level_notes(stats: FleetStats, model: ZIPModel, table: pd.DataFrame, skip=()) -> dict:
     """``{bus: words}`` for fitted buses whose data put the given P0 (Q0) off their level.
 
     ``measurements.units.nominal_level_warnings_gram``: inside the unit check's range, but
     more than 5% and 4 standard errors off, where the shares take up the difference.
+    Buses in ``skip`` (those the unit check already spoke of) get none.
     """
     from loadbayes.measurements.units import nominal_level_warnings_gram
 
@@ -386,6 +394,7 @@ def _level_notes(stats: FleetStats, model: ZIPModel, table: pd.DataFrame) -> dic
     if all(v == "auto" for v in nominal.values()):
         return {}
     fitted = set(table.loc[(table["level"] == "bus") & table["parameter"].notna(), "bus"])
+    fitted -= set(skip)
     out = {}
     for i in range(stats.buses.size):
         if stats.buses[i] not in fitted or stats.bad[i] or stats.n[i] < 4:
@@ -477,8 +486,7 @@ def _note_prior_decided(table: pd.DataFrame, params, mean_sd: float, info: dict)
             f"{', '.join(f'{sd[p]:.3g}' for p in weak)} against the prior's {mean_sd:.3g}, "
             f"so the data of its {n} bus{'es' if n != 1 else ''} add little (flat voltage?)"
         )
-        old = table.loc[rows, "warnings"]
-        table.loc[rows, "warnings"] = np.where(old == "", words, words + " | " + old)
+        _prefix(table, rows, words)
         info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
 
 

@@ -118,6 +118,12 @@ def _suggest_base(raw_median: float, wording: Wording = "cli") -> str:
     return option("v-base", f"{raw_median:.4g}", wording=wording)
 
 
+def _zip_design(x: np.ndarray) -> np.ndarray:
+    """Columns ``1, x^2 - 1, x - 1``: the ZIP model's own form, its intercept the level at V0."""
+    dx = x - 1.0
+    return np.column_stack([np.ones_like(x), dx * (x + 1.0), dx])
+
+
 def level_at_nominal(x: np.ndarray, y: np.ndarray) -> float:
     """``y`` at ``x = 1`` by least squares on (1, x^2 - 1, x - 1): the ZIP model's own form.
 
@@ -133,9 +139,8 @@ def level_at_nominal(x: np.ndarray, y: np.ndarray) -> float:
     float
         The fitted power at ``V = V0`` (the median of ``y`` when V has no spread).
     """
-    dx = x - 1.0
     with np.errstate(all="ignore"):
-        a = np.column_stack([np.ones_like(x), dx * (x + 1.0), dx])
+        a = _zip_design(x)
     with np.errstate(all="ignore"):  # an absurd value is refused elsewhere by name
         if not np.isfinite(a).all() or np.ptp(x) < 1e-9:
             return float(np.median(y))  # no usable spread: the level at the V there is
@@ -312,8 +317,7 @@ def nominal_level_warnings(
         x = v[ok] / v0
         if ok.sum() < 4 or np.ptp(x) < 1e-9:
             continue
-        dx = x - 1.0
-        a = np.column_stack([np.ones_like(x), dx * (x + 1.0), dx])
+        a = _zip_design(x)
         level, se = _level_and_se(a.T @ a, a.T @ y[ok], float(y[ok] @ y[ok]), int(ok.sum()))
         note = _level_note(ch, level, se, lambda n, val: option(n, val, wording=wording))
         if note:
