@@ -183,3 +183,27 @@ def test_a_class_whose_buses_all_have_flat_voltage_says_the_prior_decides_its_me
     assert cls["flat"].startswith("the prior decides the class mean of a1, a2, a4, a5")
     assert "the prior decides" not in cls["moving"]
     assert any(w.startswith("class 'flat': the prior decides") for w in res.settings["warnings"])
+
+
+def test_a_class_of_one_bus_says_its_spreads_are_the_priors(tmp_path):
+    """One bus holds no variation between buses: its class's sd_* repeated the prior's
+    0.1 on clean rows (red-team finding); a class of five buses gets no such note."""
+    rng = np.random.default_rng(5)
+    frames = []
+    for i in range(6):
+        cls = "alone" if i == 0 else "many"
+        x = 1 + rng.uniform(-0.05, 0.05, 200)
+        p = 1.5 * (0.3 * x**2 + 0.4 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
+        q = 0.5 * (0.5 * x**2 + 0.2 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
+        frames.append(pd.DataFrame({"bus_id": f"b{i}", "customer_class": cls, "v": x,
+                                    "p": p, "q": q}))  # fmt: skip
+    path = tmp_path / "f.parquet"
+    pd.concat(frames, ignore_index=True).to_parquet(path)
+    sampler = SamplerSettings(chains=2, draws=300, burn=100, seed=0)
+    res = run_fleet(str(path), SPEC, pool="class", p0="auto", q0="auto", sampler=sampler)
+    cls = res.table[res.table["level"] == "class"]
+    alone = cls[cls["class"] == "alone"].set_index("parameter")["warnings"]
+    assert alone["sd_a1"].startswith("only 1 bus in this class: its spreads (sd_a1,")
+    assert "only 1 bus" not in alone["a1"]  # the mean is the bus's own estimate
+    assert not cls.loc[cls["class"] == "many", "warnings"].str.contains("only").any()
+    assert any(w.startswith("class 'alone': only 1 bus") for w in res.settings["warnings"])

@@ -453,6 +453,7 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
                 chains = _pooled_chains(data_h, hp, sampler, eng, max_seconds, info, folder)
                 table = hier.summarize_chains(data_h, chains, sampler)
                 _note_prior_decided(table, data_h.params, hp.mean_sd, info)
+                _note_few_buses(table, data_h.params, hp.spread, info)
                 frames = [table, failed]
             finally:
                 if folder is not None:
@@ -487,6 +488,32 @@ def _note_prior_decided(table: pd.DataFrame, params, mean_sd: float, info: dict)
             f"so the data of its {n} bus{'es' if n != 1 else ''} add little (flat voltage?)"
         )
         _prefix(table, rows, words)
+        info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
+
+
+#: A class with fewer buses than this says its spreads are mostly the prior's.
+SPREAD_MIN_BUSES = 3
+
+
+def _note_few_buses(table: pd.DataFrame, params, spread: float, info: dict) -> None:
+    """Warn on the class rows whose spreads one or two buses cannot inform.
+
+    A spread is a variation between buses: one bus holds none of it, so its posterior is
+    the inverse-Wishart prior's (typical value ``spread``), and two barely move it. The
+    class mean of such a class is its buses' own estimate, which the note does not touch.
+    """
+    is_cls = table["level"] == "class"
+    for name in pd.unique(table.loc[is_cls, "class"]):
+        rows = is_cls & (table["class"] == name)
+        n = int(table.loc[rows, "n"].iloc[0])
+        if n >= SPREAD_MIN_BUSES:
+            continue
+        words = (
+            f"only {n} bus{'es' if n != 1 else ''} in this class: its spreads "
+            f"({', '.join(f'sd_{p}' for p in params)}) are mostly the prior's (typical "
+            f"{spread:g}), not a measured variation between buses"
+        )
+        _prefix(table, rows & table["parameter"].astype(str).str.startswith("sd_"), words)
         info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
 
 
