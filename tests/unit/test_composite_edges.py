@@ -132,3 +132,47 @@ def test_a_step_between_point_samples_stays_a_step():
     fine = fine[np.abs(fine - 0.4013) > 1e-6]
     np.testing.assert_allclose(np.interp(fine, t_aug, grid.v), _v_of(fine, 0.4013, 0.3, 0.0),
                                atol=1e-12)  # fmt: skip
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.001])
+@pytest.mark.parametrize(
+    "rate, ramp, start",
+    [(60.0, 0.020, 0.4013), (60.0, 0.020, 0.2123), (30.0, 0.050, 0.4013), (120.0, 0.010, 0.4013)],
+)
+def test_a_ramp_with_one_sample_inside_starts_where_its_straight_line_can_end(
+    rate, ramp, start, noise
+):
+    """A start so early that the line through the inside sample reaches the level after
+    only past the next sample was clamped into a kinked line; the chains spent most of
+    their time there (issue 21's 60/s event: ESS of the recovery's instant 31-106 of
+    48,000 draws, 589-711 without). The start's range now ends there, less a margin
+    that keeps the true start inside with 0.1% noise on V, even for a ramp that ends
+    just before a sample (0.2123 + 0.020 = 0.2323 < 0.2333)."""
+    t, v = _record(rate, start, 0.3, ramp, noise=noise, seed=2)
+    fs = FitSamples.find([t], [v], window_s=0.0)
+    ((k0, k1),) = fs.edges[0]
+    assert k1 == k0 + 2  # one sample inside
+    grid = StepGrid.build([t], [v], [np.zeros(t.size)], intervals=fs.intervals, ends=fs.ends)
+    lo, hi = grid.left[0], grid.left[0] + grid.width[0]
+    assert t[k0] <= lo < start < hi <= t[k0 + 1]  # the truth inside
+    # Past the margin every start gives a straight ramp ending inside the last interval.
+    from loadbayes.models.composite_steps import RAMP_START_MARGIN
+
+    past = 0.0 if lo == t[k0] else RAMP_START_MARGIN * (t[k0 + 1] - t[k0]) / (hi - lo)
+    for phi in np.linspace(past + 0.01, 0.9, 7):
+        ta = grid.times(np.array([phi]))
+        a, b = ta[grid.pos[0]], ta[grid.pos_b[0]]
+        on_line = v[k0] + (v[k0 + 1] - v[k0]) * (b - a) / (t[k0 + 1] - a)
+        assert b < t[k1] and on_line == pytest.approx(v[k1], abs=1e-9)
+
+
+def test_the_start_bound_leaves_the_interval_alone_when_the_inside_sample_is_not_between():
+    from loadbayes.models.composite_steps import ramp_start_bound
+
+    # Inside sample beyond the level after (an overshoot): no straight ramp to bound.
+    assert ramp_start_bound(np.array([0.0, 1.0, 2.0]), np.array([1.0, 0.6, 0.7])) == 0.0
+    # An inside sample near the level after: any start's line ends in the last interval.
+    assert ramp_start_bound(np.array([0.0, 1.0, 2.0]), np.array([1.0, 0.6, 0.5])) == 0.0
+    # A sample barely off the level before: the start just before it, less the margin.
+    got = ramp_start_bound(np.array([0.0, 1.0, 2.0]), np.array([1.0, 0.997, 0.7]))
+    assert got == pytest.approx(1.0 - 0.003 / 0.297 - 0.1)

@@ -41,11 +41,12 @@ point samples every sample is kept, an edge may be as long as a ramp of
 ``V_k0`` until an unknown instant ``t_a`` in the first interval (the same ``phi``), is
 linear through the inside samples, and reaches ``V_k1`` at ``t_b`` in the last interval,
 where the line from ``(t_a, V_k0)`` through the last inside sample gets there (a
-straight ramp: no second unknown). With two or more samples inside, the line is theirs
-(least squares) and both ends are fixed where it reaches ``V_k0`` and ``V_k1``
-(:func:`ramp_ends`): no unknown at all (a sampled ``phi`` there cut the ESS of a 50 ms
-ramp at 120/s from 133 to 25). The angle follows the same knots. An edge of one
-interval (no sample inside) stays a step.
+straight ramp: no second unknown; ``t_a`` no earlier than where that line would get
+there only at the next sample, :func:`ramp_start_bound`). With two or more samples
+inside, the line is theirs (least squares) and both ends are fixed where it reaches
+``V_k0`` and ``V_k1`` (:func:`ramp_ends`): no unknown at all (a sampled ``phi`` there cut
+the ESS of a 50 ms ramp at 120/s from 133 to 25). The angle follows the same knots. An
+edge of one interval (no sample inside) stays a step.
 
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 (fit/composite/problem.py).
@@ -67,6 +68,7 @@ __all__ = [
     "JUMP",
     "NOISE_SIGMAS",
     "RAMP_MAX_S",
+    "RAMP_START_MARGIN",
     "RATIO",
     "FitSamples",
     "StepGrid",
@@ -75,6 +77,7 @@ __all__ = [
     "max_intervals",
     "ramp_ends",
     "ramp_intervals",
+    "ramp_start_bound",
     "step_intervals",
 ]
 
@@ -96,6 +99,10 @@ NOISE_SIGMAS = 4.0
 #: Point samples: the longest fault edge read as a ramp through its inside samples (s);
 #: a longer run is left as the samples draw it (a recovery the samples resolve).
 RAMP_MAX_S = 0.06
+#: A ramp with one sample inside starts no earlier than where its straight line through
+#: that sample ends at the next sample, less this share of its first interval (noise on
+#: the inside sample moves that bound by well under it: 0.1% noise on a 30% sag, 0.5%)...
+RAMP_START_MARGIN = 0.1
 
 
 def ramp_intervals(t: NDArray[np.float64]) -> int:
@@ -294,8 +301,9 @@ class StepGrid:
                     continue
                 pos.append(offset + pa)
                 pos_b.append(offset + pb)
-                left.append(t[k])
-                width.append(t[k + 1] - t[k])
+                lo = t[k] if k1 == k + 1 else ramp_start_bound(t[k : k1 + 1], v[k : k1 + 1])
+                left.append(lo)
+                width.append(t[k + 1] - lo)
                 last.append(t[k1 - 1] if k1 > k + 1 else t[k + 1])
                 right.append(t[k1])
                 v_a.append(v[k])
@@ -373,6 +381,24 @@ class StepGrid:
         """Inverse of :meth:`step_time`: each step's fraction from its instant."""
         frac = (np.asarray(times, dtype=float) - self.left) / self.width
         return np.clip((frac - self._eps_offset()) / (1 - 3 * EPS_FRACTION), 0.0, 1.0)
+
+
+def ramp_start_bound(t: NDArray[np.float64], v: NDArray[np.float64]) -> float:
+    """Earliest start of a straight ramp through one inside sample (``t, v``: 3 samples).
+
+    The line from ``(t_a, v[0])`` through ``(t[1], v[1])`` reaches ``v[2]`` inside the last
+    interval only when ``t_a`` is late enough; an earlier start had its end clamped at
+    ``t[2]``, a kinked line the model does not mean, where the chains spent most of
+    their time on a broad shoulder of ``t_a`` (docs/composite.md, "Ramps between point
+    samples"). The bound is moved :data:`RAMP_START_MARGIN` of the interval earlier (the
+    inside sample's noise moves it); the interval's start when the inside sample is not
+    between the levels.
+    """
+    rise, rest = float(v[1] - v[0]), float(v[2] - v[1])
+    if not rise * rest > 0.0:
+        return float(t[0])
+    a_lo = float(t[1]) - rise * float(t[2] - t[1]) / rest
+    return float(max(a_lo - RAMP_START_MARGIN * float(t[1] - t[0]), t[0]))
 
 
 def ramp_ends(t: NDArray[np.float64], v: NDArray[np.float64]) -> tuple[float, float]:

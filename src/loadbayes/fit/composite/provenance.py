@@ -96,7 +96,9 @@ def problem_settings(
                 "rule": "point samples (window 0): an edge of up to "
                 f"{RAMP_MAX_S:g} s with samples inside it is a straight ramp through them "
                 "(kept in the likelihood); with one inside, from an unknown instant in its "
-                "first interval (its t_step) to where that line reaches the level after; "
+                "first interval (its t_step; no earlier than where the line would reach "
+                "the level after only at the next sample, 'intervals' t_s) to where that "
+                "line reaches the level after; "
                 "with more, between where their least-squares line reaches the levels "
                 "before and after (fixed)",
                 "count": fs.ramps,
