@@ -52,7 +52,7 @@ from loadbayes.fit.composite.provenance import (
 )
 from loadbayes.fit.composite.residuals import residual_autocorrelation, residual_warning
 from loadbayes.fit.composite.robust import StudentT, robust_outputs
-from loadbayes.fit.composite.sampler import DEFAULT_MOVE, sample
+from loadbayes.fit.composite.sampler import DEFAULT_MOVE, ONE_EVALUATION_MOVES, sample
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
 from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
 from loadbayes.models.composite import THETA_NAMES, EventRecord
@@ -170,9 +170,10 @@ def _factor(shares: str, normal: dict | None, move: str) -> CoefficientPrior | N
         )
     except ValueError as exc:
         raise OptionError(f"--prior: {exc}") from None
-    if factor.active and move != "am":
+    if factor.active and move not in ONE_EVALUATION_MOVES:
         raise OptionError(
-            "--shares bounded and priors on a1..a6, f_m, p0, q0 need the default move (am)"
+            "--shares bounded and priors on a1..a6, f_m, p0, q0 need a Metropolis move "
+            f"({', '.join(ONE_EVALUATION_MOVES)}), not {move!r}"
         )
     return factor if factor.active else None
 

@@ -26,9 +26,17 @@ __all__ = [
 ]
 
 #: The posterior's ``method`` for each u-move (``-student-t`` appended with that noise).
-METHOD = {"am": "mwg-adaptive-metropolis", "slice": "mwg-factor-slice"}
+METHOD = {
+    "am": "mwg-adaptive-metropolis",
+    "shear": "mwg-sheared-adaptive-metropolis",
+    "slice": "mwg-factor-slice",
+}
 #: The u-move in words, for the ``scheme`` setting.
-MOVE_NAME = {"am": "adaptive Metropolis", "slice": "factor slice sampling"}
+MOVE_NAME = {
+    "am": "adaptive Metropolis",
+    "shear": "adaptive Metropolis in coordinates straightening the main bend (from burn-in)",
+    "slice": "factor slice sampling",
+}
 
 
 def problem_settings(

@@ -31,10 +31,13 @@ from loadbayes.inference.condlinear import (
 )
 from loadbayes.inference.moves import MOVES
 
-__all__ = ["DEFAULT_MOVE", "MOVES", "ChainResult", "sample"]
+__all__ = ["DEFAULT_MOVE", "MOVES", "ONE_EVALUATION_MOVES", "ChainResult", "sample"]
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
-DEFAULT_MOVE = "am"
+DEFAULT_MOVE = "shear"
+#: The moves that take one density evaluation per step, as the prior factors' estimated
+#: density (importance weights) needs: a slice move cannot use an estimated density.
+ONE_EVALUATION_MOVES = ("am", "shear")
 #: Seconds between two progress reports of one chain.
 PROGRESS_EVERY_S = 0.2
 
@@ -321,10 +324,11 @@ def sample(
         Threads for the chains.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
-    move : {"am", "slice"}
-        The u-move (:data:`MOVES`): adaptive Metropolis, or factor slice sampling in
-        the eigenbasis of the covariance learned in burn-in (docs/composite.md, "Why
-        this move").
+    move : {"shear", "am", "slice"}
+        The u-move (:data:`MOVES`): adaptive Metropolis in coordinates that straighten
+        the posterior's main bend (the default), plain adaptive Metropolis, or factor
+        slice sampling in the eigenbasis of the covariance learned in burn-in
+        (docs/composite.md, "Why this move").
     student_t : loadbayes.fit.composite.robust.StudentT, optional
         Student-t noise (a weights step each iteration); Gaussian noise when None.
     progress : callable, optional
@@ -337,7 +341,7 @@ def sample(
         run extended by ``n`` gives the same draws as one of ``draws + n``.
     factor : loadbayes.models.composite_prior.CoefficientPrior, optional
         A prior factor on the coefficients (bounded shares, priors on named quantities),
-        handled by :class:`_Tilted`; needs the ``"am"`` move (one evaluation per step).
+        handled by :class:`_Tilted`; needs a move of :data:`ONE_EVALUATION_MOVES`.
     ar : bool
         AR(1) noise on P and Q (one ``rho`` each, uniform prior on (-1, 1),
         :func:`loadbayes.inference.ar1.draw_rho` each iteration); Gaussian noise only.
@@ -351,10 +355,11 @@ def sample(
         raise ValueError(f"move must be one of {sorted(MOVES)}, got {move!r}")
     if ar and student_t is not None:
         raise ValueError("AR(1) noise is for the Gaussian likelihood only")
-    if factor is not None and factor.active and move != "am":
+    if factor is not None and factor.active and move not in ONE_EVALUATION_MOVES:
         raise ValueError(
-            "bounded shares and priors on the coefficients need the 'am' move: its density "
-            "is estimated (importance weights), which a slice move cannot use"
+            "bounded shares and priors on the coefficients need a Metropolis move "
+            f"({', '.join(ONE_EVALUATION_MOVES)}): their density is estimated (importance "
+            "weights), which a slice move cannot use"
         )
     # The motor's five, the steps' fractions, then any extra coordinates (torque shares).
     d = dim = problem.dim

@@ -9,6 +9,7 @@ from __future__ import annotations
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.moves.base import BlockMove, RunningCovariance, scaled_eigenvectors
 from loadbayes.inference.moves.factor_slice import FactorSlice
+from loadbayes.inference.moves.sheared import ShearedAM
 
 __all__ = [
     "MOVES",
@@ -16,8 +17,13 @@ __all__ = [
     "BlockMove",
     "FactorSlice",
     "RunningCovariance",
+    "ShearedAM",
     "scaled_eigenvectors",
 ]
 
 #: The moves by name (all physics-free, same ``step`` contract).
-MOVES: dict[str, type[BlockMove]] = {"am": AdaptiveMetropolis, "slice": FactorSlice}
+MOVES: dict[str, type[BlockMove]] = {
+    "am": AdaptiveMetropolis,
+    "shear": ShearedAM,
+    "slice": FactorSlice,
+}

@@ -1,0 +1,194 @@
+"""Adaptive Metropolis in coordinates that straighten a curved ridge (a polynomial shear).
+
+Knows no physics: a block is a vector ``x`` and a log-density callable.
+
+A random-walk proposal with one covariance moves well along a straight ridge and badly
+along a bent one: the proposal's width across the ridge must be the ridge's, so its
+steps along it are short, and a bend makes every long step leave it. This move learns
+the bend in the first half of the burn-in and removes it for the rest of the run:
+
+- the first half of the burn-in is :class:`~loadbayes.inference.moves.adaptive_metropolis.
+  AdaptiveMetropolis` as is;
+- at mid burn-in, with the block standardised by the draws' mean ``m`` and sds ``D``
+  (``y = (x - m) / D``), the pivot ``s = e . y`` is the position along the draws' first
+  principal direction ``e``; each coordinate across it, ``r = y - s e``, is regressed on
+  ``s^2`` and ``s^3`` (the linear part is nil by construction), giving the ridge's bend
+  ``H(s)``, orthogonal to ``e``, with ``s`` clipped to the range the draws covered;
+- from then on the chain moves ``w = y - H(e . y)``: a shear (``e . w = s``, so
+  ``y = w + H(e . w)``), whose Jacobian is one, so the Metropolis ratio is the density
+  ratio as before; the second half of the burn-in learns the covariance and scale in
+  ``w`` (started from the first half's draws, transformed) and then all freeze.
+
+The kept draws therefore come from a fixed Metropolis kernel in fixed coordinates, as
+with :class:`AdaptiveMetropolis`. When the bend explains little (no coordinate's
+``R^2`` above :data:`MIN_R2`) the shear is left out and the move is AM in standardised
+coordinates; with a burn-in too short to learn it from (fewer than
+:data:`MIN_HISTORY` draws in its second quarter) the move is AM, draw for draw.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
+from loadbayes.inference.moves.base import RunningCovariance, scaled_eigenvectors
+
+__all__ = ["MIN_HISTORY", "MIN_R2", "Shear", "ShearedAM"]
+
+#: The bend is used when it explains at least this share of some coordinate's variance
+#: across the principal direction.
+MIN_R2 = 0.2
+#: ... and is learned only from at least this many burn-in draws (the second quarter of
+#: a burn-in of 2,000 or more): from the 100 draws of a 400-iteration burn-in it was a
+#: wrong bend, and 200 short fits covered T' at 88% (test_composite_recovery).
+MIN_HISTORY = 500
+
+
+def _bend(y: np.ndarray, e: np.ndarray):
+    """The bend of standardised draws ``y`` across pivot ``e``.
+
+    Returns (explained variance, ``e``, coefficients (2, d) orthogonal to ``e``, R^2 per
+    coordinate, the pivots ``s``).
+    """
+    s = y @ e
+    r = y - np.outer(s, e)
+    basis = np.stack([s**2 - np.mean(s**2), s**3], axis=1)
+    coef, *_ = np.linalg.lstsq(basis, r, rcond=None)
+    coef -= np.outer(coef @ e, e)  # keep H orthogonal to e
+    fitted = basis @ coef
+    var = r.var(axis=0)
+    r2 = np.where(var > 0, 1.0 - (r - fitted).var(axis=0) / np.where(var > 0, var, 1), 0.0)
+    return float(fitted.var(axis=0).sum()), e, coef, r2, s
+
+
+class Shear:
+    """``w = y - H(e . y)`` with ``y = (x - m) / D`` and ``H(s) = A [s^2, s^3]`` (clipped ``s``).
+
+    Parameters
+    ----------
+    draws : ndarray, shape (n, d)
+        Draws of the block the bend is learned from.
+    """
+
+    def __init__(self, draws: np.ndarray) -> None:
+        draws = np.asarray(draws, dtype=float)
+        self.m = draws.mean(axis=0)
+        self.D = np.where(draws.std(axis=0) > 0, draws.std(axis=0), 1.0)
+        y = (draws - self.m) / self.D
+        _, v = np.linalg.eigh(np.cov(y, rowvar=False))
+        # The pivot is the first principal direction. Choosing, of all principal
+        # directions and coordinate axes, the one across which the draws bend most
+        # found spurious bends in a chain's poorly mixed burn-in: min ESS 5-14 against
+        # 214-291 on issue 21's events (docs/composite.md, "A bent ridge, straightened").
+        best = _bend(y, v[:, -1])
+        _, self.e, coef, self.r2, s = best
+        self.s_lo, self.s_hi = float(s.min()), float(s.max())
+        self.active = bool(np.max(self.r2) >= MIN_R2)
+        self.coef = coef if self.active else np.zeros_like(coef)
+        self.c2 = float(np.mean(s**2))
+
+    def _h(self, s: float) -> np.ndarray:
+        s = min(max(s, self.s_lo), self.s_hi)
+        return (s * s - self.c2) * self.coef[0] + s**3 * self.coef[1]
+
+    def forward(self, x: np.ndarray) -> np.ndarray:
+        """``w`` of a block ``x``."""
+        y = (x - self.m) / self.D
+        return y - self._h(float(y @ self.e))
+
+    def inverse(self, w: np.ndarray) -> np.ndarray:
+        """The block ``x`` of ``w``."""
+        y = w + self._h(float(w @ self.e))
+        return self.m + self.D * y
+
+
+class ShearedAM(AdaptiveMetropolis):
+    """Adaptive Metropolis that straightens the posterior's main bend at mid burn-in.
+
+    Parameters
+    ----------
+    cov0 : ndarray, shape (d, d)
+        Initial proposal covariance (before scaling), e.g. a Laplace approximation.
+    adapt_until : int
+        Iterations during which the move adapts (the burn-in); the shear is learned at
+        half of it from the draws of its second quarter, when they are at least
+        :data:`MIN_HISTORY` (else the move is :class:`AdaptiveMetropolis` throughout).
+    adapt_start : int
+        Iterations with ``cov0`` before the empirical covariance takes over.
+    target : float
+        Acceptance rate the scale is tuned towards.
+    """
+
+    def __init__(
+        self,
+        cov0: np.ndarray,
+        *,
+        adapt_until: int,
+        adapt_start: int = 100,
+        target: float = 0.234,
+    ) -> None:
+        super().__init__(cov0, adapt_until=adapt_until, adapt_start=adapt_start, target=target)
+        self.shear: Shear | None = None
+        self._switch = adapt_until // 2
+        self._min_history = max(MIN_HISTORY, 10 * self.d)
+        self._history: list[np.ndarray] = []
+
+    def step(
+        self,
+        x: np.ndarray,
+        logp_x: float,
+        logp: Callable[[np.ndarray], tuple[float, Any]],
+        rng: np.random.Generator,
+        iteration: int,
+        aux: Any = None,
+    ) -> tuple[np.ndarray, float, Any, bool]:
+        """One Metropolis step (in the sheared coordinates after mid burn-in).
+
+        The arguments and the return are :meth:`AdaptiveMetropolis.step`'s.
+        """
+        if self.shear is None:
+            if iteration == self._switch and len(self._history) >= self._min_history:
+                self.use_shear(Shear(np.array(self._history)))
+            else:
+                x, logp_x, aux, moved = super().step(x, logp_x, logp, rng, iteration, aux)
+                if self._switch // 2 <= iteration < self._switch:
+                    self._history.append(np.array(x, dtype=float))
+                return x, logp_x, aux, moved
+        shear = self.shear
+        w = shear.forward(x)
+        z = rng.standard_normal(self.d)
+        w_prop = w + math.exp(0.5 * self.log_scale) * (self._root @ z)
+        prop = shear.inverse(w_prop)
+        lp_prop, aux_prop = logp(prop)
+        log_u = math.log(rng.uniform())
+        ok = math.isfinite(lp_prop)
+        alpha = min(1.0, math.exp(min(0.0, lp_prop - logp_x))) if ok else 0.0
+        accept = ok and log_u < lp_prop - logp_x
+        self.steps += 1
+        self.evaluations += 1
+        if accept:
+            x, logp_x, aux, w = prop, lp_prop, aux_prop, w_prop
+            self.accepted += 1
+        if iteration < self.adapt_until:
+            self.log_scale += (alpha - self.target) / math.sqrt(iteration + 1.0)
+            self._learn(w)
+        return x, logp_x, aux, bool(accept)
+
+    def use_shear(self, shear: Shear, draws: np.ndarray | None = None) -> None:
+        """Move in ``shear``'s coordinates from now on; the covariance restarts there.
+
+        ``draws`` (default: this chain's second quarter) seed the covariance in ``w``.
+        """
+        hist = np.array(self._history) if draws is None else np.asarray(draws)
+        self._history = []
+        self.shear = shear
+        w = np.array([shear.forward(h) for h in hist])
+        self._running = RunningCovariance(np.cov(w, rowvar=False), self.adapt_start)
+        for row in w:
+            self._running.update(row)
+        self.cov = self._running.cov
+        self._root = scaled_eigenvectors(self.cov)
