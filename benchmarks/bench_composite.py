@@ -7,8 +7,8 @@ noise 1% of |S0| on P and Q (``cases.composite_sim``, SciPy's DOP853 as the trut
 Timed, in the same run:
 
 - ``fit_composite`` (NLS start + Metropolis-within-Gibbs, 4 chains in threads, the
-  compiled RK4 kernel) with each u-move (``move="am"``, the default, at the default
-  10,000 iterations / 3,000 burn-in, and ``move="slice"``), wall time including the NLS
+  compiled RK4 kernel) with each u-move (the default, ``move="shear"``, at the default
+  16,000 iterations / 4,000 burn-in, and ``move="slice"``), wall time including the NLS
   and the numba compilation having been done once before (a warm-up fit on a short
   event);
 - emcee 3 (32 walkers, the stretch move) on the same model's joint log-posterior
@@ -80,9 +80,12 @@ def _ess_rhat(draws: dict[str, np.ndarray]) -> tuple[float, float, str]:
     return float(s["ess_bulk"].min()), float(s["r_hat"].max()), str(worst)
 
 
-def run_loadbayes(fs, t_end, draws, burn, seed=0, move="am", steps=True, event=None):
+def run_loadbayes(fs, t_end, draws, burn, seed=0, move=None, steps=True, event=None):
     """One fit; ``draws=None``: at the defaults (the sizes, chains and move the user gets)."""
     from loadbayes.fit.composite.driver import fit_composite
+    from loadbayes.fit.composite.sampler import DEFAULT_MOVE
+
+    move = move or DEFAULT_MOVE
 
     ev, truth = _event(fs, t_end) if event is None else event
     sizes = {} if draws is None else {"draws": draws, "burn": burn, "chains": 4, "move": move}
@@ -405,9 +408,11 @@ def run_library_part(args) -> tuple[list[dict], list[dict]]:
     # The default move at the package's default sizes (fit_composite: 16,000 iterations,
     # 4,000 burn-in); factor slice costs ~20 density evaluations per iteration, so fewer
     # of its iterations take about as long.
-    sizes = {"am": (16_000, 4000), "slice": (2500, 700)}
+    from loadbayes.fit.composite.sampler import DEFAULT_MOVE
+
+    sizes = {DEFAULT_MOVE: (16_000, 4000), "slice": (2500, 700)}
     if args.quick:
-        sizes = {"am": (600, 300), "slice": (150, 60)}
+        sizes = {DEFAULT_MOVE: (600, 300), "slice": (150, 60)}
     if not args.slice:
         del sizes["slice"]
     steps = 20 if args.quick else 2000
@@ -421,15 +426,13 @@ def run_library_part(args) -> tuple[list[dict], list[dict]]:
             print(_line(rows[-1]), flush=True)
     # emcee's log-posterior reads the sag's step as a ramp (five motor coordinates, no
     # step instants): the ratio is taken against loadbayes on that same posterior.
-    rows.append(run_loadbayes(60.0, t_end, *sizes["am"], move="am", steps=False))
+    rows.append(run_loadbayes(60.0, t_end, *sizes[DEFAULT_MOVE], move=DEFAULT_MOVE, steps=False))
     print(_line(rows[-1]), flush=True)
     rows.append(run_emcee(60.0, t_end, steps, seconds=30.0 if args.quick else 150.0))
     print(_line(rows[-1]), flush=True)
     long_steps = 100 if args.quick else 6000
     rows.append(run_emcee(60.0, t_end, long_steps, seconds=600.0, motor="kernel"))
     print(_line(rows[-1]), flush=True)
-    from loadbayes.fit.composite.sampler import DEFAULT_MOVE
-
     default = [r for r in rows if r.get("move") == DEFAULT_MOVE and r.get("steps")]
     same = [r for r in rows if r.get("steps") is False][0]
     lb, em, ek = same, rows[-2], rows[-1]
