@@ -1,0 +1,143 @@
+"""The composite fit on a recorder's waveforms: COMTRADE -> read comtrade -> fit composite.
+
+Issue 21 asks the composite fit to recover ``f_m`` and ``T'`` "including recordings that
+went through a recorder's phasor estimation". The events here are made without loadbayes
+(tests/waveform_composite.py: the SciPy motor + ZIP trajectory of
+tests/independent_composite.py, turned into balanced three-phase voltage and current
+waveforms at 64 samples per cycle, volts and amperes of a 110 kV bus and a 32 MW load,
+noise on every sample, written as a C37.111-1999 ASCII ``.cfg`` + ``.dat`` by its own
+writer), then go through the CLI as a user's record does: ``loadbayes read comtrade``
+(the package's phasor estimator, one row per cycle stamped at its window's centre) and
+``loadbayes fit composite`` on the rows it writes (per unit with the record's bases;
+``angle_rad`` and ``f`` columns as written; the one-cycle window model).
+
+Two events: the fast motor (T' 0.060 s) at 60 Hz and the slow one (T' 0.84 s at 50 Hz:
+its rotor resistance is set for 0.70 s at 60 Hz), a 35% sag of 0.15 s starting 0.5123 s
+into a 2.5 s record (inside a cycle), f_m 0.40.
+
+**The defect these tests pin** (``xfail(strict=True)``): at its default ``--dc auto``
+the reader's decaying-offset test (an F-test of an offset ramp and curvature in each
+current channel's window, ``recordings/phasor_fit.py``) fires on the first whole window
+after each voltage step, where the motor's current amplitude falls or rises with its
+flux (time constant ``T' X' / X``, 5 ms for the fast motor): a changing fundamental, not
+a decaying offset. The mimic filter then used in those windows (per phase: in one phase
+and not the others) puts P off the window mean the fit models by -2.3% to -3.4% of the
+load in the sag's first window and +3.7% to +5.7% after the recovery (20 to 50 times
+the rows' noise sd of 0.10% on these events), and fires through the slow motor's
+0.7 s recovery too (its rows' noise sd 0.34-0.39% against 0.10% with ``--dc off``).
+The fast motor's f_m is then read as 0.71-1.20 for 0.40 (T' covered). With ``--dc off``
+the rows equal the window means to their noise and both motors are covered (the measured
+table is in docs/composite.md, "A recorder's waveforms").
+
+False-alarm rate of the passing test (``--dc off``): it fails when two or more of its four
+95% intervals (f_m and T' of two events) miss; with independent intervals of exact 95%
+coverage that is 1 - 0.95^4 - 4 (0.05) 0.95^3 = 1.4%. The runs are deterministic (fixed
+seeds, fixed draws), so a pass stays a pass. The phasor checks are not statistical: the
+bound of 6 noise sd on every non-straddling row has a false-alarm rate below 1e-6 per row.
+
+Cost: the recordings and their reading take about 3 s; each fit runs 2 chains of 6,000
+iterations (2,000 burn-in) rather than the run-until-converged default, to keep the
+test near 90 s of CPU; the R-hat of f_m and T' is checked (< 1.05).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from independent_composite import Sag
+from loadbayes.cli import main
+from waveform_composite import window_means, write_event
+
+pytestmark = [pytest.mark.integration, pytest.mark.statistical]
+
+V_BASE_KV, S_BASE_MVA = 110.0, 40.0
+SAG = Sag(0.5123, 0.35, 0.15, 0.0, 0.0)
+EVENTS = {
+    "small_fast_60hz": {"motor": "small_fast", "f_hz": 60.0, "seed": 1},
+    "large_slow_50hz": {"motor": "large_slow", "f_hz": 50.0, "seed": 2},
+}
+FIT = ("--draws", "6000", "--burn", "2000", "--chains", "2", "--seed", "0")
+
+DC_AUTO_DEFECT = pytest.mark.xfail(
+    strict=True,
+    reason="read comtrade --dc auto: the decaying-offset test fires on the first window "
+    "after a voltage step, where the motor's current amplitude moves with its flux; the "
+    "mimic filter then puts P off the window mean by 2-6% of the load",
+)
+DC_MODES = [pytest.param("auto", marks=DC_AUTO_DEFECT), "off"]
+
+
+def cli(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    return res
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("waveform")
+    out = {}
+    for name, ev in EVENTS.items():
+        cfg, truth, traj = write_event(
+            folder / name, v_base_kv=V_BASE_KV, s_base_mva=S_BASE_MVA, sags=(SAG,), **ev
+        )
+        out[name] = (cfg, truth, traj)
+    return out
+
+
+def read_rows(cfg, dc: str) -> pd.DataFrame:
+    csv = cfg.with_name(f"{cfg.stem}_dc_{dc}.csv")
+    if not csv.exists():
+        cli("read", "comtrade", cfg, "--out", csv, "--v-base", V_BASE_KV,
+            "--s-base", S_BASE_MVA, "--dc", dc, "--quiet")  # fmt: skip
+    return csv
+
+
+@pytest.mark.parametrize("dc", DC_MODES)
+def test_read_comtrade_rows_are_the_window_means(recordings, dc):
+    """Every row not straddling a step holds the trajectory's one-cycle window mean.
+
+    The composite fit reads a phasor row as the mean of V, P and Q over the cycle centred
+    on its stamp (docs/composite.md, "Phasor samples"): the reader's rows must be that,
+    to their noise, or the fit is told the wrong thing.
+    """
+    for name, (cfg, truth, traj) in recordings.items():
+        window = 1.0 / EVENTS[name]["f_hz"]
+        err, keep, near = {}, None, None
+        for mode in dict.fromkeys(("off", dc)):
+            rows = pd.read_csv(read_rows(cfg, mode))
+            t = rows["t_s"].to_numpy()
+            mean = window_means(traj, t, window)
+            err[mode] = np.vstack([rows[c].to_numpy() for c in ("v", "p", "q")]) - mean
+            keep = ~rows["straddle"].to_numpy(dtype=bool)
+            near = np.zeros(t.size, dtype=bool)
+            for tf in truth["t_fault_s"]:
+                near |= np.abs(t - tf) < 1.5 * window
+        # The rows' noise: far from the steps, read with the plain one-cycle fit (--dc off).
+        sd = err["off"][:, keep & ~near].std(axis=1)
+        assert np.all(sd < 0.002), (name, sd)  # 0.10% of the load on these events
+        worst = np.max(np.abs(err[dc][:, keep]) / sd[:, None], axis=1)
+        assert np.all(worst < 6.0), (name, dc, dict(zip("vpq", worst.round(1), strict=True)))
+
+
+@pytest.mark.parametrize("dc", DC_MODES)
+def test_fit_composite_covers_f_m_and_t_prime_from_waveforms(recordings, dc):
+    """The 95% intervals of f_m and T' (the JSON's HDI) hold the truth: at most one miss of 4."""
+    misses, seen = 0, {}
+    for name, (cfg, truth, _) in recordings.items():
+        csv = read_rows(cfg, dc)
+        out = csv.with_suffix(".json")
+        cli("fit", "composite", csv, "--f-hz", EVENTS[name]["f_hz"], "--json", out,
+            "--quiet", "--force", *FIT)  # fmt: skip
+        par = json.loads(out.read_text())["parameters"]
+        for key, true in (("f_m", truth["f_m"]), ("t_prime_s", truth["t_prime_s"])):
+            lo, hi = par[key]["hdi_low"], par[key]["hdi_high"]
+            seen[(name, key)] = (round(lo, 3), round(hi, 3), round(true, 3))
+            assert par[key]["r_hat"] < 1.05, (name, key, par[key]["r_hat"])
+            misses += not lo <= true <= hi
+    assert misses <= 1, seen
