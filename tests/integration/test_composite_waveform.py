@@ -1,0 +1,160 @@
+"""The composite fit on a recorder's waveforms: COMTRADE -> read comtrade -> fit composite.
+
+Issue 21 asks the composite fit to recover ``f_m`` and ``T'`` "including recordings that
+went through a recorder's phasor estimation". The events here are made without loadbayes
+(tests/waveform_composite.py: the SciPy motor + ZIP trajectory of
+tests/independent_composite.py, turned into balanced three-phase voltage and current
+waveforms at 64 samples per cycle, volts and amperes of a 110 kV bus and a 32 MW load,
+noise on every sample, written as a C37.111-1999 ASCII ``.cfg`` + ``.dat`` by its own
+writer), then go through the CLI as a user's record does: ``loadbayes read comtrade``
+(the package's phasor estimator, one row per cycle stamped at its window's centre) and
+``loadbayes fit composite`` on the rows it writes (per unit with the record's bases;
+the ``angle_rad`` column as written; the one-cycle window model).
+
+The events: the fast motor (T' 0.060 s at 60 Hz, 0.072 s at 50 Hz: its rotor resistance
+is set for 60 Hz), f_m 0.40, a 35% sag of 0.15 s starting 0.5123 s into a 2.5 s record
+(inside a cycle), at 60 Hz (noise seed 1) and 50 Hz (seed 2). The slow motor (T' 0.70 s)
+is covered by the chain at the run-until-converged defaults (docs/composite.md, "A
+recorder's waveforms") but does not converge in this test's budget (R-hat 1.75 after the
+default 4 x 16,000 iterations, 1.2 after 4 x 40,000), so it is not asserted on here.
+
+**The defect these tests pin** (``xfail(strict=True)``): at its default ``--dc auto``
+the reader's decaying-offset test (an F-test of an offset ramp and curvature in each
+current channel's window, ``recordings/phasor_fit.py``) fires on the first whole window
+after each voltage step, where the motor's current amplitude falls or rises with its
+flux (time constant ``T' X' / X``, 5 ms for the fast motor): a changing fundamental, not
+a decaying offset. The mimic filter then used in those windows (per phase: in one or two
+phases and not the others) puts P off the window mean that the fit models by -2.3% to
+-3.4% of the load in the sag's first window and +3.7% to +5.7% after the recovery (20
+to 50 times the rows' noise sd of 0.10%), and fires through the slow motor's recovery
+too (its rows' noise sd 0.34-0.39% against 0.10% with ``--dc off``). The fast motor's
+f_m is then read as 0.69-1.18 for 0.40. With ``--dc off`` the rows equal the window
+means to their noise and f_m and T' are covered.
+
+False-alarm rate of the passing fit test (``--dc off``): it fails when two or more of its
+four 95% intervals (f_m and T' of two events) miss; with independent intervals of exact
+95% coverage that is 1 - 0.95^4 - 4 (0.05) 0.95^3 = 1.4%; and when the R-hat of f_m or
+T' reaches 1.1 (measured 1.015-1.061). The runs are deterministic (fixed seeds, fixed
+draws). The phasor-row check is not statistical: a bound of 6 noise sd on every
+non-straddling row is crossed by noise with probability below 1e-6 per row.
+
+Cost: about 85 s of CPU (two fits of the passing test, one of the defect's, 4 x 16,000
+iterations each: the default chains and draws, without the run-on until converged,
+whose time budget would make the result depend on the machine); the recordings and
+their reading about 2 s.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from independent_composite import Sag
+from loadbayes.cli import main
+from waveform_composite import window_means, write_event
+
+pytestmark = [pytest.mark.integration, pytest.mark.statistical]
+
+V_BASE_KV, S_BASE_MVA = 110.0, 40.0
+SAG = Sag(0.5123, 0.35, 0.15, 0.0, 0.0)
+EVENTS = {
+    "small_fast_60hz": {"motor": "small_fast", "f_hz": 60.0, "seed": 1},
+    "small_fast_50hz": {"motor": "small_fast", "f_hz": 50.0, "seed": 2},
+}
+# The default chains and draws (4 x 16,000, 4,000 burn-in), without the run-on until
+# converged: a time budget would make the run depend on the machine.
+FIT = ("--fixed-draws", "--seed", "0")
+
+DC_AUTO_DEFECT = pytest.mark.xfail(
+    strict=True,
+    raises=AssertionError,
+    reason="read comtrade --dc auto: the decaying-offset test fires on the first window "
+    "after a voltage step, where the motor's current amplitude moves with its flux; the "
+    "mimic filter then puts P off the window mean by 2-6% of the load",
+)
+DC_MODES = [pytest.param("auto", marks=DC_AUTO_DEFECT), "off"]
+
+
+def cli(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    return res
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("waveform")
+    out = {}
+    for name, ev in EVENTS.items():
+        cfg, truth, traj = write_event(
+            folder / name, v_base_kv=V_BASE_KV, s_base_mva=S_BASE_MVA, sags=(SAG,), **ev
+        )
+        out[name] = (cfg, truth, traj)
+    return out
+
+
+def read_rows(cfg, dc: str) -> pd.DataFrame:
+    csv = cfg.with_name(f"{cfg.stem}_dc_{dc}.csv")
+    if not csv.exists():
+        cli("read", "comtrade", cfg, "--out", csv, "--v-base", V_BASE_KV,
+            "--s-base", S_BASE_MVA, "--dc", dc, "--quiet")  # fmt: skip
+    return csv
+
+
+@pytest.mark.parametrize("dc", DC_MODES)
+def test_read_comtrade_rows_are_the_window_means(recordings, dc):
+    """Every row not straddling a step holds the trajectory's one-cycle window mean.
+
+    The composite fit reads a phasor row as the mean of V, P and Q over the cycle centred
+    on its stamp (docs/composite.md, "Phasor samples"): the reader's rows must be that,
+    to their noise, or the fit is told the wrong thing.
+    """
+    for name, (cfg, truth, traj) in recordings.items():
+        window = 1.0 / EVENTS[name]["f_hz"]
+        err, keep, near = {}, None, None
+        for mode in dict.fromkeys(("off", dc)):
+            rows = pd.read_csv(read_rows(cfg, mode))
+            t = rows["t_s"].to_numpy()
+            mean = window_means(traj, t, window)
+            err[mode] = np.vstack([rows[c].to_numpy() for c in ("v", "p", "q")]) - mean
+            keep = ~rows["straddle"].to_numpy(dtype=bool)
+            near = np.zeros(t.size, dtype=bool)
+            for tf in truth["t_fault_s"]:
+                near |= np.abs(t - tf) < 1.5 * window
+        # The rows' noise: far from the steps, read with the plain one-cycle fit (--dc off).
+        sd = err["off"][:, keep & ~near].std(axis=1)
+        assert np.all(sd < 0.002), (name, sd)  # 0.10% of the load on these events
+        worst = np.max(np.abs(err[dc][:, keep]) / sd[:, None], axis=1)
+        assert np.all(worst < 6.0), (name, dc, dict(zip("vpq", worst.round(1), strict=True)))
+
+
+def _fit(csv, f_hz):
+    out = csv.with_suffix(".json")
+    cli("fit", "composite", csv, "--f-hz", f_hz, "--json", out, "--quiet", "--force", *FIT)
+    return json.loads(out.read_text())["parameters"]
+
+
+def test_fit_composite_covers_f_m_and_t_prime_from_waveforms(recordings):
+    """Read with --dc off, the 95% intervals (the JSON's HDI) hold the truth: <= 1 miss of 4."""
+    misses, seen, r_hat = 0, {}, {}
+    for name, (cfg, truth, _) in recordings.items():
+        par = _fit(read_rows(cfg, "off"), EVENTS[name]["f_hz"])
+        for key in ("f_m", "t_prime_s"):
+            lo, hi, true = par[key]["hdi_low"], par[key]["hdi_high"], truth[key]
+            seen[(name, key)] = (round(lo, 3), round(hi, 3), round(true, 3))
+            r_hat[(name, key)] = par[key]["r_hat"]
+            misses += not lo <= true <= hi
+    assert misses <= 1, seen
+    assert max(r_hat.values()) < 1.1, r_hat
+
+
+@DC_AUTO_DEFECT
+def test_fit_composite_at_the_reader_s_defaults_covers_f_m(recordings):
+    """The whole chain at its defaults: the fast motor's f_m (read 0.69-1.18 for 0.40)."""
+    cfg, truth, _ = recordings["small_fast_60hz"]
+    par = _fit(read_rows(cfg, "auto"), EVENTS["small_fast_60hz"]["f_hz"])
+    assert par["f_m"]["hdi_low"] <= truth["f_m"] <= par["f_m"]["hdi_high"], par["f_m"]
