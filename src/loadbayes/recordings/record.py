@@ -52,8 +52,8 @@ MIN_SHARE = 0.5
 _A = np.exp(2j * np.pi / 3)
 COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
-    "unbalanced", "residual", "straddle", "va", "vb", "vc", "ia", "ib", "ic",
-    "segment", "kind",
+    "unbalanced", "residual", "straddle", "dc_filtered", "va", "vb", "vc", "ia", "ib",
+    "ic", "segment", "kind",
 )  # fmt: skip
 
 
@@ -85,6 +85,7 @@ def _empty(m: int) -> dict[str, np.ndarray]:
     out = {c: np.full(m, np.nan) for c in COLUMNS}
     out["unbalanced"] = np.zeros(m, dtype=bool)
     out["straddle"] = np.zeros(m, dtype=bool)
+    out["dc_filtered"] = np.zeros(m, dtype=bool)
     out["segment"] = np.zeros(m, dtype=np.int64)
     out["kind"] = np.full(m, "phasor", dtype=object)
     return out
@@ -127,7 +128,40 @@ def _waveform_rows(
             ia=np.abs(iph[0]), ib=np.abs(iph[1]), ic=np.abs(iph[2]),
         )  # fmt: skip
     out["angle_rad"] = np.unwrap(out["angle_rad"])
+    out["dc_filtered"] = np.asarray(fit.decay, dtype=bool).any(axis=0)
     return out
+
+
+def _dc_note(table: dict[str, np.ndarray]) -> str:
+    """Plain words when the decaying-offset filter read windows right after a voltage step.
+
+    A fault's current can carry a decaying offset, and --dc auto reads the windows where
+    a test finds one through the mimic filter. Right after a step of the voltage a
+    load's own current changes its amplitude within the window (a motor's flux
+    transient, a few ms), which the test can take for an offset: on a motor load with no
+    offset at all the filtered rows' P was 2-6% of the load off its window mean, and the
+    composite fit's motor share far off (docs/composite.md, "A recorder's waveforms").
+    """
+    dc = np.asarray(table["dc_filtered"], dtype=bool)
+    if not dc.any():
+        return ""
+    step = np.asarray(table["straddle"], dtype=bool)
+    near = np.zeros_like(dc)
+    for k in np.flatnonzero(step):  # the windows up to two after a straddling one
+        near[k : k + 3] = True
+    after = int(np.sum(dc & near))
+    words = (
+        f"{int(dc.sum())} phasor rows were read through the decaying-offset (mimic) filter "
+        "(column 'dc_filtered'; --dc auto)"
+    )
+    if after:
+        words += (
+            f", {after} of them right after a voltage step, where a load's own current "
+            "transient (a motor's flux) can look like an offset and move P and Q by "
+            "several per cent: to fit a load's dynamics, compare a reading with --dc off "
+            "(if the currents there hold no decaying offset, it is the right one)"
+        )
+    return words
 
 
 def _frequency(t: np.ndarray, v1: np.ndarray, f0: float, f_seg: float) -> np.ndarray:
@@ -310,6 +344,9 @@ def record_table(
             f"{n_amp} rows of amplitude segment(s) {', '.join(map(str, amp))} are per-phase "
             "magnitudes only (va .. ic): no phasor, P or Q is invented for them (NaN)"
         )
+    dc_note = _dc_note(table)
+    if dc_note:
+        notes.append(dc_note)
     n_unb = int(table["unbalanced"].sum())
     if n_unb:
         notes.append(

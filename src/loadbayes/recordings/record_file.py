@@ -41,7 +41,8 @@ META_SUFFIX = ".meta.json"
 #: Columns of the phasor rows an event file keeps (``kind`` is "phasor" in all of them).
 EVENT_COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
-    "unbalanced", "residual", "straddle", "va", "vb", "vc", "ia", "ib", "ic", "segment",
+    "unbalanced", "residual", "straddle", "dc_filtered", "va", "vb", "vc", "ia", "ib", "ic",
+    "segment",
 )  # fmt: skip
 
 
