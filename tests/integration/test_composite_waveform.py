@@ -152,12 +152,9 @@ def test_fit_composite_covers_f_m_and_t_prime_from_waveforms(recordings):
     assert max(r_hat.values()) < 1.1, r_hat
 
 
-@DC_AUTO_DEFECT
-def test_fit_composite_at_the_reader_s_defaults_covers_f_m(recordings):
-    """The whole chain at its defaults: the fast motor's f_m (read 0.69-1.18 for 0.40)."""
-    cfg, truth, _ = recordings["small_fast_60hz"]
-    par = _fit(read_rows(cfg, "auto"), EVENTS["small_fast_60hz"]["f_hz"])
-    assert par["f_m"]["hdi_low"] <= truth["f_m"] <= par["f_m"]["hdi_high"], par["f_m"]
+# The whole chain at the reader's defaults (the fast motor's f_m read 0.69-1.18 for 0.40,
+# docs/composite.md) ran as an xfail fit here: 43 s of CPU to confirm a known failure,
+# which the rows' xfail above pins in under a second; make test went past 15 minutes.
 
 
 def test_the_reader_says_where_the_offset_filter_read_windows_after_a_step(recordings):
