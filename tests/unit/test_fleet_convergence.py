@@ -164,19 +164,24 @@ def test_the_chains_run_on_while_a_class_ess_is_short_of_400():
     )
 
 
-def test_a_class_whose_buses_all_have_flat_voltage_says_the_prior_decides_its_mean(tmp_path):
-    """Its class means were the hyperprior's (intervals of +/-15) on rows without a word."""
-    rng = np.random.default_rng(3)
+def _fleet_file(tmp_path, buses, rows: int, *, seed: int):
+    """A ZIP fleet of ``buses`` = [(class, voltage half-width)], ``rows`` rows each."""
+    rng = np.random.default_rng(seed)
     frames = []
-    for i in range(8):
-        cls, width = ("flat", 1e-5) if i < 4 else ("moving", 0.05)
-        x = 1 + rng.uniform(-width, width, 150)
+    for i, (cls, width) in enumerate(buses):
+        x = 1 + rng.uniform(-width, width, rows)
         p = 1.5 * (0.3 * x**2 + 0.4 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
         q = 0.5 * (0.5 * x**2 + 0.2 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
         frames.append(pd.DataFrame({"bus_id": f"b{i}", "customer_class": cls, "v": x,
                                     "p": p, "q": q}))  # fmt: skip
     path = tmp_path / "f.parquet"
     pd.concat(frames, ignore_index=True).to_parquet(path)
+    return path
+
+
+def test_a_class_whose_buses_all_have_flat_voltage_says_the_prior_decides_its_mean(tmp_path):
+    """Its class means were the hyperprior's (intervals of +/-15) on rows without a word."""
+    path = _fleet_file(tmp_path, [("flat", 1e-5)] * 4 + [("moving", 0.05)] * 4, 150, seed=3)
     sampler = SamplerSettings(chains=2, draws=300, burn=100, seed=0)
     res = run_fleet(str(path), SPEC, pool="class", p0="auto", q0="auto", sampler=sampler)
     cls = res.table[res.table["level"] == "class"].groupby("class")["warnings"].first()
@@ -188,17 +193,7 @@ def test_a_class_whose_buses_all_have_flat_voltage_says_the_prior_decides_its_me
 def test_a_class_of_one_bus_says_its_spreads_are_the_priors(tmp_path):
     """One bus holds no variation between buses: its class's sd_* repeated the prior's
     0.1 on clean rows (red-team finding); a class of five buses gets no such note."""
-    rng = np.random.default_rng(5)
-    frames = []
-    for i in range(6):
-        cls = "alone" if i == 0 else "many"
-        x = 1 + rng.uniform(-0.05, 0.05, 200)
-        p = 1.5 * (0.3 * x**2 + 0.4 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
-        q = 0.5 * (0.5 * x**2 + 0.2 * x + 0.3) * (1 + rng.normal(0, 0.003, x.size))
-        frames.append(pd.DataFrame({"bus_id": f"b{i}", "customer_class": cls, "v": x,
-                                    "p": p, "q": q}))  # fmt: skip
-    path = tmp_path / "f.parquet"
-    pd.concat(frames, ignore_index=True).to_parquet(path)
+    path = _fleet_file(tmp_path, [("alone", 0.05)] + [("many", 0.05)] * 5, 200, seed=5)
     sampler = SamplerSettings(chains=2, draws=300, burn=100, seed=0)
     res = run_fleet(str(path), SPEC, pool="class", p0="auto", q0="auto", sampler=sampler)
     cls = res.table[res.table["level"] == "class"]
