@@ -51,8 +51,8 @@ MIN_HISTORY = 500
 def _bend(y: np.ndarray, e: np.ndarray):
     """The bend of standardised draws ``y`` across pivot ``e``.
 
-    Returns (explained variance, ``e``, coefficients (2, d) orthogonal to ``e``, R^2 per
-    coordinate, the pivots ``s``).
+    Returns (coefficients (2, d) orthogonal to ``e``, R^2 per coordinate, the pivots
+    ``s``).
     """
     s = y @ e
     r = y - np.outer(s, e)
@@ -62,7 +62,7 @@ def _bend(y: np.ndarray, e: np.ndarray):
     fitted = basis @ coef
     var = r.var(axis=0)
     r2 = np.where(var > 0, 1.0 - (r - fitted).var(axis=0) / np.where(var > 0, var, 1), 0.0)
-    return float(fitted.var(axis=0).sum()), e, coef, r2, s
+    return coef, r2, s
 
 
 class Shear:
@@ -84,8 +84,8 @@ class Shear:
         # directions and coordinate axes, the one across which the draws bend most
         # found spurious bends in a chain's poorly mixed burn-in: min ESS 5-14 against
         # 214-291 on issue 21's events (docs/composite.md, "A bent ridge, straightened").
-        best = _bend(y, v[:, -1])
-        _, self.e, coef, self.r2, s = best
+        self.e = v[:, -1]
+        coef, self.r2, s = _bend(y, self.e)
         self.s_lo, self.s_hi = float(s.min()), float(s.max())
         self.active = bool(np.max(self.r2) >= MIN_R2)
         self.coef = coef if self.active else np.zeros_like(coef)
