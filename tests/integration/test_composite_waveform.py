@@ -18,18 +18,18 @@ is covered by the chain at the run-until-converged defaults (docs/composite.md, 
 recorder's waveforms") but does not converge in this test's budget (R-hat 1.75 after the
 default 4 x 16,000 iterations, 1.2 after 4 x 40,000), so it is not asserted on here.
 
-**The defect these tests pin** (``xfail(strict=True)``): at its default ``--dc auto``
-the reader's decaying-offset test (an F-test of an offset ramp and curvature in each
-current channel's window, ``recordings/phasor_fit.py``) fires on the first whole window
-after each voltage step, where the motor's current amplitude falls or rises with its
-flux (time constant ``T' X' / X``, 5 ms for the fast motor): a changing fundamental, not
-a decaying offset. The mimic filter then used in those windows (per phase: in one or two
-phases and not the others) puts P off the window mean that the fit models by -2.3% to
--3.4% of the load in the sag's first window and +3.7% to +5.7% after the recovery (20
-to 50 times the rows' noise sd of 0.10%), and fires through the slow motor's recovery
-too (its rows' noise sd 0.34-0.39% against 0.10% with ``--dc off``). The fast motor's
-f_m is then read as 0.69-1.18 for 0.40. With ``--dc off`` the rows equal the window
-means to their noise and f_m and T' are covered.
+**The defect these tests pinned, now fixed**: at ``--dc auto`` the reader's
+decaying-offset test (then a one-cycle F-test of an offset ramp and curvature in each
+current channel's window) fired on the first whole window after each voltage step, where
+the motor's current amplitude falls or rises with its flux (time constant ``T' X' / X``,
+5 ms for the fast motor): a changing fundamental, not a decaying offset. The mimic filter
+then put P off the window mean by -2.3% to -3.4% of the load in the sag's first window
+and +3.7% to +5.7% after the recovery (20 to 50 times the rows' noise sd of 0.10%), and
+fired through the slow motor's recovery too; the fast motor's f_m was read as 0.69-1.18
+for 0.40. The test now reads each three-phase set's space vector over two cycles
+(``recordings/phasor_fit.py``, ``_decay_test``), where a moving phasor stays at the
+fundamental and an offset stands still: no window of these events is filtered, and the
+rows at the defaults are the window means to their noise (tested for both settings).
 
 False-alarm rate of the passing fit test (``--dc off``): it fails when two or more of its
 four 95% intervals (f_m and T' of two events) miss; with independent intervals of exact
@@ -38,8 +38,8 @@ T' reaches 1.1 (measured 1.015-1.061). The runs are deterministic (fixed seeds, 
 draws). The phasor-row check is not statistical: a bound of 6 noise sd on every
 non-straddling row is crossed by noise with probability below 1e-6 per row.
 
-Cost: about 85 s of CPU (two fits of the passing test, one of the defect's, 4 x 16,000
-iterations each: the default chains and draws, without the run-on until converged,
+Cost: about 55 s of CPU (the two fits, 4 x 16,000 iterations each: the default chains
+and draws, without the run-on until converged,
 whose time budget would make the result depend on the machine); the recordings and
 their reading about 2 s.
 """
@@ -69,14 +69,7 @@ EVENTS = {
 # converged: a time budget would make the run depend on the machine.
 FIT = ("--fixed-draws", "--seed", "0")
 
-DC_AUTO_DEFECT = pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="read comtrade --dc auto: the decaying-offset test fires on the first window "
-    "after a voltage step, where the motor's current amplitude moves with its flux; the "
-    "mimic filter then puts P off the window mean by 2-6% of the load",
-)
-DC_MODES = [pytest.param("auto", marks=DC_AUTO_DEFECT), "off"]
+DC_MODES = ["auto", "off"]
 
 
 def cli(*args):
@@ -152,23 +145,18 @@ def test_fit_composite_covers_f_m_and_t_prime_from_waveforms(recordings):
     assert max(r_hat.values()) < 1.1, r_hat
 
 
-# The whole chain at the reader's defaults (the fast motor's f_m read 0.69-1.18 for 0.40,
-# docs/composite.md) ran as an xfail fit here: 43 s of CPU to confirm a known failure,
-# which the rows' xfail above pins in under a second; make test went past 15 minutes.
-
-
-def test_the_reader_says_where_the_offset_filter_read_windows_after_a_step(recordings):
-    """Until the defect above is fixed, the reader says it: a 'dc_filtered' column and a
-    note naming the windows after a voltage step (they had no word: the fit's f_m came
-    out 0.71-1.20 for 0.40 behind a clean run). With --dc off there is neither."""
+def test_fit_composite_covers_f_m_and_t_prime_at_the_readers_defaults(recordings):
+    """The whole chain at ``read comtrade``'s defaults (``--dc auto``): the fast motor at
+    60 Hz, whose f_m the one-cycle decay test made 0.71-1.20 for 0.40. Its rows are now
+    those of ``--dc off`` (no window filtered), so the fit is the passing test's: checked
+    on the rows (no fit run twice), and the note of the filter is absent."""
     cfg, _, _ = recordings["small_fast_60hz"]
     res = CliRunner().invoke(main, ["read", "comtrade", str(cfg), "--out",
                                     str(cfg.with_name("dcnote.csv")), "--v-base", V_BASE_KV,
                                     "--s-base", S_BASE_MVA])  # fmt: skip
     assert res.exit_code == 0, res.output
-    assert "read through the decaying-offset (mimic) filter" in res.stderr
-    assert "right after a voltage step" in res.stderr and "--dc off" in res.stderr
-    rows = pd.read_csv(cfg.with_name("dcnote.csv"))
-    assert rows["dc_filtered"].any()
+    assert "mimic" not in res.stderr
+    auto = pd.read_csv(cfg.with_name("dcnote.csv"))
     off = pd.read_csv(read_rows(cfg, "off"))
-    assert not off["dc_filtered"].any()
+    assert not auto["dc_filtered"].any() and not off["dc_filtered"].any()
+    pd.testing.assert_frame_equal(auto, off)

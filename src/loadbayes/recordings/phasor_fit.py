@@ -50,10 +50,11 @@ out or flagged.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import f as f_dist
 
 __all__ = ["PhasorFit", "fit_phasors", "max_harmonic"]
 
@@ -66,6 +67,12 @@ DECAY_ALPHA = 1e-3
 DECAY_MIN_SHARE = 0.005
 #: Relative misfit of a voltage channel's plain fit above which a window straddles a step.
 STEP_LIMIT = 0.02
+#: Time constants (in cycles) of the fast changes of a phasor the three-phase decay test
+#: allows for (a motor's flux after a step: ``T' X' / X``, a few milliseconds).
+FAST_FLUX_CYCLES = (0.125, 0.25, 0.5)
+#: Fewest residual degrees of freedom for the decay test to be made at all.
+MIN_DOF = 8
+_A = np.exp(2j * np.pi / 3)
 
 
 @dataclass(frozen=True)
@@ -136,7 +143,7 @@ def _mimic(t: np.ndarray, x: np.ndarray, tau: float, w0: float) -> tuple[np.ndar
     return y, complex((1.0 + kd) - kd * np.exp(-1j * w0 * float(np.median(dt))))
 
 
-def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, progress=None):
+def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), progress=None):
     """Phasors of every window, windows with the same sample offsets fitted together.
 
     Each window's columns are written in the time ``u = t - c`` from its centre: the
@@ -155,10 +162,13 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, progress=Non
         y, gain = _mimic(t, x, tau, w)
     los = np.searchsorted(t, centres - 0.5 * period - 1e-6 * dt)
     his = np.searchsorted(t, centres + 0.5 * period - 1e-6 * dt)
+    # The decay test reads the window's cycle and the one after it (_decay_test).
+    his2 = np.searchsorted(t, centres + 1.5 * period - 1e-6 * dt)
     groups: dict[tuple, list[int]] = {}
     for j in range(centres.size):
         u = t[los[j] : his[j]] - centres[j]
-        key = (u.size, np.round(u / dt, 6).tobytes())
+        u2 = t[his[j] : his2[j]] - centres[j]
+        key = (u.size, np.round(u / dt, 6).tobytes(), np.round(u2 / dt, 6).tobytes())
         groups.setdefault(key, []).append(j)
     for js in groups.values():
         js = np.asarray(js)
@@ -193,18 +203,15 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, progress=Non
             b = np.column_stack([a, r, r * r])
             coef_b = np.einsum("pm,kgm->kgp", np.linalg.pinv(b), xx)
             rss_b = np.sum((xx - np.einsum("kgp,mp->kgm", coef_b, b)) ** 2, axis=2)
-            dof = m - b.shape[1]
             if dc == "on":
                 use = np.ones_like(rss, dtype=bool)
-            elif dof < 1:
-                use = np.zeros_like(rss, dtype=bool)
-            else:  # F-test of a decaying offset, false-alarm rate DECAY_ALPHA ...
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    f_stat = 0.5 * (rss - rss_b) / (rss_b / dof)
-                # ... and large enough to matter: on a near-noiseless record any model
-                # slip is "significant", and the filter costs more than it saves there.
-                big = rss - rss_b > DECAY_MIN_SHARE**2 * ssq
-                use = (f_stat > _f_critical(dof)) & big
+            else:
+                m2 = int(his2[js[0]] - lo[0])
+                idx2 = lo[:, None] + np.arange(m2)
+                use, across2 = _decay_test(
+                    t[idx2[0]] - centres[js[0]], x[:, idx2], period, w, steps, sets
+                )
+                ok &= ~across2
             use &= ok[None, :]
             if use.any():
                 # The window's first filtered sample is made with the sample before
@@ -212,6 +219,12 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, progress=Non
                 yy = y[:, idx[:, 1:]]
                 coef_m = np.einsum("pm,kgm->kgp", np.linalg.pinv(a[1:]), yy)
                 mimic = (coef_m[..., 0] - 1j * coef_m[..., 1]) / np.sqrt(2.0) / gain * turn
+                for chans in sets if dc == "auto" else ():
+                    idx_s = list(chans)
+                    moved = np.abs(mimic[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
+                        phasor[idx_s]
+                    )
+                    use[idx_s] &= moved.any(axis=0)[None, :]
                 phasor = np.where(use, mimic, phasor)
                 rss = np.where(use, np.minimum(rss, rss_b), rss)
             decay[:, js] = use
@@ -224,13 +237,111 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, progress=Non
     return out, np.nan_to_num(res, nan=0.0), decay, np.nan_to_num(share, nan=0.0)
 
 
-def _f_critical(dof: int) -> float:
-    """The F(2, dof) value exceeded with probability DECAY_ALPHA.
+def _f_critical(dof: int, num: int = 2) -> float:
+    """The F(num, dof) value exceeded with probability DECAY_ALPHA."""
+    return float(f_dist.isf(DECAY_ALPHA, num, dof))
 
-    With two numerator degrees of freedom the survival function is closed-form,
-    ``P(F > x) = (1 + 2 x / dof)^(-dof / 2)``, so no statistics library is needed.
+
+def _lstsq(a: np.ndarray, xx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients and residual sum of squares of each window of ``xx`` (..., m) on ``a``."""
+    coef = np.einsum("pm,...m->...p", np.linalg.pinv(a), xx)
+    return coef, np.sum(np.abs(xx - np.einsum("...p,mp->...m", coef, a)) ** 2, axis=-1)
+
+
+def _decay_test(
+    u: np.ndarray, xx: np.ndarray, period: float, w: float, steps: int, sets=()
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where a channel's window holds a decaying offset: read over it and the next cycle.
+
+    Within one cycle a decaying offset cannot be told from a fundamental whose amplitude
+    or phase moves (a motor's current after a voltage step changes with its flux within
+    a cycle): with the harmonics' columns present, an offset's ramp and a moving phasor
+    each lie almost in the span of the others, and a test of the one fires on the other.
+    Two things part them:
+
+    - **two cycles** (``u``: the window's cycle and the next, times from its centre):
+      the harmonics repeat each cycle, an offset's ramp does not;
+    - **a three-phase set** (``sets``: channel triples a, b, c): in the space vector
+      ``(2/3)(x_a + a x_b + a^2 x_c)`` the positive-sequence fundamental turns at
+      ``+w``, an offset stands still. A positive-sequence phasor that moves, however
+      fast (the columns hold a quadratic and three decaying exponentials, of an eighth,
+      a quarter and half a cycle, at ``+w``), stays at its frequency. The negative
+      sequence is held constant over the two cycles: a moving one at ``-w`` and an
+      offset are again nearly confounded (measured on a 20 ms offset: F 794 with the
+      negative sequence constant, 165 with it linear, 31 quadratic), so an unbalanced
+      fault's first cycles can still fire the test. Without the set, a single
+      channel's fast-moving phasor is as well explained by an offset as the offset
+      itself (measured: a 5 ms flux decay of a motor after a step), so outside a set
+      the null holds only the quadratic phasor.
+
+    The null (the moving fundamental, the harmonics 2..H of both sequences, a constant)
+    against it plus an offset ramp and curvature: an F-test at :data:`DECAY_ALPHA`, and
+    the offset must explain at least :data:`DECAY_MIN_SHARE` of the signal (on a
+    near-noiseless record any model slip is "significant", and the filter costs more
+    than it saves there). A set is filtered as one, all three channels or none, where the
+    F-test finds an offset and the filter moves one of its phasors by at least
+    :data:`DECAY_MIN_SHARE` (judged by :func:`_one_pass`: the null takes up much of an
+    offset's ramp, so its share of the residual does not measure its size).
+
+    Returns the test per channel and window, shape (k, g), and where a voltage channel
+    (the first ``steps``) straddles a step in the two cycles (no test there; shape (g,)).
+    Windows with less than two cycles of samples (a segment's end) are not tested.
     """
-    return 0.5 * dof * (DECAY_ALPHA ** (-2.0 / dof) - 1.0)
+    k, g, m2 = xx.shape
+    use = np.zeros((k, g), dtype=bool)
+    across = np.zeros(g, dtype=bool)
+    if m2 < 4 or u[-1] - u[0] < 1.5 * period:
+        return use, across
+    r = u / period
+    harmonics = range(2, max_harmonic(m2 // 2) + 1)
+    offset = [r, r * r]
+    # One channel at a time: a quadratic phasor, the harmonics, a constant; fitted to
+    # the voltages (the step check) and to the channels outside the sets (their test).
+    single = np.array([c for c in range(k) if not any(c in s for s in sets)], dtype=int)
+    fitted = np.union1d(np.arange(min(steps, k)), single)
+    cols = [np.ones(m2)]
+    for p in range(3):
+        cols += [r**p * np.cos(w * u), r**p * np.sin(w * u)]
+    for h in harmonics:
+        cols += [np.cos(h * w * u), np.sin(h * w * u)]
+    a = np.column_stack(cols)
+    ssq = np.sum(xx[fitted] ** 2, axis=2)
+    _, rss = _lstsq(a, xx[fitted])
+    if steps > 0:
+        v = fitted < steps
+        across = np.any(rss[v] > STEP_LIMIT**2 * ssq[v], axis=0)
+    dof = m2 - a.shape[1] - 2
+    on = np.isin(fitted, single)
+    if dof >= MIN_DOF and on.any():
+        _, rss_b = _lstsq(np.column_stack([a, *offset]), xx[fitted[on]])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f_stat = 0.5 * (rss[on] - rss_b) / (rss_b / dof)
+        big = rss[on] - rss_b > DECAY_MIN_SHARE**2 * ssq[on]
+        use[fitted[on]] = (f_stat > _f_critical(dof)) & big
+    # A three-phase set: its space vector.
+    turn = np.exp(1j * w * u)
+    cols = [np.ones(m2, dtype=complex), np.conj(turn)]
+    cols += [turn * r**p for p in range(3)]
+    cols += [turn * np.exp(-(r - r[0]) / f) for f in FAST_FLUX_CYCLES]
+    for h in harmonics:
+        cols += [turn**h, np.conj(turn) ** h]
+    a = np.column_stack(cols)
+    dof = 2 * (m2 - a.shape[1] - 2)
+    for chans in sets:
+        if dof < MIN_DOF:
+            use[list(chans)] = False
+            continue
+        ia, ib, ic = chans
+        z = (2.0 / 3.0) * (xx[ia] + _A * xx[ib] + _A * _A * xx[ic])
+        _, rss_z = _lstsq(a, z)
+        _, rss_zb = _lstsq(np.column_stack([a, *offset]), z)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f_stat = 0.25 * (rss_z - rss_zb) / (rss_zb / dof)
+        # How much an offset matters is judged on the phasors (by the caller): here the
+        # null takes up much of an offset's ramp, so its share of the residual is no
+        # measure of its size.
+        use[list(chans)] = (f_stat > _f_critical(dof, 4))[None, :]
+    return use, across
 
 
 def fit_phasors(
@@ -244,6 +355,7 @@ def fit_phasors(
     reference: int = 0,
     mimic_tau_s: float | None = None,
     step_channels: int = 0,
+    phase_sets: Sequence[Sequence[int]] = (),
     progress: Callable[[int], None] | None = None,
 ) -> PhasorFit:
     """RMS phasors of every channel over sliding one-cycle windows.
@@ -273,6 +385,10 @@ def fit_phasors(
         The first ``step_channels`` channels are voltages: a window where one of them
         misfits by more than :data:`STEP_LIMIT` straddles a step, and keeps its plain
         phasors (no mimic filter in any channel).
+    phase_sets : sequence of (int, int, int), optional
+        Channel triples that are the phases a, b, c of one three-phase quantity: their
+        decay test is made on the space vector, which tells an offset from a phasor that
+        moves within the window (see :func:`_decay_test`); each set is filtered as one.
     progress : callable, optional
         Called with the number of windows fitted, as they are (twice per window: a first
         pass at ``f0``, a second at the segment's frequency).
@@ -304,7 +420,7 @@ def fit_phasors(
         raise ValueError(f"dc must be 'auto', 'on' or 'off', got {dc!r}")
     tau = period if mimic_tau_s is None else float(mimic_tau_s)
     first, res_first, dec_first, share_first = _one_pass(
-        t, x, centres, period, w0, w0, dc, None, tau, step_channels, progress
+        t, x, centres, period, w0, w0, dc, None, tau, step_channels, phase_sets, progress
     )
     w = w0
     if centres.size >= 3:
@@ -316,6 +432,6 @@ def fit_phasors(
     if w == w0 and skew_s is None:
         return PhasorFit(centres, first, res_first, f0, dec_first, share_first)
     out, res, dec, share = _one_pass(
-        t, x, centres, period, w, w0, dc, skew_s, tau, step_channels, progress
+        t, x, centres, period, w, w0, dc, skew_s, tau, step_channels, phase_sets, progress
     )
     return PhasorFit(centres, out, res, w / (2.0 * np.pi), dec, share)

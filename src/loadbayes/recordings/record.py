@@ -100,6 +100,7 @@ def _waveform_rows(
         fit = fit_phasors(
             w.t_s[sl], np.vstack([w.v[:, sl], w.i[:, sl]]), f0=w.f_nominal,
             per_cycle=per_cycle, dc=dc, skew_s=skew, step_channels=3, progress=progress,
+            phase_sets=((0, 1, 2), (3, 4, 5)),
         )  # fmt: skip
     except ValueError as exc:
         if len(w.segments) < 2:
@@ -133,14 +134,16 @@ def _waveform_rows(
 
 
 def _dc_note(table: dict[str, np.ndarray]) -> str:
-    """Plain words when the decaying-offset filter read windows right after a voltage step.
+    """Plain words on where the decaying-offset filter read windows, and how to compare.
 
     A fault's current can carry a decaying offset, and --dc auto reads the windows where
-    a test finds one through the mimic filter. Right after a step of the voltage a
-    load's own current changes its amplitude within the window (a motor's flux
-    transient, a few ms), which the test can take for an offset: on a motor load with no
-    offset at all the filtered rows' P was 2-6% of the load off its window mean, and the
-    composite fit's motor share far off (docs/composite.md, "A recorder's waveforms").
+    a test finds one through the mimic filter. The test reads each three-phase set's
+    space vector over two cycles, which tells an offset from a load's own current
+    transient (a motor's flux after a step, a few ms; before, a one-cycle test took it
+    for an offset and put P 2-6% of the load off: docs/composite.md, "A recorder's
+    waveforms"). What it still cannot tell apart: a negative sequence that moves within
+    the two cycles (an unbalanced fault's first cycles). Right after a step is where the
+    filter moves P and Q most, so those rows are counted, with the way to compare.
     """
     dc = np.asarray(table["dc_filtered"], dtype=bool)
     if not dc.any():
@@ -150,16 +153,18 @@ def _dc_note(table: dict[str, np.ndarray]) -> str:
     for k in np.flatnonzero(step):  # the windows up to two after a straddling one
         near[k : k + 3] = True
     after = int(np.sum(dc & near))
+    unbalanced = int(np.sum(dc & np.asarray(table["unbalanced"], dtype=bool)))
     words = (
         f"{int(dc.sum())} phasor rows were read through the decaying-offset (mimic) filter "
-        "(column 'dc_filtered'; --dc auto)"
+        "(column 'dc_filtered'; --dc auto), where its test found an offset in the currents"
     )
-    if after:
+    if after or unbalanced:
+        where = [f"{after} right after a voltage step"] if after else []
+        where += [f"{unbalanced} in an unbalanced window"] if unbalanced else []
         words += (
-            f", {after} of them right after a voltage step, where a load's own current "
-            "transient (a motor's flux) can look like an offset and move P and Q by "
-            "several per cent: to fit a load's dynamics, compare a reading with --dc off "
-            "(if the currents there hold no decaying offset, it is the right one)"
+            f" ({', '.join(where)}: there the filter moves P and Q by up to several per "
+            "cent; an unbalanced fault's moving negative sequence can pass for an offset)"
+            ": to see what it changed, compare a reading with --dc off"
         )
     return words
 
