@@ -28,8 +28,11 @@ others by more than ``GROW`` of that (``GROW_WINDOW`` with a window; and more th
 window allows (``max_intervals``). The samples inside an edge are left out of the fit
 (their window straddles the change; how many is reported), and the edge becomes one
 step interval from the sample before it to the sample after it, the step at an unknown
-instant in it as above. A run longer than the window (a ramp that the samples resolve)
-is left as the samples draw it.
+instant in it as above. A run longer than that, up to a ramp of ``RAMP_MAX_S`` plus the
+window's smear, is a ramp the phasors resolve: the inside samples whose window lies
+wholly on it are kept (:func:`window_ramp_samples`), the others left out, and it is a
+ramp through the kept ones, as with point samples below. A still longer run is left as
+the samples draw it.
 
 That holds for phasor samples (a window mean straddling the change is neither level).
 A **point** sample (``window_s == 0``) inside an edge is the exact voltage at its
