@@ -7,7 +7,13 @@ ramp) sampled as points or as one-cycle window means, so the edges are known exa
 import numpy as np
 import pytest
 
-from loadbayes.models.composite_steps import FitSamples, StepGrid, edge_runs, max_intervals
+from loadbayes.models.composite_steps import (
+    FitSamples,
+    StepGrid,
+    edge_runs,
+    max_intervals,
+    ramp_ends,
+)
 
 F_HZ = 60.0
 
@@ -176,3 +182,28 @@ def test_the_start_bound_leaves_the_interval_alone_when_the_inside_sample_is_not
     # A sample barely off the level before: the start just before it, less the margin.
     got = ramp_start_bound(np.array([0.0, 1.0, 2.0]), np.array([1.0, 0.997, 0.7]))
     assert got == pytest.approx(1.0 - 0.003 / 0.297 - 0.1)
+
+
+@pytest.mark.parametrize("rate, ramp", [(120.0, 0.030), (120.0, 0.050), (60.0, 0.050)])
+def test_a_phasor_ramp_keeps_the_samples_whose_window_lies_on_it(rate, ramp):
+    # One-cycle window means of a ramp longer than a step's edge: before, the samples
+    # drew it (a line through window means, its corners rounded by the window), and a
+    # fast motor read as a slow one (T' 0.15-0.88 s for 0.060 at 120/s, 30 ms). Now the
+    # samples whose window lies wholly on the ramp are kept (a window mean of a line is
+    # its value at the window's middle), the others left out, and the ramp is drawn
+    # through the kept ones, with sharp corners where it meets the levels.
+    start, depth, w = 0.4013, 0.35, 1 / F_HZ
+    t, v = _record(rate, start, depth, ramp, phasor=True, noise=0.0005)
+    fs = FitSamples.find([t], [v], window_s=w)
+    ((k0, k1),) = fs.edges[0]
+    kept_inside = np.intersect1d(fs.keep[0], np.arange(k0 + 1, k1))
+    # _record's window ends at the stamp: on the ramp when [t - W, t] lies in it.
+    on_ramp = set(np.flatnonzero((t - w >= start) & (t <= start + ramp)).tolist())
+    assert kept_inside.size >= 1 and set(kept_inside.tolist()) <= on_ramp
+    assert fs.left_out == k1 - k0 - 1 - kept_inside.size and fs.ramps == 1
+    if kept_inside.size >= 2:  # the ramp's ends are fixed by the kept samples' line
+        idx = np.concatenate([[k0], kept_inside, [k1]])
+        ta, tb = ramp_ends(t[idx], v[idx])
+        # The stamps sit half a window after the values they hold (the window's end).
+        assert ta == pytest.approx(start + w / 2, abs=1.5e-3)
+        assert tb == pytest.approx(start + ramp + w / 2, abs=1.5e-3)

@@ -474,21 +474,31 @@ def _note_prior_decided(table: pd.DataFrame, params, mean_sd: float, info: dict)
     """
     from loadbayes.diagnostics import PRIOR_SHARE
 
-    is_cls = table["level"] == "class"
-    for name in pd.unique(table.loc[is_cls, "class"]):
-        rows = is_cls & (table["class"] == name)
+    for name, rows, n in _class_rows(table):
         sd = table.loc[rows].set_index("parameter")["sd"]
         weak = [p for p in params if p in sd.index and sd[p] > PRIOR_SHARE * mean_sd]
         if not weak:
             continue
-        n = int(table.loc[rows, "n"].iloc[0])
         words = (
             f"the prior decides the class mean of {', '.join(weak)}: posterior sd "
             f"{', '.join(f'{sd[p]:.3g}' for p in weak)} against the prior's {mean_sd:.3g}, "
             f"so the data of its {n} bus{'es' if n != 1 else ''} add little (flat voltage?)"
         )
-        _prefix(table, rows, words)
-        info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
+        _warn_class(table, rows, name, words, info)
+
+
+def _class_rows(table: pd.DataFrame):
+    """``(class, its rows' mask, its buses)`` for each class of the table."""
+    is_cls = table["level"] == "class"
+    for name in pd.unique(table.loc[is_cls, "class"]):
+        rows = is_cls & (table["class"] == name)
+        yield name, rows, int(table.loc[rows, "n"].iloc[0])
+
+
+def _warn_class(table: pd.DataFrame, rows, name, words: str, info: dict) -> None:
+    """Put ``words`` before the notes of the ``rows`` and among the run's warnings."""
+    _prefix(table, rows, words)
+    info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
 
 
 #: A class with fewer buses than this says its spreads are mostly the prior's.
@@ -502,10 +512,7 @@ def _note_few_buses(table: pd.DataFrame, params, spread: float, info: dict) -> N
     the inverse-Wishart prior's (typical value ``spread``), and two barely move it. The
     class mean of such a class is its buses' own estimate, which the note does not touch.
     """
-    is_cls = table["level"] == "class"
-    for name in pd.unique(table.loc[is_cls, "class"]):
-        rows = is_cls & (table["class"] == name)
-        n = int(table.loc[rows, "n"].iloc[0])
+    for name, rows, n in _class_rows(table):
         if n >= SPREAD_MIN_BUSES:
             continue
         words = (
@@ -513,8 +520,8 @@ def _note_few_buses(table: pd.DataFrame, params, spread: float, info: dict) -> N
             f"({', '.join(f'sd_{p}' for p in params)}) are mostly the prior's (typical "
             f"{spread:g}), not a measured variation between buses"
         )
-        _prefix(table, rows & table["parameter"].astype(str).str.startswith("sd_"), words)
-        info.setdefault("warnings", []).append(f"class {str(name)!r}: {words}")
+        spreads = rows & table["parameter"].astype(str).str.startswith("sd_")
+        _warn_class(table, spreads, name, words, info)
 
 
 #: Above this many bytes of bus-level draws (all chains), they are streamed to disk.

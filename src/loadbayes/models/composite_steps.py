@@ -28,8 +28,11 @@ others by more than ``GROW`` of that (``GROW_WINDOW`` with a window; and more th
 window allows (``max_intervals``). The samples inside an edge are left out of the fit
 (their window straddles the change; how many is reported), and the edge becomes one
 step interval from the sample before it to the sample after it, the step at an unknown
-instant in it as above. A run longer than the window (a ramp that the samples resolve)
-is left as the samples draw it.
+instant in it as above. A run longer than that, up to a ramp of ``RAMP_MAX_S`` plus the
+window's smear, is a ramp the phasors resolve: the inside samples whose window lies
+wholly on it are kept (:func:`window_ramp_samples`), the others left out, and it is a
+ramp through the kept ones, as with point samples below. A still longer run is left as
+the samples draw it.
 
 That holds for phasor samples (a window mean straddling the change is neither level).
 A **point** sample (``window_s == 0``) inside an edge is the exact voltage at its
@@ -79,6 +82,8 @@ __all__ = [
     "ramp_intervals",
     "ramp_start_bound",
     "step_intervals",
+    "window_ramp_intervals",
+    "window_ramp_samples",
 ]
 
 #: A change within one interval above this fraction of ``v0`` can be a step.
@@ -125,6 +130,32 @@ def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     ramp = 1 if window_s > 0 else 0
     return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1 + ramp)
+
+
+def window_ramp_intervals(t: NDArray[np.float64], window_s: float) -> int:
+    """The longest edge, in intervals, of phasor samples: a smeared ramp.
+
+    A ramp of :data:`RAMP_MAX_S` and the window's smear (``ceil(window / dt)`` more).
+    """
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    return ramp_intervals(t) + int(np.ceil(window_s / dt - 1e-9))
+
+
+def window_ramp_samples(
+    t: NDArray[np.float64], k0: int, k1: int, window_s: float
+) -> NDArray[np.int64]:
+    """The samples inside the edge ``(k0, k1)`` whose window lies wholly on its ramp.
+
+    Sample ``k0 + 1``'s window is the first to reach the ramp (the first interval moves),
+    so the ramp starts before ``t[k0+1] + W/2``, and a sample's window is past that start
+    from ``t[k0+1] + W`` on; likewise up to ``t[k1-1] - W`` before its end. A window mean
+    of a straight line is its value at the centre: these samples are exact points on the
+    ramp (the others mix a level and the ramp, and are left out).
+    """
+    inside = np.arange(k0 + 1, k1)
+    lo, hi = t[k0 + 1] + window_s, t[k1 - 1] - window_s
+    tol = 1e-9 * max(window_s, 1e-12)
+    return inside[(t[inside] >= lo - tol) & (t[inside] <= hi + tol)].astype(np.int64)
 
 
 def edge_runs(
@@ -458,13 +489,15 @@ class FitSamples:
 
     @property
     def left_out(self) -> int:
-        """Samples left out over all events (those inside an edge, with a window)."""
+        """Samples left out over all events, inside an edge with a window.
+
+        All of a step's; those of a ramp whose window reaches past its ends.
+        """
         return int(
             sum(
-                k1 - k0 - 1
+                int(np.sum(~np.isin(np.arange(k0 + 1, k1), keep)))
                 for ev, keep in zip(self.edges, self.keep, strict=True)
                 for k0, k1 in ev
-                if k1 - k0 > 1 and not np.isin(k0 + 1, keep)
             )
         )
 
@@ -486,20 +519,26 @@ class FitSamples:
         """The edges of every event (``detect=False``: none, every sample kept).
 
         With a window (``window_s > 0``) the samples inside an edge are left out and the
-        edge is one step interval between the kept ones. Point samples (``window_s ==
-        0``) are on the voltage's ramp: they are all kept, and an edge of up to
-        :data:`RAMP_MAX_S` (:func:`ramp_intervals`) is a ramp through them.
+        edge is one step interval between the kept ones; an edge longer than a step's
+        (:func:`max_intervals`), a ramp the samples resolve, keeps the inside samples
+        whose window lies wholly on the ramp (:func:`window_ramp_samples`) and is a ramp
+        through them. Point samples (``window_s == 0``) are on the voltage's ramp: they
+        are all kept, and an edge of up to :data:`RAMP_MAX_S` (:func:`ramp_intervals`)
+        is a ramp through them.
         """
         keep, intervals, ends, edges = [], [], [], []
         for t, v in zip(ts, vs, strict=True):
             point = window_s <= 0
             grow = GROW if point else GROW_WINDOW
-            longest = ramp_intervals(t) if point else max_intervals(t, window_s)
+            longest = ramp_intervals(t) if point else window_ramp_intervals(t, window_s)
             runs = edge_runs(v, longest=longest, grow=grow) if detect else []
             mask = np.ones(t.size, dtype=bool)
             if not point:
+                step = max_intervals(t, window_s)
                 for k0, k1 in runs:
                     mask[k0 + 1 : k1] = False
+                    if k1 - k0 > step:
+                        mask[window_ramp_samples(t, k0, k1, window_s)] = True
             kept = np.flatnonzero(mask).astype(np.int64)
             # Each edge's first sample k0 and last k1 are kept: their places among the kept.
             intervals.append(np.searchsorted(kept, [k0 for k0, _ in runs]).astype(np.int64))

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
@@ -53,16 +55,21 @@ def problem_settings(
     estimate = isinstance(torque, str)
     grid = problem.grid
     fs = problem.fit_samples
-    # The edges with samples inside: left out with a phasor window, ramps through them
-    # with point samples (FitSamples.find keeps every point sample, so fs.ramps is 0
-    # with a window and fs.left_out 0 without).
-    point = problem.window <= 0
-    inside = [
-        {"event": e, "from_k": int(k0), "to_k": int(k1)}
-        for e, runs in enumerate(fs.edges)
-        for k0, k1 in runs
-        if k1 - k0 > 1
-    ]
+
+    # The edges with samples inside: those left out (a phasor window straddling the
+    # change) and those read as a ramp through kept inside samples (point samples; a
+    # phasor ramp's samples whose window lies on it).
+    def edges_where(test) -> list[dict[str, int]]:
+        out = []
+        for e, (runs, keep) in enumerate(zip(fs.edges, fs.keep, strict=True)):
+            for k0, k1 in runs:
+                kept = np.isin(np.arange(k0 + 1, k1), keep)
+                if kept.size and test(kept):
+                    out.append({"event": e, "from_k": int(k0), "to_k": int(k1)})
+        return out
+
+    left_edges = edges_where(lambda kept: not kept.all())
+    ramp_edges = edges_where(lambda kept: kept.any())
     return {
         "n": int(sum(e.n for e in problem.events)),
         "events": [
@@ -96,12 +103,16 @@ def problem_settings(
             "left_out": {
                 "rule": "the samples inside a fault's edge (a run of intervals moving the "
                 "same way, no longer than the phasor window allows) are left out of the "
-                "likelihood; the edge is a step at an unknown instant between its ends",
+                "likelihood; the edge is a step at an unknown instant between its ends. "
+                "A longer edge (a ramp the phasors resolve, up to "
+                f"{RAMP_MAX_S:g} s plus the window) keeps the inside samples whose window "
+                "lies wholly on the ramp and leaves out the others",
                 "count": fs.left_out,
-                "samples": [] if point else inside,
+                "samples": left_edges,
             },
             "ramps": {
-                "rule": "point samples (window 0): an edge of up to "
+                "rule": "point samples (window 0), or a phasor ramp's samples whose window "
+                "lies on it: an edge of up to "
                 f"{RAMP_MAX_S:g} s with samples inside it is a straight ramp through them "
                 "(kept in the likelihood); with one inside, from an unknown instant in its "
                 "first interval (its t_step; no earlier than where the line would reach "
@@ -110,7 +121,7 @@ def problem_settings(
                 "with more, between where their least-squares line reaches the levels "
                 "before and after (fixed)",
                 "count": fs.ramps,
-                "samples": inside if point else [],
+                "samples": ramp_edges,
             },
         },
         "samples": samples_record(problem.window),

@@ -87,8 +87,10 @@ class AdaptiveMetropolis(BlockMove):
         -------
         (x, logp_x, aux, accepted)
         """
+        w = self._walk(x)
         z = rng.standard_normal(self.d)
-        prop = x + math.exp(0.5 * self.log_scale) * (self._root @ z)
+        w_prop = w + math.exp(0.5 * self.log_scale) * (self._root @ z)
+        prop = self._block(w_prop)
         lp_prop, aux_prop = logp(prop)
         log_u = math.log(rng.uniform())
         alpha = min(1.0, math.exp(min(0.0, lp_prop - logp_x))) if math.isfinite(lp_prop) else 0.0
@@ -96,13 +98,22 @@ class AdaptiveMetropolis(BlockMove):
         self.steps += 1
         self.evaluations += 1
         if accept:
-            x, logp_x, aux = prop, lp_prop, aux_prop
+            x, logp_x, aux, w = prop, lp_prop, aux_prop, w_prop
             self.accepted += 1
         if iteration < self.adapt_until:
-            self._adapt(x, alpha, iteration)
+            self._adapt(w, alpha, iteration)
         return x, logp_x, aux, bool(accept)
 
-    def _adapt(self, x: np.ndarray, alpha: float, iteration: int) -> None:
+    # The coordinates the walk moves in, and back: the block itself here; a subclass may
+    # walk in others whose map to the block has a unit Jacobian (so the Metropolis
+    # ratio stays the density ratio), and the covariance is then learned in them.
+    def _walk(self, x: np.ndarray) -> np.ndarray:
+        return x
+
+    def _block(self, w: np.ndarray) -> np.ndarray:
+        return w
+
+    def _adapt(self, w: np.ndarray, alpha: float, iteration: int) -> None:
         # Robbins-Monro on the log scale, step size decaying as 1/sqrt(t).
         self.log_scale += (alpha - self.target) / math.sqrt(iteration + 1.0)
-        self._learn(x)
+        self._learn(w)

@@ -129,8 +129,12 @@ class BlockMove:
     def _learn(self, x: np.ndarray) -> None:
         """Feed a burn-in draw to the running covariance; refresh its root when it moved."""
         if self._running.update(x):
-            self.cov = self._running.cov
-            self._root = scaled_eigenvectors(self.cov)
+            self._refresh()
+
+    def _refresh(self) -> None:
+        """Take the running covariance and its scaled root into use."""
+        self.cov = self._running.cov
+        self._root = scaled_eigenvectors(self.cov)
 
     @property
     def acceptance(self) -> float:

@@ -28,14 +28,13 @@ coordinates; with a burn-in too short to learn it from (fewer than
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
-from loadbayes.inference.moves.base import RunningCovariance, scaled_eigenvectors
+from loadbayes.inference.moves.base import RunningCovariance
 
 __all__ = ["MIN_HISTORY", "MIN_R2", "Shear", "ShearedAM"]
 
@@ -150,33 +149,20 @@ class ShearedAM(AdaptiveMetropolis):
 
         The arguments and the return are :meth:`AdaptiveMetropolis.step`'s.
         """
-        if self.shear is None:
-            if iteration == self._switch and len(self._history) >= self._min_history:
+        if self.shear is None and iteration == self._switch:
+            if len(self._history) >= self._min_history:
                 self.use_shear(Shear(np.array(self._history)))
-            else:
-                x, logp_x, aux, moved = super().step(x, logp_x, logp, rng, iteration, aux)
-                if self._switch // 2 <= iteration < self._switch:
-                    self._history.append(np.array(x, dtype=float))
-                return x, logp_x, aux, moved
-        shear = self.shear
-        w = shear.forward(x)
-        z = rng.standard_normal(self.d)
-        w_prop = w + math.exp(0.5 * self.log_scale) * (self._root @ z)
-        prop = shear.inverse(w_prop)
-        lp_prop, aux_prop = logp(prop)
-        log_u = math.log(rng.uniform())
-        ok = math.isfinite(lp_prop)
-        alpha = min(1.0, math.exp(min(0.0, lp_prop - logp_x))) if ok else 0.0
-        accept = ok and log_u < lp_prop - logp_x
-        self.steps += 1
-        self.evaluations += 1
-        if accept:
-            x, logp_x, aux, w = prop, lp_prop, aux_prop, w_prop
-            self.accepted += 1
-        if iteration < self.adapt_until:
-            self.log_scale += (alpha - self.target) / math.sqrt(iteration + 1.0)
-            self._learn(w)
-        return x, logp_x, aux, bool(accept)
+            self._history = []
+        out = super().step(x, logp_x, logp, rng, iteration, aux)
+        if self.shear is None and self._switch // 2 <= iteration < self._switch:
+            self._history.append(np.array(out[0], dtype=float))
+        return out
+
+    def _walk(self, x: np.ndarray) -> np.ndarray:
+        return x if self.shear is None else self.shear.forward(x)
+
+    def _block(self, w: np.ndarray) -> np.ndarray:
+        return w if self.shear is None else self.shear.inverse(w)
 
     def use_shear(self, shear: Shear, draws: np.ndarray | None = None) -> None:
         """Move in ``shear``'s coordinates from now on; the covariance restarts there.
@@ -190,5 +176,4 @@ class ShearedAM(AdaptiveMetropolis):
         self._running = RunningCovariance(np.cov(w, rowvar=False), self.adapt_start)
         for row in w:
             self._running.update(row)
-        self.cov = self._running.cov
-        self._root = scaled_eigenvectors(self.cov)
+        self._refresh()
