@@ -275,13 +275,13 @@ def _decay_test(
       the null holds only the quadratic phasor.
 
     The null (the moving fundamental, the harmonics 2..H of both sequences, a constant)
-    against it plus an offset ramp and curvature: an F-test at :data:`DECAY_ALPHA`, and
-    the offset must explain at least :data:`DECAY_MIN_SHARE` of the signal (on a
-    near-noiseless record any model slip is "significant", and the filter costs more
-    than it saves there). A set is filtered as one, all three channels or none, where the
-    F-test finds an offset and the filter moves one of its phasors by at least
-    :data:`DECAY_MIN_SHARE` (judged by :func:`_one_pass`: the null takes up much of an
-    offset's ramp, so its share of the residual does not measure its size).
+    against it plus an offset ramp and curvature: an F-test at :data:`DECAY_ALPHA`. The
+    offset must also matter (on a near-noiseless record any model slip is
+    "significant", and the filter costs more than it saves there): a single channel's
+    must explain at least :data:`DECAY_MIN_SHARE` of its signal; a set, filtered as one
+    (all three channels or none), must have one of its phasors moved by the filter by at
+    least :data:`DECAY_MIN_SHARE` (judged by :func:`_one_pass`: the set's null takes up
+    much of an offset's ramp, so the share of the residual does not measure its size).
 
     Returns the test per channel and window, shape (k, g), and where a voltage channel
     (the first ``steps``) straddles a step in the two cycles (no test there; shape (g,)).
