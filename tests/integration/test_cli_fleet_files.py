@@ -214,3 +214,25 @@ def test_ids_stored_as_different_types_are_said_to_merge(tmp_path, monkeypatch):
     r = run("one", "--by", "bus_id", "--out", "g.parquet", *FAST, cwd=tmp_path,
             monkeypatch=monkeypatch)  # fmt: skip
     assert r.exit_code == 0 and "matched as text" not in r.stderr, r.stderr
+
+
+def test_a_header_only_file_in_the_folder_is_skipped_and_named(tmp_path, monkeypatch):
+    # Red-team of issue 24: one empty export among a fleet's files stopped every fit.
+    # It holds no bus, so it is skipped and named; a folder of nothing else is refused.
+    (tmp_path / "day").mkdir()
+    for k in (1, 2):
+        bus_rows(f"b{k}", seed=k).to_csv(tmp_path / "day" / f"b{k}.csv", index=False)
+    (tmp_path / "day" / "b3.csv").write_text("bus_id,v,p,q\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # pytest makes warnings errors; the CLI says them
+        r = run("day", "--by", "bus_id", "--out", "f.parquet", *FAST, cwd=tmp_path,
+                monkeypatch=monkeypatch)  # fmt: skip
+    assert r.exit_code == 0, r.output
+    assert "1 file with no data rows skipped" in r.stderr and "b3.csv" in r.stderr, r.stderr
+    assert sorted(pd.read_parquet(tmp_path / "f.parquet").bus.unique()) == ["b1", "b2"]
+    (tmp_path / "none").mkdir()
+    (tmp_path / "none" / "b3.csv").write_text("bus_id,v,p,q\n")
+    r = run("none", "--by", "bus_id", "--out", "g.parquet", *FAST, cwd=tmp_path,
+            monkeypatch=monkeypatch)  # fmt: skip
+    assert r.exit_code == 2 and "no data rows in any file" in r.stderr, r.stderr
+    assert not (tmp_path / "g.parquet").exists()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -113,6 +114,26 @@ def _refuse_copies(parts, partials) -> None:
         seen[key] = part.path
 
 
+def _warn_empty_files(partials) -> None:
+    """Say which files had no data rows: skipped, since they hold no bus.
+
+    Before, one header-only file in a folder stopped the whole fleet (issue 24's
+    red-team); one file given alone is still refused.
+    """
+    import warnings
+
+    empty = [f for p in partials for f in p.empty_files]
+    if not empty:
+        return
+    shown = ", ".join(display(f) for f in empty[:5]) + (", ..." if len(empty) > 5 else "")
+    warnings.warn(
+        f"{len(empty)} file{'s' if len(empty) != 1 else ''} with no data rows skipped (no bus "
+        f"in {'them' if len(empty) != 1 else 'it'}): {shown}",
+        UserWarning,
+        stacklevel=2,
+    )
+
+
 def _warn_mixed_ids(parts: list[Partition], col: str) -> None:
     """Say so when the files store the bus ids as different types (they merge as text)."""
     import warnings
@@ -161,6 +182,10 @@ def fleet_statistics(
         done=(lambda i, r: progress(1)) if progress else None,
     )
     _refuse_copies(parts, partials)
+    if all(p.empty_files for p in partials):
+        one_file = len(parts) == 1 and os.path.isfile(data)
+        raise DataError("no data rows" + ("" if one_file else " in any file"), data)
+    _warn_empty_files(partials)
     merged = merge(partials)
     if not merged.buses.size:
         raise DataError("no valid rows in any file", data)

@@ -20,7 +20,7 @@ single-bus accumulator, though not bit-equal to it.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pyarrow as pa
@@ -29,7 +29,7 @@ import pyarrow.compute as pc
 from loadbayes.core.stats import Gram
 from loadbayes.fleet import exact
 from loadbayes.fleet.partitions import Partition, ReadSpec, read_partition
-from loadbayes.io.errors import DataError
+from loadbayes.io.errors import DataError, NoDataRows
 from loadbayes.models.zip import ZIPModel
 
 __all__ = ["FleetStats", "PartialStats", "finish", "merge", "partition_stats"]
@@ -59,6 +59,8 @@ class PartialStats:
         ``"file, row r"`` of each bus's first row seen (for messages about a bus).
     n_dropped : int
         Invalid rows dropped (``drop_invalid``).
+    empty_files : tuple of str
+        Files with no data rows, skipped (a map output's own file; merges do not keep it).
     """
 
     names: tuple[str, ...]
@@ -71,6 +73,7 @@ class PartialStats:
     bad: np.ndarray
     where: np.ndarray
     n_dropped: int = 0
+    empty_files: tuple[str, ...] = ()
 
     @classmethod
     def empty(cls, names: Sequence[str]) -> PartialStats:
@@ -143,6 +146,10 @@ def _codes(labels: pa.Array) -> tuple[np.ndarray, list[str]]:
 def partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> PartialStats:
     """Map: the exact per-bus statistics of one input file.
 
+    A file with a header and no data rows holds no bus: its statistics are empty and it
+    is named in ``empty_files`` (the fleet says it skipped it), where one file as the
+    input is refused (:class:`~loadbayes.io.errors.NoDataRows`).
+
     Parameters
     ----------
     part : Partition
@@ -157,6 +164,13 @@ def partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> Partial
     DataError
         Bad input (named by file, column and row), or a bus given two classes.
     """
+    try:
+        return _partition_stats(part, spec, model)
+    except NoDataRows:
+        return replace(PartialStats.empty(model.gram_columns), empty_files=(str(part.path),))
+
+
+def _partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> PartialStats:
     names = model.gram_columns
     k = len(names)
     nent = k * (k + 1) // 2

@@ -7,7 +7,7 @@ catches every mistake of input that the fit entry points (``fit_zip``, ``fit_exp
 
 from __future__ import annotations
 
-__all__ = ["DataError", "LoadbayesError", "OptionError"]
+__all__ = ["DataError", "LoadbayesError", "NoDataRows", "OptionError"]
 
 
 class LoadbayesError(ValueError):
@@ -68,3 +68,11 @@ class DataError(LoadbayesError):
     def __reduce__(self):
         # Keep the location across pickling (Dask workers send errors back).
         return (type(self), (self.message, self.path, self.column, self.row))
+
+
+class NoDataRows(DataError):
+    """A file with a header (or nothing) and no data rows after it.
+
+    A :class:`DataError` like any other where one file is the input; a fleet's folder
+    skips such a file with a warning instead (it holds no bus to lose).
+    """

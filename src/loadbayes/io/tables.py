@@ -62,7 +62,7 @@ import pyarrow.parquet as pq
 from loadbayes.io.atomic import atomic_write
 from loadbayes.io.cells import _Piece
 from loadbayes.io.csv_reader import _csv_pieces
-from loadbayes.io.errors import DataError
+from loadbayes.io.errors import DataError, NoDataRows
 from loadbayes.io.parquet_reader import _parquet_pieces
 from loadbayes.io.sources import (
     _SUPPORTED,
@@ -332,7 +332,7 @@ def _count_rows(pieces: Iterator[_Piece], name: str) -> Iterator[_Piece]:
         n_kept += piece.n_read - len(piece.dropped)
         yield piece
     if n_read == 0:
-        raise DataError("no data rows", name)
+        raise NoDataRows("no data rows", name)
     if n_kept == 0:
         raise DataError(f"no valid rows: all {n_read} data rows were dropped", name)
 
