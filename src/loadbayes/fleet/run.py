@@ -650,8 +650,6 @@ def _pooled_chains(data_h, prior, sampler, eng, max_seconds, info, folder=None):
     depends on the draws only, except when the time budget ends it: then (and only
     then) two machines may stop at different rounds.
     """
-    import os
-
     from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
     from loadbayes.fleet.summary import convergence_note
 

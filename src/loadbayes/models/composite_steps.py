@@ -110,12 +110,17 @@ RAMP_MAX_S = 0.06
 RAMP_START_MARGIN = 0.1
 
 
+def _interval(t: NDArray[np.float64]) -> float:
+    """The record's sample interval (its median; 1 for a single sample)."""
+    return float(np.median(np.diff(t))) if t.size > 1 else 1.0
+
+
 def ramp_intervals(t: NDArray[np.float64]) -> int:
     """The longest edge, in intervals, of point samples: a ramp of :data:`RAMP_MAX_S`.
 
     The ramp's own intervals plus the two it starts and ends inside.
     """
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    dt = _interval(t)
     return max(2, int(np.ceil(RAMP_MAX_S / dt - 1e-9)) + 1)
 
 
@@ -127,7 +132,7 @@ def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
     With a window (phasor samples), one interval more: a short ramp's own, which the
     window smears further (a 20 ms ramp and a one-cycle window touch four 60/s samples).
     """
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    dt = _interval(t)
     ramp = 1 if window_s > 0 else 0
     return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1 + ramp)
 
@@ -137,7 +142,7 @@ def window_ramp_intervals(t: NDArray[np.float64], window_s: float) -> int:
 
     A ramp of :data:`RAMP_MAX_S` and the window's smear (``ceil(window / dt)`` more).
     """
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    dt = _interval(t)
     return ramp_intervals(t) + int(np.ceil(window_s / dt - 1e-9))
 
 

@@ -162,13 +162,14 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         y, gain = _mimic(t, x, tau, w)
     los = np.searchsorted(t, centres - 0.5 * period - 1e-6 * dt)
     his = np.searchsorted(t, centres + 0.5 * period - 1e-6 * dt)
-    # The decay test reads the window's cycle and the one after it (_decay_test).
+    # The decay test reads the window's cycle and the one after it: windows are grouped
+    # by the offsets of both, whatever ``dc`` (so every setting fits a window in the same
+    # group, and a window read without the filter is the same to the last bit).
     his2 = np.searchsorted(t, centres + 1.5 * period - 1e-6 * dt)
     groups: dict[tuple, list[int]] = {}
     for j in range(centres.size):
-        u = t[los[j] : his[j]] - centres[j]
-        u2 = t[his[j] : his2[j]] - centres[j]
-        key = (u.size, np.round(u / dt, 6).tobytes(), np.round(u2 / dt, 6).tobytes())
+        u = t[los[j] : his2[j]] - centres[j]
+        key = (int(his[j] - los[j]), np.round(u / dt, 6).tobytes())
         groups.setdefault(key, []).append(j)
     for js in groups.values():
         js = np.asarray(js)
@@ -199,10 +200,6 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
                 else np.zeros(js.size, dtype=bool)
             )
             ok = (lo > 0) & ~across
-            r = u / period
-            b = np.column_stack([a, r, r * r])
-            coef_b = np.einsum("pm,kgm->kgp", np.linalg.pinv(b), xx)
-            rss_b = np.sum((xx - np.einsum("kgp,mp->kgm", coef_b, b)) ** 2, axis=2)
             if dc == "on":
                 use = np.ones_like(rss, dtype=bool)
             else:
@@ -226,6 +223,10 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
                     )
                     use[idx_s] &= moved.any(axis=0)[None, :]
                 phasor = np.where(use, mimic, phasor)
+                # A filtered window's residual allows the offset: with its ramp and
+                # curvature over the window's own cycle.
+                r = u / period
+                _, rss_b = _lstsq(np.column_stack([a, r, r * r]), xx)
                 rss = np.where(use, np.minimum(rss, rss_b), rss)
             decay[:, js] = use
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -242,9 +243,14 @@ def _f_critical(dof: int, num: int = 2) -> float:
     return float(f_dist.isf(DECAY_ALPHA, num, dof))
 
 
-def _lstsq(a: np.ndarray, xx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients and residual sum of squares of each window of ``xx`` (..., m) on ``a``."""
-    coef = np.einsum("pm,...m->...p", np.linalg.pinv(a), xx)
+def _lstsq(
+    a: np.ndarray, xx: np.ndarray, pinv: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients and residual sum of squares of each window of ``xx`` (..., m) on ``a``.
+
+    ``pinv`` is ``a``'s pseudo-inverse when the caller has it already.
+    """
+    coef = np.einsum("pm,...m->...p", np.linalg.pinv(a) if pinv is None else pinv, xx)
     return coef, np.sum(np.abs(xx - np.einsum("...p,mp->...m", coef, a)) ** 2, axis=-1)
 
 
@@ -326,15 +332,16 @@ def _decay_test(
     for h in harmonics:
         cols += [turn**h, np.conj(turn) ** h]
     a = np.column_stack(cols)
+    b = np.column_stack([a, *offset])
     dof = 2 * (m2 - a.shape[1] - 2)
+    if not sets or dof < MIN_DOF:
+        return use, across
+    pinv_a, pinv_b = np.linalg.pinv(a), np.linalg.pinv(b)
     for chans in sets:
-        if dof < MIN_DOF:
-            use[list(chans)] = False
-            continue
         ia, ib, ic = chans
         z = (2.0 / 3.0) * (xx[ia] + _A * xx[ib] + _A * _A * xx[ic])
-        _, rss_z = _lstsq(a, z)
-        _, rss_zb = _lstsq(np.column_stack([a, *offset]), z)
+        _, rss_z = _lstsq(a, z, pinv_a)
+        _, rss_zb = _lstsq(b, z, pinv_b)
         with np.errstate(invalid="ignore", divide="ignore"):
             f_stat = 0.25 * (rss_z - rss_zb) / (rss_zb / dof)
         # How much an offset matters is judged on the phasors (by the caller): here the
