@@ -205,3 +205,100 @@ def test_with_a_short_burn_in_the_sheared_move_is_adaptive_metropolis_draw_for_d
     runs = [run_move(MOVES[n], _banana, np.zeros(3), cov0=np.eye(3), burn=400, draws=1000,
                      seed=4)[0] for n in ("am", "shear")]  # fmt: skip
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+# ------------------------------------------------------------------ jumps
+W_LEFT = 0.3
+
+
+def _two_modes(v):
+    """0.3 N((-3, 0), 0.5^2 I) + 0.7 N((3, 0), 0.5^2 I): a random walk scaled to one mode
+    does not cross between them."""
+    a = math.log(W_LEFT) - 2.0 * ((v[0] + 3.0) ** 2 + v[1] ** 2)
+    b = math.log(1 - W_LEFT) - 2.0 * ((v[0] - 3.0) ** 2 + v[1] ** 2)
+    return float(np.logaddexp(a, b)), None
+
+
+def _run_jumping(name, logp, x0, pooled, *, burn, draws, seed):
+    def chain(i, rng):
+        move = MOVES[name](0.25 * np.eye(2), adapt_until=burn, independence=0.35)
+        x = np.array(x0[i], dtype=float)
+        lp = logp(x)[0]
+        out = []
+        for it in range(draws):
+            if it == burn and pooled is not None:
+                move.fit_jumps(pooled)
+            x, lp, _, _ = move.step(x, lp, logp, rng, it)
+            if it >= burn:
+                out.append(x)
+        return np.array(out), move
+
+    res = run_chains(chain, chain_generators(seed, 2), workers=1)
+    return np.stack([r[0] for r in res]), [r[1] for r in res]
+
+
+@pytest.mark.parametrize("name", ["am", "shear"])
+def test_jumps_weigh_two_separated_modes_right(name):
+    """The jumps' Hastings ratio is what weighs the modes: a wrong one (a random walk's
+    symmetric ratio, or the t's density in the wrong coordinates) gives the wrong share.
+    Each chain starts in one mode and its burn-in stays there, so the t is fitted to the
+    two chains' burn-in pooled, as the composite sampler does. 2 x 20,000 draws with jumps
+    accepted ~15% (measured): the share of the left mode has a Monte Carlo sd under 0.01
+    (the chains switch modes hundreds of times), so 0.05 is over 5 sds (false alarm
+    < 1e-6); the modes' own means and sds are checked at 5 sds too."""
+    rng = np.random.default_rng(0)
+    pooled = np.vstack([rng.normal([-3.0, 0.0], 0.5, (1000, 2)),
+                        rng.normal([3.0, 0.0], 0.5, (1000, 2))])  # fmt: skip
+    x, moves = _run_jumping(name, _two_modes, [[-3.0, 0.0], [3.0, 0.0]], pooled,
+                            burn=2000, draws=22000, seed=11)  # fmt: skip
+    flat = x.reshape(-1, 2)
+    left = flat[:, 0] < 0
+    assert left.mean() == pytest.approx(W_LEFT, abs=0.05)
+    for side, centre in ((left, -3.0), (~left, 3.0)):
+        assert flat[side, 0].mean() == pytest.approx(centre, abs=0.05)
+        assert flat[side, 0].std() == pytest.approx(0.5, rel=0.1)
+    for m in moves:
+        assert m.jumps > 1000 and 0.05 < m.jump_acceptance < 0.6
+        # Each chain crossed: its draws hold both modes.
+    assert all((c[:, 0] < 0).any() and (c[:, 0] > 0).any() for c in x)
+
+
+def test_without_jumps_fitted_the_move_is_the_random_walk_draw_for_draw():
+    """With fewer burn-in draws than JUMP_MIN_DRAWS there are no jumps, and the chain is
+    the plain random walk's, draw for draw (no extra random numbers are drawn)."""
+    from loadbayes.inference.moves.adaptive_metropolis import JUMP_MIN_DRAWS
+
+    def run(independence):
+        rng = np.random.default_rng(5)
+        move = MOVES["am"](np.eye(3), adapt_until=JUMP_MIN_DRAWS - 1, independence=independence)
+        x, lp, out = np.zeros(3), _gaussian(np.zeros(3))[0], []
+        for it in range(2000):
+            x, lp, _, _ = move.step(x, lp, _gaussian, rng, it)
+            out.append(x)
+        return np.array(out), move
+
+    (plain, _), (jumpy, move) = run(0.0), run(0.35)
+    np.testing.assert_array_equal(plain, jumpy)
+    assert move.jumps == 0 and move.jump_acceptance is None
+
+
+def test_jumps_after_a_long_burn_in_keep_the_bent_ridge_marginals():
+    """The sheared move with jumps fitted to its own burn-in (in the sheared coordinates):
+    the banana's marginals as in the test without jumps, at the same tolerances."""
+    rng_seeds = chain_generators(2, 2)
+
+    def chain(i, rng):
+        move = MOVES["shear"](np.eye(3), adapt_until=4000, independence=0.35)
+        x, lp, out = np.zeros(3), _banana(np.zeros(3))[0], []
+        for it in range(24000):
+            x, lp, _, _ = move.step(x, lp, _banana, rng, it)
+            if it >= 4000:
+                out.append(x)
+        return np.array(out), move
+
+    res = run_chains(chain, rng_seeds, workers=1)
+    flat = np.vstack([r[0] for r in res])
+    np.testing.assert_allclose(flat.mean(0), [0.0, 0.0, 0.0], atol=0.2)
+    np.testing.assert_allclose(flat.std(0), [1.0, math.sqrt(1 + 2 * B**2 + SD**2), 1.0],
+                               rtol=0.15)  # fmt: skip
+    assert all(r[1].jumps > 1000 and r[1].jump_acceptance > 0.05 for r in res)

@@ -35,8 +35,9 @@ METHOD = {
 }
 #: The u-move in words, for the ``scheme`` setting.
 MOVE_NAME = {
-    "am": "adaptive Metropolis",
-    "shear": "adaptive Metropolis in coordinates straightening the main bend (from burn-in)",
+    "am": "adaptive Metropolis with t jumps after burn-in",
+    "shear": "adaptive Metropolis in coordinates straightening the main bend (from burn-in), "
+    "with t jumps after burn-in",
     "slice": "factor slice sampling",
 }
 
@@ -167,6 +168,7 @@ def sampler_record(
         "move": move,
         "acceptance": [r.acceptance for r in res],
         "evaluations_per_iteration": [r.evaluations_per_iteration for r in res],
+        "jump_acceptance": [r.jump_acceptance for r in res],
         "timing_s": seconds,
         "likelihood": likelihood,
     }

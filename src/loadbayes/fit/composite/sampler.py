@@ -5,7 +5,9 @@ coordinates, the steps' fractions, any torque log-ratios) with the linear coeffi
 integrated out; each event's coefficients exactly; the noise precisions (and, with
 Student-t noise, the weights); ``log T0`` from its prior conditional. The moves are
 physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-moves
-:func:`sample` offers); docs/composite.md, "The sampler".
+:func:`sample` offers); the Metropolis moves also jump, after burn-in, from a t fitted to
+every chain's late burn-in pooled (:data:`JUMP_SHARE`); docs/composite.md, "The sampler"
+and "Jumps".
 """
 
 from __future__ import annotations
@@ -31,13 +33,18 @@ from loadbayes.inference.condlinear import (
 )
 from loadbayes.inference.moves import MOVES
 
-__all__ = ["DEFAULT_MOVE", "MOVES", "ONE_EVALUATION_MOVES", "ChainResult", "sample"]
+__all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "ChainResult", "sample"]
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "shear"
 #: The moves that take one density evaluation per step, as the prior factors' estimated
 #: density (importance weights) needs: a slice move cannot use an estimated density.
 ONE_EVALUATION_MOVES = ("am", "shear")
+#: Share of the Metropolis moves' steps after burn-in that jump (an independence
+#: proposal from a t fitted to the burn-in, inference.moves.adaptive_metropolis): the
+#: random walk alone crossed the narrow lower tail of T' in issue 21's 120/s event so
+#: slowly that a chain sat there for thousands of iterations (docs/composite.md, "Jumps").
+JUMP_SHARE = 0.35
 #: Seconds between two progress reports of one chain.
 PROGRESS_EVERY_S = 0.2
 
@@ -52,6 +59,7 @@ class ChainResult:
     acceptance: float
     phi: np.ndarray | None = None  # (kept, steps) fractions of the step intervals
     evaluations_per_iteration: float = 1.0  # collapsed-density evaluations of the u-move
+    jump_acceptance: float | None = None  # of the u-move's jumps (None: no jumps)
     # Coordinates of u after the motor's five and the steps (estimated torque shares).
     u_extra: np.ndarray | None = None
     # Student-t only (fit.composite_robust): nu draws (kept, 2), mean weights (2, n).
@@ -140,7 +148,10 @@ class _Chain:
         self.n_tot, self.stop, self.progress = n_tot, stop, progress
         dim = problem.dim
         self.n_base = 5 + problem.n_steps
-        self.am = MOVES[move](lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)))
+        jumps = {"independence": JUMP_SHARE} if move in ONE_EVALUATION_MOVES else {}
+        self.am = MOVES[move](
+            lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **jumps
+        )
         u, sums = start.u, None
         for _ in range(100):
             cand = start.u + dispersion * root @ rng.standard_normal(dim)
@@ -166,6 +177,8 @@ class _Chain:
             self.tilted = _Tilted(problem, factor)
             self.betas = self.tilted.feasible(self.sums, self.tau, self.u, rng)
         self.it = 0
+        # The second half of the burn-in's u: the pooled jumps' t is fitted to them.
+        self.late_burn: list[np.ndarray] = []
         self.kept: dict[str, list[np.ndarray]] = {
             k: [] for k in ("th", "phi", "b", "t", "x", "rho")
         }
@@ -200,6 +213,8 @@ class _Chain:
             else:
                 u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it)
             keep = it >= burn and (it - burn) % thin == 0
+            if burn // 2 <= it < burn:
+                self.late_burn.append(np.array(u, dtype=float))
             if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
                 stats = problem.ar_statistics(sums, betas)
                 rho = np.array([draw_rho(stats[g], float(tau[g]), float(rho[g]), rng)[0]
@@ -277,6 +292,7 @@ class _Chain:
             self.am.acceptance,
             phi=np.array(k["phi"]).reshape(n, p.n_steps),
             evaluations_per_iteration=self.am.evaluations_per_step,
+            jump_acceptance=getattr(self.am, "jump_acceptance", None),
             u_extra=extra if p.dim > self.n_base else None,
             rho=np.array(k["rho"]).reshape(n, 2) if self.rho is not None else None,
             **robust,
@@ -378,16 +394,33 @@ def sample(
     stop = threading.Event()
     state: list[_Chain | None] = [None] * chains
 
+    # The Metropolis moves jump from a t fitted to every chain's late burn-in, pooled: a
+    # chain's own burn-in may not have left the region it started in (one chain's t
+    # accepted 5% of its jumps where the pooled one accepts 10-15%). So the chains stop
+    # at the end of burn-in, and go on with the jumps fitted.
+    pool = move in ONE_EVALUATION_MOVES
+
     def first(index: int, rng: np.random.Generator) -> ChainResult:
         c = _Chain(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
                    move=move, dispersion=dispersion, student_t=student_t, stop=stop,
                    progress=progress, factor=factor, ar=ar)  # fmt: skip
         state[index] = c
-        c.run(draws)
+        c.run(burn if pool else draws)
+        return c.result()
+
+    def rest(index: int, rng: np.random.Generator) -> ChainResult:
+        c = state[index]
+        c.run(draws - burn)
         return c.result()
 
     generators = chain_generators(seed, chains)
     out = run_chains(first, generators, workers=workers, stop=stop)
+    if pool:
+        late = np.array([u for c in state for u in c.late_burn])
+        for c in state:
+            c.am.fit_jumps(late)
+            c.late_burn = []
+        out = run_chains(rest, generators, workers=workers, stop=stop)
     while extend is not None:
         more = int(extend(out))
         if more <= 0:

@@ -10,6 +10,19 @@ acceptance rate of 0.234 by a Robbins-Monro recursion. Both are learned **only d
 burn-in** and then frozen, so the kept draws come from a fixed, valid Metropolis kernel
 (no diminishing-adaptation argument needed).
 
+**Jumps** (``independence > 0``): after burn-in, that share of the steps proposes
+from a fixed multivariate Student-t instead, centred on the mean of the draws the move
+learned from, with their covariance times :data:`JUMP_INFLATION` and
+:data:`JUMP_DOF` degrees of freedom: an independence Metropolis-Hastings step
+(accepted by ``p(y) q(x) / (p(x) q(y))``). Both kernels leave the density invariant,
+so their fixed mixture does too; the random walk explores locally, and a jump can
+leave (or enter) a narrow stretch of the density that the walk, its scale set by the
+bulk, crosses only slowly. The t is fitted in the coordinates the walk moves in (a
+subclass's), where the density is the block's up to a constant factor. With fewer
+than :data:`JUMP_MIN_DRAWS` burn-in draws to fit it from there are no jumps.
+:meth:`AdaptiveMetropolis.fit_jumps` fits it to other draws instead (a sampler's
+chains pooled: the composite sampler does).
+
 The contract (``step``, the burn-in window, the counters) is
 :class:`~loadbayes.inference.moves.base.BlockMove`'s; chains run through
 :func:`loadbayes.core.parallel.run_chains`.
@@ -25,7 +38,42 @@ import numpy as np
 
 from loadbayes.inference.moves.base import BlockMove
 
-__all__ = ["AdaptiveMetropolis"]
+__all__ = ["JUMP_DOF", "JUMP_INFLATION", "JUMP_MIN_DRAWS", "AdaptiveMetropolis", "StudentT"]
+
+#: Degrees of freedom of the jumps' multivariate t (tails heavier than the bulk's).
+JUMP_DOF = 10.0
+#: The jumps' scale matrix is the learned covariance times this (wider than the bulk).
+JUMP_INFLATION = 2.0
+#: Burn-in draws the jumps' t is fitted from, at least (else no jumps).
+JUMP_MIN_DRAWS = 500
+
+
+class StudentT:
+    """A multivariate Student-t: draws and the log density up to a constant.
+
+    Parameters
+    ----------
+    mean : ndarray, shape (d,)
+    scale : ndarray, shape (d, d)
+        The scale matrix (positive definite).
+    dof : float
+    """
+
+    def __init__(self, mean: np.ndarray, scale: np.ndarray, dof: float) -> None:
+        self.mean = np.asarray(mean, dtype=float).copy()
+        self._chol = np.linalg.cholesky((scale + scale.T) / 2)
+        self.dof = float(dof)
+        self.d = self.mean.size
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """One draw."""
+        z = rng.standard_normal(self.d)
+        return self.mean + math.sqrt(self.dof / rng.chisquare(self.dof)) * (self._chol @ z)
+
+    def log_density(self, x: np.ndarray) -> float:
+        """``log q(x)`` up to a constant."""
+        z = np.linalg.solve(self._chol, np.asarray(x, dtype=float) - self.mean)
+        return -0.5 * (self.dof + self.d) * math.log1p(float(z @ z) / self.dof)
 
 
 class AdaptiveMetropolis(BlockMove):
@@ -41,6 +89,13 @@ class AdaptiveMetropolis(BlockMove):
         Iterations with ``cov0`` before the empirical covariance takes over.
     target : float
         Acceptance rate the scale is tuned towards.
+    independence : float
+        Share of the steps after burn-in that are jumps (the module's notes); 0: none.
+
+    Attributes
+    ----------
+    jumps, jumps_accepted : int
+        Jump steps proposed and accepted (among ``steps`` and ``accepted``).
     """
 
     def __init__(
@@ -50,10 +105,18 @@ class AdaptiveMetropolis(BlockMove):
         adapt_until: int,
         adapt_start: int = 100,
         target: float = 0.234,
+        independence: float = 0.0,
     ) -> None:
         super().__init__(cov0, adapt_until=adapt_until, adapt_start=adapt_start)
         self.log_scale = math.log(2.38**2 / self.d)
         self.target = float(target)
+        if not 0.0 <= independence < 1.0:
+            raise ValueError(f"independence must be in [0, 1), got {independence}")
+        self.independence = float(independence)
+        self._jump: StudentT | None = None
+        self._jump_ready = False
+        self.jumps = 0
+        self.jumps_accepted = 0
 
     def step(
         self,
@@ -87,6 +150,10 @@ class AdaptiveMetropolis(BlockMove):
         -------
         (x, logp_x, aux, accepted)
         """
+        if self.independence and iteration >= self.adapt_until:
+            jump = self._jump_proposal()
+            if jump is not None and rng.uniform() < self.independence:
+                return self._jump_step(jump, x, logp_x, logp, rng, aux)
         w = self._walk(x)
         z = rng.standard_normal(self.d)
         w_prop = w + math.exp(0.5 * self.log_scale) * (self._root @ z)
@@ -103,6 +170,52 @@ class AdaptiveMetropolis(BlockMove):
         if iteration < self.adapt_until:
             self._adapt(w, alpha, iteration)
         return x, logp_x, aux, bool(accept)
+
+    def fit_jumps(self, draws: np.ndarray) -> None:
+        """Fit the jumps' t to ``draws`` of the block (e.g. several chains' burn-in).
+
+        Call after burn-in (the walk's coordinates are fixed then); without it the t is
+        fitted to the draws this move learned from, at the first step after burn-in.
+        Fewer than :data:`JUMP_MIN_DRAWS` draws: no jumps.
+        """
+        w = np.array([self._walk(np.asarray(x, dtype=float)) for x in draws])
+        self._jump_ready = True
+        self._jump = None
+        if len(w) >= JUMP_MIN_DRAWS:
+            cov = np.cov(w, rowvar=False) + 1e-10 * np.eye(self.d)
+            self._jump = StudentT(w.mean(axis=0), JUMP_INFLATION * cov, JUMP_DOF)
+
+    def _jump_proposal(self) -> StudentT | None:
+        # Fitted once, at the first step after burn-in, from what the move learned.
+        if not self._jump_ready:
+            self._jump_ready = True
+            if self._running.count >= JUMP_MIN_DRAWS:
+                self._jump = StudentT(self._running.mean, JUMP_INFLATION * self.cov, JUMP_DOF)
+        return self._jump
+
+    def _jump_step(self, jump, x, logp_x, logp, rng, aux):
+        # Independence Metropolis-Hastings in the walk's coordinates (unit Jacobian to
+        # the block up to a constant, which cancels in the ratio).
+        w_prop = jump.draw(rng)
+        prop = self._block(w_prop)
+        lp_prop, aux_prop = logp(prop)
+        self.steps += 1
+        self.evaluations += 1
+        self.jumps += 1
+        log_u = math.log(rng.uniform())
+        if not math.isfinite(lp_prop):
+            return x, logp_x, aux, False
+        log_ratio = lp_prop - logp_x + jump.log_density(self._walk(x)) - jump.log_density(w_prop)
+        if log_u < log_ratio:
+            self.accepted += 1
+            self.jumps_accepted += 1
+            return prop, lp_prop, aux_prop, True
+        return x, logp_x, aux, False
+
+    @property
+    def jump_acceptance(self) -> float | None:
+        """Share of the jumps that moved (None before any jump)."""
+        return self.jumps_accepted / self.jumps if self.jumps else None
 
     # The coordinates the walk moves in, and back: the block itself here; a subclass may
     # walk in others whose map to the block has a unit Jacobian (so the Metropolis

@@ -45,6 +45,16 @@ class RunningCovariance:
         self._mean = np.zeros(self.d)
         self._m2 = np.zeros((self.d, self.d))
 
+    @property
+    def mean(self) -> np.ndarray:
+        """The mean of the draws fed so far."""
+        return self._mean.copy()
+
+    @property
+    def count(self) -> int:
+        """How many draws were fed."""
+        return self._n
+
     def update(self, x: np.ndarray) -> bool:
         """Add a draw; True when the covariance was refreshed."""
         self._n += 1

@@ -120,6 +120,9 @@ class ShearedAM(AdaptiveMetropolis):
         Iterations with ``cov0`` before the empirical covariance takes over.
     target : float
         Acceptance rate the scale is tuned towards.
+    independence : float
+        Share of the steps after burn-in that are jumps, from a t fitted in the sheared
+        coordinates (:class:`AdaptiveMetropolis`).
     """
 
     def __init__(
@@ -129,8 +132,10 @@ class ShearedAM(AdaptiveMetropolis):
         adapt_until: int,
         adapt_start: int = 100,
         target: float = 0.234,
+        independence: float = 0.0,
     ) -> None:
-        super().__init__(cov0, adapt_until=adapt_until, adapt_start=adapt_start, target=target)
+        super().__init__(cov0, adapt_until=adapt_until, adapt_start=adapt_start, target=target,
+                         independence=independence)  # fmt: skip
         self.shear: Shear | None = None
         self._switch = adapt_until // 2
         self._min_history = max(MIN_HISTORY, 10 * self.d)
