@@ -143,14 +143,15 @@ class _Chain:
     """
 
     def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
-                 dispersion, student_t, stop, progress, factor=None, ar=False):  # fmt: skip
+                 dispersion, student_t, stop, progress, factor=None, ar=False,
+                 jumps=False):  # fmt: skip
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot, self.stop, self.progress = n_tot, stop, progress
         dim = problem.dim
         self.n_base = 5 + problem.n_steps
-        jumps = {"independence": JUMP_SHARE} if move in ONE_EVALUATION_MOVES else {}
+        share = {"independence": JUMP_SHARE} if jumps else {}
         self.am = MOVES[move](
-            lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **jumps
+            lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
         )
         u, sums = start.u, None
         for _ in range(100):
@@ -177,8 +178,8 @@ class _Chain:
             self.tilted = _Tilted(problem, factor)
             self.betas = self.tilted.feasible(self.sums, self.tau, self.u, rng)
         self.it = 0
-        # The second half of the burn-in's u: the pooled jumps' t is fitted to them.
-        self.late_burn: list[np.ndarray] = []
+        # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
+        self.late_burn: list[np.ndarray] | None = [] if jumps else None
         self.kept: dict[str, list[np.ndarray]] = {
             k: [] for k in ("th", "phi", "b", "t", "x", "rho")
         }
@@ -213,7 +214,7 @@ class _Chain:
             else:
                 u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it)
             keep = it >= burn and (it - burn) % thin == 0
-            if burn // 2 <= it < burn:
+            if self.late_burn is not None and burn // 2 <= it < burn:
                 self.late_burn.append(np.array(u, dtype=float))
             if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
                 stats = problem.ar_statistics(sums, betas)
@@ -396,14 +397,14 @@ def sample(
 
     # The Metropolis moves jump from a t fitted to every chain's late burn-in, pooled: a
     # chain's own burn-in may not have left the region it started in (one chain's t
-    # accepted 5% of its jumps where the pooled one accepts 10-15%). So the chains stop
+    # accepted 5% of its jumps where the pooled one accepts 10-30%). So the chains stop
     # at the end of burn-in, and go on with the jumps fitted.
     pool = move in ONE_EVALUATION_MOVES
 
     def first(index: int, rng: np.random.Generator) -> ChainResult:
         c = _Chain(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
                    move=move, dispersion=dispersion, student_t=student_t, stop=stop,
-                   progress=progress, factor=factor, ar=ar)  # fmt: skip
+                   progress=progress, factor=factor, ar=ar, jumps=pool)  # fmt: skip
         state[index] = c
         c.run(burn if pool else draws)
         return c.result()
