@@ -31,7 +31,7 @@ from loadbayes.inference.condlinear import (
     draw_tau,
     residual_ss,
 )
-from loadbayes.inference.moves import MOVES
+from loadbayes.inference.moves import MOVES, BlockState
 
 __all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "ChainResult", "sample"]
 
@@ -207,7 +207,7 @@ class _Chain:
             else:
                 lp, logp = wt.current(u, tau), wt.logp(tau)
             if self.tilted is None:
-                u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
+                (u, lp, sums), _ = am.step(BlockState(u, lp, sums), logp, rng, it)
                 if problem.n_share_coords:
                     u = self._share_steps(u, lp, sums, tau, it)
                 betas = problem.draw_coefficients(sums, tau, u, rng)
@@ -273,7 +273,8 @@ class _Chain:
             c2, l2, e2 = tilt.candidates(s2, tau, x, rng)
             return lc + e2, (s2, c2, l2)
 
-        u, _, aux, _ = self.am.step(u, lp + est, logp_tilted, rng, it, aux=(sums, cands, logr))
+        state = BlockState(u, lp + est, (sums, cands, logr))
+        (u, _, aux), _ = self.am.step(state, logp_tilted, rng, it)
         sums, cands, logr = aux
         self.betas = tilt.select(cands, logr, rng)
         return u, sums, self.betas
