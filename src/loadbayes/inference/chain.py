@@ -75,7 +75,7 @@ class Chain(Generic[S]):
     ----------
     step : callable
         ``step(state, rng, iteration) -> state``: the model's conditional updates, one
-        iteration.
+        iteration (None for a model that runs only :meth:`run_batched`).
     state : any
         The starting state.
     rng : numpy.random.Generator
@@ -83,7 +83,8 @@ class Chain(Generic[S]):
     fields : mapping
         Name -> :class:`Field` (or a shape tuple) of every kept quantity.
     record : callable
-        ``record(state) -> {name: value}`` at a kept iteration, every field.
+        ``record(state) -> {name: value}`` at a kept iteration, every field (None with
+        :meth:`run_batched` only, where the compiled loop stores them).
     burn, thin : int
         Burn-in iterations (counted from the chain's first) and thinning.
     stats : callable, optional
@@ -100,12 +101,12 @@ class Chain(Generic[S]):
 
     def __init__(
         self,
-        step: Callable[[S, np.random.Generator, int], S],
+        step: Callable[[S, np.random.Generator, int], S] | None,
         state: S,
         rng: np.random.Generator,
         *,
         fields: Mapping[str, Field | tuple[int, ...]],
-        record: Callable[[S], Mapping[str, Any]],
+        record: Callable[[S], Mapping[str, Any]] | None,
         burn: int,
         thin: int = 1,
         stats: Callable[[], dict[str, Any]] | None = None,
@@ -139,6 +140,7 @@ class Chain(Generic[S]):
         names = list(bufs)
         live = {k: bufs[k] for k in names if streamed and self.fields[k].streamed}
         step, record, rng, state = self.step, self.record, self.rng, self.state
+        assert step is not None and record is not None, "a batched-only chain: run_batched"
         stop, progress, every = self.stop, self.progress, self.progress_every
         j = 0
         told, last = start, time.perf_counter()
@@ -162,6 +164,37 @@ class Chain(Generic[S]):
         for k in names:
             if k not in live:
                 self._runs[k].append(bufs[k])
+
+    def run_batched(
+        self,
+        iterations: int,
+        batch: int,
+        step_batch: Callable[[S, np.random.Generator, int, int, dict[str, np.ndarray], int], S],
+    ) -> None:
+        """Run ``iterations`` more iterations, ``batch`` at a time, through a compiled loop.
+
+        For a model whose iterations run in a compiled kernel (a Python call per iteration
+        would cost more than the iteration): ``step_batch(state, rng, start, count,
+        buffers, kept0) -> state`` runs iterations ``start .. start + count - 1`` and
+        writes the fields of each kept one (:func:`is_kept`) into ``buffers[name][k -
+        kept0]``, ``k`` its index among the chain's kept draws. The driver still owns the
+        arrays (allocated here for the run, every field in memory), the count, the stop
+        flag and the progress, checked between batches.
+        """
+        start, end = self.iteration, self.iteration + int(iterations)
+        kept0 = kept_count(0, start, self.burn, self.thin)
+        kept = kept_count(start, end, self.burn, self.thin)
+        bufs = {k: np.empty((kept, *f.shape), f.dtype) for k, f in self.fields.items()}
+        state = self.state
+        for b0 in range(start, end, batch):
+            check_stop(self.stop)
+            m = min(batch, end - b0)
+            state = step_batch(state, self.rng, b0, m, bufs, kept0)
+            if self.progress is not None:
+                self.progress(m)
+        self.state, self.iteration = state, end
+        for k, buf in bufs.items():
+            self._runs[k].append(buf)
 
     def draws(self) -> dict[str, np.ndarray]:
         """Every run's kept draws of each field kept in memory, (kept, *shape)."""
