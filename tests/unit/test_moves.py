@@ -17,7 +17,7 @@ import pytest
 from scipy import stats
 
 from loadbayes.core.parallel import chain_generators, run_chains
-from loadbayes.inference.moves import MOVES, BlockMove
+from loadbayes.inference.moves import MOVES, BlockMove, BlockState
 
 
 def run_move(move_cls, logp, x0, *, cov0, burn, draws, seed, chains=2):
@@ -32,7 +32,7 @@ def run_move(move_cls, logp, x0, *, cov0, burn, draws, seed, chains=2):
         lp = logp(x)[0]
         out = []
         for it in range(draws):
-            x, lp, _, _ = move.step(x, lp, logp, rng, it)
+            (x, lp, _), _ = move.step(BlockState(x, lp), logp, rng, it)
             if it >= burn:
                 out.append(x)
         return np.array(out), move
@@ -228,7 +228,7 @@ def _run_jumping(name, logp, x0, pooled, *, burn, draws, seed):
         for it in range(draws):
             if it == burn and pooled is not None:
                 move.fit_jumps(pooled)
-            x, lp, _, _ = move.step(x, lp, logp, rng, it)
+            (x, lp, _), _ = move.step(BlockState(x, lp), logp, rng, it)
             if it >= burn:
                 out.append(x)
         return np.array(out), move
@@ -273,7 +273,7 @@ def test_without_jumps_fitted_the_move_is_the_random_walk_draw_for_draw():
         move = MOVES["am"](np.eye(3), adapt_until=JUMP_MIN_DRAWS - 1, independence=independence)
         x, lp, out = np.zeros(3), _gaussian(np.zeros(3))[0], []
         for it in range(2000):
-            x, lp, _, _ = move.step(x, lp, _gaussian, rng, it)
+            (x, lp, _), _ = move.step(BlockState(x, lp), _gaussian, rng, it)
             out.append(x)
         return np.array(out), move
 
@@ -291,7 +291,7 @@ def test_jumps_after_a_long_burn_in_keep_the_bent_ridge_marginals():
         move = MOVES["shear"](np.eye(3), adapt_until=4000, independence=0.35)
         x, lp, out = np.zeros(3), _banana(np.zeros(3))[0], []
         for it in range(24000):
-            x, lp, _, _ = move.step(x, lp, _banana, rng, it)
+            (x, lp, _), _ = move.step(BlockState(x, lp), _banana, rng, it)
             if it >= 4000:
                 out.append(x)
         return np.array(out), move

@@ -28,6 +28,7 @@ T = TypeVar("T")
 __all__ = [
     "ChainsStopped",
     "chain_generators",
+    "chain_seeds",
     "check_stop",
     "clear_stop",
     "num_threads",
@@ -130,14 +131,25 @@ def run_threads(
         raise _first_error(errors)
 
 
+def chain_seeds(
+    seed: int | np.random.SeedSequence | None, chains: int
+) -> list[np.random.SeedSequence]:
+    """One seed per chain, spawned from the run's seed: chain ``i`` gets child ``i``.
+
+    What :func:`chain_generators` makes its generators from; a seed (unlike a generator)
+    travels to another process (the fleet's chains under Dask).
+    """
+    seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+    return seq.spawn(chains)
+
+
 def chain_generators(
     rng: np.random.Generator | int | np.random.SeedSequence | None, chains: int
 ) -> list[np.random.Generator]:
     """One independent generator per chain, derived from ``rng`` (a seed or a Generator)."""
     if isinstance(rng, np.random.Generator):
         return list(rng.spawn(chains))
-    seq = rng if isinstance(rng, np.random.SeedSequence) else np.random.SeedSequence(rng)
-    return [np.random.default_rng(s) for s in seq.spawn(chains)]
+    return [np.random.default_rng(s) for s in chain_seeds(rng, chains)]
 
 
 def run_chains(

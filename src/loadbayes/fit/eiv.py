@@ -38,6 +38,7 @@ does, weakly, and the interval of ``s`` (``sigma_v``) shows it.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -46,6 +47,7 @@ from numba import njit
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import GramAccumulator
+from loadbayes.inference.chain import Chain
 from loadbayes.inference.linalg import precision_draw
 from loadbayes.io.errors import OptionError
 from loadbayes.posterior import Posterior
@@ -113,12 +115,17 @@ def _eiv_segment(
     start,
     burn,
     thin,
+    kept0,
     out_beta,
     out_tau,
     out_tau_v,
     accepted,
 ):  # pragma: no cover - compiled
-    """``m`` iterations of one chain (``m`` = rows of ``z_x``); draws kept after burn-in.
+    """``m`` iterations of one chain (``m`` = rows of ``z_x``) from iteration ``start``.
+
+    The kept ones (past ``burn``, every ``thin``-th: ``inference.chain.is_kept``) go to
+    row ``k - kept0`` of the ``out_`` arrays, ``k`` their index among the chain's kept
+    draws (the driver's arrays: ``inference.chain.Chain.run_batched``).
 
     ``ys`` (C, n) are the channels' responses, ``j0[c]`` 0 (columns 1, z1, z2) or 1
     (z1, z2: known nominal power); ``beta`` (C, 3) holds the intercept in column 0 (0
@@ -228,11 +235,23 @@ def _eiv_segment(
         if fit_tau_v:
             tau_v = max(g_tau_v[j] / (rate_v0 + 0.5 * sq), 1e-100)
         if it >= burn and (it - burn) % thin == 0:
-            kk = (it - burn) // thin
+            kk = (it - burn) // thin - kept0
             out_beta[kk, :, :] = beta
             out_tau[kk, :] = tau
             out_tau_v[kk] = tau_v
     return tau_v
+
+
+@dataclass
+class _Latent:
+    """One chain's state: the latent voltages, coefficients, precisions (updated in place)."""
+
+    x: np.ndarray  # (n,) latent true voltages
+    beta: np.ndarray  # (C, 3)
+    tau: np.ndarray  # (C,)
+    tau_v: float
+    hyper: np.ndarray  # (mu, lambda) of the latent voltages' normal prior
+    accepted: np.ndarray  # latent-voltage steps accepted, proposed
 
 
 def _chain(
@@ -245,7 +264,13 @@ def _chain(
     v_noise: float | str,
     settings: SamplerSettings,
 ) -> dict[str, np.ndarray]:
-    """One chain: kept draws of the coefficients (C, 3), tau (C), tau_v; acceptance."""
+    """One chain: kept draws of the coefficients (C, 3), tau (C), tau_v; acceptance.
+
+    The iterations run in the compiled :func:`_eiv_segment`, a segment of them per call
+    (a Python call per iteration would cost more than the iteration on a short record);
+    :class:`~loadbayes.inference.chain.Chain` owns the count, the kept draws' arrays,
+    the stop flag and the statistics (``Chain.run_batched``).
+    """
     n = x_obs.size
     nc = ys.shape[0]
     pm = np.zeros((nc, 3))
@@ -276,37 +301,36 @@ def _chain(
         beta[c, a:] = coef
         res = ys[c] - cols[:, a:] @ coef
         tau[c] = 1.0 / max(float(np.var(res)), 1e-12)
-    kept = len(range(settings.burn, settings.draws, settings.thin))
-    out_beta = np.zeros((kept, nc, 3))
-    out_tau = np.zeros((kept, nc))
-    out_tau_v = np.zeros(kept)
-    accepted = np.zeros(2)
     shape_v = TAU_V_PRIOR[0] + 0.5 * n
     hyper = np.array([float(np.mean(x_obs)), 1.0 / max(float(np.var(x_obs)), 1e-12)])
-    # at most SEGMENT iterations, and about 32 MB of random numbers, at a time
-    seg = max(1, min(SEGMENT, SEGMENT_NUMBERS // max(n, 1)))
-    for start in range(0, settings.draws, seg):
-        m = min(seg, settings.draws - start)
-        z_beta = gen.standard_normal((m, nc, 3))
-        g_tau = gen.standard_gamma(shape, size=(m, nc))
-        g_tau_v = gen.standard_gamma(shape_v, size=m)
+    state = _Latent(x, beta, tau, tau_v, hyper, np.zeros(2))
+
+    def segment(st: _Latent, rng, start, m, out, kept0) -> _Latent:
+        # The random numbers of m iterations in one piece, in this order, then the loop.
+        z_beta = rng.standard_normal((m, nc, 3))
+        g_tau = rng.standard_gamma(shape, size=(m, nc))
+        g_tau_v = rng.standard_gamma(shape_v, size=m)
         z_hyper = np.column_stack(
-            [gen.standard_normal(m), gen.standard_gamma(TAU_V_PRIOR[0] + 0.5 * n, size=m)]
+            [rng.standard_normal(m), rng.standard_gamma(TAU_V_PRIOR[0] + 0.5 * n, size=m)]
         )
-        z_x = gen.standard_normal((m, n))
-        u_x = gen.random((m, n))
-        tau_v = _eiv_segment(
-            x_obs, ys, j0, pm, pp, rate0, shape, x, beta, tau, tau_v, fit_tau_v,
-            TAU_V_PRIOR[1], hyper, z_beta, g_tau, g_tau_v, z_hyper, z_x, u_x, start,
-            settings.burn,
-            settings.thin, out_beta, out_tau, out_tau_v, accepted,
+        z_x = rng.standard_normal((m, n))
+        u_x = rng.random((m, n))
+        st.tau_v = _eiv_segment(
+            x_obs, ys, j0, pm, pp, rate0, shape, st.x, st.beta, st.tau, st.tau_v, fit_tau_v,
+            TAU_V_PRIOR[1], st.hyper, z_beta, g_tau, g_tau_v, z_hyper, z_x, u_x, start,
+            settings.burn, settings.thin, kept0, out["beta"], out["tau"], out["tau_v"],
+            st.accepted,
         )  # fmt: skip
-    return {
-        "beta": out_beta,
-        "tau": out_tau,
-        "tau_v": out_tau_v,
-        "accept": np.array(accepted[0] / max(accepted[1], 1.0)),
-    }
+        return st
+
+    chain = Chain(
+        None, state, gen, fields={"beta": (nc, 3), "tau": (nc,), "tau_v": ()}, record=None,
+        burn=settings.burn, thin=settings.thin,
+        stats=lambda: {"accept": np.array(state.accepted[0] / max(state.accepted[1], 1.0))},
+    )  # fmt: skip
+    # at most SEGMENT iterations, and about 32 MB of random numbers, at a time
+    chain.run_batched(settings.draws, max(1, min(SEGMENT, SEGMENT_NUMBERS // max(n, 1))), segment)
+    return {**chain.draws(), **chain.sample_stats()}
 
 
 def fit_zip_eiv(

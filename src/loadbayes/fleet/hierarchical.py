@@ -52,11 +52,12 @@ from __future__ import annotations
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from loadbayes.core.parallel import check_stop
+from loadbayes.core.parallel import chain_seeds
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.diagnostics import summarize
 from loadbayes.fleet.hier_kernels import (
@@ -72,6 +73,7 @@ from loadbayes.fleet.hier_kernels import (
 )
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.fleet.summary import failed_rows, stat_rows
+from loadbayes.inference.chain import Chain, Field, kept_count
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
 
@@ -80,6 +82,7 @@ __all__ = [
     "HierData",
     "StoredDraws",
     "HierPrior",
+    "chain_seeds",
     "class_convergence",
     "prepare",
     "run_chain",
@@ -509,17 +512,6 @@ def run_chain(
         total, burn, done = sampler.draws, sampler.burn, 0
     sums = np.zeros((ncls, d))
     scatter = np.zeros((ncls, d, d))
-    kept = len(range(burn, total, sampler.thin))
-    rows = min(kept, STORE_BLOCK) if store else kept
-    out = ChainDraws(
-        np.empty((rows, nb, d), np.float32),
-        np.empty((rows, nb, nch), np.float32),
-        np.empty((kept, ncls, d)),
-        np.empty((kept, ncls, d, d)),
-        np.empty((rows, nb, nch), np.float32),
-    )
-    sink = _Store(store, kept, nb, {"theta": d, "tau": nch, "p0": nch}) if store else None
-    k = 0
     prec_data = np.zeros((ncls, d, d))
     lin_data = np.zeros((ncls, d))
     chol = np.empty((nb, d, d))
@@ -529,8 +521,10 @@ def run_chain(
     gshape = np.ascontiguousarray(np.broadcast_to(shape[:, None], (nb, nch)))
     dirs = _directions(nch)
     acc_a, acc_b = np.zeros(ncls), np.zeros(ncls)
-    for it in range(total):
-        check_stop(stop)
+
+    def sweep(st: _Sweep, gen: np.random.Generator, it: int) -> _Sweep:
+        # One Gibbs sweep (the module notes' steps 1-4); theta, s, t change in place.
+        mu, sigma, sig_inv = st.mu, st.sigma, st.sig_inv
         _factor(data.cls, data.g3, data.xy, s, t, sig_inv, chol, u, ok)
         _mu_terms(data.cls, chol, u, ok, sig_inv, prec_data, lin_data)
         mu = _draw_mu(gen, s0_inv, s0_inv_m0, prec_data, lin_data)
@@ -544,28 +538,38 @@ def run_chain(
                                       dirs, acc_a, acc_b)  # fmt: skip
         _class_sums(data.cls, theta, mu, nc, sums, scatter)
         sigma, sig_inv = _draw_sigma(gen, nu0 + nc, psi0[None] + scatter)
-        if it >= burn and (it - burn) % sampler.thin == 0:
-            r = k % rows
-            out.theta[r] = theta
-            out.tau[r] = t * s**2
-            out.p0[r] = s * data.scale
-            out.mu[k] = mu
-            out.sigma[k] = sigma
-            k += 1
-            if sink is not None and (r == rows - 1 or k == kept):
-                sink.write(k - r - 1, {"theta": out.theta, "tau": out.tau, "p0": out.p0}, r + 1)
+        return _Sweep(mu, sigma, sig_inv)
+
+    def record(st: _Sweep) -> dict[str, np.ndarray]:
+        return {"theta": theta, "tau": t * s**2, "p0": s * data.scale, "mu": st.mu,
+                "sigma": st.sigma}  # fmt: skip
+
+    kept = kept_count(0, total, burn, sampler.thin)
+    bus = {"theta": d, "tau": nch, "p0": nch}
+    sink = _Store(store, kept, nb, bus) if store else None
+    fields = {k: Field((nb, n), np.float32, streamed=True) for k, n in bus.items()}
+    fields.update(mu=Field((ncls, d)), sigma=Field((ncls, d, d)))
+    chain = Chain(sweep, _Sweep(mu, sigma, sig_inv), gen, fields=fields, record=record,
+                  burn=burn, thin=sampler.thin, stop=stop, block=STORE_BLOCK,
+                  sink=None if sink is None else sink.write)  # fmt: skip
+    chain.run(total)
+    kept_draws = chain.draws()
     if sink is not None:
-        stored = sink.close()
-        out.theta, out.tau, out.p0 = stored["theta"], stored["tau"], stored["p0"]
+        kept_draws.update(sink.close())
+    out = ChainDraws(*(kept_draws[k] for k in ("theta", "tau", "mu", "sigma", "p0")))
+    end = chain.state
     out.state = ChainState(
-        gen.bit_generator.state, mu, sigma, sig_inv, theta, s, t, done + total
+        gen.bit_generator.state, end.mu, end.sigma, end.sig_inv, theta, s, t, done + total
     )  # fmt: skip
     return out
 
 
-def chain_seeds(seed: int, chains: int) -> list[np.random.SeedSequence]:
-    """One seed per chain, spawned from the run's seed."""
-    return np.random.SeedSequence(seed).spawn(chains)
+class _Sweep(NamedTuple):
+    """The class-level state a sweep hands on (the bus-level arrays change in place)."""
+
+    mu: np.ndarray
+    sigma: np.ndarray
+    sig_inv: np.ndarray
 
 
 def _class_series(data: HierData, chains: Sequence[ChainDraws]) -> dict[str, np.ndarray]:

@@ -176,6 +176,11 @@ class CompositeProblem:
         self._xsums = np.stack([x_sums(e.x, e.p, e.q) for e in ev])
 
     @property
+    def n_motor(self) -> int:
+        """The motor's scale-free coordinates at the head of ``u`` (theta adds ``log T0``)."""
+        return 5
+
+    @property
     def n_steps(self) -> int:
         """Step intervals over all events: each adds its ``phi`` to the sampled vector."""
         return self.grid.n_steps

@@ -14,24 +14,21 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from loadbayes.core.parallel import chain_generators, check_stop, run_chains
+from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem, theta_of
 from loadbayes.inference.ar1 import draw_rho
-from loadbayes.inference.condlinear import (
-    draw_tau,
-    residual_ss,
-)
-from loadbayes.inference.moves import MOVES
+from loadbayes.inference.chain import Chain, is_kept
+from loadbayes.inference.condlinear import draw_tau, residual_ss
+from loadbayes.inference.moves import MOVES, BlockState
 
 __all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "ChainResult", "sample"]
 
@@ -45,22 +42,20 @@ ONE_EVALUATION_MOVES = ("am", "shear")
 #: random walk alone crossed the narrow lower tail of T' in issue 21's 120/s event so
 #: slowly that a chain sat there for thousands of iterations (docs/composite.md, "Jumps").
 JUMP_SHARE = 0.35
-#: Seconds between two progress reports of one chain.
-PROGRESS_EVERY_S = 0.2
 
 
 @dataclass
 class ChainResult:
     """One chain's kept draws and acceptance."""
 
-    theta: np.ndarray  # (kept, 6) THETA_NAMES
-    beta: np.ndarray  # (kept, events, 7)
+    theta: np.ndarray  # (kept, problem.n_motor + 1) THETA_NAMES
+    beta: np.ndarray  # (kept, events, coefficients)
     tau: np.ndarray  # (kept, 2)
     acceptance: float
     phi: np.ndarray | None = None  # (kept, steps) fractions of the step intervals
     evaluations_per_iteration: float = 1.0  # collapsed-density evaluations of the u-move
     jump_acceptance: float | None = None  # of the u-move's jumps (None: no jumps)
-    # Coordinates of u after the motor's five and the steps (estimated torque shares).
+    # Coordinates of u after the motor's and the steps' (estimated torque shares).
     u_extra: np.ndarray | None = None
     # Student-t only (fit.composite_robust): nu draws (kept, 2), mean weights (2, n).
     nu: np.ndarray | None = None
@@ -135,20 +130,32 @@ class _Tilted:
 Extension = Callable[[list[ChainResult]], int]
 
 
-class _Chain:
-    """One chain's state between rounds: it can be run on (the kept draws grow).
+class _State(NamedTuple):
+    """The composite chain's state between iterations (the model's side of the driver)."""
 
-    The same draws as one uninterrupted run of the same total length: a round only
-    splits the loop (the generator, the move and the state carry over).
+    u: np.ndarray  # the sampled vector (motor, steps, shares, torque log-ratios)
+    sums: Any  # the collapsed density's sums at u (weighted / whitened as the noise is)
+    tau: np.ndarray  # (2,) noise precisions of P and Q
+    rho: np.ndarray | None  # (2,) AR(1) coefficients, or None (white noise)
+    betas: Any  # every event's coefficients (None before the first iteration)
+    log_t0: float  # drawn from its prior conditional (None before the first iteration)
+
+
+class _Gibbs:
+    """The composite's conditional updates, one iteration at a time (the chain's ``step``).
+
+    :class:`loadbayes.inference.chain.Chain` drives it: iterations, burn-in, thinning,
+    storage of :attr:`fields` (:meth:`record`), the statistics (:meth:`stats`), and runs
+    continued in rounds with the same draws as one uninterrupted run.
     """
 
     def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
-                 dispersion, student_t, stop, progress, factor=None, ar=False,
-                 jumps=False):  # fmt: skip
+                 dispersion, student_t, factor=None, ar=False, jumps=False):  # fmt: skip
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
-        self.n_tot, self.stop, self.progress = n_tot, stop, progress
+        self.n_tot = n_tot
         dim = problem.dim
-        self.n_base = 5 + problem.n_steps
+        self.n_motor = problem.n_motor
+        self.n_base = self.n_motor + problem.n_steps
         share = {"independence": JUMP_SHARE} if jumps else {}
         self.am = MOVES[move](
             lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
@@ -162,81 +169,91 @@ class _Chain:
                 break
         if sums is None:
             u, sums = start.u, problem.sums(start.u)
-        self.u, self.sums, self.tau = u, sums, tau0.copy()
+        tau = tau0.copy()
         # AR(1) noise: rho starts at 0 (white), the sums carry the motor's response.
-        self.rho = np.zeros(2) if ar else None
+        rho = np.zeros(2) if ar else None
         if ar:
-            _, self.sums = problem.collapsed(u, self.tau, rho=self.rho)
+            _, sums = problem.collapsed(u, tau, rho=rho)
         # Student-t noise: the weights' state (None for the Gaussian, whose path is unchanged).
         self.wt = None if student_t is None else student_t.chain(problem, u, tau0)
         if self.wt is not None:
-            self.sums = self.wt.sums
+            sums = self.wt.sums
         self.tilted = None
-        self.betas = None
+        betas = None
         self.share_scale = None  # bounded shares: the share-only steps' scale per event
         if factor is not None and factor.active:
             self.tilted = _Tilted(problem, factor)
-            self.betas = self.tilted.feasible(self.sums, self.tau, self.u, rng)
-        self.it = 0
+            betas = self.tilted.feasible(sums, tau, u, rng)
+        self.start = _State(u, sums, tau, rho, betas, None)
         # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
         self.late_burn: list[np.ndarray] | None = [] if jumps else None
-        self.kept: dict[str, list[np.ndarray]] = {
-            k: [] for k in ("th", "phi", "b", "t", "x", "rho")
+        # What a kept iteration stores, by name (ChainResult's fields).
+        n_coef = problem.m0.size  # the linear coefficients (their prior mean's length)
+        self.fields = {
+            "theta": (self.n_motor + 1,),
+            "beta": (len(problem.events), n_coef),
+            "tau": (2,),
+            "phi": (problem.n_steps,),
+            "u_extra": (dim - self.n_base,),
         }
+        if ar:
+            self.fields["rho"] = (2,)
 
-    def run(self, iterations: int) -> None:
-        """Run ``iterations`` more iterations, keeping those past burn-in at the thinning."""
-        problem, rng, wt, am = self.problem, self.rng, self.wt, self.am
-        prior = problem.prior
-        u, sums, tau, rho = self.u, self.sums, self.tau, self.rho
-        burn, thin, n_base = self.burn, self.thin, self.n_base
-        end = self.it + iterations
-        kept = self.kept
-        told, last = self.it, time.perf_counter()
-        for it in range(self.it, end):
-            check_stop(self.stop)
-            if self.progress is not None and time.perf_counter() - last > PROGRESS_EVERY_S:
-                self.progress(it - told)
-                told, last = it, time.perf_counter()
-            if wt is None:
-                lp = problem.log_collapsed(sums, u, tau)
+    def step(self, state: _State, rng: np.random.Generator, it: int) -> _State:
+        """One iteration: the u-move, the coefficients, rho, the weights, tau, log T0."""
+        problem, wt, nm = self.problem, self.wt, self.n_motor
+        u, sums, tau, rho = state.u, state.sums, state.tau, state.rho
+        if wt is None:
+            lp = problem.log_collapsed(sums, u, tau)
 
-                def logp(x, tau=tau, rho=rho):
-                    return problem.collapsed(x, tau, rho=rho)
+            def logp(x, tau=tau, rho=rho):
+                return problem.collapsed(x, tau, rho=rho)
 
-            else:
-                lp, logp = wt.current(u, tau), wt.logp(tau)
-            if self.tilted is None:
-                u, lp, sums, _ = am.step(u, lp, logp, rng, it, aux=sums)
-                if problem.n_share_coords:
-                    u = self._share_steps(u, lp, sums, tau, it)
-                betas = problem.draw_coefficients(sums, tau, u, rng)
-            else:
-                u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it)
-            keep = it >= burn and (it - burn) % thin == 0
-            if self.late_burn is not None and burn // 2 <= it < burn:
-                self.late_burn.append(np.array(u, dtype=float))
-            if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
-                stats = problem.ar_statistics(sums, betas)
-                rho = np.array([draw_rho(stats[g], float(tau[g]), float(rho[g]), rng)[0]
-                                for g in range(2)])  # fmt: skip
-                sums = problem.resum(sums, rho)
-            if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
-                sums = wt.update(sums, betas, tau, rng, keep)
-            ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
-            tau = draw_tau(ssr, self.n_tot, prior.tau_shape, prior.tau_rate, rng)
-            log_t0 = prior.draw_log_t0(u[:5], rng)
-            if keep:
-                kept["th"].append(theta_of(u[:5], log_t0))
-                kept["phi"].append(problem.phi(u))
-                kept["x"].append(u[n_base:])
-                kept["b"].append(np.array(betas))
-                kept["t"].append(tau)
-                if rho is not None:
-                    kept["rho"].append(rho)
-        if self.progress is not None:
-            self.progress(end - told)
-        self.u, self.sums, self.tau, self.rho, self.it = u, sums, tau, rho, end
+        else:
+            lp, logp = wt.current(u, tau), wt.logp(tau)
+        if self.tilted is None:
+            (u, lp, sums), _ = self.am.step(BlockState(u, lp, sums), logp, rng, it)
+            if problem.n_share_coords:
+                u = self._share_steps(u, lp, sums, tau, it)
+            betas = problem.draw_coefficients(sums, tau, u, rng)
+        else:
+            u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it, state.betas)
+        burn = self.burn
+        if self.late_burn is not None and burn // 2 <= it < burn:
+            self.late_burn.append(np.array(u, dtype=float))
+        if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
+            stats = problem.ar_statistics(sums, betas)
+            rho = np.array([draw_rho(stats[g], float(tau[g]), float(rho[g]), rng)[0]
+                            for g in range(2)])  # fmt: skip
+            sums = problem.resum(sums, rho)
+        if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR
+            sums = wt.update(sums, betas, tau, rng, is_kept(it, burn, self.thin))
+        ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
+        tau = draw_tau(ssr, self.n_tot, problem.prior.tau_shape, problem.prior.tau_rate, rng)
+        log_t0 = problem.prior.draw_log_t0(u[:nm], rng)
+        return _State(u, sums, tau, rho, betas, log_t0)
+
+    def record(self, state: _State) -> dict[str, Any]:
+        """The kept values of an iteration (:attr:`fields`)."""
+        u = state.u
+        out = {
+            "theta": theta_of(u[: self.n_motor], state.log_t0),
+            "beta": state.betas,
+            "tau": state.tau,
+            "phi": self.problem.phi(u),
+            "u_extra": u[self.n_base :],
+        }
+        if state.rho is not None:
+            out["rho"] = state.rho
+        return out
+
+    def stats(self) -> dict[str, Any]:
+        """The u-move's acceptance and cost, the jumps' acceptance."""
+        return {
+            "acceptance": self.am.acceptance,
+            "evaluations_per_iteration": self.am.evaluations_per_step,
+            "jump_acceptance": getattr(self.am, "jump_acceptance", None),
+        }
 
     def _share_steps(self, u, lp, sums, tau, it):
         # Bounded shares: SHARE_STEPS random-walk Metropolis steps on each event's share
@@ -245,7 +262,7 @@ class _Chain:
         # joint step; each step leaves the posterior invariant. The scale adapts toward
         # SHARE_ACCEPT during burn-in, then stays.
         p, rng = self.problem, self.rng
-        i0 = 5 + p.n_steps
+        i0 = self.n_base
         if self.share_scale is None:
             self.share_scale = np.full(len(p.events), 0.3)
         for _ in range(SHARE_STEPS):
@@ -261,10 +278,10 @@ class _Chain:
                     self.share_scale[e] *= math.exp(0.02 * (float(ok) - SHARE_ACCEPT))
         return u
 
-    def _tilted_step(self, u, lp, logp, sums, tau, it):
+    def _tilted_step(self, u, lp, logp, sums, tau, it, betas):
         # The u-move and the coefficients with a prior factor (_Tilted's notes).
         rng, tilt = self.rng, self.tilted
-        cands, logr, est = tilt.candidates(sums, tau, u, rng, current=self.betas)
+        cands, logr, est = tilt.candidates(sums, tau, u, rng, current=betas)
 
         def logp_tilted(x):
             lc, s2 = logp(x)
@@ -273,31 +290,28 @@ class _Chain:
             c2, l2, e2 = tilt.candidates(s2, tau, x, rng)
             return lc + e2, (s2, c2, l2)
 
-        u, _, aux, _ = self.am.step(u, lp + est, logp_tilted, rng, it, aux=(sums, cands, logr))
+        state = BlockState(u, lp + est, (sums, cands, logr))
+        (u, _, aux), _ = self.am.step(state, logp_tilted, rng, it)
         sums, cands, logr = aux
-        self.betas = tilt.select(cands, logr, rng)
-        return u, sums, self.betas
+        return u, sums, tilt.select(cands, logr, rng)
 
-    def result(self) -> ChainResult:
-        """The kept draws so far."""
-        k, p = self.kept, self.problem
-        n = len(k["th"])
-        extra = np.array(k["x"]).reshape(n, p.dim - self.n_base)
-        robust = {}
-        if self.wt is not None:
-            robust = dict(zip(("nu", "weight", "nu_acceptance"), self.wt.result(), strict=True))
-        return ChainResult(
-            np.array(k["th"]).reshape(n, 6),
-            np.array(k["b"]).reshape(n, len(p.events), 7),
-            np.array(k["t"]).reshape(n, 2),
-            self.am.acceptance,
-            phi=np.array(k["phi"]).reshape(n, p.n_steps),
-            evaluations_per_iteration=self.am.evaluations_per_step,
-            jump_acceptance=getattr(self.am, "jump_acceptance", None),
-            u_extra=extra if p.dim > self.n_base else None,
-            rho=np.array(k["rho"]).reshape(n, 2) if self.rho is not None else None,
-            **robust,
-        )
+
+def _result(gibbs: _Gibbs, chain: Chain) -> ChainResult:
+    """A chain's kept draws so far and its statistics."""
+    d, p = chain.draws(), gibbs.problem
+    robust = {}
+    if gibbs.wt is not None:
+        robust = dict(zip(("nu", "weight", "nu_acceptance"), gibbs.wt.result(), strict=True))
+    return ChainResult(
+        d["theta"],
+        d["beta"],
+        d["tau"],
+        phi=d["phi"],
+        u_extra=d["u_extra"] if p.dim > gibbs.n_base else None,
+        rho=d.get("rho"),
+        **chain.sample_stats(),
+        **robust,
+    )
 
 
 def sample(
@@ -350,7 +364,8 @@ def sample(
         Student-t noise (a weights step each iteration); Gaussian noise when None.
     progress : callable, optional
         Called with a number of iterations just done (of ``chains * draws``), about every
-        :data:`PROGRESS_EVERY_S` seconds per chain, from the chains' threads.
+        :data:`~loadbayes.inference.chain.PROGRESS_EVERY_S` seconds per chain, from the
+        chains' threads.
     extend : callable, optional
         After the ``draws`` iterations, and after each further round, called with the
         chains' results; it returns how many more iterations every chain runs (all
@@ -378,14 +393,15 @@ def sample(
             f"({', '.join(ONE_EVALUATION_MOVES)}): their density is estimated (importance "
             "weights), which a slice move cannot use"
         )
-    # The motor's five, the steps' fractions, then any extra coordinates (torque shares).
+    # The motor's coordinates, the steps' fractions, then any extra ones (torque shares).
     d = dim = problem.dim
+    nm = problem.n_motor
     lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
     # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
     # start its proposal at the support's scale instead (the adaptation takes over).
     shrink = np.ones(d)
-    shrink[5:] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[5:]))
+    shrink[nm:] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[nm:]))
     lap = lap * np.outer(shrink, shrink)
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
@@ -393,7 +409,7 @@ def sample(
     # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
     # chain end every chain within one iteration, not when the chains finish.
     stop = threading.Event()
-    state: list[_Chain | None] = [None] * chains
+    state: list[Any] = [None] * chains  # each chain's (_Gibbs, Chain)
 
     # The Metropolis moves jump from a t fitted to every chain's late burn-in, pooled: a
     # chain's own burn-in may not have left the region it started in (one chain's t
@@ -402,25 +418,27 @@ def sample(
     pool = move in ONE_EVALUATION_MOVES
 
     def first(index: int, rng: np.random.Generator) -> ChainResult:
-        c = _Chain(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
-                   move=move, dispersion=dispersion, student_t=student_t, stop=stop,
-                   progress=progress, factor=factor, ar=ar, jumps=pool)  # fmt: skip
-        state[index] = c
+        g = _Gibbs(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
+                   move=move, dispersion=dispersion, student_t=student_t, factor=factor,
+                   ar=ar, jumps=pool)  # fmt: skip
+        c = Chain(g.step, g.start, rng, fields=g.fields, record=g.record, burn=burn,
+                  thin=thin, stats=g.stats, stop=stop, progress=progress)  # fmt: skip
+        state[index] = (g, c)
         c.run(burn if pool else draws)
-        return c.result()
+        return _result(g, c)
 
     def rest(index: int, rng: np.random.Generator) -> ChainResult:
-        c = state[index]
+        g, c = state[index]
         c.run(draws - burn)
-        return c.result()
+        return _result(g, c)
 
     generators = chain_generators(seed, chains)
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
-        late = np.array([u for c in state for u in c.late_burn])
-        for c in state:
-            c.am.fit_jumps(late)
-            c.late_burn = []
+        late = np.array([u for g, _ in state for u in g.late_burn])
+        for g, _ in state:
+            g.am.fit_jumps(late)
+            g.late_burn = []
         out = run_chains(rest, generators, workers=workers, stop=stop)
     while extend is not None:
         more = int(extend(out))
@@ -428,9 +446,9 @@ def sample(
             break
 
         def again(index: int, rng: np.random.Generator, more=more) -> ChainResult:
-            c = state[index]
+            g, c = state[index]
             c.run(more)
-            return c.result()
+            return _result(g, c)
 
         out = run_chains(again, generators, workers=workers, stop=stop)
     return out

@@ -31,12 +31,10 @@ The contract (``step``, the burn-in window, the counters) is
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
-from loadbayes.inference.moves.base import BlockMove
+from loadbayes.inference.moves.base import BlockMove, BlockState, LogDensity
 
 __all__ = ["JUMP_DOF", "JUMP_INFLATION", "JUMP_MIN_DRAWS", "AdaptiveMetropolis", "StudentT"]
 
@@ -119,57 +117,33 @@ class AdaptiveMetropolis(BlockMove):
         self.jumps_accepted = 0
 
     def step(
-        self,
-        x: np.ndarray,
-        logp_x: float,
-        logp: Callable[[np.ndarray], tuple[float, Any]],
-        rng: np.random.Generator,
-        iteration: int,
-        aux: Any = None,
-    ) -> tuple[np.ndarray, float, Any, bool]:
-        """One Metropolis step; adapts when ``iteration < adapt_until``.
+        self, state: BlockState, logp: LogDensity, rng: np.random.Generator, iteration: int
+    ) -> tuple[BlockState, bool]:
+        """One Metropolis step (or a jump); adapts when ``iteration < adapt_until``.
 
-        Parameters
-        ----------
-        x : ndarray
-            Current block.
-        logp_x : float
-            ``logp(x)`` at the current state (recomputed by the caller when the other
-            blocks changed).
-        logp : callable
-            ``logp(x) -> (log density, aux)``; ``aux`` is carried along with the state
-            (e.g. a simulated trajectory) so it need not be recomputed.
-        rng : numpy.random.Generator
-            The chain's generator.
-        iteration : int
-            Zero-based iteration number.
-        aux : any
-            The current state's ``aux``.
-
-        Returns
-        -------
-        (x, logp_x, aux, accepted)
+        The contract is :meth:`BlockMove.step`'s.
         """
         if self.independence and iteration >= self.adapt_until:
             jump = self._jump_proposal()
             if jump is not None and rng.uniform() < self.independence:
-                return self._jump_step(jump, x, logp_x, logp, rng, aux)
-        w = self._walk(x)
+                return self._jump_step(jump, state, logp, rng)
+        w = self._walk(state.x)
         z = rng.standard_normal(self.d)
         w_prop = w + math.exp(0.5 * self.log_scale) * (self._root @ z)
         prop = self._block(w_prop)
         lp_prop, aux_prop = logp(prop)
         log_u = math.log(rng.uniform())
+        logp_x = state.logp
         alpha = min(1.0, math.exp(min(0.0, lp_prop - logp_x))) if math.isfinite(lp_prop) else 0.0
         accept = log_u < lp_prop - logp_x if math.isfinite(lp_prop) else False
         self.steps += 1
         self.evaluations += 1
         if accept:
-            x, logp_x, aux, w = prop, lp_prop, aux_prop, w_prop
+            state, w = BlockState(prop, lp_prop, aux_prop), w_prop
             self.accepted += 1
         if iteration < self.adapt_until:
             self._adapt(w, alpha, iteration)
-        return x, logp_x, aux, bool(accept)
+        return state, bool(accept)
 
     def fit_jumps(self, draws: np.ndarray) -> None:
         """Fit the jumps' t to ``draws`` of the block (e.g. several chains' burn-in).
@@ -193,7 +167,7 @@ class AdaptiveMetropolis(BlockMove):
                 self._jump = StudentT(self._running.mean, JUMP_INFLATION * self.cov, JUMP_DOF)
         return self._jump
 
-    def _jump_step(self, jump, x, logp_x, logp, rng, aux):
+    def _jump_step(self, jump, state, logp, rng):
         # Independence Metropolis-Hastings in the walk's coordinates (unit Jacobian to
         # the block up to a constant, which cancels in the ratio).
         w_prop = jump.draw(rng)
@@ -204,13 +178,14 @@ class AdaptiveMetropolis(BlockMove):
         self.jumps += 1
         log_u = math.log(rng.uniform())
         if not math.isfinite(lp_prop):
-            return x, logp_x, aux, False
-        log_ratio = lp_prop - logp_x + jump.log_density(self._walk(x)) - jump.log_density(w_prop)
+            return state, False
+        log_ratio = (lp_prop - state.logp + jump.log_density(self._walk(state.x))
+                     - jump.log_density(w_prop))  # fmt: skip
         if log_u < log_ratio:
             self.accepted += 1
             self.jumps_accepted += 1
-            return prop, lp_prop, aux_prop, True
-        return x, logp_x, aux, False
+            return BlockState(prop, lp_prop, aux_prop), True
+        return state, False
 
     @property
     def jump_acceptance(self) -> float | None:

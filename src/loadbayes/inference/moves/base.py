@@ -9,17 +9,42 @@ then freeze it, so the kept draws come from a fixed, valid kernel.
 :class:`BlockMove` holds what every move has: that adaptation window, the shared
 :class:`RunningCovariance` and its square root (:func:`scaled_eigenvectors`), and the
 counters behind :attr:`~BlockMove.acceptance` and :attr:`~BlockMove.evaluations_per_step`.
-A move supplies :meth:`~BlockMove.step`.
+A move supplies :meth:`~BlockMove.step`, which takes and returns a :class:`BlockState`
+(as emcee's ``Move.propose(model, state) -> (state, accepted)``): the contract is written
+once, here, and the moves refer to it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["BlockMove", "RunningCovariance", "scaled_eigenvectors"]
+__all__ = ["BlockMove", "BlockState", "LogDensity", "RunningCovariance", "scaled_eigenvectors"]
+
+#: ``logp(x) -> (log density, aux)``: ``-inf`` outside the support (such proposals are
+#: never accepted); ``aux`` is carried along with the state (e.g. a simulated
+#: trajectory) so it need not be recomputed.
+LogDensity = Callable[[np.ndarray], tuple[float, Any]]
+
+
+class BlockState(NamedTuple):
+    """Where a block stands: its value, the log-density there, and what travels with it.
+
+    Attributes
+    ----------
+    x : ndarray
+        The block.
+    logp : float
+        ``logp(x)`` (recomputed by the caller when the other blocks changed).
+    aux : any
+        The ``aux`` of ``logp(x)`` (None when there is none).
+    """
+
+    x: np.ndarray
+    logp: float
+    aux: Any = None
 
 
 def scaled_eigenvectors(cov: np.ndarray) -> np.ndarray:
@@ -102,37 +127,27 @@ class BlockMove:
         self.evaluations = 0
 
     def step(
-        self,
-        x: np.ndarray,
-        logp_x: float,
-        logp: Callable[[np.ndarray], tuple[float, Any]],
-        rng: np.random.Generator,
-        iteration: int,
-        aux: Any = None,
-    ) -> tuple[np.ndarray, float, Any, bool]:
+        self, state: BlockState, logp: LogDensity, rng: np.random.Generator, iteration: int
+    ) -> tuple[BlockState, bool]:
         """One update of the block; adapts while ``iteration < adapt_until``.
+
+        Every move has this contract.
 
         Parameters
         ----------
-        x : ndarray
-            Current block.
-        logp_x : float
-            ``logp(x)`` at the current state (recomputed by the caller when the other
-            blocks changed).
+        state : BlockState
+            The current block, its log-density and ``aux``.
         logp : callable
-            ``logp(x) -> (log density, aux)``; ``aux`` is carried along with the state
-            (e.g. a simulated trajectory) so it need not be recomputed. ``-inf`` outside
-            the support: such proposals are never accepted.
+            ``logp(x) -> (log density, aux)`` (:data:`LogDensity`).
         rng : numpy.random.Generator
             The chain's generator.
         iteration : int
             Zero-based iteration number.
-        aux : any
-            The current state's ``aux``.
 
         Returns
         -------
-        (x, logp_x, aux, moved)
+        (state, moved)
+            The new state (the current one when the block stayed) and whether it moved.
         """
         raise NotImplementedError
 

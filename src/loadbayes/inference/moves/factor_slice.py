@@ -22,12 +22,10 @@ which leaves the target invariant for any fixed directions and widths.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
-from loadbayes.inference.moves.base import BlockMove
+from loadbayes.inference.moves.base import BlockMove, BlockState, LogDensity
 
 __all__ = ["FactorSlice"]
 
@@ -65,36 +63,14 @@ class FactorSlice(BlockMove):
         self._contractions = 0
 
     def step(
-        self,
-        x: np.ndarray,
-        logp_x: float,
-        logp: Callable[[np.ndarray], tuple[float, Any]],
-        rng: np.random.Generator,
-        iteration: int,
-        aux: Any = None,
-    ) -> tuple[np.ndarray, float, Any, bool]:
+        self, state: BlockState, logp: LogDensity, rng: np.random.Generator, iteration: int
+    ) -> tuple[BlockState, bool]:
         """One sweep: a slice update along every eigen-direction, in random order.
 
-        Parameters
-        ----------
-        x : ndarray
-            Current block.
-        logp_x : float
-            ``logp(x)`` at the current state (finite).
-        logp : callable
-            ``logp(x) -> (log density, aux)``; ``aux`` travels with the state.
-        rng : numpy.random.Generator
-            The chain's generator.
-        iteration : int
-            Zero-based iteration number (adapts while ``iteration < adapt_until``).
-        aux : any
-            The current state's ``aux``.
-
-        Returns
-        -------
-        (x, logp_x, aux, moved)
-            ``moved`` is always True (a slice update always moves, if only a little).
+        The contract is :meth:`BlockMove.step`'s (``state.logp`` finite); ``moved`` is
+        always True (a slice update always moves, if only a little).
         """
+        x, logp_x, aux = state
         w0 = math.exp(self.log_width)
         exp0, con0 = self._expansions, self._contractions
         for j in rng.permutation(self.d):
@@ -103,7 +79,7 @@ class FactorSlice(BlockMove):
         self.accepted += 1
         if iteration < self.adapt_until:
             self._adapt(x, exp0, con0, iteration)
-        return x, logp_x, aux, True
+        return BlockState(x, logp_x, aux), True
 
     def _update(self, x, logp_x, aux, direction, width, logp, rng):
         def at(t):

@@ -28,13 +28,10 @@ coordinates; with a burn-in too short to learn it from (fewer than
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import numpy as np
 
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
-from loadbayes.inference.moves.base import RunningCovariance
+from loadbayes.inference.moves.base import BlockState, LogDensity, RunningCovariance
 
 __all__ = ["MIN_HISTORY", "MIN_R2", "Shear", "ShearedAM"]
 
@@ -142,25 +139,19 @@ class ShearedAM(AdaptiveMetropolis):
         self._history: list[np.ndarray] = []
 
     def step(
-        self,
-        x: np.ndarray,
-        logp_x: float,
-        logp: Callable[[np.ndarray], tuple[float, Any]],
-        rng: np.random.Generator,
-        iteration: int,
-        aux: Any = None,
-    ) -> tuple[np.ndarray, float, Any, bool]:
+        self, state: BlockState, logp: LogDensity, rng: np.random.Generator, iteration: int
+    ) -> tuple[BlockState, bool]:
         """One Metropolis step (in the sheared coordinates after mid burn-in).
 
-        The arguments and the return are :meth:`AdaptiveMetropolis.step`'s.
+        The contract is :meth:`BlockMove.step`'s.
         """
         if self.shear is None and iteration == self._switch:
             if len(self._history) >= self._min_history:
                 self.use_shear(Shear(np.array(self._history)))
             self._history = []
-        out = super().step(x, logp_x, logp, rng, iteration, aux)
+        out = super().step(state, logp, rng, iteration)
         if self.shear is None and self._switch // 2 <= iteration < self._switch:
-            self._history.append(np.array(out[0], dtype=float))
+            self._history.append(np.array(out[0].x, dtype=float))
         return out
 
     def _walk(self, x: np.ndarray) -> np.ndarray:
