@@ -25,7 +25,7 @@ from loadbayes.core.parallel import chain_generators, check_stop, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.nls import NLSResult
-from loadbayes.fit.composite.problem import CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.inference.ar1 import draw_rho
 from loadbayes.inference.condlinear import (
     draw_tau,
@@ -148,7 +148,7 @@ class _Chain:
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot, self.stop, self.progress = n_tot, stop, progress
         dim = problem.dim
-        self.n_base = 5 + problem.n_steps
+        self.n_base = problem.n_free + problem.n_steps
         share = {"independence": JUMP_SHARE} if jumps else {}
         self.am = MOVES[move](
             lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
@@ -225,9 +225,9 @@ class _Chain:
                 sums = wt.update(sums, betas, tau, rng, keep)
             ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
             tau = draw_tau(ssr, self.n_tot, prior.tau_shape, prior.tau_rate, rng)
-            log_t0 = prior.draw_log_t0(u[:5], rng)
+            theta = problem.theta(u, rng)  # with log T0 | u from its prior (zip+motor)
             if keep:
-                kept["th"].append(theta_of(u[:5], log_t0))
+                kept["th"].append(theta)
                 kept["phi"].append(problem.phi(u))
                 kept["x"].append(u[n_base:])
                 kept["b"].append(np.array(betas))
@@ -245,7 +245,7 @@ class _Chain:
         # joint step; each step leaves the posterior invariant. The scale adapts toward
         # SHARE_ACCEPT during burn-in, then stays.
         p, rng = self.problem, self.rng
-        i0 = 5 + p.n_steps
+        i0 = p.n_free + p.n_steps
         if self.share_scale is None:
             self.share_scale = np.full(len(p.events), 0.3)
         for _ in range(SHARE_STEPS):
@@ -287,8 +287,8 @@ class _Chain:
         if self.wt is not None:
             robust = dict(zip(("nu", "weight", "nu_acceptance"), self.wt.result(), strict=True))
         return ChainResult(
-            np.array(k["th"]).reshape(n, 6),
-            np.array(k["b"]).reshape(n, len(p.events), 7),
+            np.array(k["th"]).reshape(n, p.n_theta),
+            np.array(k["b"]).reshape(n, len(p.events), p.n_beta),
             np.array(k["t"]).reshape(n, 2),
             self.am.acceptance,
             phi=np.array(k["phi"]).reshape(n, p.n_steps),
@@ -385,7 +385,7 @@ def sample(
     # A step the data barely place has a Laplace sd far wider than its [0, 1] support:
     # start its proposal at the support's scale instead (the adaptation takes over).
     shrink = np.ones(d)
-    shrink[5:] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[5:]))
+    shrink[problem.n_free :] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[problem.n_free :]))
     lap = lap * np.outer(shrink, shrink)
     tau0 = 1.0 / start.sigma**2
     n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
