@@ -359,11 +359,14 @@ def fit_composite(
     # Baseline draws per chain: (draws - burn) // thin, at least one (not run.kept, which
     # rounds up: the baseline's size has always been this).
     n_baseline = max((run.draws - run.burn) // run.thin, 1)
+    base_draws = _baseline_draws(problem, start, run.chains, n_baseline, run.seed)
     baseline = Posterior(
-        _baseline_draws(problem, start, run.chains, n_baseline, run.seed),
+        base_draws,
         model="composite",
         method="nls-penalised",
-        coefficients=coefficients,
+        # Its own: the NLS has no AR(1) rho nor torque log-ratios to summarise (naming
+        # them crashed --baseline-json with --noise ar1 or --torque estimate).
+        coefficients=[n for n in coefficients if n in base_draws],
         free=free,
         settings={**common, **baseline_record(problem, start)},
     )
