@@ -14,7 +14,10 @@ from loadbayes._version import __version__
 __all__ = [
     "__version__",
     "BlockPrior",
+    "CompositeModel",
+    "DataSpec",
     "Posterior",
+    "SamplerSettings",
     "ZIPModel",
     "fit_composite",
     "fit_zip",
@@ -24,7 +27,10 @@ __all__ = [
 
 _LAZY = {
     "BlockPrior": "loadbayes.core.priors",
+    "CompositeModel": "loadbayes.models.zip_motor",
+    "DataSpec": "loadbayes.core.settings",
     "Posterior": "loadbayes.posterior",
+    "SamplerSettings": "loadbayes.core.settings",
     "ZIPModel": "loadbayes.models.zip",
     "fit_composite": "loadbayes.fit.composite",
     "fit_zip": "loadbayes.fit",

@@ -114,3 +114,19 @@ def test_bad_composite_options_are_one_line(tmp_path, args, words):
     assert res.exit_code == 2, res.output
     assert words in res.output and "Traceback" not in res.output
     assert not (tmp_path / "x.json").exists()
+
+
+@pytest.mark.parametrize(
+    "extra, absent",
+    [(["--noise", "ar1"], "rho_p"), (["--torque", "estimate"], "log_a_over_c")],
+)
+def test_the_baseline_json_of_ar1_noise_and_estimated_torque(tmp_path, extra, absent):
+    # The NLS baseline has no rho nor torque log-ratios: it summarises its own draws (its
+    # JSON was a KeyError traceback, exit 1, for both).
+    _csv(tmp_path / "sag.csv")
+    base = tmp_path / "base.json"
+    res = _run(tmp_path / "sag.csv", "--json", tmp_path / "c.json", "--baseline-json", base,
+               *extra, *SHORT)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    d = json.loads(base.read_text())
+    assert absent not in d["parameters"] and "f_m" in d["parameters"]

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 
 import click
 
 from loadbayes.commands.options import (
     OneLineCommand,
     accept_units_option,
+    composite_model,
     event_column_options,
     likelihood_options,
     parse_nu,
@@ -32,68 +32,31 @@ from loadbayes.commands.output import (
 
 __all__ = ["fit_composite_cmd"]
 
-#: ``--prior`` names -> the sampled log-parameter they set.
-_PRIOR_NAMES = {
-    "rs": "log_rs",
-    "x_prime": "log_x_prime",
-    "dx": "log_dx",
-    "t_prime_s": "log_t_prime",
-    "h_s": "log_h",
-    "t0": "log_t0",
-}
 
-
-def _parse_priors(
-    items: tuple[str, ...],
-) -> tuple[dict[str, tuple[float, float]], dict[str, tuple[float, float]]]:
-    # Motor priors (log-normal: NAME=MEDIAN,SD_LOG) and coefficient priors (normal:
-    # NAME=MEAN,SD on a1..a6, f_m, p0, q0).
-    from loadbayes.models.composite_prior import COEFFICIENT_PRIOR_NAMES
-
-    motor, coef = {}, {}
+def _parse_priors(items: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    # NAME=A,B of each --prior (the model checks the names and the values).
+    out = {}
     for item in items:
         try:
             name, rest = item.split("=", 1)
-            med_s, sd_s = rest.split(",", 1)
-            med, sd = float(med_s), float(sd_s)
+            a, b = (float(x) for x in rest.split(","))
         except ValueError:
             raise click.BadParameter(
                 f"{item!r}: expected NAME=MEDIAN,SD_LOG such as h_s=0.7,0.3 (a motor "
                 "parameter) or NAME=MEAN,SD such as a1=0.3,0.1 (a share, f_m, p0, q0)",
                 param_hint="--prior",
             ) from None
-        name = name.strip()
-        if name in COEFFICIENT_PRIOR_NAMES:
-            if not (math.isfinite(med) and sd > 0 and math.isfinite(sd)):
-                raise click.BadParameter(
-                    f"{item!r}: MEAN must be finite and SD positive", param_hint="--prior"
-                )
-            coef[name] = (med, sd)
-            continue
-        if name not in _PRIOR_NAMES:
-            raise click.BadParameter(
-                f"{item!r}: NAME must be one of {', '.join(_PRIOR_NAMES)} (log-normal) or "
-                f"{', '.join(COEFFICIENT_PRIOR_NAMES)} (normal)",
-                param_hint="--prior",
-            )
-        if not (med > 0 and math.isfinite(med) and sd > 0 and math.isfinite(sd)):
-            raise click.BadParameter(
-                f"{item!r}: MEDIAN and SD_LOG must be positive and finite", param_hint="--prior"
-            )
-        motor[_PRIOR_NAMES[name]] = (math.log(med), sd)
-    return motor, coef
+        out[name.strip()] = (a, b)
+    return out
 
 
-def _parse_torque(text: str) -> tuple[float, float, float] | str:
+def _parse_torque(text: str) -> tuple[float, ...] | str:
     if text.strip().lower() == "estimate":
         return "estimate"
     try:
-        a, b, c = (float(x) for x in text.split(","))
+        return tuple(float(x) for x in text.split(","))
     except ValueError:
         raise click.BadParameter(f"{text!r}: expected A,B,C", param_hint="--torque") from None
-    if not all(math.isfinite(x) for x in (a, b, c)) or abs(a + b + c - 1) > 1e-9:
-        raise click.BadParameter(f"{text!r}: A + B + C must be 1", param_hint="--torque")
-    return a, b, c
 
 
 @click.command("composite", cls=OneLineCommand)
@@ -253,27 +216,30 @@ def fit_composite_cmd(
         "--baseline-json": baseline_out,
     }
     check_outputs(outputs, list(files), force, stdout_ok=("--json",))
-    torque_abc = _parse_torque(torque)
-    nu_value = parse_nu(nu)
     if likelihood != "student-t" and nu != "auto":
         raise UserError("--nu needs --likelihood student-t")
-    prior_items, coef_priors = _parse_priors(priors)
     if sampler.seed < 0:
         raise UserError(f"--seed {sampler.seed}: the seed must be a non-negative integer")
 
     import numpy as np
 
-    from loadbayes.fit.composite import fit_composite, predictive_band
+    from loadbayes.fit.composite import predictive_band
     from loadbayes.fit.composite.checks import check_run, check_units
+    from loadbayes.fit.composite.driver import fit_composite
     from loadbayes.measurements.events import index_bases, read_events
-    from loadbayes.models.composite import THETA_NAMES
-    from loadbayes.models.composite_prior import CompositePrior
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
+    # The flags, mapped onto the model's fields in one table (commands/options.py).
+    model = composite_model(
+        f_hz=f_hz, torque=_parse_torque(torque), steps=steps, window_s=window_s,
+        shares=shares, noise=noise, likelihood=likelihood, nu=parse_nu(nu),
+        priors=_parse_priors(priors),
+    )  # fmt: skip
     if until_converged is None:
         source = click.get_current_context().get_parameter_source("draws")
         until_converged = source in (None, click.core.ParameterSource.DEFAULT)
+    sampler = sampler.with_(until_converged=until_converged, max_seconds=max_seconds)
     events = read_events(
         list(files),
         t_col=t_col,
@@ -289,8 +255,7 @@ def fit_composite_cmd(
     )
     # Named by the data's own columns (--v-col ...); the base check below then passes.
     check_units(events, accept_units=accept_units, columns={"v": v_col, "p": p_col, "q": q_col})
-
-    check_units(events, accept_units=accept_units)  # before the prior reads v0, p0
+    unit_warnings = check_units(events, accept_units=accept_units)
     bases_note = None
     if v_base is None and s_base is None:
         # Per-unit events cut by `loadbayes events`: their bases are in events.csv.
@@ -312,13 +277,6 @@ def fit_composite_cmd(
         chains=sampler.chains, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
         n_params=2 * (30 + 20 * len(events)), netcdf_out=netcdf_out, quiet=quiet,
     )  # fmt: skip
-    prior = CompositePrior.default(events)
-    if prior_items:
-        mean, sd = prior.theta_mean.copy(), prior.theta_sd.copy()
-        for name, (m, s) in prior_items.items():
-            i = THETA_NAMES.index(name)
-            mean[i], sd[i] = m, s
-        prior = CompositePrior(mean, sd, prior.beta_sd, prior.tau_shape, prior.tau_rate)
     if not quiet:
         if bases_note:
             click.echo(f"loadbayes: note: {bases_note}", err=True)
@@ -343,24 +301,16 @@ def fit_composite_cmd(
     try:
         with _quiet_arviz():
             fit = fit_composite(
+                model,
                 events,
-                prior=prior,
-                f_hz=f_hz,
-                torque=torque_abc,
-                steps=steps,
                 sampler=sampler,
-                settings={"files": list(files), "v_base_kv": v_base_rec, "s_base_mva": s_base_rec},
-                likelihood=likelihood,
-                nu=nu_value,
-                accept_units=accept_units,
                 progress=bar,
-                max_seconds=max_seconds,
-                until_converged=until_converged,
-                shares=shares,
-                noise=noise,
-                coefficient_prior=coef_priors,
-                window_s=window_s,
-                wording="cli",
+                data_warnings=unit_warnings,
+                provenance={
+                    "files": list(files),
+                    "v_base_kv": v_base_rec,
+                    "s_base_mva": s_base_rec,
+                },
             )
     finally:
         bar.close()
@@ -373,7 +323,7 @@ def fit_composite_cmd(
     if plot_out:
         from loadbayes.fit.composite.predictive import fault_times
 
-        bands = predictive_band(post, events, f_hz=f_hz, torque=torque_abc, seed=sampler.seed)
+        bands = predictive_band(post, events, f_hz=f_hz, torque=model.torque, seed=sampler.seed)
         faults = fault_times(post, events)
     stop_if_signalled()
     # One transaction: every output to a temporary beside its target, renamed together

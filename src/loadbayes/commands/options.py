@@ -459,3 +459,40 @@ def event_column_options(func):
     for opt in reversed(opts):
         func = opt(func)
     return func
+
+
+#: The composite model's fields as ``fit composite`` spells them: the one table from
+#: flags to :class:`~loadbayes.models.zip_motor.CompositeModel` (its errors name the
+#: flag through it).
+COMPOSITE_FLAGS = {
+    "f_hz": "--f-hz",
+    "torque": "--torque",
+    "steps": "--steps",
+    "window_s": "--window-s",
+    "shares": "--shares",
+    "noise": "--noise",
+    "likelihood": "--likelihood",
+    "nu": "--nu",
+    "priors": "--prior",
+    "prior": "--prior",
+    "h_max": "--h-max",
+}
+
+
+def composite_model(**fields: Any) -> Any:
+    """The composite model of the flags' values; its refusal worded with the flags."""
+    from loadbayes.io.errors import OptionError
+    from loadbayes.models.base import ModelOptionError
+    from loadbayes.models.zip_motor import CompositeModel
+
+    try:
+        return CompositeModel(**fields)
+    except ModelOptionError as exc:
+        typed = ("priors", "torque")
+        first = next((f for f in typed if exc.template.startswith(f"{{{f}}} ")), None)
+        if first is not None:  # a value typed badly: click's one-line form, as it parses them
+            rest = exc.template[len(first) + 3 :]
+            raise click.BadParameter(
+                ModelOptionError(rest).worded(COMPOSITE_FLAGS), param_hint=COMPOSITE_FLAGS[first]
+            ) from None
+        raise OptionError(exc.worded(COMPOSITE_FLAGS)) from None  # one line, exit 2

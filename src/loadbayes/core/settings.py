@@ -55,6 +55,13 @@ class SamplerSettings:
         Start from a prior draw, or scattered around the least-squares fit.
     hdi_prob : float
         Mass of the reported intervals.
+    until_converged : bool or None
+        After ``draws`` iterations, run on until converged (a fit that can: the
+        composite); None: that fit's default.
+    max_seconds : float or None
+        Time budget of a run until converged (s); None: the fit's default.
+    move : str or None
+        The Metropolis move of a Metropolis-within-Gibbs fit, by name; None: its default.
     """
 
     draws: int = 2_500
@@ -65,9 +72,17 @@ class SamplerSettings:
     threads: int | None = None
     init: Literal["prior", "dispersed"] = "prior"
     hdi_prob: float = 0.95
+    until_converged: bool | None = None
+    max_seconds: float | None = None
+    move: str | None = None
 
     def __post_init__(self) -> None:
         check_iterations(self.draws, self.burn, self.thin, self.chains)
+        m = self.max_seconds
+        if m is not None and not (isinstance(m, (int, float)) and 0 < m < 1e9):
+            raise ValueError(
+                f"max_seconds {m}: the time budget must be a positive number of seconds"
+            )
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"threads must be >= 1, got {self.threads}")
         if self.init not in ("prior", "dispersed"):
@@ -113,6 +128,8 @@ class DataSpec:
         Reactive-power column; ``None`` for P only.
     f_col, t_col : str or None
         Frequency (Hz) and time columns, when used.
+    angle_col, event_col : str or None
+        Voltage-angle (rad) and event-id columns, when used (the composite's events).
     v_base, s_base : float or None
         Bases: data / base = per unit (positive); ``None`` when the data are per unit
         already.
@@ -133,6 +150,8 @@ class DataSpec:
     q_col: str | None = "q"
     f_col: str | None = None
     t_col: str | None = None
+    angle_col: str | None = None
+    event_col: str | None = None
     v_base: float | None = None
     s_base: float | None = None
     v0: float = 1.0
@@ -152,7 +171,8 @@ class DataSpec:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value != 0):
                 raise ValueError(f"{name} must be a finite non-zero number or None, got {value}")
-        cols = [c for c in (self.v_col, self.p_col, self.q_col, self.f_col, self.t_col) if c]
+        cols = [self.v_col, self.p_col, self.q_col, self.f_col, self.t_col, self.angle_col]
+        cols = [c for c in cols if c]
         dup = sorted({c for c in cols if cols.count(c) > 1})
         if dup:
             raise ValueError(f"column {dup[0]!r} is given for two quantities")

@@ -1,139 +1,68 @@
-"""``loadbayes.fit_composite``: the composite fit with the options and checks of the CLI.
+"""``loadbayes.fit_composite``: read the events, then the one fit of a dynamic load model.
 
-``loadbayes fit composite FILES ...`` and :func:`fit_composite` take the same options
-(files or tables, column names, bases, ``f_hz``, ``torque``, ``steps``, the likelihood,
-priors by name, the sampler's settings) and refuse the same mistakes with the same
-one-line :class:`~loadbayes.io.errors.DataError` / :class:`~loadbayes.io.errors.OptionError`
-before any work: the checks live here (:func:`check_torque`, :func:`check_noise`,
-:func:`prior_with`) and the command calls them. Events already read
-(:class:`~loadbayes.models.composite.EventRecord`) go straight to
-:func:`loadbayes.fit.composite.driver.fit_composite`.
+The Python face of ``loadbayes fit composite``. Reading is :func:`read` (files, tables
+or events, with the CLI's checks and one-line :class:`~loadbayes.io.errors.DataError`);
+the model (:class:`~loadbayes.models.zip_motor.CompositeModel`) checked its options when
+it was built; :func:`fit_composite` reads and calls
+:func:`loadbayes.fit.composite.driver.fit_composite`, which the command calls too.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.composite.driver import CompositeFit
-from loadbayes.fit.composite.driver import fit_composite as _fit_events
+from loadbayes.core.keywords import moved_keywords
+from loadbayes.core.settings import DataSpec, SamplerSettings
+from loadbayes.fit.composite.checks import check_units
+from loadbayes.fit.composite.driver import CompositeFit, SamplingProgress
+from loadbayes.fit.composite.driver import fit_composite as fit_events
 from loadbayes.io.errors import DataError, OptionError
-from loadbayes.models.composite import THETA_NAMES, EventRecord
-from loadbayes.models.composite_prior import CompositePrior
+from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
+from loadbayes.measurements.frame import is_path, read_frame
+from loadbayes.models.base import DynamicLoadModel
+from loadbayes.models.composite import EventRecord
 
-__all__ = ["PRIOR_NAMES", "check_noise", "check_torque", "fit_composite", "prior_with", "read"]
+__all__ = ["MOVED", "fit_composite", "read"]
 
-#: ``--prior`` / ``priors=`` names -> the sampled log-parameter they set.
-PRIOR_NAMES = {
-    "rs": "log_rs",
-    "x_prime": "log_x_prime",
-    "dx": "log_dx",
-    "t_prime_s": "log_t_prime",
-    "h_s": "log_h",
-    "t0": "log_t0",
-}
-
-
-def check_torque(torque: Any) -> tuple[float, float, float] | str:
-    """``"estimate"`` or a finite ``(A, B, C)`` summing to 1; else :class:`OptionError`."""
-    if isinstance(torque, str):
-        if torque.strip().lower() == "estimate":
-            return "estimate"
-        raise OptionError(f"torque {torque!r}: expected (A, B, C) or 'estimate'")
-    try:
-        a, b, c = (float(x) for x in torque)
-    except (TypeError, ValueError):
-        raise OptionError(f"torque {torque!r}: expected (A, B, C) or 'estimate'") from None
-    if not all(math.isfinite(x) for x in (a, b, c)) or abs(a + b + c - 1) > 1e-9:
-        raise OptionError(f"torque {torque!r}: A + B + C must be 1")
-    return a, b, c
+#: The keywords of the old signature and where each went.
+MOVED = {
+    **{k: f"sampler=SamplerSettings({k}={{value}})" for k in
+       ("draws", "burn", "thin", "chains", "seed", "move", "max_seconds", "until_converged")},
+    "workers": "sampler=SamplerSettings(threads={value})",
+    **{k: f"model=CompositeModel({k}={{value}})" for k in
+       ("f_hz", "torque", "h_max", "steps", "window_s", "shares", "noise", "likelihood",
+        "nu", "priors", "prior")},
+    "coefficient_prior": "model=CompositeModel(priors={value})",
+    **{k: f"spec=DataSpec({k}={{value}})" for k in
+       ("t_col", "v_col", "p_col", "q_col", "f_col", "angle_col", "event_col", "v_base",
+        "s_base", "accept_units")},
+    "settings": "provenance={value}",
+}  # fmt: skip
+#: The composite's columns when the spec leaves them unset.
+_T_COL, _EVENT_COL = "t_s", "event"
 
 
-def check_noise(likelihood: str, nu: float | str) -> float | str:
-    """The likelihood and its ``nu`` as the CLI accepts them; else :class:`OptionError`."""
-    if likelihood not in ("normal", "student-t"):
-        raise OptionError(f"likelihood must be 'normal' or 'student-t', got {likelihood!r}")
-    auto = isinstance(nu, str) and nu.strip().lower() == "auto"
-    if likelihood != "student-t" and not auto:
-        raise OptionError("nu needs likelihood 'student-t' (the --nu of --likelihood student-t)")
-    if auto:
-        return "auto"
-    try:
-        value = float(nu)
-    except (TypeError, ValueError):
-        raise OptionError(f"nu {nu!r}: a positive number or 'auto'") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise OptionError(f"nu {nu!r}: a positive number or 'auto'")
-    return value
-
-
-def prior_with(
-    events: Sequence[EventRecord], priors: Mapping[str, tuple[float, float]] | None
-) -> CompositePrior:
-    """The default prior of ``events`` with log-normal priors set by name.
-
-    Parameters
-    ----------
-    events : sequence of EventRecord
-        The events (the default prior reads their levels).
-    priors : mapping of str to (float, float), optional
-        ``{name: (median, sd_log)}`` for names in :data:`PRIOR_NAMES` (``--prior
-        NAME=MEDIAN,SD_LOG``).
-
-    Raises
-    ------
-    OptionError
-        An unknown name, or a median or sd_log that is not positive and finite.
-    """
-    prior = CompositePrior.default(events)
-    if not priors:
-        return prior
-    mean, sd = prior.theta_mean.copy(), prior.theta_sd.copy()
-    for name, value in priors.items():
-        if name not in PRIOR_NAMES:
-            raise OptionError(f"prior {name!r}: NAME must be one of {', '.join(PRIOR_NAMES)}")
-        try:
-            med, s = (float(x) for x in value)
-        except (TypeError, ValueError):
-            raise OptionError(f"prior {name}={value!r}: expected (MEDIAN, SD_LOG)") from None
-        if not (med > 0 and math.isfinite(med) and s > 0 and math.isfinite(s)):
-            raise OptionError(f"prior {name}: MEDIAN and SD_LOG must be positive and finite")
-        i = THETA_NAMES.index(PRIOR_NAMES[name])
-        mean[i], sd[i] = math.log(med), s
-    return CompositePrior(mean, sd, prior.beta_sd, prior.tau_shape, prior.tau_rate)
-
-
-def read(
-    data: Any,
-    *,
-    t_col: str = "t_s",
-    v_col: str = "v",
-    p_col: str = "p",
-    q_col: str = "q",
-    f_col: str | None = None,
-    angle_col: str | None = None,
-    event_col: str = "event",
-    v_base: float | None = None,
-    s_base: float | None = None,
-    f_hz: float = 60.0,
-) -> list[EventRecord]:
+def read(data: Any, spec: DataSpec | None = None, *, f_hz: float = 60.0, **old: Any):
     """Events from files, tables or events (the readers and checks of the CLI).
 
     ``data`` is a file name, a DataFrame (or mapping of columns), an
-    :class:`EventRecord`, or a list of any of them.
+    :class:`EventRecord`, or a list of any of them; ``spec`` names the columns
+    (``t_col`` default ``t_s``, ``event_col`` default ``event``; ``f_col``/``angle_col``
+    default to ``f`` and ``angle_rad`` when present) and the bases (data / base = per
+    unit). ``f_hz`` is the nominal frequency a frequency or angle column is read against.
     """
-    from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
-    from loadbayes.measurements.frame import is_path, read_frame
-
+    if old:
+        raise TypeError(moved_keywords("read", old, MOVED))
+    spec = spec if spec is not None else DataSpec()
+    t_col, event_col = spec.t_col or _T_COL, spec.event_col or _EVENT_COL
+    v_col, p_col, q_col = spec.v_col, spec.p_col, spec.q_col or "q"
+    f_col, angle_col, v_base, s_base = spec.f_col, spec.angle_col, spec.v_base, spec.s_base
     items = list(data) if isinstance(data, (list, tuple)) else [data]
     if not items:
         raise OptionError("no events to fit: give one or more files, tables or events")
-    for base, name in ((v_base, "v_base"), (s_base, "s_base")):
-        if base is not None and not (base > 0 and math.isfinite(base)):
-            raise OptionError(f"{name} {base}: must be a positive number")
     cols = {"t_col": t_col, "v_col": v_col, "p_col": p_col, "q_col": q_col, "f_col": f_col,
             "angle_col": angle_col, "event_col": event_col}  # fmt: skip
     out: list[EventRecord] = []
@@ -178,63 +107,45 @@ def _text_ids(table: Any, column: str) -> np.ndarray | None:
 
 
 def fit_composite(
-    data: Any,
+    model: DynamicLoadModel,
+    data: Any = None,
     *,
-    t_col: str = "t_s",
-    v_col: str = "v",
-    p_col: str = "p",
-    q_col: str = "q",
-    f_col: str | None = None,
-    angle_col: str | None = None,
-    event_col: str = "event",
-    v_base: float | None = None,
-    s_base: float | None = None,
-    f_hz: float = 60.0,
-    torque: tuple[float, float, float] | str = (1.0, 0.0, 0.0),
-    likelihood: str = "normal",
-    nu: float | str = "auto",
-    priors: Mapping[str, tuple[float, float]] | None = None,
-    prior: CompositePrior | None = None,
-    settings: dict[str, Any] | None = None,
-    **options: Any,
+    sampler: SamplerSettings | None = None,
+    progress: SamplingProgress | None = None,
+    spec: DataSpec | None = None,
+    provenance: Mapping[str, Any] | None = None,
+    **old: Any,
 ) -> CompositeFit:
-    """Fit the composite load (ZIP + induction motor) to one or more events of one load.
+    """Fit a dynamic load model (``zip+motor``: ZIP + induction motor) to recorded events.
 
-    The Python face of ``loadbayes fit composite``: the same options, the same checks,
-    the same one-line errors; every event is fitted jointly (one motor, each event its
-    own operating point and mix).
+    The Python face of ``loadbayes fit composite``: the same checks, the same one-line
+    errors; every event is fitted jointly (one motor, each event its own operating point
+    and mix).
 
     Parameters
     ----------
+    model : DynamicLoadModel
+        The model (``models/dynamic.py``); for ``zip+motor`` a
+        :class:`~loadbayes.models.zip_motor.CompositeModel` and its options (torque law,
+        steps, shares, noise, likelihood, phasor window, frequency, priors by name),
+        checked when it is built:
+        ``CompositeModel(torque="estimate", priors={"h_s": (0.7, 0.3)})``.
     data : str, path, DataFrame, mapping, EventRecord, or a list of them
-        Files (CSV or Parquet) or tables with columns ``t_col, v_col, p_col, q_col``
-        (optionally a frequency ``f_col`` in Hz or an angle ``angle_col`` in rad, and an
-        ``event_col``: one event per distinct value), or events already read.
-    t_col, v_col, p_col, q_col, f_col, angle_col, event_col : str
-        Column names (``--t-col`` ...); ``f_col``/``angle_col`` default to ``f`` and
-        ``angle_rad`` when present.
-    v_base, s_base : float, optional
-        Data V / v_base and P, Q / s_base are per unit (``--v-base``, ``--s-base``). Data
-        in kV without ``v_base`` are refused (``accept_units=True`` fits them anyway).
-    f_hz : float
-        Nominal frequency, 10-1000 Hz.
-    torque : (A, B, C) or "estimate"
-        Load torque ``A w^2 + B w + C`` with ``A + B + C = 1``, or estimated.
-    likelihood : {"normal", "student-t"}
-        The noise of P and Q; ``nu`` (a number or "auto") only with "student-t".
-    priors : mapping of str to (float, float), optional
-        Log-normal priors ``{name: (median, sd_log)}`` of ``rs, x_prime, dx, t_prime_s,
-        h_s, t0`` (``--prior NAME=MEDIAN,SD_LOG``), and normal priors ``{name: (mean,
-        sd)}`` of ``a1..a6, f_m, p0, q0`` (``--prior NAME=MEAN,SD``).
-    prior : CompositePrior, optional
-        A whole prior instead (not with ``priors``).
-    settings : dict, optional
-        Extra provenance; the files read are recorded under ``files``.
-    **options
-        Passed to :func:`loadbayes.fit.composite.driver.fit_composite`: ``sampler``,
-        ``draws``, ``burn``, ``chains``, ``thin``, ``seed``, ``steps``, ``accept_units``,
-        ``progress``, ``workers``, ``shares`` ("free" or "bounded"), ``noise`` ("white"
-        or "ar1"), ``window_s``, ``max_seconds``, ``until_converged`` ...
+        Files (CSV or Parquet) or tables with columns ``t_s, v, p, q`` (optionally a
+        frequency ``f`` in Hz or an angle ``angle_rad`` in rad, and an ``event`` column:
+        one event per distinct value), or events already read.
+    sampler : SamplerSettings, optional
+        Default :data:`~loadbayes.fit.composite.driver.COMPOSITE_DEFAULTS` (run on until
+        converged); settings given run exactly their draws unless ``until_converged``.
+    progress : SamplingProgress, optional
+        Told the cost before sampling and the iterations as they are done.
+    spec : DataSpec, optional
+        The columns and bases of the data (``DataSpec(t_col="time", v_col="V_kV",
+        v_base=11, s_base=5)``), and ``accept_units`` (fit data that do not look per unit,
+        with a warning).
+    provenance : mapping, optional
+        Extra settings recorded in the result; the files read are recorded under
+        ``files``.
 
     Returns
     -------
@@ -245,65 +156,46 @@ def fit_composite(
 
     Raises
     ------
+    TypeError
+        A keyword of the old signature (``draws=``, ``torque=``, ``v_col=`` ...), with
+        its new place.
     loadbayes.io.errors.DataError
         Data the CLI refuses (file, column and row named): a missing column, time going
         backwards, a gap, no voltage change, V not per unit ...
     loadbayes.io.errors.OptionError
-        Options the CLI refuses: torque shares not summing to 1, ``nu`` without the
-        Student-t likelihood, an unknown prior name, ``f_hz`` outside 10-1000 Hz, too few
-        draws, a negative seed.
+        Too few draws, a negative seed.
 
     Examples
     --------
     >>> import loadbayes
-    >>> fit = loadbayes.fit_composite(["sag1.csv", "sag2.csv"], draws=4000, burn=1000,
-    ...                               seed=1)  # doctest: +SKIP
+    >>> from loadbayes import CompositeModel, SamplerSettings
+    >>> fit = loadbayes.fit_composite(CompositeModel(), ["sag1.csv", "sag2.csv"],
+    ...     sampler=SamplerSettings(draws=4000, burn=1000, seed=1))  # doctest: +SKIP
     >>> fit.posterior.to_json("composite.json")  # doctest: +SKIP
     """
     from loadbayes.fit.composite.checks import check_run
-    from loadbayes.io.errors import LoadbayesError
 
-    torque_abc = check_torque(torque)
-    nu_value = check_noise(likelihood, nu)
-    if prior is not None and priors:
-        raise OptionError("give either prior (a whole CompositePrior) or priors (by name)")
-    if not (isinstance(f_hz, (int, float)) and 10 <= f_hz <= 1000):
-        raise OptionError(f"f_hz {f_hz}: the nominal frequency must be 10-1000 Hz")
-    sampler = options.get("sampler")
-    run = {k: options[k] for k in ("draws", "burn", "thin", "seed") if k in options}
-    if sampler is not None or run:
-        from loadbayes.core.settings import SamplerSettings
-        from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS
-
-        try:
-            s = SamplerSettings.of(sampler or COMPOSITE_DEFAULTS, **run)
-        except ValueError as exc:
-            if isinstance(exc, LoadbayesError):
-                raise
-            raise OptionError(str(exc)) from None
-        check_run(f_hz=f_hz, draws=s.draws, burn=s.burn, thin=s.thin, seed=s.seed,
-                  max_seconds=options.get("max_seconds", 1.0))  # fmt: skip
+    if old:
+        raise TypeError(moved_keywords("fit_composite", old, MOVED))
+    if not isinstance(model, DynamicLoadModel):
+        raise TypeError(
+            f"fit_composite: the first argument is the model (models/dynamic.py), got "
+            f"{type(model).__name__}: fit_composite(CompositeModel(...), data, sampler=...)"
+        )
+    if data is None:
+        raise TypeError("fit_composite: no data: fit_composite(model, data, sampler=...)")
+    if sampler is not None:
+        f_hz = getattr(model, "f_hz", 60.0)
+        check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
+                  seed=sampler.seed)  # fmt: skip
+    spec = spec if spec is not None else DataSpec()
     items = list(data) if isinstance(data, (list, tuple)) else [data]
     files = [str(x) for x in items if isinstance(x, str) or hasattr(x, "__fspath__")]
-    events = read(data, t_col=t_col, v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col,
-                  angle_col=angle_col, event_col=event_col, v_base=v_base, s_base=s_base,
-                  f_hz=f_hz)  # fmt: skip
-    # Priors by name: the motor's (log-normal) set the prior; a1..a6, f_m, p0, q0 (normal)
-    # are the coefficients' factors (driver's coefficient_prior).
-    from loadbayes.models.composite_prior import COEFFICIENT_PRIOR_NAMES
-
-    priors = dict(priors or {})
-    coef = {n: priors.pop(n) for n in list(priors) if n in COEFFICIENT_PRIOR_NAMES}
-    if coef:
-        options["coefficient_prior"] = {**coef, **(options.get("coefficient_prior") or {})}
-    if prior is None:
-        from loadbayes.fit.composite.checks import check_units
-
-        # The units first: the default prior reads the events' levels.
-        check_units(events, accept_units=bool(options.get("accept_units", False)),
-                    columns={"v": v_col, "p": p_col, "q": q_col},
-                    wording=options.get("wording", "python"))  # fmt: skip
-        prior = prior_with(events, priors)
-    extra = {**({"files": files} if files else {}), **(settings or {})}
-    return _fit_events(events, prior=prior, f_hz=f_hz, torque=torque_abc, likelihood=likelihood,
-                       nu=nu_value, settings=extra or None, **options)  # fmt: skip
+    events = read(data, spec, f_hz=getattr(model, "f_hz", 60.0))
+    columns = {"v": spec.v_col, "p": spec.p_col, "q": spec.q_col or "q"}
+    # The units first, named by the data's own columns; then the warnings the fit keeps.
+    check_units(events, accept_units=spec.accept_units, columns=columns, wording="python")
+    warnings = check_units(events, accept_units=spec.accept_units, wording="python")
+    extra = {**({"files": files} if files else {}), **(provenance or {})}
+    return fit_events(model, events, sampler=sampler, progress=progress,
+                      data_warnings=warnings, provenance=extra or None)  # fmt: skip

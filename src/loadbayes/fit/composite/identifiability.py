@@ -89,8 +89,8 @@ def identifiability(
         ``motor_share``, ``short_window`` (a sentence or None) and ``summary`` /
         ``what_would_help`` sentences.
     """
-    flat = theta.reshape(-1, 6) @ SCALE_FREE_MATRIX.T
-    u = flat[:, :5]
+    flat = theta.reshape(-1, SCALE_FREE_MATRIX.shape[1]) @ SCALE_FREE_MATRIX.T
+    u = flat[:, : len(SCALE_FREE_NAMES)]
     _, cov_u, _, _ = prior.scale_free()
     ratio = u.std(axis=0) / np.sqrt(np.diag(cov_u))
     params = {}
@@ -103,8 +103,8 @@ def identifiability(
         params[name] = {"posterior_sd_over_prior_sd": float(r), "verdict": verdict}
     corr = np.corrcoef(u.T)
     ridges = []
-    for i in range(5):
-        for j in range(i + 1, 5):
+    for i in range(u.shape[1]):
+        for j in range(i + 1, u.shape[1]):
             if abs(corr[i, j]) > RIDGE_CORR:
                 a, b = SCALE_FREE_NAMES[i], SCALE_FREE_NAMES[j]
                 ridges.append(

@@ -39,8 +39,6 @@ __all__ = [
     "step_names",
 ]
 
-#: The motor's free parameters the JSON lists first (the steps' instants follow).
-FREE_MOTOR = ("f_m", "t_prime_s", "x_prime", "x_open", "h_s", "rs", "t0")
 
 _PU_SYS, _PU_MOTOR = "p.u. system base", "p.u. motor base"
 #: Every named draw's unit and meaning in words: the one place the CLI table, the report
@@ -169,7 +167,7 @@ def _motor_p0_q0(
 ) -> tuple[np.ndarray, np.ndarray]:
     # The motor's own-base P, Q at each event's first sample, per draw (and per-draw
     # torque shares when they are estimated).
-    flat = theta.reshape(-1, 6)
+    flat = theta.reshape(-1, len(THETA_NAMES))
     e = np.exp(flat)
     wb = 2.0 * math.pi * problem.f_hz
     abc_flat = None if abc is None else abc.reshape(-1, 3)
@@ -216,6 +214,8 @@ def named_draws(
     -------
     dict of str to ndarray (chain, draw)
     """
+    if not isinstance(problem, CompositeProblem):  # another model: its own composition
+        return problem.named(theta, betas, tau)
     pm0, qm0 = _motor_p0_q0(problem, theta, abc)
     phys = motor_physical(theta, f_hz=problem.f_hz)
     shape = theta.shape[:-1]
@@ -260,8 +260,9 @@ def step_draws(problem: CompositeProblem, phi: np.ndarray) -> dict[str, np.ndarr
 
 
 def free_names(problem: CompositeProblem) -> list[str]:
-    """The parameters the JSON calls free: the motor's, then the steps' instants."""
-    return [*FREE_MOTOR, *step_names(problem)]
+    """The parameters the JSON calls free: the model's (the motor's), then the steps' instants."""
+    steps = step_names(problem) if problem.n_steps else []
+    return [*problem.free_names(), *steps]
 
 
 def coefficient_names(draws: dict[str, np.ndarray]) -> list[str]:

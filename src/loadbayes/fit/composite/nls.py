@@ -21,9 +21,7 @@ from loadbayes.inference.condlinear import (
     residual_ss,
 )
 from loadbayes.models.composite import (
-    SCALE_FREE_MATRIX,
     EventRecord,
-    design,
 )
 from loadbayes.models.composite_prior import STEP_PRIOR_SD
 
@@ -34,8 +32,8 @@ __all__ = ["COARSE_FS", "NLSResult", "nls"]
 class NLSResult:
     """The least-squares point estimate and its Gaussian approximation."""
 
-    u: np.ndarray  # (5 + steps,) scale-free motor coordinates, then each step's fraction phi
-    betas: np.ndarray  # (events, 7)
+    u: np.ndarray  # (n_free + steps,) the model's free coordinates, then each step's fraction
+    betas: np.ndarray  # (events, n_beta)
     sigma: np.ndarray  # (2,) residual sd of P and Q
     cov: np.ndarray  # covariance of (u, betas.ravel())
     cost: float
@@ -43,24 +41,12 @@ class NLSResult:
     nfev: int
 
 
-def _library_starts() -> list[np.ndarray]:
-    from loadbayes.models.motor_library import MOTORS
-
-    starts = []
-    for m in MOTORS.values():
-        starts.append(
-            (SCALE_FREE_MATRIX @ np.log([m.rs, m.xp, m.x - m.xp, m.tp_s, m.h_s, 0.6]))[:5]
-        )
-    return starts
-
-
 def _project(problem: CompositeProblem, u: np.ndarray, w: np.ndarray):
-    resp = problem.responses(u)
-    if resp is None:
+    zs = problem.designs(u)
+    if zs is None:
         return None
     res, betas = [], []
-    for ev, (pm, qm) in zip(problem.events, resp, strict=True):
-        zp, zq = design(ev, pm, qm)
+    for ev, (zp, zq) in zip(problem.events, zs, strict=True):
         z = np.vstack([w[0] * zp, w[1] * zq])
         y = np.concatenate([w[0] * ev.p, w[1] * ev.q])
         # A whisper of the prior keeps the projection defined when a column vanishes.
@@ -84,6 +70,7 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     the Gauss-Newton one of ``(u, every event's beta)`` with the prior's precision added.
     """
     t_start = time.perf_counter()
+    nf = problem.n_free
     mean_m, cov_m, _, _ = problem.prior.scale_free()
     # The steps' fractions join the motor's coordinates, bounded to [0, 1] (their
     # uniform prior) and started mid-interval; a Tikhonov row of sd 10 (a negligible
@@ -92,15 +79,15 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     mean_s = np.full(k, 0.5)
     mean_u = np.concatenate([mean_m, mean_s])
     cov_u = np.zeros((problem.dim, problem.dim))
-    cov_u[:5, :5] = cov_m
-    cov_u[5:, 5:] = np.eye(k) * STEP_PRIOR_SD**2
+    cov_u[:nf, :nf] = cov_m
+    cov_u[nf:, nf:] = np.eye(k) * STEP_PRIOR_SD**2
     sd_u = np.sqrt(np.diag(cov_u))
     white = np.linalg.inv(np.linalg.cholesky(cov_u))
     lo, hi = mean_u - 6 * sd_u, mean_u + 6 * sd_u
-    lo[5:], hi[5:] = 0.0, 1.0
-    sd_u[5:] = 0.2
-    starts = list(starts) if starts is not None else [mean_m, *_library_starts()]
-    starts = [np.concatenate([np.asarray(x0)[:5], mean_s]) for x0 in starts]
+    lo[nf:], hi[nf:] = 0.0, 1.0
+    sd_u[nf:] = 0.2
+    starts = list(starts) if starts is not None else [mean_m, *problem.start_points()]
+    starts = [np.concatenate([np.asarray(x0)[:nf], mean_s]) for x0 in starts]
     nfev = 0
 
     def run(w, x0, max_nfev=None, prob=problem):
@@ -133,7 +120,7 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None
-    x_best = np.concatenate([best.x[:5], mean_s]) if best.x.size < problem.dim else best.x
+    x_best = np.concatenate([best.x[:nf], mean_s]) if best.x.size < problem.dim else best.x
     if coarse is not problem:
         w = 1.0 / _static_sigmas(problem)
     _, betas = _projected(problem, x_best, w)
@@ -178,14 +165,7 @@ def _thinned(problem: CompositeProblem) -> CompositeProblem:
         return problem
     # Without steps: the search only needs where the motor's coordinates roughly are
     # (a thinned record's intervals are not the record's); the final fit places them.
-    return CompositeProblem(
-        events,
-        problem.prior,
-        f_hz=problem.f_hz,
-        torque=problem.torque,
-        h_max=problem.h_max,
-        steps=False,
-    )
+    return problem.coarse(events)
 
 
 def _static_sigmas(problem) -> np.ndarray:
@@ -209,16 +189,14 @@ def _sigmas(problem, u, betas) -> np.ndarray:
 
 def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
     def full(uu, bs):
-        resp = problem.responses(uu)
         parts = []
-        for ev, (pm, qm), b in zip(problem.events, resp, bs, strict=True):
-            zp, zq = design(ev, pm, qm)
+        for ev, (zp, zq), b in zip(problem.events, problem.designs(uu), bs, strict=True):
             parts += [w[0] * (ev.p - zp @ b), w[1] * (ev.q - zq @ b)]
         return np.concatenate(parts)
 
     n_ev = len(problem.events)
     d = problem.dim
-    k = d + 7 * n_ev
+    k = d + problem.n_beta * n_ev
     r0 = full(u, betas)
     jac = np.zeros((r0.size, k))
     for i in range(d):
@@ -226,16 +204,15 @@ def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
         up, um = u.copy(), u.copy()
         up[i] += h
         um[i] -= h
-        if problem.responses(up) is None or problem.responses(um) is None:
+        if problem.designs(up) is None or problem.designs(um) is None:
             continue
         jac[:, i] = (full(up, betas) - full(um, betas)) / (2 * h)
-    resp = problem.responses(u)
     row = 0
-    for e, (ev, (pm, qm)) in enumerate(zip(problem.events, resp, strict=True)):
-        zp, zq = design(ev, pm, qm)
+    for e, (ev, (zp, zq)) in enumerate(zip(problem.events, problem.designs(u), strict=True)):
         n = ev.n
-        jac[row : row + n, d + 7 * e : d + 7 + 7 * e] = -w[0] * zp
-        jac[row + n : row + 2 * n, d + 7 * e : d + 7 + 7 * e] = -w[1] * zq
+        cols = slice(d + problem.n_beta * e, d + problem.n_beta * (e + 1))
+        jac[row : row + n, cols] = -w[0] * zp
+        jac[row + n : row + 2 * n, cols] = -w[1] * zq
         row += 2 * n
     # The prior's precision (as in the penalised fit): a direction the data do not see
     # gets the prior's spread, not an infinite variance.

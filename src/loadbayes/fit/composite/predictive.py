@@ -18,7 +18,13 @@ from dataclasses import replace
 import numpy as np
 
 from loadbayes.fit.composite.naming import beta_from_named, event_suffix
-from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_response
+from loadbayes.models.composite import (
+    BETA_NAMES,
+    THETA_NAMES,
+    EventRecord,
+    design,
+    motor_response,
+)
 from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.posterior import Posterior
 
@@ -58,7 +64,7 @@ def predictive_band(
     are left out, as in the fit: models/composite_steps.py).
     """
     rng = np.random.default_rng(seed)
-    theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, 6)
+    theta = np.stack([post.draws[n] for n in THETA_NAMES], -1).reshape(-1, len(THETA_NAMES))
     # The draws carry the torque shares (constants unless they were estimated).
     abc = (
         np.stack([post.draws[n] for n in ("a", "b", "c")], -1).reshape(-1, 3)
@@ -72,7 +78,7 @@ def predictive_band(
     edge_window = 1.0 / f_hz if edge_window is None else float(edge_window)
     window = window_of(post.settings)
     for k, recorded in enumerate(events):
-        beta = beta_from_named(post.draws, k).reshape(-1, 7)
+        beta = beta_from_named(post.draws, k).reshape(-1, len(BETA_NAMES))
         # The steps where each draw put them (none when the fit read them as ramps).
         sfx = event_suffix(k)
         detect = f"t_step0{sfx}" in post.draws

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numba
 import numpy as np
@@ -42,7 +43,15 @@ from loadbayes.inference.condlinear import (
     log_marginal,
     log_marginal_arrays,
 )
-from loadbayes.models.composite import SCALE_FREE_MATRIX, EventRecord, motor_response
+from loadbayes.models.composite import (
+    BETA_NAMES,
+    SCALE_FREE_MATRIX,
+    SCALE_FREE_NAMES,
+    THETA_NAMES,
+    EventRecord,
+    design,
+    motor_response,
+)
 from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
 from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.models.motor_kernel import (
@@ -52,17 +61,22 @@ from loadbayes.models.motor_kernel import (
     step_size,
 )
 
-__all__ = ["CompositeProblem", "KernelResult", "Samples", "theta_of"]
+__all__ = ["FREE_MOTOR", "CompositeProblem", "KernelResult", "Samples", "theta_of"]
+
+#: The motor's free parameters the JSON lists first (the steps' instants follow).
+FREE_MOTOR = ("f_m", "t_prime_s", "x_prime", "x_open", "h_s", "rs", "t0")
 
 _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
-_T_INV_U = np.ascontiguousarray(_T_INV[:, :5].T)
+#: The model's sizes: the scale-free motor coordinates sampled, each event's coefficients.
+N_FREE, N_BETA = len(SCALE_FREE_NAMES), len(BETA_NAMES)
+_T_INV_U = np.ascontiguousarray(_T_INV[:, :N_FREE].T)
 
 
 def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
     """``THETA_NAMES`` values from the scale-free ``u`` (..., 5) and ``log T0`` (...)."""
     u = np.asarray(u, dtype=float)
     # theta = T^-1 (u, log T0): the first five columns act on u, the last on log T0.
-    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV[:, 5])
+    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV[:, N_FREE])
 
 
 @dataclass(frozen=True)
@@ -129,9 +143,14 @@ class CompositeProblem:
     #: shares are sampled coordinates there).
     share_prior: tuple[tuple[int, float, float], ...] = ()
     evaluations: int = field(default=0, init=False)
+    #: The sampled motor coordinates and each event's linear coefficients (the model's).
+    n_free: ClassVar[int] = N_FREE
+    free_coordinates: ClassVar[tuple[str, ...]] = SCALE_FREE_NAMES
+    n_theta: ClassVar[int] = len(THETA_NAMES)
+    n_beta: ClassVar[int] = N_BETA
 
     def __post_init__(self) -> None:
-        self.m0 = np.zeros(7)
+        self.m0 = np.zeros(N_BETA)
         self.p0 = 1.0 / self.prior.beta_sd**2
         # With a phasor window the samples inside a fault's edge are left out (point
         # samples keep them: the edge is a ramp); ``recorded`` keeps the events as given.
@@ -176,11 +195,6 @@ class CompositeProblem:
         self._xsums = np.stack([x_sums(e.x, e.p, e.q) for e in ev])
 
     @property
-    def n_motor(self) -> int:
-        """The motor's scale-free coordinates at the head of ``u`` (theta adds ``log T0``)."""
-        return 5
-
-    @property
     def n_steps(self) -> int:
         """Step intervals over all events: each adds its ``phi`` to the sampled vector."""
         return self.grid.n_steps
@@ -193,16 +207,53 @@ class CompositeProblem:
     @property
     def dim(self) -> int:
         """Length of the sampled vector: the motor's five, the steps, any share coordinates."""
-        return 5 + self.grid.n_steps + self.n_share_coords
+        return N_FREE + self.grid.n_steps + self.n_share_coords
+
+    def draw_scale(self, u: np.ndarray, rng: np.random.Generator) -> float:
+        """``log T0 | u`` from its prior conditional (the sampler draws it each iteration).
+
+        ``log T0`` sets the motor's base, which the terminal data never see.
+        """
+        return self.prior.draw_log_t0(np.asarray(u, dtype=float)[:N_FREE], rng)
+
+    def theta(self, u: np.ndarray, scale: float | np.ndarray = 0.0) -> np.ndarray:
+        """``THETA_NAMES`` of the free coordinates ``u`` and the scale ``log T0``."""
+        return theta_of(np.asarray(u, dtype=float)[..., :N_FREE], scale)
+
+    def start_points(self) -> list[np.ndarray]:
+        """Starts of the NLS search besides the prior's centre: each library motor's."""
+        from loadbayes.models.motor_library import MOTORS
+
+        return [
+            (SCALE_FREE_MATRIX @ np.log([m.rs, m.xp, m.x - m.xp, m.tp_s, m.h_s, 0.6]))[:N_FREE]
+            for m in MOTORS.values()
+        ]
+
+    def coarse(self, events: list[EventRecord]) -> CompositeProblem:
+        """The problem on other events, without steps (the NLS search's thinned copy)."""
+        return CompositeProblem(
+            events, self.prior, f_hz=self.f_hz, torque=self.torque, h_max=self.h_max, steps=False
+        )
+
+    def designs(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Each event's design matrices (``models.composite.design``) at ``u``, or None."""
+        resp = self.responses(u)
+        if resp is None:
+            return None
+        return [design(ev, pm, qm) for ev, (pm, qm) in zip(self.events, resp, strict=True)]
+
+    def free_names(self) -> list[str]:
+        """The motor's free parameters the JSON lists first (naming.FREE_MOTOR order)."""
+        return list(FREE_MOTOR)
 
     def share_z(self, u: np.ndarray) -> np.ndarray:
         """The bounded shares' log-ratio coordinates in ``u``, (events, 4)."""
-        i = 5 + self.grid.n_steps
+        i = N_FREE + self.grid.n_steps
         return np.asarray(u, dtype=float)[i : i + self.n_share_coords].reshape(-1, SHARE_COORDS)
 
     def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
         # The collapsed density of the bounded model (fit/composite/bounded.py).
-        out = self.prior.log_u(u[:5])
+        out = self.prior.log_u(u[:N_FREE])
         gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
         for z, g in zip(self.share_z(u), groups, strict=True):
             a = shares_of(z)
@@ -241,13 +292,13 @@ class CompositeProblem:
         A motor-only vector (five entries) puts every step mid-interval.
         """
         u = np.asarray(u, dtype=float)
-        if u.shape[-1] == 5 and self.n_steps:
+        if u.shape[-1] == N_FREE and self.n_steps:
             return np.full(u.shape[:-1] + (self.n_steps,), 0.5)
-        if u.shape[-1] < 5 + self.n_steps:
+        if u.shape[-1] < N_FREE + self.n_steps:
             raise ValueError(
-                f"expected at least {5 + self.n_steps} sampled coordinates, got {u.shape[-1]}"
+                f"expected at least {N_FREE + self.n_steps} sampled coordinates, got {u.shape[-1]}"
             )
-        return u[..., 5 : 5 + self.n_steps]
+        return u[..., N_FREE : N_FREE + self.n_steps]
 
     def in_support(self, u: np.ndarray) -> bool:
         """Whether every step's fraction lies in [0, 1] (the prior is uniform there).
@@ -260,7 +311,7 @@ class CompositeProblem:
         if not self.n_steps:
             return True
         # Plain floats: a handful of fractions, checked every iteration (twice).
-        phi = np.asarray(u, dtype=float)[5 : 5 + self.n_steps].tolist()
+        phi = np.asarray(u, dtype=float)[N_FREE : N_FREE + self.n_steps].tolist()
         return all(0.0 <= f <= 1.0 for f in phi)
 
     def kernel(
@@ -286,7 +337,11 @@ class CompositeProblem:
         if not np.isfinite(u).all() or not self.in_support(u):
             return None
         n_ev = len(self.events)
-        ztz, zty, yty = np.zeros((n_ev, 2, 7, 7)), np.zeros((n_ev, 2, 7)), np.zeros((n_ev, 2))
+        ztz, zty, yty = (
+            np.zeros((n_ev, 2, N_BETA, N_BETA)),
+            np.zeros((n_ev, 2, N_BETA)),
+            np.zeros((n_ev, 2)),
+        )
         d = self.samples
         pm, qm = np.empty(d.size), np.empty(d.size)
         a, b, c = self.torque if torque is None else torque
@@ -294,7 +349,7 @@ class CompositeProblem:
         g = self.grid
         try:
             lp = _collapsed(
-                u[:5], np.exp(theta_of(u[:5], 0.0)), np.asarray(tau, dtype=float),
+                u[:N_FREE], np.exp(theta_of(u[:N_FREE], 0.0)), np.asarray(tau, dtype=float),
                 g.times(self.phi(u)), g.v, g.delta, g.starts, self._real, d.x, d.p, d.q,
                 d.starts, d.n, self._mean_u, self._prec_u, self.m0, self.p0,
                 POSITIVE_BETA, 2.0 * math.pi * self.f_hz, float(a), float(b), float(c),
@@ -348,9 +403,9 @@ class CompositeProblem:
         """
         self.evaluations += 1
         u = np.asarray(u, dtype=float)
-        if u.size > 5 and not self.in_support(u):
+        if u.size > N_FREE and not self.in_support(u):
             return None
-        theta = theta_of(u[:5], 0.0)
+        theta = theta_of(u[:N_FREE], 0.0)
         t_aug = self.grid.times(self.phi(u))
         out = []
         tq = self.torque if torque is None else torque
@@ -386,7 +441,7 @@ class CompositeProblem:
         d, groups = self.samples, []
         for e in range(len(self.events)):
             sl = d.event(e)
-            zz, zy, yy = np.zeros((2, 7, 7)), np.zeros((2, 7)), np.zeros(2)
+            zz, zy, yy = np.zeros((2, N_BETA, N_BETA)), np.zeros((2, N_BETA)), np.zeros(2)
             ar_sums_into(d.x[sl], sums.pm[sl], sums.qm[sl], d.p[sl], d.q[sl], self.seg[sl],
                          np.asarray(rho, dtype=float), zz, zy, yy)  # fmt: skip
             groups.append(GroupSums(zz, zy, yy, d.n[e]))
@@ -405,11 +460,11 @@ class CompositeProblem:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
         if sums is None or not np.isfinite(u).all():
             return -math.inf
-        if u.size > 5 and not self.in_support(u):
+        if u.size > N_FREE and not self.in_support(u):
             return -math.inf
         if self.bounded:
             return self._bounded_lp(u, tau, sums)
-        out = self.prior.log_u(u[:5])
+        out = self.prior.log_u(u[:N_FREE])
         for s in sums:
             out += log_marginal(s, tau, self.m0, self.p0, positive=POSITIVE_BETA)
         return out

@@ -15,7 +15,6 @@ from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.sampler import ChainResult
-from loadbayes.models.composite import SCALE_FREE_NAMES
 from loadbayes.models.composite_steps import RAMP_MAX_S
 
 __all__ = [
@@ -180,6 +179,6 @@ def baseline_record(problem: CompositeProblem, start: NLSResult) -> dict[str, An
         "timing_s": {"nls": start.seconds},
         "nls_nfev": start.nfev,
         "residual_sd": start.sigma.tolist(),
-        "estimate_u": dict(zip(SCALE_FREE_NAMES, start.u[:5].tolist(), strict=True)),
+        "estimate_u": dict(zip(problem.free_coordinates, start.u.tolist(), strict=False)),
         "estimate_step_fraction": problem.phi(start.u).tolist(),
     }

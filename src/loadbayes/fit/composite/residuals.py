@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from loadbayes.models.composite import SCALE_FREE_MATRIX, design
+from loadbayes.models.composite import SCALE_FREE_MATRIX, SCALE_FREE_NAMES, design
 
 __all__ = ["WARN_LAG1", "residual_autocorrelation", "residual_warning"]
 
@@ -54,7 +54,7 @@ def residual_autocorrelation(
     pick = rng.choice(th.shape[0], size=min(n_draws, th.shape[0]), replace=False)
     r = {"p": [], "q": []}
     for i in pick:
-        u = (SCALE_FREE_MATRIX @ th[i])[:5]
+        u = (SCALE_FREE_MATRIX @ th[i])[: len(SCALE_FREE_NAMES)]
         if ph is not None and ph.shape[-1]:
             u = np.concatenate([u, ph[i]])
         resp = problem.responses(u, None if ab is None else tuple(ab[i]))

@@ -24,7 +24,7 @@ from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.nls import NLSResult
-from loadbayes.fit.composite.problem import CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.inference.ar1 import draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
@@ -48,7 +48,7 @@ JUMP_SHARE = 0.35
 class ChainResult:
     """One chain's kept draws and acceptance."""
 
-    theta: np.ndarray  # (kept, problem.n_motor + 1) THETA_NAMES
+    theta: np.ndarray  # (kept, problem.n_theta) the model's theta (THETA_NAMES)
     beta: np.ndarray  # (kept, events, coefficients)
     tau: np.ndarray  # (kept, 2)
     acceptance: float
@@ -138,7 +138,8 @@ class _State(NamedTuple):
     tau: np.ndarray  # (2,) noise precisions of P and Q
     rho: np.ndarray | None  # (2,) AR(1) coefficients, or None (white noise)
     betas: Any  # every event's coefficients (None before the first iteration)
-    log_t0: float  # drawn from its prior conditional (None before the first iteration)
+    log_t0: float | None  # zip+motor's scale, drawn from its prior (None: before the first
+    # iteration, or a model with no scale left to the prior)
 
 
 class _Gibbs:
@@ -154,8 +155,7 @@ class _Gibbs:
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot = n_tot
         dim = problem.dim
-        self.n_motor = problem.n_motor
-        self.n_base = self.n_motor + problem.n_steps
+        self.n_base = problem.n_free + problem.n_steps
         share = {"independence": JUMP_SHARE} if jumps else {}
         self.am = MOVES[move](
             lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
@@ -188,10 +188,9 @@ class _Gibbs:
         # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
         self.late_burn: list[np.ndarray] | None = [] if jumps else None
         # What a kept iteration stores, by name (ChainResult's fields).
-        n_coef = problem.m0.size  # the linear coefficients (their prior mean's length)
         self.fields = {
-            "theta": (self.n_motor + 1,),
-            "beta": (len(problem.events), n_coef),
+            "theta": (problem.n_theta,),
+            "beta": (len(problem.events), problem.n_beta),
             "tau": (2,),
             "phi": (problem.n_steps,),
             "u_extra": (dim - self.n_base,),
@@ -201,7 +200,7 @@ class _Gibbs:
 
     def step(self, state: _State, rng: np.random.Generator, it: int) -> _State:
         """One iteration: the u-move, the coefficients, rho, the weights, tau, log T0."""
-        problem, wt, nm = self.problem, self.wt, self.n_motor
+        problem, wt = self.problem, self.wt
         u, sums, tau, rho = state.u, state.sums, state.tau, state.rho
         if wt is None:
             lp = problem.log_collapsed(sums, u, tau)
@@ -230,14 +229,14 @@ class _Gibbs:
             sums = wt.update(sums, betas, tau, rng, is_kept(it, burn, self.thin))
         ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
         tau = draw_tau(ssr, self.n_tot, problem.prior.tau_shape, problem.prior.tau_rate, rng)
-        log_t0 = problem.prior.draw_log_t0(u[:nm], rng)
-        return _State(u, sums, tau, rho, betas, log_t0)
+        scale = problem.draw_scale(u, rng)  # zip+motor: log T0 | u from its prior
+        return _State(u, sums, tau, rho, betas, scale)
 
     def record(self, state: _State) -> dict[str, Any]:
         """The kept values of an iteration (:attr:`fields`)."""
         u = state.u
         out = {
-            "theta": theta_of(u[: self.n_motor], state.log_t0),
+            "theta": self.problem.theta(u, state.log_t0),
             "beta": state.betas,
             "tau": state.tau,
             "phi": self.problem.phi(u),
@@ -395,7 +394,7 @@ def sample(
         )
     # The motor's coordinates, the steps' fractions, then any extra ones (torque shares).
     d = dim = problem.dim
-    nm = problem.n_motor
+    nm = problem.n_free
     lap = start.cov[:d, :d]
     lap = (lap + lap.T) / 2
     # A step the data barely place has a Laplace sd far wider than its [0, 1] support:

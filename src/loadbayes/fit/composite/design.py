@@ -1,0 +1,172 @@
+"""Any dynamic load model's collapsed log-density, from its design matrices alone.
+
+:class:`DesignProblem` is what the sampler and the NLS start need of a
+:class:`~loadbayes.models.base.DynamicLoadModel` that brings no compiled kernel of its
+own: for free coordinates ``u`` it asks the model for each event's response and design
+``Z_p(u), Z_q(u)``, sums them (``Z'Z``, ``Z'y``, ``y'y`` per channel) with NumPy and
+integrates the linear coefficients out exactly (``inference/condlinear.py``), as
+:class:`~loadbayes.fit.composite.problem.CompositeProblem` does for ``zip+motor`` in one
+compiled call. It reads the events as point samples with no steps between them and takes
+the Gaussian white-noise likelihood; the options beyond those (steps, phasor windows,
+Student-t, AR(1), bounded shares, an estimated torque) are the ``zip+motor`` problem's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from loadbayes.inference.condlinear import (
+    GroupSums,
+    draw_beta,
+    draw_betas,
+    log_marginal,
+)
+from loadbayes.models.composite import EventRecord
+
+__all__ = ["DesignProblem"]
+
+
+@dataclass
+class DesignProblem:
+    """Events, prior and model: the collapsed log-density of the free coordinates.
+
+    ``u`` holds the model's ``free_coordinates``; the full ``theta`` is
+    ``inv(scale_free) @ (u, 0)`` (a model whose data see every coordinate has
+    ``scale_free`` the identity and no scale left to the prior).
+    """
+
+    model: Any
+    events: list[EventRecord]
+    prior: Any
+    evaluations: int = field(default=0, init=False)
+    #: No steps between samples and no share coordinates: the sampled vector is ``u``.
+    n_steps: int = field(default=0, init=False)
+    n_share_coords: int = field(default=0, init=False)
+    bounded: bool = field(default=False, init=False)
+
+    def __post_init__(self) -> None:
+        self.events = list(self.events)
+        self.recorded = self.events
+        self.free_coordinates = tuple(self.model.free_coordinates)
+        self.n_free = len(self.free_coordinates)  # the sampler reads these sizes
+        self.n_theta = len(self.model.theta_names)
+        self.n_beta = len(self.model.beta_names)
+        self.m0 = np.zeros(self.n_beta)
+        self.p0 = 1.0 / np.asarray(self.prior.beta_sd, dtype=float) ** 2
+        self.positive = getattr(self.prior, "positive", None)
+        self.f_hz = float(getattr(self.model, "f_hz", 60.0))
+        inv = np.linalg.inv(np.asarray(self.model.scale_free, dtype=float))
+        self._to_theta = np.ascontiguousarray(inv[:, : self.n_free].T)
+
+    @property
+    def dim(self) -> int:
+        """Length of the sampled vector: the model's free coordinates."""
+        return self.n_free
+
+    def draw_scale(self, u: np.ndarray, rng: np.random.Generator) -> None:
+        """No scale left to the prior: nothing drawn."""
+        return None
+
+    def theta(self, u: np.ndarray, scale: Any = None) -> np.ndarray:
+        """``theta`` of free coordinates ``u`` (..., n_free); a scale, if any, at 0."""
+        return np.asarray(u, dtype=float)[..., : self.n_free] @ self._to_theta
+
+    def phi(self, u: np.ndarray) -> np.ndarray:
+        """No steps: an empty vector of step fractions."""
+        return np.zeros(np.shape(u)[:-1] + (0,))
+
+    def in_support(self, u: np.ndarray) -> bool:  # noqa: D102
+        return bool(np.isfinite(u).all())
+
+    def start_points(self) -> list[np.ndarray]:
+        """Starts of the NLS search besides the prior's centre (the model's, if any)."""
+        return [np.asarray(x, dtype=float) for x in getattr(self.model, "starts", ())]
+
+    def coarse(self, events: list[EventRecord]) -> DesignProblem:
+        """The same problem on other events (the NLS search's thinned copy)."""
+        return DesignProblem(self.model, events, self.prior)
+
+    def designs(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Each event's ``(Z_p, Z_q)`` at ``u`` (None where the model has no response)."""
+        self.evaluations += 1
+        if not self.in_support(u):
+            return None
+        theta = self.theta(u)
+        out = []
+        for ev in self.events:
+            resp = self.model.response(ev, theta)
+            if resp is None:
+                return None
+            zp, zq = self.model.design(ev, *resp)
+            if not (np.isfinite(zp).all() and np.isfinite(zq).all()):
+                return None
+            out.append((zp, zq))
+        return out
+
+    def sums(self, u: np.ndarray, torque: Any = None) -> list[GroupSums] | None:
+        """Each event's sufficient sums of the linear block (None if infeasible)."""
+        zs = self.designs(u)
+        if zs is None:
+            return None
+        return [
+            GroupSums.from_arrays([zp, zq], [ev.p, ev.q])
+            for ev, (zp, zq) in zip(self.events, zs, strict=True)
+        ]
+
+    def log_collapsed(self, sums, u, tau) -> float:
+        """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
+        if sums is None or not np.isfinite(u).all():
+            return -math.inf
+        out = self.prior.log_u(np.asarray(u, dtype=float)[: self.n_free])
+        for s in sums:
+            out += log_marginal(s, tau, self.m0, self.p0, positive=self.positive)
+        return float(out)
+
+    def collapsed(self, u, tau, torque=None, rho=None) -> tuple[float, list[GroupSums] | None]:
+        """The log-density at ``u`` and the events' sums (``(-inf, None)`` if infeasible)."""
+        if rho is not None:
+            raise ValueError("AR(1) noise is the zip+motor problem's")
+        sums = self.sums(u)
+        if sums is None:
+            return -math.inf, None
+        lp = self.log_collapsed(sums, u, tau)
+        return (lp, sums) if math.isfinite(lp) else (-math.inf, None)
+
+    def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:
+        """Every event's ``beta | u, tau`` (exact)."""
+        return [draw_beta(s, tau, self.m0, self.p0, rng, positive=self.positive) for s in sums]
+
+    def draw_coefficient_sets(self, sums, tau, u, rng, size: int) -> list[np.ndarray]:
+        """``size`` draws of every event's ``beta | u, tau``, each (size, n_beta)."""
+        return [
+            draw_betas(s, tau, self.m0, self.p0, rng, size, positive=self.positive) for s in sums
+        ]
+
+    def free_names(self) -> list[str]:
+        """The parameters the JSON calls free: the model's nonlinear ones."""
+        return list(self.model.theta_names)
+
+    def named(self, theta: np.ndarray, betas: np.ndarray, tau: np.ndarray) -> dict:
+        """Draws named as the contract says.
+
+        Each event's composition (suffix ``_e{k}``) and ``v0``, the model's ``theta`` and
+        physical parameters, the noise precisions ``tau_p, tau_q``.
+        """
+        out: dict[str, np.ndarray] = {}
+        shape = theta.shape[:-1]
+        for k, ev in enumerate(self.events):
+            sfx = "" if k == 0 else f"_e{k}"
+            for name, value in self.model.composition(betas[..., k, :]).items():
+                out[f"{name}{sfx}"] = np.broadcast_to(value, shape).copy()
+            out[f"v0{sfx}"] = np.full(shape, ev.v0)
+        physical = getattr(self.model, "physical", None)
+        named = physical(theta) if physical is not None else {}
+        for i, name in enumerate(self.model.theta_names):
+            out[name] = theta[..., i]
+        out.update({n: np.asarray(v) for n, v in named.items()})
+        out["tau_p"], out["tau_q"] = tau[..., 0], tau[..., 1]
+        return out
