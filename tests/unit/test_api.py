@@ -221,6 +221,15 @@ def test_fit_composite_names_the_new_place_of_an_old_keyword():
         read(df, v_base=11)
 
 
+def test_fit_composite_without_a_model_says_what_to_write():
+    import loadbayes
+
+    df = _sag_kv()
+    for call in (lambda: loadbayes.fit_composite(df), lambda: loadbayes.fit_composite(df, df)):
+        with pytest.raises(TypeError, match=r"fit_composite\(CompositeModel\(\.\.\.\), data"):
+            call()
+
+
 def test_fit_composite_takes_event_ids_written_as_text():
     from loadbayes.fit.composite.api import read
 
