@@ -82,16 +82,20 @@ def _ess_rhat(draws: dict[str, np.ndarray]) -> tuple[float, float, str]:
 
 def run_loadbayes(fs, t_end, draws, burn, seed=0, move=None, steps=True, event=None):
     """One fit; ``draws=None``: at the defaults (the sizes, chains and move the user gets)."""
-    from loadbayes.fit.composite.driver import fit_composite
+    from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS, fit_composite
     from loadbayes.fit.composite.sampler import DEFAULT_MOVE
+    from loadbayes.models.zip_motor import CompositeModel
 
     move = move or DEFAULT_MOVE
 
     ev, truth = _event(fs, t_end) if event is None else event
-    sizes = {} if draws is None else {"draws": draws, "burn": burn, "chains": 4, "move": move}
+    if draws is None:  # the defaults: run on until converged
+        run = COMPOSITE_DEFAULTS.with_(seed=seed, until_converged=True)
+    else:
+        run = COMPOSITE_DEFAULTS.with_(draws=draws, burn=burn, chains=4, seed=seed, move=move)
     t0 = time.perf_counter()
     # The events are point samples (and the peers' models point models): window_s=0.
-    fit = fit_composite([ev], seed=seed, steps=steps, window_s=0, **sizes)
+    fit = fit_composite(CompositeModel(steps=steps, window_s=0), [ev], sampler=run)
     wall = time.perf_counter() - t0
     ess, rhat, worst = _ess_rhat(fit.posterior.draws)
     post_mean = fit.posterior.mean()

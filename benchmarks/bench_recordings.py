@@ -137,13 +137,16 @@ def bench_real_fit() -> dict:
     (after a warm-up that compiles), the largest R-hat and the smallest bulk ESS of the
     sampled motor coordinates, and bulk ESS per second.
     """
-    from loadbayes.fit.composite import fit_composite
+    from loadbayes.fit.composite import COMPOSITE_DEFAULTS, fit_composite
+    from loadbayes.models.zip_motor import CompositeModel
     from loadbayes.studies.real_record import events_of
 
     events, _, info = events_of(REAL, "1号主变", per_cycle=4)
-    fit_composite(events[:1], f_hz=info["f_hz"], draws=400, burn=200, seed=1)  # compile
+    model = CompositeModel(f_hz=info["f_hz"])
+    warm = COMPOSITE_DEFAULTS.with_(draws=400, burn=200, seed=1)
+    fit_composite(model, events[:1], sampler=warm)  # compile
     t0 = time.perf_counter()
-    post = fit_composite(events[:1], f_hz=info["f_hz"], seed=0)
+    post = fit_composite(model, events[:1])  # the defaults, run on until converged
     wall = time.perf_counter() - t0
     table = post.posterior.summary()
     motor = [n for n in ("rs", "x_prime", "x_open", "t_prime_s", "h_s", "t0") if n in table.index]

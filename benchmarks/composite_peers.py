@@ -1,6 +1,6 @@
 """A peer of the composite fit: NumPyro NUTS with the motor's ODE solved by diffrax.
 
-The same posterior as ``fit_composite(..., steps=False)`` (and as bench_composite's
+The same posterior as ``fit_composite(CompositeModel(steps=False), ...)`` (and as bench_composite's
 emcee): the motor in the scale-free coordinates ``u`` (with ``T0 = 1``: the likelihood
 does not depend on it), prior ``MultivariateNormal(mean_u, cov_u)`` from
 ``CompositePrior.scale_free()``; the seven linear coefficients with their normal priors

@@ -22,9 +22,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.validate import validate_events
 from loadbayes.measurements.events import events_from_arrays
+from loadbayes.models.zip_motor import CompositeModel
 from loadbayes.recordings.comtrade import read_comtrade
 from loadbayes.recordings.record import phasor_rows, record_table
 
@@ -58,7 +60,8 @@ def test_the_first_fault_predicts_the_second(bay, record_property):
         events.append(ev)
         straddle.append(rows["straddle"][m])
     assert 0.35 < events[0].t[-1] < 0.45  # a short window, accepted
-    fit = fit_composite(events[:1], f_hz=w.f_nominal, draws=4000, burn=2000, chains=4, seed=0)
+    run = SamplerSettings(draws=4000, burn=2000, chains=4, seed=0)
+    fit = fit_composite(CompositeModel(f_hz=w.f_nominal), events[:1], sampler=run)
     assert "short" in fit.posterior.extra_json["identifiability"]["short_window"]
     fitted, predicted = validate_events(fit.posterior, events, exclude=straddle)
     for key in ("rms_p", "rms_q", "coverage_p", "coverage_q", "n_excluded"):

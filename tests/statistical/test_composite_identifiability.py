@@ -5,7 +5,9 @@ from __future__ import annotations
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
+from loadbayes.models.zip_motor import CompositeModel
 
 pytestmark = pytest.mark.statistical
 
@@ -14,7 +16,8 @@ def _fit(depth):
     ev, _ = simulate_event(
         "small_industrial", depth=depth, noise=0.01, seed=5, t_end_s=2.0, duration_s=0.3
     )
-    return fit_composite([ev], window_s=0, draws=1500, burn=700, chains=2, seed=1).posterior
+    run = SamplerSettings(draws=1500, burn=700, chains=2, seed=1)
+    return fit_composite(CompositeModel(window_s=0), [ev], sampler=run).posterior
 
 
 def test_a_shallow_sag_is_reported_as_prior_driven_and_a_deep_one_is_not():

@@ -39,6 +39,7 @@ import pytest
 
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
+from loadbayes.models.zip_motor import CompositeModel
 from loadbayes.studies.calibration.composite_independent import binomial_floor, event_records
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -79,7 +80,7 @@ def _on_ramp_start(rate, ramp, base=1.0):
 
 @pytest.mark.parametrize("motor", MOTORS)
 def test_the_ramp_read_as_a_ramp_leaves_no_bias_in_f_m(motor):
-    short = SamplerSettings(draws=100, burn=50, chains=2, seed=0)
+    short = SamplerSettings(draws=100, burn=50, chains=2, seed=0, threads=1)
     got = {}
     # The fast motor's T' (0.060 s) is under two intervals at 30/s: there even an exact
     # step is read with f_m 0.391 (NLS, this record), so it is left out of this check.
@@ -87,7 +88,7 @@ def test_the_ramp_read_as_a_ramp_leaves_no_bias_in_f_m(motor):
         for ramp in RAMPS_S:
             start = _on_ramp_start(rate, ramp)
             ev, truth = _event(motor, rate, ramp, start, noise=1e-5, seed=1, t_end=2.5)
-            fit = fit_composite(ev, sampler=short, until_converged=False, window_s=0.0, workers=1)
+            fit = fit_composite(CompositeModel(window_s=0.0), ev, sampler=short)
             assert fit.problem.fit_samples.ramps == 2, (rate, ramp)
             assert fit.posterior.settings["steps"]["ramps"]["count"] == 2
             # The NLS estimate (the baseline's draws are its Gaussian, sd ~1e-4 here).
@@ -99,12 +100,12 @@ def test_the_ramp_read_as_a_ramp_leaves_no_bias_in_f_m(motor):
 def test_f_m_and_t_prime_covered_on_point_samples_with_ramps():
     rng = np.random.default_rng(21)
     n, hits, rows = 0, {"f_m": 0, "t_prime_s": 0}, []
-    settings = SamplerSettings(draws=4000, burn=1000, chains=4, seed=0)
+    settings = SamplerSettings(draws=4000, burn=1000, chains=4, seed=0, threads=1)
     for i, (motor, rate, ramp) in enumerate(CELLS):
         start = 0.4 + (int(rng.integers(0, 4)) + rng.uniform(0.05, 0.95)) / rate
         f_m = float(rng.uniform(0.3, 0.6))
         ev, truth = _event(motor, rate, ramp, start, noise=0.005, seed=100 + i, f_m=f_m)
-        fit = fit_composite(ev, sampler=settings, until_converged=False, window_s=0.0, workers=1)
+        fit = fit_composite(CompositeModel(window_s=0.0), ev, sampler=settings)
         n += 1
         for k in hits:
             lo, hi = np.percentile(np.asarray(fit.posterior.draws[k], float), [2.5, 97.5])
@@ -134,11 +135,10 @@ def test_phasor_ramps_read_as_ramps_leave_no_bias_in_t_prime(case):
         motor=motor, f_m=f_m, sags=(sag,), rate_hz=rate, sampling="phasor", noise=1e-5,
         seed=1, t_end_s=2.5,
     )  # fmt: skip
-    short = SamplerSettings(draws=100, burn=50, chains=2, seed=0)
+    short = SamplerSettings(draws=100, burn=50, chains=2, seed=0, threads=1)
     fit = fit_composite(
-        event_records(df, f"phasor_ramp_{motor}_{rate:g}.csv"), sampler=short,
-        until_converged=False, workers=1,
-    )  # fmt: skip
+        CompositeModel(), event_records(df, f"phasor_ramp_{motor}_{rate:g}.csv"), sampler=short
+    )
     steps = fit.posterior.settings["steps"]
     assert steps["ramps"]["count"] >= 1 and steps["left_out"]["count"] > 0
     t_prime = float(np.median(fit.baseline.draws["t_prime_s"]))

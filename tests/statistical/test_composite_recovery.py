@@ -62,14 +62,17 @@ def test_the_motor_share_and_t_prime_contract_on_a_30_percent_sag(motor):
     # shrinks log T' well inside its prior (sd ratio < 0.5: the 95% interval of T' is
     # less than half as wide as the prior's on the log scale).
     from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite.driver import fit_composite
+    from loadbayes.models.zip_motor import CompositeModel
 
     # The bound on f_m is the fit's own "well determined" (sd < 0.1, fit/composite/driver.py).
     # Measured with 4 x 6,000 iterations on small_industrial: sd 0.054 with the fault's
     # step placed (its instant unknown), 0.037 with the step read as a ramp (the model
     # that does not know the instant is over-confident about f_m).
     ev, truth = simulate_event(motor, depth=0.3, noise=0.01, seed=8, t_end_s=3.0)
-    fit = fit_composite([ev], window_s=0, draws=3000, burn=1000, chains=2, seed=3)
+    run = SamplerSettings(draws=3000, burn=1000, chains=2, seed=3)
+    fit = fit_composite(CompositeModel(window_s=0), [ev], sampler=run)
     post = fit.posterior
     assert np.std(post.draws["f_m"]) < 0.1
     ratio = np.std(post.draws["log_t_prime"]) / fit.problem.prior.theta_sd[3]

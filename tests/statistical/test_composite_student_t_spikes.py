@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
+from loadbayes.models.zip_motor import CompositeModel
 
 pytestmark = pytest.mark.statistical
 
@@ -25,9 +27,8 @@ def _fit(ev, likelihood):
     # 4 chains: with 2 x 2,500 kept the Student-t fit's T' (a long right tail, 95%
     # interval 0.37-3.14 s from 4 x 14,500) came out with a median of 1.28 s on seed 1
     # against 0.71-0.80 on seeds 2-3 and the long run, and its interval missed the truth.
-    return fit_composite(
-        [ev], window_s=0, draws=4000, burn=1500, chains=4, seed=1, likelihood=likelihood
-    )
+    run = SamplerSettings(draws=4000, burn=1500, chains=4, seed=1)
+    return fit_composite(CompositeModel(window_s=0, likelihood=likelihood), [ev], sampler=run)
 
 
 def test_spikes_bias_the_gaussian_fit_and_the_student_t_fit_covers_the_truth():

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
 from loadbayes.models.motor_library import MOTORS
+from loadbayes.models.zip_motor import CompositeModel
 
 pytestmark = pytest.mark.statistical
 
@@ -19,10 +21,10 @@ def test_a_constant_torque_motor_moves_the_shares_toward_c():
     ev, truth = simulate_event(
         motor, depth=0.5, duration_s=0.3, noise=0.005, seed=4, t_end_s=2.5, fs=60.0
     )
-    est = fit_composite(
-        [ev], window_s=0, draws=8000, burn=2700, chains=2, seed=1, torque="estimate"
-    )
-    default = fit_composite([ev], window_s=0, draws=4000, burn=1300, chains=2, seed=1)
+    long_run = SamplerSettings(draws=8000, burn=2700, chains=2, seed=1)
+    est = fit_composite(CompositeModel(window_s=0, torque="estimate"), [ev], sampler=long_run)
+    short_run = SamplerSettings(draws=4000, burn=1300, chains=2, seed=1)
+    default = fit_composite(CompositeModel(window_s=0), [ev], sampler=short_run)
     d = est.posterior.draws
     # Fixed seeds (deterministic). Measured with a long run (2 x 30,000 iterations, R-hat
     # <= 1.01): a 0.085, b 0.16, c 0.75 (sd 0.14) against the prior mean 1/3 each, f_m 0.511;

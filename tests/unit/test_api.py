@@ -150,41 +150,84 @@ def _sag_kv(fs=60.0, seed=0) -> pd.DataFrame:
 COMPOSITE_COLS = {"t_col": "time", "v_col": "V_kV", "p_col": "P_MW", "q_col": "Q_Mvar"}
 
 
+def _kv_spec(**kw):
+    """The columns of :func:`_sag_kv` and its bases (11 kV, 5 MVA)."""
+    from loadbayes.core.settings import DataSpec
+
+    return DataSpec(**COMPOSITE_COLS, **kw)
+
+
 def test_fit_composite_is_the_top_package_s_with_the_cli_checks(tmp_path):
     import loadbayes
-    from loadbayes.fit.composite import fit_composite
+    from loadbayes import CompositeModel
+    from loadbayes.fit.composite import COMPOSITE_DEFAULTS, fit_composite
 
     assert "fit_composite" in loadbayes.__all__ and loadbayes.fit_composite is fit_composite
     path = tmp_path / "sag.csv"
     _sag_kv().to_csv(path, index=False)
-    # Options refused as the CLI refuses them, before any reading or sampling.
+    spec = _kv_spec(v_base=11, s_base=5)
+    # Model options refused as the CLI refuses them, when the model is built.
     for kw, match in (
         ({"torque": (1, 1, 0)}, "A \\+ B \\+ C must be 1"),
         ({"nu": 4}, "nu needs likelihood 'student-t'"),
         ({"priors": {"xx": (1.0, 0.5)}}, "NAME must be one of rs, x_prime"),
         ({"priors": {"h_s": (-1.0, 0.5)}}, "positive and finite"),
         ({"f_hz": 5}, "10-1000 Hz"),
-        ({"draws": 100, "burn": 100}, "burn"),
-        ({"seed": -1}, "seed"),
     ):
         with pytest.raises(OptionError, match=match):
-            loadbayes.fit_composite(str(path), **COMPOSITE_COLS, v_base=11, s_base=5, **kw)
+            CompositeModel(**kw)
+    # Iterations no sampler can run: refused when the settings are built.
+    with pytest.raises(ValueError, match="burn"):
+        COMPOSITE_DEFAULTS.with_(draws=100, burn=100)
+    # A negative seed: refused by the fit before any reading or sampling.
+    with pytest.raises(OptionError, match="seed"):
+        loadbayes.fit_composite(CompositeModel(), str(path), spec=spec,
+                                sampler=COMPOSITE_DEFAULTS.with_(seed=-1))  # fmt: skip
     # kV without --v-base: the one-line unit error of `fit zip` (a traceback before).
     with pytest.raises(DataError, match=r"sag.csv: column 'V_kV'.*not per unit.*v_base"):
-        loadbayes.fit_composite(str(path), **COMPOSITE_COLS)
+        loadbayes.fit_composite(CompositeModel(), str(path), spec=_kv_spec())
     # A table is checked as a file is: column and 1-based row.
     bad = _sag_kv()
     bad.loc[10, "time"] = bad.loc[8, "time"]
     with pytest.raises(DataError, match=r"column 'time', row 11.*does not increase"):
-        loadbayes.fit_composite(bad, **COMPOSITE_COLS, v_base=11, s_base=5)
+        loadbayes.fit_composite(CompositeModel(), bad, spec=spec)
     # One recording given twice (a table twice, or a file and its copy): refused, from
     # Python as from the CLI (it was fitted as two events, intervals narrower by sqrt 2).
     with pytest.raises(DataError, match="this recording is given twice"):
-        loadbayes.fit_composite([_sag_kv(), _sag_kv()], **COMPOSITE_COLS, v_base=11, s_base=5)
+        loadbayes.fit_composite(CompositeModel(), [_sag_kv(), _sag_kv()], spec=spec)
     (tmp_path / "copy.csv").write_bytes(path.read_bytes())
     with pytest.raises(DataError, match=r"copy.csv: column 'V_kV': the same recording as"):
-        loadbayes.fit_composite([str(path), str(tmp_path / "copy.csv")], **COMPOSITE_COLS,
-                                v_base=11, s_base=5)  # fmt: skip
+        loadbayes.fit_composite(CompositeModel(), [str(path), str(tmp_path / "copy.csv")],
+                                spec=spec)  # fmt: skip
+
+
+def test_fit_composite_names_the_new_place_of_an_old_keyword():
+    # The options moved into objects (issue 34): a call written for the old signature
+    # gets one line saying what to write instead, not Python's bare TypeError.
+    import loadbayes
+    from loadbayes import CompositeModel
+    from loadbayes.fit.composite.api import read
+
+    df = _sag_kv()
+    with pytest.raises(TypeError, match=r"draws=100 is now sampler=SamplerSettings\(draws=100\)"):
+        loadbayes.fit_composite(CompositeModel(), df, draws=100)
+    with pytest.raises(TypeError) as err:
+        loadbayes.fit_composite(CompositeModel(), df, torque="estimate", v_col="V_kV")
+    msg = str(err.value)
+    assert "\n" not in msg
+    assert "torque='estimate' is now model=CompositeModel(torque='estimate')" in msg
+    assert "v_col='V_kV' is now spec=DataSpec(v_col='V_kV')" in msg
+    with pytest.raises(TypeError, match=r"v_base=11 is now spec=DataSpec\(v_base=11\)"):
+        read(df, v_base=11)
+
+
+def test_fit_composite_without_a_model_says_what_to_write():
+    import loadbayes
+
+    df = _sag_kv()
+    for call in (lambda: loadbayes.fit_composite(df), lambda: loadbayes.fit_composite(df, df)):
+        with pytest.raises(TypeError, match=r"fit_composite\(CompositeModel\(\.\.\.\), data"):
+            call()
 
 
 def test_fit_composite_takes_event_ids_written_as_text():
@@ -193,21 +236,22 @@ def test_fit_composite_takes_event_ids_written_as_text():
     a, b = _sag_kv(), _sag_kv()
     b["V_kV"] = 11.0 - (11.0 - b["V_kV"]) * 1.5  # a deeper sag of the same load
     both = pd.concat([a.assign(event="sag A"), b.assign(event=" sag B ")])
-    events = read(both, **COMPOSITE_COLS, v_base=11.0, s_base=5.0)
+    events = read(both, _kv_spec(v_base=11.0, s_base=5.0))
     assert [e.name for e in events] == ["data[event=sag A]", "data[event=sag B]"]
     assert events[0].n == len(a) and events[1].n == len(b)
 
 
 def test_fit_composite_reads_files_and_tables_alike(tmp_path):
     import loadbayes
+    from loadbayes import CompositeModel, SamplerSettings
 
     path = tmp_path / "sag.csv"
     df = _sag_kv()
     df.to_csv(path, index=False)
-    run = {**COMPOSITE_COLS, "v_base": 11.0, "s_base": 5.0, "draws": 120, "burn": 60,
-           "chains": 1, "seed": 2}  # fmt: skip
-    a = loadbayes.fit_composite(str(path), **run).posterior
-    b = loadbayes.fit_composite(df, **run).posterior
+    run = {"spec": _kv_spec(v_base=11.0, s_base=5.0),
+           "sampler": SamplerSettings(draws=120, burn=60, chains=1, seed=2)}  # fmt: skip
+    a = loadbayes.fit_composite(CompositeModel(), str(path), **run).posterior
+    b = loadbayes.fit_composite(CompositeModel(), df, **run).posterior
     assert a.settings["files"] == [str(path)] and "files" not in b.settings
     # Per unit after the bases: P0 = 5 MW / 5 MVA = 1, Q0 = 1.5 Mvar / 5 = 0.3.
     assert a.mean()["p0"] == pytest.approx(1.0, abs=0.01)

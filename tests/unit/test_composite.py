@@ -164,7 +164,9 @@ def test_compiled_collapsed_density_equals_the_python_path():
 def test_the_figure_has_no_empty_panel(n_events):
     # One P and one Q panel per event plus three pair plots, each with something drawn:
     # the grid once left blank axes beside a single event.
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite, predictive_band
+    from loadbayes.models.zip_motor import CompositeModel
     from loadbayes.plots.composite import plot_composite
     from loadbayes.plots.fit import pyplot
 
@@ -172,7 +174,8 @@ def test_the_figure_has_no_empty_panel(n_events):
         simulate_event("small_industrial", depth=d, t_end_s=1.5, fs=30, seed=k)[0]
         for k, d in enumerate((0.3, 0.45)[:n_events])
     ]
-    fit = fit_composite(evs, window_s=0, draws=120, burn=60, chains=1, seed=0)
+    run = SamplerSettings(draws=120, burn=60, chains=1, seed=0)
+    fit = fit_composite(CompositeModel(window_s=0), evs, sampler=run)
     fig = plot_composite(
         fit.posterior, evs, predictive_band(fit.posterior, evs), baseline=fit.baseline
     )

@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.sums import ar_residual_sums, ar_sums_into, design_sums
 from loadbayes.inference.ar1 import draw_rho
 from loadbayes.models.composite import EventRecord, design
+from loadbayes.models.zip_motor import CompositeModel
 
 
 def _rows(n=60, seed=0):
@@ -95,9 +97,10 @@ def test_ar1_fit_recovers_rho_and_widens_what_white_noise_overstates():
     # inference.moves.adaptive_metropolis) was short of the converged width, so the old
     # bound of 1.5 sat inside the run-to-run spread; 1.3 still asserts that AR(1) noise
     # widens the interval by nearly a third.
-    white = fit_composite([bad], window_s=0, draws=8000, burn=2000, chains=2, seed=2)
+    run = SamplerSettings(draws=8000, burn=2000, chains=2, seed=2)
+    white = fit_composite(CompositeModel(window_s=0), [bad], sampler=run)
     assert any("--noise ar1" in w for w in white.posterior.warnings)
-    fit = fit_composite([bad], window_s=0, draws=8000, burn=2000, chains=2, seed=2, noise="ar1")
+    fit = fit_composite(CompositeModel(window_s=0, noise="ar1"), [bad], sampler=run)
     d = fit.posterior.draws
     for name, r in (("rho_p", 0.8), ("rho_q", 0.6)):
         lo, hi = np.percentile(d[name], [2.5, 97.5])

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.bounded import (
     _log_quadrant,
@@ -22,6 +23,7 @@ from loadbayes.fit.composite.bounded import (
 from loadbayes.fit.composite.residuals import residual_warning
 from loadbayes.io.errors import OptionError
 from loadbayes.models.composite_prior import CoefficientPrior, named_coefficients
+from loadbayes.models.zip_motor import CompositeModel
 
 
 def test_quadrant_probability_matches_monte_carlo():
@@ -89,9 +91,10 @@ def inadmissible_event():
 
 def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event):
     ev, truth = inadmissible_event
-    free = fit_composite([ev], window_s=0, draws=400, burn=200, chains=2, seed=5)
+    run = SamplerSettings(draws=400, burn=200, chains=2, seed=5)
+    free = fit_composite(CompositeModel(window_s=0), [ev], sampler=run)
     assert any("--shares bounded" in w for w in free.posterior.warnings)
-    fit = fit_composite([ev], window_s=0, draws=400, burn=200, chains=2, seed=5, shares="bounded")
+    fit = fit_composite(CompositeModel(window_s=0, shares="bounded"), [ev], sampler=run)
     d = fit.posterior.draws
     for n in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
         assert np.all(d[n] >= 0) and np.all(d[n] <= 1), n
@@ -103,31 +106,33 @@ def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event):
 def test_a_prior_on_a_share_pulls_it(inadmissible_event):
     # The data put a1 near 0 (truth 0); a tight prior at 0.6 must move it most of the way.
     ev, _ = inadmissible_event
-    kw = dict(draws=400, burn=200, chains=2, seed=5, shares="bounded")
-    plain = fit_composite([ev], window_s=0, **kw).posterior.draws["a1"]
-    fit = fit_composite([ev], window_s=0, coefficient_prior={"a1": (0.6, 0.02)}, **kw)
+    run = SamplerSettings(draws=400, burn=200, chains=2, seed=5)
+    plain = fit_composite(CompositeModel(window_s=0, shares="bounded"), [ev], sampler=run)
+    plain = plain.posterior.draws["a1"]
+    model = CompositeModel(window_s=0, shares="bounded", priors={"a1": (0.6, 0.02)})
+    fit = fit_composite(model, [ev], sampler=run)
     pulled = fit.posterior.draws["a1"]
     assert float(np.mean(plain)) < 0.2
     assert float(np.mean(pulled)) > 0.45
     assert fit.posterior.settings["coefficient_prior"]["normal"] == {"a1": [0.6, 0.02]}
 
 
-def test_bad_share_and_budget_options_are_refused(inadmissible_event):
-    ev, _ = inadmissible_event
-    with pytest.raises(OptionError, match="--shares"):
-        fit_composite([ev], window_s=0, draws=200, burn=100, shares="loose")
-    with pytest.raises(OptionError, match="--max-seconds"):
-        fit_composite([ev], window_s=0, draws=200, burn=100, max_seconds=-1)
+def test_bad_share_and_budget_options_are_refused():
+    # Refused when the model and the settings are built, in Python's words (the CLI's
+    # flags are its own: commands/options.py).
+    with pytest.raises(OptionError, match="shares"):
+        CompositeModel(window_s=0, shares="loose")
+    with pytest.raises(ValueError, match="max_seconds"):
+        SamplerSettings(draws=200, burn=100, max_seconds=-1)
     with pytest.raises(OptionError, match="normal only"):
-        fit_composite(
-            [ev], window_s=0, draws=200, burn=100, shares="bounded", likelihood="student-t"
-        )
+        CompositeModel(window_s=0, shares="bounded", likelihood="student-t")
 
 
 def test_a_run_out_of_time_says_so(inadmissible_event):
     ev, _ = inadmissible_event
-    fit = fit_composite([ev], window_s=0, draws=200, burn=100, chains=2, seed=1,
-                        until_converged=True, max_seconds=0.01)  # fmt: skip
+    run = SamplerSettings(draws=200, burn=100, chains=2, seed=1, until_converged=True,
+                          max_seconds=0.01)  # fmt: skip
+    fit = fit_composite(CompositeModel(window_s=0), [ev], sampler=run)
     rec = fit.posterior.settings["until_converged"]
     assert rec["stopped_by_budget"] is True
     assert any("time budget" in w and "not converged" in w for w in fit.posterior.warnings)
@@ -139,11 +144,12 @@ def test_residuals_that_run_in_stretches_are_reported():
     from dataclasses import replace
 
     bad = replace(ev, p=ev.p + 0.04 * np.sin(2 * np.pi * 2.0 * ev.t))
-    fit = fit_composite([bad], window_s=0, draws=300, burn=150, chains=2, seed=2)
+    model, run = CompositeModel(window_s=0), SamplerSettings(draws=300, burn=150, chains=2, seed=2)
+    fit = fit_composite(model, [bad], sampler=run)
     lag = fit.posterior.settings["residuals"]["lag1_autocorrelation"]
     assert lag["p"] > 0.5
     assert any("run in stretches" in w for w in fit.posterior.warnings)
-    good = fit_composite([ev], window_s=0, draws=300, burn=150, chains=2, seed=2)
+    good = fit_composite(model, [ev], sampler=run)
     assert abs(good.posterior.settings["residuals"]["lag1_autocorrelation"]["p"]) < 0.3
     assert residual_warning({"p": 0.1, "q": 0.05}) is None
 
@@ -152,9 +158,12 @@ def test_a_prior_on_the_motor_share_with_free_shares_pulls_it(inadmissible_event
     # Free shares with a normal factor: the importance-weighted (tilted) path. A tight
     # prior 0.15 below what the data say must move f_m most of the way and be recorded.
     ev, _ = inadmissible_event
-    kw = dict(draws=300, burn=200, chains=2, seed=5)
-    plain = float(np.mean(fit_composite([ev], **kw).posterior.draws["f_m"]))
-    fit = fit_composite([ev], coefficient_prior={"f_m": (plain - 0.15, 0.005)}, **kw)
+    run = SamplerSettings(draws=300, burn=200, chains=2, seed=5)
+    plain = float(
+        np.mean(fit_composite(CompositeModel(), [ev], sampler=run).posterior.draws["f_m"])
+    )
+    model = CompositeModel(priors={"f_m": (plain - 0.15, 0.005)})
+    fit = fit_composite(model, [ev], sampler=run)
     pulled = float(np.mean(fit.posterior.draws["f_m"]))
     assert pulled < plain - 0.1, (plain, pulled)
     assert fit.posterior.settings["coefficient_prior"] == {

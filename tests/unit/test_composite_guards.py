@@ -15,11 +15,13 @@ import pytest
 
 from loadbayes.core.parallel import ChainsStopped, check_stop, clear_stop, request_stop
 from loadbayes.core.parallel import run_chains as run_chains_
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.checks import check_run, check_units, start_warnings
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.events import events_from_arrays
 from loadbayes.models.composite import EventRecord
+from loadbayes.models.zip_motor import CompositeModel
 
 NAMES = {"t": "t_s", "v": "v", "p": "p", "q": "q", "f": "f", "angle": "angle_rad", "event": "e"}
 
@@ -55,7 +57,8 @@ def test_kv_and_mw_are_refused_with_the_option_that_fixes_them():
     # Python refuses before any work, as the CLI does (issue 21: it was a traceback).
     t0 = time.perf_counter()
     with pytest.raises(DataError, match="not per unit"):
-        fit_composite([ev], window_s=0, draws=200, burn=100, chains=2)
+        fit_composite(CompositeModel(window_s=0), [ev],
+                      sampler=SamplerSettings(draws=200, burn=100, chains=2))  # fmt: skip
     assert time.perf_counter() - t0 < 2.0
 
 
@@ -153,12 +156,13 @@ def test_progress_gets_the_estimate_then_every_iteration():
     from loadbayes.cases.composite_sim import simulate_event
 
     ev, _ = simulate_event("small_industrial", depth=0.3, seed=1, t_end_s=2.0)
-    a = fit_composite([ev], window_s=0, draws=120, burn=60, chains=2, seed=4, progress=seen)
+    model, run = CompositeModel(window_s=0), SamplerSettings(draws=120, burn=60, chains=2, seed=4)
+    a = fit_composite(model, [ev], sampler=run, progress=seen)
     total, seconds = seen.begun
     assert total == 240 and 0 < seconds < 600
     assert seen.done == 240
     # Same seed, same draws: the JSON differs only in the wall times, kept under timing_s.
-    b = fit_composite([ev], window_s=0, draws=120, burn=60, chains=2, seed=4)
+    b = fit_composite(model, [ev], sampler=run)
     da, db = a.posterior.to_dict(), b.posterior.to_dict()
     assert set(da["settings"].pop("timing_s")) == {"nls", "sampler"}
     db["settings"].pop("timing_s")

@@ -137,11 +137,14 @@ def test_fault_times_find_a_step_and_both_ends_of_a_ramp():
 
 def test_a_fit_keeps_its_recordings_and_the_figure_draws_them(tmp_path):
     from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite
+    from loadbayes.models.zip_motor import CompositeModel
     from loadbayes.plots.fit import pyplot
 
     ev = simulate_event("small_industrial", depth=0.3, t_end_s=1.5, fs=30, seed=0)[0]
-    fit = fit_composite([ev], window_s=0, draws=120, burn=60, chains=1, seed=0)
+    run = SamplerSettings(draws=120, burn=60, chains=1, seed=0)
+    fit = fit_composite(CompositeModel(window_s=0), [ev], sampler=run)
     fit.posterior.to_netcdf(tmp_path / "c.nc")
     back = Posterior.from_netcdf(tmp_path / "c.nc")
     (kept,) = events_of(back)

@@ -88,13 +88,17 @@ def test_the_motor_fit_checks_a_dataframe_too():
 
 
 def test_the_composite_fit_from_python_names_the_keyword():
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite
     from loadbayes.models.composite import EventRecord
+    from loadbayes.models.zip_motor import CompositeModel
 
     t = np.arange(0.0, 2.0, 1 / 60)
     v = 11.0 * np.where((t >= 0.5) & (t < 0.7), 0.7, 1.0)
     ev = EventRecord(t, v, 0.6 * (v / 11) ** 2 + 0.4, 0.3 * (v / 11) ** 2, None, "sag.csv")
     with pytest.raises(DataError) as err:
-        fit_composite([ev], draws=200, burn=100, chains=2)
+        fit_composite(
+            CompositeModel(), [ev], sampler=SamplerSettings(draws=200, burn=100, chains=2)
+        )
     msg = str(err.value)
     assert "v_base=11" in msg and "accept_units=True" in msg and "--" not in msg

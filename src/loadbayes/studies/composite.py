@@ -43,7 +43,9 @@ class CompositeStudy:
 def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
     """Simulate the two events, fit them, and tabulate against the truth and the NLS."""
     from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite, predictive_band
+    from loadbayes.models.zip_motor import CompositeModel
     from loadbayes.plots.composite import plot_composite
 
     events, truth = [], None
@@ -61,7 +63,8 @@ def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
         events.append(ev)
         truth = truth or tr
     draws, burn = (2000, 1000) if quick else (8000, 3000)
-    fit = fit_composite(events, window_s=0, draws=draws, burn=burn, chains=4, seed=seed)
+    sampler = SamplerSettings(draws=draws, burn=burn, chains=4, seed=seed)
+    fit = fit_composite(CompositeModel(window_s=0), events, sampler=sampler)
     post, nls = fit.posterior, fit.baseline
     rows = []
     for name in SHOWN:

@@ -143,8 +143,10 @@ def _rms_all(score) -> tuple[float, float]:
 
 def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> RealRecordStudy:
     """Fit the first fault at each transformer, predict the second, tabulate both."""
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite
     from loadbayes.fit.composite.validate import validate_events
+    from loadbayes.models.zip_motor import CompositeModel
     from loadbayes.plots.validation import plot_validation
 
     cfg = Path(record) if record else find_record()
@@ -157,8 +159,8 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Real
     for bay, short in BAYS:
         t0 = time.perf_counter()
         events, flags, info = events_of(cfg, bay)
-        fit = fit_composite(events[:1], f_hz=info["f_hz"], draws=draws, burn=burn,
-                            chains=chains, seed=seed)  # fmt: skip
+        sampler = SamplerSettings(draws=draws, burn=burn, chains=chains, seed=seed)
+        fit = fit_composite(CompositeModel(f_hz=info["f_hz"]), events[:1], sampler=sampler)
         post = fit.posterior
         val = validate_events(post, events[:2], exclude=[f["straddle"] for f in flags[:2]],
                               seed=seed)  # fmt: skip

@@ -168,7 +168,8 @@ def fit_case(case: dict[str, Any], seed: int, generator: str | None = None) -> d
     """
     import arviz as az
 
-    from loadbayes import fit_composite
+    from loadbayes import CompositeModel, fit_composite
+    from loadbayes.fit.composite import COMPOSITE_DEFAULTS
 
     df, truth = simulate_case(case, generator=generator)
     wall, cpu = time.perf_counter(), time.process_time()
@@ -176,7 +177,10 @@ def fit_case(case: dict[str, Any], seed: int, generator: str | None = None) -> d
     # at the default, one-cycle window means (the generator stamps them at the window's
     # end, the model at its centre: only the fitted step instants move, by half a cycle).
     window = 0.0 if case["sampling"] == "point" else None
-    fit = fit_composite(event_records(df, "independent.csv"), seed=seed, workers=1, window_s=window)
+    # The defaults, run on until converged, one thread (the pool runs the cases).
+    sampler = COMPOSITE_DEFAULTS.with_(seed=seed, threads=1, until_converged=True)
+    fit = fit_composite(CompositeModel(window_s=window), event_records(df, "independent.csv"),
+                        sampler=sampler)  # fmt: skip
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     draws = fit.posterior.draws
     out: dict[str, Any] = {"hits": {}, "bias": {}, "interval": {}}

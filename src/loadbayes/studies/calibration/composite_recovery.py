@@ -96,7 +96,9 @@ def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[
     import arviz as az
 
     from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite.driver import fit_composite
+    from loadbayes.models.zip_motor import CompositeModel
 
     cpu = time.process_time()
     drawn = ("depth", "start_s", "duration_s", "recovery_s", "t0", "f_m", "q0", "zip_p")
@@ -108,15 +110,14 @@ def fit_case(case: dict[str, Any], settings: dict[str, Any], seed: int) -> dict[
         seed=case["seed"],
         **{k: case[k] for k in drawn},
     )
-    fit = fit_composite(
-        [ev],
-        window_s=0,
+    sampler = SamplerSettings(
         draws=settings["draws"],
         burn=settings["burn"],
         chains=settings["chains"],
         seed=seed,
-        workers=1,
+        threads=1,
     )
+    fit = fit_composite(CompositeModel(window_s=0), [ev], sampler=sampler)
     post = fit.posterior
     prob = settings["prob"]
     lo_q, hi_q = 50 * (1 - prob), 50 * (1 + prob)
