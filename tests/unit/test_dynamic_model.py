@@ -106,3 +106,12 @@ def test_the_old_keywords_and_a_missing_model_say_the_new_spelling():
         loadbayes.fit_composite(ExponentialLoad(), [_sag(0.3, 1)], draws=100)
     with pytest.raises(TypeError, match="the first argument is the model"):
         loadbayes.fit_composite([_sag(0.3, 1)])
+
+
+def test_the_driver_names_the_new_place_of_an_old_keyword_too():
+    from loadbayes.fit.composite.api import read
+    from loadbayes.fit.composite.driver import fit_composite
+
+    events = read([_sag(0.3, 1)])
+    with pytest.raises(TypeError, match=r"torque='estimate' is now model=CompositeModel"):
+        fit_composite(ExponentialLoad(), events, torque="estimate")

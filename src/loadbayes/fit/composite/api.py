@@ -17,7 +17,7 @@ import numpy as np
 from loadbayes.core.keywords import moved_keywords
 from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit.composite.checks import check_units
-from loadbayes.fit.composite.driver import CompositeFit, SamplingProgress
+from loadbayes.fit.composite.driver import MOVED, CompositeFit, SamplingProgress
 from loadbayes.fit.composite.driver import fit_composite as fit_events
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
@@ -25,22 +25,8 @@ from loadbayes.measurements.frame import is_path, read_frame
 from loadbayes.models.base import DynamicLoadModel
 from loadbayes.models.composite import EventRecord
 
-__all__ = ["MOVED", "fit_composite", "read"]
+__all__ = ["fit_composite", "read"]
 
-#: The keywords of the old signature and where each went.
-MOVED = {
-    **{k: f"sampler=SamplerSettings({k}={{value}})" for k in
-       ("draws", "burn", "thin", "chains", "seed", "move", "max_seconds", "until_converged")},
-    "workers": "sampler=SamplerSettings(threads={value})",
-    **{k: f"model=CompositeModel({k}={{value}})" for k in
-       ("f_hz", "torque", "h_max", "steps", "window_s", "shares", "noise", "likelihood",
-        "nu", "priors", "prior")},
-    "coefficient_prior": "model=CompositeModel(priors={value})",
-    **{k: f"spec=DataSpec({k}={{value}})" for k in
-       ("t_col", "v_col", "p_col", "q_col", "f_col", "angle_col", "event_col", "v_base",
-        "s_base", "accept_units")},
-    "settings": "provenance={value}",
-}  # fmt: skip
 #: The composite's columns when the spec leaves them unset.
 _T_COL, _EVENT_COL = "t_s", "event"
 
@@ -179,8 +165,9 @@ def fit_composite(
         raise TypeError(moved_keywords("fit_composite", old, MOVED))
     if not isinstance(model, DynamicLoadModel):
         raise TypeError(
-            f"fit_composite: the first argument is the model (models/dynamic.py), got "
-            f"{type(model).__name__}: fit_composite(CompositeModel(...), data, sampler=...)"
+            "fit_composite: the first argument is the model (loadbayes.CompositeModel, or "
+            f"another of models/dynamic.py), got {type(model).__name__}: "
+            "fit_composite(CompositeModel(...), data, sampler=...)"
         )
     if data is None:
         raise TypeError("fit_composite: no data: fit_composite(model, data, sampler=...)")

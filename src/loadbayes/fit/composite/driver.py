@@ -52,7 +52,22 @@ from loadbayes.models.composite_prior import CoefficientPrior
 from loadbayes.models.zip_motor import CompositeModel
 from loadbayes.posterior import Posterior, gaussian_draws
 
-__all__ = ["COMPOSITE_DEFAULTS", "CompositeFit", "SamplingProgress", "fit_composite"]
+__all__ = ["COMPOSITE_DEFAULTS", "MOVED", "CompositeFit", "SamplingProgress", "fit_composite"]
+
+#: The keywords of the old signature and where each went.
+MOVED = {
+    **{k: f"sampler=SamplerSettings({k}={{value}})" for k in
+       ("draws", "burn", "thin", "chains", "seed", "move", "max_seconds", "until_converged")},
+    "workers": "sampler=SamplerSettings(threads={value})",
+    **{k: f"model=CompositeModel({k}={{value}})" for k in
+       ("f_hz", "torque", "h_max", "steps", "window_s", "shares", "noise", "likelihood",
+        "nu", "priors", "prior")},
+    "coefficient_prior": "model=CompositeModel(priors={value})",
+    **{k: f"spec=DataSpec({k}={{value}})" for k in
+       ("t_col", "v_col", "p_col", "q_col", "f_col", "angle_col", "event_col", "v_base",
+        "s_base", "accept_units")},
+    "settings": "provenance={value}",
+}  # fmt: skip
 
 #: The composite fit's sampler defaults (the CLI's too): 16000 iterations, 4000 burn-in,
 #: four chains.
@@ -230,7 +245,7 @@ def fit_composite(
         prior on the shares.
     """
     if old:
-        raise TypeError(moved_keywords("fit_composite", old))
+        raise TypeError(moved_keywords("fit_composite", old, MOVED))
     until_converged = sampler is None if sampler is None else sampler.until_converged
     run = sampler if sampler is not None else COMPOSITE_DEFAULTS
     move = run.move or DEFAULT_MOVE
