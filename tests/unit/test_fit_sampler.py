@@ -65,7 +65,36 @@ def test_student_t_zip_flags_the_bad_row_as_a_data_row():
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel(p0=1.0, with_q=False)
-    ref = fit_robust(model, data, nu=4.0, draws=800, burn=200, chains=2, seed=0)
+    ref = fit_robust(
+        model, data, nu=4.0, sampler=SamplerSettings(draws=800, burn=200, chains=2, seed=0)
+    )
     np.testing.assert_array_equal(post.draws["a1"], ref.draws["a1"])
     with pytest.raises(OptionError, match="Gaussian-likelihood scheme"):
         fit_zip(data, likelihood="student-t", scheme="exact", p0=1.0, q0=1.0)
+
+
+def test_an_old_keyword_is_one_line_naming_the_new_spelling():
+    from loadbayes.fit.core import fit
+    from loadbayes.fit.sampler import new_spelling
+    from loadbayes.models.zip import ZIPModel
+
+    with pytest.raises(TypeError) as err:
+        fit(ZIPModel(with_q=False), _data(), draws=4000)
+    assert str(err.value) == "fit: draws= is now sampler=SamplerSettings(draws=4000)"
+    with pytest.raises(TypeError, match=r"^fit_robust: draws=, seed= are now "
+                       r"sampler=SamplerSettings\(draws=10, seed=None\)$"):  # fmt: skip
+        fit_robust(ZIPModel(with_q=False), _data(), draws=10, seed=None)
+
+    @new_spelling(data=("v_col", "p0", "v0"))
+    def fit_toy(data, *, v0=1.0, spec=None, sampler=None):
+        return v0
+
+    assert fit_toy(None, v0=2.0) == 2.0  # a keyword the function still takes passes
+    with pytest.raises(TypeError) as err:
+        fit_toy(None, chains=2, v_col="V", p0="auto")
+    msg = str(err.value)
+    assert msg == (
+        "fit_toy: chains= is now sampler=SamplerSettings(chains=2); "
+        "v_col=, p0= are now spec=DataSpec(v_col='V', p0=None)"
+    )
+    assert "\n" not in msg

@@ -10,7 +10,7 @@ import numpy as np
 from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit.core import MAX_OBSERVED, fit
 from loadbayes.fit.data import bases, data_of
-from loadbayes.fit.sampler import sampler_kwargs, sampler_of
+from loadbayes.fit.sampler import sampler_of
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 
@@ -242,7 +242,7 @@ def _fit_exp_columns(
         model,
         cols,
         priors=priors,
-        **sampler_kwargs(sampler),
+        sampler=sampler,
         observed=observed,
         settings=base,
         warnings=warn,

@@ -271,10 +271,13 @@ def compare_zip_exp(
     }
     if student_t:
         from loadbayes.fit import fit_robust
+        from loadbayes.fit.sampler import MODEL_DEFAULTS
         from loadbayes.models.zip import ZIPModel
 
         model = ZIPModel(v0=v0, p0=p0, with_q=False)  # type: ignore[arg-type]
-        posts["zip-student-t"] = fit_robust(model, cols, settings={"v0": v0, "p0": p0}, **kw)
+        posts["zip-student-t"] = fit_robust(
+            model, cols, settings={"v0": v0, "p0": p0}, sampler=MODEL_DEFAULTS.with_(**kw)
+        )
     return compare(posts, cols)
 
 

@@ -88,6 +88,7 @@ def _fit(method: str, data: dict[str, np.ndarray], sampler: dict, seed: int):
     from loadbayes.baselines.kalman import kalman
     from loadbayes.baselines.least_squares import least_squares
     from loadbayes.fit import accumulate, fit_robust, fit_zip
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel(with_q=False)
@@ -99,7 +100,10 @@ def _fit(method: str, data: dict[str, np.ndarray], sampler: dict, seed: int):
         m = post.mean()
         return np.array([m["a1"], m["a2"]]), None
     if method == "student-t":
-        post = fit_robust(model, data, seed=seed, settings={"v0": 1.0, "p0": 1.0}, **sampler)
+        post = fit_robust(
+            model, data, sampler=MODEL_DEFAULTS.with_(seed=seed, **sampler),
+            settings={"v0": 1.0, "p0": 1.0},
+        )  # fmt: skip
         m = post.mean()
         return np.array([m["a1"], m["a2"]]), np.asarray(post.settings["flagged"]["p"], int)
     if method == "ls":
