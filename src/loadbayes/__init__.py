@@ -14,7 +14,9 @@ from loadbayes._version import __version__
 __all__ = [
     "__version__",
     "BlockPrior",
+    "DataSpec",
     "Posterior",
+    "SamplerSettings",
     "ZIPModel",
     "fit_composite",
     "fit_zip",
@@ -24,7 +26,9 @@ __all__ = [
 
 _LAZY = {
     "BlockPrior": "loadbayes.core.priors",
+    "DataSpec": "loadbayes.core.settings",
     "Posterior": "loadbayes.posterior",
+    "SamplerSettings": "loadbayes.core.settings",
     "ZIPModel": "loadbayes.models.zip",
     "fit_composite": "loadbayes.fit.composite",
     "fit_zip": "loadbayes.fit",
