@@ -94,7 +94,7 @@ _PARTS = [
     ("import pandas", "pandas/__init__.py:<module>"),
     ("import scipy.linalg (numba's BLAS check)", "scipy/linalg/__init__.py:<module>"),
     ("numba: load compiled kernels from the cache", "numba/core/dispatcher.py:_compile_for_args"),
-    ("read the CSV and fit (fit_zip_file)", "loadbayes/fit/zip.py:fit_zip_file"),
+    ("read the CSV and fit (fit_zip_file)", "loadbayes/fit/zip/api.py:fit_zip_file"),
     ("summary: R-hat, ESS, HDI (Posterior.summary)", "loadbayes/posterior.py:summary"),
     ("warnings, table, outputs (write_outputs)", "loadbayes/commands/output.py:write_outputs"),
     ("import arviz (should be absent)", "arviz/__init__.py:<module>"),

@@ -77,7 +77,7 @@ class _Stages:
         self.chunks = 0
 
     def install(self) -> None:
-        import loadbayes.fit.zip as fitting
+        import loadbayes.fit.zip.api as fitting
         import loadbayes.io.tables as tables
         from loadbayes.core.stats import GramAccumulator
         from loadbayes.models.zip import ZIPModel

@@ -169,7 +169,7 @@ def fit_exp(
     except DataError as exc:
         raise relocate(exc, where, rows, names) from None
     if warn:
-        post.warn(stacklevel=2)
+        post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
     return post
 
 

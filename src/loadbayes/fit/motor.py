@@ -240,7 +240,7 @@ def fit_im(
         post, _ = fit_im_file(str(data), t0=t0, f_hz=f_hz, currents=currents, priors=priors,
                               spec=spec, scheme=scheme, sampler=smp)  # fmt: skip
         if warn:
-            post.warn(stacklevel=2)
+            post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
         return post
     table = read_frame(data, list(DATA_COLUMNS[1:]), optional=[DATA_COLUMNS[0]],
                        drop_invalid=spec.drop_invalid)  # fmt: skip
@@ -277,7 +277,7 @@ def fit_im(
     except DataError as exc:
         raise relocate(exc, "data", table.rows, {}) from None
     if warn:
-        post.warn(stacklevel=2)
+        post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
     return post
 
 

@@ -191,7 +191,7 @@ def fit_zip(
             nu=nu, v_noise=v_noise, scheme=scheme, sampler=sampler, likelihood=likelihood,
         )  # fmt: skip
     if warn:
-        post.warn(stacklevel=2)
+        post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
     return post
 
 
