@@ -54,9 +54,10 @@ TARGET_SUMMARY_S = 0.3
 _PYTHON_CASE = """
 import json, sys, time
 t0 = time.perf_counter()
-from loadbayes import fit_zip
+from loadbayes import DataSpec, SamplerSettings, fit_zip
 t1 = time.perf_counter()
-post = fit_zip("bus.csv", v_base=11, s_base=5, p0=1, q0=0.4, seed=1, warn=False)
+post = fit_zip("bus.csv", spec=DataSpec(v_base=11, s_base=5, p0=1, q0=0.4),
+               sampler=SamplerSettings(draws=40_000, burn=5_000, seed=1), warn=False)
 t2 = time.perf_counter()
 post.summary()
 t3 = time.perf_counter()
@@ -93,7 +94,7 @@ _PARTS = [
     ("import pandas", "pandas/__init__.py:<module>"),
     ("import scipy.linalg (numba's BLAS check)", "scipy/linalg/__init__.py:<module>"),
     ("numba: load compiled kernels from the cache", "numba/core/dispatcher.py:_compile_for_args"),
-    ("read the CSV and fit (fit_zip_file)", "loadbayes/fit/zip.py:fit_zip_file"),
+    ("read the CSV and fit (fit_zip_file)", "loadbayes/fit/zip/api.py:fit_zip_file"),
     ("summary: R-hat, ESS, HDI (Posterior.summary)", "loadbayes/posterior.py:summary"),
     ("warnings, table, outputs (write_outputs)", "loadbayes/commands/output.py:write_outputs"),
     ("import arviz (should be absent)", "arviz/__init__.py:<module>"),

@@ -82,19 +82,32 @@ def run_row(case: str, method: str) -> dict:
     """One fit in this process: wall time, ESS of dP/dV, peak RSS."""
     from loadbayes import fit_zip
     from loadbayes.core.convergence import summarize
+    from loadbayes.core.settings import DataSpec, SamplerSettings
     from loadbayes.fit.drift import fit_zip_drift
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
 
     t, v, p, q = feeder(**CASES[case])
     # compile (or load) the kernels before the clock
     tw, vw, pw, qw = feeder(1, 600.0, seed=9)
-    fit_zip_drift({"v": vw, "p": pw}, tw, chains=1, draws=20, burn=10, seed=0)
+    fit_zip_drift(
+        {"v": vw, "p": pw}, tw, sampler=SamplerSettings(chains=1, draws=20, burn=10, seed=0)
+    )
     t0 = time.perf_counter()
     c0 = time.process_time()
     if method == "drift":
-        post = fit_zip_drift({"v": v, "p": p, "q": q}, t, chains=2, draws=2500, burn=500, seed=1)
+        post = fit_zip_drift(
+            {"v": v, "p": p, "q": q},
+            t,
+            sampler=SamplerSettings(chains=2, draws=2500, burn=500, seed=1),
+        )
         settings = "2 chains x 2500 (burn 500), P and Q"
     else:
-        post = fit_zip({"v": v, "p": p, "q": q}, p0="auto", q0="auto", seed=1, warn=False)
+        post = fit_zip(
+            {"v": v, "p": p, "q": q},
+            sampler=MODEL_DEFAULTS.with_(seed=1),
+            spec=DataSpec(p0=None, q0=None),
+            warn=False,
+        )
         settings = "4 chains x 40000 (burn 5000), P and Q"
     wall = time.perf_counter() - t0
     cpu = time.process_time() - c0

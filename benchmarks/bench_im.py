@@ -74,10 +74,13 @@ def main(argv: list[str] | None = None) -> dict:
     from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 
     paper = {"draws": 40_000, "burn": 5_000, "chains": 4}
+    smp = SamplerSettings(**paper)
     cols, attrs = make_data(args.n)
     small = {k: v[:3001] for k, v in cols.items()}
-    fit_im(small, draws=200, burn=50, chains=1)  # load the compiled kernels
-    fit_im(small, draws=200, burn=50, chains=1, currents="measured")
+    fit_im(
+        small, sampler=SamplerSettings(draws=200, burn=50, chains=1)
+    )  # load the compiled kernels
+    fit_im(small, sampler=SamplerSettings(draws=200, burn=50, chains=1), currents="measured")
 
     model = InductionMotorModel(f_hz=60.0)
     gram, t_pass = _timed(lambda: accumulate(model, [cols]), args.repeat)
@@ -98,8 +101,8 @@ def main(argv: list[str] | None = None) -> dict:
 
     _, t_sample = _timed(lambda: sampler(gram, cols), args.repeat)
     _, t_sample_small = _timed(lambda: sampler(accumulate(model, [small]), small), args.repeat)
-    post, t_fit = _timed(lambda: fit_im(cols, **paper), args.repeat)
-    _, t_fit_measured = _timed(lambda: fit_im(cols, currents="measured", **paper), args.repeat)
+    post, t_fit = _timed(lambda: fit_im(cols, sampler=smp), args.repeat)
+    _, t_fit_measured = _timed(lambda: fit_im(cols, currents="measured", sampler=smp), args.repeat)
     truth = attrs["coefficients"]
     err = {k: 100 * (post.mean()[k] / truth[k] - 1) for k in COEFFICIENT_NAMES}
 
@@ -111,7 +114,7 @@ def main(argv: list[str] | None = None) -> dict:
             {"t_s": np.arange(args.n) * 1e-3, **{k: cols[k] for k in DATA_COLUMNS[1:]}}
         ).to_csv(csv, index=False)
         size_mb = os.path.getsize(csv) / 1e6
-        _, t_file = _timed(lambda: fit_im_file(csv, **paper), args.repeat)
+        _, t_file = _timed(lambda: fit_im_file(csv, sampler=smp), args.repeat)
 
         def read_only():
             from loadbayes.io.tables import iter_chunks

@@ -77,7 +77,7 @@ class _Stages:
         self.chunks = 0
 
     def install(self) -> None:
-        import loadbayes.fit.zip as fitting
+        import loadbayes.fit.zip.api as fitting
         import loadbayes.io.tables as tables
         from loadbayes.core.stats import GramAccumulator
         from loadbayes.models.zip import ZIPModel
@@ -123,6 +123,7 @@ class _Stages:
 
 def fit_file(path: str, chunk_rows: int) -> dict:
     """One ``fit_zip_file`` call: time, memory, stages and a digest of the result."""
+    from loadbayes.core.settings import DataSpec
     from loadbayes.fit import fit_zip_file
 
     stages = _Stages()
@@ -130,7 +131,7 @@ def fit_file(path: str, chunk_rows: int) -> dict:
     before = current_rss_mb()
     with PeakRSS() as mem:
         t0, c0 = time.perf_counter(), time.process_time()
-        post, _ = fit_zip_file(path, chunk_rows=chunk_rows, p0=1.0, q0=1.0)
+        post, _ = fit_zip_file(path, chunk_rows=chunk_rows, spec=DataSpec(p0=1.0, q0=1.0))
         seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     digest = hashlib.sha256()
     gram = post.constant["gram"]

@@ -415,6 +415,7 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
 
     if name.startswith("loadbayes"):
         from loadbayes.core.priors import BlockPrior
+        from loadbayes.core.settings import DataSpec, SamplerSettings
         from loadbayes.fit import fit_zip
 
         scheme = {"single-site": "single-site", "exact": "exact"}.get(
@@ -429,7 +430,13 @@ def run_worker(name: str, n: int, seed: int, quick: bool, budget: float, evals: 
         data = {"v": v, "p": p}
 
         def fit():
-            return fit_zip(data, p0=1.0, priors=priors, scheme=scheme, seed=seed, **g)
+            return fit_zip(
+                data,
+                sampler=SamplerSettings(seed=seed, **g),
+                spec=DataSpec(p0=1.0),
+                priors=priors,
+                scheme=scheme,
+            )
 
         base_rss = current_rss_mb()
         with PeakRSS() as mem:

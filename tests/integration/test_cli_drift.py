@@ -13,6 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
+
 pytestmark = pytest.mark.integration
 
 EXE = [sys.executable, "-m", "loadbayes"]
@@ -162,7 +164,11 @@ def test_predict_on_a_drifting_level_says_why_it_cannot(day):
     from loadbayes.io.errors import OptionError
 
     frame = pd.read_csv(day / "day.csv")
-    post = fit_zip(frame, v_col=COLS[1], p_col=COLS[3], q_col=COLS[5], t_col="time",
-                   level="drift", v_base=13.8, draws=300, burn=100, chains=2, seed=1)  # fmt: skip
+    post = fit_zip(
+        frame,
+        sampler=SamplerSettings(draws=300, burn=100, chains=2, seed=1),
+        spec=DataSpec(v_col=COLS[1], p_col=COLS[3], q_col=COLS[5], t_col="time", v_base=13.8),
+        level="drift",
+    )
     with pytest.raises(OptionError, match="no single P0"):
         post.predict([13.2, 13.8])

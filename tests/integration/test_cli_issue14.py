@@ -21,6 +21,8 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
+
 pytestmark = pytest.mark.integration
 
 FAST = ["--draws", "1500", "--burn", "300", "--chains", "2", "--quiet"]
@@ -249,7 +251,11 @@ def test_noise_on_v_biases_the_shares_and_is_warned(tmp_path, monkeypatch):
     p = 0.4 * x**2 + 0.3 * x + 0.3 + rng.normal(0, 0.002, n)
     z = {}
     for label, v in (("clean", x), ("noisy", x + rng.normal(0, 0.01, n))):
-        post = fit_zip({"v": v, "p": p}, draws=3000, burn=500, chains=2, seed=1, p0=1.0, q0=1.0)
+        post = fit_zip(
+            {"v": v, "p": p},
+            sampler=SamplerSettings(draws=3000, burn=500, chains=2, seed=1),
+            spec=DataSpec(p0=1.0, q0=1.0),
+        )
         slope = 2 * post["a1"] + post["a2"]
         z[label] = abs(slope.mean() - 1.1) / slope.std()
         pd.DataFrame({"v": v, "p": p}).to_csv(tmp_path / f"{label}.csv", index=False)

@@ -10,6 +10,8 @@ import warnings
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
+
 pytestmark = pytest.mark.integration
 
 EXE = [sys.executable, "-m", "loadbayes"]
@@ -128,10 +130,15 @@ def test_reports_of_an_exponential_and_a_motor_fit(tmp_path):
     v = rng.uniform(0.85, 1.05, 300)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
-        exp = fit_exp({"v": v, "p": v**1.3 + rng.normal(0, 0.01, v.size)}, draws=800, burn=200,
-                      chains=2, p0=1.0, q0=1.0)  # fmt: skip
-        im = fit_im(simulate("krause_3hp", noise=0.02, seed=1, t_end_s=1.0), draws=800,
-                    burn=200, chains=2)  # fmt: skip
+        exp = fit_exp(
+            {"v": v, "p": v**1.3 + rng.normal(0, 0.01, v.size)},
+            sampler=SamplerSettings(draws=800, burn=200, chains=2),
+            spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
+        )
+        im = fit_im(
+            simulate("krause_3hp", noise=0.02, seed=1, t_end_s=1.0),
+            sampler=SamplerSettings(draws=800, burn=200, chains=2),
+        )
     for name, post in (("exp", exp), ("im", im)):
         nc = post.to_netcdf(tmp_path / f"{name}.nc")
         html = write_report(nc, tmp_path / f"{name}.html").read_text()

@@ -27,7 +27,7 @@ import pytest
 
 import loadbayes
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import fit_im, fit_zip, fit_zip_file
 from loadbayes.inference.gibbs import sample_block
@@ -69,14 +69,15 @@ def _stats(n=200, seed=1):
 @pytest.mark.parametrize("scheme", ["blocked", "single-site", "exact"])
 def test_same_seed_same_draws_and_another_seed_others(scheme, tmp_path):
     path = _bus(tmp_path / "bus.csv")
-    kw = {"scheme": scheme, "draws": 3000, "burn": 500, "chains": 3, "p0": 1.0, "q0": 1.0}
+    kw = {"scheme": scheme, "spec": DataSpec(p0=1.0, q0=1.0)}
+    smp = SamplerSettings(draws=3000, burn=500, chains=3)
     if scheme == "exact":
         from loadbayes.fit import zip_priors
 
         kw["priors"] = zip_priors(conjugate=True)
-    a, _ = fit_zip_file(str(path), seed=11, **kw)
-    b, _ = fit_zip_file(str(path), seed=11, **kw)
-    c, _ = fit_zip_file(str(path), seed=12, **kw)
+    a, _ = fit_zip_file(str(path), sampler=smp.with_(seed=11), **kw)
+    b, _ = fit_zip_file(str(path), sampler=smp.with_(seed=11), **kw)
+    c, _ = fit_zip_file(str(path), sampler=smp.with_(seed=12), **kw)
     _same(a, b)
     assert not np.array_equal(a["a1"], c["a1"])
 
@@ -84,7 +85,12 @@ def test_same_seed_same_draws_and_another_seed_others(scheme, tmp_path):
 def test_any_chunk_size_gives_the_same_bits(tmp_path):
     path = _bus(tmp_path / "bus.csv", n=1000)
     runs = [
-        fit_zip_file(str(path), chunk_rows=size, draws=2000, burn=200, seed=3, p0=1.0, q0=1.0)[0]
+        fit_zip_file(
+            str(path),
+            chunk_rows=size,
+            sampler=SamplerSettings(draws=2000, burn=200, seed=3),
+            spec=DataSpec(p0=1.0, q0=1.0),
+        )[0]
         for size in (1_000_000, 1000, 333, 7, 1)
     ]
     for post in runs[1:]:
@@ -93,7 +99,9 @@ def test_any_chunk_size_gives_the_same_bits(tmp_path):
     # and the in-memory path reads the same data into the same statistics and draws
     df = pd.read_csv(path, float_precision="round_trip")  # pandas' fast parser is off by an ulp
     mem = fit_zip(
-        {k: df[k].to_numpy() for k in ("v", "p", "q")}, draws=2000, burn=200, seed=3, p0=1.0, q0=1.0
+        {k: df[k].to_numpy() for k in ("v", "p", "q")},
+        sampler=SamplerSettings(draws=2000, burn=200, seed=3),
+        spec=DataSpec(p0=1.0, q0=1.0),
     )
     _same(mem, runs[0])
 
@@ -156,7 +164,11 @@ def test_a_chain_of_a_fit_run_alone_is_the_same_chain(tmp_path):
 
     df = pd.read_csv(_bus(tmp_path / "bus.csv"))
     data = {k: df[k].to_numpy() for k in ("v", "p", "q")}
-    post = fit_zip(data, chains=3, draws=1500, burn=100, seed=9, p0=1.0, q0=1.0)
+    post = fit_zip(
+        data,
+        sampler=SamplerSettings(chains=3, draws=1500, burn=100, seed=9),
+        spec=DataSpec(p0=1.0, q0=1.0),
+    )
     model = ZIPModel()
     gram = accumulate(model, [data])
     priors = model.default_priors()
@@ -180,8 +192,12 @@ def test_the_motor_is_reproducible_too():
     df = simulate("small_industrial", noise=0.05, seed=4)
     cols = {k: df[k].to_numpy()[::5] for k in DATA_COLUMNS}
     for currents in ("modelled", "measured"):
-        a = fit_im(cols, currents=currents, draws=1500, burn=300, chains=2, seed=7)
-        b = fit_im(cols, currents=currents, draws=1500, burn=300, chains=2, seed=7)
+        a = fit_im(
+            cols, currents=currents, sampler=SamplerSettings(draws=1500, burn=300, chains=2, seed=7)
+        )
+        b = fit_im(
+            cols, currents=currents, sampler=SamplerSettings(draws=1500, burn=300, chains=2, seed=7)
+        )
         _same(a, b)
 
 
@@ -222,25 +238,30 @@ def _rerun(doc: dict, cwd: Path) -> Posterior:
         for name, p in s["priors"].items()
     }
     cols = s["columns"]
+    q0 = 1.0 if s["q0"] is None else s["q0"]
     post, _ = fit_zip_file(
         str(cwd / s["data"]),
-        v_col=cols["v"],
-        p_col=cols["p"],
-        q_col=cols["q"],
-        v0=s["v0"],
-        p0=s["p0"],
-        q0=s["q0"] if s["q0"] is not None else 1.0,
-        v_base=s["v_base"],
-        s_base=s["s_base"],
+        spec=DataSpec(
+            v_col=cols["v"],
+            p_col=cols["p"],
+            q_col=cols["q"],
+            v0=s["v0"],
+            p0=None if s["p0"] == "auto" else s["p0"],
+            q0=None if q0 == "auto" else q0,
+            v_base=s["v_base"],
+            s_base=s["s_base"],
+            drop_invalid=s["n_dropped"] > 0,
+        ),
         priors=priors,
-        drop_invalid=s["n_dropped"] > 0,
         scheme=s["scheme"],
-        chains=s["chains"],
-        draws=s["draws"],
-        burn=s["burn"],
-        thin=s["thin"],
-        init=s["init"],
-        seed=s["seed"],
+        sampler=SamplerSettings(
+            chains=s["chains"],
+            draws=s["draws"],
+            burn=s["burn"],
+            thin=s["thin"],
+            init=s["init"],
+            seed=s["seed"],
+        ),
     )
     return post
 

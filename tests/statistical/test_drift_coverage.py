@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.drift import fit_zip_drift
 
 pytestmark = pytest.mark.statistical
@@ -47,7 +48,9 @@ def test_drift_interval_of_dp_dv_covers_at_95_percent():
     hits = 0
     for k in range(DAYS):
         t, v, p, truth = _day(rng)
-        post = fit_zip_drift({"v": v, "p": p}, t, chains=2, draws=800, burn=200, seed=k)
+        post = fit_zip_drift(
+            {"v": v, "p": p}, t, sampler=SamplerSettings(chains=2, draws=800, burn=200, seed=k)
+        )
         d = post.derived_summary()["dP/dV"]
         hits += d["hdi_low"] <= truth <= d["hdi_high"]
     low = stats.binom.ppf(0.01, DAYS, 0.95)  # 89: P(X < 89) = 0.43%

@@ -16,6 +16,7 @@ check cannot pass by chance either.
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit import fit_zip
 from loadbayes.io.errors import OptionError
 
@@ -50,7 +51,7 @@ def _slopes(post):
 
 
 def test_the_plain_fit_is_biased_and_says_what_to_do():
-    post = fit_zip(_day(), draws=3000, burn=500, seed=1)
+    post = fit_zip(_day(), sampler=SamplerSettings(draws=3000, burn=500, seed=1))
     for mean, sd, truth in _slopes(post).values():
         assert mean < truth and (truth - mean) / sd > 6  # toward a flat load, many sd off
     noise = [w for w in post.warnings if "row to row" in w]
@@ -59,7 +60,7 @@ def test_the_plain_fit_is_biased_and_says_what_to_do():
 
 @pytest.mark.parametrize("v_noise", [0.01, "auto"])
 def test_the_errors_in_variables_fit_covers(v_noise):
-    post = fit_zip(_day(), v_noise=v_noise, **FAST)
+    post = fit_zip(_day(), v_noise=v_noise, sampler=SamplerSettings(**FAST))
     for mean, sd, truth in _slopes(post).values():
         assert abs(mean - truth) < 3.3 * sd
     s = post.summary()
@@ -74,7 +75,7 @@ def test_the_errors_in_variables_fit_covers(v_noise):
 
 def test_a_known_sd_corrects_p_alone():
     data = _day()
-    post = fit_zip({"v": data["v"], "p": data["p"]}, v_noise=0.01, **FAST)
+    post = fit_zip({"v": data["v"], "p": data["p"]}, v_noise=0.01, sampler=SamplerSettings(**FAST))
     mean, sd, truth = _slopes(post)["p"]
     assert abs(mean - truth) < 3.3 * sd and "a4" not in post.draws
 
@@ -82,8 +83,8 @@ def test_a_known_sd_corrects_p_alone():
 def test_auto_needs_q_and_the_gaussian_likelihood():
     data = _day(n=200)
     with pytest.raises(OptionError, match="needs Q as well as P"):
-        fit_zip({"v": data["v"], "p": data["p"]}, v_noise="auto", **FAST)
+        fit_zip({"v": data["v"], "p": data["p"]}, v_noise="auto", sampler=SamplerSettings(**FAST))
     with pytest.raises(OptionError, match="Gaussian likelihood"):
-        fit_zip(data, v_noise=0.01, likelihood="student-t", **FAST)
+        fit_zip(data, v_noise=0.01, likelihood="student-t", sampler=SamplerSettings(**FAST))
     with pytest.raises(OptionError, match="positive sd"):
-        fit_zip(data, v_noise=-0.01, **FAST)
+        fit_zip(data, v_noise=-0.01, sampler=SamplerSettings(**FAST))

@@ -69,7 +69,7 @@ def _central(x: np.ndarray, z: float = Z) -> tuple[float, float]:
 def test_each_motor_is_recovered_with_intervals_that_cover(name, records) -> None:
     df = records[name]
     params = MOTORS[name]
-    post = fit_im(_cols(df), f_hz=params.f_hz, seed=1, **SAMPLER)
+    post = fit_im(_cols(df), f_hz=params.f_hz, sampler=SamplerSettings(seed=1, **SAMPLER))
     truth = dict(df.attrs["coefficients"])
     truth.update({k: getattr(params, k) for k in ("rs", "xp", "x", "tp_s", "h_s")})
     if params.xs == params.xr:  # the closure is exact for this motor
@@ -89,7 +89,9 @@ def test_paper_form_attenuates_b3_when_currents_are_noisy(records) -> None:
     for name, df in records.items():
         f = MOTORS[name].f_hz
         b3 = df.attrs["coefficients"]["b3"]
-        measured = fit_im(_cols(df), f_hz=f, currents="measured", seed=1, **SAMPLER)
+        measured = fit_im(
+            _cols(df), f_hz=f, currents="measured", sampler=SamplerSettings(seed=1, **SAMPLER)
+        )
         ratio = measured.mean()["b3"] / b3
         assert 0 < ratio < 0.85, (name, ratio)
 
@@ -179,7 +181,7 @@ def test_intervals_are_calibrated_over_noise_replications() -> None:
 
 def test_single_site_agrees_with_blocked(records) -> None:
     cols = _cols(records["large_industrial"])
-    kw = {"draws": 12_000, "burn": 1000, "chains": 4, "seed": 3}
+    kw = {"sampler": SamplerSettings(draws=12_000, burn=1000, chains=4, seed=3)}
     blocked = fit_im(cols, **kw).summary(var_names=list(COEFFICIENT_NAMES))
     single = fit_im(cols, scheme="single-site", **kw).summary(var_names=list(COEFFICIENT_NAMES))
     for k in COEFFICIENT_NAMES:

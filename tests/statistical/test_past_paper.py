@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit import fit_exp, fit_robust, fit_zip
 from loadbayes.inference.online import OnlinePrior, track
 from loadbayes.models.zip import ZIPModel
@@ -66,7 +67,9 @@ def _a(post):
 def test_student_t_recovers_zip_on_corrupted_data(seed):
     v, p = _paper(800, seed)
     pc = _corrupt(p, seed)
-    post = fit_robust(ZIPModel(with_q=False), {"v": v, "p": pc}, seed=seed, **SAMPLER)
+    post = fit_robust(
+        ZIPModel(with_q=False), {"v": v, "p": pc}, sampler=SamplerSettings(seed=seed, **SAMPLER)
+    )
     flat = post.flat(["a1", "a2", "a3"])
     lo, hi = np.quantile(flat, [0.0005, 0.9995], axis=0)
     assert np.all((lo <= TRUE) & (TRUE <= hi)), (lo, hi)
@@ -81,8 +84,13 @@ def test_robust_beats_gaussian_and_stays_within_target():
         pc = _corrupt(p, seed)
         for tag, y in (("clean", p), ("bad", pc)):
             d = {"v": v, "p": y}
-            g = fit_zip(d, with_q=False, seed=seed, **SAMPLER, p0=1.0, q0=1.0)
-            t = fit_robust(ZIPModel(with_q=False), d, seed=seed, **SAMPLER)
+            g = fit_zip(
+                d,
+                with_q=False,
+                sampler=SamplerSettings(seed=seed, **SAMPLER),
+                spec=DataSpec(p0=1.0, q0=1.0),
+            )
+            t = fit_robust(ZIPModel(with_q=False), d, sampler=SamplerSettings(seed=seed, **SAMPLER))
             errs[f"g_{tag}"].append(_a(g) - TRUE)
             errs[f"t_{tag}"].append(_a(t) - TRUE)
     rmse = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errs.items()}
@@ -104,7 +112,10 @@ def test_exponential_interval_coverage(noise):
         else:
             p = shape * np.exp(rng.normal(0, 0.02, v.size))
         post = fit_exp(
-            {"v": v, "p": p}, noise=noise, seed=i, chains=2, draws=1500, burn=400, p0=1.0, q0=1.0
+            {"v": v, "p": p},
+            noise=noise,
+            sampler=SamplerSettings(seed=i, chains=2, draws=1500, burn=400),
+            spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
         )
         lo, hi = np.quantile(post.draws["np"], [0.025, 0.975])
         covered += lo <= true_np <= hi
@@ -136,8 +147,18 @@ def test_loo_picks_the_true_model():
     bowl = {"v": v, "p": 2 * v**2 - 3 * v + 2 + rng.normal(0, 0.002, v.size)}
     for data, truth in ((cubic, "exponential"), (bowl, "zip")):
         posts = {
-            "zip": fit_zip(data, with_q=False, seed=0, **SAMPLER, p0=1.0, q0=1.0),
-            "exponential": fit_exp(data, with_q=False, seed=0, **SAMPLER, p0=1.0, q0=1.0),
+            "zip": fit_zip(
+                data,
+                with_q=False,
+                sampler=SamplerSettings(seed=0, **SAMPLER),
+                spec=DataSpec(p0=1.0, q0=1.0),
+            ),
+            "exponential": fit_exp(
+                data,
+                with_q=False,
+                sampler=SamplerSettings(seed=0, **SAMPLER),
+                spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
+            ),
         }
         table = compare(posts, data)
         assert table.index[0] == truth, table
@@ -151,9 +172,18 @@ def test_student_t_likelihood_in_loo_prefers_t_on_spiky_data():
     p[idx] += rng.choice([-1, 1], 20) * stats.uniform(0.5, 0.5).rvs(20, random_state=rng)
     d = {"v": v, "p": p}
     posts = {
-        "gauss": fit_zip(d, with_q=False, seed=0, **SAMPLER, p0=1.0, q0=1.0),
-        "student-t": fit_robust(ZIPModel(with_q=False), d, seed=0,
-                                settings={"v0": 1.0, "p0": 1.0}, **SAMPLER),
-    }  # fmt: skip
+        "gauss": fit_zip(
+            d,
+            with_q=False,
+            sampler=SamplerSettings(seed=0, **SAMPLER),
+            spec=DataSpec(p0=1.0, q0=1.0),
+        ),
+        "student-t": fit_robust(
+            ZIPModel(with_q=False),
+            d,
+            sampler=SamplerSettings(seed=0, **SAMPLER),
+            settings={"v0": 1.0, "p0": 1.0},
+        ),
+    }
     table = compare(posts, d)
     assert table.index[0] == "student-t" and table["z"].iloc[1] > 4, table

@@ -13,7 +13,7 @@ import pytest
 from scipy import stats
 
 from loadbayes.core.priors import BlockPrior
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.core.stats import RegressionStats
 from loadbayes.fit import fit_zip
 from loadbayes.inference.gibbs import exact_posterior, sample_block
@@ -79,7 +79,11 @@ def test_gibbs_matches_the_exact_normal_gamma_posterior(scheme, lo, hi, draws):
 
 def test_weak_prior_mean_agrees_with_least_squares():
     v, p = _data(1000, seed=3)
-    post = fit_zip({"v": v, "p": p}, draws=20_000, burn=2000, seed=7, p0=1.0, q0=1.0)
+    post = fit_zip(
+        {"v": v, "p": p},
+        sampler=SamplerSettings(draws=20_000, burn=2000, seed=7),
+        spec=DataSpec(p0=1.0, q0=1.0),
+    )
     s = post.summary()
     z = np.column_stack([v**2 - 1, v - 1])
     ls = np.linalg.lstsq(z, p - 1, rcond=None)[0]
@@ -97,7 +101,11 @@ def test_known_coefficients_are_recovered(truth):
     v, p = _data(4000, a=truth, noise=0.02, lo=0.85, hi=1.1, seed=5)
     rng = np.random.default_rng(8)
     q = truth[2] * v**2 + truth[0] * v + truth[1] + rng.normal(0, 0.02, v.size)
-    post = fit_zip({"v": v, "p": p, "q": q}, draws=6000, burn=1000, seed=1, p0=1.0, q0=1.0)
+    post = fit_zip(
+        {"v": v, "p": p, "q": q},
+        sampler=SamplerSettings(draws=6000, burn=1000, seed=1),
+        spec=DataSpec(p0=1.0, q0=1.0),
+    )
     s = post.summary(hdi_prob=0.999)
     names = ("a1", "a2", "a3", "a4", "a5", "a6")
     expected = dict(zip(names, truth + (truth[2], truth[0], truth[1]), strict=True))
@@ -108,9 +116,13 @@ def test_known_coefficients_are_recovered(truth):
 
 def test_blocked_mixes_on_the_ridge_single_site_does_not():
     v, p = _data(1000, seed=1)
-    kw = dict(draws=40_000, burn=5000, chains=4, seed=0)
-    blocked = fit_zip({"v": v, "p": p}, scheme="blocked", **kw, p0=1.0, q0=1.0).summary()
-    single = fit_zip({"v": v, "p": p}, scheme="single-site", **kw, p0=1.0, q0=1.0).summary()
+    kw = dict(sampler=SamplerSettings(draws=40_000, burn=5000, chains=4, seed=0))
+    blocked = fit_zip(
+        {"v": v, "p": p}, scheme="blocked", **kw, spec=DataSpec(p0=1.0, q0=1.0)
+    ).summary()
+    single = fit_zip(
+        {"v": v, "p": p}, scheme="single-site", **kw, spec=DataSpec(p0=1.0, q0=1.0)
+    ).summary()
     kept = 4 * 35_000
     assert blocked.loc["a1", "ess_bulk"] > 0.5 * kept
     assert single.loc["a1", "ess_bulk"] < 0.05 * kept

@@ -16,6 +16,7 @@ import json
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit import accumulate, fit_gram, fit_zip, zip_priors
 from loadbayes.io.errors import DataError
 from loadbayes.models.zip import ZIPModel
@@ -45,7 +46,11 @@ def _says(post, *words):
 
 
 def test_two_voltage_levels_identify_a_known_nominal_power():
-    post = fit_zip(_zip(np.repeat([0.9, 1.1], 50)), **FAST, p0=1.0, q0=1.0)
+    post = fit_zip(
+        _zip(np.repeat([0.9, 1.1], 50)),
+        sampler=SamplerSettings(**FAST),
+        spec=DataSpec(p0=1.0, q0=1.0),
+    )
     _finite(post)
     # Two equations in two unknowns: identified, but only just; the ridge is reported.
     assert _says(post, "a1 and a2 cannot be told apart")
@@ -54,14 +59,20 @@ def test_two_voltage_levels_identify_a_known_nominal_power():
 
 
 def test_two_voltage_levels_cannot_identify_three_coefficients():
-    post = fit_zip(_zip(np.repeat([0.9, 1.1], 50)), p0="auto", **FAST)
+    post = fit_zip(
+        _zip(np.repeat([0.9, 1.1], 50)), sampler=SamplerSettings(**FAST), spec=DataSpec(p0=None)
+    )
     _finite(post)
     assert _says(post, "cannot identify", "separately", "too few distinct voltage levels")
 
 
 def test_a_level_at_nominal_voltage_carries_no_information_on_the_shares():
     # At V = V0 both regressors are 0: only one informative level is left.
-    post = fit_zip(_zip(np.repeat([0.9, 1.0], 50)), **FAST, p0=1.0, q0=1.0)
+    post = fit_zip(
+        _zip(np.repeat([0.9, 1.0], 50)),
+        sampler=SamplerSettings(**FAST),
+        spec=DataSpec(p0=1.0, q0=1.0),
+    )
     _finite(post)
     assert _says(post, "cannot identify a1, a2 separately")
 
@@ -69,20 +80,26 @@ def test_a_level_at_nominal_voltage_carries_no_information_on_the_shares():
 @pytest.mark.parametrize("scheme", ["blocked", "single-site"])
 def test_a_very_narrow_band_is_finite_and_said_so(scheme):
     v = np.random.default_rng(1).uniform(0.9995, 1.0005, 500)
-    post = fit_zip(_zip(v), scheme=scheme, **FAST, p0=1.0, q0=1.0)
+    post = fit_zip(
+        _zip(v), scheme=scheme, sampler=SamplerSettings(**FAST), spec=DataSpec(p0=1.0, q0=1.0)
+    )
     _finite(post)
     assert _says(post, "voltage spans only", "hard to separate")
 
 
 def test_three_samples_are_enough_for_a_known_nominal_power():
-    post = fit_zip(_zip([0.9, 1.0, 1.1], with_q=True), **FAST, p0=1.0, q0=1.0)
+    post = fit_zip(
+        _zip([0.9, 1.0, 1.1], with_q=True),
+        sampler=SamplerSettings(**FAST),
+        spec=DataSpec(p0=1.0, q0=1.0),
+    )
     _finite(post)
     assert post.settings["n"] == 3
 
 
 def test_three_samples_are_too_few_for_an_unknown_nominal_power():
     with pytest.raises(DataError, match="fewer than the 4 parameters"):
-        fit_zip(_zip([0.9, 1.0, 1.1]), p0="auto", **FAST)
+        fit_zip(_zip([0.9, 1.0, 1.1]), sampler=SamplerSettings(**FAST), spec=DataSpec(p0=None))
 
 
 @pytest.mark.parametrize(
@@ -90,7 +107,12 @@ def test_three_samples_are_too_few_for_an_unknown_nominal_power():
 )
 def test_noise_free_data_stay_finite(scheme, p0):
     v = np.random.default_rng(2).uniform(0.8, 1.2, 200)
-    post = fit_zip(_zip(v, noise=0.0, with_q=True), scheme=scheme, p0=p0, q0=p0, **FAST)
+    post = fit_zip(
+        _zip(v, noise=0.0, with_q=True),
+        scheme=scheme,
+        sampler=SamplerSettings(**FAST),
+        spec=DataSpec(p0=None if p0 == "auto" else p0, q0=None if p0 == "auto" else p0),
+    )
     _finite(post)
     if scheme == "blocked":  # single-site crawls along the ridge when tau is this large
         assert np.all(post["tau_p"] > 1e6) and np.all(post["tau_q"] > 1e6)
@@ -101,14 +123,20 @@ def test_noise_free_data_stay_finite(scheme, p0):
 
 def test_noise_free_power_is_said_so():
     v = np.random.default_rng(2).uniform(0.8, 1.2, 200)
-    post = fit_zip(_zip(v, noise=0.0), **FAST, p0=1.0, q0=1.0)
+    post = fit_zip(
+        _zip(v, noise=0.0), sampler=SamplerSettings(**FAST), spec=DataSpec(p0=1.0, q0=1.0)
+    )
     assert _says(post, "the P data fit the model exactly (no noise)", "tau_p")
 
 
 @pytest.mark.parametrize("p0", [1.0, "auto"])
 def test_noise_free_reactive_power_is_said_so_too(p0):
     v = np.random.default_rng(2).uniform(0.8, 1.2, 200)
-    post = fit_zip(_zip(v, noise=0.0, with_q=True), p0=p0, q0=p0, **FAST)
+    post = fit_zip(
+        _zip(v, noise=0.0, with_q=True),
+        sampler=SamplerSettings(**FAST),
+        spec=DataSpec(p0=None if p0 == "auto" else p0, q0=None if p0 == "auto" else p0),
+    )
     assert _says(post, "the P data fit the model exactly", "the Q data fit the model exactly")
 
 
@@ -118,9 +146,8 @@ def test_exact_scheme_on_noise_free_data():
         _zip(v, noise=0.0),
         scheme="exact",
         priors=zip_priors(conjugate=True),
-        **FAST,
-        p0=1.0,
-        q0=1.0,
+        sampler=SamplerSettings(**FAST),
+        spec=DataSpec(p0=1.0, q0=1.0),
     )
     _finite(post)
 
@@ -136,8 +163,8 @@ def test_very_large_n_through_the_statistics(rows, scheme):
     scale = rows / gram.n
     big = dataclasses.replace(gram, matrix=gram.matrix * scale, n=int(rows))
     priors = zip_priors(conjugate=scheme == "exact")
-    small = fit_gram(model, gram, priors=priors, scheme=scheme, **FAST)
-    post = fit_gram(model, big, priors=priors, scheme=scheme, **FAST)
+    small = fit_gram(model, gram, priors=priors, scheme=scheme, sampler=SamplerSettings(**FAST))
+    post = fit_gram(model, big, priors=priors, scheme=scheme, sampler=SamplerSettings(**FAST))
     _finite(post)
     assert post.settings["n"] == int(rows)
     if scheme != "single-site":  # single-site is nowhere near converged on this ridge
@@ -148,7 +175,9 @@ def test_very_large_n_through_the_statistics(rows, scheme):
 
 def test_no_spread_at_all_stays_an_error():
     with pytest.raises(DataError, match="no spread"):
-        fit_zip(_zip(np.full(20, 0.95)), **FAST, p0=1.0, q0=1.0)
+        fit_zip(
+            _zip(np.full(20, 0.95)), sampler=SamplerSettings(**FAST), spec=DataSpec(p0=1.0, q0=1.0)
+        )
 
 
 @pytest.mark.parametrize("chunk_rows", [None, 7])
@@ -162,7 +191,7 @@ def test_power_zero_in_every_row_is_refused(tmp_path, chunk_rows):
     v = np.linspace(0.95, 1.05, 40)
     data = {"v": v, "p": np.zeros_like(v), "q": 0.3 * v}
     with pytest.raises(DataError, match=r"P is 0 in all 40 rows: there is no load") as e:
-        fit_zip(data, **FAST)
+        fit_zip(data, sampler=SamplerSettings(**FAST))
     assert e.value.column == "p"
     # From a file, streamed in chunks: the whole file is checked, not its first chunk.
     path = tmp_path / "dead.csv"
@@ -182,7 +211,7 @@ def test_power_zero_in_every_row_is_refused(tmp_path, chunk_rows):
 def test_reactive_power_zero_in_every_row_says_fit_p_alone():
     v = np.linspace(0.95, 1.05, 40)
     with pytest.raises(DataError, match=r"Q is 0 in all 40 rows.*q_col=None") as e:
-        fit_zip({"v": v, "p": v, "q": np.zeros_like(v)}, **FAST)
+        fit_zip({"v": v, "p": v, "q": np.zeros_like(v)}, sampler=SamplerSettings(**FAST))
     assert e.value.column == "q"
 
 
@@ -191,7 +220,7 @@ def test_power_that_flows_out_is_fitted_and_said():
     v = np.linspace(0.95, 1.05, 60)
     data = _zip(v)
     data["p"] = -data["p"]
-    post = fit_zip(data, **FAST)
+    post = fit_zip(data, sampler=SamplerSettings(**FAST))
     assert _says(post, "P has median", "< 0: the bus exports power")
     assert post.mean()["p0"] < 0
-    assert not _says(fit_zip(_zip(v), **FAST), "exports power")
+    assert not _says(fit_zip(_zip(v), sampler=SamplerSettings(**FAST)), "exports power")

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit import fit_exp, fit_zip
 from loadbayes.io.errors import DataError
 from loadbayes.models.exponential import ExponentialModel
@@ -47,7 +48,13 @@ def test_multiplicative_refuses_non_positive_power_with_its_row():
 @pytest.mark.parametrize("noise", ["additive", "multiplicative"])
 def test_recovers_exponents(noise):
     d = _data()
-    post = fit_exp(d, q0=0.5, with_f=False, noise=noise, seed=1, **FAST, p0=1.0)
+    post = fit_exp(
+        d,
+        sampler=SamplerSettings(seed=1, **FAST),
+        spec=DataSpec(f_col="f", q0=0.5, p0=1.0),
+        with_f=False,
+        noise=noise,
+    )
     m, s = post.mean(), post.summary()
     assert set(post.names) == {"np", "nq", "tau_p", "tau_q"}
     assert abs(m["np"] - 1.3) < 4 * s.loc["np", "sd"] + 0.01
@@ -57,7 +64,9 @@ def test_recovers_exponents(noise):
 
 def test_auto_nominal_and_frequency():
     d = _data(n=600, kpf=2.0, kqf=-1.0, p0=0.8, noise=0.005)
-    post = fit_exp(d, p0="auto", q0="auto", seed=2, **FAST)
+    post = fit_exp(
+        d, sampler=SamplerSettings(seed=2, **FAST), spec=DataSpec(f_col="f", p0=None, q0=None)
+    )
     m, s = post.mean(), post.summary()
     assert set(post.names) == {"np", "kpf", "p0", "nq", "kqf", "q0", "tau_p", "tau_q"}
     for name, true in (("np", 1.3), ("p0", 0.8), ("kpf", 2.0), ("q0", 0.5), ("kqf", -1.0)):
@@ -67,8 +76,12 @@ def test_auto_nominal_and_frequency():
 
 def test_seed_reproducibility_and_predict():
     d = _data(100)
-    a = fit_exp(d, q0=0.5, seed=3, **FAST, p0=1.0)
-    b = fit_exp(d, q0=0.5, seed=3, **FAST, p0=1.0)
+    a = fit_exp(
+        d, sampler=SamplerSettings(seed=3, **FAST), spec=DataSpec(f_col="f", q0=0.5, p0=1.0)
+    )
+    b = fit_exp(
+        d, sampler=SamplerSettings(seed=3, **FAST), spec=DataSpec(f_col="f", q0=0.5, p0=1.0)
+    )
     assert np.array_equal(a.draws["np"], b.draws["np"])
     model = ExponentialModel(q0=0.5)
     pred = model.predict(a.draws, np.linspace(0.9, 1.0, 5), rng=0)
@@ -80,15 +93,26 @@ def test_seed_reproducibility_and_predict():
 def test_bad_input():
     d = _data(50)
     with pytest.raises(DataError, match="'p'"):
-        fit_exp({"v": d["v"]}, **FAST, p0=1.0, q0=1.0)
+        fit_exp(
+            {"v": d["v"]}, sampler=SamplerSettings(**FAST), spec=DataSpec(f_col="f", p0=1.0, q0=1.0)
+        )
     d2 = dict(d, v=d["v"].copy())
     d2["v"][3] = -1
     with pytest.raises(DataError, match="row 4"):
-        fit_exp(d2, **FAST, p0=1.0, q0=1.0)
+        fit_exp(d2, sampler=SamplerSettings(**FAST), spec=DataSpec(f_col="f", p0=1.0, q0=1.0))
     with pytest.raises(DataError, match="fewer"):
-        fit_exp({"v": d["v"][:2], "p": d["p"][:2]}, p0="auto", with_f=False, **FAST)
+        fit_exp(
+            {"v": d["v"][:2], "p": d["p"][:2]},
+            sampler=SamplerSettings(**FAST),
+            spec=DataSpec(f_col="f", p0=None),
+            with_f=False,
+        )
     with pytest.raises(DataError, match="spread"):
-        fit_exp({"v": np.ones(10), "p": np.ones(10)}, **FAST, p0=1.0, q0=1.0)
+        fit_exp(
+            {"v": np.ones(10), "p": np.ones(10)},
+            sampler=SamplerSettings(**FAST),
+            spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
+        )
 
 
 # ------------------------------------------------ pointwise likelihoods (model choice)
@@ -137,8 +161,15 @@ def test_same_scale_as_zip():
     """A ZIP fit and an exponential fit of the same data give log-likelihoods of one scale."""
     d = _data(200, np_=2.0)
     d = {"v": d["v"], "p": d["p"]}
-    z = fit_zip(d, with_q=False, seed=0, **FAST, p0=1.0, q0=1.0)
-    e = fit_exp(d, with_q=False, seed=0, **FAST, p0=1.0, q0=1.0)
+    z = fit_zip(
+        d, with_q=False, sampler=SamplerSettings(seed=0, **FAST), spec=DataSpec(p0=1.0, q0=1.0)
+    )
+    e = fit_exp(
+        d,
+        with_q=False,
+        sampler=SamplerSettings(seed=0, **FAST),
+        spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
+    )
     lz = pointwise_loglik(z, d, max_draws=200).mean()
     le = pointwise_loglik(e, d, max_draws=200).mean()
     # x^2 is both a ZIP (a1 = 1) and an exponential (np = 2) load: equal fits
@@ -150,9 +181,9 @@ def test_a_frequency_column_of_another_system_or_per_unit_is_refused():
     # fitted to it (it ran, silently); a column in per unit: -98%.
     data = _data(n=120)
     with pytest.raises(DataError, match=r"column 'f': the frequency has median 49.97.*give f0=50"):
-        fit_exp(dict(data, f=data["f"] - 10.0), **FAST)
+        fit_exp(dict(data, f=data["f"] - 10.0), sampler=SamplerSettings(**FAST))
     with pytest.raises(DataError, match=r"median 0.9995, .*looks per unit"):
-        fit_exp(dict(data, f=data["f"] / 60.0), **FAST)
+        fit_exp(dict(data, f=data["f"] / 60.0), sampler=SamplerSettings(**FAST))
     # Right as given: 50 Hz data with f0=50, and the default on 60 Hz data.
-    fit_exp(dict(data, f=data["f"] - 10.0), f0=50.0, **FAST)
-    fit_exp(data, **FAST)
+    fit_exp(dict(data, f=data["f"] - 10.0), f0=50.0, sampler=SamplerSettings(**FAST))
+    fit_exp(data, sampler=SamplerSettings(**FAST))

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit import fit_exp, fit_zip
 from loadbayes.fit.core import METHODS, fit
 from loadbayes.models.exponential import ExponentialModel
@@ -21,22 +22,24 @@ def data():
 
 
 def test_gibbs_through_the_driver_is_the_zip_fit(data):
-    a = fit(ZIPModel(with_q=False), data, seed=4, **FAST)
-    b = fit_zip(data, seed=4, **FAST, p0=1.0, q0=1.0)
+    a = fit(ZIPModel(with_q=False), data, sampler=SamplerSettings(seed=4, **FAST))
+    b = fit_zip(data, sampler=SamplerSettings(seed=4, **FAST), spec=DataSpec(p0=1.0, q0=1.0))
     for name in ("a1", "a2", "a3", "tau_p"):
         np.testing.assert_array_equal(a.draws[name], b.draws[name])
 
 
 def test_power_law_pieces_go_to_metropolis_within_gibbs(data):
-    a = fit(ExponentialModel(with_q=False), data, seed=2, **FAST)
-    b = fit_exp(data, seed=2, **FAST, p0=1.0, q0=1.0)
+    a = fit(ExponentialModel(with_q=False), data, sampler=SamplerSettings(seed=2, **FAST))
+    b = fit_exp(
+        data, sampler=SamplerSettings(seed=2, **FAST), spec=DataSpec(f_col="f", p0=1.0, q0=1.0)
+    )
     assert a.method == b.method == "gibbs-mwg"
     np.testing.assert_array_equal(a.draws["np"], b.draws["np"])
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_every_method_returns_the_same_result_type(data, method):
-    post = fit(ZIPModel(with_q=False), data, method=method, seed=1, **FAST)
+    post = fit(ZIPModel(with_q=False), data, method=method, sampler=SamplerSettings(seed=1, **FAST))
     m = post.mean()
     assert abs(m["a1"] + m["a2"] + m["a3"] - 1.0) < 1e-9
     # The shares are nearly collinear on 0.9-1.1 p.u., but the load curve is pinned

@@ -145,33 +145,35 @@ def test_model_validation() -> None:
 def test_check_refuses_a_steady_record_and_too_few_rows() -> None:
     df = simulate("large_industrial", disturbance=constant(1.0), noise=0.05, t_end_s=0.2)
     with pytest.raises(DataError, match="no excitation"):
-        fit_im(_cols(df), **FAST)
+        fit_im(_cols(df), sampler=SamplerSettings(**FAST))
     short = {k: v[:3] for k, v in _cols(simulate("krause_3hp", t_end_s=0.01)).items()}
     with pytest.raises(DataError, match="at least 4"):
-        fit_im(short, **FAST)
+        fit_im(short, sampler=SamplerSettings(**FAST))
 
 
 def test_fit_im_refuses_bad_input(noisy) -> None:
     cols = _cols(noisy)
     # The CLI's messages: the column, and the 1-based row of the first bad value.
     with pytest.raises(DataError, match="column 'dw': not found"):
-        fit_im({k: v for k, v in cols.items() if k != "dw"}, **FAST)
+        fit_im({k: v for k, v in cols.items() if k != "dw"}, sampler=SamplerSettings(**FAST))
     bad = dict(cols, ed=cols["ed"].copy())
     bad["ed"][5] = np.nan
     with pytest.raises(DataError, match="column 'ed', row 6: missing value"):
-        fit_im(bad, **FAST)
+        fit_im(bad, sampler=SamplerSettings(**FAST))
     with pytest.raises(ValueError, match="exact"):
-        fit_im(cols, scheme="exact", **FAST)
+        fit_im(cols, scheme="exact", sampler=SamplerSettings(**FAST))
     with pytest.raises(ValueError, match="non-conjugate"):
-        fit_im(cols, priors=im_priors(conjugate=True), **FAST)
+        fit_im(cols, priors=im_priors(conjugate=True), sampler=SamplerSettings(**FAST))
     with pytest.raises(ValueError, match="priors can be set on"):
         im_priors(per_coef={"a1": (0.0, 1.0)})
 
 
 def test_measured_form_warns_about_noisy_currents(clean, noisy) -> None:
-    warned = fit_im(_cols(noisy), currents="measured", **FAST).warnings
+    warned = fit_im(_cols(noisy), currents="measured", sampler=SamplerSettings(**FAST)).warnings
     assert any("errors in variables" in w for w in warned)
-    quiet = fit_im(_cols(clean["krause_3hp"]), currents="measured", **FAST).warnings
+    quiet = fit_im(
+        _cols(clean["krause_3hp"]), currents="measured", sampler=SamplerSettings(**FAST)
+    ).warnings
     assert not any("errors in variables" in w for w in quiet)
 
 
@@ -179,7 +181,7 @@ def test_measured_form_warns_about_noisy_currents(clean, noisy) -> None:
 
 
 def test_fit_im_result_contract(noisy) -> None:
-    post = fit_im(_cols(noisy), seed=3, **FAST)
+    post = fit_im(_cols(noisy), sampler=SamplerSettings(seed=3, **FAST))
     assert post.model == "im" and post.method == "gibbs-blocked"
     assert post.names == [*COEFFICIENT_NAMES, "tau_e", "tau_w", "tau_i", *PHYSICAL_NAMES]
     assert post.coefficients == list(COEFFICIENT_NAMES)
@@ -195,25 +197,29 @@ def test_fit_im_result_contract(noisy) -> None:
 
 def test_seed_makes_draws_reproducible_and_chains_independent_of_their_count(noisy) -> None:
     cols = _cols(noisy)
-    a = fit_im(cols, seed=5, **FAST)
-    b = fit_im(cols, seed=5, **FAST)
-    c = fit_im(cols, seed=5, draws=600, burn=100, chains=3)
+    a = fit_im(cols, sampler=SamplerSettings(seed=5, **FAST))
+    b = fit_im(cols, sampler=SamplerSettings(seed=5, **FAST))
+    c = fit_im(cols, sampler=SamplerSettings(seed=5, draws=600, burn=100, chains=3))
     for k in ("b2", "ac", "tau_e"):
         np.testing.assert_array_equal(a.draws[k], b.draws[k])
         np.testing.assert_array_equal(a.draws[k][0], c.draws[k][0])
-    assert not np.array_equal(a.draws["b2"], fit_im(cols, seed=6, **FAST).draws["b2"])
+    assert not np.array_equal(
+        a.draws["b2"], fit_im(cols, sampler=SamplerSettings(seed=6, **FAST)).draws["b2"]
+    )
 
 
 def test_given_t0_and_single_site_scheme(noisy) -> None:
-    post = fit_im(_cols(noisy), t0=noisy.attrs["t0"], scheme="single-site", **FAST)
+    post = fit_im(
+        _cols(noisy), t0=noisy.attrs["t0"], scheme="single-site", sampler=SamplerSettings(**FAST)
+    )
     assert post.settings["t0_source"] == "given" and post.method == "gibbs-single-site"
     assert post.mean()["b3"] == pytest.approx(noisy.attrs["coefficients"]["b3"], rel=0.01)
 
 
 def test_file_fit_equals_in_memory_fit(noisy, tmp_path) -> None:
     csv, _ = write_csv(noisy, tmp_path / "rec.csv")
-    mem = fit_im(_cols(noisy), seed=2, **FAST)
-    post, model = fit_im_file(str(csv), seed=2, chunk_rows=777, **FAST)
+    mem = fit_im(_cols(noisy), sampler=SamplerSettings(seed=2, **FAST))
+    post, model = fit_im_file(str(csv), sampler=SamplerSettings(seed=2, **FAST), chunk_rows=777)
     assert model.t0 == pytest.approx(post.settings["t0"])
     for k in ("b1", "b3", "ac", "tau_i"):
         np.testing.assert_array_equal(post.draws[k], mem.draws[k])
@@ -270,8 +276,8 @@ def test_a_record_with_no_stator_current_is_refused_in_words(noisy, tmp_path) ->
     cols = _cols(noisy)
     dead = dict(cols, id=np.zeros_like(cols["id"]), iq=np.zeros_like(cols["iq"]))
     with pytest.raises(DataError, match=r"column 'id': the stator current \(id, iq\) is 0"):
-        fit_im(dead, **FAST)
+        fit_im(dead, sampler=SamplerSettings(**FAST))
     path = tmp_path / "dead.csv"
     pd.DataFrame(dead).to_csv(path, index=False)
     with pytest.raises(DataError, match=r"dead.csv: column 'id': the stator current"):
-        fit_im_file(str(path), **FAST)
+        fit_im_file(str(path), sampler=SamplerSettings(**FAST))

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit import fit_exp, fit_zip
 from loadbayes.posterior import FitWarning, Posterior, _arviz
 
@@ -29,8 +30,12 @@ def _data(n=300, seed=0):
 def zip_file(tmp_path_factory):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
-        post = fit_zip(_data(), v_base=11, s_base=5, q0=0.4, units={"v": "kV", "p": "MW"},
-                       **LONG, p0=1.0)  # fmt: skip
+        post = fit_zip(
+            _data(),
+            sampler=SamplerSettings(**LONG),
+            spec=DataSpec(v_base=11, s_base=5, q0=0.4, p0=1.0),
+            units={"v": "kV", "p": "MW"},
+        )
     return post, post.to_netcdf(tmp_path_factory.mktemp("nc") / "fit.nc")
 
 
@@ -105,8 +110,17 @@ def test_multiplicative_exp_likelihood_is_on_the_scale_of_p():
     p = v**1.5 * np.exp(rng.normal(0, 0.01, v.size))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
-        mult = fit_exp({"v": v, "p": p}, noise="multiplicative", **FAST, p0=1.0, q0=1.0)
-        add = fit_exp({"v": v, "p": p}, **FAST, p0=1.0, q0=1.0)
+        mult = fit_exp(
+            {"v": v, "p": p},
+            noise="multiplicative",
+            sampler=SamplerSettings(**FAST),
+            spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
+        )
+        add = fit_exp(
+            {"v": v, "p": p},
+            sampler=SamplerSettings(**FAST),
+            spec=DataSpec(f_col="f", p0=1.0, q0=1.0),
+        )
     az = _arviz()
     a = az.loo(mult.to_arviz(), var_name="p").elpd_loo
     b = az.loo(add.to_arviz(), var_name="p").elpd_loo

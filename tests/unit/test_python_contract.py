@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit import fit_exp, fit_zip
 from loadbayes.io.errors import DataError
 from loadbayes.posterior import FitWarning
@@ -34,7 +35,7 @@ NAMES = {"v_col": "V_kV", "p_col": "P_MW", "q_col": "Q_Mvar"}
 @pytest.mark.parametrize("fit", [fit_zip, fit_exp])
 def test_a_dataframe_in_kv_and_mw_is_refused_in_python_words(fit):
     with pytest.raises(DataError) as err:
-        fit(_feeder(), **NAMES, **FAST)
+        fit(_feeder(), sampler=SamplerSettings(**FAST), spec=DataSpec(**NAMES))
     msg = str(err.value)
     assert "\n" not in msg and "column 'V_kV'" in msg
     assert "v_base=13.8" in msg and "accept_units=True" in msg
@@ -43,20 +44,24 @@ def test_a_dataframe_in_kv_and_mw_is_refused_in_python_words(fit):
 
 def test_a_wrong_p0_from_python_names_the_keyword(tmp_path):
     with pytest.raises(DataError) as err:
-        fit_zip(_feeder(), **NAMES, v_base=13.8, p0=1.0, **FAST)
+        fit_zip(
+            _feeder(), sampler=SamplerSettings(**FAST), spec=DataSpec(**NAMES, v_base=13.8, p0=1.0)
+        )
     msg = str(err.value)
     assert "column 'P_MW'" in msg and "p0='auto'" in msg and "--" not in msg
     # a file from Python: the same check and the same words
     path = tmp_path / "feeder.csv"
     _feeder().to_csv(path, index=False)
     with pytest.raises(DataError) as err:
-        fit_zip(str(path), **NAMES, **FAST)
+        fit_zip(str(path), sampler=SamplerSettings(**FAST), spec=DataSpec(**NAMES))
     assert "v_base=13.8" in str(err.value) and "--" not in str(err.value)
 
 
 def test_accept_units_fits_anyway_with_a_warning():
     with pytest.warns(FitWarning, match="units: V / V0"):
-        post = fit_zip(_feeder(), **NAMES, accept_units=True, **FAST)
+        post = fit_zip(
+            _feeder(), sampler=SamplerSettings(**FAST), spec=DataSpec(**NAMES, accept_units=True)
+        )
     assert any(w.startswith("units:") for w in post.warnings)
 
 
@@ -64,7 +69,11 @@ def test_p0_is_estimated_by_default_as_in_the_cli():
     # 6.5 MW in per unit of a 10 MVA base: 0.65 p.u., which p0 = 1 would misread.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FitWarning)
-        post = fit_zip(_feeder(), **NAMES, v_base=13.8, s_base=10.0, **FAST)
+        post = fit_zip(
+            _feeder(),
+            sampler=SamplerSettings(**FAST),
+            spec=DataSpec(**NAMES, v_base=13.8, s_base=10.0),
+        )
     m = post.mean()
     assert m["p0"] == pytest.approx(0.65, abs=0.002) and m["q0"] == pytest.approx(0.2, abs=0.002)
     assert abs(m["a1"] - 0.3) < 0.1 and abs(m["a3"] - 0.4) < 0.1
@@ -82,7 +91,7 @@ def test_the_motor_fit_checks_a_dataframe_too():
     cols = {c: np.full(n, 0.5) for c in DATA_COLUMNS}
     cols["w"] = np.full(n, 376.99)  # rad/s, not per unit
     with pytest.raises(DataError) as err:
-        fit_im(pd.DataFrame(cols), **FAST)
+        fit_im(pd.DataFrame(cols), sampler=SamplerSettings(**FAST))
     msg = str(err.value)
     assert "rotor speed" in msg and "accept_units=True" in msg and "--" not in msg
 

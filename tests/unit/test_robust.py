@@ -137,7 +137,7 @@ def test_fit_robust_on_zip_model():
     p = 0.3 * v**2 + 0.2 * v + 0.5 + rng.normal(0, 0.01, 300)
     q = 0.6 * v**2 + 0.1 * v + 0.3 + rng.normal(0, 0.01, 300)
     p[[7, 70]] = 0.0
-    post = fit_robust(ZIPModel(), {"v": v, "p": p, "q": q}, seed=1, **FAST)
+    post = fit_robust(ZIPModel(), {"v": v, "p": p, "q": q}, sampler=SamplerSettings(seed=1, **FAST))
     assert post.method == "gibbs-student-t" and post.model == "zip"
     assert {"a1", "a2", "a3", "a4", "a5", "a6", "tau_p", "tau_q", "nu_p", "nu_q"} == set(post.names)
     assert post.constant["weight_p"].shape == (300,)
@@ -147,7 +147,9 @@ def test_fit_robust_on_zip_model():
     m = post.mean()
     assert m["a1"] + m["a2"] + m["a3"] == pytest.approx(1.0)
     assert abs(m["a3"] - 0.5) < 0.15
-    fixed = fit_robust(ZIPModel(with_q=False), {"v": v, "p": p}, nu=4.0, seed=1, **FAST)
+    fixed = fit_robust(
+        ZIPModel(with_q=False), {"v": v, "p": p}, nu=4.0, sampler=SamplerSettings(seed=1, **FAST)
+    )
     assert "nu_p" not in fixed.names and fixed.settings["nu"] == 4.0
 
 

@@ -75,7 +75,9 @@ def test_the_step_fit_covers_what_the_plain_fit_misses():
     derived = post.extra_json["derived"]
     assert derived["dP/dV"]["hdi_low"] < DPDV < derived["dP/dV"]["hdi_high"]
     # one level for the whole day: the load's daily rise is read as a voltage effect
-    plain = fit_zip({"v": v, "p": p}, draws=2000, burn=500, chains=2, seed=1)
+    plain = fit_zip(
+        {"v": v, "p": p}, sampler=SamplerSettings(draws=2000, burn=500, chains=2, seed=1)
+    )
     s = 2 * plain.draws["a1"] + plain.draws["a2"]
     assert s.mean() < 0 and abs(s.mean() - DPDV) > 20 * s.std()
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from loadbayes import fit_zip
+from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.report.text import summary_table
 
 
@@ -16,7 +17,11 @@ def post():
     v = rng.uniform(0.9, 1.1, 400)
     p = 0.3 * v**2 + 0.2 * v + 0.5 + rng.normal(0, 0.01, v.size)
     q = 0.6 * v**2 + 0.1 * v + 0.3 + rng.normal(0, 0.01, v.size)
-    return fit_zip({"v": v, "p": p, "q": q}, draws=1500, burn=300, chains=2, seed=3, warn=False)
+    return fit_zip(
+        {"v": v, "p": p, "q": q},
+        sampler=SamplerSettings(draws=1500, burn=300, chains=2, seed=3),
+        warn=False,
+    )
 
 
 def test_derived_is_2a1_plus_a2_per_draw(post):
@@ -61,6 +66,11 @@ def test_negative_dp_dv_is_said_without_a_time_column():
     rng = np.random.default_rng(8)
     v = rng.uniform(0.95, 1.05, 300)
     p = 1.0 - (v - 1.0) + rng.normal(0, 0.002, v.size)
-    fit = fit_zip({"v": v, "p": p}, q_col=None, draws=800, burn=200, chains=2, warn=False)
+    fit = fit_zip(
+        {"v": v, "p": p},
+        sampler=SamplerSettings(draws=800, burn=200, chains=2),
+        spec=DataSpec(q_col=None),
+        warn=False,
+    )
     said = [w for w in fit.warnings if "the load level changes over the record" in w]
     assert said and "dP/dV at v0 is negative" in said[0] and "--t-col" in said[0]

@@ -12,6 +12,7 @@ from loadbayes.commands.options import (
     accept_units_option,
     data_options,
     distinct_columns,
+    fit_spec,
     nominal,
     nominal_note,
     nominal_options,
@@ -170,9 +171,7 @@ def fit_exp_cmd(
     try:
         post = fit_exp(
             pc.cols,
-            v0=v0,
-            p0=p0_val,
-            q0=q0_val,
+            spec=fit_spec(f_col="f", v0=v0, p0=p0_val, q0=q0_val),
             with_q=with_q,
             with_f=with_f,
             f0=f0,

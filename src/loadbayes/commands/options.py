@@ -393,6 +393,28 @@ def data_spec(*names: str):
     return deco
 
 
+def fit_spec(**values: Any):
+    """The fit's DataSpec of a command's checked options (``p0="auto"`` is None).
+
+    A bad base or V0 is refused here in the words the fit used when it took them loose
+    (``--v-base must be positive, got -1.0``), just before the fit that used to say so.
+    """
+    from loadbayes.commands.output import UserError
+    from loadbayes.core.settings import DataSpec
+
+    for name in ("v_base", "s_base"):
+        base = values.get(name)
+        if base is not None and not (math.isfinite(base) and base > 0):
+            raise UserError(f"--{name.replace('_', '-')} must be positive, got {base}")
+    v0 = values.get("v0", 1.0)
+    if not (math.isfinite(v0) and v0 > 0):
+        raise UserError(f"v0 must be positive, got {v0}")
+    for name in ("p0", "q0"):
+        if values.get(name) == "auto":
+            values[name] = None
+    return DataSpec(**values)
+
+
 def parse_nu(value: str) -> float | str:
     """``--nu``: a positive finite number, or ``"auto"`` (sampled)."""
     if value.strip().lower() == "auto":

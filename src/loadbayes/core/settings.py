@@ -10,13 +10,16 @@ the Python API from keywords.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, fields, replace
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 import numpy as np
 
-__all__ = ["DataSpec", "SamplerSettings", "check_iterations"]
+__all__ = ["DataSpec", "SamplerSettings", "check_iterations", "new_spelling"]
 
 
 def check_iterations(draws: int, burn: int, thin: int = 1, chains: int = 1) -> None:
@@ -199,3 +202,70 @@ class DataSpec:
         if unknown:
             raise TypeError(f"unknown data setting(s): {', '.join(unknown)}")
         return replace(base, **{k: v for k, v in changes.items() if v is not None})
+
+
+#: The keywords that became ``SamplerSettings`` fields (every fit refuses them loose).
+SAMPLER_KEYWORDS = tuple(f.name for f in fields(SamplerSettings))
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _value(name: str, value: Any) -> str:
+    if name in ("p0", "q0") and value == "auto":
+        value = None  # DataSpec's "estimate it"
+    text = repr(value)
+    return text if len(text) <= 40 and "\n" not in text else "..."
+
+
+def new_spelling(
+    data: Iterable[str] = (),
+    *,
+    sampler: str = "sampler",
+    more: Mapping[str, str] | None = None,
+) -> Callable[[F], F]:
+    """Refuse the sampler keywords (and the ``data`` keywords) a function no longer takes.
+
+    The one copy of the rule "settings objects, not loose keywords": ``sampler`` names
+    the function's :class:`SamplerSettings` parameter (the samplers in
+    :mod:`loadbayes.inference` call it ``settings``), ``data`` the :class:`DataSpec`
+    fields it took loose (``spec``), ``more`` any other keyword's new spelling as a
+    template with ``{value}`` (``{"torque": "model=CompositeModel(torque={value})"}``).
+
+    ``fit_zip(x, draws=4000, v_col="V")`` raises, in one line::
+
+        TypeError: fit_zip: draws= is now sampler=SamplerSettings(draws=4000);
+        v_col= is now spec=DataSpec(v_col='V')
+
+    A keyword the function still has (``fit_steps``'s ``v0``) passes through.
+    """
+    moved = {k: (sampler, "SamplerSettings") for k in SAMPLER_KEYWORDS}
+    moved.update({k: ("spec", "DataSpec") for k in data})
+    more = dict(more or {})
+
+    def deco(func: F) -> F:
+        own = set(inspect.signature(func).parameters)
+        refused = {k: v for k, v in moved.items() if k not in own and k not in more}
+        other = {k: v for k, v in more.items() if k not in own}
+
+        @functools.wraps(func)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            old = [k for k in kwargs if k in refused]
+            odd = [k for k in kwargs if k in other]
+            if old or odd:
+                parts = []
+                for keyword, cls in ((sampler, "SamplerSettings"), ("spec", "DataSpec")):
+                    names = [k for k in old if refused[k][0] == keyword]
+                    if names:
+                        given = ", ".join(f"{k}={_value(k, kwargs[k])}" for k in names)
+                        verb = "is" if len(names) == 1 else "are"
+                        parts.append(
+                            f"{', '.join(k + '=' for k in names)} {verb} now "
+                            f"{keyword}={cls}({given})"
+                        )
+                parts += [f"{k}= is now {other[k].format(value=_value(k, kwargs[k]))}" for k in odd]
+                raise TypeError(f"{func.__name__}: {'; '.join(parts)}")
+            return func(*args, **kwargs)
+
+        return wrapper  # type: ignore[return-value]
+
+    return deco

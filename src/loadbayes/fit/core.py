@@ -16,7 +16,7 @@ import numpy as np
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import Gram, GramAccumulator
-from loadbayes.fit.sampler import sampler_of
+from loadbayes.fit.sampler import MODEL_DEFAULTS, new_spelling
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
 from loadbayes.models.base import LinearModel
@@ -73,6 +73,7 @@ def prior_settings(priors: Mapping[str, BlockPrior]) -> dict[str, Any]:
     }
 
 
+@new_spelling()
 def fit_gram(
     model: LinearModel,
     gram: Gram,
@@ -83,14 +84,13 @@ def fit_gram(
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Iterable[str] = (),
-    **overrides: Any,
 ) -> Posterior:
     """Sample the model's blocks from precomputed statistics and wrap the result.
 
-    ``sampler`` (or :data:`~loadbayes.fit.sampler.MODEL_DEFAULTS`) with the keyword
-    ``overrides`` (``chains=..., seed=...``) are the sampler settings.
+    ``sampler``: how the chains run (:data:`~loadbayes.fit.sampler.MODEL_DEFAULTS`
+    when not given).
     """
-    smp = sampler_of(sampler, overrides)
+    smp = sampler if sampler is not None else MODEL_DEFAULTS
     warn = list(warnings) + model.check(gram)
     raw = sample_blocks(gram, model.blocks, priors, scheme=scheme, settings=smp)
     full = dict(settings or {})
@@ -163,6 +163,7 @@ def fit_power_law(
 METHODS = ("gibbs", "student-t", "least-squares", "kalman")
 
 
+@new_spelling()
 def fit(
     model: Any,
     data: Any,
@@ -170,12 +171,7 @@ def fit(
     method: str = "gibbs",
     priors: Mapping[str, Any] | None = None,
     scheme: Scheme = "blocked",
-    chains: int = 4,
-    draws: int = 40_000,
-    burn: int = 5_000,
-    thin: int = 1,
-    init: str = "prior",
-    seed: int = 0,
+    sampler: SamplerSettings | None = None,
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Iterable[str] = (),
@@ -200,8 +196,10 @@ def fit(
         One prior per block; the model's weak defaults otherwise.
     scheme : {"blocked", "single-site", "exact"}
         Gibbs scheme of linear blocks.
-    chains, draws, burn, thin, init, seed
-        Sampler settings; ``draws`` includes burn-in.
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`~loadbayes.fit.sampler.MODEL_DEFAULTS`: 4 chains of
+        40 000 iterations including a 5 000 burn-in); the baselines draw
+        ``sampler.kept`` per chain.
     observed, settings, warnings
         Recorded with the result.
 
@@ -212,23 +210,22 @@ def fit(
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
     cols = as_columns(data)
-    sampler = dict(chains=chains, draws=draws, burn=burn, thin=thin, seed=seed)
+    smp = sampler if sampler is not None else MODEL_DEFAULTS
     if method == "student-t":
         from loadbayes.fit.robust import fit_robust
 
         return fit_robust(
-            model, cols, priors=priors, init=init, observed=observed, settings=settings,
-            warnings=tuple(warnings), **sampler,
+            model, cols, priors=priors, sampler=smp, observed=observed, settings=settings,
+            warnings=tuple(warnings),
         )  # fmt: skip
     if method in ("least-squares", "kalman"):
         from loadbayes.baselines.kalman import kalman
         from loadbayes.baselines.least_squares import least_squares
 
-        kept = len(range(burn, draws, thin))
+        few = {"chains": smp.chains, "draws": smp.kept, "seed": smp.seed, "settings": settings}
         if method == "kalman":
-            return kalman(model, cols, chains=chains, draws=kept, seed=seed, settings=settings)
-        gram = accumulate(model, [cols])
-        return least_squares(model, gram, chains=chains, draws=kept, seed=seed, settings=settings)
+            return kalman(model, cols, **few)
+        return least_squares(model, accumulate(model, [cols]), **few)
     pieces = getattr(model, "pieces", "linear")
     if pieces not in ("linear", "power-law"):
         raise ValueError(
@@ -237,19 +234,18 @@ def fit(
         )
     if pieces == "power-law":
         priors = dict(priors or model.default_priors())
-        smp = SamplerSettings(chains=chains, draws=draws, burn=burn, thin=thin, seed=seed)
         raw, accept = fit_power_law(model, cols, priors, sampler=smp)
         n = int(next(iter(cols.values())).size)
         full = dict(settings or {})
         full.update(
             n=n,
             scheme="metropolis-within-gibbs",
-            chains=chains,
-            draws=draws,
-            burn=burn,
-            thin=thin,
+            chains=smp.chains,
+            draws=smp.draws,
+            burn=smp.burn,
+            thin=smp.thin,
             init="scattered around nonlinear least squares",
-            seed=seed,
+            seed=smp.seed,
             acceptance=accept,
             priors={
                 ch: {
@@ -278,9 +274,8 @@ def fit(
         gram,
         priors=priors or model.default_priors(),
         scheme=scheme,
-        init=init,
+        sampler=smp,
         observed=observed,
         settings=settings,
         warnings=warnings,
-        **sampler,
     )

@@ -1,55 +1,12 @@
-"""The data settings of a fit: a :class:`DataSpec` and the fit's own keywords over it.
+"""The data settings a fit records: its bases (:func:`bases`).
 
-Every file fit (``fit_zip``, ``fit_zip_file``, ``fit_exp``, ``fit_im_file``) takes
-``spec: DataSpec | None`` beside its column, base, nominal-point and drop keywords;
-:func:`data_of` turns them into the values it runs with, so a call without ``spec`` runs
-exactly as before.
+Where the data are and what their units are is a
+:class:`~loadbayes.core.settings.DataSpec`, the ``spec`` of every fit of a table.
 """
 
 from __future__ import annotations
 
-import inspect
-from collections.abc import Callable
-from dataclasses import fields
-from typing import Any
-
-from loadbayes.core.settings import DataSpec
-
-__all__ = ["bases", "data_of"]
-
-_FIELDS = frozenset(f.name for f in fields(DataSpec))
-
-
-def _at_default(value: Any, default: Any) -> bool:
-    if value is default:
-        return True
-    try:
-        return bool(value == default)
-    except (TypeError, ValueError):  # an array compared with a scalar
-        return False
-
-
-def data_of(spec: DataSpec | None, fit: Callable[..., Any], **given: Any) -> tuple[Any, ...]:
-    """The values of ``given`` (the fit's data keywords) that ``fit`` runs with, in order.
-
-    Without ``spec``: ``given`` unchanged. With it: each keyword that is a
-    :class:`DataSpec` field takes the spec's value unless the call changed it from the
-    fit's default (as :meth:`DataSpec.of`, keywords override the spec; a keyword left at
-    its default keeps the spec's value). The spec's "estimate the nominal power"
-    (``p0``/``q0`` None) is the fits' ``"auto"``. Keywords that are not fields
-    (``with_q``, ``units`` ...) are returned as given.
-    """
-    if spec is None:
-        return tuple(given.values())
-    params = inspect.signature(fit).parameters
-    out = []
-    for name, value in given.items():
-        if name in _FIELDS and _at_default(value, params[name].default):
-            value = getattr(spec, name)
-            if name in ("p0", "q0") and value is None:
-                value = "auto"
-        out.append(value)
-    return tuple(out)
+__all__ = ["bases"]
 
 
 def bases(v_base: float | None, s_base: float | None, f_hz: float | None = None) -> dict:

@@ -21,13 +21,15 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit.sampler import new_spelling
+from loadbayes.inference.ffbs import sample_level_regression
 from loadbayes.posterior import Posterior
 
 __all__ = [
     "CONFOUNDED",
     "DRIFT_DEFAULTS",
     "confounding_warnings",
-    "drift_overrides",
     "fit_zip_drift",
     "residual_drift",
 ]
@@ -40,16 +42,7 @@ CONFOUNDED = (
 
 #: Iterations, burn-in and chains of a drifting-level fit where the caller gives none: each
 #: iteration runs two Kalman filters per channel over the whole record.
-DRIFT_DEFAULTS = {"draws": 2500, "burn": 500, "chains": 2}
-
-
-def drift_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
-    """The sampler overrides of a drifting-level fit: :data:`DRIFT_DEFAULTS` under the caller's."""
-    out = dict(overrides)
-    out.setdefault("chains", DRIFT_DEFAULTS["chains"])
-    out.setdefault("draws", DRIFT_DEFAULTS["draws"])
-    out.setdefault("burn", min(DRIFT_DEFAULTS["burn"], out["draws"] // 4))
-    return out
+DRIFT_DEFAULTS = SamplerSettings(draws=2500, burn=500, chains=2)
 
 
 #: Level path points kept in the JSON.
@@ -114,16 +107,13 @@ def confounding_warnings(
     return [f"{CONFOUNDED}{hint} ({'; '.join(reasons)})."]
 
 
+@new_spelling()
 def fit_zip_drift(
     cols: dict[str, np.ndarray],
     t: np.ndarray,
     *,
     v0: float = 1.0,
-    chains: int = 2,
-    draws: int = 2000,
-    burn: int = 500,
-    thin: int = 1,
-    seed: Any = None,
+    sampler: SamplerSettings | None = None,
     prior_sd: float = 10.0,
     settings: dict[str, Any] | None = None,
     warnings: list[str] | None = None,
@@ -139,6 +129,9 @@ def fit_zip_drift(
         Time of each sample in seconds, increasing.
     v0 : float
         Nominal voltage (``x = v / v0``).
+    sampler : SamplerSettings, optional
+        How the chains run (:data:`DRIFT_DEFAULTS` when not given); each channel's
+        chains draw from their own child of its ``seed``.
 
     Returns
     -------
@@ -148,8 +141,8 @@ def fit_zip_drift(
         dP/dV (dQ/dV) at v0 per unit of the level; ``extra_json["level"]`` the level's
         path (mean and 95% band at up to 500 times).
     """
-    from loadbayes.inference.ffbs import sample_level_regression
-
+    sampler = sampler if sampler is not None else DRIFT_DEFAULTS
+    seed = sampler.seed
     t = np.asarray(t, dtype=float)
     x = np.asarray(cols["v"], dtype=float) / v0
     z1, z2 = (x - 1.0) * (x + 1.0), x - 1.0
@@ -167,9 +160,9 @@ def fit_zip_drift(
     for i, (ch, (c1, c2, c3)) in enumerate(channels):
         seed_ch = seeds[i]
         res = sample_level_regression(
-            np.asarray(cols[ch], dtype=float), z1, z2, dt, chains=chains, draws=draws,
-            burn=burn, thin=thin, seed=seed_ch, b_sd=(prior_sd, prior_sd),
-            keep_points=LEVEL_POINTS, progress=progress if i == 0 else None,
+            np.asarray(cols[ch], dtype=float), z1, z2, dt, settings=sampler.with_(seed=seed_ch),
+            b_sd=(prior_sd, prior_sd), keep_points=LEVEL_POINTS,
+            progress=progress if i == 0 else None,
         )  # fmt: skip
         a1, a2 = res.b[..., 0], res.b[..., 1]
         draws_out[c1], draws_out[c2], draws_out[c3] = a1, a2, 1.0 - a1 - a2
@@ -184,7 +177,8 @@ def fit_zip_drift(
         accept[ch] = res.acceptance.tolist()
     record = dict(settings or {})
     record.update(
-        n=int(x.size), chains=chains, draws=draws, burn=burn, thin=thin,
+        n=int(x.size), chains=sampler.chains, draws=sampler.draws, burn=sampler.burn,
+        thin=sampler.thin,
         seed=seed if isinstance(seed, (int, type(None))) else str(seed),
         level="drift", level_model="Gaussian random walk on P0(t) (Q0(t)), step variance "
         "q dt; shares from what the walk cannot explain", acceptance_shares=accept,

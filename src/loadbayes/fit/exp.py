@@ -9,42 +9,41 @@ import numpy as np
 
 from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fit.core import MAX_OBSERVED, fit
-from loadbayes.fit.data import bases, data_of
-from loadbayes.fit.sampler import sampler_kwargs, sampler_of
-from loadbayes.io.errors import DataError
+from loadbayes.fit.data import bases
+from loadbayes.fit.sampler import MODEL_DEFAULTS, new_spelling
+from loadbayes.fit.zip import data_checks
+from loadbayes.io.errors import DataError, OptionError
+from loadbayes.measurements.columns import read_power_columns, relocate
+from loadbayes.measurements.frame import is_path, read_frame
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 
-__all__ = ["fit_exp"]
+__all__ = ["EXP_SPEC", "fit_exp"]
+
+#: The data of an exponential fit when no ``spec`` is given: :class:`DataSpec`'s
+#: defaults, and a frequency column ``f`` read when present.
+EXP_SPEC = DataSpec(f_col="f")
+
+#: The keywords the fit took before :class:`DataSpec` (refused, with the fix).
+DATA_KEYWORDS = ("v_col", "p_col", "q_col", "f_col", "t_col", "v0", "p0", "q0", "v_base",
+                 "s_base", "drop_invalid", "accept_units")  # fmt: skip
 
 
+@new_spelling(data=DATA_KEYWORDS)
 def fit_exp(
     data: Any,
     *,
-    v_col: str = "v",
-    p_col: str = "p",
-    q_col: str | None = "q",
-    f_col: str | None = "f",
-    t_col: str | None = None,
-    v0: float = 1.0,
-    p0: Nominal = "auto",
-    q0: Nominal = "auto",
-    v_base: float | None = None,
-    s_base: float | None = None,
-    accept_units: bool = False,
+    spec: DataSpec | None = None,
+    sampler: SamplerSettings | None = None,
     with_q: bool | None = None,
     with_f: bool | None = None,
     f0: float = 60.0,
     noise: Noise = "additive",
     units: Mapping[str, str] | None = None,
     priors: Mapping[str, Any] | None = None,
-    drop_invalid: bool = False,
-    spec: DataSpec | None = None,
-    sampler: SamplerSettings | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: list[str] | None = None,
     warn: bool = True,
     unit_check: bool = True,
-    **overrides: Any,
 ):
     """Posterior of the exponential load model: the Python twin of ``loadbayes fit exp``.
 
@@ -52,19 +51,15 @@ def fit_exp(
     ----------
     data : str, path, DataFrame or mapping
         A CSV or Parquet file, or a table in memory; other columns are ignored.
-    v_col, p_col, q_col, f_col : str
-        Column names. Q and f are used when present under their default names ``q`` and
-        ``f``; named otherwise they are required; ``None`` leaves them out.
-    t_col : str, optional
-        Timestamp column (or a DataFrame's DatetimeIndex), recorded, not fitted.
-    v0, p0, q0 : float or "auto"
-        Nominal values (``auto``, the default as in the CLI, estimates P0 / Q0), in per
-        unit when bases are given.
-    v_base, s_base : float, optional
-        Bases that turn the data into per unit (V / v_base, P / s_base, Q / s_base).
-    accept_units : bool
-        Fit data that do not look like per unit of the nominal point (a warning instead
-        of a :class:`DataError`): the check of ``fit_zip``, on files and tables alike.
+    spec : DataSpec, optional
+        Where the data are (:data:`EXP_SPEC` when not given): ``v_col``, ``p_col``,
+        ``q_col``, ``f_col`` (Q and f are used when present under the names ``q`` and
+        ``f``; named otherwise they are required; ``None`` leaves them out: a spec of
+        your own reads f only if it names ``f_col``); ``t_col`` (a timestamp column, or
+        a DataFrame's DatetimeIndex: recorded, not fitted); ``v0``, ``p0``, ``q0``
+        (``p0``/``q0`` None, as in the CLI, estimates P0 / Q0; per unit when bases are
+        given); ``v_base``, ``s_base``; ``drop_invalid``; ``accept_units`` (the unit
+        check of ``fit_zip``, on files and tables alike).
     with_q, with_f : bool, optional
         ``False`` leaves Q / the frequency coefficients out even when the column is there.
     f0 : float
@@ -76,12 +71,6 @@ def fit_exp(
     priors : mapping, optional
         Per channel: :class:`ExpPriors` (additive) or :class:`BlockPrior` of the
         log-linear block (multiplicative); weak defaults otherwise.
-    drop_invalid : bool
-        Drop rows with NaN, inf or non-positive voltage instead of refusing the data.
-    spec : DataSpec, optional
-        Columns, bases, nominal point and drop policy in one object; the keywords above
-        that a call changes from their defaults override its fields
-        (:func:`loadbayes.fit.data.data_of`; ``p0``/``q0`` None is ``"auto"``).
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
     settings, warnings
@@ -91,9 +80,6 @@ def fit_exp(
     unit_check : bool
         ``False`` skips the unit and V-noise checks: for a caller that has run them on
         the raw file already (``loadbayes fit exp`` does, to word them with its options).
-    **overrides
-        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings of
-        ``sampler``; ``draws`` includes burn-in.
 
     Returns
     -------
@@ -111,22 +97,17 @@ def fit_exp(
     >>> rng = np.random.default_rng(0)
     >>> v = rng.uniform(0.85, 1.05, 400)
     >>> p = v**1.5 + rng.normal(0, 0.01, 400)
-    >>> post = fit_exp({"v": v, "p": p}, draws=2000, burn=500, chains=2)
+    >>> post = fit_exp({"v": v, "p": p}, sampler=SamplerSettings(draws=2000, burn=500, chains=2))
     >>> round(post.mean()["np"], 1)
     1.5
     """
-    from loadbayes.fit.zip import check_bases
-    from loadbayes.measurements.frame import is_path, read_frame
-
-    v_col, p_col, q_col, f_col, t_col, v0, p0, q0, v_base, s_base, drop_invalid, accept_units = (
-        data_of(
-            spec, fit_exp, v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col, t_col=t_col,
-            v0=v0, p0=p0, q0=q0, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
-            accept_units=accept_units,
-        )
-    )  # fmt: skip
-    smp = sampler_of(sampler, overrides, check=True)
-    check_bases(v_base, s_base)
+    spec = spec if spec is not None else EXP_SPEC
+    v_col, p_col, q_col, f_col, t_col = spec.v_col, spec.p_col, spec.q_col, spec.f_col, spec.t_col
+    v0, v_base, s_base = spec.v0, spec.v_base, spec.s_base
+    p0: Nominal = "auto" if spec.p0 is None else spec.p0
+    q0: Nominal = "auto" if spec.q0 is None else spec.q0
+    drop_invalid, accept_units = spec.drop_invalid, spec.accept_units
+    smp = sampler if sampler is not None else MODEL_DEFAULTS
     if with_q is False:
         q_col = None
     if with_f is False:
@@ -140,8 +121,6 @@ def fit_exp(
     warn_list = list(warnings or [])
     base = dict(settings or {})
     if is_path(data):
-        from loadbayes.measurements.columns import read_power_columns
-
         pc = read_power_columns(
             str(data), v_col=v_col, p_col=p_col, q_col=q_col, q_required=q_req,
             f_col=f_col if f_req else None, extra=(f_col,) if f_col and not f_req else (),
@@ -162,8 +141,6 @@ def fit_exp(
             cols["f"] = d[f_col]
         base.update(table.time)
         base.setdefault("data", "DataFrame" if hasattr(data, "iloc") else "mapping")
-    from loadbayes.fit.zip import data_checks
-
     # The exponential model is near the ZIP one at V0 (P = P0 at V = V0): the same check.
     names = {"v": v_col, "p": p_col, "q": q_col, "f": f_col}
     where = str(data) if is_path(data) else "data"
@@ -190,11 +167,9 @@ def fit_exp(
             priors=priors, sampler=smp, settings=base, warnings=warn_list,
         )  # fmt: skip
     except DataError as exc:
-        from loadbayes.measurements.columns import relocate
-
         raise relocate(exc, where, rows, names) from None
     if warn:
-        post.warn(stacklevel=2)
+        post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
     return post
 
 
@@ -214,8 +189,6 @@ def _fit_exp_columns(
     warnings: list[str],
 ):
     """The fit itself, on checked columns in per unit."""
-    from loadbayes.io.errors import OptionError
-
     try:
         model = ExponentialModel(
             v0=v0, p0=p0, q0=q0, with_q=with_q, with_f=with_f, f0=f0, noise=noise
@@ -242,7 +215,7 @@ def _fit_exp_columns(
         model,
         cols,
         priors=priors,
-        **sampler_kwargs(sampler),
+        sampler=sampler,
         observed=observed,
         settings=base,
         warnings=warn,

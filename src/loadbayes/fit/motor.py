@@ -21,11 +21,18 @@ from loadbayes.fit.core import (
     accumulate,
     prior_settings,
 )
-from loadbayes.fit.data import bases, data_of
-from loadbayes.fit.sampler import sampler_of
+from loadbayes.fit.data import bases
+from loadbayes.fit.sampler import MODEL_DEFAULTS, new_spelling
+from loadbayes.inference.bilinear import sample_bilinear
 from loadbayes.inference.gibbs import Scheme
 from loadbayes.inference.linear import sample_blocks
-from loadbayes.measurements.units import Wording
+from loadbayes.io.errors import DataError, OptionError
+from loadbayes.io.tables import iter_chunks
+from loadbayes.measurements.columns import relocate
+from loadbayes.measurements.frame import is_path, read_frame
+from loadbayes.measurements.units import Wording, check_motor_units, refuse
+from loadbayes.models.motor import COEFFICIENT_NAMES
+from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 from loadbayes.posterior import Posterior
 
 __all__ = ["fit_im", "fit_im_file", "im_priors"]
@@ -45,8 +52,6 @@ def im_priors(
     ``per_coef`` maps any of b1, b2, b3, ab, ac to (mean, sd); the others take
     (``mean``, ``sd``). Each block's precision gets ``Gamma(shape, rate)``.
     """
-    from loadbayes.models.motor import COEFFICIENT_NAMES
-
     per_coef = dict(per_coef or {})
     unknown = set(per_coef) - set(COEFFICIENT_NAMES)
     if unknown:
@@ -81,9 +86,6 @@ def _fit_im_gram(
     warnings: Iterable[str] = (),
 ):
     """Sample the motor from its Gram matrix (either form); return (Posterior, model)."""
-    from loadbayes.inference.bilinear import sample_bilinear
-    from loadbayes.io.errors import DataError
-
     if not np.all(np.isfinite(gram.matrix)):
         raise DataError("the data hold NaN or infinite values (or values too large to square)")
     priors = dict(priors or model.default_priors())
@@ -166,6 +168,7 @@ def _fit_im_gram(
     return post, model
 
 
+@new_spelling(data=("drop_invalid", "accept_units"))
 def fit_im(
     data: Any,
     *,
@@ -174,11 +177,9 @@ def fit_im(
     currents: str = "modelled",
     priors: Mapping[str, BlockPrior] | None = None,
     scheme: Scheme = "blocked",
+    spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
-    drop_invalid: bool = False,
-    accept_units: bool = False,
     warn: bool = True,
-    **overrides: Any,
 ) -> Posterior:
     """Posterior of the induction-motor coefficients: the Python twin of ``loadbayes fit im``.
 
@@ -203,19 +204,16 @@ def fit_im(
         weak defaults otherwise (:func:`im_priors`).
     scheme : {"blocked", "single-site", "exact"}
         Gibbs scheme.
+    spec : DataSpec, optional
+        Its ``drop_invalid`` (drop rows with NaN or inf instead of refusing the data)
+        and ``accept_units`` (fit states that do not look like per unit: a warning
+        instead of a :class:`DataError`, the CLI's check on files and tables alike); the
+        motor's columns are fixed.
     sampler : SamplerSettings, optional
-        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
-    drop_invalid : bool
-        Drop rows with NaN or inf instead of refusing the data.
-    accept_units : bool
-        Fit states that do not look like per unit (a warning instead of a
-        :class:`DataError`): the CLI's check, on files and tables alike, worded with
-        this keyword.
+        How the chains run (:data:`loadbayes.fit.sampler.MODEL_DEFAULTS` by default;
+        ``draws`` counts iterations including burn-in, the paper's M).
     warn : bool
         Issue the fit's warnings as :class:`~loadbayes.posterior.FitWarning` too.
-    **overrides
-        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings of
-        ``sampler``; ``draws`` counts iterations including burn-in (the paper's M).
 
     Returns
     -------
@@ -232,34 +230,27 @@ def fit_im(
     --------
     >>> from loadbayes.cases.motor_sim import simulate
     >>> df = simulate("small_industrial", noise=0.05, seed=1)  # doctest: +SKIP
-    >>> post = fit_im(df, draws=4000, burn=1000)  # doctest: +SKIP
+    >>> post = fit_im(df, sampler=SamplerSettings(draws=4000, burn=1000))  # doctest: +SKIP
     >>> round(post.mean()["b3"], 2)  # doctest: +SKIP
     -0.71
     """
-    from loadbayes.io.errors import DataError, OptionError
-    from loadbayes.measurements.columns import relocate
-    from loadbayes.measurements.frame import is_path, read_frame
-    from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
-
-    smp = sampler_of(sampler, overrides, check=True)
+    spec = spec if spec is not None else DataSpec()
+    smp = sampler if sampler is not None else MODEL_DEFAULTS
     if is_path(data):
         post, _ = fit_im_file(str(data), t0=t0, f_hz=f_hz, currents=currents, priors=priors,
-                              drop_invalid=drop_invalid, scheme=scheme, sampler=smp,
-                              accept_units=accept_units)  # fmt: skip
+                              spec=spec, scheme=scheme, sampler=smp)  # fmt: skip
         if warn:
-            post.warn(stacklevel=2)
+            post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
         return post
     table = read_frame(data, list(DATA_COLUMNS[1:]), optional=[DATA_COLUMNS[0]],
-                       drop_invalid=drop_invalid)  # fmt: skip
+                       drop_invalid=spec.drop_invalid)  # fmt: skip
     cols = table.data
     try:
         model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
     except ValueError as exc:
         raise OptionError(str(exc)) from None
-    from loadbayes.measurements.units import check_motor_units, refuse
-
     problems = check_motor_units(cols, wording="python")
-    if not accept_units:
+    if not spec.accept_units:
         refuse(problems, path="data")
     warnings = [f"units: {pr}" for pr in problems]
     if table.n_dropped:
@@ -286,10 +277,11 @@ def fit_im(
     except DataError as exc:
         raise relocate(exc, "data", table.rows, {}) from None
     if warn:
-        post.warn(stacklevel=2)
+        post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
     return post
 
 
+@new_spelling(data=("drop_invalid", "accept_units"))
 def fit_im_file(
     path: str,
     *,
@@ -297,15 +289,12 @@ def fit_im_file(
     f_hz: float = 60.0,
     currents: str = "modelled",
     priors: Mapping[str, BlockPrior] | None = None,
-    drop_invalid: bool = False,
     chunk_rows: int = CHUNK_ROWS,
     progress: Callable[[int], None] | None = None,
-    accept_units: bool = False,
     scheme: Scheme = "blocked",
     spec: DataSpec | None = None,
     sampler: SamplerSettings | None = None,
     wording: Wording = "python",
-    **overrides: Any,
 ):
     """Fit the induction motor to a CSV or Parquet file read in chunks.
 
@@ -316,26 +305,19 @@ def fit_im_file(
         ``t_s, ud, uq, ed, eq, w, id, iq, ded, deq, dw`` (others are ignored).
     t0, f_hz, currents, priors
         As :func:`fit_im`.
-    drop_invalid : bool
-        Drop rows with NaN or inf instead of refusing the file.
     chunk_rows : int
         Rows read at a time (memory does not grow with the file).
     progress : callable, optional
         Called with the number of rows of each chunk.
-    accept_units : bool
-        Fit states that do not look like per unit (a warning instead of an error; see
-        :func:`loadbayes.measurements.units.check_motor_units`).
     scheme : {"blocked", "single-site", "exact"}
         Gibbs scheme.
     spec : DataSpec, optional
-        Its ``drop_invalid`` and ``accept_units`` (the motor's columns are fixed); the
-        keywords, when changed from their defaults, override them.
+        Its ``drop_invalid`` and ``accept_units``, as :func:`fit_im` (see
+        :func:`loadbayes.measurements.units.check_motor_units`).
     sampler : SamplerSettings, optional
-        How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default).
+        How the chains run (:data:`loadbayes.fit.sampler.MODEL_DEFAULTS` by default).
     wording : {"python", "cli"}
         Whose names the unit check's message gives (``loadbayes fit im`` passes "cli").
-    **overrides
-        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``.
 
     Returns
     -------
@@ -348,14 +330,9 @@ def fit_im_file(
         Bad data; states not in per unit; or, without ``t0``, a record whose first rows
         are not a steady state (:func:`steady_start_problem`), since T0 comes from row 1.
     """
-    from loadbayes.io.errors import DataError
-    from loadbayes.io.tables import iter_chunks
-    from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
-
-    drop_invalid, accept_units = data_of(
-        spec, fit_im_file, drop_invalid=drop_invalid, accept_units=accept_units
-    )
-    smp = sampler_of(sampler, overrides)
+    spec = spec if spec is not None else DataSpec()
+    drop_invalid, accept_units = spec.drop_invalid, spec.accept_units
+    smp = sampler if sampler is not None else MODEL_DEFAULTS
     model = InductionMotorModel(f_hz=f_hz, currents=currents)  # type: ignore[arg-type]
     acc = GramAccumulator(model.gram_columns)
     state: dict[str, Any] = {"dropped": 0}
@@ -470,9 +447,6 @@ def steady_start_problem(data: Mapping[str, np.ndarray], *, head: int = 5) -> st
 
 
 def _first_chunk_checks(data, *, path, t0, accept_units, row, wording="cli") -> list[str]:
-    from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import check_motor_units, refuse
-
     problems = check_motor_units(data, wording=wording)
     if not accept_units:
         refuse(problems, path=path)

@@ -9,7 +9,7 @@ import numpy as np
 
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
-from loadbayes.fit.sampler import sampler_of
+from loadbayes.fit.sampler import MODEL_DEFAULTS, new_spelling
 from loadbayes.inference import robust
 from loadbayes.inference.robust import FLAG_SIGMAS, NU_BOUNDS, NU_PRIOR, flag_threshold
 from loadbayes.posterior import Posterior
@@ -17,6 +17,7 @@ from loadbayes.posterior import Posterior
 __all__ = ["fit_robust"]
 
 
+@new_spelling()
 def fit_robust(
     model: Any,
     data: Mapping[str, np.ndarray],
@@ -28,7 +29,6 @@ def fit_robust(
     observed: Mapping[str, np.ndarray] | None = None,
     settings: Mapping[str, Any] | None = None,
     warnings: Sequence[str] = (),
-    **overrides: Any,
 ):
     """Student-t fit of every block of a linear load model, as a :class:`Posterior`.
 
@@ -47,8 +47,6 @@ def fit_robust(
     sampler : SamplerSettings, optional
         How the chains run (:data:`loadbayes.fit.core.MODEL_DEFAULTS` by default); each
         block gets its own child of its ``seed`` (an int, a ``SeedSequence`` or None).
-    **overrides
-        ``chains``, ``draws``, ``burn``, ``thin``, ``init``, ``seed``: single settings.
     flag_sigmas : float
         Flag rule (module notes).
     observed, settings, warnings
@@ -61,7 +59,7 @@ def fit_robust(
         each sample per block (``weight_<block>``) and ``settings["flagged"]`` the 0-based
         indices of flagged samples per block.
     """
-    smp = sampler_of(sampler, overrides)
+    smp = sampler if sampler is not None else MODEL_DEFAULTS
     chains, draws, burn, thin = smp.chains, smp.draws, smp.burn, smp.thin
     init, seed = smp.init, smp.seed
     rows = model.rows(data)

@@ -31,8 +31,20 @@ import numpy as np
 from numba import njit
 
 from loadbayes.core.parallel import chain_generators, check_stop, run_chains
+from loadbayes.core.settings import SamplerSettings, new_spelling
 
-__all__ = ["LevelChains", "ffbs", "kf_loglik", "local_scale", "sample_level_regression"]
+__all__ = [
+    "DEFAULTS",
+    "LevelChains",
+    "ffbs",
+    "kf_loglik",
+    "local_scale",
+    "sample_level_regression",
+]
+
+#: The settings of :func:`sample_level_regression` when none are given (each iteration
+#: runs two Kalman filters over the record).
+DEFAULTS = SamplerSettings(draws=2500, burn=500, chains=2)
 
 
 @njit(cache=True, nogil=True)
@@ -188,23 +200,19 @@ class LevelChains:
     acceptance: np.ndarray
 
 
+@new_spelling(sampler="settings")
 def sample_level_regression(
     y: np.ndarray,
     x1: np.ndarray,
     x2: np.ndarray,
     dt: np.ndarray,
     *,
-    chains: int,
-    draws: int,
-    burn: int,
-    thin: int = 1,
-    seed=None,
+    settings: SamplerSettings | None = None,
     b_mean: Sequence[float] = (0.0, 0.0),
     b_sd: Sequence[float] = (10.0, 10.0),
     tau_prior: tuple[float, float] = (1e-3, 1e-9),
     q_prior: tuple[float, float] | None = None,
     keep_points: int = 500,
-    workers: int | None = None,
     warm: int = 30,
     window_s: float = 3600.0,
     path_draws: int = 200,
@@ -218,10 +226,10 @@ def sample_level_regression(
         Observations and the two regressors.
     dt : ndarray, shape (n,)
         Time step before each sample (``dt[0]`` is not used); positive.
-    chains, draws, burn, thin : int
-        ``draws`` iterations per chain including ``burn``; every ``thin``-th kept.
-    seed : int or Generator, optional
-        Chains draw from generators spawned from it (:func:`chain_generators`).
+    settings : SamplerSettings, optional
+        ``draws`` iterations per chain including ``burn``, every ``thin``-th kept;
+        ``chains`` draw from generators spawned from ``seed`` (:func:`chain_generators`),
+        in at most ``threads`` threads. :data:`DEFAULTS` when not given.
     b_mean, b_sd : pair of float
         Normal prior of (b1, b2).
     tau_prior : (shape, rate)
@@ -239,6 +247,8 @@ def sample_level_regression(
     -------
     LevelChains
     """
+    settings = settings if settings is not None else DEFAULTS
+    chains, draws, burn, thin = settings.chains, settings.draws, settings.burn, settings.thin
     y = np.ascontiguousarray(y, dtype=float)
     x1 = np.ascontiguousarray(x1, dtype=float)
     x2 = np.ascontiguousarray(x2, dtype=float)
@@ -367,7 +377,7 @@ def sample_level_regression(
                 progress(1)
         return out_b, out_tau, out_q, out_path, acc / max(kept * thin, 1)
 
-    res = run_chains(chain, chain_generators(seed, chains), workers=workers)
+    res = run_chains(chain, chain_generators(settings.seed, chains), workers=settings.threads)
     return LevelChains(
         b=np.stack([r[0] for r in res]),
         tau=np.stack([r[1] for r in res]),

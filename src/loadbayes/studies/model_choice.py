@@ -256,17 +256,25 @@ def compare_zip_exp(
     student_t: bool = False,
 ) -> pd.DataFrame:
     """Fit ZIP and exponential (P only) to the same data and compare them by LOO."""
+    from loadbayes.core.settings import DataSpec
     from loadbayes.fit import fit_exp, fit_zip
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
 
     cols = {"v": np.asarray(data["v"], float), "p": np.asarray(data["p"], float)}
     if "f" in data:
         cols["f"] = np.asarray(data["f"], float)
-    kw = {"draws": draws, "burn": burn, "chains": chains, "seed": seed}
+    smp = MODEL_DEFAULTS.with_(draws=draws, burn=burn, chains=chains, seed=seed)
+    spec = DataSpec(v0=v0, p0=None if p0 == "auto" else p0)  # type: ignore[arg-type]
     posts = {
         # The study records each fit's warnings itself; no Python warnings on the way.
-        "zip": fit_zip(cols, v0=v0, p0=p0, with_q=False, warn=False, **kw),
+        "zip": fit_zip(cols, spec=spec, with_q=False, warn=False, sampler=smp),
         "exponential": fit_exp(
-            cols, v0=v0, p0=p0, with_q=False, noise=exp_noise, warn=False, **kw
+            cols,
+            spec=spec.with_(f_col="f"),
+            with_q=False,
+            noise=exp_noise,
+            warn=False,
+            sampler=smp,
         ),  # fmt: skip
     }
     if student_t:
@@ -274,7 +282,7 @@ def compare_zip_exp(
         from loadbayes.models.zip import ZIPModel
 
         model = ZIPModel(v0=v0, p0=p0, with_q=False)  # type: ignore[arg-type]
-        posts["zip-student-t"] = fit_robust(model, cols, settings={"v0": v0, "p0": p0}, **kw)
+        posts["zip-student-t"] = fit_robust(model, cols, settings={"v0": v0, "p0": p0}, sampler=smp)
     return compare(posts, cols)
 
 

@@ -87,19 +87,24 @@ def _fit(method: str, data: dict[str, np.ndarray], sampler: dict, seed: int):
     """Point estimate (a1, a2) of one method, and the Student-t flags (else None)."""
     from loadbayes.baselines.kalman import kalman
     from loadbayes.baselines.least_squares import least_squares
+    from loadbayes.core.settings import DataSpec
     from loadbayes.fit import accumulate, fit_robust, fit_zip
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel(with_q=False)
     if method == "gibbs":
         # The data are per unit by construction; their bad samples (dropouts to zero,
         # stuck values) throw the unit check's estimate of P at V0, so it is told so.
-        post = fit_zip(data, with_q=False, p0=1.0, seed=seed, warn=False, accept_units=True,
-                       **sampler)  # fmt: skip
+        post = fit_zip(data, with_q=False, spec=DataSpec(p0=1.0, accept_units=True), warn=False,
+                       sampler=MODEL_DEFAULTS.with_(seed=seed, **sampler))  # fmt: skip
         m = post.mean()
         return np.array([m["a1"], m["a2"]]), None
     if method == "student-t":
-        post = fit_robust(model, data, seed=seed, settings={"v0": 1.0, "p0": 1.0}, **sampler)
+        post = fit_robust(
+            model, data, sampler=MODEL_DEFAULTS.with_(seed=seed, **sampler),
+            settings={"v0": 1.0, "p0": 1.0},
+        )  # fmt: skip
         m = post.mean()
         return np.array([m["a1"], m["a2"]]), np.asarray(post.settings["flagged"]["p"], int)
     if method == "ls":

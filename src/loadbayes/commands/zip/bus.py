@@ -12,6 +12,7 @@ from loadbayes.commands.options import (
     check_prior_sd,
     data_options,
     distinct_columns,
+    fit_spec,
     likelihood_options,
     nominal,
     nominal_note,
@@ -193,7 +194,7 @@ def fit_zip_cmd(
     if level == "drift" and likelihood != "normal":
         raise UserError("--level drift has a Gaussian likelihood only (drop --likelihood)")
     check_prior_sd(prior_sd, "--prior-sd")
-    q_name, q_required = q_column(q_col)
+    q_name, _ = q_column(q_col)  # a Q column named other than q: required by the fit
     note = nominal_note(p0, q0, with_q=q_name is not None)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
     if scheme == "exact" and not conjugate:
@@ -245,29 +246,23 @@ def fit_zip_cmd(
     )
     progress = Progress("reading", estimate_rows(data), quiet)
     try:
+        spec = fit_spec(
+            v_col=v_col, p_col=p_col, q_col=q_name, t_col=t_col, v0=v0, p0=p0_val,
+            q0=q0_val, v_base=v_base, s_base=s_base, drop_invalid=drop_invalid,
+            accept_units=accept_units,
+        )  # fmt: skip
         post, model = fit_zip_file(
             data,
-            v_col=v_col,
-            p_col=p_col,
-            q_col=q_name,
-            q_required=q_required,
-            v0=v0,
-            p0=p0_val,
-            q0=q0_val,
-            v_base=v_base,
-            s_base=s_base,
+            spec=spec,
             priors=priors,
             scheme=scheme,
             likelihood=likelihood,
             nu=nu_val,
             sampler=sampler,
-            drop_invalid=drop_invalid,
             chunk_rows=chunk_rows,
             progress=progress,
-            accept_units=accept_units,
             wording="cli",
             v_noise=v_noise_val,
-            t_col=t_col,
             level=level,
         )
     finally:

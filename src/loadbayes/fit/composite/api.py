@@ -14,10 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.core.keywords import moved_keywords
-from loadbayes.core.settings import DataSpec, SamplerSettings
+from loadbayes.core.settings import DataSpec, SamplerSettings, new_spelling
 from loadbayes.fit.composite.checks import check_units
-from loadbayes.fit.composite.driver import MOVED, CompositeFit, SamplingProgress
+from loadbayes.fit.composite.driver import (
+    DATA_KEYWORDS,
+    MOVED,
+    CompositeFit,
+    SamplingProgress,
+)
 from loadbayes.fit.composite.driver import fit_composite as fit_events
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
@@ -31,7 +35,8 @@ __all__ = ["fit_composite", "read"]
 _T_COL, _EVENT_COL = "t_s", "event"
 
 
-def read(data: Any, spec: DataSpec | None = None, *, f_hz: float = 60.0, **old: Any):
+@new_spelling(data=DATA_KEYWORDS)
+def read(data: Any, spec: DataSpec | None = None, *, f_hz: float = 60.0):
     """Events from files, tables or events (the readers and checks of the CLI).
 
     ``data`` is a file name, a DataFrame (or mapping of columns), an
@@ -40,8 +45,6 @@ def read(data: Any, spec: DataSpec | None = None, *, f_hz: float = 60.0, **old: 
     default to ``f`` and ``angle_rad`` when present) and the bases (data / base = per
     unit). ``f_hz`` is the nominal frequency a frequency or angle column is read against.
     """
-    if old:
-        raise TypeError(moved_keywords("read", old, MOVED))
     spec = spec if spec is not None else DataSpec()
     t_col, event_col = spec.t_col or _T_COL, spec.event_col or _EVENT_COL
     v_col, p_col, q_col = spec.v_col, spec.p_col, spec.q_col or "q"
@@ -92,6 +95,7 @@ def _text_ids(table: Any, column: str) -> np.ndarray | None:
     return np.char.strip(raw.astype(str))
 
 
+@new_spelling(data=DATA_KEYWORDS, more=MOVED)
 def fit_composite(
     model: DynamicLoadModel,
     data: Any = None,
@@ -100,7 +104,6 @@ def fit_composite(
     progress: SamplingProgress | None = None,
     spec: DataSpec | None = None,
     provenance: Mapping[str, Any] | None = None,
-    **old: Any,
 ) -> CompositeFit:
     """Fit a dynamic load model (``zip+motor``: ZIP + induction motor) to recorded events.
 
@@ -161,8 +164,6 @@ def fit_composite(
     """
     from loadbayes.fit.composite.checks import check_run
 
-    if old:
-        raise TypeError(moved_keywords("fit_composite", old, MOVED))
     if not isinstance(model, DynamicLoadModel):
         raise TypeError(
             "fit_composite: the first argument is the model (loadbayes.CompositeModel, or "

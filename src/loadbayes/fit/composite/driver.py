@@ -20,8 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.core.keywords import moved_keywords
-from loadbayes.core.settings import SamplerSettings
+from loadbayes.core.settings import SamplerSettings, new_spelling
 from loadbayes.fit.composite.bounded import share_start
 from loadbayes.fit.composite.checks import check_run, convergence_warnings, start_warnings
 from loadbayes.fit.composite.describe import describe_fit
@@ -54,20 +53,20 @@ from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = ["COMPOSITE_DEFAULTS", "MOVED", "CompositeFit", "SamplingProgress", "fit_composite"]
 
-#: The keywords of the old signature and where each went.
+#: The old signature's keywords that are neither SamplerSettings' nor DataSpec's fields,
+#: and where each went (``core/settings.new_spelling`` refuses them in one line).
 MOVED = {
-    **{k: f"sampler=SamplerSettings({k}={{value}})" for k in
-       ("draws", "burn", "thin", "chains", "seed", "move", "max_seconds", "until_converged")},
     "workers": "sampler=SamplerSettings(threads={value})",
     **{k: f"model=CompositeModel({k}={{value}})" for k in
        ("f_hz", "torque", "h_max", "steps", "window_s", "shares", "noise", "likelihood",
         "nu", "priors", "prior")},
     "coefficient_prior": "model=CompositeModel(priors={value})",
-    **{k: f"spec=DataSpec({k}={{value}})" for k in
-       ("t_col", "v_col", "p_col", "q_col", "f_col", "angle_col", "event_col", "v_base",
-        "s_base", "accept_units")},
     "settings": "provenance={value}",
+    "wording": "(gone: the reader words its own checks)",
 }  # fmt: skip
+#: The data keywords of the old signature (``spec=DataSpec(...)`` of the public door).
+DATA_KEYWORDS = ("t_col", "v_col", "p_col", "q_col", "f_col", "angle_col", "event_col",
+                 "v_base", "s_base", "accept_units")  # fmt: skip
 
 #: The composite fit's sampler defaults (the CLI's too): 16000 iterations, 4000 burn-in,
 #: four chains.
@@ -191,6 +190,7 @@ def _student_t(likelihood: str, nu: float | str) -> StudentT | None:
     return StudentT(nu=nu) if likelihood == "student-t" else None
 
 
+@new_spelling(data=DATA_KEYWORDS, more=MOVED)
 def fit_composite(
     model: DynamicLoadModel,
     events: Sequence[EventRecord],
@@ -199,7 +199,6 @@ def fit_composite(
     progress: SamplingProgress | None = None,
     data_warnings: Sequence[str] = (),
     provenance: Mapping[str, Any] | None = None,
-    **old: Any,
 ) -> CompositeFit:
     """Fit a dynamic load model to one or more recorded events of the same load.
 
@@ -244,8 +243,6 @@ def fit_composite(
         Fewer than 50 kept draws per chain, a negative seed, a move that cannot take a
         prior on the shares.
     """
-    if old:
-        raise TypeError(moved_keywords("fit_composite", old, MOVED))
     until_converged = sampler is None if sampler is None else sampler.until_converged
     run = sampler if sampler is not None else COMPOSITE_DEFAULTS
     move = run.move or DEFAULT_MOVE

@@ -32,15 +32,15 @@ def _fit_all(params: MotorParams, df: pd.DataFrame, sampler: dict, seed: int) ->
     from loadbayes.baselines.kalman import kalman
     from loadbayes.baselines.least_squares import coupled_least_squares, least_squares
     from loadbayes.fit import accumulate, fit_im
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
     from loadbayes.models.motor_fit import InductionMotorModel
 
     cols = _columns(df)
     f = params.f_hz
+    smp = MODEL_DEFAULTS.with_(seed=seed, **sampler)
     fits = {
-        "gs": fit_im(cols, f_hz=f, currents="modelled", seed=seed, warn=False, **sampler),
-        "gs_measured": fit_im(
-            cols, f_hz=f, currents="measured", seed=seed, warn=False, **sampler
-        ),  # fmt: skip
+        "gs": fit_im(cols, f_hz=f, currents="modelled", sampler=smp, warn=False),
+        "gs_measured": fit_im(cols, f_hz=f, currents="measured", sampler=smp, warn=False),
     }
     coupled = InductionMotorModel(f_hz=f)
     fits["ls"] = coupled_least_squares(
@@ -136,6 +136,7 @@ def run(
 def _eiv(name, *, noise, seed, t_end_s, dt_s, sampler) -> pd.DataFrame:
     from loadbayes.cases.motor_sim import simulate
     from loadbayes.fit import fit_im
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
     from loadbayes.models.motor_library import MOTORS
 
     params = MOTORS[name]
@@ -151,8 +152,8 @@ def _eiv(name, *, noise, seed, t_end_s, dt_s, sampler) -> pd.DataFrame:
             noise_on_regressors=on_regressors,
         )
         for currents in ("modelled", "measured"):
-            post = fit_im(_columns(df), f_hz=params.f_hz, currents=currents, seed=seed,
-                          warn=False, **sampler)  # fmt: skip
+            post = fit_im(_columns(df), f_hz=params.f_hz, currents=currents, warn=False,
+                          sampler=MODEL_DEFAULTS.with_(seed=seed, **sampler))  # fmt: skip
             mean = post.mean()
             row = {
                 "motor": name,

@@ -45,6 +45,7 @@ def _fits(cols, priors, smp, seed, kf_process_noise, settings) -> dict[str, Post
     from loadbayes.baselines.kalman import kalman
     from loadbayes.baselines.least_squares import least_squares
     from loadbayes.fit import accumulate, fit_gram
+    from loadbayes.fit.sampler import MODEL_DEFAULTS
     from loadbayes.models.zip import ZIPModel
 
     model = ZIPModel()
@@ -56,10 +57,9 @@ def _fits(cols, priors, smp, seed, kf_process_noise, settings) -> dict[str, Post
             gram,
             priors=priors,
             scheme=scheme,
-            seed=seed,
+            sampler=MODEL_DEFAULTS.with_(seed=seed, **smp),
             observed=cols,
             settings=settings,
-            **smp,
         )
     fits["ls"] = least_squares(model, gram, seed=seed)
     free = ZIPModel(p0="auto", q0="auto")

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.testing.sbc import SamplerUnderTest, draw_block_prior
 
 _IM_COEFS = ("b1", "b2", "b3", "ab", "ac")
@@ -166,11 +167,9 @@ def im_sampler(
             warn=False,  # SBC runs thousands of fits; their warnings are not the point
             priors=None if default_priors else priors(),
             scheme=scheme,  # type: ignore[arg-type]
-            chains=1,
-            draws=burn + thin * kept,
-            burn=burn,
-            thin=thin,
-            seed=seed,
+            sampler=SamplerSettings(
+                chains=1, draws=burn + thin * kept, burn=burn, thin=thin, seed=seed
+            ),
         )
         return {p: post.draws[p][0] for p in params}
 

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.studies.calibration.registry.zip import ZIP_PRIOR, ZipData
 from loadbayes.testing.sbc import SamplerUnderTest, draw_block_prior
 
@@ -61,7 +62,9 @@ def robust_sampler(
 
         post = fit_robust(
             ZIPModel(with_q=False), data.columns(), priors={"p": prior}, nu=nu,  # type: ignore[arg-type]
-            chains=1, draws=burn + thin * kept, burn=burn, thin=thin, seed=seed,
+            sampler=SamplerSettings(
+                chains=1, draws=burn + thin * kept, burn=burn, thin=thin, seed=seed
+            ),
         )  # fmt: skip
         return {p: post.draws[p][0] for p in params}
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from loadbayes.core.priors import BlockPrior
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.testing.sbc import SamplerUnderTest, draw_block_prior
 
 
@@ -115,11 +116,9 @@ def zip_sampler(
             accumulate(model, [data.columns()]),
             priors=priors,
             scheme=scheme,  # type: ignore[arg-type]
-            chains=1,
-            draws=burn + thin * kept,
-            burn=burn,
-            thin=thin,
-            seed=seed,
+            sampler=SamplerSettings(
+                chains=1, draws=burn + thin * kept, burn=burn, thin=thin, seed=seed
+            ),
         )
         return {p: post.draws[p][0] for p in params}
 
