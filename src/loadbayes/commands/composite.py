@@ -394,9 +394,9 @@ def fit_composite_cmd(
             post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             stop_if_signalled()
         if plot_out:
-            from loadbayes.fit.composite.table import run_lines, static_lines
             from loadbayes.plots.composite import plot_composite_fit
             from loadbayes.plots.fit import pyplot
+            from loadbayes.report.composite_table import run_lines, static_lines
 
             ident = post.extra_json["identifiability"]
             notes = [ident["summary"], *static_lines(ident["static_part"]), *run_lines(post)]
@@ -411,7 +411,7 @@ def fit_composite_cmd(
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        from loadbayes.fit.composite.table import composite_table, static_lines
+        from loadbayes.report.composite_table import composite_table, static_lines
 
         err = json_out == "-"  # the JSON has standard output
         click.echo(composite_table(post, table, n_events=len(events),
