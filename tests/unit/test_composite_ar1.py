@@ -11,7 +11,8 @@ from loadbayes.cases.composite_sim import simulate_event
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.sums import ar_residual_sums, ar_sums_into, design_sums
 from loadbayes.inference.ar1 import draw_rho
-from loadbayes.models.composite import EventRecord, design
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import design
 
 
 def _rows(n=60, seed=0):

@@ -12,7 +12,8 @@ import pytest
 
 from loadbayes.fit.composite.identifiability import static_identifiability
 from loadbayes.fit.composite.predictive import events_of, fault_times, predictive_band
-from loadbayes.models.composite import THETA_NAMES, EventRecord
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import THETA_NAMES
 from loadbayes.plots.composite import plot_composite_fit
 from loadbayes.posterior import Posterior
 from loadbayes.report.composite_names import QUANTITIES, describe

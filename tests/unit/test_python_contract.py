@@ -89,7 +89,7 @@ def test_the_motor_fit_checks_a_dataframe_too():
 
 def test_the_composite_fit_from_python_names_the_keyword():
     from loadbayes.fit.composite import fit_composite
-    from loadbayes.models.composite import EventRecord
+    from loadbayes.measurements.record import EventRecord
 
     t = np.arange(0.0, 2.0, 1 / 60)
     v = 11.0 * np.where((t >= 0.5) & (t < 0.7), 0.7, 1.0)

@@ -264,8 +264,9 @@ def fit_composite_cmd(
     import numpy as np
 
     from loadbayes.fit.composite import fit_composite, predictive_band
-    from loadbayes.fit.composite.checks import check_run, check_units
+    from loadbayes.fit.composite.checks import check_run
     from loadbayes.measurements.events import index_bases, read_events
+    from loadbayes.measurements.record import check_units
     from loadbayes.models.composite import THETA_NAMES
     from loadbayes.models.composite_prior import CompositePrior
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 from loadbayes.plots.fit import pyplot
 from loadbayes.posterior import Posterior
 

@@ -6,7 +6,7 @@ priors by name, the sampler's settings) and refuse the same mistakes with the sa
 one-line :class:`~loadbayes.io.errors.DataError` / :class:`~loadbayes.io.errors.OptionError`
 before any work: the checks live here (:func:`check_torque`, :func:`check_noise`,
 :func:`prior_with`) and the command calls them. Events already read
-(:class:`~loadbayes.models.composite.EventRecord`) go straight to
+(:class:`~loadbayes.measurements.record.EventRecord`) go straight to
 :func:`loadbayes.fit.composite.driver.fit_composite`.
 """
 
@@ -21,7 +21,8 @@ import numpy as np
 from loadbayes.fit.composite.driver import CompositeFit
 from loadbayes.fit.composite.driver import fit_composite as _fit_events
 from loadbayes.io.errors import DataError, OptionError
-from loadbayes.models.composite import THETA_NAMES, EventRecord
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import THETA_NAMES
 from loadbayes.models.composite_prior import CompositePrior
 
 __all__ = ["PRIOR_NAMES", "check_noise", "check_torque", "fit_composite", "prior_with", "read"]
@@ -297,7 +298,7 @@ def fit_composite(
     if coef:
         options["coefficient_prior"] = {**coef, **(options.get("coefficient_prior") or {})}
     if prior is None:
-        from loadbayes.fit.composite.checks import check_units
+        from loadbayes.measurements.record import check_units
 
         # The units first: the default prior reads the events' levels.
         check_units(events, accept_units=bool(options.get("accept_units", False)),

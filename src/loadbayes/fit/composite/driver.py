@@ -24,7 +24,6 @@ from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.bounded import share_start
 from loadbayes.fit.composite.checks import (
     check_run,
-    check_units,
     convergence_warnings,
     sampling_warnings,
     start_warnings,
@@ -55,7 +54,8 @@ from loadbayes.fit.composite.robust import StudentT, robust_outputs
 from loadbayes.fit.composite.sampler import DEFAULT_MOVE, ONE_EVALUATION_MOVES, sample
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
 from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
-from loadbayes.models.composite import THETA_NAMES, EventRecord
+from loadbayes.measurements.record import EventRecord, check_units
+from loadbayes.models.composite import THETA_NAMES
 from loadbayes.models.composite_prior import CoefficientPrior, CompositePrior
 from loadbayes.models.motor_kernel import H_MAX_S
 from loadbayes.posterior import Posterior, gaussian_draws
@@ -264,7 +264,7 @@ def fit_composite(
         Threads for the chains (``sampler.threads`` overridden when given).
     accept_units : bool
         Fit events whose V is not per unit, or whose P is negative (warned, not refused;
-        the check is ``fit zip``'s: :func:`loadbayes.fit.composite.checks.check_units`).
+        the check is ``fit zip``'s: :func:`loadbayes.measurements.record.check_units`).
     progress : SamplingProgress, optional
         Told the estimated cost before sampling (a short timed run) and the iterations
         as they are done.

@@ -20,9 +20,9 @@ from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.inference.condlinear import (
     residual_ss,
 )
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite import (
     SCALE_FREE_MATRIX,
-    EventRecord,
     design,
 )
 from loadbayes.models.composite_prior import STEP_PRIOR_SD

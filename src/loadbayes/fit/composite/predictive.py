@@ -18,7 +18,8 @@ from dataclasses import replace
 import numpy as np
 
 from loadbayes.fit.composite.naming import beta_from_named, event_suffix
-from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_response
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import THETA_NAMES, design, motor_response
 from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.posterior import Posterior
 

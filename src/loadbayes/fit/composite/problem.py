@@ -42,7 +42,8 @@ from loadbayes.inference.condlinear import (
     log_marginal,
     log_marginal_arrays,
 )
-from loadbayes.models.composite import SCALE_FREE_MATRIX, EventRecord, motor_response
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import SCALE_FREE_MATRIX, motor_response
 from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
 from loadbayes.models.composite_steps import FitSamples, StepGrid
 from loadbayes.models.motor_kernel import (
