@@ -10,9 +10,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from loadbayes.core.display import fmt_like
 from loadbayes.fit.composite.naming import event_suffix
 from loadbayes.report.composite_names import TABLE_NAMES, describe
-from loadbayes.report.text import fmt_like, summary_table
+from loadbayes.report.text import summary_table
 
 __all__ = [
     "TABLE_WIDTH",
