@@ -440,7 +440,7 @@ class _Store:
 
 
 @dataclass
-class ChainDraws:
+class FleetChainDraws:
     """Kept draws of one chain, and its state at the end.
 
     ``theta`` (draw, bus, d), ``tau`` (draw, bus, nch: precision per unit of P0) and
@@ -466,7 +466,7 @@ def run_chain(
     sweeps: int | None = None,
     store: str | None = None,
     stop: threading.Event | None = None,
-) -> ChainDraws:
+) -> FleetChainDraws:
     """Run one Gibbs chain of the pooled model (see the module notes).
 
     A new chain (``start`` a seed) runs ``sampler.draws`` sweeps and keeps those after
@@ -511,7 +511,7 @@ def run_chain(
     scatter = np.zeros((ncls, d, d))
     kept = len(range(burn, total, sampler.thin))
     rows = min(kept, STORE_BLOCK) if store else kept
-    out = ChainDraws(
+    out = FleetChainDraws(
         np.empty((rows, nb, d), np.float32),
         np.empty((rows, nb, nch), np.float32),
         np.empty((kept, ncls, d)),
@@ -568,7 +568,7 @@ def chain_seeds(seed: int, chains: int) -> list[np.random.SeedSequence]:
     return np.random.SeedSequence(seed).spawn(chains)
 
 
-def _class_series(data: HierData, chains: Sequence[ChainDraws]) -> dict[str, np.ndarray]:
+def _class_series(data: HierData, chains: Sequence[FleetChainDraws]) -> dict[str, np.ndarray]:
     """Class-level draws, each (class, chain, draw): means a1..a6 and spreads sd_a1.."""
     d = len(data.params)
     col = {p: i for i, p in enumerate(data.params)}
@@ -584,7 +584,7 @@ def _class_series(data: HierData, chains: Sequence[ChainDraws]) -> dict[str, np.
 
 
 def class_convergence(
-    data: HierData, chains: Sequence[ChainDraws], hdi_prob: float = 0.95
+    data: HierData, chains: Sequence[FleetChainDraws], hdi_prob: float = 0.95
 ) -> dict[str, dict[str, np.ndarray]]:
     """Summaries (mean, sd, HDI, R-hat, ESS) of the class-level parameters, per class."""
     return {p: summarize(v, hdi_prob=hdi_prob) for p, v in _class_series(data, chains).items()}
@@ -605,7 +605,7 @@ def _data_distance(e: np.ndarray, ztz: np.ndarray, tau: np.ndarray) -> np.ndarra
     return np.sqrt(np.maximum((tau * q).sum(axis=1), 0.0))
 
 
-def _bus_series(data: HierData, chains: Sequence[ChainDraws], b0: int, b1: int):
+def _bus_series(data: HierData, chains: Sequence[FleetChainDraws], b0: int, b1: int):
     """Every bus-level series of buses ``b0:b1``, each C-contiguous (bus, chain, draw).
 
     The draws are stored (draw, bus, k) per chain; they are transposed here once, into
@@ -668,7 +668,7 @@ def _bus_rows(data, chains, hp, b0, b1, threads):
 
 def summarize_chains(
     data: HierData,
-    chains: Sequence[ChainDraws],
+    chains: Sequence[FleetChainDraws],
     sampler: SamplerSettings,
     *,
     batch: int = 128,
