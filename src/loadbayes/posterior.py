@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from loadbayes._version import __version__
+from loadbayes.core.display import summary_html
 
 __all__ = ["FitWarning", "Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws", "import_arviz"]
 
@@ -242,8 +243,6 @@ class Posterior:
 
     def _repr_html_(self) -> str:
         """A notebook's view: what was fitted, the headline table and the warnings."""
-        from loadbayes.report.text import summary_html
-
         return summary_html(self)
 
     def mean(self) -> dict[str, float]:

@@ -298,10 +298,10 @@ def test_implausible_time_stamps_alone_are_refused_not_gridded(good, tmp_path):
 
 @needs_real
 def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
-    # docs/formats.md shows the real record's chain run from the repository's root with
-    # its output: run each command there (../shared reached by a link) and compare.
+    # docs/formats.md shows the real record's chain run in a folder holding the record,
+    # with its output: run each command there (the record reached by links) and compare.
     doc = (_HERE.parents[2] / "docs" / "formats.md").read_text(encoding="utf-8")
-    block = doc.split("From the repository's root, as it runs:")[1].split("(`--bay")[0]
+    block = doc.split("In a folder holding the two files, as it runs:")[1].split("(`--bay")[0]
     steps: list[tuple[str, list[str]]] = []
     for line in block.splitlines():
         if not line.startswith("    "):
@@ -312,9 +312,9 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
         else:
             steps[-1][1].append(text)
     assert [cmd.split()[1] for cmd, _ in steps] == ["read", "events"]
-    (tmp_path / "shared").symlink_to(REAL.parents[1], target_is_directory=True)
-    (tmp_path / "repo").mkdir()
-    monkeypatch.chdir(tmp_path / "repo")
+    for part in (REAL, REAL.with_suffix(".dat")):
+        (tmp_path / part.name).symlink_to(part)
+    monkeypatch.chdir(tmp_path)
     for cmd, expected in steps:
         res = CliRunner().invoke(main, cmd.split()[1:])
         assert res.exit_code == 0, res.output

@@ -12,7 +12,8 @@ from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.sums import ar_residual_sums, ar_sums_into, design_sums
 from loadbayes.inference.ar1 import draw_rho
-from loadbayes.models.composite import EventRecord, design
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import design
 from loadbayes.models.zip_motor import CompositeModel
 
 

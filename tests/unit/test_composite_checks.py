@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from loadbayes.fit.composite.checks import jumps, sampling_warnings
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 
 
 def _event(fs=120.0, depth=0.3, angle_from="", smooth=False):

@@ -17,10 +17,10 @@ from loadbayes.core.parallel import ChainsStopped, check_stop, clear_stop, reque
 from loadbayes.core.parallel import run_chains as run_chains_
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
-from loadbayes.fit.composite.checks import check_run, check_units, start_warnings
+from loadbayes.fit.composite.checks import check_run, start_warnings
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.events import events_from_arrays
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord, check_units
 from loadbayes.models.zip_motor import CompositeModel
 
 NAMES = {"t": "t_s", "v": "v", "p": "p", "q": "q", "f": "f", "angle": "angle_rad", "event": "e"}

@@ -11,17 +11,18 @@ import numpy as np
 import pytest
 
 from loadbayes.fit.composite.identifiability import static_identifiability
-from loadbayes.fit.composite.naming import QUANTITIES, describe
 from loadbayes.fit.composite.predictive import events_of, fault_times, predictive_band
-from loadbayes.fit.composite.table import (
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import THETA_NAMES
+from loadbayes.plots.composite import plot_composite_fit
+from loadbayes.posterior import Posterior
+from loadbayes.report.composite_names import QUANTITIES, describe
+from loadbayes.report.composite_table import (
     TABLE_WIDTH,
     composite_table,
     run_lines,
     static_lines,
 )
-from loadbayes.models.composite import THETA_NAMES, EventRecord
-from loadbayes.plots.composite import plot_composite_fit
-from loadbayes.posterior import Posterior
 
 #: Every name a composite fit draws (event 0 plain, event 1 suffixed, two steps each).
 EVENT = ("p0", "q0", "v0", "a1", "a2", "a3", "a4", "a5", "a6", "f_m", "mva_m", "q_c")

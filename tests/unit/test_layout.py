@@ -4,8 +4,10 @@ Arrows point down only: commands -> studies -> fit / baselines -> models & infer
 core -> io. Models are physics (they never import a sampler, a driver or Posterior),
 samplers know no physics, and the library never imports the studies or the CLI.
 
-Three rules are written as functions over an import map (or over the click tree), so a
-test can run each of them on a planted violation as well as on the real code:
+Six rules are written as functions over an import map (or over the click tree), so a
+test can run each of them on a planted violation as well as on the real code. The map
+holds every import of a module, at any depth (those inside functions and ``if`` blocks
+too) and relative ones resolved; ``importlib.import_module`` strings are not seen.
 
 - :func:`cases_importers`: only ``loadbayes.studies``, ``loadbayes.commands``,
   ``loadbayes.testing`` (and ``loadbayes.cases`` itself) import ``loadbayes.cases``:
@@ -19,6 +21,11 @@ test can run each of them on a planted violation as well as on the real code:
 - :func:`commands_not_one_line`: every command reachable from ``loadbayes.cli.main``
   (groups walked, the groups themselves not counted) is a
   :class:`loadbayes.commands.options.OneLineCommand`, so its usage errors are one line.
+- :func:`forbidden_imports` over :data:`FORBIDDEN`, three arrows that must not exist:
+  ``fit/`` imports no ``report/`` or ``plots/`` (a fit returns results; how they are
+  printed or drawn is above it), ``measurements/`` imports no ``models/`` (data in know
+  no physics), ``posterior.py`` imports no ``report/`` (the result type sits below its
+  reports).
 """
 
 from __future__ import annotations
@@ -56,13 +63,18 @@ def _scan(root: Path) -> tuple[dict[str, set[str]], dict[str, set[tuple[str, str
         name = _module_name(path, root)
         found: set[str] = set()
         pairs: set[tuple[str, str]] = set()
+        package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                if node.module == top or node.module.startswith(top + "."):
-                    found.add(node.module)
+            if isinstance(node, ast.ImportFrom):
+                source = node.module or ""
+                if node.level:  # "from ..report import text" in loadbayes.fit.x
+                    base = package[: len(package) - node.level + 1]
+                    source = ".".join(base + ([node.module] if node.module else []))
+                if source == top or source.startswith(top + "."):
+                    found.add(source)
                     for alias in node.names:  # "from loadbayes.x import y" may be a module
-                        found.add(f"{node.module}.{alias.name}")
-                        pairs.add((node.module, alias.name))
+                        found.add(f"{source}.{alias.name}")
+                        pairs.add((source, alias.name))
             elif isinstance(node, ast.Import):
                 found.update(a.name for a in node.names if a.name.split(".")[0] == top)
         out[name] = found
@@ -82,7 +94,17 @@ def _under(module: str, *packages: str) -> bool:
     ("package", "allowed"),
     [
         ("loadbayes.core", ("loadbayes.core",)),
-        ("loadbayes.models", ("loadbayes.models", "loadbayes.core", "loadbayes.io.errors")),
+        # models/ takes one type from measurements/: the recorded event its physics is
+        # driven by (EventRecord, with its unit check).
+        (
+            "loadbayes.models",
+            (
+                "loadbayes.models",
+                "loadbayes.core",
+                "loadbayes.io.errors",
+                "loadbayes.measurements.record",
+            ),
+        ),
         ("loadbayes.inference", ("loadbayes.inference", "loadbayes.core")),
         ("loadbayes.io", ("loadbayes.io",)),
     ],
@@ -323,3 +345,71 @@ def test_the_one_line_rule_catches_a_planted_command():
     def also_good() -> None: ...
 
     assert commands_not_one_line(top) == ["loadbayes fit exp"]
+
+
+# --- Arrows that must not exist ------------------------------------------------------
+
+#: Each rule: (the importers, what they may not import), by package or module.
+FORBIDDEN: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "fit imports no report or plots": (
+        ("loadbayes.fit",),
+        ("loadbayes.report", "loadbayes.plots"),
+    ),
+    "measurements imports no models": (("loadbayes.measurements",), ("loadbayes.models",)),
+    "posterior imports no report": (("loadbayes.posterior",), ("loadbayes.report",)),
+}
+
+
+def forbidden_imports(imports: dict[str, set[str]], rule: str) -> set[str]:
+    """The edges ``module -> dep`` that :data:`FORBIDDEN`'s ``rule`` forbids."""
+    importers, banned = FORBIDDEN[rule]
+    return {
+        f"{mod} -> {dep}"
+        for mod, deps in imports.items()
+        if _under(mod, *importers)
+        for dep in deps
+        if _under(dep, *banned)
+    }
+
+
+@pytest.mark.parametrize("rule", sorted(FORBIDDEN))
+def test_no_forbidden_arrow(rule):
+    found = forbidden_imports(IMPORTS, rule)
+    assert not found, sorted(found)
+
+
+def test_the_forbidden_arrows_are_caught_when_planted(tmp_path):
+    root = _plant(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "posterior.py": "def view(p):\n    from loadbayes.report.text import fmt\n",
+            "report/__init__.py": "",
+            "report/text.py": "from loadbayes.posterior import view\nfmt = str\n",
+            "plots/__init__.py": "",
+            "plots/fit.py": "from loadbayes.fit.naming import names\n",  # downward: fine
+            "models/__init__.py": "",
+            "models/composite.py": "from loadbayes.measurements.record import Event\n",
+            "measurements/__init__.py": "",
+            "measurements/record.py": "Event = tuple\n",
+            "measurements/events.py": "if True:\n    from ..models import composite\n",
+            "fit/__init__.py": "",
+            "fit/naming.py": "names = ()\n",
+            "fit/table.py": "def table():\n    import loadbayes.plots.fit\n",
+            "fit/composite/__init__.py": "from ...report import text\n",
+        },
+    )
+    imports, _ = _scan(root)
+    found = {rule: forbidden_imports(imports, rule) for rule in FORBIDDEN}
+    assert found == {
+        "fit imports no report or plots": {
+            "loadbayes.fit.table -> loadbayes.plots.fit",
+            "loadbayes.fit.composite -> loadbayes.report",
+            "loadbayes.fit.composite -> loadbayes.report.text",
+        },
+        "measurements imports no models": {
+            "loadbayes.measurements.events -> loadbayes.models",
+            "loadbayes.measurements.events -> loadbayes.models.composite",
+        },
+        "posterior imports no report": {"loadbayes.posterior -> loadbayes.report.text"},
+    }

@@ -99,7 +99,7 @@ def test_the_motor_fit_checks_a_dataframe_too():
 def test_the_composite_fit_from_python_names_the_keyword():
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite
-    from loadbayes.models.composite import EventRecord
+    from loadbayes.measurements.record import EventRecord
     from loadbayes.models.zip_motor import CompositeModel
 
     t = np.arange(0.0, 2.0, 1 / 60)

@@ -110,7 +110,7 @@ def test_the_file_is_named_once():
 
 
 def test_an_event_whose_power_is_zero_is_refused_even_with_accept_units():
-    from loadbayes.fit.composite.checks import check_units
+    from loadbayes.measurements.record import check_units
 
     cols = _cols(2.0, fault_s=0.5)
     (ev,) = _read(dict(cols, p=np.zeros_like(cols["p"])))

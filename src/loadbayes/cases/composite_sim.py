@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.cases.motor_sim import Disturbance, sag, simulate
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.motor import MotorParams
 from loadbayes.models.motor_library import MOTORS
 

@@ -224,9 +224,10 @@ def fit_composite_cmd(
     import numpy as np
 
     from loadbayes.fit.composite import predictive_band
-    from loadbayes.fit.composite.checks import check_run, check_units
+    from loadbayes.fit.composite.checks import check_run
     from loadbayes.fit.composite.driver import fit_composite
     from loadbayes.measurements.events import index_bases, read_events
+    from loadbayes.measurements.record import check_units
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
@@ -344,9 +345,9 @@ def fit_composite_cmd(
             post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
             stop_if_signalled()
         if plot_out:
-            from loadbayes.fit.composite.table import run_lines, static_lines
             from loadbayes.plots.composite import plot_composite_fit
             from loadbayes.plots.fit import pyplot
+            from loadbayes.report.composite_table import run_lines, static_lines
 
             ident = post.extra_json["identifiability"]
             notes = [ident["summary"], *static_lines(ident["static_part"]), *run_lines(post)]
@@ -361,7 +362,7 @@ def fit_composite_cmd(
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
     if not quiet:
-        from loadbayes.fit.composite.table import composite_table, static_lines
+        from loadbayes.report.composite_table import composite_table, static_lines
 
         err = json_out == "-"  # the JSON has standard output
         click.echo(composite_table(post, table, n_events=len(events),

@@ -79,7 +79,7 @@ def playback_cmd(
     )
     if len(evs) != 1:
         raise UserError(f"{event}: holds {len(evs)} events (an event column); give one")
-    from loadbayes.fit.composite.checks import check_units
+    from loadbayes.measurements.record import check_units
 
     # The fit's unit and sign checks: data in kV or MW without bases, or P that flows
     # out, said as such (not as a disagreement with the case's power).

@@ -151,10 +151,10 @@ def validate_cmd(
     inputs = [result, *events] + ([netcdf_in] if netcdf_in else [])
     check_outputs(outputs, inputs, force)
 
-    from loadbayes.fit.composite.checks import check_units
     from loadbayes.fit.composite.validate import read_exclusions, validate_events
     from loadbayes.io.transaction import OutputSet
     from loadbayes.measurements.events import read_events
+    from loadbayes.measurements.record import check_units
 
     post = _load_posterior(result, netcdf_in)
     f_hz = float(post.settings.get("f_hz", 60.0))

@@ -443,7 +443,7 @@ class _Store:
 
 
 @dataclass
-class ChainDraws:
+class FleetChainDraws:
     """Kept draws of one chain, and its state at the end.
 
     ``theta`` (draw, bus, d), ``tau`` (draw, bus, nch: precision per unit of P0) and
@@ -469,7 +469,7 @@ def run_chain(
     sweeps: int | None = None,
     store: str | None = None,
     stop: threading.Event | None = None,
-) -> ChainDraws:
+) -> FleetChainDraws:
     """Run one Gibbs chain of the pooled model (see the module notes).
 
     A new chain (``start`` a seed) runs ``sampler.draws`` sweeps and keeps those after
@@ -556,7 +556,7 @@ def run_chain(
     kept_draws = chain.draws()
     if sink is not None:
         kept_draws.update(sink.close())
-    out = ChainDraws(*(kept_draws[k] for k in ("theta", "tau", "mu", "sigma", "p0")))
+    out = FleetChainDraws(*(kept_draws[k] for k in ("theta", "tau", "mu", "sigma", "p0")))
     end = chain.state
     out.state = ChainState(
         gen.bit_generator.state, end.mu, end.sigma, end.sig_inv, theta, s, t, done + total
@@ -572,7 +572,7 @@ class _Sweep(NamedTuple):
     sig_inv: np.ndarray
 
 
-def _class_series(data: HierData, chains: Sequence[ChainDraws]) -> dict[str, np.ndarray]:
+def _class_series(data: HierData, chains: Sequence[FleetChainDraws]) -> dict[str, np.ndarray]:
     """Class-level draws, each (class, chain, draw): means a1..a6 and spreads sd_a1.."""
     d = len(data.params)
     col = {p: i for i, p in enumerate(data.params)}
@@ -588,7 +588,7 @@ def _class_series(data: HierData, chains: Sequence[ChainDraws]) -> dict[str, np.
 
 
 def class_convergence(
-    data: HierData, chains: Sequence[ChainDraws], hdi_prob: float = 0.95
+    data: HierData, chains: Sequence[FleetChainDraws], hdi_prob: float = 0.95
 ) -> dict[str, dict[str, np.ndarray]]:
     """Summaries (mean, sd, HDI, R-hat, ESS) of the class-level parameters, per class."""
     return {p: summarize(v, hdi_prob=hdi_prob) for p, v in _class_series(data, chains).items()}
@@ -609,7 +609,7 @@ def _data_distance(e: np.ndarray, ztz: np.ndarray, tau: np.ndarray) -> np.ndarra
     return np.sqrt(np.maximum((tau * q).sum(axis=1), 0.0))
 
 
-def _bus_series(data: HierData, chains: Sequence[ChainDraws], b0: int, b1: int):
+def _bus_series(data: HierData, chains: Sequence[FleetChainDraws], b0: int, b1: int):
     """Every bus-level series of buses ``b0:b1``, each C-contiguous (bus, chain, draw).
 
     The draws are stored (draw, bus, k) per chain; they are transposed here once, into
@@ -672,7 +672,7 @@ def _bus_rows(data, chains, hp, b0, b1, threads):
 
 def summarize_chains(
     data: HierData,
-    chains: Sequence[ChainDraws],
+    chains: Sequence[FleetChainDraws],
     sampler: SamplerSettings,
     *,
     batch: int = 128,

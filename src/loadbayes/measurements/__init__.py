@@ -2,5 +2,6 @@
 
 ``columns`` (the reader of a table's columns, with bases and row numbers for errors),
 ``frame`` (the Python API's in-memory tables), ``events`` (the event files of the
-composite fit), ``units`` (per-unit checks on plain arrays).
+composite fit), ``record`` (one event's record, ``EventRecord``, and its unit check),
+``units`` (per-unit checks on plain arrays).
 """

@@ -14,8 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.io.errors import DataError
+from loadbayes.measurements.record import EventRecord
 from loadbayes.measurements.units import F_OFF
-from loadbayes.models.composite import EventRecord
 
 __all__ = [
     "index_bases",

@@ -29,11 +29,11 @@ follow from the closure ``Xs = Xr`` (docs/paper.md): ``Xm = sqrt(X (X - X'))``,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.motor_kernel import H_MAX_S, integrate, step_size
 
 __all__ = [
@@ -41,7 +41,6 @@ __all__ = [
     "SCALE_FREE_MATRIX",
     "SCALE_FREE_NAMES",
     "THETA_NAMES",
-    "EventRecord",
     "composition",
     "design",
     "motor_physical",
@@ -75,53 +74,6 @@ SCALE_FREE_MATRIX = np.array(
         [0, 0, 0, 0, 0, 1],
     ]
 )
-
-
-@dataclass(frozen=True, eq=False)
-class EventRecord:
-    """One recorded disturbance at the load bus (all system p.u.; times in s).
-
-    The record of one event: the samples the composite fit is given (an "event" in the
-    CLI, the JSON and :func:`~loadbayes.measurements.events.read_events`), as opposed to
-    :class:`~loadbayes.recordings.events.SagWindow`, where a sag lies in a long record.
-
-    Parameters
-    ----------
-    t, v, p, q : ndarray
-        Sample times (strictly increasing), voltage magnitude, total active and reactive
-        power of the load.
-    delta : ndarray or None
-        Voltage angle (rad) relative to a frame rotating at the nominal frequency.
-    name : str
-        Label (the file, or the file and event id).
-    angle_from : str
-        Where ``delta`` came from: ``"angle"`` (a recorded angle), ``"frequency"``
-        (integrated from a frequency column, which cannot hold a phase jump) or ``""``
-        (none, or set by the caller).
-    """
-
-    t: NDArray[np.float64]
-    v: NDArray[np.float64]
-    p: NDArray[np.float64]
-    q: NDArray[np.float64]
-    delta: NDArray[np.float64] | None = None
-    name: str = ""
-    angle_from: str = ""
-
-    @property
-    def v0(self) -> float:
-        """The first sample's voltage: the steady state's and the ZIP's reference."""
-        return float(self.v[0])
-
-    @property
-    def x(self) -> NDArray[np.float64]:
-        """``V / v0``."""
-        return self.v / self.v0
-
-    @property
-    def n(self) -> int:
-        """Number of samples."""
-        return int(self.t.size)
 
 
 def motor_response(

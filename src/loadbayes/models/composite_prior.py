@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, THETA_NAMES, EventRecord
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import BETA_NAMES, SCALE_FREE_MATRIX, THETA_NAMES
 
 __all__ = [
     "COEFFICIENT_PRIOR_NAMES",

@@ -64,6 +64,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from loadbayes.measurements.record import EventRecord
+
 __all__ = [
     "EPS_FRACTION",
     "GROW",
@@ -392,11 +394,9 @@ class StepGrid:
     def motor_input(self, k: int, t: NDArray[np.float64]):
         """Event ``k``'s augmented input (times ``t`` from :meth:`times`) and its real samples.
 
-        Returns an :class:`~loadbayes.models.composite.EventRecord` to drive the motor with and
+        Returns an :class:`~loadbayes.measurements.record.EventRecord` to drive the motor with and
         the positions of the real samples in it (the likelihood's only).
         """
-        from loadbayes.models.composite import EventRecord
-
         s0, s1 = self.starts[k], self.starts[k + 1]
         v = self.v[s0:s1]
         return EventRecord(t[s0:s1], v, v, v, self.delta[s0:s1]), self.real_local(k)

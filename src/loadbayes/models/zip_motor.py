@@ -22,13 +22,13 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError as _Err
 from loadbayes.models.composite import (
     BETA_NAMES,
     SCALE_FREE_MATRIX,
     SCALE_FREE_NAMES,
     THETA_NAMES,
-    EventRecord,
     composition,
     design,
     motor_physical,

@@ -3,7 +3,7 @@
 :func:`plot_composite_fit` (``fit composite --plot`` and the report) draws V(t), P(t),
 Q(t) against each recording with the 95% bands and a zoom on each fault;
 :func:`plot_composite` is the study's shorter figure (P, Q and the pairs). Axis labels
-take their units from :data:`loadbayes.fit.composite.naming.QUANTITIES`.
+take their units from :data:`loadbayes.report.composite_names.QUANTITIES`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 from loadbayes.plots.fit import pyplot
 from loadbayes.posterior import Posterior
 
@@ -114,7 +114,7 @@ def _pair(ax, k: int, post: Posterior, baseline: Posterior | None, truth) -> Non
 
 def _trace_label(ch: str) -> str:
     # The unit of the recording's V (that of v0) and of P, Q (that of p0, q0).
-    from loadbayes.fit.composite.naming import QUANTITIES
+    from loadbayes.report.composite_names import QUANTITIES
 
     return f"{ch.upper()} ({QUANTITIES[ch + '0'][0]})"
 

@@ -70,7 +70,7 @@ def _ticks(ax: Any) -> None:
 def label(name: str, post: Posterior) -> str:
     """Axis label of a parameter: its name and unit."""
     if post.model == "composite":  # the composite's units live with its names
-        from loadbayes.fit.composite.naming import describe
+        from loadbayes.report.composite_names import describe
 
         unit = describe(name)[0]
         if unit:

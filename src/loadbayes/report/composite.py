@@ -1,6 +1,6 @@
 """The composite fit's parts of the report: the recordings, what they determine, settings.
 
-:func:`meaning` and :func:`unit` read :data:`loadbayes.fit.composite.naming.QUANTITIES`
+:func:`meaning` and :func:`unit` read :data:`loadbayes.report.composite_names.QUANTITIES`
 (the one place of the composite's units); :func:`sections` adds the figure of V(t),
 P(t), Q(t) against the recordings (from a NetCDF result that keeps them) and the
 identifiability section (from the JSON as well); :func:`settings` lists the settings
@@ -18,22 +18,22 @@ __all__ = ["headline_names", "meaning", "sections", "settings", "unit"]
 
 def meaning(name: str, *, with_unit: bool = False) -> str:
     """A composite quantity's meaning in words (``with_unit``: "words [unit]")."""
-    from loadbayes.fit.composite.naming import describe
-    from loadbayes.fit.composite.table import meaning as with_brackets
+    from loadbayes.report.composite_names import describe
+    from loadbayes.report.composite_table import meaning as with_brackets
 
     return with_brackets(name) if with_unit else describe(name)[1]
 
 
 def unit(name: str) -> str:
     """A composite quantity's unit."""
-    from loadbayes.fit.composite.naming import describe
+    from loadbayes.report.composite_names import describe
 
     return describe(name)[0]
 
 
 def headline_names(d: Mapping[str, Any]) -> list[str]:
     """The rows of the summary table: those ``fit composite`` prints."""
-    from loadbayes.fit.composite.table import table_names
+    from loadbayes.report.composite_table import table_names
 
     n_events = len((d.get("settings") or {}).get("events") or []) or 1
     return table_names(d["parameters"], n_events)
@@ -58,7 +58,7 @@ def sections(page: Any, d: Mapping[str, Any], post: Any, hdi: float) -> None:
         sec.text(ridge["words"])
     static = ident.get("static_part")
     if static:
-        from loadbayes.fit.composite.table import static_lines
+        from loadbayes.report.composite_table import static_lines
 
         lines = static_lines(static, hdi_prob=hdi)
         if lines:

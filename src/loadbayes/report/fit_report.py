@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.display import DESCRIPTIONS, fmt, fmt_like
 from loadbayes.report.page import Page, table_html
-from loadbayes.report.text import DESCRIPTIONS, fmt, fmt_like
 
 __all__ = ["MODEL_NAMES", "fit_report", "load_result", "write_report"]
 

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from loadbayes.core.display import DESCRIPTIONS, fmt, fmt_like
 from loadbayes.report.fleet_table import (
     ESS_LIMIT,
     RHAT_LIMIT,
@@ -29,7 +30,6 @@ from loadbayes.report.fleet_table import (
     table_coords,
 )
 from loadbayes.report.page import Page, table_html
-from loadbayes.report.text import DESCRIPTIONS, fmt, fmt_like
 
 __all__ = ["fleet_report", "write_fleet_report"]
 

@@ -92,7 +92,7 @@ def table_html(
     header : sequence of str
         Column titles.
     rows : sequence of sequences of str
-        Cells, formatted (see :func:`loadbayes.report.text.fmt`).
+        Cells, formatted (see :func:`loadbayes.core.display.fmt`).
     text_cols : sequence of int
         Columns aligned left (text); numbers are aligned right.
     flags : sequence of bool, optional

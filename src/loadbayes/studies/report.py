@@ -190,13 +190,13 @@ def frame_html(
 ) -> str:
     """A DataFrame as an HTML table in the report's format.
 
-    Numbers have three significant digits (:func:`loadbayes.report.text.fmt`, or
+    Numbers have three significant digits (:func:`loadbayes.core.display.fmt`, or
     ``float_format``), ``n/a`` for NaN, yes/no for booleans; headers lose their
     snake_case (``power_error_pct`` -> ``power error %``); a table of more than seven
     columns takes the page's width so that its headers wrap instead of overflowing.
     """
+    from loadbayes.core.display import fmt
     from loadbayes.report.page import table_html as _table
-    from loadbayes.report.text import fmt
 
     def cell(x: Any) -> str:
         if isinstance(x, (bool, np.bool_)):

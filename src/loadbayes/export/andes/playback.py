@@ -38,7 +38,7 @@ import numpy as np
 from loadbayes.export.andes.conventions import andes_quiet, solve_power_flow
 from loadbayes.export.andes.run import TDS_TOL
 from loadbayes.io.errors import DataError
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite_steps import EPS_FRACTION, step_intervals
 
 __all__ = ["FitResult", "Playback", "load_devices", "playback", "read_fit", "step_for"]

@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.settings import DataSpec, SamplerSettings, new_spelling
-from loadbayes.fit.composite.checks import check_units
 from loadbayes.fit.composite.driver import (
     DATA_KEYWORDS,
     MOVED,
@@ -26,8 +25,8 @@ from loadbayes.fit.composite.driver import fit_composite as fit_events
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
 from loadbayes.measurements.frame import is_path, read_frame
+from loadbayes.measurements.record import EventRecord, check_units
 from loadbayes.models.base import DynamicLoadModel
-from loadbayes.models.composite import EventRecord
 
 __all__ = ["fit_composite", "read"]
 

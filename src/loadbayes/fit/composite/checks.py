@@ -24,7 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.diagnostics import RHAT_MAX
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite_steps import step_intervals
 
 __all__ = [
@@ -32,7 +32,6 @@ __all__ = [
     "MIN_KEPT",
     "T_PRIME_INTERVALS",
     "check_run",
-    "check_units",
     "convergence_warnings",
     "jumps",
     "sampling_warnings",
@@ -85,73 +84,6 @@ def check_run(
         raise OptionError(
             f"--max-seconds {max_seconds}: the time budget must be a positive number of seconds"
         )
-
-
-def check_units(
-    events: Sequence[EventRecord],
-    *,
-    accept_units: bool = False,
-    columns: dict[str, str] | None = None,
-    wording: str = "cli",
-    overridable: bool = True,
-) -> list[str]:
-    """The unit check of ``fit zip``, per event: V per unit, P and Q of a sensible size.
-
-    ``overridable=False``: the caller has no ``--accept-units`` (``playback``,
-    ``validate``), so the message does not offer it.
-
-    ``columns`` maps ``v``, ``p``, ``q`` to the data's own column names (the ones a
-    message names; default the short names).
-
-    The composite's nominal powers are estimated (``p0``, ``q0`` per event), so P and Q
-    are checked as ``fit zip --p0 auto`` checks them; a negative median P (a load that
-    generates) is refused too. With ``accept_units`` the problems become warnings.
-    ``wording`` names the fixes as the CLI's options or Python's keywords.
-
-    Returns
-    -------
-    list of str
-        Warnings (only with ``accept_units``).
-
-    Raises
-    ------
-    loadbayes.io.errors.DataError
-        The first problem, naming the event's file (and event id) and the column.
-    """
-    from loadbayes.io.errors import DataError
-    from loadbayes.measurements.units import (
-        UnitProblem,
-        accept,
-        check_power_units,
-        require_power,
-    )
-
-    names = {"v": "v", "p": "p", "q": "q", **(columns or {})}
-    out: list[str] = []
-    for e in events:
-        require_power(e.p, e.q, path=e.name or None, names=names, wording=wording)  # type: ignore[arg-type]
-        problems = check_power_units(e.v, e.p, e.q, p0="auto", q0="auto", wording=wording)
-        med_p = float(np.median(e.p))
-        if not problems and med_p < 0:
-            problems.append(
-                UnitProblem(
-                    "p",
-                    f"P has median {med_p:.4g} < 0: the bus exports power, and a composite "
-                    "load (ZIP + motor) consumes it",
-                    "give P as the power into the load (check the meter's sign convention)",
-                    wording,  # type: ignore[arg-type]
-                )
-            )
-        if not problems:
-            continue
-        if not accept_units:
-            first = problems[0]
-            column = names.get(first.column, first.column)
-            said = str(first) if overridable else f"{first.seen}; {first.fix}"
-            raise DataError(said, path=e.name or None, column=column)
-        out += [f"{e.name or 'event'}: column '{names.get(pr.column, pr.column)}': {pr.seen} "
-                f"(fitted anyway: {accept(wording)})" for pr in problems]  # type: ignore[arg-type]  # fmt: skip
-    return out
 
 
 def start_warnings(events: Sequence[EventRecord]) -> list[str]:

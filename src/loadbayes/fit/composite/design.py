@@ -25,7 +25,7 @@ from loadbayes.inference.condlinear import (
     draw_betas,
     log_marginal,
 )
-from loadbayes.models.composite import EventRecord
+from loadbayes.measurements.record import EventRecord
 
 __all__ = ["DesignProblem"]
 

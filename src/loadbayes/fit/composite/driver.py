@@ -45,8 +45,8 @@ from loadbayes.fit.composite.sampler import DEFAULT_MOVE, ONE_EVALUATION_MOVES, 
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
 from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
 from loadbayes.io.errors import OptionError
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import DynamicLoadModel
-from loadbayes.models.composite import EventRecord
 from loadbayes.models.composite_prior import CoefficientPrior
 from loadbayes.models.zip_motor import CompositeModel
 from loadbayes.posterior import Posterior, gaussian_draws

@@ -20,9 +20,7 @@ from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.inference.condlinear import (
     residual_ss,
 )
-from loadbayes.models.composite import (
-    EventRecord,
-)
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite_prior import STEP_PRIOR_SD
 
 __all__ = ["COARSE_FS", "NLSResult", "nls"]

@@ -18,10 +18,10 @@ from dataclasses import replace
 import numpy as np
 
 from loadbayes.fit.composite.naming import beta_from_named, event_suffix
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite import (
     BETA_NAMES,
     THETA_NAMES,
-    EventRecord,
     design,
     motor_response,
 )

@@ -43,12 +43,12 @@ from loadbayes.inference.condlinear import (
     log_marginal,
     log_marginal_arrays,
 )
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite import (
     BETA_NAMES,
     SCALE_FREE_MATRIX,
     SCALE_FREE_NAMES,
     THETA_NAMES,
-    EventRecord,
     design,
     motor_response,
 )

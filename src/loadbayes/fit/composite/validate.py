@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from loadbayes.fit.composite.predictive import window_of
-from loadbayes.models.composite import THETA_NAMES, EventRecord, design, motor_response
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.composite import THETA_NAMES, design, motor_response
 from loadbayes.posterior import Posterior
 
 __all__ = [

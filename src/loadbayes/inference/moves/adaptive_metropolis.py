@@ -36,7 +36,7 @@ import numpy as np
 
 from loadbayes.inference.moves.base import BlockMove, BlockState, LogDensity
 
-__all__ = ["JUMP_DOF", "JUMP_INFLATION", "JUMP_MIN_DRAWS", "AdaptiveMetropolis", "StudentT"]
+__all__ = ["JUMP_DOF", "JUMP_INFLATION", "JUMP_MIN_DRAWS", "AdaptiveMetropolis", "StudentTProposal"]
 
 #: Degrees of freedom of the jumps' multivariate t (tails heavier than the bulk's).
 JUMP_DOF = 10.0
@@ -46,7 +46,7 @@ JUMP_INFLATION = 2.0
 JUMP_MIN_DRAWS = 500
 
 
-class StudentT:
+class StudentTProposal:
     """A multivariate Student-t: draws and the log density up to a constant.
 
     Parameters
@@ -111,7 +111,7 @@ class AdaptiveMetropolis(BlockMove):
         if not 0.0 <= independence < 1.0:
             raise ValueError(f"independence must be in [0, 1), got {independence}")
         self.independence = float(independence)
-        self._jump: StudentT | None = None
+        self._jump: StudentTProposal | None = None
         self._jump_ready = False
         self.jumps = 0
         self.jumps_accepted = 0
@@ -157,14 +157,16 @@ class AdaptiveMetropolis(BlockMove):
         self._jump = None
         if len(w) >= JUMP_MIN_DRAWS:
             cov = np.cov(w, rowvar=False) + 1e-10 * np.eye(self.d)
-            self._jump = StudentT(w.mean(axis=0), JUMP_INFLATION * cov, JUMP_DOF)
+            self._jump = StudentTProposal(w.mean(axis=0), JUMP_INFLATION * cov, JUMP_DOF)
 
-    def _jump_proposal(self) -> StudentT | None:
+    def _jump_proposal(self) -> StudentTProposal | None:
         # Fitted once, at the first step after burn-in, from what the move learned.
         if not self._jump_ready:
             self._jump_ready = True
             if self._running.count >= JUMP_MIN_DRAWS:
-                self._jump = StudentT(self._running.mean, JUMP_INFLATION * self.cov, JUMP_DOF)
+                self._jump = StudentTProposal(
+                    self._running.mean, JUMP_INFLATION * self.cov, JUMP_DOF
+                )
         return self._jump
 
     def _jump_step(self, jump, state, logp, rng):

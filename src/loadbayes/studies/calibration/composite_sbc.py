@@ -45,7 +45,7 @@ _TAU = (10.0, 10.0 * 0.02**2)
 
 def _event():
     from loadbayes.cases.composite_sim import sag_samples
-    from loadbayes.models.composite import EventRecord
+    from loadbayes.measurements.record import EventRecord
 
     t = np.arange(46) / 30.0
     v = sag_samples(t, depth=0.35, start_s=0.3, duration_s=0.2, recovery_s=0.2)
@@ -104,7 +104,7 @@ def composite_sampler(
         return out
 
     def simulate(theta: Mapping[str, float], rng: np.random.Generator):
-        from loadbayes.models.composite import EventRecord
+        from loadbayes.measurements.record import EventRecord
 
         phi = theta["step_phi"]
         u = np.array([theta[n] for n in PARAMETERS[:5]] + [phi])

@@ -3,14 +3,17 @@
 One row a quantity (each event's operating point and mix, then the motor's), the numbers
 to the digits their sd warrants (:func:`loadbayes.report.text.summary_table`), and a
 meaning column in words with the unit in brackets, both from
-:data:`~loadbayes.fit.composite.naming.QUANTITIES`.
+:data:`~loadbayes.report.composite_names.QUANTITIES`.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from loadbayes.fit.composite.naming import TABLE_NAMES, describe, event_suffix
+from loadbayes.core.display import fmt_like
+from loadbayes.fit.composite.naming import event_suffix
+from loadbayes.report.composite_names import TABLE_NAMES, describe
+from loadbayes.report.text import summary_table
 
 __all__ = [
     "TABLE_WIDTH",
@@ -74,8 +77,6 @@ def composite_table(
     -------
     str
     """
-    from loadbayes.report.text import summary_table
-
     names = [n for n in table_names(post.draws, n_events) if n in summary.index]
     title = (
         f"composite posterior, {post.method}, {n_events} event(s), {post.n_chains} chains x "
@@ -92,8 +93,6 @@ def static_lines(static: dict[str, Any], *, hdi_prob: float = 0.95) -> list[str]
     (:func:`~loadbayes.fit.composite.identifiability.static_identifiability`): a line
     saying so, then the combinations the data do fix, each with its interval.
     """
-    from loadbayes.report.text import fmt_like
-
     pct = f"{hdi_prob:.0%}"
     lines = []
     for k, ev in enumerate(static.get("events", [])):
