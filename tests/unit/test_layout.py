@@ -141,6 +141,7 @@ def test_no_command_imports_another_command_or_the_cli():
     shared = (
         "loadbayes.commands.options",
         "loadbayes.commands.output",
+        "loadbayes.commands.settings",
         "loadbayes.commands.signals",
     )
     bad = {

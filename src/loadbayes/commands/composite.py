@@ -14,11 +14,9 @@ import click
 from loadbayes.commands.options import (
     OneLineCommand,
     accept_units_option,
-    composite_model,
     event_column_options,
     likelihood_options,
     parse_nu,
-    sampler_settings,
 )
 from loadbayes.commands.output import (
     SamplingBar,
@@ -29,6 +27,7 @@ from loadbayes.commands.output import (
     stop_if_signalled,
     user_errors,
 )
+from loadbayes.commands.settings import composite_model, sampler_settings
 
 __all__ = ["fit_composite_cmd"]
 

@@ -13,7 +13,6 @@ from loadbayes.commands.options import (
     data_options,
     distinct_columns,
     q_column,
-    sampler_settings,
 )
 from loadbayes.commands.output import (
     Progress,
@@ -22,6 +21,7 @@ from loadbayes.commands.output import (
     estimate_rows,
     user_errors,
 )
+from loadbayes.commands.settings import sampler_settings
 
 STEP_DRAWS, STEP_BURN = 6_000, 1_000
 
