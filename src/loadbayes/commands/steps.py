@@ -68,7 +68,8 @@ def steps_cmd(
     from loadbayes.fit.steps import fit_steps
     from loadbayes.measurements.columns import read_power_columns
     from loadbayes.measurements.steps import find_steps, steps_table
-    from loadbayes.measurements.units import check_power_units, refuse
+    from loadbayes.measurements.units import check_power_units
+    from loadbayes.measurements.wording import refuse
 
     progress = Progress("reading", estimate_rows(data), quiet)
     try:
