@@ -414,3 +414,45 @@ def test_the_forbidden_arrows_are_caught_when_planted(tmp_path):
         },
         "posterior imports no report": {"loadbayes.posterior -> loadbayes.report.text"},
     }
+
+
+# --- No long module without the one idea that needs it ------------------------------
+
+#: A module longer than this says, in its docstring, which one idea needs its length.
+LONG_MODULE = 450
+
+
+def silent_long_modules(root: Path, limit: int = LONG_MODULE) -> list[str]:
+    """The modules under ``root`` over ``limit`` lines whose docstring has no "one idea"."""
+    bad = []
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        if len(text.splitlines()) <= limit:
+            continue
+        doc = ast.get_docstring(ast.parse(text)) or ""
+        if "one idea" not in " ".join(doc.lower().split()):
+            bad.append(path.relative_to(root).as_posix())
+    return bad
+
+
+def test_every_long_module_says_which_one_idea_needs_it():
+    assert silent_long_modules(SRC) == []
+
+
+def test_the_long_module_rule_catches_a_planted_module(tmp_path):
+    body = "x = 1\n" * (LONG_MODULE + 1)
+    root = _plant(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "fit/__init__.py": "",
+            "fit/short.py": '"""Short."""\n' + "x = 1\n" * 10,
+            "fit/said.py": '"""Long.\n\nONE IDEA needs these lines: the sampler.\n"""\n' + body,
+            "fit/wrapped.py": '"""Long.\n\nIts length is one\nidea: the sampler.\n"""\n' + body,
+            "fit/silent.py": '"""Long, and silent on why."""\n' + body,
+            "fit/comment.py": "# one idea, but in a comment\n" + body,
+            "io/tables.py": body,
+            "io/edge.py": "x = 1\n" * LONG_MODULE,  # at the limit: not over it
+        },
+    )
+    assert silent_long_modules(root) == ["fit/comment.py", "fit/silent.py", "io/tables.py"]
