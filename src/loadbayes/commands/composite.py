@@ -230,7 +230,7 @@ def fit_composite_cmd(
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
-    # The flags, mapped onto the model's fields in one table (commands/options.py).
+    # The flags, mapped onto the model's fields in one table (commands/settings.py).
     model = composite_model(
         f_hz=f_hz, torque=_parse_torque(torque), steps=steps, window_s=window_s,
         shares=shares, noise=noise, likelihood=likelihood, nu=parse_nu(nu),
