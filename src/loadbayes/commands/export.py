@@ -1,5 +1,7 @@
 """``loadbayes export``: a posterior into a simulator's files (pandapower, PSS/E, ANDES).
 
+One idea needs these 413 lines: ``loadbayes export``, its posterior read and checked (a
+JSON summary or NetCDF draws), the values picked and said, then one writer.
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
 attaches it. The format writers are imported only once chosen.
 """
