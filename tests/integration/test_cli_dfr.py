@@ -134,15 +134,47 @@ def test_real_record_broken_two_ways_is_refused_with_file_and_place(tmp_path):
     more = copy("more", lambda ls: ls.__setitem__(rates + 4, "50,3100"))
     res = run("read", "comtrade", more, "--bay", "1号主变", "--out", tmp_path / "a.csv")
     one_line_error(res, "more.dat: record 3078: truncated binary data", "3100 samples")
-    # An amplitude segment labelled as 3,200 samples/s waveform: the last (289 samples,
-    # 90 ms by that rate) holds no 50 Hz waveform; the first (36 samples) not one cycle.
-    wave = copy("wave", lambda ls: ls.__setitem__(rates + 4, "3200,3077"))
-    res = run("read", "comtrade", wave, "--bay", "1号主变", "--out", tmp_path / "b.csv")
-    one_line_error(res, "wave.cfg: samples 2789-3077", "not waveform samples")
-    short = copy("short", lambda ls: ls.__setitem__(rates + 2, "3200,1316"))
-    res = run("read", "comtrade", short, "--bay", "1号主变", "--out", tmp_path / "c.csv")
-    one_line_error(res, "short.cfg: samples 1281-1316 (segment 2", "labelled as waveform")
     assert not list(tmp_path.glob("*.csv"))
+
+
+@needs_real
+@pytest.mark.parametrize(
+    ("line", "text"),
+    [
+        (4, "3200,3077"),  # the last amplitude segment labelled as 3,200 samples/s waveform
+        (2, "3200,1316"),  # the first amplitude segment labelled as waveform
+        (2, "50,1281"),  # H4 (cli-redteam-2): a one-sample slip in an endsamp
+        (1, "0.001,1280"),  # H4: the first segment at 0.001/s (14.8 days of "amplitude")
+    ],
+    ids=["wave", "short", "slip", "milli"],
+)
+def test_a_wrong_rate_table_gives_way_to_consistent_stamps(tmp_path, line, text):
+    # H4: the .dat's stamps increase strictly in four runs of even spacing and put the
+    # voltage at 50 Hz: they, not the table, time the record, and the table's lines are
+    # named. Before, the table was trusted (or the record refused) and a 35-sample slip
+    # made a fake sag of amplitude samples read as waveform, every later row 0.7 s early.
+    src = REAL.read_bytes().decode("gb18030").splitlines()
+    rates = next(k for k, ln in enumerate(src) if ln.strip() == "4")  # nrates line
+    lines = list(src)
+    assert lines[rates + line] != text
+    lines[rates + line] = text
+    (tmp_path / "bad.cfg").write_bytes("\r\n".join(lines).encode("gb18030"))
+    shutil.copy(REAL.with_suffix(".dat"), tmp_path / "bad.dat")
+    res = run(
+        "read", "comtrade", tmp_path / "bad.cfg", "--bay", "1号主变", "--out", tmp_path / "b.csv"
+    )
+    assert res.exit_code == 0, res.output
+    note = next(ln for ln in res.output.splitlines() if "rate table" in ln)
+    assert f"lines {rates + 2}-{rates + 5}" in note and "the time stamps are trusted" in note
+    res = run("read", "comtrade", REAL, "--bay", "1号主变", "--out", tmp_path / "ok.csv")
+    assert res.exit_code == 0, res.output
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "b.csv"), pd.read_csv(tmp_path / "ok.csv"))
+    res = run("events", tmp_path / "b.csv", "--out", tmp_path / "ev")
+    assert res.exit_code == 0, res.output
+    # The fault at 1.35 s alone (the slip made a fake sag of depth 0.546 at 0.43 s).
+    assert pd.read_csv(tmp_path / "ev" / "events.csv")["sag_start_s"].to_numpy() == (
+        pytest.approx([1.35], abs=0.02)
+    )
 
 
 # ---------------------------------------------------------------- red-team variants
@@ -294,6 +326,13 @@ def test_implausible_time_stamps_alone_are_refused_not_gridded(good, tmp_path):
     (tmp_path / "rec.dat").write_bytes(b"\n".join(out))
     res = run("read", "comtrade", tmp_path / "rec.cfg", "--out", tmp_path / "x.csv")
     one_line_error(res, "timed by the .dat's stamps alone", "implausible time stamps")
+    # H4: the same stamps beside a rate table that is wrong too (1,000/s puts the 50 Hz
+    # voltage at 15.6 Hz): neither is usable, refused in one line naming the table.
+    lines[9:11] = ["1", "1000,1920"]
+    (tmp_path / "rec.cfg").write_text("\n".join(lines))
+    res = run("read", "comtrade", tmp_path / "rec.cfg", "--out", tmp_path / "x.csv")
+    one_line_error(res, "rec.cfg", "line 11", "neither is usable", "15.62 Hz")
+    assert not (tmp_path / "x.csv").exists()
 
 
 @needs_real
