@@ -380,3 +380,45 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
                 assert float(a) == pytest.approx(float(b), abs=0.01), (cmd, g)
     report = json.loads(Path("val.json").read_text())["events"][0]
     assert report["n_excluded"] == 9 and report["rms_p"] < 0.022  # README baseline 2.2%
+
+
+@pytest.mark.parametrize("suffix", [".csv.gz", ".parquet", ".csv"])
+def test_a_signal_around_the_table_leaves_both_files_or_neither_and_says_which(
+    good, tmp_path, monkeypatch, suffix
+):
+    # H6 (cli-redteam-2): a signal right after the table was written left it (without its
+    # sidecar, for .csv.gz) and said "no output was written"; one after both were
+    # committed also said so. Now one transaction, known to the message.
+    import loadbayes.io.tables as tables
+
+    cfg = variant(good, tmp_path)
+    real = tables.write_table
+
+    def then_a_signal(*args, **kwargs):
+        out = real(*args, **kwargs)
+        raise KeyboardInterrupt
+        return out
+
+    monkeypatch.setattr(tables, "write_table", then_a_signal)
+    out = tmp_path / f"x{suffix}"
+    res = run("read", "comtrade", cfg, "--out", out, "--quiet")
+    assert res.exit_code == 130, res.output
+    assert res.output.strip().splitlines()[-1] == "loadbayes: interrupted; no output was written"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.cfg", "rec.dat"]
+    monkeypatch.setattr(tables, "write_table", real)
+
+    import click
+
+    echo = click.echo
+
+    def signal_after_the_commit(*args, **kwargs):  # the first note, once both are renamed
+        if "loadbayes: note:" in str(args[0] if args else ""):
+            raise KeyboardInterrupt
+        return echo(*args, **kwargs)
+
+    monkeypatch.setattr(click, "echo", signal_after_the_commit)
+    res = run("read", "comtrade", cfg, "--out", out)
+    monkeypatch.setattr(click, "echo", echo)
+    assert res.exit_code == 130, res.output
+    assert "interrupted after every output was written" in res.output
+    assert out.is_file() and (tmp_path / f"x{suffix}.meta.json").is_file()
