@@ -422,3 +422,25 @@ def test_a_signal_around_the_table_leaves_both_files_or_neither_and_says_which(
     assert res.exit_code == 130, res.output
     assert "interrupted after every output was written" in res.output
     assert out.is_file() and (tmp_path / f"x{suffix}.meta.json").is_file()
+
+
+def test_events_on_a_record_with_a_bad_start_or_far_future_times_is_one_line(good, tmp_path):
+    # H7 (cli-redteam-2): a sidecar 'start' that is a number, and t_s past the year 9999,
+    # were a TypeError and an OverflowError traceback.
+    cfg = variant(good, tmp_path)
+    res = run("read", "comtrade", cfg, "--per-cycle", "4", "--out", tmp_path / "r.parquet")
+    assert res.exit_code == 0, res.output
+    side = tmp_path / "r.parquet.meta.json"
+    meta = json.loads(side.read_text(encoding="utf-8"))
+    good_meta = dict(meta)
+    meta["start"] = 12345
+    side.write_text(json.dumps(meta), encoding="utf-8")
+    res = run("events", tmp_path / "r.parquet", "--out", tmp_path / "ev1")
+    one_line_error(res, "r.parquet.meta.json", "'start'", "12345")
+    side.write_text(json.dumps(good_meta), encoding="utf-8")
+    table = pd.read_parquet(tmp_path / "r.parquet")
+    table["t_s"] += 3e11
+    table.to_parquet(tmp_path / "r.parquet")
+    res = run("events", tmp_path / "r.parquet", "--out", tmp_path / "ev2")
+    one_line_error(res, "r.parquet", "t_s", "9999")
+    assert not (tmp_path / "ev1").exists() and not (tmp_path / "ev2").exists()

@@ -283,11 +283,26 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
         windows = sags_by_segment(data, v_ref=v_ref, **settings)
     except ValueError as exc:
         raise DataError(str(exc), record) from None
-    start = comtrade_time(meta.get("start", ""))
+    stamp = meta.get("start", "")
+    if stamp is not None and not isinstance(stamp, str):
+        raise DataError(
+            f"key 'start' is {stamp!r}, expected the .cfg's time stamp as text "
+            "('dd/mm/yyyy,hh:mm:ss.ffffff')",
+            str(meta_path(record)),
+        )
+    start = comtrade_time(stamp or "")
     extra = []
     for ev in windows:
         t0 = float(data["t_s"][ev.start])
-        at = (start + dt.timedelta(seconds=t0)).isoformat() if start else ""
+        try:
+            at = (start + dt.timedelta(seconds=t0)).isoformat() if start else ""
+        except OverflowError:
+            raise DataError(
+                f"phasor row {ev.start + 1}: t_s = {t0:.6g} s after the start "
+                f"{stamp} is past the year 9999",
+                record,
+                "t_s",
+            ) from None
         extra.append(
             {
                 "station": meta.get("station", ""),
