@@ -444,3 +444,22 @@ def test_events_on_a_record_with_a_bad_start_or_far_future_times_is_one_line(goo
     res = run("events", tmp_path / "r.parquet", "--out", tmp_path / "ev2")
     one_line_error(res, "r.parquet", "t_s", "9999")
     assert not (tmp_path / "ev1").exists() and not (tmp_path / "ev2").exists()
+
+
+@needs_real
+@pytest.mark.parametrize(
+    ("bay", "needles"),
+    [
+        (
+            "主变",
+            ["matches 2 current sets", "2号主变_高压侧_202开关_I", "1号主变_高压侧_201开关_I"],
+        ),
+        ("高压侧", ["matches 2 current sets"]),
+        ("I", ["matches 2 voltage sets", "220kV母线I_U", "220kV母线II_U"]),
+    ],
+)
+def test_an_ambiguous_bay_is_refused_with_its_candidates(tmp_path, bay, needles):
+    # M3 (cli-redteam-2): --bay 主变 took the first of two transformers, silently.
+    res = run("read", "comtrade", REAL, "--bay", bay, "--out", tmp_path / "b.csv")
+    one_line_error(res, "xtz.cfg", f"bay {bay!r}", *needles)
+    assert not (tmp_path / "b.csv").exists()
