@@ -134,15 +134,47 @@ def test_real_record_broken_two_ways_is_refused_with_file_and_place(tmp_path):
     more = copy("more", lambda ls: ls.__setitem__(rates + 4, "50,3100"))
     res = run("read", "comtrade", more, "--bay", "1号主变", "--out", tmp_path / "a.csv")
     one_line_error(res, "more.dat: record 3078: truncated binary data", "3100 samples")
-    # An amplitude segment labelled as 3,200 samples/s waveform: the last (289 samples,
-    # 90 ms by that rate) holds no 50 Hz waveform; the first (36 samples) not one cycle.
-    wave = copy("wave", lambda ls: ls.__setitem__(rates + 4, "3200,3077"))
-    res = run("read", "comtrade", wave, "--bay", "1号主变", "--out", tmp_path / "b.csv")
-    one_line_error(res, "wave.cfg: samples 2789-3077", "not waveform samples")
-    short = copy("short", lambda ls: ls.__setitem__(rates + 2, "3200,1316"))
-    res = run("read", "comtrade", short, "--bay", "1号主变", "--out", tmp_path / "c.csv")
-    one_line_error(res, "short.cfg: samples 1281-1316 (segment 2", "labelled as waveform")
     assert not list(tmp_path.glob("*.csv"))
+
+
+@needs_real
+@pytest.mark.parametrize(
+    ("line", "text"),
+    [
+        (4, "3200,3077"),  # the last amplitude segment labelled as 3,200 samples/s waveform
+        (2, "3200,1316"),  # the first amplitude segment labelled as waveform
+        (2, "50,1281"),  # H4 (cli-redteam-2): a one-sample slip in an endsamp
+        (1, "0.001,1280"),  # H4: the first segment at 0.001/s (14.8 days of "amplitude")
+    ],
+    ids=["wave", "short", "slip", "milli"],
+)
+def test_a_wrong_rate_table_gives_way_to_consistent_stamps(tmp_path, line, text):
+    # H4: the .dat's stamps increase strictly in four runs of even spacing and put the
+    # voltage at 50 Hz: they, not the table, time the record, and the table's lines are
+    # named. Before, the table was trusted (or the record refused) and a 35-sample slip
+    # made a fake sag of amplitude samples read as waveform, every later row 0.7 s early.
+    src = REAL.read_bytes().decode("gb18030").splitlines()
+    rates = next(k for k, ln in enumerate(src) if ln.strip() == "4")  # nrates line
+    lines = list(src)
+    assert lines[rates + line] != text
+    lines[rates + line] = text
+    (tmp_path / "bad.cfg").write_bytes("\r\n".join(lines).encode("gb18030"))
+    shutil.copy(REAL.with_suffix(".dat"), tmp_path / "bad.dat")
+    res = run(
+        "read", "comtrade", tmp_path / "bad.cfg", "--bay", "1号主变", "--out", tmp_path / "b.csv"
+    )
+    assert res.exit_code == 0, res.output
+    note = next(ln for ln in res.output.splitlines() if "rate table" in ln)
+    assert f"lines {rates + 2}-{rates + 5}" in note and "the time stamps are trusted" in note
+    res = run("read", "comtrade", REAL, "--bay", "1号主变", "--out", tmp_path / "ok.csv")
+    assert res.exit_code == 0, res.output
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "b.csv"), pd.read_csv(tmp_path / "ok.csv"))
+    res = run("events", tmp_path / "b.csv", "--out", tmp_path / "ev")
+    assert res.exit_code == 0, res.output
+    # The fault at 1.35 s alone (the slip made a fake sag of depth 0.546 at 0.43 s).
+    assert pd.read_csv(tmp_path / "ev" / "events.csv")["sag_start_s"].to_numpy() == (
+        pytest.approx([1.35], abs=0.02)
+    )
 
 
 # ---------------------------------------------------------------- red-team variants
@@ -294,6 +326,13 @@ def test_implausible_time_stamps_alone_are_refused_not_gridded(good, tmp_path):
     (tmp_path / "rec.dat").write_bytes(b"\n".join(out))
     res = run("read", "comtrade", tmp_path / "rec.cfg", "--out", tmp_path / "x.csv")
     one_line_error(res, "timed by the .dat's stamps alone", "implausible time stamps")
+    # H4: the same stamps beside a rate table that is wrong too (1,000/s puts the 50 Hz
+    # voltage at 15.6 Hz): neither is usable, refused in one line naming the table.
+    lines[9:11] = ["1", "1000,1920"]
+    (tmp_path / "rec.cfg").write_text("\n".join(lines))
+    res = run("read", "comtrade", tmp_path / "rec.cfg", "--out", tmp_path / "x.csv")
+    one_line_error(res, "rec.cfg", "line 11", "neither is usable", "15.62 Hz")
+    assert not (tmp_path / "x.csv").exists()
 
 
 @needs_real
@@ -341,3 +380,86 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
                 assert float(a) == pytest.approx(float(b), abs=0.01), (cmd, g)
     report = json.loads(Path("val.json").read_text())["events"][0]
     assert report["n_excluded"] == 9 and report["rms_p"] < 0.022  # README baseline 2.2%
+
+
+@pytest.mark.parametrize("suffix", [".csv.gz", ".parquet", ".csv"])
+def test_a_signal_around_the_table_leaves_both_files_or_neither_and_says_which(
+    good, tmp_path, monkeypatch, suffix
+):
+    # H6 (cli-redteam-2): a signal right after the table was written left it (without its
+    # sidecar, for .csv.gz) and said "no output was written"; one after both were
+    # committed also said so. Now one transaction, known to the message.
+    import loadbayes.io.tables as tables
+
+    cfg = variant(good, tmp_path)
+    real = tables.write_table
+
+    def then_a_signal(*args, **kwargs):
+        out = real(*args, **kwargs)
+        raise KeyboardInterrupt
+        return out
+
+    monkeypatch.setattr(tables, "write_table", then_a_signal)
+    out = tmp_path / f"x{suffix}"
+    res = run("read", "comtrade", cfg, "--out", out, "--quiet")
+    assert res.exit_code == 130, res.output
+    assert res.output.strip().splitlines()[-1] == "loadbayes: interrupted; no output was written"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.cfg", "rec.dat"]
+    monkeypatch.setattr(tables, "write_table", real)
+
+    import click
+
+    echo = click.echo
+
+    def signal_after_the_commit(*args, **kwargs):  # the first note, once both are renamed
+        if "loadbayes: note:" in str(args[0] if args else ""):
+            raise KeyboardInterrupt
+        return echo(*args, **kwargs)
+
+    monkeypatch.setattr(click, "echo", signal_after_the_commit)
+    res = run("read", "comtrade", cfg, "--out", out)
+    monkeypatch.setattr(click, "echo", echo)
+    assert res.exit_code == 130, res.output
+    assert "interrupted after every output was written" in res.output
+    assert out.is_file() and (tmp_path / f"x{suffix}.meta.json").is_file()
+
+
+def test_events_on_a_record_with_a_bad_start_or_far_future_times_is_one_line(good, tmp_path):
+    # H7 (cli-redteam-2): a sidecar 'start' that is a number, and t_s past the year 9999,
+    # were a TypeError and an OverflowError traceback.
+    cfg = variant(good, tmp_path)
+    res = run("read", "comtrade", cfg, "--per-cycle", "4", "--out", tmp_path / "r.parquet")
+    assert res.exit_code == 0, res.output
+    side = tmp_path / "r.parquet.meta.json"
+    meta = json.loads(side.read_text(encoding="utf-8"))
+    good_meta = dict(meta)
+    meta["start"] = 12345
+    side.write_text(json.dumps(meta), encoding="utf-8")
+    res = run("events", tmp_path / "r.parquet", "--out", tmp_path / "ev1")
+    one_line_error(res, "r.parquet.meta.json", "'start'", "12345")
+    side.write_text(json.dumps(good_meta), encoding="utf-8")
+    table = pd.read_parquet(tmp_path / "r.parquet")
+    table["t_s"] += 3e11
+    table.to_parquet(tmp_path / "r.parquet")
+    res = run("events", tmp_path / "r.parquet", "--out", tmp_path / "ev2")
+    one_line_error(res, "r.parquet", "t_s", "9999")
+    assert not (tmp_path / "ev1").exists() and not (tmp_path / "ev2").exists()
+
+
+@needs_real
+@pytest.mark.parametrize(
+    ("bay", "needles"),
+    [
+        (
+            "主变",
+            ["matches 2 current sets", "2号主变_高压侧_202开关_I", "1号主变_高压侧_201开关_I"],
+        ),
+        ("高压侧", ["matches 2 current sets"]),
+        ("I", ["matches 2 voltage sets", "220kV母线I_U", "220kV母线II_U"]),
+    ],
+)
+def test_an_ambiguous_bay_is_refused_with_its_candidates(tmp_path, bay, needles):
+    # M3 (cli-redteam-2): --bay 主变 took the first of two transformers, silently.
+    res = run("read", "comtrade", REAL, "--bay", bay, "--out", tmp_path / "b.csv")
+    one_line_error(res, "xtz.cfg", f"bay {bay!r}", *needles)
+    assert not (tmp_path / "b.csv").exists()

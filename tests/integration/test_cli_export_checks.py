@@ -69,7 +69,9 @@ def test_andes_without_bus_takes_the_documented_bus(tmp_path, monkeypatch, model
     from loadbayes.export.andes.writer import DEFAULT_BUS
 
     posterior_json(tmp_path / "post.json", values, model)
-    r = run("post.json", "--to", "andes", "--out", "case.json", "--quiet", cwd=tmp_path,
+    # ZIP's shares are not physical (a2 < 0): the export needs --force-unphysical (issue 40)
+    r = run("post.json", "--to", "andes", "--out", "case.json", "--quiet",
+            "--force-unphysical", cwd=tmp_path,
             monkeypatch=monkeypatch)  # fmt: skip
     assert r.exit_code == 0, r.output
     side = (tmp_path / "case.json.summary.txt").read_text()
@@ -161,11 +163,13 @@ def test_a_tampered_posterior_is_one_line_naming_the_key(tmp_path, monkeypatch, 
 def test_psse_refuses_a_negative_load_and_a_field_past_its_range(tmp_path, monkeypatch):
     posterior_json(tmp_path / "neg.json", dict(ZIP, p0=-5.0))
     # p0 = -5 p.u. on the default 100 MVA base
-    one_line(run("neg.json", "--to", "psse", "--out", "neg.raw", cwd=tmp_path,
+    # --force-unphysical past the shares' refusal (issue 40): the writer's own refusal
+    one_line(run("neg.json", "--to", "psse", "--out", "neg.raw", "--force-unphysical", cwd=tmp_path,
                  monkeypatch=monkeypatch), "P = -500 MW", "negative load")  # fmt: skip
     # finite parameters whose products leave a PSS/E field's range (1e9): named by field
     posterior_json(tmp_path / "big.json", dict(ZIP, p0=1e6, a1=1e6, a2=-1e6 + 0.3))
     one_line(run("big.json", "--to", "psse", "--out", "big.raw", "--s-base", "100",
+                 "--force-unphysical",
                  cwd=tmp_path, monkeypatch=monkeypatch), "field IP", "-1e+14")  # fmt: skip
     assert files(tmp_path) == ["big.json", "neg.json"]
 
@@ -194,7 +198,7 @@ def test_andes_case_and_bus_place_the_load_in_that_case(tmp_path, monkeypatch):
 
     posterior_json(tmp_path / "post.json", COMPOSITE, "composite")
     r = run("post.json", "--to", "andes", "--out", "kundur.json", "--case",
-            "kundur/kundur_full.xlsx", "--bus", 7, "--quiet", cwd=tmp_path,
+            "kundur/kundur_full.xlsx", "--bus", 7, "--add-load", "--quiet", cwd=tmp_path,
             monkeypatch=monkeypatch)  # fmt: skip
     assert r.exit_code == 0, r.output
     # quiet, with no log file: by default ANDES makes a new /tmp/andes-* folder for one

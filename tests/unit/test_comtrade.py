@@ -248,3 +248,25 @@ def test_a_dat_or_cff_given_for_the_cfg_says_what_to_give(rec):
     cff.write_bytes(cfg.read_bytes())
     with pytest.raises(DataError, match="single-file .cff form of 2013 is not read"):
         read_comtrade(cff)
+
+
+def test_a_latin1_cfg_is_not_taken_for_gb18030_and_lines_split_at_line_breaks_only(rec):
+    # M1 (cli-redteam-2): 'Üb' (0xDC 0x62) is a valid GB18030 ideograph: a Latin-1 .cfg
+    # was decoded as GB18030 and its names garbled. M2: a cp1252 '…' (0x85, U+0085 in
+    # Latin-1), a form feed or 0x1C in a name split its line (str.splitlines).
+    cfg, _ = rec
+    lines = cfg.read_bytes().split(b"\r\n")
+    lines[0] = "BEIHU 220kV,Störschreiber,1999".encode("latin-1")
+    for k, name in ((2, "Trafo1_Übertragung…_UA"), (3, "Trafo1_Übertragung\x0c_UB"),
+                    (4, "Trafo1_Übertragung\x1c_UC")):  # fmt: skip
+        f = lines[k].split(b",")
+        f[1] = name.encode("cp1252") if "…" in name else name.encode("latin-1")
+        lines[k] = b",".join(f)
+    cfg.write_bytes(b"\r\n".join(lines))
+    info = parse_cfg(cfg)
+    assert info.encoding == "latin-1"
+    assert info.station == "BEIHU 220kV" and info.device == "Störschreiber"
+    names = [ch.name for ch in info.analog[:3]]
+    assert names == ["Trafo1_Übertragung\x85_UA", "Trafo1_Übertragung\x0c_UB",
+                     "Trafo1_Übertragung\x1c_UC"]  # fmt: skip
+    assert info.n_samples == 320

@@ -4,8 +4,9 @@ Arrows point down only: commands -> studies -> fit / baselines -> models & infer
 core -> io. Models are physics (they never import a sampler, a driver or Posterior),
 samplers know no physics, and the library never imports the studies or the CLI.
 
-Six rules are written as functions over an import map (or over the click tree), so a
-test can run each of them on a planted violation as well as on the real code. The map
+Eight rules are written as functions over an import map (or over the click tree, the
+source files, the map's text), so a test can run each of them on a planted violation as
+well as on the real code. The import map
 holds every import of a module, at any depth (those inside functions and ``if`` blocks
 too) and relative ones resolved; ``importlib.import_module`` strings are not seen.
 
@@ -26,11 +27,16 @@ too) and relative ones resolved; ``importlib.import_module`` strings are not see
   printed or drawn is above it), ``measurements/`` imports no ``models/`` (data in know
   no physics), ``posterior.py`` imports no ``report/`` (the result type sits below its
   reports).
+- :func:`silent_long_modules`: a module over :data:`LONG_MODULE` lines says in its
+  docstring which "one idea" needs its length.
+- :func:`map_errors`: docs/architecture.md's module table names every module file, by
+  its file name in its package's row, and names none that does not exist.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import textwrap
 from pathlib import Path
 
@@ -141,6 +147,7 @@ def test_no_command_imports_another_command_or_the_cli():
     shared = (
         "loadbayes.commands.options",
         "loadbayes.commands.output",
+        "loadbayes.commands.settings",
         "loadbayes.commands.signals",
     )
     bad = {
@@ -412,4 +419,129 @@ def test_the_forbidden_arrows_are_caught_when_planted(tmp_path):
             "loadbayes.measurements.events -> loadbayes.models.composite",
         },
         "posterior imports no report": {"loadbayes.posterior -> loadbayes.report.text"},
+    }
+
+
+# --- No long module without the one idea that needs it ------------------------------
+
+#: A module longer than this says, in its docstring, which one idea needs its length.
+LONG_MODULE = 450
+
+
+def silent_long_modules(root: Path, limit: int = LONG_MODULE) -> list[str]:
+    """The modules under ``root`` over ``limit`` lines whose docstring has no "one idea"."""
+    bad = []
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        if len(text.splitlines()) <= limit:
+            continue
+        doc = ast.get_docstring(ast.parse(text)) or ""
+        if "one idea" not in " ".join(doc.lower().split()):
+            bad.append(path.relative_to(root).as_posix())
+    return bad
+
+
+def test_every_long_module_says_which_one_idea_needs_it():
+    assert silent_long_modules(SRC) == []
+
+
+def test_the_long_module_rule_catches_a_planted_module(tmp_path):
+    body = "x = 1\n" * (LONG_MODULE + 1)
+    root = _plant(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "fit/__init__.py": "",
+            "fit/short.py": '"""Short."""\n' + "x = 1\n" * 10,
+            "fit/said.py": '"""Long.\n\nONE IDEA needs these lines: the sampler.\n"""\n' + body,
+            "fit/wrapped.py": '"""Long.\n\nIts length is one\nidea: the sampler.\n"""\n' + body,
+            "fit/silent.py": '"""Long, and silent on why."""\n' + body,
+            "fit/comment.py": "# one idea, but in a comment\n" + body,
+            "io/tables.py": body,
+            "io/edge.py": "x = 1\n" * LONG_MODULE,  # at the limit: not over it
+        },
+    )
+    assert silent_long_modules(root) == ["fit/comment.py", "fit/silent.py", "io/tables.py"]
+
+
+# --- The map names every module, and only modules that exist -------------------------
+
+MAP = Path(__file__).parents[2] / "docs" / "architecture.md"
+MAP_SECTION = "## The packages and top-level modules"
+#: Files that are no module of their own to name: a package, its ``-m`` entry, the version.
+UNNAMED = ("__init__.py", "__main__.py", "_version.py")
+
+
+def map_names(text: str) -> set[str]:
+    """The module paths (relative to the package) that the map's module table names.
+
+    Each row of the table under :data:`MAP_SECTION` is one package: its first cell names it
+    in backticks ending in ``/`` (``fit/composite/``; no such name: the top level), and
+    its second cell names each of its modules by file name in backticks (``driver.py``).
+    """
+    section = text.split(MAP_SECTION, 1)[1].split("\n## ", 1)[0]
+    names = set()
+    for line in section.splitlines():
+        cells = line.split("|")
+        if not line.startswith("|") or len(cells) < 4 or set(cells[1].strip()) <= set("-"):
+            continue
+        package = next((t for t in re.findall(r"`([^`]+)`", cells[1]) if t.endswith("/")), "")
+        names |= {
+            package + t
+            for t in re.findall(r"`([^`]+)`", "|".join(cells[2:]))
+            if re.fullmatch(r"\w+\.py", t)
+        }
+    return names
+
+
+def module_files(root: Path) -> set[str]:
+    """Every module file under ``root`` (relative paths), :data:`UNNAMED` aside."""
+    return {p.relative_to(root).as_posix() for p in root.rglob("*.py") if p.name not in UNNAMED}
+
+
+def map_errors(text: str, root: Path) -> dict[str, list[str]]:
+    """The modules the map leaves out, and the names in it that are no module."""
+    named, files = map_names(text), module_files(root)
+    return {"not named": sorted(files - named), "no such module": sorted(named - files)}
+
+
+def test_the_map_names_every_module_and_no_other():
+    errors = map_errors(MAP.read_text(encoding="utf-8"), SRC)
+    assert errors == {"not named": [], "no such module": []}
+
+
+def test_the_map_rule_catches_a_planted_module_and_a_stale_name(tmp_path):
+    root = _plant(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "__main__.py": "",
+            "_version.py": "",
+            "cli.py": "",
+            "fit/__init__.py": "",
+            "fit/core.py": "",
+            "fit/composite/__init__.py": "",
+            "fit/composite/driver.py": "",
+            "fit/composite/new.py": "",  # not in the map
+            "models/zip.py": "",  # its package has no row
+        },
+    )
+    text = textwrap.dedent(
+        """\
+        ## The packages and top-level modules
+
+        | package | its modules |
+        | --- | --- |
+        | top level | `cli.py` (the commands) |
+        | `fit/` | `core.py`, and `composite/` below; `models/zip.py` is not named here |
+        | `fit/composite/` | `driver.py`, `table.py` (gone) |
+
+        ## One composite fit
+
+        | `models/` | `zip.py` (outside the section: not counted) |
+        """
+    )
+    assert map_errors(text, root) == {
+        "not named": ["fit/composite/new.py", "models/zip.py"],
+        "no such module": ["fit/composite/table.py"],
     }

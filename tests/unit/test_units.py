@@ -13,8 +13,8 @@ from loadbayes.measurements.units import (
     check_motor_units,
     check_power_units,
     level_at_nominal,
-    refuse,
 )
+from loadbayes.measurements.wording import refuse
 
 DATA = Path(__file__).parents[1] / "data"
 

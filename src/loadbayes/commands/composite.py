@@ -14,11 +14,9 @@ import click
 from loadbayes.commands.options import (
     OneLineCommand,
     accept_units_option,
-    composite_model,
     event_column_options,
     likelihood_options,
     parse_nu,
-    sampler_settings,
 )
 from loadbayes.commands.output import (
     SamplingBar,
@@ -29,6 +27,7 @@ from loadbayes.commands.output import (
     stop_if_signalled,
     user_errors,
 )
+from loadbayes.commands.settings import composite_model, sampler_settings
 
 __all__ = ["fit_composite_cmd"]
 
@@ -231,7 +230,7 @@ def fit_composite_cmd(
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
-    # The flags, mapped onto the model's fields in one table (commands/options.py).
+    # The flags, mapped onto the model's fields in one table (commands/settings.py).
     model = composite_model(
         f_hz=f_hz, torque=_parse_torque(torque), steps=steps, window_s=window_s,
         shares=shares, noise=noise, likelihood=likelihood, nu=parse_nu(nu),

@@ -12,13 +12,11 @@ from loadbayes.commands.options import (
     accept_units_option,
     data_options,
     distinct_columns,
-    fit_spec,
     nominal,
     nominal_note,
     nominal_options,
     output_options,
     q_column,
-    sampler_settings,
     tau_prior_options,
 )
 from loadbayes.commands.output import (
@@ -29,6 +27,7 @@ from loadbayes.commands.output import (
     user_errors,
     write_outputs,
 )
+from loadbayes.commands.settings import fit_spec, sampler_settings
 
 #: Parameters stored per draw, at most: np, nq, kpf, kqf, tau_p, tau_q, p0, q0.
 N_PARAMS = 8

@@ -1,19 +1,28 @@
 """``loadbayes export``: a posterior into a simulator's files (pandapower, PSS/E, ANDES).
 
+One idea needs these 413 lines: ``loadbayes export``, its posterior read and checked (a
+JSON summary or NetCDF draws), the values picked and said, then one writer.
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
 attaches it. The format writers are imported only once chosen.
+
+One idea at about 530 lines: one export, from reading and checking the posterior (half of
+it: a JSON file may hold anything) through the checks of :mod:`loadbayes.export.checks`
+to one transaction of every file of every draw. Splitting the posterior reader out is
+the next step when it grows.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import re
 from pathlib import Path
 
 import click
 
 from loadbayes.commands.options import OneLineCommand
-from loadbayes.commands.output import UserError, user_errors
+from loadbayes.commands.output import UserError, output_transaction, user_errors
 from loadbayes.export.bases import BASE_KEYS, resolve_bases
 from loadbayes.io.errors import DataError
 
@@ -51,6 +60,7 @@ def _read_posterior(path: str):
                 "hdi_low": float(np.quantile(d, 0.025)), "hdi_high": float(np.quantile(d, 0.975))}
             for k, d in draws.items()
         }  # fmt: skip
+        _add_convergence(post, summary)
         return post.model, draws, summary, dict(post.settings), "2.5% and 97.5% quantiles"
     if p.suffix.lower() in (".parquet", ".pq", ".csv"):
         # A fleet's table (or a data file) holds summaries per bus, not one posterior.
@@ -68,6 +78,22 @@ def _read_posterior(path: str):
     except (ValueError, KeyError, TypeError, UnicodeDecodeError):
         raise DataError("not a loadbayes posterior JSON (no 'model'/'parameters')", path) from None
     return _checked_json(doc, params, model, path)
+
+
+def _add_convergence(post, summary: dict) -> None:
+    """R-hat and bulk ESS of the exported quantities, from the NetCDF's chains."""
+    from loadbayes.export.checks import EXPORTED
+
+    names = [n for n in EXPORTED if n in summary]
+    if not names:
+        return
+    try:
+        table = post.summary(var_names=names)
+    except (ValueError, FloatingPointError):  # too few draws for the diagnostics
+        return
+    for name, row in table.iterrows():
+        summary[name]["r_hat"] = float(row["r_hat"])
+        summary[name]["ess_bulk"] = float(row["ess_bulk"])
 
 
 def _number(value) -> bool:
@@ -305,12 +331,30 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
     help="ANDES: a case file, or a name of ANDES's case library (kundur/kundur_full.xlsx), "
     "to place the load in, on bus --bus.",
 )
+@click.option(
+    "--replace-load",
+    "load_mode",
+    flag_value="replace",
+    help="ANDES --case: put the bus's own PQ load out of service; the fitted load is the "
+    "bus's load.",
+)
+@click.option(
+    "--add-load",
+    "load_mode",
+    flag_value="add",
+    help="ANDES --case: keep the bus's own PQ load in service; the fitted load is added to it.",
+)
+@click.option(
+    "--force-unphysical",
+    is_flag=True,
+    help="Export a static part with negative shares or power all the same (with warnings).",
+)
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
 def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
-               net_file, load_index, motor_as, motor_record, case_in, quiet,
-               force):  # fmt: skip
+               net_file, load_index, motor_as, motor_record, case_in, load_mode,
+               force_unphysical, quiet, force):  # fmt: skip
     """Write a fitted load model into pandapower, PSS/E or ANDES files.
 
     The posterior summary (mean, sd and interval of each parameter, the source and the
@@ -328,6 +372,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
         raise UserError("--case places the load in an ANDES case: it goes with --to andes")
     if case_in is not None and bus is None:
         raise UserError("--case needs the bus to put the load on: give --bus N")
+    if load_mode is not None and case_in is None:
+        raise UserError(f"--{load_mode}-load says what to do with a --case bus's own load")
     from loadbayes import export
 
     writer = export.get(fmt)
@@ -341,10 +387,11 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     if reason:
         raise DataError(reason, posterior)
     outp = Path(out)
-    if fmt == "psse" and outp.suffix.lower() == ".dyr":
-        # The .raw is the case and the .dyr its dynamics: both take the stem of --out,
-        # and neither may be written over the other.
-        outp = outp.with_suffix(".raw")
+    if fmt == "psse":
+        # The .raw is the case, the .dyr (and .dyd) its dynamics: all take the stem of
+        # --out, and none may be written over another (nor a .summary.txt over a case).
+        if outp.suffix.lower() in (".raw", ".dyr", ".dyd"):
+            outp = outp.with_suffix(".raw")
     if n_draws is None:
         jobs = [(outp, _fill(pick_values(draws, summary, stat), settings), stat)]
     else:
@@ -378,6 +425,11 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
         for r in related:
             if r.exists() and not force:
                 raise UserError(f"{r}: exists; use --force to overwrite")
+    if fmt == "psse" and outp.suffix.lower() != ".raw":
+        raise UserError(
+            f"{out}: a PSS/E export's --out ends in .raw (or .dyr, .dyd: the same stem), "
+            f"not '{outp.suffix or '(none)'}'"
+        )
     s_used, v_used, base_notes = resolve_bases(settings, fmt, s_base=s_base, v_base=vn_kv)
     options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
                "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
@@ -387,25 +439,96 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     for key in ("s_base_mva", "vn_kv", "f_hz"):
         if options[key] is None:
             options.pop(key)
+    if load_mode is not None:
+        options["load_mode"] = load_mode
     for _, values, _ in jobs:
         _check_values(values, posterior)
+    problems = _problems(jobs, summary, settings, interval, model, options, fmt)
+    unphysical = [(what, p) for what, ps in problems for p in ps if p.unphysical]
+    if unphysical and not force_unphysical:
+        what, p = unphysical[0]
+        where = f"{what}: " if n_draws is not None else ""
+        raise UserError(
+            f"{posterior}: {where}{p.text}; refused: --force-unphysical exports it all the "
+            "same, with these warnings in its files"
+        )
     written: list[str] = []
-    try:
-        for path, values, what in jobs:
+    notes: list[str] = []  # what a writer tells the user (the ANDES case's own load)
+    options["said"] = notes
+    with _staged(outp.parent) as stage, output_transaction({}, force=force) as outs:
+        for (path, values, what), (_, ps) in zip(jobs, problems, strict=True):
+            warns = [p.text for p in ps]
             header = summary_lines(posterior, model, summary, what, interval) + base_notes
+            header += [f"warning: {w}" for w in warns]
             try:
-                paths = writer.write(values, path, model=model, header=header, options=options)
+                paths = writer.write(
+                    values,
+                    stage / path.name,
+                    model=model,
+                    header=header,
+                    options={**options, "warnings": warns, "force": True},
+                )
             except ValueError as exc:
                 if isinstance(exc, DataError):
                     raise
                 # What the writer refuses comes from the posterior: name it.
                 raise UserError(f"{posterior}: {what}: {exc}") from None
-            written += [str(p) for p in paths]
-    except KeyboardInterrupt as exc:
-        exc.written = written  # type: ignore[attr-defined]
-        raise
+            for p in paths:
+                target = path.with_name(Path(p).name)
+                outs.targets[str(target)] = target
+                os.replace(p, outs.temp(str(target)))
+                written.append(str(target))
+    # Said after the work, once each (the files carry them): an error stays the run's
+    # one line.
+    said: set[str] = set()
+    for what, ps in problems:
+        for p in ps:
+            line = p.text if n_draws is None or not p.unphysical else f"{what}: {p.text}"
+            if line not in said:
+                said.add(line)
+                click.echo(f"loadbayes: warning: {line}", err=True)
     if not quiet:
-        # After the work: an error stays the run's one line.
-        for note in base_notes:
+        for note in [*base_notes, *dict.fromkeys(notes)]:
             click.echo(f"loadbayes: note: {note}", err=True)
         click.echo(f"{posterior}: {model} exported to {fmt}: {', '.join(written)}", err=True)
+
+
+def _problems(jobs, summary, settings, interval, model, options, fmt):
+    """(what, problems) of each job: the fit's own (a, d) and its parameter set's (b, c)."""
+    from loadbayes.export.bases import DEFAULT_BASES
+    from loadbayes.export.checks import fit_problems, value_problems
+    from loadbayes.export.loadparts import load_parts
+
+    # The MW the writer will write: its default base when the fit has none.
+    options = {"s_base_mva": DEFAULT_BASES[fmt][0], **options}
+
+    common = fit_problems(summary, settings, interval)
+    out = []
+    for _, values, what in jobs:
+        try:
+            parts = load_parts(values, model=model, options=options)
+        except ValueError:  # the writer says why, in its own words
+            parts = None
+        out.append((what, [*common, *value_problems(values, parts, model)]))
+    return out
+
+
+@contextlib.contextmanager
+def _staged(folder: Path):
+    """A hidden folder beside the outputs where the writers write, removed at the end.
+
+    Every file of every draw is written there first, then moved into one
+    :func:`~loadbayes.commands.output.output_transaction` (same file system: a rename),
+    so that an export lands whole or not at all, and a signal's message is true.
+    """
+    import shutil
+    import tempfile
+
+    try:
+        stage = Path(tempfile.mkdtemp(dir=folder, prefix=".loadbayes-export-"))
+    except OSError as err:
+        raise UserError(f"{folder}: cannot create a file there ({err.strerror})") from None
+    try:
+        yield stage
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

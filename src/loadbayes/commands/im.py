@@ -10,10 +10,8 @@ from loadbayes.commands.options import (
     OneLineCommand,
     accept_units_option,
     check_prior_sd,
-    data_spec,
     output_options,
     parse_coef_priors,
-    sampler_settings,
 )
 from loadbayes.commands.output import (
     Progress,
@@ -25,6 +23,7 @@ from loadbayes.commands.output import (
     user_errors,
     write_outputs,
 )
+from loadbayes.commands.settings import data_spec, sampler_settings
 
 
 def _f_hz_fromsidecar(data: str) -> float | None:

@@ -12,7 +12,13 @@ from pathlib import Path
 import click
 
 from loadbayes.commands.options import OneLineCommand
-from loadbayes.commands.output import Progress, UserError, check_outputs, user_errors
+from loadbayes.commands.output import (
+    Progress,
+    UserError,
+    check_outputs,
+    output_transaction,
+    user_errors,
+)
 
 #: Seconds a phasor window costs where windows are fitted one at a time (a recorder's own
 #: time stamps; benchmarks/README.md): for the estimate said before a long read.
@@ -140,7 +146,10 @@ def read_comtrade_cmd(
         bar.close()
     rec.notes = [*w.notes, *rec.notes, *check_table(w, rec, cfg)]
     meta = record_metadata(w, rec, source=cfg, per_cycle=per_cycle, dc=dc, side=side, bay=bay)
-    write_record(rec, meta, out, force=force)
+    # The table and its sidecar: one transaction, which user_errors knows of (what a
+    # signal left is said truly: both files, or neither).
+    with output_transaction({"--out": out, "metadata": side_file}, force=force) as tx:
+        write_record(rec, meta, out, force=force, outputs=tx)
     for line in rec.notes:
         click.echo(f"loadbayes: note: {cfg}: {line}", err=True)
     if not quiet:
@@ -237,7 +246,7 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     """
     import numpy as np
 
-    from loadbayes.commands.output import output_transaction, stop_if_signalled
+    from loadbayes.commands.output import stop_if_signalled
     from loadbayes.io.errors import DataError
     from loadbayes.io.tables import read_columns, write_table
     from loadbayes.recordings.events import cut_events, find_sags

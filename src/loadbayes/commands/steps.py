@@ -13,7 +13,6 @@ from loadbayes.commands.options import (
     data_options,
     distinct_columns,
     q_column,
-    sampler_settings,
 )
 from loadbayes.commands.output import (
     Progress,
@@ -22,6 +21,7 @@ from loadbayes.commands.output import (
     estimate_rows,
     user_errors,
 )
+from loadbayes.commands.settings import sampler_settings
 
 STEP_DRAWS, STEP_BURN = 6_000, 1_000
 
@@ -68,7 +68,8 @@ def steps_cmd(
     from loadbayes.fit.steps import fit_steps
     from loadbayes.measurements.columns import read_power_columns
     from loadbayes.measurements.steps import find_steps, steps_table
-    from loadbayes.measurements.units import check_power_units, refuse
+    from loadbayes.measurements.units import check_power_units
+    from loadbayes.measurements.wording import refuse
 
     progress = Progress("reading", estimate_rows(data), quiet)
     try:

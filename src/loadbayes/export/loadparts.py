@@ -188,7 +188,18 @@ def _shares(values: Mapping[str, float], names: tuple[str, str, str]) -> np.ndar
     if a not in values or b not in values:
         raise ValueError(f"the parameter set lacks {a} or {b}")
     third = values.get(c, 1.0 - values[a] - values[b])
-    return np.array([values[a], values[b], third], dtype=float)
+    shares = np.array([values[a], values[b], third], dtype=float)
+    # A parameter set whose shares do not sum to 1 is not one fit's (the mean, a draw and
+    # the quantiles exported all keep the sum): an edited or mixed file. Normalising it
+    # would invent a load no fit found, and the static record and the load flow would
+    # disagree; so it is refused, as ANDES refuses it (issue 40, M6).
+    if not np.isfinite(shares).all() or abs(shares.sum() - 1.0) > 1e-6:
+        got = ", ".join(f"{x:.6g}" for x in shares)
+        raise ValueError(
+            f"{a}, {b}, {c} must be finite and sum to 1, got {got} (an edited file, or "
+            "shares from different fits)"
+        )
+    return shares
 
 
 def load_parts(values: Mapping[str, float], *, model: str, options: Mapping[str, Any]) -> LoadParts:

@@ -39,7 +39,7 @@ Options: ``net`` (a pandapower JSON net to write into; default a one-bus net bui
 an ext_grid and the load on a bus of ``vn_kv``, default 20 kV), ``load_index`` (the load
 to overwrite in the given net; default a new load on ``bus``, default 0), ``s_base_mva``,
 ``p_mw``, ``q_mvar``, ``force``. The posterior summary goes to ``<out>.summary.txt`` and
-into the net's ``name``.
+into the net's ``name`` (the export's ``warnings`` first).
 """
 
 from __future__ import annotations
@@ -236,7 +236,10 @@ def write(
         )
     lines = [*header, *notes, f"pandapower load {idx} on bus {bus}: " + ", ".join(
         f"{k} = {v:.8g}" for k, v in cols.items())]  # fmt: skip
-    net.name = "loadbayes export | " + " | ".join(lines)[:2000]
+    # The export's warnings first, so that the name's 2,000 characters always hold them.
+    warns = [f"warning: {w}" for w in options.get("warnings") or ()]
+    named = [*warns, *(ln for ln in lines if ln not in warns)]
+    net.name = "loadbayes export | " + " | ".join(named)[:2000]
     force = bool(options.get("force"))
     with atomic_write(out, force=force) as tmp:
         pp.to_json(net, str(tmp))

@@ -53,9 +53,14 @@ TNOM        0 (PSS/E computes the load torque from the power flow at initialisat
 The posterior summary goes into ``<out>.summary.txt`` (PSS/E files have no room for
 it); the ``.raw`` title lines name the model and the statistic. Options: ``bus``
 (default 1), ``s_base_mva`` (system base, also written as SBASE; default 100), ``vn_kv``
-(default 230), ``p_mw``, ``q_mvar``, ``force``.
+(default 230), ``f_hz`` (the case frequency BASFRQ: the fit's, default 60), ``p_mw``,
+``q_mvar``, ``force``, ``warnings`` (the export's checks, :mod:`loadbayes.export.checks`:
+each a comment after the ``.raw``'s ``Q``, after the ``.dyr`` record's ``/`` and in the
+``.dyd`` after ``#``).
 """
 
+# One idea at about 410 lines: the PSS/E case and its dynamic records, with their
+# round-trip readers (the docstring above is a quarter of it).
 from __future__ import annotations
 
 import math
@@ -106,8 +111,20 @@ def _load_record(bus: int, load_id: str, p: tuple[float, float, float], q: tuple
     return ",".join(fields)
 
 
+def _frequency(f_hz: float) -> str:
+    # As written before the case took the fit's frequency: "60.0" (PSS/E's own style).
+    return f"{f_hz:.1f}" if f_hz == round(f_hz, 1) else _g(f_hz)
+
+
 def _raw_text(
-    parts: LoadParts, *, bus: int, sbase: float, vn_kv: float, title: str, whole: bool = False
+    parts: LoadParts,
+    *,
+    bus: int,
+    sbase: float,
+    vn_kv: float,
+    title: str,
+    whole: bool = False,
+    f_hz: float = 60.0,
 ) -> str:
     src = 1 if bus != 1 else 2
     p_total = float(parts.p(parts.v0)) + (parts.motor.p_mw if parts.motor else 0.0)
@@ -121,7 +138,7 @@ def _raw_text(
         note = "static load as PL/IP/YP, QL/IQ/YQ; motor (if any) as load 'M' + CIM5BL (.dyr)"
     bus_line = "{},'{:<12}',{},{},1,1,1,{},0.0,1.1,0.9,1.1,0.9"
     lines = [
-        f"0,{_g(sbase)},{VERSION},0,0,60.0     / PSS(R)E-33 RAW created by loadbayes",
+        f"0,{_g(sbase)},{VERSION},0,0,{_frequency(f_hz)}     / PSS(R)E-33 RAW created by loadbayes",
         title[:60],
         note[:60],
         bus_line.format(src, "SOURCE", _g(vn_kv), 3, _g(parts.v0)),
@@ -247,8 +264,11 @@ def write(
     what = header[0].split("exported: ")[-1] if header else "parameters given"
     title = f"loadbayes {model} load, {what}"
     vn_kv = float(opts.get("vn_kv") or 230.0)
+    f_hz = float(opts.get("f_hz") or 60.0)
+    if not (math.isfinite(f_hz) and f_hz > 0):
+        raise ValueError(f"the case frequency must be a positive number, got {f_hz}")
     whole = parts.motor is not None and record == "cmldblu2"
-    text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=vn_kv, title=title, whole=whole)
+    text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=vn_kv, title=title, whole=whole, f_hz=f_hz)
     files = {"raw": raw}
     notes = list(parts.notes)
     dyr_text = dyd_text = None
@@ -275,6 +295,15 @@ def write(
             f"CIM5BL: t0 = {parts.motor.t0:.6g} (own base), torque a, b, c = "
             f"{pr.a:.4g}, {pr.b:.4g}, {pr.c:.4g} -> D = {cim['D']:.4g}"
         )
+    warns = list(opts.get("warnings") or [])
+    if warns:
+        # PSS/E (and ANDES's reader) stop at "Q"; after a record's "/" a line is a
+        # comment in the .dyr; "#" starts a PSLF comment.
+        text += "".join(f"@! loadbayes warning: {w}\n" for w in warns)
+        if dyr_text is not None:
+            dyr_text = dyr_text.rstrip("\n") + " loadbayes warning: " + " | ".join(warns) + "\n"
+        if dyd_text is not None:
+            dyd_text += "".join(f"# loadbayes warning: {w}\n" for w in warns)
     side = Path(out).with_name(Path(out).name + ".summary.txt")
     files["summary"] = side
     rec = next(ln for ln in text.splitlines() if ln.startswith(f"{bus},'1 '"))
@@ -294,10 +323,11 @@ def write(
 def _paths(out: Path) -> tuple[Path, Path]:
     """The ``.raw`` and ``.dyr`` of ``out``: one stem, two names, never one path twice.
 
-    ``case.raw`` or ``case.dyr`` both give ``case.raw`` and ``case.dyr``; any other
-    name is the ``.raw`` itself, its ``.dyr`` beside it.
+    ``case.raw``, ``case.dyr`` or ``case.dyd`` all give ``case.raw`` and ``case.dyr``
+    (the ``.dyd`` beside them); any other name is the ``.raw`` itself, its ``.dyr``
+    beside it (the command refuses other suffixes).
     """
-    if out.suffix.lower() in SUFFIXES:
+    if out.suffix.lower() in (*SUFFIXES, *EXTRA_SUFFIXES):
         return out.with_suffix(".raw"), out.with_suffix(".dyr")
     dyr = out.with_suffix(".dyr")
     return out, (dyr if dyr != out else out.with_name(out.name + ".dyr"))

@@ -33,6 +33,10 @@ the correction is exact. ``auto`` learns ``s`` from the data: with P and Q both
 present the common error in V moves the residuals of P and Q together (their slopes in
 V are known given the shares), which identifies it; with P alone only the curvature
 does, weakly, and the interval of ``s`` (``sigma_v``) shows it.
+
+One idea needs these 453 lines: the errors-in-variables Gibbs sampler, its three
+conditionals above in one compiled segment that ``inference/chain.Chain`` drives, with its
+entry and the check of its option.
 """
 
 from __future__ import annotations

@@ -30,7 +30,8 @@ from loadbayes.io.errors import DataError, OptionError
 from loadbayes.io.tables import iter_chunks
 from loadbayes.measurements.columns import relocate
 from loadbayes.measurements.frame import is_path, read_frame
-from loadbayes.measurements.units import Wording, check_motor_units, refuse
+from loadbayes.measurements.units import check_motor_units
+from loadbayes.measurements.wording import Wording, refuse
 from loadbayes.models.motor import COEFFICIENT_NAMES
 from loadbayes.models.motor_fit import DATA_COLUMNS, InductionMotorModel
 from loadbayes.posterior import Posterior

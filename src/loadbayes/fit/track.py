@@ -186,9 +186,9 @@ def _tables(track: ZIPTrack, chunks, *, path, names, v0, v_base, s_base, accept_
     from loadbayes.measurements.units import (
         check_power_units,
         level_at_nominal,
-        refuse,
         require_power,
     )
+    from loadbayes.measurements.wording import refuse
     from loadbayes.models.zip import ZIPModel
 
     parts, head = _head(chunks)

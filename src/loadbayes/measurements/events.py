@@ -1,5 +1,7 @@
 """Read recorded disturbance events (t, V, P, Q [, f or angle] [, event]) and check them.
 
+One idea needs these 420 lines: event files read into checked recordings, each check
+naming the file, the column and the row.
 One file is one event, or several when it has an event column. Bad input raises
 :class:`~loadbayes.io.errors.DataError` naming the file, the column and the row: a time
 that does not increase, a gap in the sampling, an event too short for the motor's time

@@ -17,7 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from loadbayes.io.errors import DataError
-from loadbayes.measurements.units import UnitProblem, accept, check_power_units, require_power
+from loadbayes.measurements.units import check_power_units, require_power
+from loadbayes.measurements.wording import UnitProblem, accept
 
 __all__ = ["EventRecord", "check_units"]
 

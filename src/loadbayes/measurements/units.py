@@ -6,24 +6,28 @@ MW or kvar without the matching base give a fit that runs, converges and means n
 (the ZIP constraint ``a1 + a2 + a3 = 1`` then holds far from every sample). These
 functions look at the arrays, say what they saw, and name the option that fixes it.
 
-They take plain arrays and return a list of :class:`UnitProblem` (empty when the data
-look right), so a fleet (per bus) or a recording reader calls them the same way as
-``fit zip``; :func:`refuse` turns the problems into one :class:`DataError`.
+They take plain arrays and return a list of
+:class:`~loadbayes.measurements.wording.UnitProblem` (empty when the data look right), so
+a fleet (per bus) or a recording reader calls them the same way as ``fit zip``;
+:func:`loadbayes.measurements.wording.refuse` turns the problems into one
+:class:`DataError`, and the fixes are worded for the caller there.
+
+One idea needs these 454 lines: whether V, P, Q are per unit of the nominal point, checked
+alike from the rows (:func:`check_power_units`, with the motor's and the frequency's
+checks) and from a fleet bus's Gram matrix (:func:`check_gram_units`), with the warnings
+for a given P0 or Q0 that the data place off the power at V0.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from loadbayes.io.errors import DataError
+from loadbayes.measurements.wording import UnitProblem, Wording, option, suggest_v_base
 
 __all__ = [
-    "UnitProblem",
-    "Wording",
     "check_frequency",
     "check_gram_units",
     "nominal_level_warnings",
@@ -31,7 +35,6 @@ __all__ = [
     "check_motor_units",
     "check_power_units",
     "level_at_nominal",
-    "refuse",
     "require_power",
 ]
 
@@ -42,80 +45,6 @@ NOMINAL_RANGE = (1 / 1.5, 1.5)
 #: With ``auto`` nominal power, powers above this are not per unit of any sensible base
 #: (and the weak prior of P0, sd 1e4, would no longer be weak).
 AUTO_MAX = 1e3
-#: The option that accepts unusual data.
-ACCEPT = "--accept-units"
-#: Whose names the fixes give: the command line's options or Python's keywords.
-Wording = Literal["cli", "python"]
-#: The keyword that accepts unusual data, from Python.
-ACCEPT_PY = "accept_units=True"
-
-
-def option(name: str, value: object = None, *, wording: Wording = "cli") -> str:
-    """An option as the user types it: ``--v-base 13.8`` (CLI) or ``v_base=13.8`` (Python).
-
-    ``name`` is the CLI spelling without the dashes (``"v-base"``); a ``value`` of
-    None gives the bare option (``--s-base``, ``s_base=...``).
-    """
-    if wording == "cli":
-        return f"--{name}" + ("" if value is None else f" {value}")
-    key = name.replace("-", "_")
-    if value is None:
-        return f"{key}=..."
-    try:
-        float(str(value))
-    except ValueError:
-        return f"{key}={str(value)!r}"
-    return f"{key}={value}"
-
-
-def accept(wording: Wording = "cli") -> str:
-    """The option that fits unusual data anyway, in the caller's wording."""
-    return ACCEPT if wording == "cli" else ACCEPT_PY
-
-
-# Common nominal voltages (kV and V) offered as the --v-base a median is close to.
-_STANDARD_V = (
-    0.12, 0.208, 0.22, 0.23, 0.24, 0.4, 0.415, 0.48, 0.6, 2.4, 3.3, 4.16, 6.6, 10, 11,
-    12.47, 12.66, 13.2, 13.8, 20, 22, 24.9, 33, 34.5, 66, 69, 110, 115, 132, 138, 220,
-    230, 345, 380, 400, 500, 765, 120, 208, 240, 415, 480, 690,
-)  # fmt: skip
-
-
-@dataclass(frozen=True)
-class UnitProblem:
-    """What looks wrong with one column, and which option fixes it.
-
-    Attributes
-    ----------
-    column : str
-        ``"v"``, ``"p"`` or ``"q"`` (or a motor column).
-    seen : str
-        What the data show, in numbers.
-    fix : str
-        The option(s) that fix it.
-    """
-
-    column: str
-    seen: str
-    fix: str
-    wording: Wording = "cli"
-
-    def __str__(self) -> str:
-        return f"{self.seen}; {self.fix} (or {accept(self.wording)} if the data are right)"
-
-
-def _suggest_base(raw_median: float, wording: Wording = "cli") -> str:
-    """``--v-base X`` for the data's median V: a standard voltage when one is close."""
-    near = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median / s)))
-    if abs(raw_median / near - 1) < 0.08:
-        return option("v-base", f"{near:g}", wording=wording)
-    line = min(_STANDARD_V, key=lambda s: abs(np.log(raw_median * np.sqrt(3) / s)))
-    if abs(raw_median * np.sqrt(3) / line - 1) < 0.05:
-        return (
-            f"{option('v-base', f'{raw_median:.4g}', wording=wording)} (line-to-neutral "
-            f"data of a {line:g} system: {line:g}/sqrt(3))"
-        )
-    return option("v-base", f"{raw_median:.4g}", wording=wording)
 
 
 def _zip_design(x: np.ndarray) -> np.ndarray:
@@ -210,7 +139,7 @@ def check_power_units(
                 "not per unit",
                 f"give the system's nominal voltage in the data's units with "
                 f"{opt('v-base').removesuffix('=...')} (V's median is {raw:.4g}: "
-                f"{_suggest_base(raw, wording)} if that is near nominal)",
+                f"{suggest_v_base(raw, wording)} if that is near nominal)",
                 wording,
             )
         )
@@ -468,37 +397,6 @@ def require_power(
             )
 
 
-def refuse(
-    problems: list[UnitProblem],
-    *,
-    path: str | None = None,
-    names: Mapping[str, str | None] | None = None,
-) -> None:
-    """Raise one :class:`DataError` for the first problem, naming the user's column.
-
-    Parameters
-    ----------
-    problems : list of UnitProblem
-        From :func:`check_power_units` or :func:`check_motor_units`; nothing happens
-        when it is empty.
-    path : str, optional
-        The file, for the message.
-    names : mapping, optional
-        The user's column names (``{"v": "V_kV", ...}``).
-
-    Raises
-    ------
-    DataError
-        When ``problems`` is not empty.
-    """
-    if not problems:
-        return
-    first = problems[0]
-    column = (names or {}).get(first.column) or first.column
-    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-    raise DataError(str(first) + more, path=path, column=column)
-
-
 def check_gram_units(gram, *, v0: float, nominal: Mapping[str, object]) -> list[str]:
     """The unit check of one bus from its ZIP Gram matrix alone (fleets keep no rows).
 
@@ -526,7 +424,7 @@ def check_gram_units(gram, *, v0: float, nominal: Mapping[str, object]) -> list[
     if not (V_RANGE[0] <= x_mean <= V_RANGE[1]):
         out.append(
             f"voltage averages {x_mean:.4g} times v0 ({x_mean * v0:.4g}): not per unit "
-            f"({_suggest_base(x_mean * v0)})"
+            f"({suggest_v_base(x_mean * v0)})"
         )
         return out
     idx = [names.index(c) for c in ("1", "z1", "z2")]

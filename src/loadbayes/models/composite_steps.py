@@ -51,6 +51,9 @@ inside, the line is theirs (least squares) and both ends are fixed where it reac
 the ESS of a 50 ms ramp at 120/s from 133 to 25). The angle follows the same knots. An
 edge of one interval (no sample inside) stays a step.
 
+One idea needs these 556 lines: where a voltage step fell between two samples, found
+(steps, edges, ramps, for point and phasor samples apart as above) and put into the
+motor's input as virtual knots.
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
 (fit/composite/problem.py).
 """

@@ -25,6 +25,10 @@ the others).
 phasor sample, its window centred on the stamp): against DOP853 with dense output and
 the window integrals by ``quad`` (``tests/unit/test_motor_window.py``), 1.4e-5 p.u. on
 krause_3hp and 1.1e-5 on a fast motor (T' 0.06 s), a step inside an interval included.
+
+One idea needs these 511 lines: the motor integrated through a sampled voltage, at the
+samples and as window means, in compiled loops that share the steady state and the RK4
+step.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ the noise and its likelihood, the phasor window, the frequency and the priors se
 name); its constructor checks every option once, with errors in Python's words
 (:class:`~loadbayes.io.errors.OptionError`, a ``ValueError``), so that
 :func:`loadbayes.fit.composite.fit_composite` and ``loadbayes fit composite`` (which maps
-its flags onto these fields, ``commands/options.py: COMPOSITE_FLAGS``) check nothing again.
+its flags onto these fields, ``commands/settings.py: COMPOSITE_FLAGS``) check nothing again.
 """
 
 from __future__ import annotations

@@ -34,7 +34,10 @@ What a real recorder file adds, and how it is read:
   cycle, not waveform samples: :mod:`~loadbayes.recordings.record` keeps them as
   magnitudes and invents no P or Q from them).
 - **Time**: the ``.dat`` time stamps (times ``timemult``) are used when they increase
-  strictly; the rate table's nominal times otherwise. The stamps are the recorder's
+  strictly in a few runs of even spacing that put the voltage at its nominal frequency,
+  even where the rate table disagrees (its runs are then told from the stamps, and the
+  note names the table's lines); the rate table's nominal times otherwise; neither, and
+  the record is refused. The stamps are the recorder's
   clock for each sample, and frequency-tracking recorders sample a fixed number of times
   per *actual* cycle, which the nominal rate table cannot say; the largest difference
   between the two is kept in ``Waveforms.clock_note``.
@@ -67,8 +70,9 @@ from loadbayes.recordings.comtrade_dat import (
     kind_by_signal,
     load_samples,
     sample_times,
-    segment_kind,
     segments_of,
+    stamp_segments,
+    stamps_problem,
 )
 
 __all__ = ["AnalogChannel", "CfgInfo", "Segment", "Waveforms", "parse_cfg", "read_comtrade"]
@@ -235,14 +239,19 @@ def read_comtrade(
 
     v_arr, i_arr = stack(vch), stack(ich)
     if other is not None:
-        t, clock = kind_by_signal(info, t, other, v_arr[0])
-        if t is other:  # the stamps, not the table: their own rate
+        t, clock, by_stamps = kind_by_signal(info, t, other, v_arr[0])
+        if by_stamps:  # the stamps, not the table: their own rate and their own runs
             dt = np.diff(t)
             rate = float(1.0 / np.median(dt))
             uniform = bool(np.max(np.abs(dt * rate - 1.0)) < 0.01)
-            segments = tuple(
-                Segment(s.start, s.stop, 0.0, segment_kind(t[s.start : s.stop], info.f_nominal))
-                for s in segments
+            segments = stamp_segments(t, info.f_nominal)
+    elif not all(r > 0 for r, _ in info.rates):  # stamps alone: they must be usable
+        problem = stamps_problem(t, v_arr[0], info.f_nominal)
+        if problem:
+            raise DataError(
+                f"line {info.lines['rates'] + 1}: rate 0: a record timed by the .dat's stamps "
+                f"alone, and these are implausible time stamps: {problem}",
+                info.path,
             )
     notes += dead_channels(vch, v_arr, ich, i_arr, info.path)
     names = {f"v{p}": ch.name for p, ch in zip("abc", vch, strict=True)}

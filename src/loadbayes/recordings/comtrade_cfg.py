@@ -1,6 +1,6 @@
 """The COMTRADE ``.cfg`` file (IEEE C37.111 1991, 1999, 2013), parsed and checked line by line.
 
-One idea at about 410 lines: every field of the file checked in order, each with its line.
+One idea at about 435 lines: every field of the file checked in order, each with its line.
 
 The ``comtrade`` package parses the ``.cfg`` too, but raises bare ``ValueError`` without a
 line and only warns on an unknown revision; this parser checks every field first so that
@@ -129,7 +129,12 @@ class _Lines:
     """The .cfg's lines, handed out one at a time with their 1-based number."""
 
     def __init__(self, text: str, path: str) -> None:
-        self.lines = [ln.rstrip("\x1a").strip() for ln in text.splitlines()]
+        # \r\n, \n and \r only: str.splitlines() also splits at U+0085, \v, \f and
+        # 0x1C-0x1E, which a cp1252 name ("…" is byte 0x85) may hold.
+        lines = re.split(r"\r\n|\n|\r", text)
+        if lines and lines[-1] == "":
+            lines.pop()  # the file's last line break ends a line, not one more
+        self.lines = [ln.rstrip("\x1a").strip() for ln in lines]
         self.path = path
         self.n = 0
 
@@ -185,7 +190,8 @@ def _stamp(cells: list[str], line: int, path: str) -> str:
 
 #: Encodings tried in turn when none is given: UTF-8 (with or without a BOM), then the
 #: Chinese national standard GB18030 (a superset of GBK and GB2312, what State Grid
-#: recorders write), kept only when the text holds CJK characters, then Latin-1, which
+#: recorders write), kept only when the text holds CJK characters and nearly all its
+#: non-ASCII characters are two high bytes (:func:`_mostly_double_byte`), then Latin-1, which
 #: decodes any byte (Western recorders' Windows code pages).
 ENCODINGS = ("utf-8-sig", "gb18030", "latin-1")
 
@@ -210,11 +216,23 @@ def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
         pass
     try:
         text = raw.decode("gb18030")
-        if has_cjk(text):
+        if has_cjk(text) and _mostly_double_byte(text):
             return text, "gb18030"
     except UnicodeDecodeError:
         pass
     return raw.decode("latin-1"), "latin-1"
+
+
+def _mostly_double_byte(text: str) -> bool:
+    # Chinese names are GB2312 characters, two bytes of 0xA1 and above (the real State
+    # Grid record: 1,026 of 1,026). Latin-1 text decodes as GB18030 too where an accented
+    # letter precedes an ASCII one ('Üb' -> 0xDC 0x62, an ideograph): such characters,
+    # with a byte under 0x80, are few in Chinese text (rare GBK extensions) and most of
+    # the non-ASCII ones in Western text. 90%: Chinese text with a few rare characters
+    # stays GB18030; Western text needs nearly every accented letter doubled to be taken.
+    high = [ch for ch in text if ord(ch) >= 0x80]
+    double = sum(min(ch.encode("gb18030")) >= 0x80 for ch in high)
+    return double >= 0.9 * len(high)
 
 
 def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> CfgInfo:

@@ -117,10 +117,11 @@ def pick_channels(
     cands = [ch for ch in info.analog if ch.unit.strip().upper().endswith(base)]
     cands = [ch for ch in cands if unit_factor(ch.unit) is not None]
     how = "found by unit and phase"
+    by_bay = False
     if bay is not None:
         in_bay = [ch for ch in cands if bay.lower() in (ch.ccbm + " " + ch.name).lower()]
         if in_bay:
-            cands, how = in_bay, f"bay {bay!r}"
+            cands, how, by_bay = in_bay, f"bay {bay!r}", True
         elif kind == "current":
             raise DataError(
                 f"bay {bay!r} has no current channels (bays: {', '.join(_bays(info))})",
@@ -162,6 +163,17 @@ def pick_channels(
             f"{', '.join(ch.name for ch in info.analog)}){hint}",
             info.path,
         )
+    if by_bay and len(trios) > 1:
+        # The text names several bays: the one whose bay field it is, or none silently.
+        exact = [t for t in trios if t[0].ccbm.strip().lower() == bay.strip().lower()]
+        if len(exact) != 1:
+            raise DataError(
+                f"bay {bay!r} matches {len(trios)} {kind} sets: "
+                + ", ".join(t[0].ccbm.strip() or t[0].name for t in trios)
+                + f"; give more of the bay's name, or --{kind} A,B,C",
+                info.path,
+            )
+        trios = exact
     if kind == "current" and bay is None and len(trios) > 1:
         raise DataError(
             f"{len(trios)} three-phase current sets ("

@@ -8,6 +8,7 @@ nominal rate table, and each rate segment told as waveform or amplitude samples.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,9 @@ __all__ = [
     "sample_times",
     "segment_kind",
     "segments_of",
+    "stamp_runs",
+    "stamp_segments",
+    "stamps_problem",
 ]
 
 
@@ -254,14 +258,67 @@ def _cycles_hz(t: np.ndarray, x: np.ndarray) -> float:
     return (up.size - 1) / float(t[up[-1]] - t[up[0]])
 
 
+#: Spacing ratio between neighbouring samples that starts a new run of the time stamps.
+_RUN_JUMP = 1.5
+#: More runs of even spacing than this and the stamps are not a recorder's rate segments.
+_MAX_RUNS = 64
+
+
+def stamp_runs(stamps: np.ndarray) -> list[tuple[int, int]]:
+    """The stamps' runs of even spacing, ``[start, stop)`` sample indices.
+
+    A run ends where the spacing jumps by more than 1.5x from one sample to the next (a
+    recorder's change of rate); a frequency-tracking recorder's slow drift of a few per
+    cent stays inside its run.
+    """
+    d = np.diff(stamps)
+    jump = np.flatnonzero(np.abs(np.log(d[1:] / d[:-1])) > np.log(_RUN_JUMP)) + 1
+    # d[k] spaces samples k and k+1; as in the rate table, the run whose first spacing is
+    # d[k] starts at sample k (a segment's first sample is spaced at the previous rate).
+    edges = [0, *(int(k) for k in jump), stamps.size]
+    return [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
+def stamps_problem(stamps: np.ndarray, va: np.ndarray, f0: float) -> str:
+    """Why strictly increasing stamps are not a usable time base ("" when they are).
+
+    Usable: a few runs of even spacing (a recorder's rate segments), each waveform run
+    putting the phase-a voltage within 5% of the nominal frequency.
+    """
+    runs = stamp_runs(stamps)
+    if len(runs) > _MAX_RUNS:
+        return f"their spacing jumps {len(runs) - 1} times (a recorder changes rate a few times)"
+    for a, b in runs:
+        if b - a < 2 or segment_kind(stamps[a:b], f0) != "waveform":
+            continue
+        f = _cycles_hz(stamps[a:b], va[a:b])
+        if math.isfinite(f) and abs(f - f0) >= 0.05 * f0:
+            step = float(np.median(np.diff(stamps[a:b])))
+            return (
+                f"samples {a + 1}-{b} are {step:.3g} s apart, which puts the phase-a voltage "
+                f"at {f:.4g} Hz"
+            )
+    return ""
+
+
+def stamp_segments(stamps: np.ndarray, f0: float) -> tuple[Segment, ...]:
+    """Rate segments told from the stamps' own runs (rate 0: timed by the stamps)."""
+    return tuple(Segment(a, b, 0.0, segment_kind(stamps[a:b], f0)) for a, b in stamp_runs(stamps))
+
+
 def kind_by_signal(
     info: CfgInfo, table: np.ndarray, stamps: np.ndarray, va: np.ndarray
-) -> tuple[np.ndarray, str]:
-    """The rate table or the time stamps, whichever puts the voltage at its nominal frequency.
+) -> tuple[np.ndarray, str, bool]:
+    """The rate table or the time stamps, decided from the data; whether the stamps won.
 
-    Both are plausible time bases and they disagree by more than 5% of the record; the
-    one the phase-a voltage's zero crossings agree with is trusted: a wrong rate table
-    would put a 50 Hz system at 16 Hz or 160 Hz, and every phasor window would be wrong.
+    Both are plausible time bases and they disagree by more than 5% of the record. The
+    stamps are the recorder's clock for each sample: when they increase strictly in a
+    few runs of even spacing and put the voltage at its nominal frequency
+    (:func:`stamps_problem`), they are trusted, whatever the table says (a one-sample slip
+    in an ``endsamp`` or a rate of 0.001 would otherwise read amplitude samples as
+    waveform, or the reverse, and make a sag of them). Else the table is trusted when its
+    first waveform run puts the voltage at the nominal frequency; else neither is, and
+    the record is refused.
     """
     tt = table - table[0]
     lo = 0
@@ -271,24 +328,35 @@ def kind_by_signal(
             sl = slice(lo, min(end, va.size))
             break
         lo = end
-    f_table, f_stamps = _cycles_hz(tt[sl], va[sl]), _cycles_hz(stamps[sl], va[sl])
+    f_table = _cycles_hz(tt[sl], va[sl])
     f0 = info.f_nominal
-    rates = ", ".join(f"{r:g}/s" for r, _ in info.rates)
+    rates = ", ".join(f"{r:g},{e}" for r, e in info.rates)
+    line = info.lines["rates"] + 1
+    where = f"line {line}" if len(info.rates) == 1 else f"lines {line}-{line + len(info.rates) - 1}"
     said = (
-        f"the .cfg's rate table ({rates}, line {info.lines['rates'] + 1}) and the .dat's time "
-        f"stamps disagree (record length {tt[-1]:.4g} s against {stamps[-1]:.4g} s); the "
-        f"phase-a voltage crosses zero at {f_table:.4g} Hz by the table and "
-        f"{f_stamps:.4g} Hz by the stamps"
+        f"the .cfg's rate table ({where}: {rates}) and the "
+        f".dat's time stamps disagree (record length {tt[-1]:.4g} s against "
+        f"{stamps[-1]:.4g} s)"
     )
-    ok_t = abs(f_table - f0) < 0.05 * f0
-    ok_s = abs(f_stamps - f0) < 0.05 * f0
-    if ok_s and not ok_t:
-        return stamps, f"{said}: the time stamps are trusted (nominal {f0:g} Hz)"
-    if ok_t:
-        return tt, f"{said}: the rate table is trusted (nominal {f0:g} Hz)"
+    problem = stamps_problem(stamps, va, f0)
+    if not problem:
+        runs = len(stamp_runs(stamps))
+        return (
+            stamps,
+            f"{said}: the time stamps are trusted (strictly increasing, {runs} run(s) of even "
+            f"spacing, the voltage at its nominal {f0:g} Hz); check the rate table",
+            True,
+        )
+    if abs(f_table - f0) < 0.05 * f0:
+        return (
+            tt,
+            f"{said}: the rate table is trusted (the time stamps are not: {problem})",
+            False,
+        )
     raise DataError(
-        f"{said}: neither agrees with the nominal {f0:g} Hz on line "
-        f"{info.lines.get('frequency', '?')}; check the rate table and the line frequency",
+        f"{said}: neither is usable: the time stamps are not ({problem}), and the table puts "
+        f"the voltage at {f_table:.4g} Hz, not the nominal {f0:g} Hz (line "
+        f"{info.lines.get('frequency', '?')})",
         info.path,
     )
 

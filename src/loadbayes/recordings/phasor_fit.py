@@ -43,6 +43,8 @@ samples, so their noise is correlated (two windows overlapping by a fraction ``r
 cycle have noise correlation about ``r`` for white noise), which a likelihood that
 treats them as independent must allow for.
 
+One idea needs these 446 lines: the sliding least-squares phasor derived above, with its
+decaying-offset test and mimic filter.
 A window that straddles a step fits badly: its residual (RMS of the misfit over the RMS
 of the signal, the worst voltage channel) is returned, so that such samples can be left
 out or flagged.

@@ -21,6 +21,8 @@ Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fi
   phasor describes);
 - ``va, vb, vc, ia, ib, ic``: per-phase RMS magnitudes (per unit).
 
+One idea needs these 414 lines: a record's table, its phasor rows (above) and its
+amplitude rows (below) built from the waveforms.
 Amplitude rows (``kind = "amplitude"``) hold only ``va .. ic`` (RMS, per unit; whether
 the recorder wrote peak or RMS values is decided by comparing the first amplitude sample
 with the neighbouring waveform window, and said in the metadata). No phasor, P or Q is

@@ -124,27 +124,46 @@ def record_metadata(
     }
 
 
-def write_record(rec, meta: dict, out: str, *, force: bool) -> None:
+def write_record(rec, meta: dict, out: str, *, force: bool, outputs=None) -> None:
     """Write the table and its sidecar as one transaction: both files, or neither.
 
     Each goes to a temporary beside its target (:class:`~loadbayes.io.transaction.OutputSet`)
-    and they are renamed together; an error or a signal before that leaves neither.
+    and they are renamed together; an error or a signal before that leaves neither, for
+    every suffix (``.csv.gz`` too). ``outputs``: an open set with the labels ``"--out"``
+    and ``"metadata"`` (a command's ``output_transaction``, which commits it and so knows
+    what a signal left); only the temporaries are written then.
     """
-    from loadbayes.io.tables import write_table
     from loadbayes.io.transaction import OutputSet
 
     text = json.dumps(meta, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
-    if out.lower().endswith(".gz"):  # the temporary's suffix would not say csv.gz
-        from loadbayes.io.atomic import atomic_write
-
-        write_table(rec.columns, out, force=force)
-        with atomic_write(meta_path(out), force=force, mode="w") as fh:
-            fh.write(text)
+    if outputs is not None:
+        _write_temps(rec, text, out, outputs)
         return
     with OutputSet({"--out": out, "metadata": meta_path(out)}, force=force) as files:
-        write_table(rec.columns, files.temp("--out"), force=True)
-        files.temp("metadata").write_text(text, encoding="utf-8")
+        _write_temps(rec, text, out, files)
         files.commit()
+
+
+def _write_temps(rec, text: str, out: str, files) -> None:
+    import shutil
+    import tempfile
+
+    from loadbayes.io.tables import write_table
+
+    target = files.temp("--out")
+    if out.lower().endswith(".gz"):
+        # The temporary's suffix (.tmp.gz) would not say csv.gz: the table is written
+        # under its own name in a private folder beside it, then moved onto the temporary.
+        folder = tempfile.mkdtemp(dir=target.parent, prefix=f".{Path(out).name}.")
+        try:
+            inner = Path(folder) / Path(out).name
+            write_table(rec.columns, inner, force=True)
+            os.replace(inner, target)
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
+    else:
+        write_table(rec.columns, target, force=True)
+    files.temp("metadata").write_text(text, encoding="utf-8")
 
 
 def read_record_meta(table: str | os.PathLike[str]) -> dict | None:
@@ -264,11 +283,26 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
         windows = sags_by_segment(data, v_ref=v_ref, **settings)
     except ValueError as exc:
         raise DataError(str(exc), record) from None
-    start = comtrade_time(meta.get("start", ""))
+    stamp = meta.get("start", "")
+    if stamp is not None and not isinstance(stamp, str):
+        raise DataError(
+            f"key 'start' is {stamp!r}, expected the .cfg's time stamp as text "
+            "('dd/mm/yyyy,hh:mm:ss.ffffff')",
+            str(meta_path(record)),
+        )
+    start = comtrade_time(stamp or "")
     extra = []
     for ev in windows:
         t0 = float(data["t_s"][ev.start])
-        at = (start + dt.timedelta(seconds=t0)).isoformat() if start else ""
+        try:
+            at = (start + dt.timedelta(seconds=t0)).isoformat() if start else ""
+        except OverflowError:
+            raise DataError(
+                f"phasor row {ev.start + 1}: t_s = {t0:.6g} s after the start "
+                f"{stamp} is past the year 9999",
+                record,
+                "t_s",
+            ) from None
         extra.append(
             {
                 "station": meta.get("station", ""),

@@ -5,6 +5,10 @@ summary it has the numbers only and says where the figures would come from. The 
 comes first: what was fitted, the headline numbers with their intervals, the verdict of
 the diagnostics and every warning; true values, when given, are flagged where the
 interval misses them.
+
+One idea needs these 419 lines: the report of one fit, its summary first and then a
+section per part (parameters, figures, correlations, settings), from a JSON or a NetCDF
+result.
 """
 
 from __future__ import annotations

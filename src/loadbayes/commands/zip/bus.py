@@ -12,7 +12,6 @@ from loadbayes.commands.options import (
     check_prior_sd,
     data_options,
     distinct_columns,
-    fit_spec,
     likelihood_options,
     nominal,
     nominal_note,
@@ -21,7 +20,6 @@ from loadbayes.commands.options import (
     parse_coef_priors,
     parse_nu,
     q_column,
-    sampler_settings,
     tau_prior_options,
 )
 from loadbayes.commands.output import (
@@ -33,6 +31,7 @@ from loadbayes.commands.output import (
     user_errors,
     write_outputs,
 )
+from loadbayes.commands.settings import fit_spec, sampler_settings
 from loadbayes.commands.zip.fleet import (
     fleet_options,
     fleet_sampler_defaults,

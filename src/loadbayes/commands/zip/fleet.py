@@ -104,7 +104,7 @@ def _refuse_single_bus_options(p: dict[str, Any]) -> None:
 def fleet_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
     """With ``--by``, the fleet's draws and burn-in where the user gave none.
 
-    The ``adjust`` of ``fit zip``'s :func:`~loadbayes.commands.options.sampler_settings`.
+    The ``adjust`` of ``fit zip``'s :func:`~loadbayes.commands.settings.sampler_settings`.
     """
     if not options.get("by"):
         return values

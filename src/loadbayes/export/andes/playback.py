@@ -18,6 +18,9 @@ interpolated mode raises ``NotImplementedError``): a staircase, hence the hook. 
 runs to each sample time in turn (``TDS.run`` with ``tf`` raised), so the samples are
 among its points even where it shortened its step.
 
+One idea needs these 545 lines: a record played through an exported ANDES case, from
+reading the fit and the case's load devices to the run and its comparison with the
+record.
 The load's P, Q are the ``Slack``'s injection less the tie's ``X_TIE |I|^2`` (exact for a
 lossless tie). The load bus misses the record by the tie's drop ``X_TIE |I|`` (about
 1e-4), reported as ``max_v_error``. The power flow puts the bus at the first sample's

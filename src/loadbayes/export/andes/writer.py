@@ -107,6 +107,10 @@ def write(
         ``case``: an ANDES case file, or a name of ANDES's case library
         (``kundur/kundur_full.xlsx``), to place the load in, on its bus ``bus``; the
         case's system base and the bus's ``Vn`` replace ``base_mva`` and ``vn_kv``.
+        ``load_mode``: "replace" or "add", what becomes of the bus's own PQ load in
+        ``case`` (required when it has one). ``warnings``: the export's checks, written
+        into the loadbayes PQ's ``name`` (a comment cell). ``said``: a list the note on
+        the bus's own load is appended to.
 
     Returns
     -------
@@ -145,13 +149,58 @@ def write(
         z_src=z_src,
         vn_kv=vn_kv,
     )
+    own = _own_load(host, bus, str(options.get("case")), options.get("load_mode"))
     system, devices = _build(case, bus, host)
+    warns = list(options.get("warnings") or ())
+    if warns:
+        # A comment cell: the loadbayes PQ's name (ANDES reads every sheet as a model, so
+        # a notes sheet would not load).
+        uid = system.PQ.idx2uid(devices["pq"])
+        system.PQ.name.v[uid] = "loadbayes warning: " + " | ".join(warns)
+    if own:
+        header = [*header, own]
+        said = options.get("said")
+        if isinstance(said, list):
+            said.append(own)
     with atomic_write(out, force=True) as tmp:
         _write_case(system, Path(tmp))
     sidecar = _sidecar(out)
     with atomic_write(sidecar, force=True, mode="w") as fh:
         fh.write(_summary(header, values, case, devices, out, model))
     return [out, sidecar]
+
+
+def _own_load(host: Any, bus: int | None, name: str, mode: Any) -> str | None:
+    """What happens to the PQ loads the case already has on ``bus``, said in one line.
+
+    ``mode`` "replace" puts them out of service (``u = 0``: the fitted load is the
+    bus's load), "add" keeps them (the bus draws both); a bus with a load of its own and
+    neither is refused, since the load would be counted twice without a word.
+    """
+    if host is None:
+        return None
+    uids = [k for k, b in enumerate(host.PQ.bus.v) if b == bus and host.PQ.u.v[k]]
+    if not uids:
+        return None
+    base = float(host.config.mva)
+    shown = ", ".join(
+        f"PQ {host.PQ.idx.v[k]} ({host.PQ.p0.v[k] * base:.6g} MW, "
+        f"{host.PQ.q0.v[k] * base:.6g} Mvar)"
+        for k in uids
+    )
+    if mode == "replace":
+        for k in uids:
+            host.PQ.u.v[k] = 0
+        return f"--case {name}: bus {bus}'s own load {shown} put out of service (--replace-load)"
+    if mode == "add":
+        return (
+            f"--case {name}: bus {bus}'s own load {shown} kept in service, the fitted load "
+            "added to it (--add-load): the bus draws both"
+        )
+    raise ValueError(
+        f"--case {name}: bus {bus} already has a load, {shown}: give --replace-load (the "
+        "fitted load replaces it) or --add-load (it is added to it)"
+    )
 
 
 def _load_host(name: str, bus: int) -> tuple[Any, float, float]:

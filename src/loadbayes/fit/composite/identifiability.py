@@ -1,5 +1,7 @@
 """The composite fit's plain-words identifiability report.
 
+One idea needs these 404 lines: the composite fit's identifiability report in plain
+words, for the motor's parameters, the torque shares and the static part.
 Which motor parameters the events determine, which stay close to their prior, which lie
 on a ridge, and what would help (:func:`identifiability`); whether estimated torque
 shares were determined (:func:`torque_identifiability`); and the warning the fit prints

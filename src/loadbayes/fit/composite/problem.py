@@ -10,6 +10,10 @@ Several events share the motor (``THETA_NAMES``) and the noise precisions; each 
 has its own seven linear coefficients (its own operating point, ZIP mix and motor
 rating). Event 0's quantities carry the plain names (``p0, f_m, a1, ...``), event ``k``'s
 the suffix ``_e{k}``. The prior is the model's (``models/composite_prior.py``).
+
+One idea needs these 568 lines: the collapsed log-density of the composite's events,
+from the events' layout to the one compiled call that evaluates it, with the conditional
+draws of the coefficients the sampler takes from the same sums.
 """
 
 from __future__ import annotations

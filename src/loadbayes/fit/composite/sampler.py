@@ -1,5 +1,8 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
+One idea needs these 456 lines: the composite's Metropolis-within-Gibbs sweep (one
+``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
+and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
 coordinates, the steps' fractions, any torque log-ratios) with the linear coefficients
 integrated out; each event's coefficients exactly; the noise precisions (and, with

@@ -36,7 +36,7 @@ from loadbayes.inference.gibbs import Scheme
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.columns import relocate
 from loadbayes.measurements.frame import is_path
-from loadbayes.measurements.units import Wording
+from loadbayes.measurements.wording import Wording
 from loadbayes.models.zip import ZIPModel
 from loadbayes.posterior import Posterior
 

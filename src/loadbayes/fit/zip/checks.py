@@ -16,9 +16,9 @@ from loadbayes.measurements.units import (
     check_frequency,
     check_power_units,
     nominal_level_warnings,
-    refuse,
     require_power,
 )
+from loadbayes.measurements.wording import refuse
 from loadbayes.posterior import Posterior
 
 __all__ = [

@@ -30,7 +30,7 @@ from loadbayes.measurements.times import (
     read_times,
     time_facts,
 )
-from loadbayes.measurements.units import Wording, option
+from loadbayes.measurements.wording import Wording, option
 from loadbayes.models.zip import ZIPModel
 
 __all__ = ["ZipData", "file_gram", "nominal_of", "read_file", "read_table"]
