@@ -48,6 +48,8 @@ validate: $(STAMP)
 		--output results/validation/composite_recovery.json
 	$(PY) -m loadbayes.studies.calibration.composite_independent --events 144 \
 		--output results/validation/composite_independent.json
+	$(PY) -m loadbayes.studies.calibration.fleet_coverage \
+		--output results/validation/fleet_coverage.json
 	LOADBAYES_VALIDATE=1 $(PY) -m pytest -q -p no:cacheprovider -m statistical \
 		tests/integration/test_cli_exit_clean.py
 

@@ -179,6 +179,7 @@ def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     _, _, out = fleet
     t = load_fleet(out["class"]).table.copy()
     t["converged"] = True
+    t["prior_driven"] = False  # this test is about convergence (that column: the next one)
     note = "not converged: R-hat 1.470 on sd_a1, ESS 7 on sd_a1"
     cls = (t.level == "class") & (t["class"] == "res")
     t.loc[cls, "warnings"] = note
@@ -193,6 +194,18 @@ def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     assert note in head and "The chains stopped: the time budget ran out" in head
     flagged = load_fleet(tmp_path / "later.parquet").flagged().set_index("bus")["reasons"]
     assert flagged["b2"] == ["unconverged (the table's converged column)"]
+
+
+def test_a_bus_whose_shares_split_is_its_class_is_flagged(fleet, tmp_path):
+    """Issue 40: a pooled table's prior_driven rows give the bus a reason in words."""
+    _, _, out = fleet
+    t = load_fleet(out["class"]).table.copy()
+    t["prior_driven"] = False
+    t.loc[(t.bus == "b2") & t.parameter.isin(["a1", "a2", "a3"]), "prior_driven"] = True
+    _write(t, tmp_path / "split.parquet", {})
+    flagged = load_fleet(tmp_path / "split.parquet").flagged().set_index("bus")["reasons"]
+    assert "split of a1, a2 is the class's" in flagged["b2"]
+    assert not any("split" in r for b, rs in flagged.items() if b != "b2" for r in rs)
 
 
 def test_the_stop_sentence_of_run_fleet_is_not_stuttered(fleet, tmp_path):

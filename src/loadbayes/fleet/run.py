@@ -350,6 +350,14 @@ def _settings(table, model, pool, hyper, sampler, max_seconds, info) -> dict:
             f"{len(slow)} of {bus['bus'].nunique()} buses have not converged ({shown}): "
             "see their rows' warnings"
         )
+    split = bus.loc[bus["prior_driven"].astype(bool), "bus"].unique()
+    if len(split):
+        shown = ", ".join(map(str, split[:5])) + (", ..." if len(split) > 5 else "")
+        warn.append(
+            f"{len(split)} of {bus['bus'].nunique()} buses: a1, a2 (or a4, a5) not determined "
+            f"separately by their own data, their split is their class's ({shown}); "
+            "dp_dv, dq_dv are what their data fix (see the rows' prior_driven)"
+        )
     return {
         "kind": "fleet",
         "model": "zip",

@@ -4,8 +4,13 @@ Columns (:data:`COLUMNS`): ``level`` ("bus" or "class"), ``bus``, ``class``,
 ``parameter``, ``mean``, ``sd``, ``hdi_low``, ``hdi_high``, ``r_hat``, ``ess_bulk``,
 ``n`` (rows of the bus; buses of the class on class rows), ``warnings`` (plain words,
 joined by " | "; empty when none), ``shrinkage`` (pooled fits only, see
-:mod:`loadbayes.fleet.hierarchical`) and ``converged`` (R-hat < 1.01 and bulk ESS >= 400
-on that row; a unit with a row that is not says so in its ``warnings``).
+:mod:`loadbayes.fleet.hierarchical`), ``converged`` (R-hat < 1.01 and bulk ESS >= 400
+on that row; a unit with a row that is not says so in its ``warnings``), and, pooled fits
+only, ``prior_sd_ratio`` and ``prior_driven`` on the share rows a1..a3 (a4..a6): along
+the curvature ``a1 - 2 a2 + a3``, the posterior sd the bus's own data leave of its class
+spread's (``s_d / sqrt(s_d^2 + s_c^2)``, :mod:`loadbayes.fleet.hierarchical`), and
+whether it exceeds :data:`PRIOR_DRIVEN` (the split of the shares is then the class's,
+not the bus's data's).
 
 A bus that cannot be fitted (too few rows, no voltage spread without pooling, values in
 the wrong units) gets one row with ``parameter`` null, NaN statistics and the reason in
@@ -24,6 +29,7 @@ from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
 
 __all__ = [
     "COLUMNS",
+    "PRIOR_DRIVEN",
     "STATS",
     "concat",
     "convergence_note",
@@ -60,7 +66,13 @@ def convergence_note(stats: Mapping[str, Mapping[str, np.ndarray]], j: int) -> s
 
 
 STATS = ("mean", "sd", "hdi_low", "hdi_high", "r_hat", "ess_bulk")
-COLUMNS = ("level", "bus", "class", "parameter", *STATS, "n", "warnings", "shrinkage", "converged")
+COLUMNS = ("level", "bus", "class", "parameter", *STATS, "n", "warnings", "shrinkage", "converged",
+           "prior_sd_ratio", "prior_driven")  # fmt: skip
+
+#: Above this ratio of a bus's posterior sd to its class spread's (along the same
+#: direction) the prior gives more than half the precision: the rule of the composite
+#: fit's ``PRIOR_DRIVEN`` (:mod:`loadbayes.fit.composite.identifiability`).
+PRIOR_DRIVEN = 0.7
 
 
 def stat_rows(
@@ -72,6 +84,7 @@ def stat_rows(
     *,
     warnings: Sequence[str] | None = None,
     shrinkage: Mapping[str, np.ndarray] | None = None,
+    prior_ratio: Mapping[str, np.ndarray] | None = None,
 ) -> pd.DataFrame:
     """Rows for ``m`` units (buses or classes) and the parameters in ``stats``.
 
@@ -84,6 +97,8 @@ def stat_rows(
     warnings : sequence of str, optional
         One string per unit.
     shrinkage : mapping of parameter name to array of length m, optional
+    prior_ratio : mapping of parameter name to array of length m, optional
+        The ``prior_sd_ratio`` column; ``prior_driven`` is it above :data:`PRIOR_DRIVEN`.
     """
     m = len(buses)
     names = list(stats)
@@ -105,10 +120,14 @@ def stat_rows(
     cols["shrinkage"] = np.concatenate(
         [np.asarray((shrinkage or {}).get(p, nan), dtype=float) for p in names]
     )
+    ratio = np.concatenate([np.asarray((prior_ratio or {}).get(p, nan), dtype=float)
+                            for p in names])  # fmt: skip
     r_hat, ess = np.asarray(cols["r_hat"]), np.asarray(cols["ess_bulk"])
     with np.errstate(invalid="ignore"):
         # a constant series (a given P0) has nothing to converge
         cols["converged"] = ((r_hat < RHAT_MAX) & (ess >= ESS_MIN)) | (np.asarray(cols["sd"]) == 0)
+        cols["prior_driven"] = ratio > PRIOR_DRIVEN
+    cols["prior_sd_ratio"] = ratio
     df = pd.DataFrame(cols, columns=list(COLUMNS))
     # bus-major order: the rows of one bus together, parameters in model order
     order = np.lexsort((np.repeat(np.arange(rep), m), np.tile(np.arange(m), rep)))
@@ -132,6 +151,8 @@ def failed_rows(
     cols["warnings"] = np.asarray(reasons, dtype=object)
     cols["shrinkage"] = nan.copy()
     cols["converged"] = np.zeros(m, bool)
+    cols["prior_sd_ratio"] = nan.copy()
+    cols["prior_driven"] = np.zeros(m, bool)
     return pd.DataFrame(cols, columns=list(COLUMNS))
 
 

@@ -253,7 +253,9 @@ def fleet_report(
         f"{RHAT_LIMIT} on any parameter), when its draws are few (bulk ESS below "
         f"{ESS_LIMIT}), when it is thin (fewer than {THIN_ROWS} rows) or when its voltage "
         "hardly moved (flat: its shares then come mostly from its class, or are not "
-        "identified)."
+        "identified), or when its data do not tell a1 from a2 (a4 from a5) along the "
+        "curvature a1 - 2 a2 + a3 (the split of its shares is then its class's; its dP/dV "
+        "and dQ/dV are what its data fix)."
     )
     if len(flagged):
         shown = flagged.head(MAX_LISTED)

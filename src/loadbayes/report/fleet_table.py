@@ -57,6 +57,8 @@ NUMERIC = ("mean", "sd", "hdi_low", "hdi_high", "r_hat", "ess_bulk", "n")
 SENSITIVITY = {"dp_dv": ("dpdv", "dpdvpu", "slopep"), "dq_dv": ("dqdv", "dqdvpu", "slopeq")}
 #: The pair of ZIP shares whose ``2 a + b`` is the slope at V0 of each channel.
 SLOPE_PAIRS = {"dp_dv": ("a1", "a2"), "dq_dv": ("a4", "a5")}
+#: The share row that names each channel's pair when its split is the class's.
+SPLIT_PAIRS = {"a1": "a1, a2", "a4": "a4, a5"}
 UNPOOLED = ("unpooledmean", "ownmean", "lsmean", "unpooled")
 COORDS = (("x", "y"), ("lon", "lat"), ("longitude", "latitude"))
 
@@ -123,7 +125,9 @@ class FleetTable:
 
         Not fitted (a null parameter), chains that disagree (R-hat above
         :data:`RHAT_LIMIT`), few effective draws (bulk ESS below :data:`ESS_LIMIT`), thin
-        (fewer than :data:`THIN_ROWS` rows), flat voltage (the warnings say so).
+        (fewer than :data:`THIN_ROWS` rows), flat voltage (the warnings say so), shares
+        whose split is the class's (a pooled table's ``prior_driven``: a1, a2 or a4, a5
+        not determined separately by the bus's data).
         """
         b = self.bus_rows
         first = b.groupby("bus", sort=False).agg(
@@ -136,6 +140,13 @@ class FleetTable:
             not_ok = set(fitted.loc[~ok.astype(bool), "bus"])
         else:
             not_ok = set()
+        # A pooled table's prior_driven rows: the channels whose shares' split is the class's.
+        split: dict = {}
+        if "prior_driven" in b.columns:
+            pd_rows = fitted[fitted["prior_driven"].map(lambda v: False if pd.isna(v) else bool(v))]
+            for bus, par in zip(pd_rows["bus"], pd_rows["parameter"], strict=True):
+                if par in SPLIT_PAIRS:
+                    split.setdefault(bus, []).append(SPLIT_PAIRS[par])
         # The worst parameter of each bus: one sort, not a Python loop over 10^4 buses.
         worst_r = fitted.sort_values("r_hat", ascending=False, na_position="last")
         worst_r = worst_r.drop_duplicates("bus").set_index("bus")
@@ -165,6 +176,8 @@ class FleetTable:
                     reasons.append(f"thin: {n} rows")
                 if any(w in text.lower() for w in FLAT_WORDS):
                     reasons.append("flat voltage")
+                if bus in split:
+                    reasons.append(f"split of {' and '.join(split[bus])} is the class's")
             if reasons:
                 out.append({"bus": bus, "class": cls, "n": n,
                             "reasons": list(dict.fromkeys(reasons))})  # fmt: skip
