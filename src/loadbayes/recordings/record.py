@@ -23,8 +23,9 @@ Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fi
   :data:`~loadbayes.recordings.phasor_fit.HALF_STEP_LIMIT`);
 - ``va, vb, vc, ia, ib, ic``: per-phase RMS magnitudes (per unit).
 
-One idea needs these 423 lines: a record's table, its phasor rows (above) and its
-amplitude rows (below) built from the waveforms.
+One idea needs these 461 lines: a record's table, its phasor rows (above) and its
+amplitude rows (below) built from the waveforms (and a timed probe of the same fit, for
+the cost said before a long read).
 Amplitude rows (``kind = "amplitude"``) hold only ``va .. ic`` (RMS, per unit; whether
 the recorder wrote peak or RMS values is decided by comparing the first amplitude sample
 with the neighbouring waveform window, and said in the metadata). No phasor, P or Q is
@@ -43,7 +44,14 @@ from loadbayes.io.errors import DataError
 from loadbayes.recordings.comtrade import Waveforms
 from loadbayes.recordings.phasor_fit import fit_phasors
 
-__all__ = ["STRADDLE_LIMIT", "UNBALANCE_LIMIT", "RecordTable", "phasor_windows", "record_table"]
+__all__ = [
+    "STRADDLE_LIMIT",
+    "UNBALANCE_LIMIT",
+    "RecordTable",
+    "phasor_windows",
+    "probe_windows",
+    "record_table",
+]
 
 #: Negative-sequence voltage share above which a sample is flagged ``unbalanced``.
 UNBALANCE_LIMIT = 0.05
@@ -421,3 +429,33 @@ def phasor_windows(w: Waveforms, per_cycle: int = 1) -> int:
     segs = [s for s in (w.segments or ()) if s.kind == "waveform"]
     spans = [w.t_s[s.stop - 1] - w.t_s[s.start] for s in segs] or [w.t_s[-1] - w.t_s[0]]
     return int(2 * sum(max(span, 0.0) * w.f_nominal * per_cycle for span in spans))
+
+
+def probe_windows(w: Waveforms, per_cycle: int, dc: str, cycles: float, clock) -> tuple[int, float]:
+    """Fit the first ``cycles`` of the first waveform segment as :func:`record_table` would.
+
+    Returns the windows fitted (both passes, as :func:`phasor_windows` counts them) and
+    the seconds they took by ``clock``: the cost per window of this record at this
+    ``per_cycle`` (which the sample times' regularity and ``dc`` change twenty-fold).
+    """
+    from dataclasses import replace
+
+    seg = next((s for s in (w.segments or ()) if s.kind == "waveform"), None)
+    start, stop = (seg.start, seg.stop) if seg is not None else (0, w.t_s.size)
+    end = int(np.searchsorted(w.t_s, w.t_s[start] + cycles / w.f_nominal))
+    if seg is None:
+        from loadbayes.recordings.comtrade import Segment
+
+        seg = Segment(start, stop, w.rate_hz, "waveform")
+    part = replace(seg, stop=max(start + 2, min(stop, end)))
+    done = [0]
+
+    def count(n: int) -> None:
+        done[0] += n
+
+    began = clock()
+    try:
+        _waveform_rows(w, part, per_cycle, dc, progress=count)
+    except (ValueError, DataError):
+        return 0, 0.0  # too short to probe: the read itself will say what is wrong
+    return done[0], clock() - began
