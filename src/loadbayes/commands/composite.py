@@ -70,9 +70,9 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
 @click.option(
     "--f-hz",
     type=click.FloatRange(min=10, max=1000),
-    default=60.0,
-    show_default=True,
-    help="Nominal frequency (the motor's time base), 10-1000 Hz.",
+    default=None,
+    help="Nominal frequency (the motor's time base), 10-1000 Hz. Default: the record's, "
+    "from events.csv beside files cut by `loadbayes events`, else 60.",
 )
 @click.option(
     "--torque",
@@ -225,8 +225,20 @@ def fit_composite_cmd(
     from loadbayes.fit.composite import predictive_band
     from loadbayes.fit.composite.checks import check_run
     from loadbayes.fit.composite.driver import fit_composite
-    from loadbayes.measurements.events import index_bases, read_events
+    from loadbayes.measurements.events import index_bases, index_f_hz, read_events
     from loadbayes.measurements.record import check_units
+
+    # Events cut by `loadbayes events` carry the record's frequency in events.csv.
+    f_found = index_f_hz(list(files))
+    f_note = None
+    if f_found is not None and f_hz is not None and f_hz != f_found[0]:
+        raise UserError(
+            f"--f-hz {f_hz:g}, but {f_found[1]} says the record's nominal frequency is "
+            f"{f_found[0]:g} Hz: leave out --f-hz, or give --f-hz {f_found[0]:g}"
+        )
+    if f_hz is None:
+        f_hz = f_found[0] if f_found is not None else 60.0
+        f_note = f"frequency from events.csv: {f_hz:g} Hz" if f_found is not None else None
 
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
@@ -280,6 +292,8 @@ def fit_composite_cmd(
     if not quiet:
         if bases_note:
             click.echo(f"loadbayes: note: {bases_note}", err=True)
+        if f_note:
+            click.echo(f"loadbayes: note: {f_note}", err=True)
         n = sum(e.n for e in events)
         click.echo(
             f"fitting {len(events)} event(s), {n} samples: NLS start, then sampling", err=True

@@ -20,9 +20,44 @@ from loadbayes.commands.output import (
     user_errors,
 )
 
-#: Seconds a phasor window costs where windows are fitted one at a time (a recorder's own
-#: time stamps; benchmarks/README.md): for the estimate said before a long read.
-_SECONDS_PER_WINDOW = 3e-4
+#: A read of more phasor windows (both passes) than this is timed first: a short probe of
+#: the same fit (red-team M9: a fixed 3e-4 s per window was 20x low at --per-cycle 64).
+PROBE_FROM_WINDOWS = 1000
+#: The probe fits this share of the record's cycles, at least PROBE_MIN_CYCLES of them.
+PROBE_SHARE = 0.03
+PROBE_MIN_CYCLES = 3.0
+#: The cost is said, and the bar shows the time left, above this many seconds.
+SAY_COST_S = 2.0
+
+
+def estimate_seconds(w, per_cycle: int, dc: str, windows: int, clock=None) -> float | None:
+    """The read's cost: two probes of the phasor fit on the record's first cycles, scaled.
+
+    The probes fit ``PROBE_SHARE`` of the cycles (at least ``PROBE_MIN_CYCLES``, plus the
+    cycles the decay test reads past a window), then twice that, at the requested
+    ``per_cycle`` and ``dc``. Their difference is the cost per window, what the shorter
+    took beyond it the fixed cost (evenly spaced samples share one least-squares fit
+    between windows, so one probe alone over-states a long read threefold); the estimate
+    is ``fixed + per_window x windows``. None for a short read (fewer than
+    :data:`PROBE_FROM_WINDOWS` windows) or a probe that fitted nothing.
+    """
+    import time
+
+    from loadbayes.recordings.record import probe_windows
+
+    if windows < PROBE_FROM_WINDOWS:
+        return None
+    clock = clock or time.perf_counter
+    cycles = max(PROBE_MIN_CYCLES, PROBE_SHARE * windows / (2.0 * per_cycle))
+    n1, s1 = probe_windows(w, per_cycle, dc, cycles + 2.0, clock)
+    n2, s2 = probe_windows(w, per_cycle, dc, 2.0 * cycles + 2.0, clock)
+    if n1 == 0 or n2 == 0:
+        return None
+    if n2 <= n1 or s2 <= s1:  # the record ended, or the clock was noisier than the work
+        return s2 / n2 * windows
+    per_window = (s2 - s1) / (n2 - n1)
+    return max(s1 - per_window * n1, 0.0) + per_window * windows
+
 
 __all__ = ["events_cmd", "read_group"]
 
@@ -126,13 +161,16 @@ def read_comtrade_cmd(
 
     w = read_comtrade(cfg, voltage=vnames, current=inames, bay=bay, side=side, encoding=encoding)
     windows = phasor_windows(w, per_cycle)
-    if not quiet and windows * _SECONDS_PER_WINDOW > 2.0:  # the cost first, when it is felt
+    seconds = None if quiet else estimate_seconds(w, per_cycle, dc, windows)
+    long = seconds is not None and seconds > SAY_COST_S
+    if long:  # the cost first, when it is felt
         click.echo(
             f"loadbayes: note: {cfg}: {w.t_s.size} samples, about {windows // 2} phasor "
-            f"windows: about {windows * _SECONDS_PER_WINDOW:.0f} s",
+            f"windows at --per-cycle {per_cycle}: about {seconds:.0f} s on this machine "
+            "(timed on the record's first cycles)",
             err=True,
         )
-    bar = Progress("phasor windows", windows, quiet)
+    bar = Progress("phasor windows", windows, quiet, eta=long)
     try:
         rec = record_table(
             w, per_cycle=per_cycle, dc=dc, v_base_kv=v_base, s_base_mva=s_base, source=cfg,

@@ -1,7 +1,7 @@
 """Read recorded disturbance events (t, V, P, Q [, f or angle] [, event]) and check them.
 
-One idea needs these 420 lines: event files read into checked recordings, each check
-naming the file, the column and the row.
+One idea needs these 454 lines: event files read into checked recordings (and their
+index's bases and frequency), each check naming the file, the column and the row.
 One file is one event, or several when it has an event column. Bad input raises
 :class:`~loadbayes.io.errors.DataError` naming the file, the column and the row: a time
 that does not increase, a gap in the sampling, an event too short for the motor's time
@@ -21,6 +21,7 @@ from loadbayes.measurements.units import F_OFF
 
 __all__ = [
     "index_bases",
+    "index_f_hz",
     "MIN_DV",
     "MIN_SAMPLES",
     "MIN_SHORT_SPAN_S",
@@ -418,3 +419,36 @@ def index_bases(paths: Sequence[str]) -> tuple[float, float] | None:
             return None
         found.add((v, s))
     return found.pop() if len(found) == 1 else None
+
+
+def index_f_hz(paths: Sequence[str]) -> tuple[float, str] | None:
+    """The nominal frequency of event files cut by ``loadbayes events``, from their index.
+
+    ``events`` writes the record's nominal frequency (``f_nominal_hz``) beside the bases
+    in ``events.csv``; a fit of those files takes it as its frequency.
+
+    Returns
+    -------
+    (f_hz, index) or None
+        The frequency every file's row gives and the first index read; None when a file
+        has no index, row or frequency (events of a plain table), or the files disagree.
+    """
+    import csv
+    from pathlib import Path
+
+    found, where = set(), ""
+    for path in paths:
+        index = Path(path).with_name("events.csv")
+        if Path(path).name == index.name or not index.is_file():
+            return None
+        try:
+            with index.open(encoding="utf-8", newline="") as fh:
+                rows = [r for r in csv.DictReader(fh) if r.get("file") == Path(path).name]
+            f = float(rows[0]["f_nominal_hz"])
+        except (OSError, ValueError, KeyError, IndexError, TypeError, UnicodeDecodeError):
+            return None
+        if not (math.isfinite(f) and f > 0):
+            return None
+        found.add(f)
+        where = where or str(index)
+    return (found.pop(), where) if len(found) == 1 else None

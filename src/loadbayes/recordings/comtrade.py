@@ -253,7 +253,7 @@ def read_comtrade(
                 f"alone, and these are implausible time stamps: {problem}",
                 info.path,
             )
-    notes += dead_channels(vch, v_arr, ich, i_arr, info.path)
+    notes += dead_channels(vch, v_arr, ich, i_arr, info.path, str(dat))
     names = {f"v{p}": ch.name for p, ch in zip("abc", vch, strict=True)}
     names.update({f"i{p}": ch.name for p, ch in zip("abc", ich, strict=True)})
     return Waveforms(

@@ -40,6 +40,42 @@ def _phase_key(ch: AnalogChannel) -> str | None:
     return None
 
 
+#: Channel-name endings (after the last separator) and phase fields of a zero-sequence
+#: (residual) channel: 3I0 = Ia + Ib + Ic, the neutral's current, 3U0.
+_ZERO_NAMES = {"3I0", "I0", "IN", "3IO", "IO", "3U0", "U0", "UN", "3V0", "V0", "VN", "IG", "IRES"}
+_ZERO_PHASES = {"N", "0", "Z", "G", "3I0", "I0", "3U0", "U0", "3V0", "V0"}
+
+
+def _zero_sequence(ch: AnalogChannel) -> bool:
+    """Whether a channel is a residual (zero-sequence or neutral) quantity, not a phase."""
+    if ch.phase.strip().upper() in _ZERO_PHASES:
+        return True
+    tail = ch.name.strip().upper().replace("-", "_").replace(" ", "_").split("_")[-1]
+    return tail in _ZERO_NAMES or "零序" in ch.name
+
+
+def _check_role(ch: AnalogChannel, kind: str, path: str) -> None:
+    """Refuse a named channel whose unit is the other kind's, or a residual channel."""
+    unit = ch.unit.strip()
+    if unit_factor(unit) is not None:
+        is_current = unit.upper().endswith("A")
+        if is_current != (kind == "current"):
+            own = "current" if is_current else "voltage"
+            raise DataError(
+                f"line {ch.line}: channel {ch.name!r} is in {unit!r}, a {own}'s unit, but "
+                f"--{kind} names it: name the three phase {kind}s (a {own} channel goes "
+                f"to --{own})",
+                path,
+            )
+    if _zero_sequence(ch):
+        raise DataError(
+            f"line {ch.line}: channel {ch.name!r} (phase {ch.phase.strip()!r}) is a "
+            f"zero-sequence (residual) channel, not a phase: --{kind} takes the phases a, "
+            "b, c",
+            path,
+        )
+
+
 def _duplicates(info: CfgInfo) -> dict[str, list[int]]:
     """Channel ids given to more than one analog channel, with their ``.cfg`` lines."""
     lines: dict[str, list[int]] = {}
@@ -105,6 +141,8 @@ def pick_channels(
         if len(names) != 3:
             raise DataError(f"--{kind} takes three channel names, got {len(names)}", info.path)
         chans = [_by_spec(info, nm, kind) for nm in names]
+        for ch in chans:
+            _check_role(ch, kind, info.path)
         for k, ch in enumerate(chans):
             if ch in chans[:k]:
                 raise DataError(
@@ -227,13 +265,17 @@ def missing_note(info: CfgInfo, ch: AnalogChannel) -> str:
     return "missing value (an empty, 99999, NaN or infinite cell)"
 
 
-def dead_channels(vch, v, ich, i, path: str) -> list[str]:
+def dead_channels(vch, v, ich, i, path: str, dat: str | None = None) -> list[str]:
     """Refuse a dead or mis-scaled voltage phase; say where a current phase is dead.
 
     A voltage phase that is constant over the whole record (a multiplier of 0, an open
     VT fuse) puts the positive sequence at 2/3 of the truth; one whose typical magnitude
     differs from the others' by 3x or more has a unit or ratio wrong in the ``.cfg``
     (V among kV). A constant current phase can be real (an open pole): said, not refused.
+    Currents are checked as the voltages are, where it cannot be right: a sample more
+    than :data:`ABSURD_RATIO` times its channel's median (refused, naming the sample of
+    ``dat``), a phase :data:`CURRENT_RATIO_LIMIT` times smaller than another (refused);
+    one 3x smaller is said (an unbalanced load can be real).
     """
     notes = []
     spread = np.ptp(v, axis=1)
@@ -258,4 +300,49 @@ def dead_channels(vch, v, ich, i, path: str) -> list[str]:
     for ch, sp in zip(ich, np.ptp(i, axis=1), strict=True):
         if sp == 0:
             notes.append(f"current channel {ch.name!r} is constant over the whole record")
+    for kind, chans, x in (("voltage", vch, v), ("current", ich, i)):
+        _absurd_samples(kind, chans, x, dat or path)
+    typical = np.median(np.abs(i), axis=1)
+    if typical.min() > 0 and typical.max() / typical.min() >= 3.0:
+        lo, hi = int(np.argmin(typical)), int(np.argmax(typical))
+        ratio = typical[hi] / typical[lo]
+        said = (
+            f"line {ich[lo].line}: current channel {ich[lo].name!r} is {ratio:.3g} times "
+            f"smaller than {ich[hi].name!r} over the record"
+        )
+        if ratio >= CURRENT_RATIO_LIMIT:
+            raise DataError(
+                f"{said}: no load is that unbalanced; its unit ({ich[lo].unit.strip()!r}), "
+                "multiplier or ratio is wrong, or the phases are not one set",
+                path,
+            )
+        notes.append(
+            f"{said}: a load that unbalanced, an open pole, or a wrong unit or ratio in the "
+            ".cfg (check it: P and Q are read from these currents)"
+        )
     return notes
+
+
+#: A sample this many times its channel's median magnitude is corrupt, not measured (a
+#: fault current is 10-50 times the load's; a FLOAT32 3e38 is 1e35 times it).
+ABSURD_RATIO = 1e6
+#: A current phase this many times smaller than another is a unit or multiplier slip;
+#: between 3x and this, an unbalanced load or an open pole can be real: said, not refused.
+CURRENT_RATIO_LIMIT = 1e3
+
+
+def _absurd_samples(kind: str, chans, x: np.ndarray, path: str) -> None:
+    """Refuse a sample far beyond its channel's typical magnitude (a corrupt value)."""
+    for ch, row in zip(chans, x, strict=True):
+        med = float(np.median(np.abs(row)))
+        if not med > 0:
+            continue
+        far = np.flatnonzero(np.abs(row) > ABSURD_RATIO * med)
+        if far.size:
+            k = int(far[0])
+            raise DataError(
+                f"{kind} channel {ch.name!r}, sample {k + 1}: {row[k]:.3g} is "
+                f"{abs(row[k]) / med:.3g} times the channel's median magnitude (more than "
+                f"{ABSURD_RATIO:.0e}): a corrupt sample, not a measurement",
+                path,
+            )

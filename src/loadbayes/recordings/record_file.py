@@ -313,6 +313,8 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
                 "per_cycle": meta.get("per_cycle"),
                 "v_base_kv": meta.get("v_base_kv"),
                 "s_base_mva": meta.get("s_base_mva"),
+                # The record's nominal frequency: `fit composite` takes it from here.
+                "f_nominal_hz": meta.get("f_nominal_hz"),
             }
         )
     return RecordEvents(data, windows, extra)

@@ -178,6 +178,7 @@ def fit_composite(
     spec = spec if spec is not None else DataSpec()
     items = list(data) if isinstance(data, (list, tuple)) else [data]
     files = [str(x) for x in items if isinstance(x, str) or hasattr(x, "__fspath__")]
+    _check_index_frequency(model, files)
     events = read(data, spec, f_hz=getattr(model, "f_hz", 60.0))
     columns = {"v": spec.v_col, "p": spec.p_col, "q": spec.q_col or "q"}
     # The units first, named by the data's own columns; then the warnings the fit keeps.
@@ -186,3 +187,24 @@ def fit_composite(
     extra = {**({"files": files} if files else {}), **(provenance or {})}
     return fit_events(model, events, sampler=sampler, progress=progress,
                       data_warnings=warnings, provenance=extra or None)  # fmt: skip
+
+
+def _check_index_frequency(model: DynamicLoadModel, files: list[str]) -> None:
+    """Refuse a model whose frequency is not the one the events' index records.
+
+    Events cut by ``loadbayes events`` carry the record's nominal frequency in
+    ``events.csv``; the CLI takes it when ``--f-hz`` is not given. A model is not changed
+    behind the caller's back: the one that disagrees (60 Hz, the default, for a 50 Hz
+    record) is refused with the model to build.
+    """
+    from loadbayes.io.errors import OptionError
+    from loadbayes.measurements.events import index_f_hz
+
+    f_model = getattr(model, "f_hz", None)
+    found = index_f_hz(files) if files and f_model is not None else None
+    if found is not None and found[0] != f_model:
+        name = type(model).__name__
+        raise OptionError(
+            f"{found[1]} says the record's nominal frequency is {found[0]:g} Hz, but the "
+            f"model's f_hz is {f_model:g}: build {name}(f_hz={found[0]:g}, ...)"
+        )
