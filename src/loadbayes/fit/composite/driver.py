@@ -320,7 +320,10 @@ def fit_composite(
         sampled, start=sample_start, draws=run.draws, burn=run.burn, thin=run.thin,
         chains=run.chains, seed=run.seed, workers=run.threads, move=move, student_t=student_t,
         progress=progress, extend=until, factor=factor, ar=noise == "ar1",
+        deadline=None if until is None else until.deadline(),  # the budget from iteration 0
     )  # fmt: skip
+    if until is not None:
+        until.note_cut(res)
     t2 = time.perf_counter()
     seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
     blocks = ChainDraws.stack(res, steps=bool(problem.n_steps), torque=estimate)

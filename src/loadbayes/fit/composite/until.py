@@ -14,6 +14,13 @@ from a fixed kernel: the kept draws of a run extended by ``n`` are those of one 
 ``draws + n`` iterations (the same seed, the same draws). Where the budget stops the run
 depends on the machine's speed, so an unconverged run's length is not reproducible; a
 converged one's is.
+
+The budget holds from the first iteration, not only between rounds: the sampler gets its
+deadline (:meth:`UntilConverged.deadline`) and, past it, ends the burn-in and stops the
+chains with what they drew (``fit.composite.sampler``). Then the run is shorter than
+asked and its draws depend on the machine's load: :meth:`UntilConverged.warning` says so
+in words, and the JSON (:meth:`UntilConverged.record`) keeps ``stopped_by_budget`` and the
+iterations the budget cut. A run the budget never binds draws what the seed says.
 """
 
 from __future__ import annotations
@@ -72,11 +79,26 @@ class UntilConverged:
     _t_round: float = field(default_factory=time.perf_counter)
     _iterations: int = 0
     stopped_by_budget: bool = False
+    #: Iterations per chain the deadline cut inside a round (0: it never bound there),
+    #: and the iterations per chain asked (the first round's and every extension's).
+    cut_iterations: int = 0
+    asked_iterations: int = 0
 
     def start(self, first_iterations: int) -> None:
         """Start the clock at the first round of ``first_iterations`` per chain."""
         self.t_start = self._t_round = time.perf_counter()
-        self._iterations = int(first_iterations)
+        self._iterations = self.asked_iterations = int(first_iterations)
+
+    def deadline(self) -> float:
+        """The :func:`time.perf_counter` time the budget ends (the sampler's deadline)."""
+        return self.t_start + self.max_seconds
+
+    def note_cut(self, results: Sequence) -> None:
+        """Record whether the deadline cut the chains (their ``cut``)."""
+        cut = max(int(getattr(r, "cut", 0)) for r in results)
+        if cut:
+            self.stopped_by_budget = True
+            self.cut_iterations = cut
 
     def state(self, results: Sequence) -> tuple[float, float, str]:
         """``(max R-hat, min bulk ESS, which quantities fall short)`` of ``results``."""
@@ -127,6 +149,7 @@ class UntilConverged:
         if self.announce is not None:
             self.announce(more * len(results), more * per_iteration, short)
         self._t_round, self._iterations = time.perf_counter(), more
+        self.asked_iterations += more
         return more
 
     def warning(self, results: Sequence) -> str | None:
@@ -134,6 +157,22 @@ class UntilConverged:
         if not self.stopped_by_budget:
             return None
         _, _, short = self.state(results)
+        if self.cut_iterations:
+            kept = results[0].theta.shape[0]
+            return (
+                f"the time budget of {self.max_seconds:g} s bound: the chains stopped "
+                f"{self.cut_iterations} iterations short of the {self.asked_iterations} asked "
+                f"per chain ({kept} draws kept per chain), so this run "
+                "is shorter than asked and its numbers depend on the machine's speed (the "
+                "same seed gives other draws on a busier machine)"
+                + (
+                    f"; {short} fall short of R-hat < {RHAT_MAX} and bulk ESS >= {ESS_MIN}: "
+                    "these results are not converged"
+                    if short
+                    else ""
+                )
+                + ": give a larger --max-seconds (max_seconds=...) to run it in full"
+            )
         return (
             f"the time budget of {self.max_seconds:g} s ran out before the chains converged "
             f"(R-hat < {RHAT_MAX} and bulk ESS >= {ESS_MIN} for every reported quantity): "
@@ -148,4 +187,13 @@ class UntilConverged:
             "max_seconds": self.max_seconds,
             "rounds": self.rounds,
             "stopped_by_budget": self.stopped_by_budget,
+            # Only when the budget cut a round (a run it never binds keeps its JSON).
+            **(
+                {
+                    "cut_iterations_per_chain": self.cut_iterations,
+                    "asked_iterations_per_chain": self.asked_iterations,
+                }
+                if self.cut_iterations
+                else {}
+            ),
         }
