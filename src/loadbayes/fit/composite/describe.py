@@ -70,8 +70,9 @@ def describe_fit(
         ident["torque"] = torque_identifiability(blocks.abc)
         ident["summary"] += " " + ident["torque"]["summary"]
     # The static (ZIP) part: which shares the events fixed, and the combinations they do.
-    ident["static_part"] = static_identifiability(draws, events, prior=prior,
-                                                  hdi_prob=run.hdi_prob, bounded=bounded)  # fmt: skip
+    ident["static_part"] = static_identifiability(
+        draws, events, prior=prior, hdi_prob=run.hdi_prob, bounded=bounded
+    )
     if "at_bound" in ident["static_part"]:  # with the motor's words (the CLI prints them)
         ident["summary"] += " " + ident["static_part"]["at_bound"]
     post.extra_json["identifiability"] = ident
