@@ -34,7 +34,7 @@ import numpy as np
 
 from loadbayes.diagnostics import ESS_MIN, RHAT_MAX
 
-__all__ = ["DEFAULT_MAX_SECONDS", "UntilConverged"]
+__all__ = ["DEFAULT_MAX_SECONDS", "UntilConverged", "estimate_seconds"]
 
 #: The default time budget of a composite fit's sampling (s): a few minutes.
 DEFAULT_MAX_SECONDS = 300.0
@@ -50,6 +50,58 @@ _MARGIN = 1.15
 #: Plan an extension to use at most this share of the time left: the time per iteration
 #: is the previous round's, and a busier machine in the next one overran the budget.
 _TIME_SHARE = 0.85
+
+
+#: Iterations of the probe's first round: half of them burn-in, so that its moves adapt
+#: as the chains' will (an unadapted walk's proposals leave the support and are rejected
+#: without a motor solve, at four times the chains' pace).
+PROBE_FIRST = 64
+#: Each further round of the probe lasts about this long (s), at least PROBE_ROUND
+#: iterations: rounds of a few milliseconds measured the scheduler of a loaded machine.
+PROBE_ROUND_S, PROBE_ROUND = 0.25, 24
+#: The probe's rounds at most, and its wall time at most (s).
+PROBE_ROUNDS, PROBE_SECONDS = 10, 8.0
+#: Two successive rounds' paces within this factor of each other: the cost has settled.
+PROBE_SETTLED = 1.5
+
+
+def estimate_seconds(probe: Callable[[int, Callable], object], draws: int, rounds: int) -> float:
+    """The wall time of ``rounds`` rounds of chains of ``draws`` iterations, from a probe.
+
+    ``probe(n, extend)`` runs one round of the chains (as many as run at once, on as many
+    threads) for ``n`` iterations, then asks ``extend`` for more, as the sampler does.
+    The probe runs rounds (:data:`PROBE_ROUND_S` each) until two successive ones go at
+    about the same pace (:data:`PROBE_SETTLED`). The settled pace is the chains' cost
+    per iteration; what the earlier rounds took beyond it (setting the chains up, their
+    first iterations far from the posterior: with bounded shares each took up to a tenth
+    of a second in the truncated draw's rejection loop) is paid once per chain. The
+    estimate of 12 iterations extrapolated (issue 40) read that start-up as the pace:
+    "about 3 h 19 min" for a run of 10 minutes.
+    """
+    spent: list[tuple[float, int]] = []  # (seconds, iterations) of each round
+    t0 = last = time.perf_counter()
+    ahead = PROBE_FIRST
+
+    def pace(k: int) -> float:
+        return spent[k][0] / spent[k][1]
+
+    def extend(_results) -> int:
+        nonlocal last, ahead
+        now = time.perf_counter()
+        spent.append((now - last, ahead))
+        last = now
+        settled = len(spent) >= 2 and spent[-1][0] >= 0.8 * PROBE_ROUND_S
+        if settled and max(pace(-1), pace(-2)) <= PROBE_SETTLED * min(pace(-1), pace(-2)):
+            return 0
+        if len(spent) >= PROBE_ROUNDS or now - t0 > PROBE_SECONDS:
+            return 0
+        ahead = max(PROBE_ROUND, math.ceil(PROBE_ROUND_S / max(pace(-1), 1e-9)))
+        return ahead
+
+    probe(PROBE_FIRST, extend)
+    per = min(pace(-1), pace(-2)) if len(spent) >= 2 else pace(-1)
+    start_up = sum(max(s - per * n, 0.0) for s, n in spent)
+    return rounds * (start_up + per * draws)
 
 
 @dataclass
