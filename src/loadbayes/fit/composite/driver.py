@@ -87,13 +87,29 @@ _PLAIN = _Plain()
 
 @dataclass
 class CompositeFit:
-    """What :func:`fit_composite` returns."""
+    """What :func:`fit_composite` returns.
+
+    ``summary``, ``plot``, ``to_arviz`` and ``loo`` are the posterior's
+    (:class:`~loadbayes.posterior.Posterior`).
+    """
 
     posterior: Posterior
     baseline: Posterior
     problem: CompositeProblem
     start: NLSResult
     seconds: dict[str, float]
+
+    def summary(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.summary(**kwargs)
+
+    def plot(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.plot(**kwargs)
+
+    def to_arviz(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.to_arviz(**kwargs)
+
+    def loo(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.loo(**kwargs)
 
 
 def _baseline_draws(
