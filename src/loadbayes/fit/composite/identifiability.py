@@ -406,7 +406,11 @@ def static_identifiability(
                             f"{e[0]:.3f} to {e[1]:.3f})"
                             for n, e in ends.items()
                         )
-                        + f" {'is' if len(ends) == 1 else 'are'} {AT_BOUND}."
+                        + (
+                            f" is {AT_BOUND}."
+                            if len(ends) == 1
+                            else f" are {AT_BOUND.replace('its', 'their')}."
+                        )
                     )
             if undetermined:
                 weak.append(f"{upper} of {ev.name or f'event {k + 1}'}")
