@@ -6,10 +6,15 @@ comparison is one loop over the same summary, plots and exports.
 
 Its length is one idea: the one class :class:`Posterior`, with its summaries, its ArviZ
 view and its JSON and NetCDF round trips (as ArviZ keeps ``InferenceData`` in one module).
+
+Its figure (:meth:`Posterior.plot`) is drawn by ``loadbayes.plots``, found by name as
+pandas' ``DataFrame.plot`` finds its backend: the result type sits below its figures
+(docs/architecture.md) and does not import them.
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
@@ -401,6 +406,55 @@ class Posterior:
                 "log-likelihood of the measured P (and Q) at each kept draw"
             )
         return idata
+
+    def pointwise_missing(self) -> str | None:
+        """Why this result has no pointwise groups (log_likelihood, posterior_predictive).
+
+        None when :meth:`to_arviz` adds them, so that ``az.loo`` and ``az.plot_ppc`` work.
+        """
+        from loadbayes.predictive import model_of
+
+        if self.settings.get("level") == "drift":
+            return (
+                "its level P0(t) is a path sampled with the shares and not kept, so the "
+                "density of each measured sample is not in the result"
+            )
+        if not any(k in self.observed for k in ("p", "q")):
+            return "it keeps no measured P or Q samples"
+        if model_of(self) is None:
+            return f"its model ({self.model}) gives no density of each measured sample here"
+        return None
+
+    def loo(self, **kwargs: Any):
+        """``arviz.loo`` of the fit (PSIS leave-one-out), or a one-line error saying why not.
+
+        Of P's log-likelihood unless ``var_name="q"`` (the groups hold one per channel,
+        and ``az.loo`` takes one). Keywords go to ``az.loo``.
+
+        Raises
+        ------
+        ValueError
+            The result has no pointwise log-likelihood (:meth:`pointwise_missing` says
+            why), so neither ``az.loo`` nor ``az.plot_ppc`` can take it.
+        """
+        why = self.pointwise_missing()
+        if why is not None:
+            raise ValueError(
+                f"no log_likelihood or posterior_predictive group for this {self.model} fit "
+                f"({self.method}): {why}; az.loo and az.plot_ppc need them"
+            )
+        kwargs.setdefault("var_name", "p")
+        return import_arviz().loo(self.to_arviz(), **kwargs)
+
+    def plot(self, **kwargs: Any) -> Any:
+        """The fit's figure (a matplotlib Figure), as ``--plot`` draws it.
+
+        A composite fit that keeps its recordings: V(t), P(t), Q(t) against them with the
+        model's band (``plots/composite.py``); any other fit: the marginals, P(V) and
+        Q(V) with their bands, a pair plot and a trace (``plots/fit.py``). Keywords go to
+        the drawing function (``hdi_prob=``).
+        """
+        return importlib.import_module("loadbayes.plots").plot_result(self, **kwargs)
 
     def to_netcdf(
         self,

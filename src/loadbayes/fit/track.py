@@ -64,6 +64,25 @@ class ZIPTrack:
         assert self._chunks is not None
         return self._chunks
 
+    def _no(self, what: str) -> None:
+        raise TypeError(
+            f"a ZIP track has no {what}: it is a filter's path, given chunk by chunk as you "
+            "iterate it (each chunk's table holds the coefficients' means and sds), not "
+            "posterior draws; summarise or plot those tables"
+        )
+
+    def summary(self) -> None:
+        """Refused in one line: a track holds no draws to summarise (iterate it)."""
+        self._no("summary()")
+
+    def plot(self) -> None:
+        """Refused in one line: ``track zip --plot`` draws the path; iterate it here."""
+        self._no("plot()")
+
+    def to_arviz(self) -> None:
+        """Refused in one line: no draws, so no ``InferenceData``."""
+        self._no("to_arviz()")
+
 
 def track_zip(
     path: str,

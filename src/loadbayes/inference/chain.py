@@ -16,7 +16,11 @@ A sampler in two halves, as numpyro's ``MCMC`` driver with ``HMCGibbs(gibbs_fn=.
   (:func:`~loadbayes.core.parallel.check_stop` every iteration), a progress callback, the
   sample statistics by name (``stats()``, e.g. acceptance rates) and a chain continued for
   more iterations: a run in rounds gives the draws of one run of the same length (the
-  state and the generator carry over).
+  state and the generator carry over);
+- a **deadline** (a time budget): past it, the rest of the burn-in is skipped (the moves
+  freeze where they are) and the chain stops once it holds ``min_kept`` kept draws. A
+  chain that stopped there says so (:attr:`Chain.cut`, the iterations not run); one whose
+  deadline never passed runs exactly the draws of a chain without one.
 
 Chains run through :func:`loadbayes.core.parallel.run_chains`, each on its own generator
 (:func:`~loadbayes.core.parallel.chain_generators`). The driver draws no random numbers:
@@ -97,6 +101,11 @@ class Chain(Generic[S]):
     block, sink : optional
         With a sink, the streamed fields are held ``block`` rows at a time and handed to
         ``sink`` (:data:`Sink`) when a block fills and at the end of the run.
+    deadline : float, optional
+        A :func:`time.perf_counter` time after which the chain ends its burn-in and stops
+        (module notes), keeping at least ``min_kept`` draws.
+    min_kept : int
+        Kept draws a chain stopped by its deadline still makes (a posterior to build).
     """
 
     def __init__(
@@ -115,6 +124,8 @@ class Chain(Generic[S]):
         progress_every: float = PROGRESS_EVERY_S,
         block: int | None = None,
         sink: Sink | None = None,
+        deadline: float | None = None,
+        min_kept: int = 0,
     ) -> None:
         self.step, self.state, self.rng = step, state, rng
         self.fields = {k: f if isinstance(f, Field) else Field(tuple(f)) for k, f in fields.items()}
@@ -122,8 +133,11 @@ class Chain(Generic[S]):
         self.burn, self.thin = int(burn), int(thin)
         self.stop, self.progress, self.progress_every = stop, progress, progress_every
         self.block, self.sink = block, sink
-        #: Iterations run so far (the next one's number).
+        self.deadline, self.min_kept = deadline, int(min_kept)
+        #: Iterations run so far (the next one's number), skipped ones included.
         self.iteration = 0
+        #: Iterations the deadline cut: burn-in skipped, or draws not run.
+        self.cut = 0
         self._runs: dict[str, list[np.ndarray]] = {k: [] for k in self.fields}
 
     def run(self, iterations: int) -> None:
@@ -144,11 +158,22 @@ class Chain(Generic[S]):
         stop, progress, every = self.stop, self.progress, self.progress_every
         j = 0
         told, last = start, time.perf_counter()
-        for it in range(start, end):
+        deadline, it = self.deadline, start
+        while it < end:
             check_stop(stop)
-            if progress is not None and time.perf_counter() - last > every:
+            now = time.perf_counter()
+            if deadline is not None and now > deadline:
+                if it < burn:  # the burn-in ends here: the draws start at once
+                    skip = min(burn, end) - it
+                    self.cut += skip
+                    it += skip
+                    continue
+                if kept_count(0, it, burn, thin) >= self.min_kept:
+                    self.cut += end - it
+                    break
+            if progress is not None and now - last > every:
                 progress(it - told)
-                told, last = it, time.perf_counter()
+                told, last = it, now
             state = step(state, rng, it)
             if it >= burn and (it - burn) % thin == 0:  # is_kept, inlined
                 values = record(state)
@@ -158,12 +183,15 @@ class Chain(Generic[S]):
                 j += 1
                 if live and (r == rows - 1 or j == kept):
                     self.sink(j - r - 1, live, r + 1)  # type: ignore[misc]
+            it += 1
+        if live and j < kept and j % rows:  # stopped by the deadline mid-block
+            self.sink(j - j % rows, live, j % rows)  # type: ignore[misc]
         if progress is not None:
-            progress(end - told)
+            progress(it - told)
         self.state, self.iteration = state, end
         for k in names:
             if k not in live:
-                self._runs[k].append(bufs[k])
+                self._runs[k].append(bufs[k][:j] if j < kept else bufs[k])
 
     def run_batched(
         self,

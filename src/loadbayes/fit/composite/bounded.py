@@ -137,8 +137,10 @@ def draw_gamma(ztz, zty, tau, a, p0_gamma, rng: np.random.Generator, size: int =
     sz = math.sqrt(max(cov[_P_ZIP, _P_ZIP] - slope * cov[_P_ZIP, _P_M0], 1e-300))
     lo = special.ndtr(-mu[_P_M0] / sm)
     pm = np.empty(size)
-    todo = np.arange(size)
-    for _ in range(_MAX_TRIES):
+    todo = np.arange(size) if size > 1 else np.arange(0)
+    if size == 1:  # the sampler's draw: the same tries, a batch at a time
+        pm[0] = _one_truncated(mu[_P_M0], sm, lo, mu[_P_ZIP], slope, sz, rng)
+    for _ in range(_MAX_TRIES if todo.size else 0):
         w = rng.uniform(lo, 1.0, todo.size)
         cand = mu[_P_M0] + sm * special.ndtri(np.clip(w, 1e-300, 1 - 1e-16))
         mz = mu[_P_ZIP] + slope * (cand - mu[_P_M0])
@@ -159,6 +161,38 @@ def draw_gamma(ztz, zty, tau, a, p0_gamma, rng: np.random.Generator, size: int =
     vq = max(cov[_Q0, _Q0] - wq @ c_q, 1e-300)
     out = np.stack([pz, mq + math.sqrt(vq) * rng.standard_normal(size), pm], -1)
     return out @ t.T
+
+
+#: Tries of the single draw's rejection made at once, first and at most (x8 each batch).
+_BATCH_FIRST, _BATCH_MAX = 4, 4096
+
+
+def _one_truncated(m, sm, lo, mz0, slope, sz, rng: np.random.Generator) -> float:
+    # draw_gamma's rejection loop for one draw, its tries made a batch at a time: far in
+    # a tail (a chain's first iterations with bounded shares) it took up to 10,000 tries
+    # of four NumPy calls each, a tenth of a second per iteration (issue 40: the cost
+    # estimate read hours). Each try takes a uniform w then a uniform u, as the loop's
+    # rng.uniform(lo, 1.0) and rng.uniform() do (lo + (1 - lo) d and d, d the next
+    # double); the generator is then put back to just after the accepted try, so the
+    # draws and the stream are the loop's, bit for bit.
+    done, k, cand = 0, _BATCH_FIRST, np.array([m])
+    while done < _MAX_TRIES:
+        k = min(k, _MAX_TRIES - done)
+        state = rng.bit_generator.state
+        d = rng.random(2 * k)
+        w = lo + (1.0 - lo) * d[0::2]
+        cand = m + sm * special.ndtri(np.clip(w, 1e-300, 1 - 1e-16))
+        mz = mz0 + slope * (cand - m)
+        hit = np.flatnonzero(d[1::2] < special.ndtr(mz / sz))
+        if hit.size:
+            j = int(hit[0])
+            if j < k - 1:
+                rng.bit_generator.state = state
+                rng.random(2 * (j + 1))
+            return float(cand[j])
+        done += k
+        k = min(8 * k, _BATCH_MAX)
+    return float(cand[-1])  # the last try stands (far in a tail), as in the loop
 
 
 def share_start(betas: np.ndarray) -> np.ndarray:

@@ -63,13 +63,18 @@ def describe_fit(
     events, prior = problem.recorded, problem.prior
     estimate = model.estimate_torque
     span = max(float(e.t[-1] - e.t[0]) for e in events)
-    ident = identifiability(blocks.theta, draws["f_m"], prior, len(events), span_s=span)
+    bounded = model.shares == "bounded"  # f_m and the shares in [0, 1]: say when at a bound
+    ident = identifiability(blocks.theta, draws["f_m"], prior, len(events), span_s=span,
+                            bounded=bounded)  # fmt: skip
     if estimate:
         ident["torque"] = torque_identifiability(blocks.abc)
         ident["summary"] += " " + ident["torque"]["summary"]
     # The static (ZIP) part: which shares the events fixed, and the combinations they do.
-    ident["static_part"] = static_identifiability(draws, events, prior=prior,
-                                                  hdi_prob=run.hdi_prob)  # fmt: skip
+    ident["static_part"] = static_identifiability(
+        draws, events, prior=prior, hdi_prob=run.hdi_prob, bounded=bounded
+    )
+    if "at_bound" in ident["static_part"]:  # with the motor's words (the CLI prints them)
+        ident["summary"] += " " + ident["static_part"]["at_bound"]
     post.extra_json["identifiability"] = ident
     weak = prior_driven_warning(ident)
     if weak:

@@ -87,13 +87,29 @@ _PLAIN = _Plain()
 
 @dataclass
 class CompositeFit:
-    """What :func:`fit_composite` returns."""
+    """What :func:`fit_composite` returns.
+
+    ``summary``, ``plot``, ``to_arviz`` and ``loo`` are the posterior's
+    (:class:`~loadbayes.posterior.Posterior`).
+    """
 
     posterior: Posterior
     baseline: Posterior
     problem: CompositeProblem
     start: NLSResult
     seconds: dict[str, float]
+
+    def summary(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.summary(**kwargs)
+
+    def plot(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.plot(**kwargs)
+
+    def to_arviz(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.to_arviz(**kwargs)
+
+    def loo(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self.posterior.loo(**kwargs)
 
 
 def _baseline_draws(
@@ -138,29 +154,23 @@ class SamplingProgress:
         """
 
 
-#: Iterations of the short run that times one iteration before the chains start.
-_PROBE_ITERATIONS = 12
-
-
 def _estimate_seconds(
     sampled, start, run: SamplerSettings, move: str, student_t, factor=None, noise="white"
 ) -> float:
-    # Measure a few iterations of one chain (its own throw-away run) and extrapolate: the
-    # chains share the threads, each runs run.draws iterations.
+    # The chains that run at once (one per thread), timed in rounds until their pace
+    # settles (fit/composite/until.estimate_seconds), their own throw-away run.
     from loadbayes.core.parallel import num_threads
+    from loadbayes.fit.composite.until import estimate_seconds
 
-    def probe(n: int) -> float:
-        t0 = time.perf_counter()
-        sample(sampled, start=start, draws=n, burn=n // 2, chains=1, seed=run.seed,
-               workers=1, move=move, student_t=student_t, factor=factor,
-               ar=noise == "ar1")  # fmt: skip
-        return time.perf_counter() - t0
+    lanes = max(1, min(run.threads or num_threads(), run.chains))
+
+    def probe(n: int, extend=None) -> None:
+        sample(sampled, start=start, draws=n, burn=n // 2, chains=lanes, seed=run.seed,
+               workers=lanes, move=move, student_t=student_t, factor=factor,
+               ar=noise == "ar1", extend=extend)  # fmt: skip
 
     probe(2)  # the first call compiles the kernels (the run would pay it anyway)
-    per_iteration = probe(_PROBE_ITERATIONS) / _PROBE_ITERATIONS
-    threads = run.threads or num_threads()
-    rounds = math.ceil(run.chains / max(1, min(threads, run.chains)))
-    return per_iteration * run.draws * rounds
+    return estimate_seconds(probe, run.draws, math.ceil(run.chains / lanes))
 
 
 def _factor(normal: dict, move: str) -> CoefficientPrior | None:
@@ -320,7 +330,10 @@ def fit_composite(
         sampled, start=sample_start, draws=run.draws, burn=run.burn, thin=run.thin,
         chains=run.chains, seed=run.seed, workers=run.threads, move=move, student_t=student_t,
         progress=progress, extend=until, factor=factor, ar=noise == "ar1",
+        deadline=None if until is None else until.deadline(),  # the budget from iteration 0
     )  # fmt: skip
+    if until is not None:
+        until.note_cut(res)
     t2 = time.perf_counter()
     seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
     blocks = ChainDraws.stack(res, steps=bool(problem.n_steps), torque=estimate)

@@ -5,7 +5,10 @@ words, for the motor's parameters, the torque shares and the static part.
 Which motor parameters the events determine, which stay close to their prior, which lie
 on a ridge, and what would help (:func:`identifiability`); whether estimated torque
 shares were determined (:func:`torque_identifiability`); and the warning the fit prints
-for the prior-driven ones (:func:`prior_driven_warning`).
+for the prior-driven ones (:func:`prior_driven_warning`). A quantity whose interval
+reaches its prior's bound (f_m and the shares under bounded shares, :func:`at_bound`) is
+said to be at its bound, never well determined. (A little over 400 lines: the one idea is
+the words of the identifiability section, motor, torque and static part together.)
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ __all__ = [
     "prior_driven_warning",
     "SHARE_SD",
     "STATIC_CORR",
+    "at_bound",
     "short_window",
     "static_identifiability",
     "torque_identifiability",
@@ -54,6 +58,21 @@ MOTOR_SHARE_SD = 0.1
 #: the impedance and current shares is below ``STATIC_CORR``, when a share's sd exceeds
 #: ``SHARE_SD``, or when it exceeds ``PRIOR_DRIVEN`` times the prior's sd of the share.
 STATIC_CORR, SHARE_SD = -0.9, 0.3
+#: An interval end closer to its support's bound than this share of the interval's width
+#: "reaches the bound": the posterior is piled against it (f_m 0.947 [0.847, 1.000]).
+BOUND_SHARE = 0.05
+#: What is said of a quantity at its bound.
+AT_BOUND = "at its bound (the prior's support), not determined by the data"
+
+
+def at_bound(x: np.ndarray, prob: float = 0.95, support: tuple[float, float] = (0.0, 1.0)):
+    """The central ``prob`` interval of ``x`` if it reaches a bound of ``support``, else None."""
+    x = np.asarray(x, dtype=float).ravel()
+    if x.size == 0 or not np.all(np.isfinite(x)):
+        return None
+    lo, hi = (float(v) for v in np.quantile(x, [(1 - prob) / 2, (1 + prob) / 2]))
+    near = BOUND_SHARE * (hi - lo)
+    return (lo, hi) if lo - support[0] <= near or support[1] - hi <= near else None
 
 
 def identifiability(
@@ -63,6 +82,7 @@ def identifiability(
     n_events: int,
     *,
     span_s: float | None = None,
+    bounded: bool = False,
 ) -> dict[str, Any]:
     """Plain-words identifiability of the motor from posterior draws against the prior.
 
@@ -83,6 +103,9 @@ def identifiability(
     span_s : float, optional
         The longest event's span (s); under ``MIN_SPAN_S`` the summary says what so short
         a window can and cannot tell (:func:`short_window`).
+    bounded : bool
+        Bounded shares: f_m's support is [0, 1], and an interval reaching 0 or 1 is said
+        to be at its bound (:func:`at_bound`), not well determined.
 
     Returns
     -------
@@ -121,12 +144,17 @@ def identifiability(
     fm = f_m.reshape(-1)
     fm_sd = float(np.std(fm))
     fm_ok = fm_sd < MOTOR_SHARE_SD
+    edge = at_bound(fm) if bounded else None
+    fm_ok = fm_ok and edge is None
     weak = [PLAIN_NAMES[n] for n, p in params.items() if p["verdict"] == "prior-driven"]
     partly = [PLAIN_NAMES[n] for n, p in params.items() if p["verdict"] == "partly determined"]
     good = [PLAIN_NAMES[n] for n, p in params.items() if p["verdict"] == "determined by the data"]
     words = [
         f"The motor's share of the initial load is {'well' if fm_ok else 'poorly'} "
         f"determined (f_m = {np.mean(fm):.3f} +- {fm_sd:.3f})."
+        if edge is None
+        else f"The motor's share of the initial load is {AT_BOUND} (f_m = {np.mean(fm):.3f}, "
+        f"95% interval {edge[0]:.3f} to {edge[1]:.3f})."
     ]
     if good:
         words.append("Determined by the data: " + ", ".join(good) + ".")
@@ -158,7 +186,11 @@ def identifiability(
     return {
         "parameters": params,
         "ridges": ridges,
-        "motor_share": {"sd": fm_sd, "well_determined": bool(fm_ok)},
+        "motor_share": {
+            "sd": fm_sd,
+            "well_determined": bool(fm_ok),
+            **({} if edge is None else {"at_bound": [edge[0], edge[1]]}),
+        },
         "short_window": short,
         "summary": " ".join(words),
         "what_would_help": help_,
@@ -272,6 +304,7 @@ def static_identifiability(
     *,
     prior: CompositePrior | None = None,
     hdi_prob: float = 0.95,
+    bounded: bool = False,
 ) -> dict[str, Any]:
     """Whether each event determined the ZIP shares of its static part, and what it did fix.
 
@@ -294,6 +327,9 @@ def static_identifiability(
         of that share is also "not determined".
     hdi_prob : float
         Probability of the intervals.
+    bounded : bool
+        Bounded shares (support [0, 1]): a share whose interval reaches 0 or 1 is said to
+        be at its bound (:func:`at_bound`), and the shares are not called determined.
 
     Returns
     -------
@@ -304,7 +340,7 @@ def static_identifiability(
     """
     from loadbayes.fit.composite.naming import event_suffix
 
-    out, words, weak = [], [], []
+    out, words, weak, edges = [], [], [], []
     for k, ev in enumerate(events):
         sfx = event_suffix(k)
         x = float(np.min(ev.v) / ev.v0)
@@ -360,6 +396,24 @@ def static_identifiability(
                 "prior_sd_of_share": prior_sd,
                 "combinations": combos,
             }
+            if bounded:
+                ends = {f"{n}{sfx}": at_bound(v, hdi_prob) for n, v in zip(names, a, strict=True)}
+                ends = {n: e for n, e in ends.items() if e is not None}
+                if ends:
+                    row[ch]["at_bound"] = {n: list(e) for n, e in ends.items()}
+                    edges.append(
+                        f"Event {k + 1}: "
+                        + ", ".join(
+                            f"{n} {float(np.mean(draws[n])):.3f} ({hdi_prob:.0%} interval "
+                            f"{e[0]:.3f} to {e[1]:.3f})"
+                            for n, e in ends.items()
+                        )
+                        + (
+                            f" is {AT_BOUND}."
+                            if len(ends) == 1
+                            else f" are {AT_BOUND.replace('its', 'their')}."
+                        )
+                    )
             if undetermined:
                 weak.append(f"{upper} of {ev.name or f'event {k + 1}'}")
                 shares = ", ".join(
@@ -389,7 +443,9 @@ def static_identifiability(
             "identifiability.static_part (a deeper or second sag, or a prior on the shares, "
             "would separate them)"
         )
-        summary = " ".join(words)
+        summary = " ".join(words + edges)
+    elif edges:
+        summary = " ".join(edges)
     else:
         summary = "The ZIP shares of the static part are determined by the data."
     return {
@@ -401,4 +457,5 @@ def static_identifiability(
         },
         "summary": summary,
         "warning": warning,
+        **({"at_bound": " ".join(edges)} if edges else {}),
     }

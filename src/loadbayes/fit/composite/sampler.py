@@ -10,7 +10,10 @@ Student-t noise, the weights); ``log T0`` from its prior conditional. The moves 
 physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-moves
 :func:`sample` offers); the Metropolis moves also jump, after burn-in, from a t fitted to
 every chain's late burn-in pooled (:data:`JUMP_SHARE`); docs/composite.md, "The sampler"
-and "Jumps".
+and "Jumps". A ``deadline`` (the time budget) holds from the first iteration: past it the
+chains end their burn-in and stop with what they drew (:class:`~loadbayes.inference.chain.
+Chain`), all cut to the same length (:attr:`ChainResult.cut` says how many iterations the
+deadline took); a run it never binds keeps its draws.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import numpy as np
 from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
+from loadbayes.fit.composite.checks import MIN_KEPT
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.inference.ar1 import draw_rho
@@ -66,6 +70,26 @@ class ChainResult:
     nu_acceptance: float | None = None
     # AR(1) noise only: rho draws (kept, 2) of P and Q.
     rho: np.ndarray | None = None
+    # Iterations the deadline (time budget) cut from this chain: 0 when it never bound.
+    cut: int = 0
+
+
+#: ChainResult's fields that hold one row per kept draw (cut to a common length).
+_PER_DRAW = ("theta", "beta", "tau", "phi", "u_extra", "nu", "rho")
+
+
+def _common_length(out: list[ChainResult]) -> list[ChainResult]:
+    # Chains stopped by the deadline hold different numbers of draws: keep the first
+    # ones every chain has (R-hat and the stacked draws need one length).
+    from dataclasses import replace
+
+    n = min(r.theta.shape[0] for r in out)
+    if all(r.theta.shape[0] == n for r in out):
+        return out
+    return [
+        replace(r, **{k: getattr(r, k)[:n] for k in _PER_DRAW if getattr(r, k) is not None})
+        for r in out
+    ]
 
 
 #: Share-only Metropolis steps per iteration with bounded shares (no motor solve each).
@@ -311,6 +335,7 @@ def _result(gibbs: _Gibbs, chain: Chain) -> ChainResult:
         phi=d["phi"],
         u_extra=d["u_extra"] if p.dim > gibbs.n_base else None,
         rho=d.get("rho"),
+        cut=chain.cut,
         **chain.sample_stats(),
         **robust,
     )
@@ -333,6 +358,7 @@ def sample(
     extend: Extension | None = None,
     factor: Any = None,
     ar: bool = False,
+    deadline: float | None = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -379,6 +405,10 @@ def sample(
     ar : bool
         AR(1) noise on P and Q (one ``rho`` each, uniform prior on (-1, 1),
         :func:`loadbayes.inference.ar1.draw_rho` each iteration); Gaussian noise only.
+    deadline : float, optional
+        A :func:`time.perf_counter` time: the time budget, from the first iteration. Past
+        it every chain ends its burn-in and stops once it holds
+        :data:`~loadbayes.fit.composite.checks.MIN_KEPT` kept draws; no extension runs.
 
     Returns
     -------
@@ -424,7 +454,8 @@ def sample(
                    move=move, dispersion=dispersion, student_t=student_t, factor=factor,
                    ar=ar, jumps=pool)  # fmt: skip
         c = Chain(g.step, g.start, rng, fields=g.fields, record=g.record, burn=burn,
-                  thin=thin, stats=g.stats, stop=stop, progress=progress)  # fmt: skip
+                  thin=thin, stats=g.stats, stop=stop, progress=progress, deadline=deadline,
+                  min_kept=MIN_KEPT)  # fmt: skip
         state[index] = (g, c)
         c.run(burn if pool else draws)
         return _result(g, c)
@@ -442,7 +473,7 @@ def sample(
             g.am.fit_jumps(late)
             g.late_burn = []
         out = run_chains(rest, generators, workers=workers, stop=stop)
-    while extend is not None:
+    while extend is not None and not any(r.cut for r in out):
         more = int(extend(out))
         if more <= 0:
             break
@@ -453,4 +484,4 @@ def sample(
             return _result(g, c)
 
         out = run_chains(again, generators, workers=workers, stop=stop)
-    return out
+    return _common_length(out)

@@ -5,6 +5,12 @@ file read whole) return the same :class:`ZipData`: the columns in per unit, thei
 data rows and times, the model of the nominal point, the settings recorded and the data's
 warnings. :func:`file_gram` is the one path that keeps no columns: a file's Gram matrix
 built chunk by chunk (the Gaussian fit of a file of any size).
+
+A file cut from a recorder's record (``read comtrade`` -> ``events``) flags in its
+``straddle`` column the rows whose phasor window straddles a voltage step: they mix the
+two sides of the step, and one of them biased a sag's ZIP fit beyond its interval (dP/dV
+1.094 [1.090, 1.097] for a true 1.10, every share outside its interval). Both file
+readers leave those rows out and say so (:func:`straddling_rows`).
 """
 
 from __future__ import annotations
@@ -33,7 +39,43 @@ from loadbayes.measurements.times import (
 from loadbayes.measurements.wording import Wording, option
 from loadbayes.models.zip import ZIPModel
 
-__all__ = ["ZipData", "file_gram", "nominal_of", "read_file", "read_table"]
+__all__ = ["STRADDLE_COL", "ZipData", "file_gram", "nominal_of", "read_file", "read_table",
+           "straddling_rows"]  # fmt: skip
+
+#: The record table's column flagging a row whose phasor window straddles a step.
+STRADDLE_COL = "straddle"
+
+
+def straddling_rows(path: str) -> np.ndarray | None:
+    """The file's :data:`STRADDLE_COL` as a boolean per data row, or None without one."""
+    from loadbayes.measurements.times import read_text_column
+
+    try:
+        text = read_text_column(str(path), STRADDLE_COL)
+    except (DataError, OSError):
+        return None
+    flags = text.astype(str).str.strip().str.lower().isin(("true", "1", "1.0", "yes"))
+    return flags.to_numpy() if flags.any() else None
+
+
+def _straddle_note(n: int, rows: np.ndarray) -> str:
+    shown = ", ".join(str(int(r)) for r in rows[:5]) + (" ..." if rows.size > 5 else "")
+    return (
+        f"{n} row(s) whose phasor window straddles a voltage step were left out (the "
+        f"record's '{STRADDLE_COL}' column; data rows {shown}): each mixes the two sides "
+        "of the step and biases the fit beyond what its interval admits"
+    )
+
+
+def _keep(flags: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
+    # The rows to keep (None: all), from the flags of the file's 1-based data rows.
+    if flags is None:
+        return None
+    idx = np.asarray(rows, dtype=np.int64) - 1
+    hit = np.zeros(idx.size, dtype=bool)
+    ok = (idx >= 0) & (idx < flags.size)
+    hit[ok] = flags[idx[ok]]
+    return ~hit if hit.any() else None
 
 
 @dataclass
@@ -181,6 +223,12 @@ def read_file(
     if t_col is not None:
         t = read_times(str(path), t_col, pc.rows)
         check_increasing(t, pc.rows, path=str(path), column=t_col)
+    keep, straddle = _keep(straddling_rows(path), pc.rows), None
+    if keep is not None:
+        straddle = _straddle_note(int((~keep).sum()), pc.rows[~keep])
+        pc = type(pc)({k: a[keep] for k, a in pc.cols.items()}, pc.rows[keep], pc.n_dropped,
+                      {k: a[keep] for k, a in pc.extra.items()})  # fmt: skip
+        t = None if t is None else t[keep]
     model = ZIPModel(**nominal, with_q="q" in pc.cols)
     names = _names(spec)
     warnings = data_checks(
@@ -190,6 +238,8 @@ def read_file(
     if pc.n_dropped:
         drop = option("drop-invalid", wording=wording).removesuffix("=...")
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped ({drop})")
+    if straddle:
+        warnings.append(straddle)
     record = file_record(path, model, spec, nominal, pc.n_dropped)
     if t is not None:
         record.update(time_column=t_col, **time_facts(t))
@@ -213,11 +263,16 @@ def file_gram(
     state: dict[str, Any] = {"dropped": 0}
     names = _names(spec)
     keep_obs: dict[str, list[np.ndarray]] = {"v": [], "p": [], "q": []}
+    flags, left_out = straddling_rows(path), []
 
     def chunks():
         for part in power_chunks(path, **_read_options(spec, chunk_rows)):  # type: ignore[arg-type]
             state["dropped"] += part.n_dropped
             cols = part.cols
+            keep = _keep(flags, part.rows)
+            if keep is not None:
+                left_out.append(part.rows[~keep])
+                cols = {k: a[keep] for k, a in cols.items()}
             if "model" not in state:
                 state["model"] = ZIPModel(**nominal, with_q="q" in cols)  # type: ignore[arg-type]
             if "first_warnings" not in state and cols["v"].size:
@@ -250,6 +305,9 @@ def file_gram(
             f"{state['dropped']} rows with invalid values were dropped "
             f"({option('drop-invalid', wording=wording).removesuffix('=...')})"
         )
+    if left_out:
+        out = np.concatenate(left_out)
+        warnings.append(_straddle_note(out.size, out))
     observed = None
     if gram.n <= MAX_OBSERVED:
         observed = {k: np.concatenate(v) for k, v in keep_obs.items() if v}

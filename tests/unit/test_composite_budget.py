@@ -1,0 +1,54 @@
+"""The composite fit's time budget holds from the first iteration (issue 40).
+
+A tiny budget on a fixed fit must stop the chains inside their first round and say so
+(warning and JSON); a budget that never binds must leave the draws as the seed makes them.
+The first test compares a time with a budget: its bound (10x the budget plus the fixed
+cost of the 50 kept draws every chain still makes) is loose enough for a loaded machine,
+and its other assertions count iterations.
+"""
+
+import time
+
+import numpy as np
+import pytest
+
+from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit.composite import fit_composite
+from loadbayes.models.zip_motor import CompositeModel
+
+
+@pytest.fixture(scope="module")
+def event():
+    ev, _ = simulate_event(t_end_s=1.5, fs=60, seed=3)
+    return ev
+
+
+def test_a_tiny_budget_stops_the_first_round_and_says_so(event):
+    budget = 0.3
+    run = SamplerSettings(draws=4000, burn=1000, chains=2, seed=1, until_converged=True,
+                          max_seconds=budget)  # fmt: skip
+    t0 = time.perf_counter()
+    fit = fit_composite(CompositeModel(window_s=0), [event], sampler=run)
+    took = time.perf_counter() - t0 - fit.seconds["nls"]
+    post = fit.posterior
+    kept = post.draws["f_m"].shape[1]
+    assert kept < run.kept, kept  # the first round did not run in full
+    rec = post.settings["until_converged"]
+    assert rec["stopped_by_budget"] is True
+    assert rec["cut_iterations_per_chain"] > 0
+    assert any("budget" in w and "shorter than asked" in w for w in post.warnings)
+    assert took < 10 * budget + 5.0, took
+
+
+def test_a_budget_that_does_not_bind_keeps_the_draws(event):
+    fixed = SamplerSettings(draws=300, burn=150, chains=2, seed=2)
+    plain = fit_composite(CompositeModel(window_s=0), [event], sampler=fixed).posterior
+    until = fixed.with_(until_converged=True, max_seconds=1e6)
+    long = fit_composite(CompositeModel(window_s=0), [event], sampler=until).posterior
+    n = plain.draws["f_m"].shape[1]
+    for name in ("f_m", "a1", "tau_p"):
+        if name in plain.draws:
+            np.testing.assert_array_equal(long.draws[name][:, :n], plain.draws[name])
+    assert "cut_iterations_per_chain" not in long.settings["until_converged"]
+    assert not any("shorter than asked" in w for w in long.warnings)
