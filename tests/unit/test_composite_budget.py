@@ -37,6 +37,9 @@ def test_a_tiny_budget_stops_the_first_round_and_says_so(event):
     rec = post.settings["until_converged"]
     assert rec["stopped_by_budget"] is True
     assert rec["cut_iterations_per_chain"] > 0
+    # The iterations said to have run are the asked less the cut, not the asked.
+    ran = rec["asked_iterations_per_chain"] - rec["cut_iterations_per_chain"]
+    assert rec["iterations_per_chain"] == ran < rec["asked_iterations_per_chain"]
     assert any("budget" in w and "shorter than asked" in w for w in post.warnings)
     assert took < 10 * budget + 5.0, took
 

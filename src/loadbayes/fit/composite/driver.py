@@ -376,7 +376,11 @@ def fit_composite(
     if until is not None:
         post.settings["until_converged"] = {
             **until.record(),
-            "iterations_per_chain": run.burn + res[0].theta.shape[0] * run.thin,
+            # What ran: with a budget that cut a round, the asked less the cut (the burn-in
+            # too may have been cut short), else the burn-in and the kept draws.
+            "iterations_per_chain": until.asked_iterations - until.cut_iterations
+            if until.cut_iterations
+            else run.burn + res[0].theta.shape[0] * run.thin,
         }
         budget = until.warning(res)
         if budget:
