@@ -31,6 +31,9 @@ too) and relative ones resolved; ``importlib.import_module`` strings are not see
   docstring which "one idea" needs its length.
 - :func:`map_errors`: docs/architecture.md's module table names every module file, by
   its file name in its package's row, and names none that does not exist.
+- :func:`imports_by_name`: the modules reached by ``importlib.import_module`` of a
+  literal name, which the import map does not see, are exactly :data:`BY_NAME` (each
+  with its reason).
 """
 
 from __future__ import annotations
@@ -545,3 +548,38 @@ def test_the_map_rule_catches_a_planted_module_and_a_stale_name(tmp_path):
         "not named": ["fit/composite/new.py", "models/zip.py"],
         "no such module": ["fit/composite/table.py"],
     }
+
+
+#: Modules reached by name (``importlib.import_module("loadbayes. ...")``), which the
+#: import map does not see, each with why: a plugin or backend looked up at the call.
+#: A new one must be added here with its reason (and to docs/architecture.md's arrows).
+BY_NAME = {
+    ("loadbayes.posterior", "loadbayes.plots"): "Posterior.plot() reaches its drawing "
+    "backend at the call, as pandas' .plot does: plots/ reads a Posterior, so a plain "
+    "import would be an import circle",
+}
+
+
+def imports_by_name(root) -> set[tuple[str, str]]:
+    """``(importer, module)`` of every ``importlib.import_module("loadbayes...")`` literal."""
+    out = set()
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root.parent).with_suffix("")
+        module = ".".join(p for p in rel.parts if p != "__init__")
+        for m in re.finditer(r'import_module\(\s*"(loadbayes[\w.]*)"', path.read_text("utf-8")):
+            out.add((module, m.group(1)))
+    return out
+
+
+def test_modules_reached_by_name_are_the_listed_ones():
+    import loadbayes
+
+    root = Path(loadbayes.__file__).parent
+    assert imports_by_name(root) == set(BY_NAME)
+
+
+def test_the_by_name_rule_catches_a_planted_lookup(tmp_path):
+    pkg = tmp_path / "loadbayes"
+    (pkg / "fit").mkdir(parents=True)
+    (pkg / "fit" / "x.py").write_text('importlib.import_module("loadbayes.report.text")\n')
+    assert imports_by_name(pkg) == {("loadbayes.fit.x", "loadbayes.report.text")}
