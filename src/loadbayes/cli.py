@@ -64,13 +64,31 @@ class LoadbayesGroup(click.Group):
         if args is not None:
             return super().main(args, *rest, **kwargs)
         _LATE.update(signal=None, finished=False)
+        _check_stdout_writes()
         with contextlib.suppress(ValueError):  # not the main thread: leave them be
             for s in _EXIT_CODE:
                 signal.signal(s, _on_late_signal)
+        unsaid = None  # a failed write to standard output not yet said
         try:
             return super().main(args, *rest, **kwargs)
         except SystemExit as exc:
             code = exc.code
+        except OSError:  # click re-raises every OSError but EPIPE: a command's raw print
+            unsaid = _stdout_broken()
+            if unsaid is None:
+                raise
+            code = EXIT_DATA
+        broken = unsaid or _stdout_broken()
+        if broken is not None:
+            # What was printed is cut short (a full disk, a file-size limit): one line,
+            # exit 2 (a command's own error has said it already), and no second attempt
+            # to flush at the interpreter's exit.
+            if unsaid is not None or code in (0, None):
+                click.echo(f"loadbayes: error: {_stdout_line(broken)}", err=True)
+                code = EXIT_DATA
+            with contextlib.suppress(Exception):
+                sys.stderr.flush()
+            os._exit(code if isinstance(code, int) else 1)
         # Outside the except block: the exception, its traceback and the frames it held
         # are unreferenced now, and what only they kept alive can be collected.
         if code not in (0, None):
@@ -100,6 +118,27 @@ class LoadbayesGroup(click.Group):
                 sys.stderr.flush()
             os._exit(code)
         sys.exit(code)
+
+
+EXIT_DATA = 2
+
+
+def _stdout_broken() -> OSError | None:
+    from loadbayes.commands.output import stdout_failure
+
+    return stdout_failure()
+
+
+def _check_stdout_writes() -> None:
+    from loadbayes.commands.output import check_stdout_writes
+
+    check_stdout_writes()
+
+
+def _stdout_line(exc: OSError) -> str:
+    from loadbayes.commands.output import stdout_line
+
+    return stdout_line(exc)
 
 
 def _forget_unhandled_interrupt() -> None:

@@ -342,7 +342,9 @@ def fit_composite_cmd(
         if netcdf_out:
             # Straight into the transaction's temporary (Posterior.to_netcdf would make a
             # temporary of it, which a signal could leave behind).
-            post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
+            from loadbayes.io.atomic import write_netcdf
+
+            write_netcdf(post.to_arviz(), out.temp("--netcdf"))
             stop_if_signalled()
         if plot_out:
             from loadbayes.plots.composite import plot_composite_fit

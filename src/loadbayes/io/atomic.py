@@ -18,7 +18,7 @@ from typing import Any
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["atomic_write", "check_target", "held_signals"]
+__all__ = ["atomic_write", "check_target", "held_signals", "write_netcdf"]
 
 _WRITE_MODES = ("w", "wt", "wb")
 
@@ -130,10 +130,13 @@ def atomic_write(
             raise DataError("exists; use --force to overwrite", name)
         os.chmod(tmp, _file_mode(target))
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         if tmp is not None:
             with held_signals(), contextlib.suppress(OSError):
                 tmp.unlink()
+            if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
+                # Said of the file the caller asked for, not of its hidden temporary.
+                raise OSError(exc.errno, exc.strerror, name) from None
         raise
     _fsync_dir(target.parent)
 
@@ -193,6 +196,38 @@ def _keep_back(signum, frame) -> None:
     # The first signal in a hold is delivered at its end; a second is one too many.
     if _HOLD["pending"] is None:
         _HOLD["pending"] = signum
+
+
+def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
+    """Write an ArviZ InferenceData to ``path`` (NetCDF 4, h5netcdf), as its to_netcdf would.
+
+    The file is built in memory, then written by a plain Python write: a full disk or a
+    file-size limit is then an ``OSError`` naming ``path``. HDF5 writing to the file
+    itself met them inside its C calls, printed about a hundred lines of tracebacks
+    from h5py's finalisers and crashed the process (segmentation fault, exit 139) when
+    the half-closed file's objects were freed (the red-team's H2). The groups, their
+    order and the attributes are those of ``InferenceData.to_netcdf`` (ArviZ 0.23).
+    """
+    import io
+
+    import xarray as xr
+
+    buf = io.BytesIO()
+    mode = "w"
+    attrs = getattr(idata, "_attrs", None)
+    if attrs:
+        xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
+        mode = "a"
+    for group in idata._groups_all:
+        data = getattr(idata, group)
+        data.to_netcdf(buf, mode=mode, group=f"//{group}", engine="h5netcdf")
+        mode = "a"
+    name = os.fspath(path)
+    try:
+        with open(name, "wb") as fh:
+            fh.write(buf.getbuffer())
+    except OSError as err:  # a failed write(2) names no file: name it
+        raise OSError(err.errno, err.strerror, name) from None
 
 
 def _fsync(path: Path) -> None:
