@@ -21,8 +21,10 @@ from loadbayes.commands.options import (
     sampler_settings,
 )
 from loadbayes.commands.output import (
+    COMPOSITE_ADDRESS_SPACE,
     SamplingBar,
     UserError,
+    check_address_space,
     check_cost,
     check_outputs,
     output_transaction,
@@ -216,6 +218,9 @@ def fit_composite_cmd(
         "--baseline-json": baseline_out,
     }
     check_outputs(outputs, list(files), force, stdout_ok=("--json",))
+    # Its compiled kernels abort the process natively below this (LLVM's "Unable to
+    # allocate section memory", std::bad_alloc: exit 134), where no error can be said.
+    check_address_space(COMPOSITE_ADDRESS_SPACE, "fit composite")
     if likelihood != "student-t" and nu != "auto":
         raise UserError("--nu needs --likelihood student-t")
     if sampler.seed < 0:

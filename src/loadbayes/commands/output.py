@@ -103,6 +103,12 @@ def user_errors(func):
                         if line not in seen:
                             seen.add(line)
                             _speak(line)
+        except MemoryError:
+            raise UserError(memory_line()) from None
+        except ImportError as exc:  # a library that cannot be mapped under ulimit -v
+            if "failed to map segment" not in str(exc):
+                raise
+            raise UserError(memory_line()) from None
         except DataError as exc:
             raise UserError(str(exc)) from None
         except (FileExistsError, ValueError) as exc:
@@ -190,6 +196,35 @@ def stdout_failure() -> OSError | None:
     except ValueError:  # closed
         pass
     return _WholeWrites.failed
+
+
+#: Address space ``fit composite`` needs (measured: aborts natively under 2 GB, runs at 3).
+COMPOSITE_ADDRESS_SPACE = 3 * 2**30
+
+
+def check_address_space(need: int, what: str) -> None:
+    """Refuse before any work when ``ulimit -v`` leaves less address space than ``need``."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and soft < need:
+        raise UserError(
+            f"not enough memory: {what} needs about {_mib(need)} of address space and the "
+            f"limit (ulimit -v) is {_mib(soft)}; raise it"
+        )
+
+
+def memory_line() -> str:
+    """The one line for a MemoryError, naming the address-space limit if there is one."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY:
+        return "not enough memory: the run needs more than this machine has free"
+    return (
+        f"not enough memory: the address-space limit (ulimit -v) is {_mib(soft)}; "
+        "raise it (fit zip needs about 1 GiB, fit composite 3 GiB)"
+    )
 
 
 def stdout_line(exc: OSError) -> str:
