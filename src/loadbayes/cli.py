@@ -23,21 +23,50 @@ import sys
 
 import click
 
-from loadbayes.commands import andes_sim as _andes_sim
-from loadbayes.commands import composite as _composite
-from loadbayes.commands import example as _example
-from loadbayes.commands import exp as _exp
-from loadbayes.commands import export as _export
-from loadbayes.commands import im as _im
-from loadbayes.commands import playback as _playback
-from loadbayes.commands import recordings as _recordings
-from loadbayes.commands import report as _report
-from loadbayes.commands import reproduce as _reproduce
-from loadbayes.commands import simulate as _simulate
-from loadbayes.commands import steps as _steps
-from loadbayes.commands import track as _track
-from loadbayes.commands import validate as _validate
-from loadbayes.commands import zip as _zip
+
+def _cap_native_threads() -> None:
+    """Under an address-space limit (``ulimit -v``), one thread in each native pool.
+
+    Each OpenBLAS thread maps its own buffers when the library loads, and Arrow's
+    jemalloc reserves its arenas; under a limit they fail and retry ``mmap`` for ever
+    (the red-team's H8: ``fit zip`` under 800 MB hung at 96% CPU). So, before NumPy
+    and Arrow are imported (the commands below import them), a limit sets the pools to
+    one thread and Arrow to the system allocator, unless the user chose.
+    """
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY:
+        return
+    for name, value in _UNDER_A_LIMIT.items():
+        os.environ.setdefault(name, value)
+
+
+#: Arrow's default allocator (jemalloc) reserves address space up front and hung the
+#: same way: the system allocator fails with a MemoryError, said in one line instead.
+_UNDER_A_LIMIT = {
+    "OPENBLAS_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "ARROW_DEFAULT_MEMORY_POOL": "system",
+}
+_cap_native_threads()
+
+from loadbayes.commands import andes_sim as _andes_sim  # noqa: E402
+from loadbayes.commands import composite as _composite  # noqa: E402
+from loadbayes.commands import example as _example  # noqa: E402
+from loadbayes.commands import exp as _exp  # noqa: E402
+from loadbayes.commands import export as _export  # noqa: E402
+from loadbayes.commands import im as _im  # noqa: E402
+from loadbayes.commands import playback as _playback  # noqa: E402
+from loadbayes.commands import recordings as _recordings  # noqa: E402
+from loadbayes.commands import report as _report  # noqa: E402
+from loadbayes.commands import reproduce as _reproduce  # noqa: E402
+from loadbayes.commands import simulate as _simulate  # noqa: E402
+from loadbayes.commands import steps as _steps  # noqa: E402
+from loadbayes.commands import track as _track  # noqa: E402
+from loadbayes.commands import validate as _validate  # noqa: E402
+from loadbayes.commands import zip as _zip  # noqa: E402
 
 
 class LoadbayesGroup(click.Group):
@@ -64,13 +93,36 @@ class LoadbayesGroup(click.Group):
         if args is not None:
             return super().main(args, *rest, **kwargs)
         _LATE.update(signal=None, finished=False)
+        _check_stdout_writes()
         with contextlib.suppress(ValueError):  # not the main thread: leave them be
             for s in _EXIT_CODE:
                 signal.signal(s, _on_late_signal)
+        unsaid = None  # a failed write to standard output not yet said
         try:
             return super().main(args, *rest, **kwargs)
         except SystemExit as exc:
             code = exc.code
+        except MemoryError:  # a command without user_errors (theirs say it the same way)
+            from loadbayes.commands.output import memory_line
+
+            click.echo(f"loadbayes: error: {memory_line()}", err=True)
+            code = EXIT_DATA
+        except OSError:  # click re-raises every OSError but EPIPE: a command's raw print
+            unsaid = _stdout_broken()
+            if unsaid is None:
+                raise
+            code = EXIT_DATA
+        broken = unsaid or _stdout_broken()
+        if broken is not None:
+            # What was printed is cut short (a full disk, a file-size limit): one line,
+            # exit 2 (a command's own error has said it already), and no second attempt
+            # to flush at the interpreter's exit.
+            if unsaid is not None or code in (0, None):
+                click.echo(f"loadbayes: error: {_stdout_line(broken)}", err=True)
+                code = EXIT_DATA
+            with contextlib.suppress(Exception):
+                sys.stderr.flush()
+            os._exit(code if isinstance(code, int) else 1)
         # Outside the except block: the exception, its traceback and the frames it held
         # are unreferenced now, and what only they kept alive can be collected.
         if code not in (0, None):
@@ -100,6 +152,27 @@ class LoadbayesGroup(click.Group):
                 sys.stderr.flush()
             os._exit(code)
         sys.exit(code)
+
+
+EXIT_DATA = 2
+
+
+def _stdout_broken() -> OSError | None:
+    from loadbayes.commands.output import stdout_failure
+
+    return stdout_failure()
+
+
+def _check_stdout_writes() -> None:
+    from loadbayes.commands.output import check_stdout_writes
+
+    check_stdout_writes()
+
+
+def _stdout_line(exc: OSError) -> str:
+    from loadbayes.commands.output import stdout_line
+
+    return stdout_line(exc)
 
 
 def _forget_unhandled_interrupt() -> None:

@@ -471,16 +471,16 @@ class Posterior:
         which would otherwise get a temporary of its own, and a signal at the wrong
         moment could leave that one behind (``.x.nc.XXXX.tmp.nc.YYYY.tmp.nc``).
         """
-        from loadbayes.io.atomic import atomic_write
+        from loadbayes.io.atomic import atomic_write, write_netcdf
 
         path = Path(path)
         if not atomic:
             idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
-            idata.to_netcdf(str(path))
+            write_netcdf(idata, path)
             return path
         with atomic_write(path, force=force) as tmp:
             idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
-            idata.to_netcdf(str(tmp))
+            write_netcdf(idata, tmp)
         return path
 
     @classmethod

@@ -172,3 +172,17 @@ def test_predict_on_a_drifting_level_says_why_it_cannot(day):
     )
     with pytest.raises(OptionError, match="no single P0"):
         post.predict([13.2, 13.8])
+
+
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [(["--scheme", "exact", "--conjugate"], "--scheme exact"), (["--conjugate"], "--conjugate")],
+)
+def test_drift_refuses_the_options_it_would_ignore(day, extra, named):
+    # The red-team's M8: --level drift ran with --scheme exact --conjugate, draws identical
+    # to the run without them, and no word. Refused before any work, as --likelihood is.
+    r = run("fit", "zip", "day.csv", *COLS, "--t-col", "time", "--level", "drift", *extra,
+            "--draws", "200", "--burn", "50", "--json", "d.json", cwd=day)  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and named in r.stderr
+    assert not (day / "d.json").exists()

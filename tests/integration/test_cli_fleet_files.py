@@ -162,6 +162,47 @@ def test_a_completed_fleet_writes_the_table_and_every_bus_file(tmp_path, monkeyp
     assert pd.read_parquet(tmp_path / "f.parquet").bus.nunique() == 5
 
 
+def test_a_signal_in_the_middle_of_the_commit_leaves_every_bus_file(tmp_path, monkeypatch):
+    """Red-team H1: SIGINT as the table landed left 0-134 of 800 bus files, and the message
+    said every output was written. The signal is sent, to a thread other than the main
+    one (as the kernel does when the main thread blocks it), right after the first bus
+    file's rename."""
+    import threading
+
+    _fleet(tmp_path / "fleet.parquet", 5)
+    real, nc = os.replace, (tmp_path / "nc").resolve()
+
+    def signal_through_another_thread():
+        ready, go = threading.Event(), threading.Event()
+
+        def pool_thread():
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+            ready.set()
+            go.wait()
+
+        helper = threading.Thread(target=pool_thread, daemon=True)
+        helper.start()
+        ready.wait()
+        signal.pthread_kill(helper.ident, signal.SIGINT)
+        go.set()
+        helper.join()
+
+    def replace(src, dst):
+        real(src, dst)
+        if Path(dst).resolve().parent == nc and Path(dst).name == "b0.nc":
+            signal_through_another_thread()
+
+    monkeypatch.setattr(os, "replace", replace)
+    r = run("fleet.parquet", "--by", "bus_id", "--out", "f.parquet", "--netcdf-dir", "nc",
+            *FAST, cwd=tmp_path, monkeypatch=monkeypatch)  # fmt: skip
+    assert r.exit_code == 130, r.output
+    assert r.stderr.strip().splitlines() == [
+        "loadbayes: interrupted after every output was written"
+    ], r.stderr
+    assert sorted(p.name for p in (tmp_path / "nc").iterdir()) == [f"b{k}.nc" for k in range(5)]
+    assert pd.read_parquet(tmp_path / "f.parquet").bus.nunique() == 5
+
+
 # ------------------------------------------------------------------------------- L17
 def test_folder_key_and_column_that_disagree_are_refused(tmp_path, monkeypatch):
     for k in (1, 2):

@@ -23,7 +23,7 @@ def client():
     # One cluster for the module: starting one costs seconds.
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
         ) as cluster,
         distributed.Client(cluster) as c,
     ):
@@ -84,3 +84,45 @@ def test_pooled_fit_on_one_worker_with_draws_on_disk_is_bit_identical(fleet, mon
         there = run_fleet(fleet, SPEC, pool="class", sampler=sampler, engine=eng)
     assert there.engine == "dask (1 workers)" and there.settings["streamed"]
     pd.testing.assert_frame_equal(here, there.table, check_exact=True)
+
+
+def _listening(pid: int) -> list[tuple[str, int]]:
+    """(address, port) of every listening TCP socket of ``pid`` and its children."""
+    psutil = pytest.importorskip("psutil")
+    procs = [psutil.Process(pid), *psutil.Process(pid).children(recursive=True)]
+    out = []
+    for p in procs:
+        with __import__("contextlib").suppress(psutil.Error):
+            out += [c.laddr for c in p.net_connections(kind="inet") if c.status == "LISTEN"]
+    return [(a.ip, a.port) for a in out]
+
+
+@pytest.mark.parametrize("dashboard", [False, True])
+def test_a_local_cluster_listens_on_loopback_only_and_its_dashboard_is_off_unless_asked(
+    dashboard,
+):
+    # The red-team's H9: LocalCluster(dashboard_address=":0") served the dashboard on
+    # 0.0.0.0 (every interface) for the whole run, listing the workers to anyone.
+    import urllib.error
+    import urllib.request
+
+    def status(url: str) -> int:
+        try:
+            with urllib.request.urlopen(url, timeout=10) as r:
+                return r.status
+        except urllib.error.HTTPError as err:
+            return err.code
+
+    with Engine(workers=1, dashboard=dashboard) as eng:
+        socks = _listening(os.getpid())
+        http = eng._own[-1].scheduler.http_server
+        port = next(iter(http._sockets.values())).getsockname()[1]
+        url = f"http://127.0.0.1:{port}"
+        pages = [status(url + p) for p in ("/status", "/info/main/workers.html")]
+        link = eng.dashboard_link
+    assert socks, "no listening socket found: the check would pass vacuously"
+    assert all(ip in ("127.0.0.1", "::1") for ip, _ in socks), socks
+    if dashboard:
+        assert link.startswith("http://127.0.0.1:") and pages == [200, 200]
+    else:
+        assert link is None and pages == [404, 404]

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+
 import pytest
 
 from loadbayes.io.errors import DataError
@@ -50,3 +54,81 @@ def test_a_target_that_appears_meanwhile_is_not_overwritten(tmp_path):
             out.commit()
     assert _names(tmp_path) == ["a.json"]
     assert (tmp_path / "a.json").read_text() == "someone else's"
+
+
+def _signal_through_another_thread(sig=signal.SIGINT) -> None:
+    """Send ``sig`` to a thread other than the main one, as the kernel may (any thread
+    that does not block it gets a process-directed signal: BLAS, Arrow, numba pools)."""
+    ready, go = threading.Event(), threading.Event()
+
+    def pool_thread():
+        # A thread started before the commit (as the pools are): the signal not blocked.
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {sig})
+        ready.set()
+        go.wait()
+
+    helper = threading.Thread(target=pool_thread, daemon=True)
+    helper.start()
+    ready.wait()
+    signal.pthread_kill(helper.ident, sig)
+    go.set()
+    helper.join()
+
+
+def _fire_at_rename(monkeypatch, n: int, sig=signal.SIGINT) -> None:
+    """Make the ``n``-th os.replace (1-based) signal the process right after it renames."""
+    real, calls = os.replace, []
+
+    def replace(src, dst):
+        real(src, dst)
+        calls.append(dst)
+        if len(calls) == n:
+            _signal_through_another_thread(sig)
+
+    monkeypatch.setattr(os, "replace", replace)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_in_the_middle_of_the_commit_waits_for_every_rename(tmp_path, monkeypatch, sig):
+    # The red-team's H1: the renames ran under pthread_sigmask, which holds only in the
+    # thread that set it; the signal went to another thread, and Python ran the handler in
+    # the main thread mid-loop: 1 of 4 outputs renamed, the other 3 deleted as temporaries.
+    from loadbayes.commands.signals import (
+        Terminated,
+        install_signal_handlers,
+        restore_signal_handlers,
+    )
+
+    targets = {f"--o{k}": tmp_path / f"o{k}.txt" for k in range(4)}
+    install_signal_handlers()
+    try:
+        with pytest.raises(KeyboardInterrupt) as err, OutputSet(targets) as out:
+            for label in targets:
+                out.temp(label).write_text(label)
+            _fire_at_rename(monkeypatch, 1, sig)
+            out.commit()
+    finally:
+        restore_signal_handlers()
+    assert isinstance(err.value, Terminated) == (sig == signal.SIGTERM)
+    assert out.committed
+    assert _names(tmp_path) == [f"o{k}.txt" for k in range(4)]  # all, and no temporary
+
+
+def test_held_signals_holds_in_every_thread_and_delivers_once_after():
+    # With Python's own SIGINT handler (no command running): KeyboardInterrupt, once,
+    # right after the block, not inside it.
+    from loadbayes.io.atomic import held_signals
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    done = []
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with held_signals():
+                _signal_through_another_thread()
+                _signal_through_another_thread()
+                for k in range(1000):  # many bytecodes: the handler would have run by now
+                    done.append(k)
+        assert len(done) == 1000
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, previous)

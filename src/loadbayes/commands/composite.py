@@ -19,8 +19,10 @@ from loadbayes.commands.options import (
     parse_nu,
 )
 from loadbayes.commands.output import (
+    COMPOSITE_ADDRESS_SPACE,
     SamplingBar,
     UserError,
+    check_address_space,
     check_cost,
     check_outputs,
     output_transaction,
@@ -215,6 +217,9 @@ def fit_composite_cmd(
         "--baseline-json": baseline_out,
     }
     check_outputs(outputs, list(files), force, stdout_ok=("--json",))
+    # Its compiled kernels abort the process natively below this (LLVM's "Unable to
+    # allocate section memory", std::bad_alloc: exit 134), where no error can be said.
+    check_address_space(COMPOSITE_ADDRESS_SPACE, "fit composite")
     if likelihood != "student-t" and nu != "auto":
         raise UserError("--nu needs --likelihood student-t")
     if sampler.seed < 0:
@@ -355,7 +360,9 @@ def fit_composite_cmd(
         if netcdf_out:
             # Straight into the transaction's temporary (Posterior.to_netcdf would make a
             # temporary of it, which a signal could leave behind).
-            post.to_arviz().to_netcdf(str(out.temp("--netcdf")))
+            from loadbayes.io.atomic import write_netcdf
+
+            write_netcdf(post.to_arviz(), out.temp("--netcdf"))
             stop_if_signalled()
         if plot_out:
             from loadbayes.plots.composite import plot_composite_fit

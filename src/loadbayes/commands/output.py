@@ -1,7 +1,7 @@
 """What every command does with its outputs: one-line errors, output checks, progress, writing.
 
-One idea at about 480 lines, a command's outputs as one transaction, from the checks before
-the work to the rename at the end.
+One idea at about 580 lines, a command's outputs as one transaction, from the checks before
+the work to the rename at the end (standard output included: written whole or said).
 
 A run is one transaction: every output path and format is checked before any work
 (:func:`check_outputs`), the cost of the draws is said before it is paid
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import io
 import json
 import os
 import shutil
@@ -86,7 +87,13 @@ def user_errors(func):
         try:
             with warnings.catch_warnings(record=True) as caught:
                 try:
-                    return func(*args, **kwargs)
+                    result = func(*args, **kwargs)
+                    # What the command printed must have reached standard output whole
+                    # (a full disk or a file-size limit cut it silently, exit 0).
+                    failed = stdout_failure()
+                    if failed is not None:
+                        raise UserError(stdout_line(failed))
+                    return result
                 finally:
                     seen = set()
                     for w in caught:
@@ -96,12 +103,18 @@ def user_errors(func):
                         if line not in seen:
                             seen.add(line)
                             _speak(line)
+        except MemoryError:
+            raise UserError(memory_line()) from None
+        except ImportError as exc:  # a library that cannot be mapped under ulimit -v
+            if "failed to map segment" not in str(exc):
+                raise
+            raise UserError(memory_line()) from None
         except DataError as exc:
             raise UserError(str(exc)) from None
         except (FileExistsError, ValueError) as exc:
             raise UserError(str(exc)) from None
         except OSError as exc:
-            raise UserError(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")) from None
+            raise UserError(_os_error_line(exc)) from None
         except Exception as exc:
             # A signal that lands where Python wraps the exception it raises comes out as
             # another exception whose cause is the KeyboardInterrupt: a Python callback of
@@ -119,6 +132,128 @@ def user_errors(func):
             restore_signal_handlers()
 
     return wrapper
+
+
+class _WholeWrites(io.RawIOBase):
+    """File descriptor 1 where every write is whole or an ``OSError``, never short.
+
+    Python's own standard output drops the rest of a write that ``write(2)`` cut short
+    (a file-size limit: 10,240 of 57,481 bytes written, the flush "succeeds", exit 0;
+    the red-team's H3). The first failure is kept in :attr:`failed`.
+    """
+
+    failed: OSError | None = None
+
+    def writable(self) -> bool:  # noqa: D102
+        return True
+
+    def fileno(self) -> int:  # noqa: D102
+        return 1
+
+    def isatty(self) -> bool:  # noqa: D102
+        return os.isatty(1)
+
+    def write(self, data) -> int:  # noqa: D102
+        view = memoryview(data).cast("B")
+        done = 0
+        while done < len(view):
+            try:
+                done += os.write(1, view[done:])
+            except OSError as exc:
+                if not isinstance(exc, BrokenPipeError):  # a reader gone: click's case
+                    _WholeWrites.failed = _WholeWrites.failed or exc
+                raise
+        return done
+
+
+def check_stdout_writes() -> None:
+    """Standard output through :class:`_WholeWrites` (for the program, not a test's runner)."""
+    old = sys.stdout
+    if old is None or not hasattr(old, "buffer") or getattr(old, "fileno", None) is None:
+        return
+    try:
+        if old.fileno() != 1:
+            return
+        old.flush()
+    except (OSError, ValueError):
+        return
+    sys.stdout = io.TextIOWrapper(
+        io.BufferedWriter(_WholeWrites()),
+        encoding=old.encoding,
+        errors=old.errors,
+        line_buffering=old.line_buffering,
+    )
+
+
+def stdout_failure() -> OSError | None:
+    """Flush standard output; the error if what was printed could not all be written."""
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except OSError as exc:
+        if not isinstance(exc, BrokenPipeError):
+            return exc
+    except ValueError:  # closed
+        pass
+    return _WholeWrites.failed
+
+
+#: Address space ``fit composite`` needs (measured: aborts natively under 2 GB, runs at 3).
+COMPOSITE_ADDRESS_SPACE = 3 * 2**30
+
+
+def check_address_space(need: int, what: str) -> None:
+    """Refuse before any work when ``ulimit -v`` leaves less address space than ``need``."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and soft < need:
+        raise UserError(
+            f"not enough memory: {what} needs about {_mib(need)} of address space and the "
+            f"limit (ulimit -v) is {_mib(soft)}; raise it"
+        )
+
+
+def memory_line() -> str:
+    """The one line for a MemoryError, naming the address-space limit if there is one."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY:
+        return "not enough memory: the run needs more than this machine has free"
+    return (
+        f"not enough memory: the address-space limit (ulimit -v) is {_mib(soft)}; "
+        "raise it (fit zip needs about 1 GiB, fit composite 3 GiB)"
+    )
+
+
+def stdout_line(exc: OSError) -> str:
+    """The one line for a failed write to standard output."""
+    return f"standard output: {exc.strerror or exc}; what was printed is incomplete"
+
+
+def _os_error_line(exc: OSError) -> str:
+    """``file: what went wrong``, naming the output, not its hidden temporary file."""
+    what = exc.strerror or str(exc)
+    out = _STOP.get("outputs")
+    if exc.filename is None:
+        # A failed write(2) names no file: standard output's, or the output being
+        # written (a transaction creates each temporary just before writing it).
+        if stdout_failure() is not None:
+            return stdout_line(exc)
+        temps = getattr(out, "_temps", {})
+        if temps and not out.committed:
+            label = list(temps)[-1]
+            return f"{out.targets[label]}: {label} cannot be written: {what}"
+        return what
+    path = Path(os.fspath(exc.filename))
+    for label, tmp in getattr(out, "_temps", {}).items():
+        if path == tmp:
+            return f"{out.targets[label]}: {label} cannot be written: {what}"
+    if path.parent.name.startswith(".loadbayes-") and path.parent.name.endswith(".tmp"):
+        # A file staged in a hidden folder for its folder's commit (--netcdf-dir).
+        return f"{path.parent.parent / path.name}: cannot be written: {what}"
+    return f"{path}: {what}"
 
 
 def _caused_by_interrupt(exc: BaseException) -> bool:

@@ -4,7 +4,9 @@
   embedded default; Dask is not even imported);
 - ``workers=N``: a :class:`dask.distributed.LocalCluster` of ``N`` worker processes
   (one thread each: the compiled kernels and NumPy already use the cores they are given),
-  started here and shut down at the end;
+  started here and shut down at the end; every one of its sockets listens on loopback
+  only, and its dashboard is off unless asked for (``dashboard=True``, on loopback too:
+  it lists the workers and the tasks to whoever reaches it);
 - ``scheduler="tcp://host:8786"``: a :class:`dask.distributed.Client` connected to an
   existing cluster.
 
@@ -23,6 +25,11 @@ from typing import Any
 
 __all__ = ["Engine"]
 
+
+#: Where a local cluster's scheduler, workers and dashboard listen.
+_LOOPBACK = "127.0.0.1"
+#: The scheduler's only HTTP route when the dashboard is off.
+_HEALTH = ["distributed.http.health"]
 
 #: Times a task lost with a dying worker is submitted again before giving up.
 _ATTEMPTS = 3
@@ -54,10 +61,18 @@ class Engine:
         Start a local cluster of this many worker processes.
     client : dask.distributed.Client, optional
         Use this client (tests share one cluster between runs); not closed at the end.
+    dashboard : bool, default False
+        Serve the local cluster's dashboard (on 127.0.0.1, a free port:
+        :attr:`dashboard_link`).
     """
 
     def __init__(
-        self, *, scheduler: str | None = None, workers: int | None = None, client: Any = None
+        self,
+        *,
+        scheduler: str | None = None,
+        workers: int | None = None,
+        client: Any = None,
+        dashboard: bool = False,
     ) -> None:
         if scheduler and workers:
             raise ValueError("give --scheduler or --workers, not both")
@@ -66,6 +81,7 @@ class Engine:
         self.scheduler = scheduler
         self.workers = workers
         self.client = client
+        self.dashboard = dashboard
         self._own: list[Any] = []
         #: Seconds it took to start (or reach) the cluster; 0 in process.
         self.startup_seconds = 0.0
@@ -103,18 +119,38 @@ class Engine:
                     f"cannot reach the Dask scheduler {self.scheduler}: {exc}"
                 ) from None
         else:
-            cluster = LocalCluster(
-                n_workers=self.workers,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=":0",
-                silence_logs=_DASK_LOG_LEVEL,
-            )
+            import dask
+
+            # Loopback only: dashboard_address=":0" served the dashboard on 0.0.0.0. The
+            # scheduler's HTTP server runs whatever is asked (a free loopback port, not
+            # 8787); without the dashboard it answers only /health (no pages that list
+            # the workers and tasks).
+            routes = {} if self.dashboard else {"distributed.scheduler.http.routes": _HEALTH}
+            with dask.config.set(routes):
+                cluster = LocalCluster(
+                    n_workers=self.workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    host=_LOOPBACK,
+                    worker_dashboard_address=None,
+                    scheduler_kwargs={
+                        "dashboard": self.dashboard,
+                        "dashboard_address": f"{_LOOPBACK}:0",
+                    },
+                    silence_logs=_DASK_LOG_LEVEL,
+                )
             self._own.append(cluster)
             self.client = Client(cluster)
         self._own.insert(0, self.client)
         self.startup_seconds = time.monotonic() - t0
         return self
+
+    @property
+    def dashboard_link(self) -> str | None:
+        """The local cluster's dashboard address (``http://127.0.0.1:PORT/status``), or None."""
+        if not self.dashboard or not self._own:
+            return None
+        return self._own[-1].dashboard_link
 
     def __exit__(self, *exc: object) -> None:
         for obj in self._own:

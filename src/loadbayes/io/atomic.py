@@ -18,7 +18,7 @@ from typing import Any
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["atomic_write", "check_target", "held_signals"]
+__all__ = ["atomic_write", "check_target", "held_signals", "write_netcdf"]
 
 _WRITE_MODES = ("w", "wt", "wb")
 
@@ -130,29 +130,104 @@ def atomic_write(
             raise DataError("exists; use --force to overwrite", name)
         os.chmod(tmp, _file_mode(target))
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         if tmp is not None:
             with held_signals(), contextlib.suppress(OSError):
                 tmp.unlink()
+            if isinstance(exc, OSError) and exc.filename is not None and Path(exc.filename) == tmp:
+                # Said of the file the caller asked for, not of its hidden temporary.
+                raise OSError(exc.errno, exc.strerror, name) from None
         raise
     _fsync_dir(target.parent)
 
 
-_HELD = frozenset({signal.SIGINT, signal.SIGTERM})
+_HELD = (signal.SIGINT, signal.SIGTERM)
+# The hold in force: how deep, the handlers it replaced, the first signal it kept back.
+_HOLD: dict[str, Any] = {"depth": 0, "previous": {}, "pending": None}
 
 
 @contextlib.contextmanager
 def held_signals() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back for the block; they are delivered when it ends.
+    """Hold SIGINT and SIGTERM back for the block; the first is delivered when it ends.
 
     For the few steps that must not be split (a temporary created and registered, the
-    renames of a commit, a clean-up): a signal during them takes effect right after.
+    renames of a commit, a clean-up): a signal during them takes effect right after,
+    through the handler that was there before.
+
+    Notes
+    -----
+    A signal mask (``pthread_sigmask``) holds only in the thread that sets it: the kernel
+    gives a process-directed signal to any thread that does not block it (a BLAS, Arrow
+    or numba pool's), and Python then runs the handler in the main thread at its next
+    instruction, inside the block (the red-team's H1: a fleet's commit stopped after 37
+    of 800 renames). Python handlers run only in the main thread, so there the block
+    replaces them with one that records the signal, in every thread alike; the
+    signal is raised again when the outermost block ends. Another thread cannot change
+    handlers: it blocks the signals for itself (the main thread's handler, which runs
+    them, is then not held back by this block).
     """
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, set(_HELD))
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        return
+    if _HOLD["depth"] == 0:
+        _HOLD["pending"] = None
+        _HOLD["previous"] = {s: signal.signal(s, _keep_back) for s in _HELD}
+    _HOLD["depth"] += 1
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        _HOLD["depth"] -= 1
+        if _HOLD["depth"] == 0:
+            for s, handler in _HOLD["previous"].items():
+                signal.signal(s, handler if handler is not None else signal.SIG_DFL)
+            pending, _HOLD["pending"] = _HOLD["pending"], None
+            if pending is not None:
+                # Runs the handler put back, here and now (raise_signal checks for it).
+                signal.raise_signal(pending)
+
+
+def _keep_back(signum, frame) -> None:
+    # The first signal in a hold is delivered at its end; a second is one too many.
+    if _HOLD["pending"] is None:
+        _HOLD["pending"] = signum
+
+
+def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
+    """Write an ArviZ InferenceData to ``path`` (NetCDF 4, h5netcdf), as its to_netcdf would.
+
+    The file is built in memory, then written by a plain Python write: a full disk or a
+    file-size limit is then an ``OSError`` naming ``path``. HDF5 writing to the file
+    itself met them inside its C calls, printed about a hundred lines of tracebacks
+    from h5py's finalisers and crashed the process (segmentation fault, exit 139) when
+    the half-closed file's objects were freed (the red-team's H2). The groups, their
+    order and the attributes are those of ``InferenceData.to_netcdf`` (ArviZ 0.23).
+    """
+    import io
+
+    import xarray as xr
+
+    buf = io.BytesIO()
+    mode = "w"
+    attrs = getattr(idata, "_attrs", None)
+    if attrs:
+        xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
+        mode = "a"
+    for group in idata._groups_all:
+        data = getattr(idata, group)
+        data.to_netcdf(buf, mode=mode, group=f"//{group}", engine="h5netcdf")
+        mode = "a"
+    name = os.fspath(path)
+    try:
+        with open(name, "wb") as fh:
+            fh.write(buf.getbuffer())
+    except OSError as err:  # a failed write(2) names no file: name it
+        raise OSError(err.errno, err.strerror, name) from None
 
 
 def _fsync(path: Path) -> None:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
 import tempfile
 from pathlib import Path
 
@@ -20,8 +19,6 @@ from loadbayes.io.atomic import _file_mode, _fsync, _fsync_dir, check_target, he
 from loadbayes.io.errors import DataError
 
 __all__ = ["OutputSet"]
-
-_HELD = {signal.SIGINT, signal.SIGTERM}
 
 
 class OutputSet:
@@ -46,8 +43,9 @@ class OutputSet:
     -----
     Leaving the ``with`` block without :meth:`commit` (an exception, KeyboardInterrupt)
     removes every temporary file and leaves the targets as they were. During
-    :meth:`commit` SIGINT and SIGTERM are blocked, so a signal cannot split the renames;
-    it is delivered right after them.
+    :meth:`commit` SIGINT and SIGTERM are held back in every thread
+    (:func:`loadbayes.io.atomic.held_signals`), so a signal cannot split the renames; it
+    is delivered right after them.
     """
 
     def __init__(self, targets: dict[str, str | os.PathLike[str]], *, force: bool = False):
@@ -93,8 +91,7 @@ class OutputSet:
             # Checked again: a target may have appeared while we were working.
             if target.exists() and not self.force:
                 raise DataError("exists; use --force to overwrite", path=str(target))
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
-        try:
+        with held_signals():
             for label, tmp in self._temps.items():
                 target = self.targets[label]
                 os.chmod(tmp, _file_mode(target))
@@ -102,8 +99,6 @@ class OutputSet:
             self.committed = True
             for folder in {t.parent for t in self.targets.values()}:
                 _fsync_dir(folder)
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
         return list(self.targets.values())
 
     def abort(self) -> None:
@@ -111,13 +106,10 @@ class OutputSet:
         if self.committed:
             return
         # Held back here too: a signal must not stop the clean-up half way.
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
-        try:
+        with held_signals():
             for tmp in self._temps.values():
                 with contextlib.suppress(OSError):
                     tmp.unlink()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
     def __enter__(self) -> OutputSet:
         return self

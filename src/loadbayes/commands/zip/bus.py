@@ -192,6 +192,12 @@ def fit_zip_cmd(
         raise UserError("--level drift needs the time of each sample: give --t-col")
     if level == "drift" and likelihood != "normal":
         raise UserError("--level drift has a Gaussian likelihood only (drop --likelihood)")
+    if level == "drift" and (scheme != "blocked" or conjugate):
+        # Its sampler (the level by a Kalman filter inside Gibbs) has no other scheme and
+        # its own prior; both options were ignored without a word.
+        given = " ".join(f for f, on in (("--scheme " + scheme, scheme != "blocked"),
+                                          ("--conjugate", conjugate)) if on)  # fmt: skip
+        raise UserError(f"--level drift has a sampler of its own: drop {given}")
     check_prior_sd(prior_sd, "--prior-sd")
     q_name, _ = q_column(q_col)  # a Q column named other than q: required by the fit
     note = nominal_note(p0, q0, with_q=q_name is not None)

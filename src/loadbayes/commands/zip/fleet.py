@@ -29,7 +29,7 @@ FLEET_BURN = 500
 
 
 def fleet_options(func):
-    """--by --class-col --out --pool --scheduler --workers --max-seconds --netcdf-dir."""
+    """--by --class-col --out --pool --scheduler --workers --dashboard --max-seconds and so on."""
     opts = [
         click.option(
             "--by",
@@ -64,6 +64,12 @@ def fleet_options(func):
             "--workers",
             type=click.IntRange(min=1),
             help="Run on a local Dask cluster of this many worker processes.",
+        ),
+        click.option(
+            "--dashboard",
+            is_flag=True,
+            help="With --workers: serve Dask's dashboard on 127.0.0.1 (its address is "
+            "printed); off by default.",
         ),
         click.option(
             "--max-seconds",
@@ -129,6 +135,8 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
         raise UserError("--by needs --out FILE.parquet for the fleet table")
     if not str(p["fleet_out"]).lower().endswith((".parquet", ".pq")):
         raise UserError(f"{p['fleet_out']}: --out must end in .parquet")
+    if p.get("dashboard") and not p.get("workers"):
+        raise UserError("--dashboard is for a local cluster: give --workers N")
     if p["pool"] == "class" and p.get("netcdf_dir"):
         raise UserError("--netcdf-dir is for --pool none (pooled draws stay together)")
     check_outputs({"--out": p["fleet_out"]}, [p["data"]], p["force"])
@@ -197,7 +205,10 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
             )
 
     try:
-        with Engine(scheduler=p.get("scheduler"), workers=p.get("workers")) as engine:
+        engine_args = {"scheduler": p.get("scheduler"), "workers": p.get("workers")}
+        with Engine(**engine_args, dashboard=bool(p.get("dashboard"))) as engine:
+            if engine.dashboard_link:  # asked for: said whatever --quiet says
+                click.echo(f"loadbayes: note: dashboard at {engine.dashboard_link}", err=True)
             res = run_fleet(
                 p["data"],
                 spec,
