@@ -68,14 +68,37 @@ def _load_posterior(result: str, netcdf: str | None):
             path,
         )
     if doc is not None:
-        a = [e.get("name") for e in (doc.get("settings", {}).get("events") or [])]
-        b = [e.get("name") for e in (post.settings.get("events") or [])]
-        if a != b or doc.get("method") != post.method:
-            raise UserError(
-                f"{path}: not the draws of {result} (events {b} by {post.method}, the JSON's "
-                f"{a} by {doc.get('method')})"
-            )
+        _check_same_fit(doc, result, post, path)
     return post
+
+
+def _check_same_fit(doc: dict, result: str, post, path: str) -> None:
+    """Refuse the draws of another fit: their fit ids (a hash of the settings) differ.
+
+    A JSON or NetCDF written before fit ids is checked by its events and method only,
+    and said so in a note.
+    """
+    ids = (doc.get("fit_id"), post.written_fit_id)
+    if None not in ids:
+        if ids[0] != ids[1]:
+            raise UserError(
+                f"{path}: the draws of another fit than {result} (fit id {ids[1]}, the "
+                f"JSON's {ids[0]}); give the NetCDF written with that JSON"
+            )
+        return
+    a = [e.get("name") for e in (doc.get("settings", {}).get("events") or [])]
+    b = [e.get("name") for e in (post.settings.get("events") or [])]
+    if a != b or doc.get("method") != post.method:
+        raise UserError(
+            f"{path}: not the draws of {result} (events {b} by {post.method}, the JSON's "
+            f"{a} by {doc.get('method')})"
+        )
+    old = result if ids[0] is None else path
+    click.echo(
+        f"loadbayes: note: {old} has no fit id (written before them): {path} is checked "
+        f"to be the draws of {result} by its events and method only",
+        err=True,
+    )
 
 
 @click.command("validate", cls=OneLineCommand)
