@@ -164,7 +164,7 @@ class Posterior:
     # ------------------------------------------------------------------ basics
     @property
     def fit_id(self) -> str:
-        """This fit's id (:func:`fit_id` of its settings), written into its JSON and NetCDF."""
+        """The fit's id (:func:`fit_id` of its settings), written into its JSON and NetCDF."""
         return fit_id(self.settings)
 
     @property

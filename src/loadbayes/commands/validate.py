@@ -67,16 +67,15 @@ def _load_posterior(result: str, netcdf: str | None):
             "fit composite",
             path,
         )
-    if doc is not None:
-        _check_same_fit(doc, result, post, path)
-    return post
+    unchecked = None if doc is None else _check_same_fit(doc, result, post, path)
+    return post, unchecked
 
 
-def _check_same_fit(doc: dict, result: str, post, path: str) -> None:
+def _check_same_fit(doc: dict, result: str, post, path: str) -> str | None:
     """Refuse the draws of another fit: their fit ids (a hash of the settings) differ.
 
     A JSON or NetCDF written before fit ids is checked by its events and method only,
-    and said so in a note.
+    and the note returned says so.
     """
     ids = (doc.get("fit_id"), post.written_fit_id)
     if None not in ids:
@@ -85,7 +84,7 @@ def _check_same_fit(doc: dict, result: str, post, path: str) -> None:
                 f"{path}: the draws of another fit than {result} (fit id {ids[1]}, the "
                 f"JSON's {ids[0]}); give the NetCDF written with that JSON"
             )
-        return
+        return None
     a = [e.get("name") for e in (doc.get("settings", {}).get("events") or [])]
     b = [e.get("name") for e in (post.settings.get("events") or [])]
     if a != b or doc.get("method") != post.method:
@@ -94,10 +93,9 @@ def _check_same_fit(doc: dict, result: str, post, path: str) -> None:
             f"{a} by {doc.get('method')})"
         )
     old = result if ids[0] is None else path
-    click.echo(
-        f"loadbayes: note: {old} has no fit id (written before them): {path} is checked "
-        f"to be the draws of {result} by its events and method only",
-        err=True,
+    return (
+        f"{old} has no fit id (written before them): {path} is checked to be the draws "
+        f"of {result} by its events and method only"
     )
 
 
@@ -179,7 +177,7 @@ def validate_cmd(
     from loadbayes.measurements.events import read_events
     from loadbayes.measurements.record import check_units
 
-    post = _load_posterior(result, netcdf_in)
+    post, unchecked = _load_posterior(result, netcdf_in)
     f_hz = float(post.settings.get("f_hz", 60.0))
     recs, masks = [], []
     for path in events:
@@ -228,6 +226,8 @@ def validate_cmd(
             save_figure(plot_validation(scores, prob=prob), out.temp("--plot"), force=True)
         out.commit()
         _STOP["committed"] = True
+    if unchecked:  # after the work: an error stays the run's one line
+        click.echo(f"loadbayes: note: {unchecked}", err=True)
     if not quiet:
         click.echo(f"composite fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
         click.echo(
