@@ -27,7 +27,9 @@ import pandas as pd
 from loadbayes._version import __version__
 from loadbayes.core.display import summary_html
 
-__all__ = ["FitWarning", "Posterior", "IDENTIFIABILITY_CORR", "gaussian_draws", "import_arviz"]
+__all__ = [
+    "FitWarning", "Posterior", "IDENTIFIABILITY_CORR", "fit_id", "gaussian_draws", "import_arviz",
+]  # fmt: skip
 
 #: The columns of :meth:`Posterior.summary` (those of ``arviz.summary``).
 _SUMMARY_COLUMNS = (
@@ -155,8 +157,16 @@ class Posterior:
         self.derived_units: dict[str, str] = {}
         self.warnings = list(warnings)
         self.warnings.extend(w for w in self._identifiability_warnings() if w not in self.warnings)
+        #: The fit id the file read held (:meth:`from_arviz`); None when built in memory
+        #: or read from a file written before fit ids.
+        self.written_fit_id: str | None = None
 
     # ------------------------------------------------------------------ basics
+    @property
+    def fit_id(self) -> str:
+        """The fit's id (:func:`fit_id` of its settings), written into its JSON and NetCDF."""
+        return fit_id(self.settings)
+
     @property
     def names(self) -> list[str]:
         """Parameter names, in report order."""
@@ -343,6 +353,7 @@ class Posterior:
             "loadbayes_version": __version__,
             "model": self.model,
             "method": self.method,
+            "fit_id": self.fit_id,
             "coefficients": json.dumps(self.coefficients),
             "free": json.dumps(self.free),
             "settings": json.dumps(self.settings, default=_json_default),
@@ -521,6 +532,7 @@ class Posterior:
             warnings=json.loads(attrs.get("warnings", "[]")),
         )
         out.extra_json = json.loads(attrs.get("extra_json", "{}"))
+        out.written_fit_id = str(attrs["fit_id"]) if "fit_id" in attrs else None
         return out
 
     @classmethod
@@ -552,6 +564,7 @@ class Posterior:
         out: dict[str, Any] = {
             "model": self.model,
             "method": self.method,
+            "fit_id": self.fit_id,
             "n": int(self.settings.get("n", 0)),
             "scheme": self.settings.get("scheme", self.method),
             "chains": self.n_chains,
@@ -659,6 +672,33 @@ class Posterior:
         )
         out.derived, out.derived_units = dict(self.derived), dict(self.derived_units)
         return out
+
+
+#: Settings that differ between two runs of the same seed (wall times) or are added when a
+#: file is read (``draws_thinned``): left out of :func:`fit_id`.
+_NOT_IN_FIT_ID = frozenset({"timing_s", "elapsed_s", "draws_thinned"})
+
+
+def fit_id(settings: Mapping[str, Any]) -> str:
+    """The id of a fit: 12 hex digits of the SHA-256 of its settings, as JSON.
+
+    The settings hold everything that makes the draws (seed, iterations, files, the
+    events' names and spans, priors, the method's options), so the JSON, the NetCDF and
+    the exports of one fit carry one id, and a fit with another seed or other data another.
+    Wall times are left out, so two runs of the same seed (the same draws) share their id.
+    """
+    import hashlib
+
+    def strip(obj: Any) -> Any:
+        if isinstance(obj, dict):
+            return {k: strip(v) for k, v in obj.items() if k not in _NOT_IN_FIT_ID}
+        if isinstance(obj, list):
+            return [strip(v) for v in obj]
+        return obj
+
+    plain = strip(json.loads(json.dumps(dict(settings), default=_json_default)))
+    text = json.dumps(plain, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:12]
 
 
 def _json_default(obj: Any) -> Any:

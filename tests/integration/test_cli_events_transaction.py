@@ -88,3 +88,43 @@ def test_located_time_error_option_errors_and_a_summary(tmp_path):
     assert res.exit_code == 0
     lines = res.output.strip().splitlines()
     assert len(lines) == 12 and "18 more (listed in" in lines[-1]  # 28 events, 10 shown
+
+
+def test_a_signal_while_removing_stale_events_waits_for_the_last(tmp_path, monkeypatch):
+    # After the commit, --force removes the earlier run's event files under a hold of
+    # SIGINT/SIGTERM. A per-thread signal mask held only in the main thread: the kernel
+    # gave a signal sent to the process to another thread (here an idle one, as a BLAS or
+    # Arrow pool's), Python ran the handler in the main thread at once, and the removal
+    # stopped after the first file, leaving files events.csv does not list.
+    import os
+    import pathlib
+    import signal
+    import threading
+
+    _record(tmp_path / "long.csv", seconds=60.0)
+    _record(tmp_path / "short.csv", seconds=20.0)
+    assert _run(tmp_path / "long.csv", "--out", tmp_path / "ev", "--quiet").exit_code == 0
+    real, removed = pathlib.Path.unlink, []
+
+    def unlink_then_a_signal(self, *args, **kwargs):
+        real(self, *args, **kwargs)
+        removed.append(self.name)
+        if len(removed) == 1 and self.name.startswith("event_"):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    idle = threading.Event()
+    other = threading.Thread(target=idle.wait, daemon=True)
+    other.start()
+    monkeypatch.setattr(pathlib.Path, "unlink", unlink_then_a_signal)
+    try:
+        res = _run(tmp_path / "short.csv", "--out", tmp_path / "ev", "--force", "--quiet")
+    finally:
+        idle.set()
+        other.join()
+    monkeypatch.undo()
+    assert res.exit_code == 130, res.output
+    assert _last(res) == "loadbayes: interrupted after every output was written"
+    listed = pd.read_csv(tmp_path / "ev" / "events.csv")["file"].tolist()
+    files = sorted(p.name for p in (tmp_path / "ev").iterdir() if p.name != "events.csv")
+    assert files == sorted(listed) and len(listed) == 3
+    assert len([n for n in removed if n.startswith("event_")]) == 13 - 3  # all stale ones

@@ -149,6 +149,8 @@ def test_cli_playback_reproduces_the_event_within_the_fit_noise(event):
     assert doc["steps_from"] == "the fit" and doc["angle_from"] == "angle"
     assert doc["ratio_p"] <= WITHIN and doc["ratio_q"] <= WITHIN, doc
     assert doc["reproduces"] is True and "reproduces the record" in r.stdout
+    # The truth's JSON is written by hand, without a fit id: played, and said unchecked.
+    assert "not checked to be the case of" in r.stderr and "no fit id" in r.stderr
     assert doc["devices"] == {"PQ": 1, "ZIP": 1, "Motor3": 1}
     assert (d / "pb.png").stat().st_size > 10_000
     # Again without --force: refused before any work, nothing touched.
@@ -156,6 +158,34 @@ def test_cli_playback_reproduces_the_event_within_the_fit_noise(event):
     one_line(cli("playback", d / "fit.json", d / "case.json", d / "noisy.csv", "--json",
                  d / "pb.json"), "exists", "--force")  # fmt: skip
     assert (d / "pb.json").read_bytes() == before
+
+
+def test_the_case_of_another_fit_is_refused_naming_both_files(event, tmp_path):
+    # Red-team M7: the case exported from one fit was played as another's (exit 0, titled
+    # as the JSON given). Two fits of the same event by the same method, seeds 1 and 2
+    # (fit ids as fit composite writes them); the case carries its fit's id in its summary.
+    d, _, _ = event
+    doc = json.loads((d / "fit.json").read_text())
+    fits = {}
+    for seed, fid in ((1, "1a2b3c4d5e6f"), (2, "6f5e4d3c2b1a")):
+        fits[seed] = tmp_path / f"fit{seed}.json"
+        settings = {**doc["settings"], "seed": seed}
+        fits[seed].write_text(json.dumps({**doc, "fit_id": fid, "settings": settings}))
+    case = tmp_path / "case1.json"
+    assert cli("export", fits[1], "--to", "andes", "--out", case, "--quiet").exit_code == 0
+    out = tmp_path / "pb.json"
+    line = one_line(cli("playback", fits[2], case, d / "noisy.csv", "--json", out),
+                    "another fit", "1a2b3c4d5e6f", "6f5e4d3c2b1a")  # fmt: skip
+    assert str(case) in line and str(fits[2]) in line and not out.exists()
+    assert "# fit id: 1a2b3c4d5e6f" in (tmp_path / "case1.json.summary.txt").read_text()
+    r = cli("playback", fits[1], case, d / "noisy.csv", "--json", out)
+    assert r.exit_code == 0, r.output
+    assert "not checked" not in r.stderr and json.loads(out.read_text())["reproduces"]
+    # A case moved without its summary: played, with a note that it was not checked.
+    (tmp_path / "case1.json.summary.txt").unlink()
+    r = cli("playback", fits[2], case, d / "noisy.csv", "--json", tmp_path / "pb2.json")
+    assert r.exit_code == 0, r.output
+    assert "not checked to be the case of" in r.stderr and "not beside it" in r.stderr
 
 
 def test_a_wrong_motor_share_is_said_not_to_reproduce(event):

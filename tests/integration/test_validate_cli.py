@@ -247,3 +247,46 @@ def test_bad_inputs_exit_2_in_one_line(held_out, tmp_path):
     assert "accept-units" not in line
     df.assign(v=df["v"] * 11).to_csv(tmp_path / "kv.csv", index=False)
     assert "--v-base 11" in _bad(nc, tmp_path / "kv.csv")
+
+
+# ------------------------------------------------------- the draws of another fit (M7)
+def _fit_files(folder, name, *, seed, fit_id=True):
+    """One fit's JSON and NetCDF (the truth posterior, settings of a seed-``seed`` fit)."""
+    post = Posterior.from_netcdf(_truth_posterior(folder / f"{name}_truth.nc"))
+    post.method = "metropolis-within-gibbs"
+    post.settings.update(seed=seed, draws=60, events=[{"name": "fitted.csv", "t_span_s": 0.4}])
+    js, nc = folder / f"{name}.json", folder / f"{name}.nc"
+    post.to_json(js)
+    post.to_netcdf(nc, pointwise=False)
+    if not fit_id:  # as written before fit ids
+        doc = json.loads(js.read_text())
+        doc.pop("fit_id", None)
+        js.write_text(json.dumps(doc))
+    return js, nc
+
+
+def test_the_draws_of_another_fit_are_refused_naming_both_files(held_out, tmp_path):
+    # Red-team M7: fits of the same events by the same method, seeds 1 and 2, differ only
+    # in their settings; validate compared the events and the method, and scored one's
+    # JSON with the other's draws (exit 0). Same fit: accepted; another: one line, exit 2.
+    folder, _ = held_out
+    ev = folder / "held_out.csv"
+    a_js, a_nc = _fit_files(tmp_path, "a", seed=1)
+    b_js, b_nc = _fit_files(tmp_path, "b", seed=2)
+    res = _run(a_js, ev, "--netcdf", a_nc, "--n-draws", 20, "--quiet")
+    assert res.exit_code == 0, res.output
+    assert "fit id" not in res.output
+    line = _bad(a_js, ev, "--netcdf", b_nc, "--n-draws", 20)
+    assert str(a_js) in line and str(b_nc) in line and "another fit" in line
+    # A stale NetCDF of the same name beside the JSON is found, and refused the same way.
+    b_nc.replace(tmp_path / "a.nc")
+    line = _bad(a_js, ev, "--n-draws", 20)
+    assert str(a_js) in line and str(tmp_path / "a.nc") in line
+
+
+def test_a_json_written_before_fit_ids_is_accepted_with_a_note(held_out, tmp_path):
+    folder, _ = held_out
+    js, nc = _fit_files(tmp_path, "old", seed=1, fit_id=False)
+    res = _run(js, folder / "held_out.csv", "--netcdf", nc, "--n-draws", 20, "--quiet")
+    assert res.exit_code == 0, res.output
+    assert "note" in res.output and "no fit id" in res.output and str(js) in res.output

@@ -5,7 +5,7 @@ JSON summary or NetCDF draws), the values picked and said, then one writer.
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
 attaches it. The format writers are imported only once chosen.
 
-One idea at about 530 lines: one export, from reading and checking the posterior (half of
+One idea at about 545 lines: one export, from reading and checking the posterior (half of
 it: a JSON file may hold anything) through the checks of :mod:`loadbayes.export.checks`
 to one transaction of every file of every draw. Splitting the posterior reader out is
 the next step when it grows.
@@ -37,7 +37,10 @@ _MODEL_NAMES = {"zip": "zip", "exp": "exponential", "exponential": "exponential"
 
 
 def _read_posterior(path: str):
-    """(model, {name: pooled draws or None}, {name: summary row}, settings)."""
+    """(model, {name: pooled draws or None}, {name: summary row}, settings, interval, fit id).
+
+    The fit id is the one the file holds (None when written before fit ids).
+    """
     import json
 
     import numpy as np
@@ -61,7 +64,8 @@ def _read_posterior(path: str):
             for k, d in draws.items()
         }  # fmt: skip
         _add_convergence(post, summary)
-        return post.model, draws, summary, dict(post.settings), "2.5% and 97.5% quantiles"
+        interval = "2.5% and 97.5% quantiles"
+        return post.model, draws, summary, dict(post.settings), interval, post.written_fit_id
     if p.suffix.lower() in (".parquet", ".pq", ".csv"):
         # A fleet's table (or a data file) holds summaries per bus, not one posterior.
         raise DataError(
@@ -77,7 +81,8 @@ def _read_posterior(path: str):
         raise DataError("not a loadbayes posterior JSON (nested too deeply)", path) from None
     except (ValueError, KeyError, TypeError, UnicodeDecodeError):
         raise DataError("not a loadbayes posterior JSON (no 'model'/'parameters')", path) from None
-    return _checked_json(doc, params, model, path)
+    fid = doc.get("fit_id") if isinstance(doc, dict) else None
+    return (*_checked_json(doc, params, model, path), fid if isinstance(fid, str) else None)
 
 
 def _add_convergence(post, summary: dict) -> None:
@@ -225,7 +230,9 @@ def pick_values(draws, summary, stat: str) -> dict[str, float]:
     return _complete_triples({k: float(np.quantile(d, q)) for k, d in draws.items()})
 
 
-def summary_lines(source: str, model: str, summary: dict, what: str, interval: str) -> list[str]:
+def summary_lines(
+    source: str, model: str, summary: dict, what: str, interval: str, *, fit_id: str | None = None
+) -> list[str]:
     """The posterior summary every export carries.
 
     Parameters
@@ -240,6 +247,9 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
         Which statistic or draw was exported.
     interval : str
         What the interval is.
+    fit_id : str, optional
+        The fit's id (its JSON's ``fit_id``), written as ``fit id: ...`` so that
+        ``playback`` can check that a case belongs to the fit it is given.
 
     Returns
     -------
@@ -247,6 +257,7 @@ def summary_lines(source: str, model: str, summary: dict, what: str, interval: s
         One line each.
     """
     lines = [f"loadbayes {model} posterior from {source}; exported: {what}",
+             *([f"fit id: {fit_id}"] if fit_id else []),
              f"parameter: mean (sd) [{interval}]"]  # fmt: skip
     for name, row in summary.items():
         m, sd, lo, hi = (
@@ -377,7 +388,7 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     from loadbayes import export
 
     writer = export.get(fmt)
-    model_raw, draws, summary, settings, interval = _read_posterior(posterior)
+    model_raw, draws, summary, settings, interval, fid = _read_posterior(posterior)
     model = _MODEL_NAMES.get(model_raw, model_raw)
     try:
         export.check_model(model)
@@ -458,7 +469,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     with _staged(outp.parent) as stage, output_transaction({}, force=force) as outs:
         for (path, values, what), (_, ps) in zip(jobs, problems, strict=True):
             warns = [p.text for p in ps]
-            header = summary_lines(posterior, model, summary, what, interval) + base_notes
+            header = summary_lines(posterior, model, summary, what, interval, fit_id=fid)
+            header += base_notes
             header += [f"warning: {w}" for w in warns]
             try:
                 paths = writer.write(

@@ -8,6 +8,8 @@ stay inside the function.
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import click
 
@@ -16,6 +18,39 @@ from loadbayes.commands.output import UserError, check_outputs, user_errors
 from loadbayes.commands.signals import _STOP, stop_if_signalled
 
 __all__ = ["playback_cmd"]
+
+_FIT_ID = re.compile(r"^# fit id: ([0-9a-f]+)\s*$", re.MULTILINE)
+
+
+def _check_same_fit(result: str, export: str) -> str | None:
+    """Refuse the case of another fit: the fit id its summary names is not RESULT's.
+
+    ``export --to andes`` writes the fit's id into the case's sidecar
+    ``<case>.summary.txt``; a JSON or a case written before fit ids, or a case without
+    its sidecar, is played all the same: the note returned says it was not checked.
+    """
+    sidecar = Path(export).with_name(Path(export).name + ".summary.txt")
+    try:
+        doc = json.loads(Path(result).read_text(encoding="utf-8"))
+        ours = doc.get("fit_id") if isinstance(doc, dict) else None
+    except (OSError, ValueError, UnicodeDecodeError):  # read_fit has said what is wrong
+        ours = None
+    try:
+        found = _FIT_ID.search(sidecar.read_text(encoding="utf-8", errors="replace"))
+    except OSError:
+        found, why = None, f"its summary {sidecar.name} is not beside it"
+    else:
+        why = f"its summary {sidecar.name} names no fit id (written before them)"
+    if not isinstance(ours, str):
+        why = f"{result} has no fit id (written before them)"
+    elif found is not None:
+        if found.group(1) != ours:
+            raise UserError(
+                f"{export}: the case of another fit than {result} (fit id {found.group(1)} "
+                f"in {sidecar.name}, the JSON's {ours}); export the case from {result}"
+            )
+        return None
+    return f"{export} is not checked to be the case of {result}: {why}"
 
 
 @click.command("playback", cls=OneLineCommand)
@@ -65,6 +100,7 @@ def playback_cmd(
     from loadbayes.measurements.events import read_events
 
     fit = read_fit(result)
+    unchecked = _check_same_fit(result, export)
     evs = read_events(
         [event],
         t_col=t_col,
@@ -108,6 +144,8 @@ def playback_cmd(
             save_figure(fig, out.temp("--plot"), force=True)
         out.commit()
         _STOP["committed"] = True
+    if unchecked:  # after the work: an error stays the run's one line
+        click.echo(f"loadbayes: note: {unchecked}", err=True)
     if not quiet:
         click.echo(f"{event} played into {export} ({pb.t_s.size} samples, ANDES step "
                    f"{pb.step_s:.3g} s): {numbers['verdict']}")  # fmt: skip

@@ -390,15 +390,14 @@ def _stale_events(folder: Path, keep: set[Path]) -> list[Path]:
 
 
 def _remove(paths: list[Path]) -> None:
-    # After the commit, with SIGINT/SIGTERM held back: the folder then lists exactly the
-    # events of events.csv, even if a signal arrives meanwhile.
+    # After the commit, with SIGINT/SIGTERM held back in every thread (a mask of this
+    # thread alone let another thread take the signal, and the removal stop midway): the
+    # folder then lists exactly the events of events.csv; a signal is delivered after.
     import contextlib
-    import signal
 
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
+    from loadbayes.io.atomic import held_signals
+
+    with held_signals():
         for p in paths:
             with contextlib.suppress(FileNotFoundError):
                 p.unlink()
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)

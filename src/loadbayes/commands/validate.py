@@ -67,15 +67,36 @@ def _load_posterior(result: str, netcdf: str | None):
             "fit composite",
             path,
         )
-    if doc is not None:
-        a = [e.get("name") for e in (doc.get("settings", {}).get("events") or [])]
-        b = [e.get("name") for e in (post.settings.get("events") or [])]
-        if a != b or doc.get("method") != post.method:
+    unchecked = None if doc is None else _check_same_fit(doc, result, post, path)
+    return post, unchecked
+
+
+def _check_same_fit(doc: dict, result: str, post, path: str) -> str | None:
+    """Refuse the draws of another fit: their fit ids (a hash of the settings) differ.
+
+    A JSON or NetCDF written before fit ids is checked by its events and method only,
+    and the note returned says so.
+    """
+    ids = (doc.get("fit_id"), post.written_fit_id)
+    if None not in ids:
+        if ids[0] != ids[1]:
             raise UserError(
-                f"{path}: not the draws of {result} (events {b} by {post.method}, the JSON's "
-                f"{a} by {doc.get('method')})"
+                f"{path}: the draws of another fit than {result} (fit id {ids[1]}, the "
+                f"JSON's {ids[0]}); give the NetCDF written with that JSON"
             )
-    return post
+        return None
+    a = [e.get("name") for e in (doc.get("settings", {}).get("events") or [])]
+    b = [e.get("name") for e in (post.settings.get("events") or [])]
+    if a != b or doc.get("method") != post.method:
+        raise UserError(
+            f"{path}: not the draws of {result} (events {b} by {post.method}, the JSON's "
+            f"{a} by {doc.get('method')})"
+        )
+    old = result if ids[0] is None else path
+    return (
+        f"{old} has no fit id (written before them): {path} is checked to be the draws "
+        f"of {result} by its events and method only"
+    )
 
 
 @click.command("validate", cls=OneLineCommand)
@@ -156,7 +177,7 @@ def validate_cmd(
     from loadbayes.measurements.events import read_events
     from loadbayes.measurements.record import check_units
 
-    post = _load_posterior(result, netcdf_in)
+    post, unchecked = _load_posterior(result, netcdf_in)
     f_hz = float(post.settings.get("f_hz", 60.0))
     recs, masks = [], []
     for path in events:
@@ -205,6 +226,8 @@ def validate_cmd(
             save_figure(plot_validation(scores, prob=prob), out.temp("--plot"), force=True)
         out.commit()
         _STOP["committed"] = True
+    if unchecked:  # after the work: an error stays the run's one line
+        click.echo(f"loadbayes: note: {unchecked}", err=True)
     if not quiet:
         click.echo(f"composite fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
         click.echo(
