@@ -215,19 +215,32 @@ def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
     buf = io.BytesIO()
     mode = "w"
     attrs = getattr(idata, "_attrs", None)
-    if attrs:
-        xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
-        mode = "a"
-    for group in idata._groups_all:
-        data = getattr(idata, group)
-        data.to_netcdf(buf, mode=mode, group=f"//{group}", engine="h5netcdf")
-        mode = "a"
+    with _local_write_lock():
+        if attrs:
+            xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
+            mode = "a"
+        for group in idata._groups_all:
+            data = getattr(idata, group)
+            data.to_netcdf(buf, mode=mode, group=f"//{group}", engine="h5netcdf")
+            mode = "a"
     name = os.fspath(path)
     try:
         with open(name, "wb") as fh:
             fh.write(buf.getbuffer())
     except OSError as err:  # a failed write(2) names no file: name it
         raise OSError(err.errno, err.strerror, name) from None
+
+
+def _local_write_lock() -> contextlib.AbstractContextManager:
+    # xarray picks its write lock from the dask scheduler in force: on a Dask worker (a
+    # fleet's --workers) a distributed lock named by the target, which for an in-memory
+    # buffer is unknown to the scheduler ("Semaphore or Lock <_io.BytesIO> not known").
+    # The buffer is this thread's alone, so a local (threaded) lock is the right one.
+    try:
+        import dask
+    except ImportError:  # the cluster extra is not installed: no scheduler to override
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler="threads")
 
 
 def _fsync(path: Path) -> None:

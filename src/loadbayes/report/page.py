@@ -40,7 +40,7 @@ table.wide { width: 100%; }
 th, td { border-bottom: 1px solid #d0d7de; padding: .25rem .55rem; text-align: right;
          vertical-align: top; white-space: nowrap; }
 thead th { white-space: normal; overflow-wrap: break-word; }
-td.text { white-space: normal; overflow-wrap: anywhere; }
+td.text, tbody th.text { white-space: normal; overflow-wrap: anywhere; }
 th:first-child, td:first-child, td.text, th.text { text-align: left; }
 thead th { background: #f6f8fa; font-weight: 600; }
 td.flag { color: #a40e26; font-weight: 600; }
@@ -112,7 +112,7 @@ def table_html(
     for k, row in enumerate(rows):
         flag = bool(flags[k]) if flags is not None else False
         cells = "".join(
-            (f"<th scope='row'>{e(c)}</th>" if i == 0 else
+            (f"<th scope='row'{' class=text' if i in text_cols else ''}>{e(c)}</th>" if i == 0 else
              f"<td{' class=text' if i in text_cols else ''}>{e(c)}</td>")
             for i, c in enumerate(row)
         )  # fmt: skip

@@ -52,7 +52,9 @@ def straddling_rows(path: str) -> np.ndarray | None:
 
     try:
         text = read_text_column(str(path), STRADDLE_COL)
-    except (DataError, OSError):
+    except Exception:  # the file's own reader says what is wrong with it
+        # (a corrupt or empty Parquet raised pyarrow's ArrowInvalid here, before the
+        # reader that names the file and the column: the error lost its location)
         return None
     flags = text.astype(str).str.strip().str.lower().isin(("true", "1", "1.0", "yes"))
     return flags.to_numpy() if flags.any() else None
