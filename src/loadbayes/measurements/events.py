@@ -401,24 +401,36 @@ def index_bases(paths: Sequence[str]) -> tuple[float, float] | None:
         The bases every file's row gives, or None when a file has no index or row, a
         base is missing, or the files disagree.
     """
+    found = set()
+    for path in paths:
+        row = _index_row(path, "v_base_kv", "s_base_mva")
+        if row is None:
+            return None
+        found.add(row[1])
+    return found.pop() if len(found) == 1 else None
+
+
+def _index_row(path: str, *fields: str) -> tuple[str, tuple[float, ...]] | None:
+    """``(index, values)``: the positive ``fields`` of ``path``'s row in its ``events.csv``.
+
+    None when the file is the index itself, has no index or row, or a field is missing or
+    not a positive number (what ``index_bases`` and ``index_f_hz`` read).
+    """
     import csv
     from pathlib import Path
 
-    found = set()
-    for path in paths:
-        index = Path(path).with_name("events.csv")
-        if Path(path).name == index.name or not index.is_file():
-            return None
-        try:
-            with index.open(encoding="utf-8", newline="") as fh:
-                rows = [r for r in csv.DictReader(fh) if r.get("file") == Path(path).name]
-            v, s = float(rows[0]["v_base_kv"]), float(rows[0]["s_base_mva"])
-        except (OSError, ValueError, KeyError, IndexError, TypeError, UnicodeDecodeError):
-            return None
-        if not (math.isfinite(v) and math.isfinite(s) and v > 0 and s > 0):
-            return None
-        found.add((v, s))
-    return found.pop() if len(found) == 1 else None
+    index = Path(path).with_name("events.csv")
+    if Path(path).name == index.name or not index.is_file():
+        return None
+    try:
+        with index.open(encoding="utf-8", newline="") as fh:
+            rows = [r for r in csv.DictReader(fh) if r.get("file") == Path(path).name]
+        values = tuple(float(rows[0][f]) for f in fields)
+    except (OSError, ValueError, KeyError, IndexError, TypeError, UnicodeDecodeError):
+        return None
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        return None
+    return str(index), values
 
 
 def index_f_hz(paths: Sequence[str]) -> tuple[float, str] | None:
@@ -433,22 +445,11 @@ def index_f_hz(paths: Sequence[str]) -> tuple[float, str] | None:
         The frequency every file's row gives and the first index read; None when a file
         has no index, row or frequency (events of a plain table), or the files disagree.
     """
-    import csv
-    from pathlib import Path
-
     found, where = set(), ""
     for path in paths:
-        index = Path(path).with_name("events.csv")
-        if Path(path).name == index.name or not index.is_file():
+        row = _index_row(path, "f_nominal_hz")
+        if row is None:
             return None
-        try:
-            with index.open(encoding="utf-8", newline="") as fh:
-                rows = [r for r in csv.DictReader(fh) if r.get("file") == Path(path).name]
-            f = float(rows[0]["f_nominal_hz"])
-        except (OSError, ValueError, KeyError, IndexError, TypeError, UnicodeDecodeError):
-            return None
-        if not (math.isfinite(f) and f > 0):
-            return None
-        found.add(f)
-        where = where or str(index)
+        found.add(row[1][0])
+        where = where or row[0]
     return (found.pop(), where) if len(found) == 1 else None
