@@ -32,6 +32,12 @@ class ExponentialLoad:
     free_coordinates: ClassVar[tuple[str, ...]] = ("n_p", "n_q")
     scale_free: ClassVar[np.ndarray] = np.eye(2)
     beta_names: ClassVar[tuple[str, ...]] = ("p0", "q0")
+    quantities: ClassVar[dict] = {
+        "n_p": ("-", "exponent of P in V"),
+        "n_q": ("-", "exponent of Q in V"),
+        "p0": ("p.u.", "load P at v0"),
+        "q0": ("p.u.", "load Q at v0"),
+    }
 
     def default_prior(self, events):
         s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)

@@ -132,6 +132,9 @@ class DynamicLoadModel(Protocol):
         The map from ``theta`` to the free coordinates (then the scale).
     beta_names : tuple of str
         Each event's linear coefficients, in the order of the design's columns.
+    quantities : mapping of str to (str, str)
+        The unit and the meaning in words of each named draw the model reports (its
+        parameters and the composition's quantities).
     """
 
     name: str
@@ -139,6 +142,7 @@ class DynamicLoadModel(Protocol):
     free_coordinates: tuple[str, ...]
     scale_free: np.ndarray
     beta_names: tuple[str, ...]
+    quantities: Mapping[str, tuple[str, str]]
 
     def default_prior(self, events: Sequence[Any]) -> Any: ...  # noqa: D102
 

@@ -41,7 +41,7 @@ from loadbayes.models.composite_prior import (
 )
 from loadbayes.models.motor_kernel import H_MAX_S
 
-__all__ = ["MOTOR_PRIOR_NAMES", "CompositeModel"]
+__all__ = ["MOTOR_PRIOR_NAMES", "QUANTITIES", "CompositeModel"]
 
 #: Log-normal priors by name (``priors={"h_s": (median, sd_log)}``, ``--prior h_s=...``)
 #: -> the sampled log-parameter they set.
@@ -53,6 +53,55 @@ MOTOR_PRIOR_NAMES: Mapping[str, str] = MappingProxyType(
         "t_prime_s": "log_t_prime",
         "h_s": "log_h",
         "t0": "log_t0",
+    }
+)
+
+_PU_SYS, _PU_MOTOR = "p.u. system base", "p.u. motor base"
+#: Every named draw's unit and meaning in words (the protocol's ``quantities``; an event's
+#: suffix ``_e{k}`` and each step's number are added by ``report/composite_names.describe``).
+#: "Motor base" is the motor's own rating (``mva_m``), whose size comes from the prior of
+#: T0 (terminal data fix only their product).
+QUANTITIES: Mapping[str, tuple[str, str]] = MappingProxyType(
+    {
+        "p0": (_PU_SYS, "load P at v0"),
+        "q0": (_PU_SYS, "load Q at v0"),
+        "v0": ("p.u.", "voltage at the first sample"),
+        "f_m": ("-", "motor's share of p0"),
+        "a1": ("-", "static P: constant-impedance share"),
+        "a2": ("-", "static P: constant-current share"),
+        "a3": ("-", "static P: constant-power share"),
+        "a4": ("-", "static Q: constant-impedance share"),
+        "a5": ("-", "static Q: constant-current share"),
+        "a6": ("-", "static Q: constant-power share"),
+        "mva_m": (_PU_SYS, "motor rating (MVA)"),
+        "q_c": (_PU_SYS, "shunt Q (motor Q0)"),
+        "rs": (_PU_MOTOR, "stator resistance Rs"),
+        "xs": (_PU_MOTOR, "stator leakage reactance Xs (= Xr)"),
+        "xm": (_PU_MOTOR, "magnetising reactance Xm"),
+        "rr": (_PU_MOTOR, "rotor resistance Rr"),
+        "xr": (_PU_MOTOR, "rotor leakage reactance Xr"),
+        "h_s": ("s, motor base", "inertia constant H"),
+        "a": ("-", "load torque share A (of A w^2 + B w + C)"),
+        "b": ("-", "load torque share B (of A w^2 + B w + C)"),
+        "c": ("-", "load torque share C (of A w^2 + B w + C)"),
+        "t0": (_PU_MOTOR, "initial load torque T0"),
+        "x_prime": (_PU_MOTOR, "transient reactance X'"),
+        "x_open": (_PU_MOTOR, "open-circuit X"),
+        "t_prime_s": ("s", "transient time constant T'"),
+        "f_hz": ("Hz", "nominal frequency (the motor's time base)"),
+        "tau_p": ("1/(p.u.)^2", "noise precision of P"),
+        "tau_q": ("1/(p.u.)^2", "noise precision of Q"),
+        "nu_p": ("-", "Student-t degrees of freedom of P's noise"),
+        "nu_q": ("-", "Student-t degrees of freedom of Q's noise"),
+        "log_rs": ("log p.u.", "log Rs (sampled)"),
+        "log_x_prime": ("log p.u.", "log X' (sampled)"),
+        "log_dx": ("log p.u.", "log (X - X') (sampled)"),
+        "log_t_prime": ("log s", "log T' (sampled)"),
+        "log_h": ("log s", "log H (sampled)"),
+        "log_t0": ("log p.u.", "log T0 (sampled)"),
+        "log_a_over_c": ("-", "log(A/C), torque (sampled)"),
+        "log_b_over_c": ("-", "log(B/C), torque (sampled)"),
+        "t_step": ("s", "instant of voltage step {j} (event clock)"),
     }
 )
 
@@ -155,6 +204,8 @@ class CompositeModel:
     scale_free: ClassVar[NDArray[np.float64]] = SCALE_FREE_MATRIX
     #: Each event's linear coefficients, in the order of :meth:`design`'s columns.
     beta_names: ClassVar[tuple[str, ...]] = BETA_NAMES
+    #: Every named draw's unit and meaning in words (:data:`QUANTITIES`).
+    quantities: ClassVar[Mapping[str, tuple[str, str]]] = QUANTITIES
 
     f_hz: float = 60.0
     torque: tuple[float, float, float] | str = (1.0, 0.0, 0.0)
