@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.fit.composite.naming import event_suffix
 from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
@@ -159,7 +160,7 @@ class DesignProblem:
         out: dict[str, np.ndarray] = {}
         shape = theta.shape[:-1]
         for k, ev in enumerate(self.events):
-            sfx = "" if k == 0 else f"_e{k}"
+            sfx = event_suffix(k)
             for name, value in self.model.composition(betas[..., k, :]).items():
                 out[f"{name}{sfx}"] = np.broadcast_to(value, shape).copy()
             out[f"v0{sfx}"] = np.full(shape, ev.v0)

@@ -33,7 +33,7 @@ from loadbayes.fit.composite.naming import (
 )
 from loadbayes.fit.composite.nls import NLSResult, nls
 from loadbayes.fit.composite.predictive import event_arrays
-from loadbayes.fit.composite.problem import CompositeProblem, theta_of
+from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.provenance import (
     METHOD,
     baseline_record,
@@ -122,12 +122,10 @@ def _baseline_draws(
     x = gaussian_draws(mean, start.cov, chains, draws, rng)
     d = problem.dim
     u = x[..., : problem.n_free]
-    if isinstance(problem, CompositeProblem):
-        # log T0 | u from its prior, draw by draw (the model's base: the data never see it).
-        log_t0 = [problem.prior.draw_log_t0(ui, rng) for ui in u.reshape(-1, problem.n_free)]
-        theta = theta_of(u, np.array(log_t0).reshape(chains, draws))
-    else:
-        theta = problem.theta(u)
+    # A scale the data never see (zip+motor's log T0), drawn from its prior draw by draw as
+    # the sampler does; a model with none draws nothing.
+    scale = [problem.draw_scale(ui, rng) for ui in u.reshape(-1, problem.n_free)]
+    theta = problem.theta(u, None if scale[0] is None else np.reshape(scale, (chains, draws)))
     betas = x[..., d:].reshape(chains, draws, n_ev, problem.n_beta)
     tau = np.broadcast_to(1.0 / start.sigma**2, (chains, draws, 2)).copy()
     return named_draws(problem, theta, betas, tau, phi=problem.phi(x[..., :d]))
