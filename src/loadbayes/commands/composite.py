@@ -344,19 +344,6 @@ def fit_composite_cmd(
 
         bands = predictive_band(post, events, f_hz=f_hz, torque=model.torque, seed=sampler.seed)
         faults = fault_times(post, events)
-    if netcdf_out or plot_out:
-        # The writers' C extensions (ArviZ -> matplotlib's ft2font, h5py) are imported
-        # before the outputs are written: a signal that lands inside a C extension's
-        # module initialisation aborts the interpreter (exit -6) instead of ending in
-        # "no output was written".
-        from loadbayes.plots.fit import pyplot
-        from loadbayes.posterior import import_arviz
-
-        import_arviz()
-        if netcdf_out:
-            import h5netcdf  # noqa: F401  (h5py's extension, for io/atomic.write_netcdf)
-        if plot_out:
-            pyplot()
     stop_if_signalled()
     # One transaction: every output to a temporary beside its target, renamed together
     # at the end (a signal before that leaves none of them, and the message says so).

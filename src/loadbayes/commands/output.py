@@ -534,6 +534,7 @@ def output_transaction(files: dict[str, str | None], *, force: bool):
     from loadbayes.io.transaction import OutputSet
 
     targets = {k: v for k, v in files.items() if v and v != "-"}
+    _import_writers(targets)
     stop_if_signalled()
     with OutputSet(targets, force=force) as out:
         _STOP["outputs"] = out
@@ -541,6 +542,37 @@ def output_transaction(files: dict[str, str | None], *, force: bool):
         stop_if_signalled()
         out.commit()
         _STOP["committed"] = True
+
+
+def _import_writers(options) -> None:
+    """Import the C extensions the outputs' writers load, with the signals held.
+
+    A signal that lands inside an extension module's initialisation (matplotlib's
+    ``_image`` or ``ft2font`` on a figure's first draw, h5py under a NetCDF write) makes
+    the import fail half done, and the interpreter then aborts (exit -6) instead of
+    saying in one line what was written. Imported here, before any output exists and
+    with SIGINT/SIGTERM held back (delivered right after), a signal can no longer land
+    in one.
+    """
+    from loadbayes.io.atomic import held_signals
+
+    drawn = any("plot" in o or "figure" in o for o in options)
+    netcdf = any("netcdf" in o for o in options)
+    if not (drawn or netcdf):
+        return
+    with held_signals():
+        if drawn:
+            from loadbayes.plots.fit import pyplot
+
+            pyplot()
+            import matplotlib.backends.backend_agg  # noqa: F401
+            import PIL.Image  # noqa: F401  (matplotlib writes PNG through Pillow)
+        if netcdf:
+            import h5netcdf  # noqa: F401  (h5py's extension)
+
+            from loadbayes.posterior import import_arviz
+
+            import_arviz()
 
 
 def _isatty(stream) -> bool:
@@ -592,6 +624,7 @@ def write_outputs(
     fit_warnings(post, table, hdi_prob=hdi_prob, prior_sd=prior_sd)
     targets = {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out}
     files = {k: v for k, v in targets.items() if v and v != "-"}
+    _import_writers(files)
     stop_if_signalled()
     with OutputSet(files, force=force) as out:
         _STOP["outputs"] = out
