@@ -200,6 +200,10 @@ def stdout_failure() -> OSError | None:
 
 #: Address space ``fit composite`` needs (measured: aborts natively under 2 GB, runs at 3).
 COMPOSITE_ADDRESS_SPACE = 3 * 2**30
+#: Address space one bus's ``fit zip`` needs (the red-team's hang was at 650-800 MB; under
+#: 650 MB a fresh clone's first run, compiling its kernels, crashed natively in numba's
+#: compiler instead of the MemoryError a check can word).
+ZIP_ADDRESS_SPACE = 2**30
 
 
 def check_address_space(need: int, what: str) -> None:

@@ -23,8 +23,10 @@ from loadbayes.commands.options import (
     tau_prior_options,
 )
 from loadbayes.commands.output import (
+    ZIP_ADDRESS_SPACE,
     Progress,
     UserError,
+    check_address_space,
     check_cost,
     check_outputs,
     estimate_rows,
@@ -181,6 +183,7 @@ def fit_zip_cmd(
     if fleet.get("fleet_out"):
         raise click.UsageError("--out is for a fleet (with --by); one bus writes --json, "
                                "--netcdf, --plot or just the table")  # fmt: skip
+    check_address_space(ZIP_ADDRESS_SPACE, "fit zip")
     check_outputs(
         {"--json": json_out, "--netcdf": netcdf_out, "--plot": plot_out},
         [data],
