@@ -10,6 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 from loadbayes.io.errors import OptionError
+from loadbayes.models.cmld_lite import CmldLite
+from loadbayes.models.slm import SynthesisLoad
 from loadbayes.models.zip_motor import CompositeModel
 
 __all__ = ["DYNAMIC_MODELS", "dynamic_model"]
@@ -17,6 +19,8 @@ __all__ = ["DYNAMIC_MODELS", "dynamic_model"]
 #: Every dynamic model by its name: a new model is its module and one line here.
 DYNAMIC_MODELS: dict[str, type] = {
     CompositeModel.name: CompositeModel,
+    SynthesisLoad.name: SynthesisLoad,
+    CmldLite.name: CmldLite,
 }
 
 

@@ -62,6 +62,10 @@ class DesignProblem:
         self.f_hz = float(getattr(self.model, "f_hz", 60.0))
         inv = np.linalg.inv(np.asarray(self.model.scale_free, dtype=float))
         self._to_theta = np.ascontiguousarray(inv[:, : self.n_free].T)
+        #: Channels of the likelihood, each with its noise precision: P, Q and any the
+        #: model adds (the negative-sequence current: ``tau_i2``).
+        self.channel_names = tuple(getattr(self.model, "channel_names", ("p", "q")))
+        self.n_channels = len(self.channel_names)
 
     @property
     def dim(self) -> int:
@@ -91,32 +95,67 @@ class DesignProblem:
         """The same problem on other events (the NLS search's thinned copy)."""
         return DesignProblem(self.model, events, self.prior)
 
-    def designs(self, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        """Each event's ``(Z_p, Z_q)`` at ``u`` (None where the model has no response)."""
+    def channels(self, u: np.ndarray) -> list[list[tuple[np.ndarray, np.ndarray]]] | None:
+        """Each event's channels at ``u``: ``[(Z_g, y_g), ...]`` (None where infeasible).
+
+        A model with ``channels(event, theta)`` gives its own (targets that move with
+        ``theta``, as a feeder's losses do, or a third channel, the negative sequence);
+        any other gives ``design(event, *response)`` on the recorded P and Q.
+        """
         self.evaluations += 1
         if not self.in_support(u):
             return None
         theta = self.theta(u)
+        own = getattr(self.model, "channels", None)
         out = []
         for ev in self.events:
-            resp = self.model.response(ev, theta)
-            if resp is None:
+            if own is not None:
+                ch = own(ev, theta)
+                if ch is None:
+                    return None
+            else:
+                resp = self.model.response(ev, theta)
+                if resp is None:
+                    return None
+                zp, zq = self.model.design(ev, *resp)
+                ch = [(zp, ev.p), (zq, ev.q)]
+            if not all(np.isfinite(z).all() for z, _ in ch):
                 return None
-            zp, zq = self.model.design(ev, *resp)
-            if not (np.isfinite(zp).all() and np.isfinite(zq).all()):
-                return None
-            out.append((zp, zq))
+            out.append(ch)
         return out
+
+    def designs(self, u: np.ndarray) -> list[tuple[np.ndarray, ...]] | None:
+        """Each event's design matrices at ``u`` (one per channel), or None."""
+        ch = self.channels(u)
+        return None if ch is None else [tuple(z for z, _ in c) for c in ch]
+
+    def _extra_targets(self) -> list[np.ndarray]:
+        # The targets of the channels past P and Q (they do not move with theta: the
+        # recorded negative-sequence current), pooled over the events, at the prior mean.
+        ch = self.channels(self.prior.scale_free()[0][: self.n_free])
+        if ch is None:
+            return [np.zeros(0)] * (self.n_channels - 2)
+        return [np.concatenate([c[g][1] for c in ch]) for g in range(2, self.n_channels)]
+
+    def extra_rows(self) -> int:
+        """Rows of the channels past P and Q (the NLS's residual count)."""
+        return int(sum(y.size for y in self._extra_targets()))
+
+    def channel_rows(self) -> np.ndarray:
+        """The observations of each channel, over the events (the noise precisions' n)."""
+        n = float(sum(e.n for e in self.events))
+        return np.array([n, n, *(float(y.size) for y in self._extra_targets())])
+
+    def extra_scales(self) -> list[float]:
+        """A first noise sd of each channel past P and Q: its rms (1 where empty)."""
+        return [float(np.sqrt(np.mean(y**2))) if y.size else 1.0 for y in self._extra_targets()]
 
     def sums(self, u: np.ndarray, torque: Any = None) -> list[GroupSums] | None:
         """Each event's sufficient sums of the linear block (None if infeasible)."""
-        zs = self.designs(u)
-        if zs is None:
+        ch = self.channels(u)
+        if ch is None:
             return None
-        return [
-            GroupSums.from_arrays([zp, zq], [ev.p, ev.q])
-            for ev, (zp, zq) in zip(self.events, zs, strict=True)
-        ]
+        return [GroupSums.from_arrays([z for z, _ in c], [y for _, y in c]) for c in ch]
 
     def log_collapsed(self, sums, u, tau) -> float:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
@@ -169,5 +208,15 @@ class DesignProblem:
         for i, name in enumerate(self.model.theta_names):
             out[name] = theta[..., i]
         out.update({n: np.asarray(v) for n, v in named.items()})
-        out["tau_p"], out["tau_q"] = tau[..., 0], tau[..., 1]
+        ratings = getattr(self.model, "ratings", None)
+        if ratings is not None:  # each motor's rating, per event (it needs the event's p0)
+            flat = theta.reshape(-1, theta.shape[-1])
+            for k, ev in enumerate(self.events):
+                p0 = betas[..., k, 0].reshape(-1)
+                for name, value in ratings(ev, flat, p0).items():
+                    out[f"{name}{event_suffix(k)}"] = value.reshape(shape)
+        rows = self.channel_rows()
+        for g, name in enumerate(self.channel_names):
+            if rows[g] > 0:  # a channel no event has data for has no noise to report
+                out[f"tau_{name}"] = tau[..., g]
         return out

@@ -127,7 +127,7 @@ def _baseline_draws(
     scale = [problem.draw_scale(ui, rng) for ui in u.reshape(-1, problem.n_free)]
     theta = problem.theta(u, None if scale[0] is None else np.reshape(scale, (chains, draws)))
     betas = x[..., d:].reshape(chains, draws, n_ev, problem.n_beta)
-    tau = np.broadcast_to(1.0 / start.sigma**2, (chains, draws, 2)).copy()
+    tau = np.broadcast_to(1.0 / start.sigma**2, (chains, draws, start.sigma.size)).copy()
     return named_draws(problem, theta, betas, tau, phi=problem.phi(x[..., :d]))
 
 

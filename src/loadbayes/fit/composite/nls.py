@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from scipy import optimize
@@ -40,19 +40,26 @@ class NLSResult:
 
 
 def _project(problem: CompositeProblem, u: np.ndarray, w: np.ndarray):
-    zs = problem.designs(u)
-    if zs is None:
+    chans = problem.channels(u)
+    if chans is None:
         return None
     res, betas = [], []
-    for ev, (zp, zq) in zip(problem.events, zs, strict=True):
-        z = np.vstack([w[0] * zp, w[1] * zq])
-        y = np.concatenate([w[0] * ev.p, w[1] * ev.q])
+    for ch in chans:
+        z = np.vstack([wg * zg for wg, (zg, _) in zip(w, ch, strict=True)])
+        y = np.concatenate([wg * yg for wg, (_, yg) in zip(w, ch, strict=True)])
         # A whisper of the prior keeps the projection defined when a column vanishes.
         ridge = np.sqrt(problem.p0)
         beta = np.linalg.lstsq(np.vstack([z, np.diag(ridge)]), np.append(y, 0 * ridge), None)[0]
         res.append(y - z @ beta)
         betas.append(beta)
     return np.concatenate(res), np.array(betas)
+
+
+def _rows(problem) -> int:
+    # Residual rows where no point has been feasible yet: P and Q of every sample, and
+    # the rows of any other channel (the negative sequence) as the model declares them.
+    extra = getattr(problem, "extra_rows", None)
+    return 2 * sum(e.n for e in problem.events) + (extra() if extra is not None else 0)
 
 
 def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None) -> NLSResult:
@@ -92,13 +99,16 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
         # The coarse copy may have no steps (d = 5): the prior's whitening is block
         # diagonal (motor, steps), so its leading block serves.
         d = prob.dim
-        n_res = 2 * sum(e.n for e in prob.events) + d
+        n_res = [None]
         m, wh, lo_d, hi_d = mean_u[:d], white[:d, :d], lo[:d], hi[:d]
 
         def fun(u):
             out = _project(prob, u, w)
             if out is None:
-                return np.full(n_res, 1e3)
+                if n_res[0] is None:  # the rows of a feasible point (P and Q: 2 n)
+                    n_res[0] = _rows(prob)
+                return np.full(n_res[0] + d, 1e3)
+            n_res[0] = out[0].size
             return np.concatenate([out[0], wh @ (u - m)])
 
         x0 = np.clip(np.asarray(x0)[:d], lo_d + 1e-9, hi_d - 1e-9)
@@ -157,8 +167,7 @@ def _thinned(problem: CompositeProblem) -> CompositeProblem:
     events = []
     for e in problem.events:
         k = max(1, int(1.0 / (COARSE_FS * float(np.median(np.diff(e.t))))))
-        d = None if e.delta is None else e.delta[::k]
-        events.append(EventRecord(e.t[::k], e.v[::k], e.p[::k], e.q[::k], d, e.name))
+        events.append(thin_event(e, k))
     if all(a.n == b.n for a, b in zip(events, problem.events, strict=True)):
         return problem
     # Without steps: the search only needs where the motor's coordinates roughly are
@@ -166,8 +175,17 @@ def _thinned(problem: CompositeProblem) -> CompositeProblem:
     return problem.coarse(events)
 
 
+def thin_event(e: EventRecord, k: int) -> EventRecord:
+    """Every ``k``-th sample of ``e``, every per-sample array of it kept (v2, i2 too)."""
+    if k == 1:
+        return e
+    arrays = {f.name: getattr(e, f.name) for f in fields(e)}
+    return replace(e, **{n: a[::k] for n, a in arrays.items() if isinstance(a, np.ndarray)})
+
+
 def _static_sigmas(problem) -> np.ndarray:
-    # Residual sds of a static ZIP fit (no motor): an upper bound of the noise.
+    # Residual sds of a static ZIP fit (no motor): an upper bound of the noise of P and
+    # Q; any further channel (the negative-sequence current) its rms about zero.
     ssr, n = np.zeros(2), 0
     for ev in problem.events:
         z = np.stack([ev.x**2, ev.x, np.ones(ev.n)], axis=1)
@@ -175,21 +193,25 @@ def _static_sigmas(problem) -> np.ndarray:
             r = y - z @ np.linalg.lstsq(z, y, None)[0]
             ssr[g] += r @ r
         n += ev.n
-    return np.sqrt(np.maximum(ssr / n, 1e-30))
+    out = list(np.sqrt(np.maximum(ssr / n, 1e-30)))
+    extra = getattr(problem, "extra_scales", None)
+    if extra is not None:
+        out += list(extra())
+    return np.array(out)
 
 
 def _sigmas(problem, u, betas) -> np.ndarray:
     sums = problem.sums(u)
     ssr = sum(residual_ss(s, b) for s, b in zip(sums, betas, strict=True))
-    n = sum(e.n for e in problem.events)
-    return np.sqrt(np.maximum(ssr / n, 1e-30))
+    n = sum(s.n for s in sums)
+    return np.sqrt(np.maximum(ssr / np.maximum(n, 1), 1e-30))
 
 
 def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
     def full(uu, bs):
         parts = []
-        for ev, (zp, zq), b in zip(problem.events, problem.designs(uu), bs, strict=True):
-            parts += [w[0] * (ev.p - zp @ b), w[1] * (ev.q - zq @ b)]
+        for ch, b in zip(problem.channels(uu), bs, strict=True):
+            parts += [wg * (y - z @ b) for wg, (z, y) in zip(w, ch, strict=True)]
         return np.concatenate(parts)
 
     n_ev = len(problem.events)
@@ -202,16 +224,15 @@ def _gauss_newton_cov(problem, u, betas, w, prec_u) -> np.ndarray:
         up, um = u.copy(), u.copy()
         up[i] += h
         um[i] -= h
-        if problem.designs(up) is None or problem.designs(um) is None:
+        if problem.channels(up) is None or problem.channels(um) is None:
             continue
         jac[:, i] = (full(up, betas) - full(um, betas)) / (2 * h)
     row = 0
-    for e, (ev, (zp, zq)) in enumerate(zip(problem.events, problem.designs(u), strict=True)):
-        n = ev.n
+    for e, ch in enumerate(problem.channels(u)):
         cols = slice(d + problem.n_beta * e, d + problem.n_beta * (e + 1))
-        jac[row : row + n, cols] = -w[0] * zp
-        jac[row + n : row + 2 * n, cols] = -w[1] * zq
-        row += 2 * n
+        for wg, (z, _) in zip(w, ch, strict=True):
+            jac[row : row + z.shape[0], cols] = -wg * z
+            row += z.shape[0]
     # The prior's precision (as in the penalised fit): a direction the data do not see
     # gets the prior's spread, not an infinite variance.
     prec = jac.T @ jac

@@ -246,6 +246,16 @@ class CompositeProblem:
             return None
         return [design(ev, pm, qm) for ev, (pm, qm) in zip(self.events, resp, strict=True)]
 
+    #: P and Q: the channels of the likelihood, each with its noise precision.
+    n_channels: ClassVar[int] = 2
+
+    def channels(self, u: np.ndarray) -> list[list[tuple[np.ndarray, np.ndarray]]] | None:
+        """Each event's ``[(Z_p, p), (Z_q, q)]`` at ``u`` (the NLS's view), or None."""
+        zs = self.designs(u)
+        if zs is None:
+            return None
+        return [[(zp, ev.p), (zq, ev.q)] for ev, (zp, zq) in zip(self.events, zs, strict=True)]
+
     def free_names(self) -> list[str]:
         """The motor's free parameters the JSON lists first (naming.FREE_MOTOR order)."""
         return list(FREE_MOTOR)

@@ -218,7 +218,7 @@ class _Gibbs:
         self.fields = {
             "theta": (problem.n_theta,),
             "beta": (len(problem.events), problem.n_beta),
-            "tau": (2,),
+            "tau": (getattr(problem, "n_channels", 2),),
             "phi": (problem.n_steps,),
             "u_extra": (dim - self.n_base,),
         }
@@ -241,6 +241,7 @@ class _Gibbs:
             (u, lp, sums), _ = self.am.step(BlockState(u, lp, sums), logp, rng, it)
             if problem.n_share_coords:
                 u = self._share_steps(u, lp, sums, tau, it)
+
             betas = problem.draw_coefficients(sums, tau, u, rng)
         else:
             u, sums, betas = self._tilted_step(u, lp, logp, sums, tau, it, state.betas)
@@ -436,7 +437,9 @@ def sample(
     shrink[nm:] = np.minimum(1.0, 0.3 / np.sqrt(np.diag(lap)[nm:]))
     lap = lap * np.outer(shrink, shrink)
     tau0 = 1.0 / start.sigma**2
-    n_tot = np.array([sum(e.n for e in problem.events)] * 2, dtype=float)
+    rows = getattr(problem, "channel_rows", None)  # a model's own channels (design.py)
+    n_tot = (np.array([sum(e.n for e in problem.events)] * 2, dtype=float) if rows is None
+             else rows())  # fmt: skip
     root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
     # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
     # chain end every chain within one iteration, not when the chains finish.

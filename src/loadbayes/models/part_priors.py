@@ -1,0 +1,88 @@
+"""Published ranges of the parts' parameters, as the priors of the models built from parts.
+
+Each three-phase motor class has a log-normal prior per parameter, ``(median, sd of the
+log)``, on the motor's own base, centred on the WECC composite load model's typical data
+(WECC MVWG, "WECC Composite Load Model Specifications", 2015, and the default CMLDBLU2
+records in PNNL's load-model data tool, LMDT: motor A a compressor with constant torque,
+Rs 0.04, Ls 1.8, Lp 0.12, Tpo 0.095 s, H 0.1 s; motor B a fan or pump with torque rising
+with speed squared, Rs 0.03, Ls 1.8, Lp 0.19, Tpo 0.2 s, H 0.5 s; a loading factor of
+about 0.75). The spreads are wide enough to hold the classes' published ranges (Rs 0.01
+to 0.1, X' 0.08 to 0.3, H 0.05 to 1.5 s) and narrow enough that a 0.4 s window does not
+let them run outside: the prior's 2.5 % and 97.5 % quantiles are printed by
+:func:`prior_ranges` and tested to lie inside those ranges. The ``slm`` motor (the
+synthesis load model of Chinese practice, one lumped motor) takes the union of A and B.
+
+The feeder (the substation transformer and the feeder as one series impedance): X on
+the load's own base (``|S|`` at the event's first sample), median 0.10 (WECC's default
+transformer reactance 0.08 plus feeder reactance 0.04 at about Fb 0.75), a factor 1.65
+either way, with ``R = rx X`` (``rx`` 0.35 by default: WECC's feeder R 0.04 against
+transformer plus feeder X 0.12).
+
+The shares of P among the parts and of the static part among Z, I and P are uniform on
+their simplex (Dirichlet(1, ..., 1)): every share in [0, 1], none favoured.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from types import MappingProxyType
+
+__all__ = ["FEEDER_X", "MOTOR_CLASSES", "MOTOR_KEYS", "prior_ranges"]
+
+#: A motor's parameters, in the order of the sampled coordinates' source values.
+MOTOR_KEYS = ("rs", "x_prime", "dx", "t_prime_s", "h_s", "t0")
+
+#: Each motor class: its torque law ``(A, B, C)`` of ``T0 (A w^2 + B w + C)``, what it
+#: stands for, and its log-normal prior ``(median, sd_log)`` per :data:`MOTOR_KEYS`.
+MOTOR_CLASSES: Mapping[str, Mapping] = MappingProxyType(
+    {
+        "a": {
+            "torque": (0.0, 0.0, 1.0),
+            "meaning": "motor A: compressors (constant torque, low inertia)",
+            "prior": {
+                "rs": (0.04, 0.45),
+                "x_prime": (0.13, 0.35),
+                "dx": (1.7, 0.3),
+                "t_prime_s": (0.10, 0.45),
+                "h_s": (0.12, 0.45),
+                "t0": (0.75, 0.25),
+            },
+        },
+        "b": {
+            "torque": (1.0, 0.0, 0.0),
+            "meaning": "motor B: fans and pumps (torque ~ speed^2, higher inertia)",
+            "prior": {
+                "rs": (0.03, 0.45),
+                "x_prime": (0.19, 0.35),
+                "dx": (1.6, 0.3),
+                "t_prime_s": (0.20, 0.45),
+                "h_s": (0.50, 0.5),
+                "t0": (0.75, 0.25),
+            },
+        },
+        "slm": {
+            "torque": (0.0, 0.0, 1.0),
+            "meaning": "the synthesis load model's lumped motor",
+            "prior": {
+                "rs": (0.035, 0.5),
+                "x_prime": (0.16, 0.4),
+                "dx": (1.7, 0.35),
+                "t_prime_s": (0.15, 0.6),
+                "h_s": (0.25, 0.7),
+                "t0": (0.75, 0.25),
+            },
+        },
+    }
+)
+
+#: The feeder's X on the load's base: (median, sd_log).
+FEEDER_X = (0.10, 0.5)
+
+
+def prior_ranges(cls: str, z: float = 1.959964) -> dict[str, tuple[float, float]]:
+    """The central 95 % range of each parameter of motor class ``cls`` under its prior."""
+    out = {}
+    for key, (median, sd) in MOTOR_CLASSES[cls]["prior"].items():
+        out[key] = (median * math.exp(-z * sd), median * math.exp(z * sd))
+    return out

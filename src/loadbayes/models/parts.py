@@ -1,0 +1,205 @@
+"""The parts a substation's load is built from: physics only, one function a part.
+
+A load seen from a recorder at a substation is, in the WECC composite load model's
+terms (WECC MVWG, "WECC Composite Load Model Specifications", 2015; its PSS/E record
+CMLDBLU2), a series impedance (the substation transformer and the feeder) between the
+recorded bus and a load bus, and behind it: three-phase induction motors (fast
+compressors, fans and pumps), single-phase air conditioners (motor D, a performance
+model that stalls), power electronics (constant power that trips when the voltage
+falls), a static ZIP part and shunt capacitors. Each function here gives one part's
+P, Q (or its negative-sequence admittance) on its own base from the voltage it sees;
+:mod:`loadbayes.models.parts_model` assembles them into a
+:class:`~loadbayes.models.base.DynamicLoadModel`.
+
+The series impedance: the recorder measures ``V`` and the current ``I = conj(S / V)``
+(``S = P + jQ``), so the load bus's voltage is ``V_L = V - Z I`` and the load draws
+``S_L = S - Z |I|^2`` (:func:`load_bus`), for any ``Z = R + jX`` without an algebraic
+loop. The recorded current carries the noise of P and Q into ``V_L``: ``|Z| dI``, for
+a feeder of 0.1 p.u. and 0.5 % noise about 5e-4 p.u., beside the noise of P and Q
+themselves; a prediction with no recorded current solves the loop instead
+(``parts_model.PartsModel.predict``, waveform relaxation).
+
+Motor D (:func:`motor_d`) is the WECC performance model of the single-phase air
+conditioner compressor (PNNL-17796, Lu, Xie and Huang 2008, "Air conditioner compressor
+performance model"; the WECC specification's motor D): running, its P and Q follow
+two power laws on either side of a break voltage ``Vbrk``; below ``Vstall`` for
+``Tstall`` it stalls and becomes the impedance ``Rstall + jXstall``; a fraction
+``Frst`` restarts after the voltage has stayed above ``Vrst`` for ``Trst``. The
+thermal relay, the contactors and the frequency terms are left out (they act over
+seconds, beyond a fault record's window), and said so in ``docs/composite.md``.
+
+The electronics (:func:`electronics_fraction`): constant P and Q; the share connected
+falls linearly from 1 at ``Vd1`` to 0 at ``Vd2`` and does not come back, except a
+fraction ``Frcel`` of what tripped (the WECC specification's electronic load).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from loadbayes.measurements.record import EventRecord
+
+__all__ = [
+    "MOTOR_D_DEFAULTS",
+    "LoadBus",
+    "electronics_fraction",
+    "load_bus",
+    "motor_d",
+    "motor_y2",
+]
+
+#: Motor D's constants (WECC composite load model specification, 2015, typical values;
+#: the run curves are PNNL-17796's fit to 27 tested units): break voltage, the two run
+#: curves' gains and exponents, the stall voltage, time and impedance (own base), the
+#: restart, and the compressor's power factor.
+MOTOR_D_DEFAULTS: dict[str, float] = {
+    "vbrk": 0.86,
+    "kp1": 0.0,
+    "np1": 1.0,
+    "kq1": 6.0,
+    "nq1": 2.0,
+    "kp2": 12.0,
+    "np2": 3.2,
+    "kq2": 11.0,
+    "nq2": 2.5,
+    "vstall": 0.60,
+    "tstall": 0.033,
+    "rstall": 0.10,
+    "xstall": 0.10,
+    "frst": 0.20,
+    "vrst": 0.95,
+    "trst": 0.30,
+    "comp_pf": 0.98,
+}
+
+
+@dataclass(frozen=True)
+class LoadBus:
+    """What the load bus sees behind a series impedance, from the recorded bus's data.
+
+    ``event`` is the load bus's own record (its V, angle, P, Q: the recorded ones less
+    the impedance's drop and losses); ``loss_p, loss_q`` the impedance's ``R |I|^2`` and
+    ``X |I|^2``; ``v2`` the negative-sequence voltage at the load bus (None without one).
+    """
+
+    event: EventRecord
+    loss_p: NDArray[np.float64]
+    loss_q: NDArray[np.float64]
+    v2: NDArray[np.complex128] | None
+
+
+def load_bus(event: EventRecord, r: float, x: float) -> LoadBus:
+    """The load bus behind ``Z = r + jx`` (system p.u.) from the recorded bus's data.
+
+    The angle is the recorded one plus the impedance's angle shift where the event has
+    an angle; without one it stays None (the motors then see a constant frame, as at
+    the recorded bus).
+    """
+    delta = np.zeros(event.n) if event.delta is None else event.delta
+    v = event.v * np.exp(1j * delta)
+    current = np.conj((event.p + 1j * event.q) / v)
+    z = complex(r, x)
+    vl = v - z * current
+    i2 = np.abs(current) ** 2
+    v2 = getattr(event, "v2", None)
+    i2_neg = getattr(event, "i2", None)
+    v2l = None
+    if v2 is not None and i2_neg is not None:
+        v2l = np.asarray(v2, dtype=complex) - z * np.asarray(i2_neg, dtype=complex)
+    ev = EventRecord(
+        event.t,
+        np.abs(vl),
+        event.p - r * i2,
+        event.q - x * i2,
+        None if event.delta is None else np.angle(vl),
+        event.name,
+        event.angle_from,
+    )
+    return LoadBus(ev, r * i2, x * i2, v2l)
+
+
+@numba.njit(cache=True, nogil=True)
+def _motor_d(t, v, vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2, vstall, tstall, rstall,
+             xstall, frst, vrst, trst, comp_pf):  # pragma: no cover - compiled  # fmt: skip
+    n = t.size
+    p = np.empty(n)
+    q = np.empty(n)
+    tan_phi = math.sqrt(1.0 - comp_pf * comp_pf) / comp_pf
+    # Run curves through (1, 1) and (1, tan_phi) on the unit's own base at V = 1.
+    p0 = 1.0 - kp1 * (1.0 - vbrk) ** np1
+    q0 = tan_phi - kq1 * (1.0 - vbrk) ** nq1
+    zz = rstall * rstall + xstall * xstall
+    gs, bs = rstall / zz, xstall / zz
+    running = 1.0  # the share of the units running (the rest stalled)
+    below = 0.0  # time spent below vstall
+    above = 0.0  # time spent above vrst after a stall
+    stalled = False
+    restarted = False
+    for k in range(n):
+        dt = 0.0 if k == 0 else t[k] - t[k - 1]
+        vk = v[k]
+        if not stalled:
+            below = below + dt if vk < vstall else 0.0
+            if below >= tstall:
+                stalled, running = True, 0.0
+        elif not restarted:
+            above = above + dt if vk > vrst else 0.0
+            if above >= trst:
+                restarted, running = True, frst
+        if vk >= vbrk:
+            pr = p0 + kp1 * (vk - vbrk) ** np1
+            qr = q0 + kq1 * (vk - vbrk) ** nq1
+        else:
+            pr = p0 + kp2 * (vbrk - vk) ** np2
+            qr = q0 + kq2 * (vbrk - vk) ** nq2
+        p[k] = running * pr + (1.0 - running) * gs * vk * vk
+        q[k] = running * qr + (1.0 - running) * bs * vk * vk
+    return p, q
+
+
+def motor_d(t: NDArray, v: NDArray, **params: float) -> tuple[NDArray, NDArray]:
+    """Motor D's P, Q on its own base (P = 1 at V = 1 running) at the samples ``(t, v)``.
+
+    ``params`` override :data:`MOTOR_D_DEFAULTS` by name. Stalling is decided on the
+    samples (a dip shorter than a sample interval is not seen).
+    """
+    kw = {**MOTOR_D_DEFAULTS, **params}
+    unknown = set(params) - set(MOTOR_D_DEFAULTS)
+    if unknown:
+        raise ValueError(f"motor D has no parameter {sorted(unknown)[0]!r}")
+    return _motor_d(np.asarray(t, dtype=float), np.asarray(v, dtype=float),
+                    *(float(kw[k]) for k in MOTOR_D_DEFAULTS))  # fmt: skip
+
+
+def electronics_fraction(v: NDArray, vd1: float, vd2: float, frcel: float = 0.0) -> NDArray:
+    """The share of the electronics connected at each sample (1 before the event).
+
+    Linear from 1 at ``vd1`` down to 0 at ``vd2``; what tripped stays off except the
+    fraction ``frcel`` of it, which follows the voltage back up.
+    """
+    ramp = np.clip((np.asarray(v, dtype=float) - vd2) / (vd1 - vd2), 0.0, 1.0)
+    low = np.minimum.accumulate(ramp)
+    return low + frcel * (ramp - low)
+
+
+def motor_y2(rs, xp, dx, tp_s, f_hz: float, slip: float = 0.0):
+    """A running motor's negative-sequence admittance on its own base (vectorised).
+
+    The rotor sees the negative sequence at slip ``2 - s``: the equivalent circuit
+    ``Z2 = Rs + jXs + jXm || (Rr / (2 - s) + jXr)``, with the closure of
+    ``models/composite.py`` (``X = X' + (X - X')``, ``Xm = sqrt(X (X - X'))``,
+    ``Xs = Xr = X - Xm``, ``Rr = X / (wb T')``). Close to the locked-rotor impedance
+    ``Rs + Rr / 2 + jX'``: a running motor draws a large negative-sequence current.
+    """
+    x = xp + dx
+    xm = np.sqrt(x * dx)
+    xs = x - xm
+    rr = x / (2.0 * math.pi * f_hz * tp_s)
+    rotor = rr / (2.0 - slip) + 1j * xs
+    z2 = rs + 1j * xs + (1j * xm * rotor) / (rotor + 1j * xm)
+    return 1.0 / z2

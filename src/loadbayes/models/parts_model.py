@@ -1,0 +1,441 @@
+"""A dynamic load built from parts: feeder, motors, motor D, electronics, static ZIP.
+
+:class:`PartsModel` is a :class:`~loadbayes.models.base.DynamicLoadModel` whose load is
+assembled from the parts of :mod:`loadbayes.models.parts` behind an optional series
+impedance; the named models (``slm``, ``cmld-lite``) are its instances with their parts
+chosen (``models/slm.py``, ``models/cmld_lite.py``).
+
+**What is sampled and what is linear.** The shares are physical by construction: the
+shares of the load's P among the parts (static, each motor, motor D, electronics) and
+of the static P among Z, I and P (and of the static Q) are sampled on their simplex in
+additive log-ratio coordinates, under a uniform Dirichlet prior. Each event's linear
+coefficients are the load bus's P at its first sample and the static part's Q as
+constant-impedance, -current and -power terms, ``beta = (p0, cq2, cq1, cq0)``,
+integrated out exactly (the Q terms take either sign: the static part's Q and the
+shunt capacitors, a negative constant-impedance term, are one column)::
+
+    P_L(t) = p0 [f_s (a1 x^2 + a2 x + a3) + sum_k f_k p_k(t) / p_k(0)
+                 + f_d p_d(t) / p_d(0) + f_e e(t)]
+    Q_L(t) = cq2 x^2 + cq1 x + cq0
+             + p0 [sum_k f_k (q_k(t) - q_k(0) x^2) / p_k(0) + f_d (...)]
+
+with ``x = V_L / V_L(0)`` the load bus's voltage, ``p_k, q_k`` each motor's own-base
+response (``models/motor_kernel``), ``p_d, q_d`` motor D's, ``e`` the electronics'
+connected share. Each dynamic part's magnetising Q at the first sample is compensated
+by a shunt capacitor (as in ``zip+motor`` and the WECC model), so ``q0 = cq2 + cq1 +
+cq0`` is the whole load's Q. The recorded P, Q are ``P_L, Q_L`` plus the feeder's losses
+(``parts.load_bus``).
+
+Each motor is sampled in its scale-free coordinates (``log(Rs T0), log(X' T0),
+log((X - X') T0), log T', log(H / T0)``: what a positive-sequence record determines)
+and ``log T0``, which positive-sequence data never see and the negative sequence does
+(a running motor's negative-sequence admittance is about its rating over ``Rs + jX'``).
+The Gaussian log-normal priors of the physical parameters are mapped exactly into
+those coordinates (:class:`PartsPrior`).
+
+**The negative sequence as data.** Where an event carries the negative-sequence
+phasors ``v2, i2`` (``EventRecord``) and is unbalanced (some ``|V2|`` above
+:data:`NEG_SEQ_MIN`), the rows where ``|V2|`` is that large add a third channel:
+``I2 = V2_L (p0 Y_p - j q0 / V_L(0)^2)`` with each part's negative-sequence admittance (the
+motors at slip ``2 - s`` with their capacitors, the static part and motor D as the
+constant impedances of their operating points, the electronics none), behind the same
+series impedance, with its own noise precision.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.base import ModelOptionError
+from loadbayes.models.composite import motor_physical, motor_response
+from loadbayes.models.motor_kernel import steady_state
+from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS
+from loadbayes.models.parts import (
+    MOTOR_D_DEFAULTS,
+    electronics_fraction,
+    load_bus,
+    motor_d,
+    motor_y2,
+)
+
+__all__ = ["NEG_SEQ_MIN", "PartsModel", "PartsPrior"]
+
+#: |V2| (p.u.) above which a row's negative sequence is data: below it the current is
+#: the recorder's noise and the load's own imbalance more than the fault's.
+NEG_SEQ_MIN = 0.02
+# Scale-free motor coordinates from the logs of (Rs, X', X - X', T', H, T0).
+_SCALE_FREE = np.array(
+    [
+        [1.0, 0, 0, 0, 0, 1],
+        [0, 1, 0, 0, 0, 1],
+        [0, 0, 1, 0, 0, 1],
+        [0, 0, 0, 1, 0, 0],
+        [0, 0, 0, 0, 1, -1],
+        [0, 0, 0, 0, 0, 1],
+    ]
+)
+_MOTOR_COORDS = ("log_rs_t0", "log_x_prime_t0", "log_dx_t0", "log_t_prime", "log_h_over_t0",
+                 "log_t0")  # fmt: skip
+# Additive log-ratios of a uniform Dirichlet: each logistic, sd pi/sqrt(3), and any two
+# sharing a denominator correlated by var(log E) = pi^2/6 (the NLS start's Gaussian).
+_ALR_VAR, _ALR_COV = math.pi**2 / 3, math.pi**2 / 6
+
+
+@dataclass(frozen=True)
+class PartsPrior:
+    """The prior of a :class:`PartsModel`: Gaussian coordinates and Dirichlet shares.
+
+    ``mean, cov`` are the Gaussian block of the sampled vector (the feeder's and the
+    motors' coordinates, first ``n_gauss`` entries); ``groups`` the index ranges of the
+    additive log-ratio coordinates of each simplex (a uniform Dirichlet each).
+    """
+
+    mean: np.ndarray
+    cov: np.ndarray
+    groups: tuple[tuple[int, int], ...]
+    beta_sd: np.ndarray
+    tau_shape: float = 1e-3
+    tau_rate: float = 1e-9
+    positive: int | None = 0
+
+    def __post_init__(self) -> None:
+        n = self.mean.size + sum(b - a for a, b in self.groups)
+        full_mean = np.zeros(n)
+        full_mean[: self.mean.size] = self.mean
+        full = np.zeros((n, n))
+        full[: self.mean.size, : self.mean.size] = self.cov
+        for a, b in self.groups:
+            full[a:b, a:b] = _ALR_COV
+            full[range(a, b), range(a, b)] = _ALR_VAR
+        object.__setattr__(self, "_full", (full_mean, full))
+        object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
+
+    def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(mean, cov, gain, sd_cond)``: the Gaussian stand-in of every coordinate."""
+        mean, cov = self._full
+        return mean, cov, np.zeros(mean.size), 0.0
+
+    def log_u(self, u: np.ndarray) -> float:
+        """Log prior density at ``u`` up to a constant."""
+        u = np.asarray(u, dtype=float)
+        d = u[: self.mean.size] - self.mean
+        out = -0.5 * float(d @ self._prec @ d)
+        for a, b in self.groups:
+            # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
+            z = np.append(u[a:b], 0.0)
+            out += float(z.sum() - z.size * np.logaddexp.reduce(z))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (for the output's settings)."""
+        return {
+            "gaussian": {"mean": self.mean.tolist(), "sd": np.sqrt(np.diag(self.cov)).tolist()},
+            "simplexes": [list(g) for g in self.groups],
+            "beta_sd": self.beta_sd.tolist(),
+            "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
+        }
+
+
+def _softmax(z: NDArray) -> NDArray:
+    z = np.concatenate([z, np.zeros(z.shape[:-1] + (1,))], axis=-1)
+    e = np.exp(z - z.max(axis=-1, keepdims=True))
+    return e / e.sum(axis=-1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class PartsModel:
+    """A load of parts behind a feeder (see the module docstring)."""
+
+    name: ClassVar[str] = "parts"
+    motors: tuple[str, ...] = ("slm",)
+    feeder: bool = True
+    motor_d: bool = False
+    electronics: bool = False
+    f_hz: float = 60.0
+    rx: float = 0.35
+    negative_sequence: str = "auto"
+    vd1: float = 0.70
+    vd2: float = 0.50
+    frcel: float = 0.0
+    motor_d_params: Mapping[str, float] = field(default_factory=dict)
+    priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    coefficient_priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for m in self.motors:
+            if m not in MOTOR_CLASSES:
+                raise ModelOptionError(f"{{motors}}: no motor class {m!r} (one of "
+                                       f"{', '.join(MOTOR_CLASSES)})")  # fmt: skip
+        if not (math.isfinite(self.f_hz) and self.f_hz > 0):
+            raise ModelOptionError(f"{{f_hz}} {self.f_hz!r}: a positive frequency")
+        if self.negative_sequence not in ("auto", "on", "off"):
+            raise ModelOptionError("{negative_sequence}: one of auto, on, off")
+        if not 0 <= self.vd2 < self.vd1 <= 1.2:
+            raise ModelOptionError("{vd1} and {vd2}: 0 <= vd2 < vd1")
+        unknown = set(self.motor_d_params) - set(MOTOR_D_DEFAULTS)
+        if unknown:
+            raise ModelOptionError(f"{{motor_d_params}}: no parameter {sorted(unknown)[0]!r}")
+        if self.coefficient_priors:
+            raise ModelOptionError("{coefficient_priors}: the shares of a model of parts are "
+                                   "on their simplex already; give priors by name")  # fmt: skip
+        tags = [self._tag(m) for m in self.motors]
+        parts = [f"m{t}" for t in tags] + ["d"] * self.motor_d + ["el"] * self.electronics
+        names: list[str] = ["log_x_fd"] if self.feeder else []
+        for t in tags:
+            names += [c + t for c in _MOTOR_COORDS]
+        n_gauss = len(names)
+        names += [f"lr_{p}" for p in parts]  # log(f_part / f_static)
+        names += ["lr_a1", "lr_a2"]
+        known = {*MOTOR_KEYS} | {"x_fd"}
+        for key in self.priors:
+            base = key.rsplit("_", 1)[0] if key.rsplit("_", 1)[-1] in ("a", "b") else key
+            if base not in known:
+                raise ModelOptionError(f"{{priors}}: no parameter {key!r} to set a prior on")
+        set_ = object.__setattr__
+        set_(self, "theta_names", tuple(names))
+        set_(self, "free_coordinates", tuple(names))
+        set_(self, "scale_free", np.eye(len(names)))
+        set_(self, "beta_names", ("p0", "cq2", "cq1", "cq0"))
+        set_(self, "parts", tuple(parts))
+        set_(self, "_n_gauss", n_gauss)
+        set_(self, "_tags", tuple(tags))
+        set_(self, "_cache", {})
+
+    def _tag(self, m: str) -> str:
+        return "" if len(self.motors) == 1 else f"_{m}"
+
+    # -- the prior ---------------------------------------------------------------------
+
+    def default_prior(self, events: Sequence[EventRecord]) -> PartsPrior:
+        """Log-normal physical priors mapped into the sampled coordinates, flat shares."""
+        means, blocks = [], []
+        if self.feeder:
+            med, sd = self.priors.get("x_fd", FEEDER_X)
+            means.append([math.log(med)])
+            blocks.append(np.array([[sd * sd]]))
+        for m, t in zip(self.motors, self._tags, strict=True):
+            cls = MOTOR_CLASSES[m]["prior"]
+            med = np.array([math.log(self.priors.get(k + t, cls[k])[0]) for k in MOTOR_KEYS])
+            sd = np.array([self.priors.get(k + t, cls[k])[1] for k in MOTOR_KEYS])
+            means.append(_SCALE_FREE @ med)
+            blocks.append(_SCALE_FREE @ np.diag(sd**2) @ _SCALE_FREE.T)
+        n = self._n_gauss
+        cov = np.zeros((n, n))
+        i = 0
+        for b in blocks:
+            cov[i : i + b.shape[0], i : i + b.shape[0]] = b
+            i += b.shape[0]
+        k = len(self.parts)
+        groups = ((n, n + k), (n + k, n + k + 2))
+        s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
+        return PartsPrior(np.concatenate(means) if means else np.zeros(0), cov, groups,
+                          np.full(4, 10 * s))  # fmt: skip
+
+    # -- the physics -------------------------------------------------------------------
+
+    def _split(self, theta: NDArray) -> dict[str, Any]:
+        th = np.asarray(theta, dtype=float)
+        out: dict[str, Any] = {}
+        i = 0
+        if self.feeder:
+            out["x_fd"] = np.exp(th[..., 0])
+            i = 1
+        inv = np.linalg.inv(_SCALE_FREE)
+        out["motors"] = []
+        for _ in self.motors:
+            logs = th[..., i : i + 6] @ inv.T
+            out["motors"].append(logs)
+            i += 6
+        k = len(self.parts)
+        f = _softmax(th[..., i : i + k])  # parts..., static last
+        out["f"] = f
+        out["a_p"] = _softmax(th[..., i + k : i + k + 2])
+        return out
+
+    def uses_negative_sequence(self, event: EventRecord) -> bool:
+        """Whether ``event``'s negative sequence enters the likelihood (see the docstring)."""
+        if self.negative_sequence == "off":
+            return False
+        v2, i2 = getattr(event, "v2", None), getattr(event, "i2", None)
+        if v2 is None or i2 is None:
+            if self.negative_sequence == "on":
+                raise ModelOptionError(
+                    f"{{negative_sequence}} on: event {event.name or ''} has no v2, i2 columns"
+                )
+            return False
+        return int(np.sum(np.abs(v2) >= NEG_SEQ_MIN)) >= 3
+
+    def channels(self, event: EventRecord, theta: NDArray) -> list[tuple[NDArray, NDArray]] | None:
+        """Each channel's design on ``beta = (p0, q0)`` and target: P, Q and maybe I2."""
+        c = self._split(theta)
+        s_load = float(np.hypot(event.p[0], event.q[0]))
+        x_fd = float(c["x_fd"]) / s_load if self.feeder else 0.0
+        lb = load_bus(event, self.rx * x_fd, x_fd)
+        ev = lb.event
+        xl = ev.v / ev.v[0]
+        f = c["f"]
+        a_p = c["a_p"]
+        col_p = f[-1] * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
+        col_qp = np.zeros(ev.n)
+        v0 = ev.v[0]
+        y2p = f[-1] / v0**2 + 0j
+        for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
+            resp = self._motor(ev, logs, m, x_fd)
+            if resp is None:
+                return None
+            pm, qm = resp
+            col_p += f[j] * pm / pm[0]
+            col_qp += f[j] * (qm - qm[0] * xl * xl) / pm[0]
+            rs, xp, dx, tp = np.exp(logs[:4])
+            y2p += f[j] / pm[0] * (motor_y2(rs, xp, dx, tp, self.f_hz) + 1j * qm[0] / v0**2)
+        j = len(self.motors)
+        if self.motor_d:
+            pd, qd = motor_d(ev.t, ev.v, **self.motor_d_params)
+            col_p += f[j] * pd / pd[0]
+            col_qp += f[j] * (qd - qd[0] * xl * xl) / pd[0]
+            y2p += f[j] / v0**2
+            j += 1
+        if self.electronics:
+            col_p += f[j] * electronics_fraction(ev.v, self.vd1, self.vd2, self.frcel)
+        zero = np.zeros(ev.n)
+        out = [
+            (np.column_stack([col_p, zero, zero, zero]), ev.p),
+            (np.column_stack([col_qp, xl * xl, xl, np.ones(ev.n)]), ev.q),
+        ]
+        if self.negative_sequence != "off":
+            out.append(self._i2(event, lb, y2p, v0))
+        for z, y in out:
+            if not (np.isfinite(z).all() and np.isfinite(y).all()):
+                return None
+        return out
+
+    def _motor(self, ev: EventRecord, logs: NDArray, m: str, x_fd: float):
+        # A motor's response, remembered for the last few (event, feeder, motor) keys: a
+        # move of the shares alone (the sampler's cheap steps) reuses it.
+        key = (id(ev.t), ev.n, float(x_fd), m, logs.tobytes())
+        cache = self._cache
+        if key in cache:
+            return cache[key]
+        out = motor_response(ev, logs, f_hz=self.f_hz, torque=MOTOR_CLASSES[m]["torque"])
+        if len(cache) > 256:
+            cache.clear()
+        cache[key] = out
+        return out
+
+    def _i2(self, event, lb, y2p, v0) -> tuple[NDArray, NDArray]:
+        if not self.uses_negative_sequence(event):
+            return np.zeros((0, len(self.beta_names))), np.zeros(0)
+        rows = np.abs(np.asarray(event.v2)) >= NEG_SEQ_MIN
+        v2l = lb.v2[rows]
+        c1, c2 = v2l * y2p, v2l * (-1j / v0**2)
+        i2 = np.asarray(event.i2)[rows]
+        z = np.vstack([np.column_stack([c1.real, c2.real, c2.real, c2.real]),
+                       np.column_stack([c1.imag, c2.imag, c2.imag, c2.imag])])  # fmt: skip
+        return z, np.concatenate([i2.real, i2.imag])
+
+    @property
+    def channel_names(self) -> tuple[str, ...]:
+        """The likelihood's channels: P, Q and (unless off) the negative-sequence current."""
+        return ("p", "q") if self.negative_sequence == "off" else ("p", "q", "i2")
+
+    # -- the protocol's response/design (P and Q only), and what a draw means ----------
+
+    def response(self, event: EventRecord, theta: NDArray) -> tuple | None:  # noqa: D102
+        ch = self.channels(event, theta)
+        return None if ch is None else tuple(ch)
+
+    def design(self, event: EventRecord, *channels) -> tuple[NDArray, NDArray]:  # noqa: D102
+        return channels[0][0], channels[1][0]
+
+    def composition(self, beta: NDArray, *response0: NDArray) -> dict[str, NDArray]:
+        """``p0, q0`` at the load bus's first sample and the static Q's terms (system p.u.)."""
+        b = np.asarray(beta, dtype=float)
+        return {"p0": b[..., 0], "q0": b[..., 1] + b[..., 2] + b[..., 3],
+                "cq2": b[..., 1], "cq1": b[..., 2], "cq0": b[..., 3]}  # fmt: skip
+
+    def physical(self, theta: NDArray) -> dict[str, NDArray]:
+        """Every part's parameters and share, vectorised over draws."""
+        c = self._split(theta)
+        out: dict[str, NDArray] = {}
+        if self.feeder:
+            out["x_fd"] = c["x_fd"]
+            out["r_fd"] = self.rx * c["x_fd"]
+        for logs, t in zip(c["motors"], self._tags, strict=True):
+            for k, v in motor_physical(logs, f_hz=self.f_hz).items():
+                out[k + t] = v
+        f = c["f"]
+        for j, p in enumerate(self.parts):
+            out["f_" + p] = f[..., j]
+        out["f_s"] = f[..., -1]
+        motor_total = sum(f[..., j] for j, p in enumerate(self.parts) if p.startswith("m"))
+        out["f_motors"] = np.asarray(motor_total)
+        for i, name in enumerate(("a1", "a2", "a3")):
+            out[name] = c["a_p"][..., i]
+        return out
+
+    def ratings(self, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:
+        """Each motor's rating (system p.u. of MVA) per draw: ``f_k p0 / p_k(0)``."""
+        th = np.atleast_2d(np.asarray(theta, dtype=float))
+        p0 = np.atleast_1d(np.asarray(p0, dtype=float))
+        c = self._split(th)
+        wb = 2 * math.pi * self.f_hz
+        out = {}
+        for j, (m, logs, t) in enumerate(zip(self.motors, c["motors"], self._tags, strict=True)):
+            a, b, cc = MOTOR_CLASSES[m]["torque"]
+            mva = np.full(th.shape[0], np.nan)
+            for i in range(th.shape[0]):
+                x_fd = float(c["x_fd"][i]) if self.feeder else 0.0
+                s_load = float(np.hypot(event.p[0], event.q[0]))
+                vl = abs(event.v[0] - complex(self.rx, 1.0) * x_fd / s_load
+                         * np.conj(complex(event.p[0], event.q[0]) / event.v[0]))  # fmt: skip
+                rs, xp, dx, tp, h, t0 = np.exp(logs[i])
+                pm0 = steady_state(rs, xp, dx, tp, wb, vl, t0, a, b, cc)[3]
+                mva[i] = c["f"][i, j] * p0[i] / pm0
+            out["mva" + (t or "_m")] = mva
+        return out
+
+    @property
+    def quantities(self) -> dict[str, tuple[str, str]]:
+        """Unit and meaning of every named draw."""
+        sys_, mb = "p.u. system base", "p.u. motor base"
+        q: dict[str, tuple[str, str]] = {
+            "p0": (sys_, "load-bus P at the first sample (behind the feeder)"),
+            "q0": (sys_, "load-bus Q at the first sample (behind the feeder)"),
+            "x_fd": ("p.u. load base", "series X: transformer and feeder"),
+            "r_fd": ("p.u. load base", "series R: transformer and feeder"),
+            "f_s": ("-", "static part's share of P"),
+            "f_motors": ("-", "three-phase motors' share of P, all together"),
+            "f_d": ("-", "motor D's (single-phase A/C) share of P"),
+            "f_el": ("-", "power electronics' share of P"),
+            "a1": ("-", "static P: constant-impedance share"),
+            "a2": ("-", "static P: constant-current share"),
+            "a3": ("-", "static P: constant-power share"),
+            "cq2": (sys_, "static Q and capacitors: constant-impedance term"),
+            "cq1": (sys_, "static Q: constant-current term"),
+            "cq0": (sys_, "static Q: constant-power term"),
+            "tau_p": ("1/(p.u.)^2", "noise precision of P"),
+            "tau_q": ("1/(p.u.)^2", "noise precision of Q"),
+            "tau_i2": ("1/(p.u.)^2", "noise precision of the negative-sequence current"),
+        }
+        for m, t in zip(self.motors, self._tags, strict=True):
+            what = MOTOR_CLASSES[m]["meaning"]
+            q["f_m" + t] = ("-", f"{what}: share of P")
+            q["mva" + (t or "_m")] = (sys_, f"{what}: rating (MVA)")
+            for k, (unit, meaning) in {
+                "rs": (mb, "stator resistance Rs"), "xs": (mb, "stator leakage Xs"),
+                "xm": (mb, "magnetising Xm"), "rr": (mb, "rotor resistance Rr"),
+                "xr": (mb, "rotor leakage Xr"), "h_s": ("s, motor base", "inertia H"),
+                "t0": (mb, "load torque T0"), "x_prime": (mb, "transient X'"),
+                "x_open": (mb, "open-circuit X"), "t_prime_s": ("s", "transient T'"),
+            }.items():  # fmt: skip
+                q[k + t] = (unit, f"{what}: {meaning}")
+        for name in self.theta_names:
+            q.setdefault(name, ("-", "sampled coordinate"))
+        return q
