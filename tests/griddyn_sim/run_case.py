@@ -33,15 +33,9 @@ def _write_case(directory: Path, spec: dict, y_fault: complex, t_end: float) -> 
     (directory / "case.dyr").write_text(spec["dyr"])
     target = spec["fault_load"]
     t_on, t_off = spec["t_fault_s"], spec["t_clear_s"]
-    # The fault is set again every ``refresh_s`` while it lasts: each setting stops the
-    # solver, and GridDyn checks motor D's stall timer only where the solver stops.
-    times = [t_on]
-    while times[-1] + spec["refresh_s"] < t_off - 1e-9:
-        times.append(round(times[-1] + spec["refresh_s"], 9))
     events = "".join(
         f"<event><target>{target}</target><field>{field}</field>"
-        f"<time>{','.join(repr(t) for t in [*times, t_off])}</time>"
-        f"<value>{','.join([repr(value)] * len(times))},0</value></event>\n"
+        f"<time>{t_on!r},{t_off!r}</time><value>{value!r},0</value></event>\n"
         for field, value in (("yp", y_fault.real), ("yq", y_fault.imag))
     )
     xml = (
