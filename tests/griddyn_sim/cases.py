@@ -65,15 +65,16 @@ def skip_reason() -> str | None:
     """One line saying why GridDyn cases cannot run here, or None when they can."""
     python = griddyn_python()
     if python is None:
-        return (
-            "GridDyn missing: no .venv-griddyn (make test builds it when python3.13 exists)"
-            " and LOADBAYES_GRIDDYN_PYTHON unset"
-        )
+        named = os.environ.get("LOADBAYES_GRIDDYN_PYTHON")
+        if named:
+            return f"GridDyn missing: LOADBAYES_GRIDDYN_PYTHON={named} does not exist"
+        return "GridDyn missing: no .venv-griddyn (make test builds it when python3.13 exists)"
     probe = subprocess.run(
         [str(python), "-c", "import griddyn"], capture_output=True, text=True, timeout=60
     )
     if probe.returncode != 0:
-        return f"GridDyn does not import in {python}: {probe.stderr.strip().splitlines()[-1:]}"
+        last = (probe.stderr.strip().splitlines() or ["no message"])[-1]
+        return f"GridDyn does not import in {python}: {last}"
     return None
 
 
