@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint bench validate clean
+.PHONY: demo test test-fast lint bench validate clean griddyn-env
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,7 +18,7 @@ demo: $(STAMP)
 
 # The browser test of the HTML report needs Debian's chromium: installed here when
 # missing and possible (CI runs as root); otherwise that one test says why it skips.
-test: $(STAMP)
+test: $(STAMP) griddyn-env
 	command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } || echo "chromium missing: the browser test will skip"
 	$(VENV)/bin/ruff check src tests benchmarks
 	$(PY) -m pytest -n 2 -q tests
@@ -42,6 +42,21 @@ $(BENCH_VENV)/.installed: pyproject.toml
 bench: $(BENCH_VENV)/.installed
 	$(BENCH_VENV)/bin/python benchmarks/run_all.py
 
+# GridDyn (the independent CMLD simulator of tests/griddyn_sim) needs Python >= 3.13: an
+# environment of its own. Without a python3.13 (on PATH or under pyenv) `make test` goes
+# on and the GridDyn tests skip, saying why.
+PYTHON313 ?= $(shell for p in python3.13 $${PYENV_ROOT:-$$HOME/.pyenv}/versions/3.13*/bin/python3.13; do \
+	"$$p" -c 'import sys; assert sys.version_info >= (3, 13)' >/dev/null 2>&1 && { command -v "$$p"; break; }; done)
+GRIDDYN_VENV := .venv-griddyn
+$(GRIDDYN_VENV)/.installed:
+	$(PYTHON313) -m venv $(GRIDDYN_VENV)
+	$(GRIDDYN_VENV)/bin/python -m pip install --quiet griddyn==0.13.0 numpy
+	touch $@
+
+griddyn-env:
+	@if [ -n "$(PYTHON313)" ]; then $(MAKE) --no-print-directory $(GRIDDYN_VENV)/.installed; \
+	else echo "python3.13 missing: the GridDyn tests will skip"; fi
+
 validate: $(STAMP)
 	$(PY) -m loadbayes.studies.calibration.run --out results/validation
 	$(PY) -m loadbayes.studies.calibration.composite_recovery --events 200 \
@@ -54,4 +69,4 @@ validate: $(STAMP)
 		tests/integration/test_cli_exit_clean.py
 
 clean:
-	rm -rf $(VENV) $(BENCH_VENV) results .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(BENCH_VENV) $(GRIDDYN_VENV) results .pytest_cache .ruff_cache
