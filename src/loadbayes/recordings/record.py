@@ -15,6 +15,12 @@ Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fi
 - ``v2``: the negative-sequence share ``|V2| / |V1|`` of the voltage; ``unbalanced`` is
   true where it exceeds :data:`UNBALANCE_LIMIT`: there the negative-sequence power, which
   the positive-sequence model does not describe, is part of what the load draws;
+  ``i2``: ``|I2| / |I1|``;
+- ``v2_re, v2_im``, ``i2_re, i2_im``: the negative-sequence phasors
+  ``V2 = (Va + a^2 Vb + a Vc) / 3`` (per unit of the phase base, as ``v``) and ``I2``
+  (per unit of ``S_base / (3 V_base)``, so that ``p + jq = 3 V1 conj(I1)`` per unit of
+  the 3-phase base reads ``V1 conj(I1)`` in these units), in the frame of ``angle_rad``
+  (``V1 = v exp(j angle_rad)``): the load's negative-sequence admittance is ``I2 / V2``;
 - ``f``: frequency (Hz) from the turn of ``V1`` between neighbouring estimates;
 - ``residual``: the worst voltage channel's relative misfit in the window; ``straddle``
   is true where it exceeds :data:`STRADDLE_LIMIT` (a window across a step, which no
@@ -23,7 +29,7 @@ Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fi
   :data:`~loadbayes.recordings.phasor_fit.HALF_STEP_LIMIT`);
 - ``va, vb, vc, ia, ib, ic``: per-phase RMS magnitudes (per unit).
 
-One idea needs these 461 lines: a record's table, its phasor rows (above) and its
+One idea needs these 467 lines: a record's table, its phasor rows (above) and its
 amplitude rows (below) built from the waveforms (and a timed probe of the same fit, for
 the cost said before a long read).
 Amplitude rows (``kind = "amplitude"``) hold only ``va .. ic`` (RMS, per unit; whether
@@ -41,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from loadbayes.io.errors import DataError
+from loadbayes.measurements.record import SEQUENCE_COLUMNS, UNBALANCE_LIMIT
 from loadbayes.recordings.comtrade import Waveforms
 from loadbayes.recordings.phasor_fit import fit_phasors
 
@@ -53,8 +60,6 @@ __all__ = [
     "record_table",
 ]
 
-#: Negative-sequence voltage share above which a sample is flagged ``unbalanced``.
-UNBALANCE_LIMIT = 0.05
 #: Relative misfit of a window above which it is flagged as straddling a step.
 STRADDLE_LIMIT = 0.02
 #: Median share of the fundamental in a waveform segment's voltage windows below which
@@ -65,7 +70,7 @@ _A = np.exp(2j * np.pi / 3)
 COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
     "unbalanced", "residual", "straddle", "dc_filtered", "va", "vb", "vc", "ia", "ib",
-    "ic", "segment", "kind",
+    "ic", "segment", "kind", *SEQUENCE_COLUMNS,
 )  # fmt: skip
 
 
@@ -136,6 +141,7 @@ def _waveform_rows(
             t_s=fit.t_s, v=np.abs(v1), angle_rad=np.angle(v1), p=s1.real, q=s1.imag, f=f,
             p_total=st.real, q_total=st.imag, v2=np.abs(v2) / np.abs(v1),
             i2=np.abs(i2) / np.abs(i1), residual=fit.residual[:3].max(axis=0),
+            v2_re=v2.real, v2_im=v2.imag, i2_re=i2.real, i2_im=i2.imag,
             _share=fit.share[:3].min(axis=0),
             va=np.abs(vph[0]), vb=np.abs(vph[1]), vc=np.abs(vph[2]),
             ia=np.abs(iph[0]), ib=np.abs(iph[1]), ic=np.abs(iph[2]),
@@ -348,9 +354,9 @@ def record_table(
     for k, (_, rows) in enumerate(parts):
         rows = dict(rows)
         rows["segment"] = np.full(rows["t_s"].size, k, dtype=np.int64)
-        for c in ("v", "va", "vb", "vc"):
+        for c in ("v", "va", "vb", "vc", "v2_re", "v2_im"):
             rows[c] = rows[c] / vb
-        for c in ("ia", "ib", "ic"):
+        for c in ("ia", "ib", "ic", "i2_re", "i2_im"):
             rows[c] = rows[c] / ib
         for c in ("p", "q", "p_total", "q_total"):
             rows[c] = rows[c] / sb
