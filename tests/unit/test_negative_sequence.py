@@ -253,3 +253,49 @@ def test_bases_scale_the_sequence_as_v_and_p_over_v(tmp_path):
     (a,) = read_events([str(tmp_path / "kv.csv")], v_base=kv, s_base=mva, f_hz=50.0)
     (b,) = read_events([str(tmp_path / "pu.csv")], f_hz=50.0)
     assert a.v2 == pytest.approx(b.v2) and a.i2 == pytest.approx(b.i2)
+
+
+def test_pmu_per_phase_phasors_give_v2_and_i2_through_events(tmp_path):
+    # A PMU's per-phase phasors (100 reports/s, kV and kA, degrees) of the generated
+    # fault: the reader's V2, I2 are the generator's exactly (no window here), and
+    # `events` on its table carries them into the event file and EventRecord.
+    from loadbayes.recordings.pmu import load_map, read_pmu
+    from sequence_generator import generate
+
+    t, seq_v, seq_i, _, truth = generate(f_hz=F_HZ, rate_hz=1000.0)
+    keep = slice(0, None, 10)
+    t, seq_v, seq_i = t[keep], seq_v[:, keep], seq_i[:, keep]
+    v_ph = V_BASE / math.sqrt(3)  # kV
+    i_b = S_BASE / (3 * v_ph)  # kA
+    phase = np.array([[1, 1, 1], [1, A**2, A], [1, A, A**2]])  # a, b, c from 0, 1, 2
+    vph, iph = phase @ seq_v * v_ph, phase @ seq_i * i_b
+    df = pd.DataFrame({"timestamp": pd.Timestamp("2026-01-01", tz="UTC") + pd.to_timedelta(t, "s")})
+    df["timestamp"] = df["timestamp"].map(lambda x: x.isoformat())
+    for k, ph in enumerate("abc"):
+        df[f"v{ph}_mag"], df[f"v{ph}_ang"] = np.abs(vph[k]), np.degrees(np.angle(vph[k]))
+        df[f"i{ph}_mag"], df[f"i{ph}_ang"] = np.abs(iph[k]), np.degrees(np.angle(iph[k]))
+    df.to_csv(tmp_path / "pmu.csv", index=False)
+    cols = {f"{x}_{k}": ",".join(f"{x[0]}{ph}_{k}" for ph in "abc")
+            for x in ("v", "i") for k in ("mag", "ang")}  # fmt: skip
+    m = load_map(None, voltage="kV", current="kA", v_kv=V_BASE, s_mva=S_BASE, **cols)
+    rec = read_pmu(tmp_path / "pmu.csv", m)
+    d = rec.data
+    assert d["v2_re"] + 1j * d["v2_im"] == pytest.approx(seq_v[2], abs=1e-9)
+    assert d["i2_re"] + 1j * d["i2_im"] == pytest.approx(seq_i[2], abs=1e-9)
+    v1 = d["v"] * np.exp(1j * d["angle_rad"])  # the frame of angle_rad
+    assert v1 == pytest.approx(seq_v[1], abs=1e-9)
+    # A positive-sequence PMU has no negative sequence: no columns.
+    m1 = load_map(None, voltage="kV", current="kA", v_kv=V_BASE, s_mva=S_BASE,
+                  v_mag="va_mag", v_ang="va_ang", i_mag="ia_mag", i_ang="ia_ang")  # fmt: skip
+    assert "v2_re" not in read_pmu(tmp_path / "pmu.csv", m1).data
+    pd.DataFrame(d).to_csv(tmp_path / "pmu_pu.csv", index=False)
+    res = CliRunner().invoke(main, ["events", str(tmp_path / "pmu_pu.csv"), "--out",
+                                    str(tmp_path / "ev"), "--quiet"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    (ev,) = read_events([str(tmp_path / "ev" / "event_001.csv")], f_hz=F_HZ)
+    assert ev.n == t.size and ev.v2 == pytest.approx(seq_v[2], abs=1e-12)
+    assert ev.unbalanced
+    fault = np.isfinite(ev.y2)
+    assert fault.sum() >= 5
+    assert ev.y2[fault] == pytest.approx(truth["y2_series"][keep][fault], rel=1e-9)
+
