@@ -299,3 +299,21 @@ def test_pmu_per_phase_phasors_give_v2_and_i2_through_events(tmp_path):
     assert fault.sum() >= 5
     assert ev.y2[fault] == pytest.approx(truth["y2_series"][keep][fault], rel=1e-9)
 
+
+def test_a_table_given_to_fit_composite_carries_its_negative_sequence():
+    # fit_composite(data=DataFrame) reads its events with read(): the columns, when all
+    # four are there, become each event's v2 and i2 (split by the event column too).
+    from loadbayes.core.settings import DataSpec
+    from loadbayes.fit.composite.api import read
+
+    one = pd.DataFrame(_event_table())
+    two = pd.concat([one.assign(event=1), one.assign(event=2, p=one["p"] * 1.01)])
+    a, b = read(two, DataSpec(), f_hz=50.0)
+    assert a.v2 == pytest.approx(one["v2_re"].to_numpy() + 1j * one["v2_im"].to_numpy())
+    assert b.i2 == pytest.approx(one["i2_re"].to_numpy() + 1j * one["i2_im"].to_numpy())
+    assert a.unbalanced and b.unbalanced
+    (plain,) = read(one.drop(columns=["v2_re", "v2_im", "i2_re", "i2_im"]), f_hz=50.0)
+    assert plain.v2 is None and plain.i2 is None
+    with pytest.raises(DataError) as err:
+        read(one.drop(columns=["v2_im"]), f_hz=50.0)
+    assert err.value.column == "v2_im"
