@@ -217,6 +217,10 @@ def test_event_record_sequence_properties(tmp_path):
     (ev0,) = read_events([str(tmp_path / "p.csv")], f_hz=50.0)
     assert ev0.v2 is None and ev0.i2 is None and ev0.y2 is None and not ev0.unbalanced
     assert np.array_equal(ev0.p, ev.p) and np.array_equal(ev0.v, ev.v)
+    # A subset keeps every per-sample field in step.
+    part = ev.take(np.flatnonzero(ev.t > 0.15))
+    assert part.n == part.v2.size == part.i2.size == int(np.sum(ev.t > 0.15))
+    assert part.y2 == pytest.approx(y2[ev.t > 0.15], nan_ok=True)
     # Balanced throughout: not unbalanced, y2 all NaN.
     bal = EventRecord(ev.t, ev.v, ev.p, ev.q, v2=np.full(ev.n, 0.02 + 0j), i2=np.zeros(ev.n))
     assert not bal.unbalanced and np.all(np.isnan(bal.y2))

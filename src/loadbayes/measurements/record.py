@@ -88,6 +88,20 @@ class EventRecord:
         """Number of samples."""
         return int(self.t.size)
 
+    def take(self, keep: NDArray[np.intp] | NDArray[np.bool_]) -> EventRecord:
+        """The event with only the samples at ``keep``: every per-sample field sliced.
+
+        ``dataclasses.replace`` with ``t, v, p, q`` (and ``delta``) alone would leave
+        ``v2`` and ``i2`` at the old length.
+        """
+        from dataclasses import replace
+
+        def cut(x):
+            return None if x is None else x[keep]
+
+        return replace(self, t=self.t[keep], v=self.v[keep], p=self.p[keep], q=self.q[keep],
+                       delta=cut(self.delta), v2=cut(self.v2), i2=cut(self.i2))  # fmt: skip
+
     @property
     def unbalanced(self) -> bool:
         """Whether ``|V2| / |V1|`` exceeds :data:`UNBALANCE_LIMIT` at any sample."""
