@@ -146,6 +146,13 @@ def test_truth_of_the_mix_is_the_motors_own_circuit():
     assert seq_v[1, 0] * np.conj(seq_i[1, 0]) == pytest.approx(truth["p0"] + 1j * truth["q0"])
     # Several times a static load's |Y2| (about |S0|): what the motors add.
     assert abs(truth["y2_over_p0"]) > 3
+    # One motor: the same bookkeeping.
+    from sequence_generator import Motor
+
+    one = Motor(rating=0.6, h_s=0.3, torque_exp=2)
+    *_, y2_one, t1 = generate(f_hz=60.0, rate_hz=1920.0, motors=(one,))
+    assert t1["y2_prefault"] == pytest.approx(t1["zip"]["y2"] + 0.6 / one.z2(one.s0))
+    assert np.abs(y2_one / t1["y2_prefault"] - 1).max() < 0.01  # the slip barely moves
 
 
 def test_event_file_and_event_record_carry_v2_and_i2(tmp_path):
