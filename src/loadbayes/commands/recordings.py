@@ -312,7 +312,10 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
         data, windows = found.data, found.windows
     else:
         # v may be 0 (an interruption in a long record): not refused here.
-        data, _ = read_columns(record, ["t_s", "v", "p", "q"], optional=["angle_rad", "f", "rocof"])
+        data, _ = read_columns(
+            record, ["t_s", "v", "p", "q"],
+            optional=["angle_rad", "f", "rocof", "v2_re", "v2_im", "i2_re", "i2_im"],
+        )  # fmt: skip
         t = data["t_s"]
         back = np.flatnonzero(~(np.diff(t) > 0))
         if back.size:

@@ -1,6 +1,6 @@
 """Read recorded disturbance events (t, V, P, Q [, f or angle] [, event]) and check them.
 
-One idea needs these 454 lines: event files read into checked recordings (and their
+One idea needs these 462 lines: event files read into checked recordings (and their
 index's bases and frequency), each check naming the file, the column and the row.
 One file is one event, or several when it has an event column. Bad input raises
 :class:`~loadbayes.io.errors.DataError` naming the file, the column and the row: a time
@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from loadbayes.io.errors import DataError
-from loadbayes.measurements.record import EventRecord
+from loadbayes.measurements.record import SEQUENCE_COLUMNS, EventRecord, sequence_phasors
 from loadbayes.measurements.units import F_OFF
 
 __all__ = [
@@ -88,7 +88,8 @@ def events_from_arrays(
     cols : dict of str to ndarray
         Per-unit columns keyed ``t, v, p, q`` and optionally ``f`` (Hz), ``angle`` (rad),
         ``event`` (numbers or text: one event per distinct value, in order of
-        appearance).
+        appearance), ``v2`` and ``i2`` (complex negative-sequence phasors, per unit:
+        :func:`~loadbayes.measurements.record.sequence_phasors`).
     rows : ndarray of int
         The 1-based data row of each sample in the file (for error messages).
     path : str
@@ -233,7 +234,9 @@ def _check(cols, rows, *, path, label, names, f_hz) -> EventRecord:
         # The voltage angle in the frame rotating at f_hz: the integral of 2 pi (f - f_hz).
         w = 2 * math.pi * (f - f_hz)
         delta = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)])
-    return EventRecord(t - t[0], v, cols["p"], cols["q"], delta, label, source)
+    return EventRecord(
+        t - t[0], v, cols["p"], cols["q"], delta, label, source, cols.get("v2"), cols.get("i2")
+    )
 
 
 def _check_steady_start(t, v, rows, *, where, path, col, f_hz) -> None:
@@ -293,7 +296,9 @@ def read_events(
     """Read every file's events (CSV or Parquet; columns as named, per unit after bases).
 
     ``f_col`` and ``angle_col`` default to ``f`` and ``angle_rad`` when present (the angle
-    wins when both are); ``event_col`` is used when present.
+    wins when both are); ``event_col`` is used when present; ``v2_re, v2_im, i2_re,
+    i2_im`` (all four) give each event its negative sequence
+    (:func:`~loadbayes.measurements.record.sequence_phasors`).
     """
     from loadbayes.measurements.columns import read_power_columns
     from loadbayes.measurements.times import parse_times, read_text_column
@@ -301,6 +306,7 @@ def read_events(
     out: list[EventRecord] = []
     for path in paths:
         extra = tuple(c for c in (f_col or "f", angle_col or "angle_rad", event_col) if c)
+        extra += SEQUENCE_COLUMNS
         # Times as ISO timestamps and event ids as text ('sag1') are read as text, the
         # rest as numbers; first as numbers, the common case, read once.
         as_text: set[str] = set()
@@ -339,6 +345,7 @@ def read_events(
                 raise DataError("missing column", str(path), want)
         if event_col in pc.extra:
             cols["event"] = pc.extra[event_col]
+        cols |= sequence_phasors(pc.extra, path=str(path), v_base=v_base, s_base=s_base)
         names = {
             "t": t_col,
             "v": v_col,

@@ -20,7 +20,17 @@ from loadbayes.io.errors import DataError
 from loadbayes.measurements.units import check_power_units, require_power
 from loadbayes.measurements.wording import UnitProblem, accept
 
-__all__ = ["EventRecord", "check_units"]
+__all__ = ["SEQUENCE_COLUMNS", "UNBALANCE_LIMIT", "EventRecord", "check_units", "sequence_phasors"]
+
+#: A table's columns of the negative-sequence phasors, per unit: ``V2 = v2_re + j v2_im``
+#: and ``I2 = i2_re + j i2_im`` (what :attr:`EventRecord.v2` and ``.i2`` are read from).
+SEQUENCE_COLUMNS = ("v2_re", "v2_im", "i2_re", "i2_im")
+
+#: Negative-sequence voltage share ``|V2| / |V1|`` above which a sample is unbalanced
+#: (the reader's ``unbalanced`` column and :attr:`EventRecord.unbalanced`). Below it, V2
+#: is the supply's own standing unbalance (typically 0.5-2%), against which the load's
+#: unequal single-phase loads make I2: there I2 / V2 is not an admittance.
+UNBALANCE_LIMIT = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +54,13 @@ class EventRecord:
         Where ``delta`` came from: ``"angle"`` (a recorded angle), ``"frequency"``
         (integrated from a frequency column, which cannot hold a phase jump) or ``""``
         (none, or set by the caller).
+    v2, i2 : complex ndarray or None
+        Negative-sequence voltage and current phasors per sample (an event file's
+        ``v2_re, v2_im, i2_re, i2_im``; docs/formats.md): V2 per unit of the phase
+        voltage base, I2 per unit of ``S_base / V_base`` (with a balanced load
+        ``p + jq = V1 conj(I1)``), current into the load, in the frame of ``delta``
+        (``V1 = v exp(j delta)``). None when the record has no negative sequence (a
+        positive-sequence PMU, a simulation).
     """
 
     t: NDArray[np.float64]
@@ -53,6 +70,8 @@ class EventRecord:
     delta: NDArray[np.float64] | None = None
     name: str = ""
     angle_from: str = ""
+    v2: NDArray[np.complex128] | None = None
+    i2: NDArray[np.complex128] | None = None
 
     @property
     def v0(self) -> float:
@@ -68,6 +87,79 @@ class EventRecord:
     def n(self) -> int:
         """Number of samples."""
         return int(self.t.size)
+
+    def take(self, keep: NDArray[np.intp] | NDArray[np.bool_]) -> EventRecord:
+        """The event with only the samples at ``keep``: every per-sample field sliced.
+
+        ``dataclasses.replace`` with ``t, v, p, q`` (and ``delta``) alone would leave
+        ``v2`` and ``i2`` at the old length.
+        """
+        from dataclasses import replace
+
+        def cut(x):
+            return None if x is None else x[keep]
+
+        return replace(self, t=self.t[keep], v=self.v[keep], p=self.p[keep], q=self.q[keep],
+                       delta=cut(self.delta), v2=cut(self.v2), i2=cut(self.i2))  # fmt: skip
+
+    @property
+    def unbalanced(self) -> bool:
+        """Whether ``|V2| / |V1|`` exceeds :data:`UNBALANCE_LIMIT` at any sample."""
+        if self.v2 is None:
+            return False
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.abs(self.v2) / np.abs(self.v)
+        return bool(np.nanmax(share, initial=0.0) > UNBALANCE_LIMIT)
+
+    @property
+    def y2(self) -> NDArray[np.complex128] | None:
+        """The load's negative-sequence admittance ``I2 / V2`` (system p.u.) per sample.
+
+        NaN where ``|V2| / |V1|`` is at most :data:`UNBALANCE_LIMIT` (no fault: V2 and
+        I2 there are standing unbalance, and their ratio is no admittance); None when
+        the event has no negative sequence. A static load's is about ``P0 - jQ0`` (its
+        constant-impedance equivalent); a running motor's is close to its locked-rotor
+        admittance, several times its rating.
+        """
+        if self.v2 is None or self.i2 is None:
+            return None
+        with np.errstate(invalid="ignore", divide="ignore"):
+            y = self.i2 / self.v2
+            keep = np.abs(self.v2) / np.abs(self.v) > UNBALANCE_LIMIT
+        return np.where(keep, y, complex(np.nan, np.nan))
+
+
+def sequence_phasors(
+    found: dict[str, np.ndarray],
+    *,
+    path: str,
+    v_base: float | None = None,
+    s_base: float | None = None,
+) -> dict[str, np.ndarray]:
+    """``{"v2": V2, "i2": I2}`` (complex, per unit) from a table's columns, or ``{}``.
+
+    ``found`` holds the columns read of :data:`SEQUENCE_COLUMNS`
+    (``v2_re, v2_im, i2_re, i2_im``); all four or none (one missing is refused, naming
+    it). Per unit as ``loadbayes events`` writes them; with bases, V2 is in the units
+    of ``v`` (divided by ``v_base``) and I2 in those of ``p`` over ``v`` (so that a
+    balanced load's ``p + jq = v conj(i)`` holds in the data's units: multiplied by
+    ``v_base / s_base``).
+    """
+    have = [c for c in SEQUENCE_COLUMNS if c in found]
+    if not have:
+        return {}
+    if len(have) < len(SEQUENCE_COLUMNS):
+        missing = next(c for c in SEQUENCE_COLUMNS if c not in found)
+        raise DataError(
+            f"missing column (the negative sequence needs all of {', '.join(SEQUENCE_COLUMNS)}; "
+            f"{', '.join(have)} given)",
+            path,
+            missing,
+        )
+    v2 = np.asarray(found["v2_re"], dtype=float) + 1j * np.asarray(found["v2_im"], dtype=float)
+    i2 = np.asarray(found["i2_re"], dtype=float) + 1j * np.asarray(found["i2_im"], dtype=float)
+    vs, ss = v_base or 1.0, s_base or 1.0
+    return {"v2": v2 / vs, "i2": i2 * vs / ss}
 
 
 def check_units(

@@ -365,6 +365,9 @@ def _not_utf8(head: bytes) -> str:
 def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
     """Read a PMU phasor CSV into per-unit ``t_s, v, angle_rad, p, q[, f, rocof]``.
 
+    Per-phase phasors add the negative sequence ``v2_re, v2_im, i2_re, i2_im`` (per
+    unit, in the frame of ``angle_rad``; docs/formats.md).
+
     Parameters
     ----------
     path : str or os.PathLike
@@ -451,11 +454,14 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
             )  # fmt: skip
     vph = phasors(m.v_mag, m.v_ang, _V_UNITS[m.voltage])
     iph = phasors(m.i_mag, m.i_ang, _I_UNITS[m.current])
+    seq = {}  # the negative sequence, when the phases are given
     if vph.shape[0] == 1:
         v1, s = vph[0], 3 * vph[0] * np.conj(iph[0])
     else:
         v1 = (vph[0] + _A * vph[1] + _A**2 * vph[2]) / 3
         s = np.sum(vph * np.conj(iph), axis=0)
+        seq = {"v2": (vph[0] + _A**2 * vph[1] + _A * vph[2]) / 3}
+        seq["i2"] = (iph[0] + _A**2 * iph[1] + _A * iph[2]) / 3
     extra = {}
     if m.freq:
         extra["f"] = _numeric(df, m.freq, name)
@@ -489,6 +495,7 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
         )
     v1, s = v1[keep], s[keep]
     extra = {k: val[keep] for k, val in extra.items()}
+    seq = {k: val[keep] for k, val in seq.items()}
     v_base = m.v_kv * 1e3 / math.sqrt(3) if m.v_kv else float(np.abs(v1[0]))
     s_base = m.s_mva * 1e6 if m.s_mva else float(np.abs(s[0]))
     if not (v_base > 0 and s_base > 0):
@@ -510,5 +517,9 @@ def read_pmu(path: str | os.PathLike[str], mapping: PmuMap) -> PmuRecord:
         "q": s.imag / s_base,
         **extra,
     }
+    if seq:  # V2 per unit of the phase base, I2 of s_base / (3 v_base): docs/formats.md
+        i_base = s_base / (3.0 * v_base)
+        for key, z, base in (("v2", seq["v2"], v_base), ("i2", seq["i2"], i_base)):
+            data[f"{key}_re"], data[f"{key}_im"] = z.real / base, z.imag / base
     start = str(np.datetime64(int(t_ns[0]), "ns")) + "Z"
     return PmuRecord(data, start, v_base * math.sqrt(3) / 1e3, s_base / 1e6, report)

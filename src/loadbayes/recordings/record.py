@@ -15,6 +15,14 @@ Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fi
 - ``v2``: the negative-sequence share ``|V2| / |V1|`` of the voltage; ``unbalanced`` is
   true where it exceeds :data:`UNBALANCE_LIMIT`: there the negative-sequence power, which
   the positive-sequence model does not describe, is part of what the load draws;
+  ``i2``: ``|I2| / |I1|``;
+- ``v2_re, v2_im``, ``i2_re, i2_im``: the negative-sequence phasors
+  ``V2 = (Va + a^2 Vb + a Vc) / 3`` (per unit of the phase base, as ``v``) and ``I2``
+  (per unit of ``S_base / (3 V_base)``, so that ``p + jq = 3 V1 conj(I1)`` per unit of
+  the 3-phase base reads ``V1 conj(I1)`` in these units), in the frame of ``angle_rad``
+  (``V1 = v exp(j angle_rad)``): the load's negative-sequence admittance is ``I2 / V2``.
+  They are taken without the mirror a moving positive sequence leaves in a one-cycle
+  phasor (:mod:`~loadbayes.recordings.sequences`), which the ratios keep;
 - ``f``: frequency (Hz) from the turn of ``V1`` between neighbouring estimates;
 - ``residual``: the worst voltage channel's relative misfit in the window; ``straddle``
   is true where it exceeds :data:`STRADDLE_LIMIT` (a window across a step, which no
@@ -23,7 +31,7 @@ Waveform rows (``kind = "phasor"``), from :func:`~loadbayes.recordings.phasor_fi
   :data:`~loadbayes.recordings.phasor_fit.HALF_STEP_LIMIT`);
 - ``va, vb, vc, ia, ib, ic``: per-phase RMS magnitudes (per unit).
 
-One idea needs these 461 lines: a record's table, its phasor rows (above) and its
+One idea needs these 467 lines: a record's table, its phasor rows (above) and its
 amplitude rows (below) built from the waveforms (and a timed probe of the same fit, for
 the cost said before a long read).
 Amplitude rows (``kind = "amplitude"``) hold only ``va .. ic`` (RMS, per unit; whether
@@ -41,8 +49,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from loadbayes.io.errors import DataError
+from loadbayes.measurements.record import SEQUENCE_COLUMNS, UNBALANCE_LIMIT
 from loadbayes.recordings.comtrade import Waveforms
 from loadbayes.recordings.phasor_fit import fit_phasors
+from loadbayes.recordings.sequences import demirror, sequences
 
 __all__ = [
     "STRADDLE_LIMIT",
@@ -53,19 +63,16 @@ __all__ = [
     "record_table",
 ]
 
-#: Negative-sequence voltage share above which a sample is flagged ``unbalanced``.
-UNBALANCE_LIMIT = 0.05
 #: Relative misfit of a window above which it is flagged as straddling a step.
 STRADDLE_LIMIT = 0.02
 #: Median share of the fundamental in a waveform segment's voltage windows below which
 #: the segment holds no waveform (magnitudes mislabelled as waveform samples).
 MIN_SHARE = 0.5
 
-_A = np.exp(2j * np.pi / 3)
 COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
     "unbalanced", "residual", "straddle", "dc_filtered", "va", "vb", "vc", "ia", "ib",
-    "ic", "segment", "kind",
+    "ic", "segment", "kind", *SEQUENCE_COLUMNS,
 )  # fmt: skip
 
 
@@ -83,14 +90,6 @@ class RecordTable:
     def rows(self) -> int:
         """Rows of the table."""
         return int(self.columns["t_s"].size)
-
-
-def _sequences(ph: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Zero, positive and negative sequence of phases (3, m)."""
-    zero = ph.sum(axis=0) / 3.0
-    pos = (ph[0] + _A * ph[1] + _A**2 * ph[2]) / 3.0
-    neg = (ph[0] + _A**2 * ph[1] + _A * ph[2]) / 3.0
-    return zero, pos, neg
 
 
 def _empty(m: int) -> dict[str, np.ndarray]:
@@ -124,8 +123,16 @@ def _waveform_rows(
             source,
         ) from None
     vph, iph = fit.x[:3], fit.x[3:]
-    _, v1, v2 = _sequences(vph)
-    _, i1, i2 = _sequences(iph)
+    _, v1, v2 = sequences(vph)
+    _, i1, i2 = sequences(iph)
+    # The phasors V2, I2 without the mirror of a moving V1, I1 (recordings/sequences.py);
+    # the ratios v2, i2 stay the plain one-cycle ones (the `unbalanced` flag's, as before).
+    # Not through a step, nor where the mimic filter read a phase (it turns the mirror).
+    step = (fit.residual[:3].max(axis=0) > STRADDLE_LIMIT) | np.asarray(fit.half_step, bool)
+    decay = np.asarray(fit.decay, dtype=bool)
+    dt = float(np.median(np.diff(w.t_s[sl])))
+    v2_ph = demirror(v2, v1, fit.t_s, w.f_nominal, step | decay[:3].any(axis=0), dt)
+    i2_ph = demirror(i2, i1, fit.t_s, w.f_nominal, step | decay[3:].any(axis=0), dt)
     m = fit.t_s.size
     out = _empty(m)
     s1 = 3.0 * v1 * np.conj(i1)
@@ -136,6 +143,7 @@ def _waveform_rows(
             t_s=fit.t_s, v=np.abs(v1), angle_rad=np.angle(v1), p=s1.real, q=s1.imag, f=f,
             p_total=st.real, q_total=st.imag, v2=np.abs(v2) / np.abs(v1),
             i2=np.abs(i2) / np.abs(i1), residual=fit.residual[:3].max(axis=0),
+            v2_re=v2_ph.real, v2_im=v2_ph.imag, i2_re=i2_ph.real, i2_im=i2_ph.imag,
             _share=fit.share[:3].min(axis=0),
             va=np.abs(vph[0]), vb=np.abs(vph[1]), vc=np.abs(vph[2]),
             ia=np.abs(iph[0]), ib=np.abs(iph[1]), ic=np.abs(iph[2]),
@@ -348,9 +356,9 @@ def record_table(
     for k, (_, rows) in enumerate(parts):
         rows = dict(rows)
         rows["segment"] = np.full(rows["t_s"].size, k, dtype=np.int64)
-        for c in ("v", "va", "vb", "vc"):
+        for c in ("v", "va", "vb", "vc", "v2_re", "v2_im"):
             rows[c] = rows[c] / vb
-        for c in ("ia", "ib", "ic"):
+        for c in ("ia", "ib", "ic", "i2_re", "i2_im"):
             rows[c] = rows[c] / ib
         for c in ("p", "q", "p_total", "q_total"):
             rows[c] = rows[c] / sb

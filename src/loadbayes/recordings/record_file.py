@@ -42,7 +42,7 @@ META_SUFFIX = ".meta.json"
 EVENT_COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
     "unbalanced", "residual", "straddle", "dc_filtered", "va", "vb", "vc", "ia", "ib", "ic",
-    "segment",
+    "segment", "v2_re", "v2_im", "i2_re", "i2_im",
 )  # fmt: skip
 
 

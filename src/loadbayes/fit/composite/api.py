@@ -25,7 +25,12 @@ from loadbayes.fit.composite.driver import fit_composite as fit_events
 from loadbayes.io.errors import DataError, OptionError
 from loadbayes.measurements.events import events_from_arrays, read_events, refuse_repeats
 from loadbayes.measurements.frame import is_path, read_frame
-from loadbayes.measurements.record import EventRecord, check_units
+from loadbayes.measurements.record import (
+    SEQUENCE_COLUMNS,
+    EventRecord,
+    check_units,
+    sequence_phasors,
+)
 from loadbayes.models.base import DynamicLoadModel
 
 __all__ = ["fit_composite", "read"]
@@ -62,7 +67,7 @@ def read(data: Any, spec: DataSpec | None = None, *, f_hz: float = 60.0):
         else:
             names = {"t": t_col, "v": v_col, "p": p_col, "q": q_col, "f": f_col or "f",
                      "angle": angle_col or "angle_rad", "event": event_col}  # fmt: skip
-            optional = [names["f"], names["angle"], event_col]
+            optional = [names["f"], names["angle"], event_col, *SEQUENCE_COLUMNS]
             ids = _text_ids(item, event_col)
             if ids is not None:  # event ids written as text ('sag A'): not numbers
                 optional.remove(event_col)
@@ -78,6 +83,7 @@ def read(data: Any, spec: DataSpec | None = None, *, f_hz: float = 60.0):
                 arrays["v"] = arrays["v"] / v_base
             if s_base is not None:
                 arrays["p"], arrays["q"] = arrays["p"] / s_base, arrays["q"] / s_base
+            arrays |= sequence_phasors(tab.data, path="data", v_base=v_base, s_base=s_base)
             out += events_from_arrays(arrays, tab.rows, path="data", names=names, f_hz=f_hz)
     refuse_repeats(out, v_col)
     return out
