@@ -29,7 +29,7 @@ from loadbayes.commands.output import (
     stop_if_signalled,
     user_errors,
 )
-from loadbayes.commands.settings import composite_model, sampler_settings
+from loadbayes.commands.settings import composite_model, parts_model, sampler_settings
 
 __all__ = ["fit_composite_cmd"]
 
@@ -62,6 +62,24 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
 
 @click.command("composite", cls=OneLineCommand)
 @click.argument("files", nargs=-1, required=True, type=str)
+@click.option(
+    "--model",
+    "model_name",
+    type=click.Choice(["zip+motor", "slm", "cmld-lite"]),
+    default="zip+motor",
+    show_default=True,
+    help="The load model: 'zip+motor' (a ZIP part and one motor at the bus), 'slm' (ZIP + "
+    "one motor behind the feeder's Rd + jXd), 'cmld-lite' (feeder, motors A and B, motor D, "
+    "electronics, static part; shares on their simplex, physical priors).",
+)
+@click.option(
+    "--negative-sequence",
+    type=click.Choice(["auto", "on", "off"]),
+    default="auto",
+    show_default=True,
+    help="slm, cmld-lite: the negative-sequence current as data where an event has v2_*, "
+    "i2_* columns and |V2| >= 0.02 p.u. (auto), always (on: refused without them), never.",
+)
 @event_column_options
 @click.option(
     "--event-col", default="event", show_default=True, help="Event-id column (if present)."
@@ -175,6 +193,8 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
 @user_errors
 def fit_composite_cmd(
     files,
+    model_name,
+    negative_sequence,
     t_col,
     v_col,
     p_col,
@@ -217,6 +237,19 @@ def fit_composite_cmd(
         "--baseline-json": baseline_out,
     }
     check_outputs(outputs, list(files), force, stdout_ok=("--json",))
+    parts = model_name != "zip+motor"
+    if parts:
+        # The zip+motor model's own options have no meaning for a model of parts.
+        ctx = click.get_current_context()
+        for name, flag in (("torque", "--torque"), ("steps", "--steps"), ("shares", "--shares"),
+                           ("noise", "--noise"), ("likelihood", "--likelihood"),
+                           ("window_s", "--window-s"), ("nu", "--nu")):  # fmt: skip
+            if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
+                raise UserError(f"{flag} is an option of --model zip+motor, not {model_name}")
+        if plot_out:
+            raise UserError(f"--plot draws zip+motor fits only so far, not {model_name}")
+    elif negative_sequence != "auto":
+        raise UserError("--negative-sequence is an option of --model slm and cmld-lite")
     # Its compiled kernels abort the process natively below this (LLVM's "Unable to
     # allocate section memory", std::bad_alloc: exit 134), where no error can be said.
     check_address_space(COMPOSITE_ADDRESS_SPACE, "fit composite")
@@ -248,11 +281,15 @@ def fit_composite_cmd(
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
     # The flags, mapped onto the model's fields in one table (commands/settings.py).
-    model = composite_model(
-        f_hz=f_hz, torque=_parse_torque(torque), steps=steps, window_s=window_s,
-        shares=shares, noise=noise, likelihood=likelihood, nu=parse_nu(nu),
-        priors=_parse_priors(priors),
-    )  # fmt: skip
+    if parts:
+        model = parts_model(model_name, f_hz=f_hz, priors=_parse_priors(priors),
+                            negative_sequence=negative_sequence)  # fmt: skip
+    else:
+        model = composite_model(
+            f_hz=f_hz, torque=_parse_torque(torque), steps=steps, window_s=window_s,
+            shares=shares, noise=noise, likelihood=likelihood, nu=parse_nu(nu),
+            priors=_parse_priors(priors),
+        )  # fmt: skip
     if until_converged is None:
         source = click.get_current_context().get_parameter_source("draws")
         until_converged = source in (None, click.core.ParameterSource.DEFAULT)
@@ -381,7 +418,13 @@ def fit_composite_cmd(
         click.echo(text)
     for w in post.warnings:
         click.echo(f"loadbayes: warning: {w}", err=True)
-    if not quiet:
+    if not quiet and parts:
+        from loadbayes.report.parts_table import parts_lines
+
+        for line in parts_lines(post, table, quantities=model.quantities,
+                               hdi_prob=sampler.hdi_prob):  # fmt: skip
+            click.echo(line, err=json_out == "-")
+    elif not quiet:
         from loadbayes.report.composite_table import composite_table, static_lines
 
         err = json_out == "-"  # the JSON has standard output

@@ -184,3 +184,19 @@ def composite_model(**fields: Any) -> Any:
                 ModelOptionError(rest).worded(COMPOSITE_FLAGS), param_hint=COMPOSITE_FLAGS[first]
             ) from None
         raise OptionError(exc.worded(COMPOSITE_FLAGS)) from None  # one line, exit 2
+
+
+#: A model of parts' fields as ``fit composite`` spells them.
+PARTS_FLAGS = {"f_hz": "--f-hz", "priors": "--prior", "negative_sequence": "--negative-sequence"}
+
+
+def parts_model(name: str, **fields: Any) -> Any:
+    """The model of parts ``name`` (``slm``, ``cmld-lite``); its refusal worded with flags."""
+    from loadbayes.commands.output import UserError
+    from loadbayes.models.base import ModelOptionError
+    from loadbayes.models.dynamic import dynamic_model
+
+    try:
+        return dynamic_model(name, **fields)
+    except ModelOptionError as exc:
+        raise UserError(exc.worded(PARTS_FLAGS)) from None

@@ -42,7 +42,7 @@ MOTOR_CLASSES: Mapping[str, Mapping] = MappingProxyType(
             "meaning": "motor A: compressors (constant torque, low inertia)",
             "prior": {
                 "rs": (0.04, 0.45),
-                "x_prime": (0.13, 0.35),
+                "x_prime": (0.13, 0.3),
                 "dx": (1.7, 0.3),
                 "t_prime_s": (0.10, 0.45),
                 "h_s": (0.12, 0.45),
@@ -54,7 +54,7 @@ MOTOR_CLASSES: Mapping[str, Mapping] = MappingProxyType(
             "meaning": "motor B: fans and pumps (torque ~ speed^2, higher inertia)",
             "prior": {
                 "rs": (0.03, 0.45),
-                "x_prime": (0.19, 0.35),
+                "x_prime": (0.19, 0.28),
                 "dx": (1.6, 0.3),
                 "t_prime_s": (0.20, 0.45),
                 "h_s": (0.50, 0.5),
@@ -66,7 +66,7 @@ MOTOR_CLASSES: Mapping[str, Mapping] = MappingProxyType(
             "meaning": "the synthesis load model's lumped motor",
             "prior": {
                 "rs": (0.035, 0.5),
-                "x_prime": (0.16, 0.4),
+                "x_prime": (0.16, 0.35),
                 "dx": (1.7, 0.35),
                 "t_prime_s": (0.15, 0.6),
                 "h_s": (0.25, 0.7),

@@ -312,7 +312,10 @@ class PartsModel:
         if self.negative_sequence != "off":
             out.append(self._i2(event, lb, y2p, v0))
         for z, y in out:
-            if not (np.isfinite(z).all() and np.isfinite(y).all()):
+            # A proposal far outside the physics (a motor with no steady state nearby)
+            # can give columns that overflow the sums: infeasible, as a NaN is.
+            huge = z.size and np.abs(z).max() > 1e6
+            if huge or not (np.isfinite(z).all() and np.isfinite(y).all()):
                 return None
         return out
 

@@ -1,0 +1,109 @@
+"""What a fit of a model built from parts says in words beside its draws.
+
+For a :class:`~loadbayes.models.parts_model.PartsModel` fit (``slm``, ``cmld-lite``):
+
+- **physical**: the shares are on their simplex by construction; each motor's Rs and H
+  on its own base are checked against the physical region a planner can use (Rs <= 0.1,
+  H >= 0.05 s, :data:`PHYSICAL`), on the posterior's median and interval;
+- **left to the prior**: a motor or feeder parameter whose posterior spread of the log
+  is more than :data:`PRIOR_DRIVEN` of the prior's was not determined by the events, and
+  is said to be the prior's (its interval is the published range it came from);
+- **the negative sequence**: which events it entered (rows, their |V2|), or why not, and
+  the motors' ratings it speaks to.
+
+The words go into the posterior's warnings and ``extra_json["parts"]`` (the JSON).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES
+from loadbayes.models.parts_model import NEG_SEQ_MIN
+
+__all__ = ["PHYSICAL", "PRIOR_DRIVEN", "describe_parts"]
+
+#: The physical region of a motor on its own base: Rs at most 0.1, H at least 0.05 s.
+PHYSICAL = {"rs": (None, 0.1), "h_s": (0.05, None)}
+#: Posterior sd of a log-parameter over the prior's above which it is the prior's.
+PRIOR_DRIVEN = 0.7
+
+
+def _interval(x: np.ndarray, prob: float) -> tuple[float, float]:
+    lo, hi = np.quantile(x, [(1 - prob) / 2, (1 + prob) / 2])
+    return float(lo), float(hi)
+
+
+def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: list,
+                   hdi_prob: float = 0.95) -> None:  # fmt: skip
+    """Add the words of a parts model's fit to ``post`` (warnings and ``extra_json``)."""
+    words: dict[str, Any] = {"model": model.name, "parts": list(model.parts) + ["static"]}
+    prior_of = {}
+    for m, t in zip(model.motors, model._tags, strict=True):
+        for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():
+            prior_of[k + t] = model.priors.get(k + t, (median, sd))
+    if model.feeder:
+        prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
+    driven, unphysical = [], []
+    for name, (_median, sd) in prior_of.items():
+        if name not in draws:
+            continue
+        x = np.asarray(draws[name], dtype=float).ravel()
+        ratio = float(np.std(np.log(x)) / sd) if sd > 0 else math.nan
+        if ratio > PRIOR_DRIVEN:
+            lo, hi = _interval(x, hdi_prob)
+            driven.append(f"{name} [{lo:.3g}, {hi:.3g}]")
+    for t in model._tags:
+        for key, (low, high) in PHYSICAL.items():
+            x = np.asarray(draws[key + t], dtype=float).ravel()
+            med = float(np.median(x))
+            if (low is not None and med < low) or (high is not None and med > high):
+                unphysical.append(f"{key + t} {med:.3g} (median)")
+    words["prior_driven"] = driven
+    words["unphysical"] = unphysical
+    if driven:
+        post.warnings.append(
+            "left to the prior (the events did not determine them; their intervals are the "
+            "published ranges the priors hold, models/part_priors.py): " + ", ".join(driven)
+        )
+    if unphysical:
+        post.warnings.append(
+            "outside the physical region of a motor (Rs <= 0.1, H >= 0.05 s on its base): "
+            + ", ".join(unphysical)
+        )
+    used = []
+    for k, ev in enumerate(events):
+        if model.negative_sequence != "off" and model.uses_negative_sequence(ev):
+            rows = int(np.sum(np.abs(ev.v2) >= NEG_SEQ_MIN))
+            used.append({"event": k, "name": ev.name, "rows": rows,
+                         "v2_max": float(np.max(np.abs(ev.v2)))})  # fmt: skip
+    words["negative_sequence"] = {"events": used, "threshold_v2_pu": NEG_SEQ_MIN}
+    if used:
+        words["negative_sequence"]["summary"] = (
+            f"the negative sequence entered the fit at {sum(u['rows'] for u in used)} "
+            f"rows of {len(used)} event(s) (|V2| >= {NEG_SEQ_MIN} p.u.): it measures the "
+            "motors' rating over their X'"
+        )
+    else:
+        words["negative_sequence"]["summary"] = (
+            "no negative sequence in the fit: "
+            + (
+                "it is off"
+                if model.negative_sequence == "off"
+                else f"no event has v2, i2 columns with |V2| >= {NEG_SEQ_MIN} p.u."
+            )  # fmt: skip
+        )
+    ratings = {}
+    for name in draws:
+        if name.startswith("mva") and "_e" not in name:
+            lo, hi = _interval(np.asarray(draws[name]).ravel(), hdi_prob)
+            ratings[name] = {"median": float(np.median(draws[name])), "interval": [lo, hi]}
+    words["ratings"] = ratings
+    post.extra_json["parts"] = words
+    post.extra_json["identifiability"] = {
+        "summary": words["negative_sequence"]["summary"]
+        + (f"; left to the prior: {len(driven)} parameter(s)" if driven else "")
+    }
