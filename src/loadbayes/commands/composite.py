@@ -29,7 +29,12 @@ from loadbayes.commands.output import (
     stop_if_signalled,
     user_errors,
 )
-from loadbayes.commands.settings import composite_model, parts_model, sampler_settings
+from loadbayes.commands.settings import (
+    check_model_flags,
+    composite_model,
+    parts_model,
+    sampler_settings,
+)
 
 __all__ = ["fit_composite_cmd"]
 
@@ -238,18 +243,7 @@ def fit_composite_cmd(
     }
     check_outputs(outputs, list(files), force, stdout_ok=("--json",))
     parts = model_name != "zip+motor"
-    if parts:
-        # The zip+motor model's own options have no meaning for a model of parts.
-        ctx = click.get_current_context()
-        for name, flag in (("torque", "--torque"), ("steps", "--steps"), ("shares", "--shares"),
-                           ("noise", "--noise"), ("likelihood", "--likelihood"),
-                           ("window_s", "--window-s"), ("nu", "--nu")):  # fmt: skip
-            if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
-                raise UserError(f"{flag} is an option of --model zip+motor, not {model_name}")
-        if plot_out:
-            raise UserError(f"--plot draws zip+motor fits only so far, not {model_name}")
-    elif negative_sequence != "auto":
-        raise UserError("--negative-sequence is an option of --model slm and cmld-lite")
+    check_model_flags(model_name, negative_sequence=negative_sequence, plot=bool(plot_out))
     # Its compiled kernels abort the process natively below this (LLVM's "Unable to
     # allocate section memory", std::bad_alloc: exit 134), where no error can be said.
     check_address_space(COMPOSITE_ADDRESS_SPACE, "fit composite")

@@ -200,3 +200,25 @@ def parts_model(name: str, **fields: Any) -> Any:
         return dynamic_model(name, **fields)
     except ModelOptionError as exc:
         raise UserError(exc.worded(PARTS_FLAGS)) from None
+
+
+#: The options of ``--model zip+motor`` alone, by parameter name.
+ZIP_MOTOR_ONLY = {"torque": "--torque", "steps": "--steps", "shares": "--shares",
+                  "noise": "--noise", "likelihood": "--likelihood", "window_s": "--window-s",
+                  "nu": "--nu"}  # fmt: skip
+
+
+def check_model_flags(model_name: str, *, negative_sequence: str, plot: bool) -> None:
+    """Refuse, in one line, a flag the chosen ``--model`` has no use for."""
+    from loadbayes.commands.output import UserError
+
+    if model_name == "zip+motor":
+        if negative_sequence != "auto":
+            raise UserError("--negative-sequence is an option of --model slm and cmld-lite")
+        return
+    ctx = click.get_current_context()
+    for name, flag in ZIP_MOTOR_ONLY.items():
+        if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
+            raise UserError(f"{flag} is an option of --model zip+motor, not {model_name}")
+    if plot:
+        raise UserError(f"--plot draws zip+motor fits only so far, not {model_name}")
