@@ -104,5 +104,7 @@ def simulate(*, f_hz=50.0, rs=0.04, xs=0.1, xm=3.0, rr=0.03, h=0.4, t0=0.7, torq
         "x_fd": z_fd.imag * abs(out[2, 0] + 1j * out[3, 0]),
         "a1": zip_p[0], "a2": zip_p[1], "a3": zip_p[2], "s_load0": s_load0,
         "v_load0": abs(vl0),
+        "qm0": (mva * vl0 * np.conj((vl0 - e0) / zm)).imag,
+        "q_static": qs,
     }  # fmt: skip
     return ts, out[0], out[1], out[2], out[3], truth

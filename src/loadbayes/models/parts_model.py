@@ -55,6 +55,7 @@ from numpy.typing import NDArray
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import motor_physical, motor_response
+from loadbayes.models.composite_steps import FitSamples
 from loadbayes.models.motor_kernel import steady_state
 from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS
 from loadbayes.models.parts import (
@@ -161,6 +162,9 @@ class PartsModel:
     f_hz: float = 60.0
     rx: float = 0.35
     negative_sequence: str = "auto"
+    #: The recorder's phasor window (s): each sample read as the motors' mean over it
+    #: (0: point samples, as simulators write them).
+    window_s: float = 0.0
     vd1: float = 0.70
     vd2: float = 0.50
     frcel: float = 0.0
@@ -177,6 +181,8 @@ class PartsModel:
             raise ModelOptionError(f"{{f_hz}} {self.f_hz!r}: a positive frequency")
         if self.negative_sequence not in ("auto", "on", "off"):
             raise ModelOptionError("{negative_sequence}: one of auto, on, off")
+        if not (math.isfinite(self.window_s) and 0 <= self.window_s <= 1):
+            raise ModelOptionError(f"{{window_s}} {self.window_s!r}: 0 to 1 s")
         if not 0 <= self.vd2 < self.vd1 <= 1.2:
             raise ModelOptionError("{vd1} and {vd2}: 0 <= vd2 < vd1")
         unknown = set(self.motor_d_params) - set(MOTOR_D_DEFAULTS)
@@ -206,7 +212,7 @@ class PartsModel:
         set_(self, "parts", tuple(parts))
         set_(self, "_n_gauss", n_gauss)
         set_(self, "_tags", tuple(tags))
-        set_(self, "_cache", {})
+        set_(self, "_kept", {})
 
     def _tag(self, m: str) -> str:
         return "" if len(self.motors) == 1 else f"_{m}"
@@ -273,12 +279,58 @@ class PartsModel:
         return int(np.sum(np.abs(v2) >= NEG_SEQ_MIN)) >= 3
 
     def channels(self, event: EventRecord, theta: NDArray) -> list[tuple[NDArray, NDArray]] | None:
-        """Each channel's design on ``beta = (p0, q0)`` and target: P, Q and maybe I2."""
+        """Each channel's design on ``beta = (p0, cq2, cq1, cq0)`` and target: P, Q, maybe I2."""
         c = self._split(theta)
-        s_load = float(np.hypot(event.p[0], event.q[0]))
-        x_fd = float(c["x_fd"]) / s_load if self.feeder else 0.0
+        x_fd = self.feeder_x(event.p[0], event.q[0], c)
         lb = load_bus(event, self.rx * x_fd, x_fd)
         ev = lb.event
+        cols = self.load_columns(ev, c)
+        if cols is None:
+            return None
+        col_p, col_qp, y2p = cols
+        xl = ev.v / ev.v[0]
+        zero = np.zeros(ev.n)
+        keep = self.kept(event)
+        out = [
+            (np.column_stack([col_p, zero, zero, zero])[keep], ev.p[keep]),
+            (np.column_stack([col_qp, xl * xl, xl, np.ones(ev.n)])[keep], ev.q[keep]),
+        ]
+        if self.negative_sequence != "off":
+            out.append(self._i2(event, lb, y2p, ev.v[0]))
+        for z, y in out:
+            # A proposal far outside the physics (a motor with no steady state nearby)
+            # can give columns that overflow the sums: infeasible, as a NaN is.
+            huge = z.size and np.abs(z).max() > 1e6
+            if huge or not (np.isfinite(z).all() and np.isfinite(y).all()):
+                return None
+        return out
+
+    def kept(self, event: EventRecord) -> NDArray[np.int64]:
+        """The samples the likelihood reads: with a phasor window, those outside a step.
+
+        A phasor row whose window straddles a fault's inception or clearing is a mean
+        across the step (``models/composite_steps.FitSamples``, as ``zip+motor`` leaves
+        them out); point samples (``window_s`` 0) are all kept.
+        """
+        key = (id(event), event.n)
+        if key not in self._kept:
+            if self.window_s > 0:
+                found = FitSamples.find([event.t], [event.v], window_s=self.window_s,
+                                        detect=True)  # fmt: skip
+                self._kept[key] = np.asarray(found.keep[0], dtype=np.int64)
+            else:
+                self._kept[key] = np.arange(event.n)
+        return self._kept[key]
+
+    def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
+        """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""
+        return float(c["x_fd"]) / float(np.hypot(p0, q0)) if self.feeder else 0.0
+
+    def load_columns(self, ev: EventRecord, c: dict[str, Any]):
+        """At the load bus (``ev``): P's column on ``p0``, Q's on ``p0`` and ``Y2`` per ``p0``.
+
+        ``c`` is :meth:`_split` of one ``theta``; None where a motor has no steady state.
+        """
         xl = ev.v / ev.v[0]
         f = c["f"]
         a_p = c["a_p"]
@@ -287,7 +339,8 @@ class PartsModel:
         v0 = ev.v[0]
         y2p = f[-1] / v0**2 + 0j
         for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
-            resp = self._motor(ev, logs, m, x_fd)
+            resp = motor_response(ev, logs, f_hz=self.f_hz, torque=MOTOR_CLASSES[m]["torque"],
+                                  window_s=self.window_s)  # fmt: skip
             if resp is None:
                 return None
             pm, qm = resp
@@ -304,33 +357,7 @@ class PartsModel:
             j += 1
         if self.electronics:
             col_p += f[j] * electronics_fraction(ev.v, self.vd1, self.vd2, self.frcel)
-        zero = np.zeros(ev.n)
-        out = [
-            (np.column_stack([col_p, zero, zero, zero]), ev.p),
-            (np.column_stack([col_qp, xl * xl, xl, np.ones(ev.n)]), ev.q),
-        ]
-        if self.negative_sequence != "off":
-            out.append(self._i2(event, lb, y2p, v0))
-        for z, y in out:
-            # A proposal far outside the physics (a motor with no steady state nearby)
-            # can give columns that overflow the sums: infeasible, as a NaN is.
-            huge = z.size and np.abs(z).max() > 1e6
-            if huge or not (np.isfinite(z).all() and np.isfinite(y).all()):
-                return None
-        return out
-
-    def _motor(self, ev: EventRecord, logs: NDArray, m: str, x_fd: float):
-        # A motor's response, remembered for the last few (event, feeder, motor) keys: a
-        # move of the shares alone (the sampler's cheap steps) reuses it.
-        key = (id(ev.t), ev.n, float(x_fd), m, logs.tobytes())
-        cache = self._cache
-        if key in cache:
-            return cache[key]
-        out = motor_response(ev, logs, f_hz=self.f_hz, torque=MOTOR_CLASSES[m]["torque"])
-        if len(cache) > 256:
-            cache.clear()
-        cache[key] = out
-        return out
+        return col_p, col_qp, y2p
 
     def _i2(self, event, lb, y2p, v0) -> tuple[NDArray, NDArray]:
         if not self.uses_negative_sequence(event):

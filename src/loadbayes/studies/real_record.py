@@ -110,6 +110,9 @@ def events_of(cfg: str | os.PathLike[str], bay: str, *, per_cycle: int = 4):
         t = rows["t_s"][m]
         cols = {"t": t, "v": rows["v"][m], "p": rows["p"][m], "q": rows["q"][m],
                 "angle": rows["angle_rad"][m]}  # fmt: skip
+        if "v2_re" in rows:  # the negative-sequence phasors, for the models of parts
+            cols["v2"] = rows["v2_re"][m] + 1j * rows["v2_im"][m]
+            cols["i2"] = rows["i2_re"][m] + 1j * rows["i2_im"][m]
         label = f"{Path(cfg).name} {bay} segment {int(seg) + 1} (t = {t[0]:.3f} s)"
         (ev,) = events_from_arrays(
             cols, np.arange(1, t.size + 1), path=label, names=names, f_hz=w.f_nominal

@@ -137,13 +137,10 @@ class DesignProblem:
             return [np.zeros(0)] * (self.n_channels - 2)
         return [np.concatenate([c[g][1] for c in ch]) for g in range(2, self.n_channels)]
 
-    def extra_rows(self) -> int:
-        """Rows of the channels past P and Q (the NLS's residual count)."""
-        return int(sum(y.size for y in self._extra_targets()))
-
     def channel_rows(self) -> np.ndarray:
         """The observations of each channel, over the events (the noise precisions' n)."""
-        n = float(sum(e.n for e in self.events))
+        kept = getattr(self.model, "kept", None)
+        n = float(sum(e.n if kept is None else kept(e).size for e in self.events))
         return np.array([n, n, *(float(y.size) for y in self._extra_targets())])
 
     def extra_scales(self) -> list[float]:

@@ -58,8 +58,8 @@ def _project(problem: CompositeProblem, u: np.ndarray, w: np.ndarray):
 def _rows(problem) -> int:
     # Residual rows where no point has been feasible yet: P and Q of every sample, and
     # the rows of any other channel (the negative sequence) as the model declares them.
-    extra = getattr(problem, "extra_rows", None)
-    return 2 * sum(e.n for e in problem.events) + (extra() if extra is not None else 0)
+    rows = getattr(problem, "channel_rows", None)
+    return 2 * sum(e.n for e in problem.events) if rows is None else int(rows().sum())
 
 
 def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None) -> NLSResult:

@@ -35,6 +35,8 @@ __all__ = [
     "EventValidation",
     "operating_point",
     "read_exclusions",
+    "gaussian_logl",
+    "pointwise_lpd",
     "validate_event",
     "validate_events",
 ]
@@ -68,6 +70,14 @@ class EventValidation:
     q0: float = float("nan")
     draws_used: int = 0
     scale: float = float("nan")
+    #: Log pointwise predictive density of each scored sample (P and Q together): the
+    #: log of the mean over draws of its Gaussian likelihood; its sum is the event's elpd.
+    lpd: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def elpd(self) -> float:
+        """The held-out event's expected log predictive density (sum of ``lpd``)."""
+        return float(np.sum(self.lpd)) if self.lpd is not None else float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON record of ``loadbayes validate``."""
@@ -163,7 +173,7 @@ def validate_event(
         if all(n in d for n in ("a", "b", "c"))
         else np.tile([1.0, 0.0, 0.0], (total, 1))
     )
-    means_p, means_q, noisy_p, noisy_q = [], [], [], []
+    means_p, means_q, noisy_p, noisy_q, logl = [], [], [], [], []
     for i in pick:
         r = motor_response(ev, theta[i], f_hz=f_hz, torque=tuple(abc[i]), window_s=window_s)
         if r is None or not (np.all(np.isfinite(r[0])) and abs(r[0][0]) > 0):
@@ -179,6 +189,7 @@ def validate_event(
         means_q.append(mq)
         noisy_p.append(mp + rng.standard_normal(ev.n) / np.sqrt(d["tau_p"][i]))
         noisy_q.append(mq + rng.standard_normal(ev.n) / np.sqrt(d["tau_q"][i]))
+        logl.append(gaussian_logl(event, mp, mq, d["tau_p"][i], d["tau_q"][i]))
     if not means_p:
         raise ValueError(
             f"{event.name or 'the event'}: no posterior draw has a steady state at its first "
@@ -209,8 +220,25 @@ def validate_event(
         q0=q0n,
         draws_used=len(means_p),
         scale=scale,
+        lpd=pointwise_lpd(logl, scored),
         **out,
     )
+
+
+def gaussian_logl(event: EventRecord, mp, mq, tau_p: float, tau_q: float) -> np.ndarray:
+    """Each sample's log-likelihood of the recorded P and Q under one draw (Gaussian)."""
+    return (
+        -0.5 * tau_p * (event.p - mp) ** 2 - 0.5 * tau_q * (event.q - mq) ** 2
+        + 0.5 * np.log(tau_p * tau_q) - np.log(2 * np.pi)
+    )  # fmt: skip
+
+
+def pointwise_lpd(logl: list[np.ndarray], scored: np.ndarray) -> np.ndarray:
+    """``log mean_draws exp(logl)`` at each scored sample."""
+    from scipy.special import logsumexp
+
+    x = np.array(logl)[:, scored]
+    return logsumexp(x, axis=0) - np.log(x.shape[0])
 
 
 def validate_events(

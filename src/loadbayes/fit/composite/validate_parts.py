@@ -1,0 +1,93 @@
+"""A fitted model of parts checked on an event it was not fitted to, and scored for choice.
+
+:func:`validate_parts_event` plays the held-out event's recorded voltage (magnitude and
+angle, at the recorded bus) through posterior draws of a ``slm`` or ``cmld-lite`` fit,
+the feeder's loop solved (``models/parts_predict.py``), at the event's own operating
+point (``validate.operating_point``), with each draw's noise added for the band, as
+``fit/composite/validate.py`` does for ``zip+motor``. Its result is the same
+:class:`~loadbayes.fit.composite.validate.EventValidation`, plus the held-out event's
+log predictive density (``elpd``: the log of the mean over draws of each sample's
+Gaussian likelihood, summed over the scored samples of P and Q), which
+:mod:`loadbayes.fit.composite.choice` compares between models.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from loadbayes.fit.composite.validate import (
+    N_DRAWS,
+    EventValidation,
+    gaussian_logl,
+    operating_point,
+    pointwise_lpd,
+)
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.parts_predict import predict_parts
+from loadbayes.posterior import Posterior
+
+__all__ = ["validate_parts_event"]
+
+
+def validate_parts_event(
+    post: Posterior,
+    model,
+    event: EventRecord,
+    *,
+    exclude: np.ndarray | None = None,
+    n_draws: int = N_DRAWS,
+    prob: float = 0.95,
+    seed: int = 0,
+) -> EventValidation:
+    """Play one event's voltage through a parts model's posterior; score P and Q."""
+    d = {n: np.asarray(v, dtype=float).reshape(-1) for n, v in post.draws.items()}
+    missing = [n for n in (*model.theta_names, "cq2", "tau_p", "tau_q") if n not in d]
+    if missing:
+        raise ValueError(f"the posterior holds no draws of {', '.join(missing)}: not a "
+                         f"{model.name} fit")  # fmt: skip
+    rng = np.random.default_rng(seed)
+    total = d["tau_p"].size
+    pick = rng.choice(total, size=min(n_draws, total), replace=False)
+    scored = np.ones(event.n, dtype=bool) if exclude is None else ~np.asarray(exclude, bool)
+    if not scored.any():
+        raise ValueError(f"{event.name or 'the event'}: every sample is excluded: nothing to score")
+    p0n, q0n = operating_point(event, scored)
+    theta = np.stack([d[n] for n in model.theta_names], -1)
+    cq = np.stack([d["cq2"], d["cq1"], d["cq0"]], -1)
+    means_p, means_q, noisy_p, noisy_q, logl = [], [], [], [], []
+    for i in pick:
+        share = cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else np.array([0.0, 0.0, 1.0])
+        out = predict_parts(model, event, theta[i], p0n, q0n, share)
+        if out is None:
+            continue
+        mp, mq, _ = out
+        sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
+        means_p.append(mp)
+        means_q.append(mq)
+        noisy_p.append(mp + sp * rng.standard_normal(event.n))
+        noisy_q.append(mq + sq * rng.standard_normal(event.n))
+        logl.append(gaussian_logl(event, mp, mq, d["tau_p"][i], d["tau_q"][i]))
+    if not means_p:
+        raise ValueError(f"{event.name or 'the event'}: no posterior draw has a steady state at "
+                         f"its first voltage ({event.v0:.4g} p.u.)")  # fmt: skip
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    band: dict[str, np.ndarray] = {}
+    for ch, noisy, mean in (("p", noisy_p, means_p), ("q", noisy_q, means_q)):
+        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
+            np.array(noisy), [lo, 50, hi], axis=0
+        )
+        band[f"{ch}_mean"] = np.mean(np.array(mean), axis=0)
+    scale = float(np.mean(d["p0"]))
+    scores = {}
+    for ch in ("p", "q"):
+        x = getattr(event, ch)[scored]
+        scores[f"rms_{ch}"] = float(np.sqrt(np.mean((x - band[f"{ch}_mean"][scored]) ** 2)) / scale)
+        inside = (x >= band[f"{ch}_lo"][scored]) & (x <= band[f"{ch}_hi"][scored])
+        scores[f"coverage_{ch}"] = float(np.mean(inside))
+    return EventValidation(
+        file=event.name, n=event.n, n_excluded=int(event.n - scored.sum()), event=event,
+        scored=scored, band=band, p0=p0n, q0=q0n, draws_used=len(means_p), scale=scale,
+        lpd=pointwise_lpd(logl, scored), **scores,
+    )  # fmt: skip
