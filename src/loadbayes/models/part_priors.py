@@ -20,15 +20,20 @@ transformer plus feeder X 0.12).
 
 The shares of P among the parts and of the static part among Z, I and P are uniform on
 their simplex (Dirichlet(1, ..., 1)): every share in [0, 1], none favoured.
+:class:`PartsPrior` is the whole prior in the sampled coordinates.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from types import MappingProxyType
+from typing import Any
 
-__all__ = ["FEEDER_X", "MOTOR_CLASSES", "MOTOR_KEYS", "prior_ranges"]
+import numpy as np
+
+__all__ = ["FEEDER_X", "MOTOR_CLASSES", "MOTOR_KEYS", "PartsPrior", "prior_ranges"]
 
 #: A motor's parameters, in the order of the sampled coordinates' source values.
 MOTOR_KEYS = ("rs", "x_prime", "dx", "t_prime_s", "h_s", "t0")
@@ -86,3 +91,63 @@ def prior_ranges(cls: str, z: float = 1.959964) -> dict[str, tuple[float, float]
     for key, (median, sd) in MOTOR_CLASSES[cls]["prior"].items():
         out[key] = (median * math.exp(-z * sd), median * math.exp(z * sd))
     return out
+
+
+# Additive log-ratios of a uniform Dirichlet: each logistic, sd pi/sqrt(3), and any two
+# sharing a denominator correlated by var(log E) = pi^2/6 (the NLS start's Gaussian).
+_ALR_VAR, _ALR_COV = math.pi**2 / 3, math.pi**2 / 6
+
+
+@dataclass(frozen=True)
+class PartsPrior:
+    """The prior of a :class:`PartsModel`: Gaussian coordinates and Dirichlet shares.
+
+    ``mean, cov`` are the Gaussian block of the sampled vector (the feeder's and the
+    motors' coordinates, first ``n_gauss`` entries); ``groups`` the index ranges of the
+    additive log-ratio coordinates of each simplex (a uniform Dirichlet each).
+    """
+
+    mean: np.ndarray
+    cov: np.ndarray
+    groups: tuple[tuple[int, int], ...]
+    beta_sd: np.ndarray
+    tau_shape: float = 1e-3
+    tau_rate: float = 1e-9
+    positive: int | None = 0
+
+    def __post_init__(self) -> None:
+        n = self.mean.size + sum(b - a for a, b in self.groups)
+        full_mean = np.zeros(n)
+        full_mean[: self.mean.size] = self.mean
+        full = np.zeros((n, n))
+        full[: self.mean.size, : self.mean.size] = self.cov
+        for a, b in self.groups:
+            full[a:b, a:b] = _ALR_COV
+            full[range(a, b), range(a, b)] = _ALR_VAR
+        object.__setattr__(self, "_full", (full_mean, full))
+        object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
+
+    def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(mean, cov, gain, sd_cond)``: the Gaussian stand-in of every coordinate."""
+        mean, cov = self._full
+        return mean, cov, np.zeros(mean.size), 0.0
+
+    def log_u(self, u: np.ndarray) -> float:
+        """Log prior density at ``u`` up to a constant."""
+        u = np.asarray(u, dtype=float)
+        d = u[: self.mean.size] - self.mean
+        out = -0.5 * float(d @ self._prec @ d)
+        for a, b in self.groups:
+            # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
+            z = np.append(u[a:b], 0.0)
+            out += float(z.sum() - z.size * np.logaddexp.reduce(z))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (for the output's settings)."""
+        return {
+            "gaussian": {"mean": self.mean.tolist(), "sd": np.sqrt(np.diag(self.cov)).tolist()},
+            "simplexes": [list(g) for g in self.groups],
+            "beta_sd": self.beta_sd.tolist(),
+            "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
+        }

@@ -31,7 +31,7 @@ log((X - X') T0), log T', log(H / T0)``: what a positive-sequence record determi
 and ``log T0``, which positive-sequence data never see and the negative sequence does
 (a running motor's negative-sequence admittance is about its rating over ``Rs + jX'``).
 The Gaussian log-normal priors of the physical parameters are mapped exactly into
-those coordinates (:class:`PartsPrior`).
+those coordinates (``part_priors.PartsPrior``).
 
 **The negative sequence as data.** Where an event carries the negative-sequence
 phasors ``v2, i2`` (``EventRecord``) and is unbalanced (some ``|V2|`` above
@@ -57,7 +57,7 @@ from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import motor_physical, motor_response
 from loadbayes.models.composite_steps import FitSamples
 from loadbayes.models.motor_kernel import steady_state
-from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS
+from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS, PartsPrior
 from loadbayes.models.parts import (
     MOTOR_D_DEFAULTS,
     electronics_fraction,
@@ -66,7 +66,7 @@ from loadbayes.models.parts import (
     motor_y2,
 )
 
-__all__ = ["NEG_SEQ_MIN", "PartsModel", "PartsPrior"]
+__all__ = ["NEG_SEQ_MIN", "PartsModel"]
 
 #: |V2| (p.u.) above which a row's negative sequence is data: below it the current is
 #: the recorder's noise and the load's own imbalance more than the fault's.
@@ -84,64 +84,6 @@ _SCALE_FREE = np.array(
 )
 _MOTOR_COORDS = ("log_rs_t0", "log_x_prime_t0", "log_dx_t0", "log_t_prime", "log_h_over_t0",
                  "log_t0")  # fmt: skip
-# Additive log-ratios of a uniform Dirichlet: each logistic, sd pi/sqrt(3), and any two
-# sharing a denominator correlated by var(log E) = pi^2/6 (the NLS start's Gaussian).
-_ALR_VAR, _ALR_COV = math.pi**2 / 3, math.pi**2 / 6
-
-
-@dataclass(frozen=True)
-class PartsPrior:
-    """The prior of a :class:`PartsModel`: Gaussian coordinates and Dirichlet shares.
-
-    ``mean, cov`` are the Gaussian block of the sampled vector (the feeder's and the
-    motors' coordinates, first ``n_gauss`` entries); ``groups`` the index ranges of the
-    additive log-ratio coordinates of each simplex (a uniform Dirichlet each).
-    """
-
-    mean: np.ndarray
-    cov: np.ndarray
-    groups: tuple[tuple[int, int], ...]
-    beta_sd: np.ndarray
-    tau_shape: float = 1e-3
-    tau_rate: float = 1e-9
-    positive: int | None = 0
-
-    def __post_init__(self) -> None:
-        n = self.mean.size + sum(b - a for a, b in self.groups)
-        full_mean = np.zeros(n)
-        full_mean[: self.mean.size] = self.mean
-        full = np.zeros((n, n))
-        full[: self.mean.size, : self.mean.size] = self.cov
-        for a, b in self.groups:
-            full[a:b, a:b] = _ALR_COV
-            full[range(a, b), range(a, b)] = _ALR_VAR
-        object.__setattr__(self, "_full", (full_mean, full))
-        object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
-
-    def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """``(mean, cov, gain, sd_cond)``: the Gaussian stand-in of every coordinate."""
-        mean, cov = self._full
-        return mean, cov, np.zeros(mean.size), 0.0
-
-    def log_u(self, u: np.ndarray) -> float:
-        """Log prior density at ``u`` up to a constant."""
-        u = np.asarray(u, dtype=float)
-        d = u[: self.mean.size] - self.mean
-        out = -0.5 * float(d @ self._prec @ d)
-        for a, b in self.groups:
-            # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
-            z = np.append(u[a:b], 0.0)
-            out += float(z.sum() - z.size * np.logaddexp.reduce(z))
-        return out
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description (for the output's settings)."""
-        return {
-            "gaussian": {"mean": self.mean.tolist(), "sd": np.sqrt(np.diag(self.cov)).tolist()},
-            "simplexes": [list(g) for g in self.groups],
-            "beta_sd": self.beta_sd.tolist(),
-            "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
-        }
 
 
 def _softmax(z: NDArray) -> NDArray:
