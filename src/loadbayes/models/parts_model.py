@@ -312,6 +312,21 @@ class PartsModel:
                        np.column_stack([c1.imag, c2.imag, c2.imag, c2.imag])])  # fmt: skip
         return z, np.concatenate([i2.real, i2.imag])
 
+    def options(self) -> dict[str, Any]:
+        """Every field, JSON-ready (the fit records it: exports and playback rebuild from it)."""
+        return {
+            "motors": list(self.motors), "motor_classes": {
+                m: {"torque": list(MOTOR_CLASSES[m]["torque"]),
+                    "meaning": MOTOR_CLASSES[m]["meaning"]}
+                for m in self.motors
+            },
+            "feeder": self.feeder, "motor_d": self.motor_d, "electronics": self.electronics,
+            "f_hz": self.f_hz, "rx": self.rx, "negative_sequence": self.negative_sequence,
+            "window_s": self.window_s, "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
+            "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},
+            "priors": {k: list(v) for k, v in self.priors.items()},
+        }  # fmt: skip
+
     @property
     def channel_names(self) -> tuple[str, ...]:
         """The likelihood's channels: P, Q and (unless off) the negative-sequence current."""

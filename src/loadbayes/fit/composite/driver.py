@@ -345,6 +345,8 @@ def fit_composite(
     else:
         common = {"model": model.name, "n": int(sum(e.n for e in events)),
                   "prior": prior.to_dict(), **(settings or {})}  # fmt: skip
+        if hasattr(model, "options"):  # every field, so exports and playback can rebuild it
+            common["model_options"] = model.options()
     free = free_names(problem)
     coefficients = coefficient_names(draws_named)
     robust_settings, constant, robust_warn = {}, {}, []
