@@ -37,6 +37,10 @@ class ModelChoice:
     best: str
     words: str
     pointwise: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    #: Each model's fits, one per left-out event (``fits[name][k]`` left out event k).
+    fits: dict[str, list[Any]] = field(repr=False, default_factory=dict)
+    #: Each model's score on each left-out event (``held_out[name][k]``).
+    held_out: dict[str, list[Any]] = field(repr=False, default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (the pointwise densities left out)."""
@@ -61,13 +65,16 @@ def compare_models(
     if len(events) < 2:
         raise ValueError("choosing a model by held-out prediction needs two or more events")
     masks = list(exclude) if exclude is not None else [None] * len(events)
-    rows, pointwise = [], {}
+    rows, pointwise, fits, held = [], {}, {}, {}
     for model in models:
         lpd, rms_p, rms_q, cov_p, cov_q = [], [], [], [], []
+        fits[model.name], held[model.name] = [], []
         for k, ev in enumerate(events):
             train = [e for j, e in enumerate(events) if j != k]
             fit = fit_composite(model, train, sampler=sampler)
             v = _held_out(model, fit.posterior, ev, masks[k], sampler.seed)
+            fits[model.name].append(fit)
+            held[model.name].append(v)
             lpd.append(v.lpd)
             rms_p.append(v.rms_p)
             rms_q.append(v.rms_q)
@@ -95,4 +102,4 @@ def compare_models(
         else:
             words += (f"; {second['model']} is within {gap:.1f} (SE {se:.1f}): the data do "
                       "not settle the choice between them")  # fmt: skip
-    return ModelChoice(rows, best, words, pointwise)
+    return ModelChoice(rows, best, words, pointwise, fits, held)
