@@ -114,6 +114,10 @@ class PartsPrior:
     tau_shape: float = 1e-3
     tau_rate: float = 1e-9
     positive: int | None = 0
+    #: Each motor's physical region as hard limits: ``(i, rs_max, h_min)`` with ``i`` the
+    #: index of its first coordinate (``log(Rs T0)``; ``log(H / T0)`` at ``i + 4``,
+    #: ``log T0`` at ``i + 5``). Empty: no limits (the log-normal priors alone).
+    limits: tuple[tuple[int, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         n = self.mean.size + sum(b - a for a, b in self.groups)
@@ -135,6 +139,8 @@ class PartsPrior:
     def log_u(self, u: np.ndarray) -> float:
         """Log prior density at ``u`` up to a constant."""
         u = np.asarray(u, dtype=float)
+        if not self.inside(u):
+            return -math.inf
         d = u[: self.mean.size] - self.mean
         out = -0.5 * float(d @ self._prec @ d)
         for a, b in self.groups:
@@ -143,9 +149,25 @@ class PartsPrior:
             out += float(z.sum() - z.size * np.logaddexp.reduce(z))
         return out
 
+    def inside(self, u: np.ndarray) -> bool:
+        """Whether every motor of ``u`` lies in its physical region (:attr:`limits`)."""
+        for i, rs_max, h_min in self.limits:
+            if u[i] - u[i + 5] > math.log(rs_max) or u[i + 4] + u[i + 5] < math.log(h_min):
+                return False
+        return True
+
+    def project(self, u: np.ndarray, margin: float = 0.05) -> np.ndarray:
+        """``u`` moved just inside each motor's physical region (a start for the sampler)."""
+        u = np.array(u, dtype=float)
+        for i, rs_max, h_min in self.limits:
+            u[i] = min(u[i], math.log(rs_max) - margin + u[i + 5])
+            u[i + 4] = max(u[i + 4], math.log(h_min) + margin - u[i + 5])
+        return u
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (for the output's settings)."""
         return {
+            "limits": [{"coordinate": i, "rs_max": r, "h_min": h} for i, r, h in self.limits],
             "gaussian": {"mean": self.mean.tolist(), "sd": np.sqrt(np.diag(self.cov)).tolist()},
             "simplexes": [list(g) for g in self.groups],
             "beta_sd": self.beta_sd.tolist(),

@@ -107,6 +107,12 @@ class PartsModel:
     #: The recorder's phasor window (s): each sample read as the motors' mean over it
     #: (0: point samples, as simulators write them).
     window_s: float = 0.0
+    #: Hold each motor in the physical region a planner can use (Rs <= ``rs_max``, H >=
+    #: ``h_min`` on its own base) as hard limits of its prior; False: the log-normal
+    #: priors alone, and a fit outside the region is only said.
+    physical_region: bool = True
+    rs_max: float = 0.1
+    h_min: float = 0.05
     vd1: float = 0.70
     vd2: float = 0.50
     frcel: float = 0.0
@@ -183,8 +189,11 @@ class PartsModel:
         k = len(self.parts)
         groups = ((n, n + k), (n + k, n + k + 2))
         s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
+        first = 1 if self.feeder else 0
+        limits = tuple((first + 6 * j, self.rs_max, self.h_min) for j in range(len(self.motors)))
         return PartsPrior(np.concatenate(means) if means else np.zeros(0), cov, groups,
-                          np.full(4, 10 * s))  # fmt: skip
+                          np.full(4, 10 * s),
+                          limits=limits if self.physical_region else ())  # fmt: skip
 
     # -- the physics -------------------------------------------------------------------
 
@@ -304,7 +313,9 @@ class PartsModel:
     def _i2(self, event, lb, y2p, v0) -> tuple[NDArray, NDArray]:
         if not self.uses_negative_sequence(event):
             return np.zeros((0, len(self.beta_names))), np.zeros(0)
-        rows = np.abs(np.asarray(event.v2)) >= NEG_SEQ_MIN
+        rows = np.zeros(event.n, dtype=bool)
+        rows[self.kept(event)] = True  # not the rows whose window straddles a step
+        rows &= np.abs(np.asarray(event.v2)) >= NEG_SEQ_MIN
         v2l = lb.v2[rows]
         c1, c2 = v2l * y2p, v2l * (-1j / v0**2)
         i2 = np.asarray(event.i2)[rows]
@@ -322,7 +333,8 @@ class PartsModel:
             },
             "feeder": self.feeder, "motor_d": self.motor_d, "electronics": self.electronics,
             "f_hz": self.f_hz, "rx": self.rx, "negative_sequence": self.negative_sequence,
-            "window_s": self.window_s, "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
+            "window_s": self.window_s, "physical_region": self.physical_region,
+            "rs_max": self.rs_max, "h_min": self.h_min, "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
             "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},
             "priors": {k: list(v) for k, v in self.priors.items()},
         }  # fmt: skip

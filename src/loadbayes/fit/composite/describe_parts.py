@@ -56,13 +56,25 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
         if ratio > PRIOR_DRIVEN:
             lo, hi = _interval(x, hdi_prob)
             driven.append(f"{name} [{lo:.3g}, {hi:.3g}]")
+    at_limit = []
     for t in model._tags:
         for key, (low, high) in PHYSICAL.items():
             x = np.asarray(draws[key + t], dtype=float).ravel()
             med = float(np.median(x))
             if (low is not None and med < low) or (high is not None and med > high):
                 unphysical.append(f"{key + t} {med:.3g} (median)")
+            limit = model.rs_max if key == "rs" else model.h_min
+            lo, hi = _interval(x, hdi_prob)
+            near = hi > 0.97 * limit if key == "rs" else lo < 1.03 * limit
+            if model.physical_region and near:
+                at_limit.append(f"{key + t} [{lo:.3g}, {hi:.3g}] against {limit:g}")
     words["prior_driven"] = driven
+    words["at_physical_limit"] = at_limit
+    if at_limit:
+        post.warnings.append(
+            "at the physical region's limit (held there by the prior: the data pull past "
+            "it, so the model lacks something this load has): " + ", ".join(at_limit)
+        )
     words["unphysical"] = unphysical
     if driven:
         post.warnings.append(

@@ -84,8 +84,10 @@ class DesignProblem:
         """No steps: an empty vector of step fractions."""
         return np.zeros(np.shape(u)[:-1] + (0,))
 
-    def in_support(self, u: np.ndarray) -> bool:  # noqa: D102
-        return bool(np.isfinite(u).all())
+    def in_support(self, u: np.ndarray) -> bool:
+        """Finite, and inside the prior's hard limits where it has any."""
+        inside = getattr(self.prior, "inside", None)
+        return bool(np.isfinite(u).all()) and (inside is None or inside(u[: self.n_free]))
 
     def start_points(self) -> list[np.ndarray]:
         """Starts of the NLS search besides the prior's centre (the model's, if any)."""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -290,6 +290,9 @@ def fit_composite(
     )
     t0 = time.perf_counter()
     start = nls(problem)
+    project = getattr(prior, "project", None)
+    if project is not None and not prior.inside(start.u):  # hard limits: start inside them
+        start = replace(start, u=project(start.u))
     t1 = time.perf_counter()
     sampled, sample_start = problem, start
     if bounded:
