@@ -334,7 +334,8 @@ class PartsModel:
             "feeder": self.feeder, "motor_d": self.motor_d, "electronics": self.electronics,
             "f_hz": self.f_hz, "rx": self.rx, "negative_sequence": self.negative_sequence,
             "window_s": self.window_s, "physical_region": self.physical_region,
-            "rs_max": self.rs_max, "h_min": self.h_min, "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
+            "rs_max": self.rs_max, "h_min": self.h_min,
+            "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
             "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},
             "priors": {k: list(v) for k, v in self.priors.items()},
         }  # fmt: skip
