@@ -215,12 +215,13 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     from loadbayes.studies import fleet as fleet_study
     from loadbayes.studies import model_choice
     from loadbayes.studies import real_record as real_record_study
+    from loadbayes.studies import real_record_physical as physical_study
     from loadbayes.studies import robust as robust_study
     from loadbayes.studies import tracking as tracking_study
 
     past = []
     for name, mod in (("composite", composite_study), ("real record", real_record_study),
-                      ("robust", robust_study), ("tracking", tracking_study),
+                      ("physical load", physical_study), ("robust", robust_study), ("tracking", tracking_study),
                       ("model choice", model_choice), ("fleet", fleet_study)):  # fmt: skip
         say(f"study past the paper: {name}")
         past.append(zip_study.marked(mod.html_section(mod.run(quick=quick, seed=seed)),
