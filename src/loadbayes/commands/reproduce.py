@@ -221,8 +221,9 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
 
     past = []
     for name, mod in (("composite", composite_study), ("real record", real_record_study),
-                      ("physical load", physical_study), ("robust", robust_study), ("tracking", tracking_study),
-                      ("model choice", model_choice), ("fleet", fleet_study)):  # fmt: skip
+                      ("physical load", physical_study), ("robust", robust_study),
+                      ("tracking", tracking_study), ("model choice", model_choice),
+                      ("fleet", fleet_study)):  # fmt: skip
         say(f"study past the paper: {name}")
         past.append(zip_study.marked(mod.html_section(mod.run(quick=quick, seed=seed)),
                                      f"loadbayes:section {name.replace(' ', '-')}"))  # fmt: skip
