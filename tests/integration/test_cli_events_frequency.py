@@ -37,15 +37,9 @@ def test_events_csv_carries_the_nominal_frequency(events50):
     assert index["f_nominal_hz"].tolist() == [50, 50]
 
 
-def test_fit_composite_takes_the_frequency_from_events_csv(events50, tmp_path, monkeypatch):
-    # The announced cost's probe is not what this test checks (test_composite_estimate
-    # and test_cli_composite_signals do), and on this slow-stepping event (0.1 s an
-    # iteration) it ran hundreds of throw-away iterations for a run of 80: 97 of the
-    # test's 98 s under `make test`. The probe has its own generator: the draws, the note
-    # and the JSON are those of an unstubbed run.
-    from loadbayes.fit.composite import driver
-
-    monkeypatch.setattr(driver, "_estimate_seconds", lambda *a, **k: 0.0)
+@pytest.mark.usefixtures("no_cost_probe")
+def test_fit_composite_takes_the_frequency_from_events_csv(events50, tmp_path):
+    # The cost probe ran 926 throw-away iterations for a run of 80 on this event.
     res = run("fit", "composite", events50 / "event_001.csv", "--draws", "80", "--burn", "30",
               "--chains", "1", "--fixed-draws", "--json", tmp_path / "f.json")  # fmt: skip
     assert res.exit_code == 0, res.output
