@@ -26,3 +26,20 @@ def pytest_collection_modifyitems(items):  # noqa: D103
     # nothing left (the independent-events study: 345 s), and `make test` passed 15
     # minutes; started first, the short ones fill the other worker around it.
     items.sort(key=_rank)
+
+
+@pytest.fixture
+def no_cost_probe(monkeypatch):
+    """Skip the composite fit's announced-cost probe (a throw-away timed run).
+
+    Every ``fit composite`` from the CLI times a short run of its own before sampling, to
+    announce the cost; on a slow-stepping event it ran hundreds of iterations (97 s of
+    a 98 s test under `make test`). Tests that do not check the announcement use this:
+    the probe has its own generator, so the draws and the JSON are unchanged (checked:
+    the frequency test's JSON equals an unstubbed run's but for the timings). The
+    announcement itself is tested in test_composite_estimate and
+    test_cli_composite_signals, without it.
+    """
+    from loadbayes.fit.composite import driver
+
+    monkeypatch.setattr(driver, "_estimate_seconds", lambda *args, **kwargs: 0.0)

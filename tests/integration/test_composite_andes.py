@@ -22,7 +22,9 @@ from click.testing import CliRunner
 
 from loadbayes.cli import main
 
-pytestmark = pytest.mark.integration
+#: The fit's announced-cost probe is skipped (tests/conftest.py: no_cost_probe): no test
+#: here checks the announcement, and the draws do not depend on it.
+pytestmark = [pytest.mark.integration, pytest.mark.usefixtures("no_cost_probe")]
 
 CHECKED = ("f_m", "t_prime_s", "a1", "a2", "a3")
 #: ANDES and loadbayes's motor agree to this in P and Q (docs/andes.md, 1e-3 of the

@@ -1,5 +1,8 @@
 """Pooled fleets say when they have not converged, continue chains exactly, keep a given P0."""
 
+import itertools
+import types
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -23,6 +26,22 @@ def fleet(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fleet")
     write_fleet(fleet_truth(30, seed=4, rows=(10, 400)), folder, layout="table")
     return str(folder / "fleet.parquet")
+
+
+@pytest.fixture
+def clock(monkeypatch):
+    """The pooled run's clock, 0.6 s a reading: the budget's rounds pinned, not timed.
+
+    With ``max_seconds=3`` the readings after rounds 1, 2 and 3 are 0.6, 1.2 and 1.8 s
+    spent; a round runs as long as all before it, so the run stops after the third
+    (1.8 + 1.8 > 3) unless every class has converged before: the same rounds on any
+    machine (on the wall clock a loaded machine ran fewer, an idle one more), and three,
+    so that doubling rounds (240 sweeps) and fixed-length ones (180) differ.
+    """
+    from loadbayes.fleet import run
+
+    ticks = itertools.count(0.0, 0.6)
+    monkeypatch.setattr(run, "time", types.SimpleNamespace(monotonic=lambda: next(ticks)))
 
 
 def test_too_few_draws_name_the_unconverged_classes(fleet):
@@ -53,7 +72,7 @@ def test_the_cli_says_it_on_stderr_and_in_the_file(fleet, tmp_path):
     assert {"p0", "q0", "dp_dv", "dq_dv"} <= set(table["parameter"].dropna())
 
 
-def test_a_budget_continues_the_chains_until_the_classes_converge(fleet):
+def test_a_budget_continues_the_chains_until_the_classes_converge(fleet, clock):
     sampler = SamplerSettings(chains=2, draws=60, burn=20, seed=1)
     one = run_fleet(fleet, SPEC, pool="class", sampler=sampler).settings
     more = run_fleet(fleet, SPEC, pool="class", sampler=sampler, max_seconds=3).settings
@@ -64,7 +83,7 @@ def test_a_budget_continues_the_chains_until_the_classes_converge(fleet):
     assert more["sweeps"] == 60 * 2 ** (more["rounds"] - 1), more
 
 
-def test_continued_rounds_keep_the_first_rounds_number_of_draws(fleet):
+def test_continued_rounds_keep_the_first_rounds_number_of_draws(fleet, clock):
     # A thinned run: the first round keeps 20 of 60 (one in 2 after 20); every later
     # round keeps no more (memory as in the first round), and never thins less.
     sampler = SamplerSettings(chains=2, draws=60, burn=20, thin=2, seed=1)
