@@ -354,7 +354,7 @@ def fit_composite_cmd(
                 model,
                 events,
                 sampler=sampler,
-                progress=bar,
+                progress=None if quiet else bar,  # --quiet: no cost to announce, no probe
                 data_warnings=unit_warnings,
                 provenance={
                     "files": list(files),

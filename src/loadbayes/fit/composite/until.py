@@ -95,6 +95,8 @@ def estimate_seconds(probe: Callable[[int, Callable], object], draws: int, round
             return 0
         if len(spent) >= PROBE_ROUNDS or now - t0 > PROBE_SECONDS:
             return 0
+        if sum(n for _, n in spent) >= draws:  # never a longer throw-away than the run
+            return 0
         ahead = max(PROBE_ROUND, math.ceil(PROBE_ROUND_S / max(pace(-1), 1e-9)))
         return ahead
 
