@@ -56,7 +56,7 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import motor_physical, motor_response
 from loadbayes.models.composite_steps import FitSamples
-from loadbayes.models.motor_kernel import steady_state
+from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS, steady_state
 from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS, PartsPrior
 from loadbayes.models.parts import (
     MOTOR_D_DEFAULTS,
@@ -65,6 +65,7 @@ from loadbayes.models.parts import (
     motor_d,
     motor_y2,
 )
+from loadbayes.models.parts_kernel import event_sums
 
 __all__ = ["NEG_SEQ_MIN", "PartsModel"]
 
@@ -82,6 +83,7 @@ _SCALE_FREE = np.array(
         [0, 0, 0, 0, 0, 1],
     ]
 )
+_INV_SCALE_FREE = np.linalg.inv(_SCALE_FREE)
 _MOTOR_COORDS = ("log_rs_t0", "log_x_prime_t0", "log_dx_t0", "log_t_prime", "log_h_over_t0",
                  "log_t0")  # fmt: skip
 
@@ -161,6 +163,9 @@ class PartsModel:
         set_(self, "_n_gauss", n_gauss)
         set_(self, "_tags", tuple(tags))
         set_(self, "_kept", {})
+        set_(self, "_fixed", {})
+        params = {**MOTOR_D_DEFAULTS, **self.motor_d_params}
+        set_(self, "_d_params", np.array([float(params[k]) for k in MOTOR_D_DEFAULTS]))
 
     def _tag(self, m: str) -> str:
         return "" if len(self.motors) == 1 else f"_{m}"
@@ -204,7 +209,7 @@ class PartsModel:
         if self.feeder:
             out["x_fd"] = np.exp(th[..., 0])
             i = 1
-        inv = np.linalg.inv(_SCALE_FREE)
+        inv = _INV_SCALE_FREE
         out["motors"] = []
         for _ in self.motors:
             logs = th[..., i : i + 6] @ inv.T
@@ -272,6 +277,50 @@ class PartsModel:
             else:
                 self._kept[key] = np.arange(event.n)
         return self._kept[key]
+
+    def event_sums(self, event: EventRecord, theta: NDArray):
+        """The channels' sums ``(ztz, zty, yty, n)`` at ``theta`` in one compiled call.
+
+        The same numbers as :meth:`channels` summed (``models/parts_kernel.py``); None
+        where infeasible.
+        """
+        fixed = self._fixed_of(event)
+        c = self._split(np.asarray(theta, dtype=float))
+        x_fd = self.feeder_x(event.p[0], event.q[0], c)
+        wb = 2.0 * math.pi * self.f_hz
+        motors = np.empty((len(self.motors), 11))
+        for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
+            rs, xp, dx, tp, h, t0 = np.exp(logs)
+            a, b, cc = MOTOR_CLASSES[m]["torque"]
+            motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
+        g = len(self.channel_names)
+        ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
+        ok = event_sums(*fixed, self.rx * x_fd, x_fd, motors, float(self.window_s),
+                        np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
+                        self.motor_d, self._d_params, self.electronics, float(self.vd1),
+                        float(self.vd2), float(self.frcel), g == 3 and bool(fixed[9].any()),
+                        ztz, zty, yty, nn)  # fmt: skip
+        return (ztz, zty, yty, nn) if ok else None
+
+    def _fixed_of(self, event: EventRecord) -> tuple:
+        # The event's arrays the kernel reads, once per event.
+        key = (id(event), event.n)
+        if key not in self._fixed:
+            n = event.n
+            keep = np.zeros(n, dtype=bool)
+            keep[self.kept(event)] = True
+            ns = self.negative_sequence != "off" and self.uses_negative_sequence(event)
+            v2 = np.zeros(n, complex) if not ns else np.asarray(event.v2, dtype=complex)
+            i2 = np.zeros(n, complex) if not ns else np.asarray(event.i2, dtype=complex)
+            rows = keep & (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
+            delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
+            self._fixed[key] = (
+                np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
+                np.ascontiguousarray(delta), event.delta is not None,
+                np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
+                keep, v2, i2, rows,
+            )  # fmt: skip
+        return self._fixed[key]
 
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""

@@ -151,6 +151,19 @@ class DesignProblem:
 
     def sums(self, u: np.ndarray, torque: Any = None) -> list[GroupSums] | None:
         """Each event's sufficient sums of the linear block (None if infeasible)."""
+        compiled = getattr(self.model, "event_sums", None)
+        if compiled is not None:  # the model's own compiled sums (models/parts_kernel.py)
+            self.evaluations += 1
+            if not self.in_support(u):
+                return None
+            theta = self.theta(u)
+            out = []
+            for ev in self.events:
+                got = compiled(ev, theta)
+                if got is None:
+                    return None
+                out.append(GroupSums(*got))
+            return out
         ch = self.channels(u)
         if ch is None:
             return None
