@@ -46,6 +46,7 @@ from loadbayes.measurements.record import EventRecord
 
 __all__ = [
     "MOTOR_D_DEFAULTS",
+    "NEG_SEQ_MIN",
     "LoadBus",
     "electronics_fraction",
     "load_bus",
@@ -53,6 +54,9 @@ __all__ = [
     "motor_y2",
 ]
 
+#: |V2| (p.u.) above which a row's negative sequence is data: below it the current is
+#: the recorder's noise and the load's own imbalance more than the fault's.
+NEG_SEQ_MIN = 0.02
 #: Motor D's constants (WECC composite load model specification, 2015, typical values;
 #: the run curves are PNNL-17796's fit to 27 tested units): break voltage, the two run
 #: curves' gains and exponents, the stall voltage, time and impedance (own base), the

@@ -18,10 +18,16 @@ import math
 import numba
 import numpy as np
 
-from loadbayes.models.motor_kernel import integrate_into, integrate_window_into
-from loadbayes.models.parts import _motor_d
+from loadbayes.models.motor_kernel import (
+    H_MAX_S,
+    TP_STEPS,
+    integrate_into,
+    integrate_window_into,
+)
+from loadbayes.models.part_priors import MOTOR_CLASSES
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d
 
-__all__ = ["event_sums"]
+__all__ = ["event_sums", "model_sums"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -154,3 +160,47 @@ def event_sums(t, v, delta, has_angle, p, q, keep, v2, i2, i2_rows, r, x, motors
             if not math.isfinite(zty[g, a]):
                 return False
     return True
+
+
+def model_sums(model, event, theta):
+    """:func:`event_sums` for a ``PartsModel`` at ``theta``: ``(ztz, zty, yty, n)`` or None."""
+    fixed = _fixed_of(model, event)
+    c = model._split(np.asarray(theta, dtype=float))
+    x_fd = model.feeder_x(event.p[0], event.q[0], c)
+    wb = 2.0 * math.pi * model.f_hz
+    motors = np.empty((len(model.motors), 11))
+    for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
+        rs, xp, dx, tp, h, t0 = np.exp(logs)
+        a, b, cc = MOTOR_CLASSES[m]["torque"]
+        motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
+    g = len(model.channel_names)
+    ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
+    params = {**MOTOR_D_DEFAULTS, **model.motor_d_params}
+    d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
+    ok = event_sums(*fixed, model.rx * x_fd, x_fd, motors, float(model.window_s),
+                    np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
+                    model.motor_d, d_params, model.electronics, float(model.vd1),
+                    float(model.vd2), float(model.frcel), g == 3 and bool(fixed[9].any()),
+                    ztz, zty, yty, nn)  # fmt: skip
+    return (ztz, zty, yty, nn) if ok else None
+
+
+def _fixed_of(model, event) -> tuple:
+    # The event's arrays the kernel reads, once per event (kept on the model).
+    key = (id(event), event.n)
+    if key not in model._fixed:
+        n = event.n
+        keep = np.zeros(n, dtype=bool)
+        keep[model.kept(event)] = True
+        ns = model.negative_sequence != "off" and model.uses_negative_sequence(event)
+        v2 = np.zeros(n, complex) if not ns else np.asarray(event.v2, dtype=complex)
+        i2 = np.zeros(n, complex) if not ns else np.asarray(event.i2, dtype=complex)
+        rows = keep & (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
+        delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
+        model._fixed[key] = (
+            np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
+            np.ascontiguousarray(delta), event.delta is not None,
+            np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
+            keep, v2, i2, rows,
+        )  # fmt: skip
+    return model._fixed[key]

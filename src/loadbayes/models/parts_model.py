@@ -56,22 +56,19 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import motor_physical, motor_response
 from loadbayes.models.composite_steps import FitSamples
-from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS, steady_state
 from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS, PartsPrior
 from loadbayes.models.parts import (
     MOTOR_D_DEFAULTS,
+    NEG_SEQ_MIN,
     electronics_fraction,
     load_bus,
     motor_d,
     motor_y2,
 )
-from loadbayes.models.parts_kernel import event_sums
+from loadbayes.models.parts_kernel import model_sums
 
 __all__ = ["NEG_SEQ_MIN", "PartsModel"]
 
-#: |V2| (p.u.) above which a row's negative sequence is data: below it the current is
-#: the recorder's noise and the load's own imbalance more than the fault's.
-NEG_SEQ_MIN = 0.02
 # Scale-free motor coordinates from the logs of (Rs, X', X - X', T', H, T0).
 _SCALE_FREE = np.array(
     [
@@ -164,8 +161,6 @@ class PartsModel:
         set_(self, "_tags", tuple(tags))
         set_(self, "_kept", {})
         set_(self, "_fixed", {})
-        params = {**MOTOR_D_DEFAULTS, **self.motor_d_params}
-        set_(self, "_d_params", np.array([float(params[k]) for k in MOTOR_D_DEFAULTS]))
 
     def _tag(self, m: str) -> str:
         return "" if len(self.motors) == 1 else f"_{m}"
@@ -284,43 +279,7 @@ class PartsModel:
         The same numbers as :meth:`channels` summed (``models/parts_kernel.py``); None
         where infeasible.
         """
-        fixed = self._fixed_of(event)
-        c = self._split(np.asarray(theta, dtype=float))
-        x_fd = self.feeder_x(event.p[0], event.q[0], c)
-        wb = 2.0 * math.pi * self.f_hz
-        motors = np.empty((len(self.motors), 11))
-        for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
-            rs, xp, dx, tp, h, t0 = np.exp(logs)
-            a, b, cc = MOTOR_CLASSES[m]["torque"]
-            motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
-        g = len(self.channel_names)
-        ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
-        ok = event_sums(*fixed, self.rx * x_fd, x_fd, motors, float(self.window_s),
-                        np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
-                        self.motor_d, self._d_params, self.electronics, float(self.vd1),
-                        float(self.vd2), float(self.frcel), g == 3 and bool(fixed[9].any()),
-                        ztz, zty, yty, nn)  # fmt: skip
-        return (ztz, zty, yty, nn) if ok else None
-
-    def _fixed_of(self, event: EventRecord) -> tuple:
-        # The event's arrays the kernel reads, once per event.
-        key = (id(event), event.n)
-        if key not in self._fixed:
-            n = event.n
-            keep = np.zeros(n, dtype=bool)
-            keep[self.kept(event)] = True
-            ns = self.negative_sequence != "off" and self.uses_negative_sequence(event)
-            v2 = np.zeros(n, complex) if not ns else np.asarray(event.v2, dtype=complex)
-            i2 = np.zeros(n, complex) if not ns else np.asarray(event.i2, dtype=complex)
-            rows = keep & (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
-            delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
-            self._fixed[key] = (
-                np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
-                np.ascontiguousarray(delta), event.delta is not None,
-                np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
-                keep, v2, i2, rows,
-            )  # fmt: skip
-        return self._fixed[key]
+        return model_sums(self, event, theta)
 
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""
@@ -431,24 +390,9 @@ class PartsModel:
 
     def ratings(self, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:
         """Each motor's rating (system p.u. of MVA) per draw: ``f_k p0 / p_k(0)``."""
-        th = np.atleast_2d(np.asarray(theta, dtype=float))
-        p0 = np.atleast_1d(np.asarray(p0, dtype=float))
-        c = self._split(th)
-        wb = 2 * math.pi * self.f_hz
-        out = {}
-        for j, (m, logs, t) in enumerate(zip(self.motors, c["motors"], self._tags, strict=True)):
-            a, b, cc = MOTOR_CLASSES[m]["torque"]
-            mva = np.full(th.shape[0], np.nan)
-            for i in range(th.shape[0]):
-                x_fd = float(c["x_fd"][i]) if self.feeder else 0.0
-                s_load = float(np.hypot(event.p[0], event.q[0]))
-                vl = abs(event.v[0] - complex(self.rx, 1.0) * x_fd / s_load
-                         * np.conj(complex(event.p[0], event.q[0]) / event.v[0]))  # fmt: skip
-                rs, xp, dx, tp, h, t0 = np.exp(logs[i])
-                pm0 = steady_state(rs, xp, dx, tp, wb, vl, t0, a, b, cc)[3]
-                mva[i] = c["f"][i, j] * p0[i] / pm0
-            out["mva" + (t or "_m")] = mva
-        return out
+        from loadbayes.models.parts_predict import motor_ratings
+
+        return motor_ratings(self, event, theta, p0)
 
     @property
     def quantities(self) -> dict[str, tuple[str, str]]:

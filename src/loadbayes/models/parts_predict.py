@@ -16,14 +16,17 @@ The operating point is the event's own (its pre-fault P, Q at the recorded bus),
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from loadbayes.measurements.record import EventRecord
+from loadbayes.models.motor_kernel import steady_state
+from loadbayes.models.part_priors import MOTOR_CLASSES
 
-__all__ = ["predict_parts"]
+__all__ = ["motor_ratings", "predict_parts"]
 
 
 def predict_parts(
@@ -84,3 +87,25 @@ def predict_parts(
             s = v * np.conj(current)
             return s.real, s.imag, it
     return None
+
+
+def motor_ratings(model, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:
+    """Each motor's rating (system p.u. of MVA) per draw: ``f_k p0 / p_k(0)``."""
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    p0 = np.atleast_1d(np.asarray(p0, dtype=float))
+    c = model._split(th)
+    wb = 2 * math.pi * model.f_hz
+    out = {}
+    for j, (m, logs, t) in enumerate(zip(model.motors, c["motors"], model._tags, strict=True)):
+        a, b, cc = MOTOR_CLASSES[m]["torque"]
+        mva = np.full(th.shape[0], np.nan)
+        for i in range(th.shape[0]):
+            x_fd = float(c["x_fd"][i]) if model.feeder else 0.0
+            s_load = float(np.hypot(event.p[0], event.q[0]))
+            vl = abs(event.v[0] - complex(model.rx, 1.0) * x_fd / s_load
+                     * np.conj(complex(event.p[0], event.q[0]) / event.v[0]))  # fmt: skip
+            rs, xp, dx, tp, h, t0 = np.exp(logs[i])
+            pm0 = steady_state(rs, xp, dx, tp, wb, vl, t0, a, b, cc)[3]
+            mva[i] = c["f"][i, j] * p0[i] / pm0
+        out["mva" + (t or "_m")] = mva
+    return out
