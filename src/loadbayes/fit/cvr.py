@@ -35,6 +35,7 @@ from loadbayes.fit.cvr_data import (
     daily_table,
     find_glitches,
     read_telemetry,
+    relabel_days,
     schedule_from_steps,
     voltage_answers_to_load,
 )
@@ -193,17 +194,20 @@ def fit_cvr(
     else:
         xs = np.where(good, x, np.nan)
         keep = np.flatnonzero(good)
-        state, info = schedule_from_steps(xs[keep], p[keep], t[keep], min_step=min_switch)
+        state, info, doubt_k = schedule_from_steps(xs[keep], p[keep], t[keep], min_step=min_switch)
         on = np.zeros(n, dtype=np.int8)
         on[keep] = state
-        sched = {"source": "voltage steps (the step finder)", **info}
+        doubt = np.zeros(n, dtype=bool)
+        doubt[keep] = doubt_k
+        on, flipped = relabel_days(stamps, x, on, good, doubt)
+        sched = {"source": "voltage steps (the step finder)", **info, "days_relabelled": flipped}
         if info["steps"] < 2:
             raise DataError(
                 f"no on/off switching found in the voltage (steps of {min_switch:g} p.u. "
                 f"or more: {info['steps']}); give the schedule (--schedule-col) or lower "
                 "--min-switch"
             )
-        if info["repeats"]:
+        if info["repeats"] and not flipped:
             warnings.append(
                 f"two voltage steps in a row went the same way at {info['repeats']} places: "
                 "a switch may have been missed or a tap taken for one; give the schedule "
@@ -256,6 +260,12 @@ def fit_cvr(
         inst, steps_at, inst_draws, w = _instant(x, p, q, t, good, reverse, pv, drop_against,
                                                  step_sampler)  # fmt: skip
         warnings += w
+    else:  # the steps are still left out of the load's own moves of V
+        from loadbayes.measurements.steps import find_steps
+
+        keep = np.flatnonzero(good)
+        found, _ = find_steps(x[keep], p[keep], t=t[keep])
+        steps_at = keep[[s.index for s in found]] if found else steps_at
     imp = voltage_answers_to_load(x, p, good, steps_at)
     if imp:
         imp = {k: (v / s_base if k in ("z", "low", "high") else v) for k, v in imp.items()}

@@ -31,6 +31,7 @@ __all__ = [
     "daily_table",
     "find_glitches",
     "read_telemetry",
+    "relabel_days",
     "schedule_from_steps",
     "voltage_answers_to_load",
 ]
@@ -114,24 +115,65 @@ def schedule_from_steps(
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """Each sample's state (1: reduction on) from the voltage's steps (module notes).
 
-    Returns the states and what was seen: the steps used, their median size, and how
-    many times two steps in a row went the same way (a switch missed, or a tap).
+    Returns the states, what was seen (the steps used, their median size, and how many
+    times two steps in a row went the same way: a switch missed, or a tap), and the
+    samples in doubt (between two steps the same way).
     """
     from loadbayes.measurements.steps import find_steps
 
     steps, info = find_steps(x, p, t=t, min_step=min_step)
     state = np.zeros(x.size, dtype=np.int8)
     if not steps:
-        return state, {"steps": 0, "repeats": 0, **info}
+        return state, {"steps": 0, "repeats": 0, **info}, np.zeros(x.size, dtype=bool)
     idx = np.array([s.index for s in steps])
     down = np.array([s.dv < 0 for s in steps])
     state[: idx[0]] = 0 if down[0] else 1
     for j, i in enumerate(idx):
         end = idx[j + 1] if j + 1 < idx.size else x.size
         state[i:end] = 1 if down[j] else 0
-    repeats = int(np.sum(down[1:] == down[:-1]))
+    same = np.flatnonzero(down[1:] == down[:-1])
+    # between two steps the same way a switch was missed: the samples there are in doubt
+    doubt = np.zeros(x.size, dtype=bool)
+    for j in same:
+        doubt[idx[j] : idx[j + 1]] = True
     size = float(np.median(np.abs([s.dv for s in steps])))
-    return state, {"steps": len(steps), "repeats": repeats, "median_step_pu": size, **info}
+    seen = {"steps": len(steps), "repeats": int(same.size), "median_step_pu": size, **info}
+    return state, seen, doubt
+
+
+def relabel_days(
+    stamps: np.ndarray, x: np.ndarray, on: np.ndarray, good: np.ndarray, doubt: np.ndarray
+):
+    """Days in doubt whose mean voltage sits with the other state's days, relabelled whole.
+
+    A switch the step finder cannot see (in a telemetry gap, or next to a tap) carries
+    the wrong state on until the next one; the two steps around it then go the same
+    way, and the samples between them are in ``doubt``. A day there labelled wholly on
+    (off) whose mean V is nearer the median of the undoubted off (on) days is given the
+    other state (only there: the daily voltage also moves with taps and the load, so a
+    day's mean alone would mislabel days elsewhere). Returns the states and how many
+    days were relabelled.
+    """
+    day = stamps.astype("datetime64[D]")
+    _, inv = np.unique(day, return_inverse=True)
+    w = good.astype(float)
+    count = np.maximum(np.bincount(inv, weights=w), 1)
+    v = np.bincount(inv, weights=w * x) / count
+    share = np.bincount(inv, weights=w * on) / count
+    in_doubt = np.bincount(inv, weights=doubt.astype(float)) > 0
+    whole_on, whole_off = share >= 0.999, share <= 0.001
+    sure_on, sure_off = whole_on & ~in_doubt, whole_off & ~in_doubt
+    if sure_on.sum() < 2 or sure_off.sum() < 2 or not in_doubt.any():
+        return on, 0
+    m_on, m_off = np.median(v[sure_on]), np.median(v[sure_off])
+    near_on = np.abs(v - m_on) < np.abs(v - m_off)
+    flip = in_doubt & ((whole_on & ~near_on) | (whole_off & near_on))
+    if not flip.any():
+        return on, 0
+    out = on.copy()
+    rows = flip[inv]
+    out[rows] = 1 - out[rows]
+    return out, int(flip.sum())
 
 
 @dataclass
@@ -208,7 +250,7 @@ def daily_table(
 
 
 def voltage_answers_to_load(
-    x: np.ndarray, p: np.ndarray, good: np.ndarray, steps_at: np.ndarray, *, lag: int = 3
+    x: np.ndarray, p: np.ndarray, good: np.ndarray, steps_at: np.ndarray, *, lag: int = 1
 ) -> dict[str, float]:
     """How far V falls per unit of P at the head, from their joint moves between steps.
 
