@@ -30,7 +30,6 @@ from click.testing import CliRunner
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cvr_generator import Feeder, feeder, to_csv  # noqa: E402
-
 from loadbayes.cli import main  # noqa: E402
 from loadbayes.core.settings import SamplerSettings  # noqa: E402
 from loadbayes.fit.cvr import CVR_DEFAULTS, cvr  # noqa: E402
@@ -42,7 +41,7 @@ FAST = CVR_DEFAULTS.with_(draws=1500)
 STEPS = SamplerSettings(draws=1200, burn=200, chains=2, seed=1)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _feeder(seed: int, **kw):
     return feeder(seed, Feeder(**kw))
 
@@ -108,7 +107,8 @@ def test_the_command_writes_json_and_refuses_to_overwrite(tmp_path):
     out = tmp_path / "cvr.json"
     args = ["cvr", str(data), "--v-col", "v_kv", "--p-col", "p_mw", "--q-col", "q_mvar",
             "--v-base", "12.47", "--s-base", "10", "--schedule-col", "cvr_on",
-            "--weather-col", "temp_c", "--no-instant", "--draws", "500", "--json", str(out)]  # fmt: skip
+            "--weather-col", "temp_c", "--no-instant", "--draws", "500",
+            "--json", str(out)]  # fmt: skip
     r = CliRunner().invoke(main, args)
     assert r.exit_code == 0, r.output
     res = json.loads(out.read_text())
