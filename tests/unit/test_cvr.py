@@ -135,3 +135,14 @@ def test_a_test_without_switching_is_refused_in_one_line():
 
     with pytest.raises(DataError, match="at least two of each"):
         cvr(pd.DataFrame(flat), **COLS, schedule_col="cvr_on", instant=False, sampler=FAST)
+
+
+def test_the_demo_section_sets_each_factor_beside_its_truth():
+    from loadbayes.studies import cvr as cvr_study
+
+    study = cvr_study.run(quick=True)
+    e = study.result["energy"]["p"]
+    assert e["low"] <= study.truth["cvr_energy_p"] <= e["high"]
+    html = cvr_study.html_section(study)
+    assert '<section id="cvr">' in html and "against their truth" in html
+    assert "Thermostatic loads recover energy" in html and "<img" in html
