@@ -146,3 +146,15 @@ def test_the_demo_section_sets_each_factor_beside_its_truth():
     html = cvr_study.html_section(study)
     assert '<section id="cvr">' in html and "against their truth" in html
     assert "Thermostatic loads recover energy" in html and "<img" in html
+
+
+def test_an_instrument_the_user_names_takes_the_switchings_place():
+    cols, _ = _feeder(5, days=24, holidays=())
+    frame = pd.DataFrame(dict(cols, tap=1.0 - 2.0 * cols["cvr_on"]))  # the switching, renamed
+    kw = dict(COLS, pv_col=None, holiday_col=None, instant=False, sampler=FAST)
+    by_schedule = cvr(frame, **kw, schedule_col="cvr_on")
+    by_instrument = cvr(frame, **kw, schedule_col="cvr_on", instrument_col="tap")
+    assert by_instrument["outside_cause"] == "the instrument column"
+    a, b = by_schedule["energy"]["p"], by_instrument["energy"]["p"]
+    # a rescaled instrument leaves Wald's ratio as it was (the draws differ, not the law)
+    assert abs(a["mean"] - b["mean"]) < 0.2 * a["sd"] and abs(a["sd"] / b["sd"] - 1) < 0.1

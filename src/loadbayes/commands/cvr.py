@@ -27,6 +27,9 @@ from loadbayes.commands.output import UserError, check_outputs, output_transacti
 @click.option("--pv-col", default=None,
               help="PV output or irradiance: its daily mean enters the regression, and "
               "dP/dV uses the dark hours' steps.")  # fmt: skip
+@click.option("--instrument-col", default=None,
+              help="An outside cause of V you name (a tap position, the upstream voltage): "
+              "its daily mean replaces the on/off switching as the instrument.")  # fmt: skip
 @click.option("--v0", type=float, default=1.0, show_default=True, help="Nominal voltage (p.u.).")
 @click.option("--knot-days", type=click.FloatRange(min=1), default=7.0, show_default=True,
               help="Days between the drifting level's knots.")  # fmt: skip
@@ -52,8 +55,8 @@ from loadbayes.commands.output import UserError, check_outputs, output_transacti
 @user_errors
 def cvr_cmd(
     data, v_col, p_col, q_col, v_base, s_base, drop_invalid, chunk_rows, t_col, schedule_col,
-    weather_col, holiday_col, pv_col, v0, knot_days, min_switch, drop_against, no_instant,
-    draws, seed, json_out, plot_out, quiet, force,
+    weather_col, holiday_col, pv_col, instrument_col, v0, knot_days, min_switch, drop_against,
+    no_instant, draws, seed, json_out, plot_out, quiet, force,
 ):  # fmt: skip
     """The CVR factor of an on/off test: energy (%dE/%dV) and instantaneous (dP/dV).
 
@@ -67,7 +70,8 @@ def cvr_cmd(
         raise UserError("cvr needs a file (the time column is read apart from V and P)")
     distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, t_col=t_col,
                      schedule_col=schedule_col, weather_col=weather_col,
-                     holiday_col=holiday_col, pv_col=pv_col)  # fmt: skip
+                     holiday_col=holiday_col, pv_col=pv_col,
+                     instrument_col=instrument_col)  # fmt: skip
     q_name, q_required = q_column(q_col)
 
     from loadbayes.core.settings import SamplerSettings
@@ -79,7 +83,8 @@ def cvr_cmd(
     res = cvr(
         data, t_col=t_col, v_col=v_col, p_col=p_col, q_col=q_name, q_required=q_required,
         v_base=v_base, s_base=s_base, schedule_col=schedule_col, weather_col=weather_col,
-        holiday_col=holiday_col, pv_col=pv_col, v0=v0, knot_days=knot_days,
+        holiday_col=holiday_col, pv_col=pv_col, instrument_col=instrument_col, v0=v0,
+        knot_days=knot_days,
         min_switch=min_switch, drop_against=drop_against, instant=not no_instant,
         sampler=SamplerSettings.of(CVR_DEFAULTS, draws=draws, seed=seed),
         drop_invalid=drop_invalid,

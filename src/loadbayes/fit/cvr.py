@@ -39,7 +39,7 @@ from loadbayes.fit.cvr_data import (
     schedule_from_steps,
     voltage_answers_to_load,
 )
-from loadbayes.fit.cvr_energy import design, direct_factor, sample_regression
+from loadbayes.fit.cvr_energy import LAMBDAS, design, direct_factor, sample_regression
 from loadbayes.io.errors import DataError
 
 __all__ = ["CVR_DEFAULTS", "cvr", "fit_cvr", "interval"]
@@ -78,6 +78,7 @@ def cvr(
     weather_col: str | None = None,
     holiday_col: str | None = None,
     pv_col: str | None = None,
+    instrument_col: str | None = None,
     v0: float = 1.0,
     knot_days: float = 7.0,
     min_switch: float = MIN_SWITCH,
@@ -107,6 +108,9 @@ def cvr(
         1 on holidays (treated as a day of their own).
     pv_col : str, optional
         PV output or an irradiance proxy: its daily mean enters the regression.
+    instrument_col : str, optional
+        An outside cause of V the user names (a tap position, the upstream voltage): its
+        daily mean takes the place of the on/off switching as the instrument.
     knot_days : float
         The drifting level's knots, in days.
     min_switch : float
@@ -126,23 +130,24 @@ def cvr(
     """
     path, cols, ext, rows, secs, stamps, note = read_telemetry(
         data, t_col=t_col, v_col=v_col, p_col=p_col, q_col=q_col, q_req=q_required, v_base=v_base,
-        s_base=s_base, extra=(schedule_col, weather_col, holiday_col, pv_col),
+        s_base=s_base, extra=(schedule_col, weather_col, holiday_col, pv_col, instrument_col),
         drop_invalid=drop_invalid,
     )  # fmt: skip
-    out = fit_cvr(
-        stamps, secs, cols["v"] / v0, cols["p"], cols.get("q"),
-        schedule=None if schedule_col is None else ext[schedule_col],
-        weather=None if weather_col is None else ext[weather_col],
-        holiday=None if holiday_col is None else ext[holiday_col],
-        pv=None if pv_col is None else ext[pv_col],
-        knot_days=knot_days, min_switch=min_switch, drop_against=drop_against,
-        instant=instant, sampler=sampler, step_sampler=step_sampler,
-        s_base=s_base or 1.0,
-    )  # fmt: skip
+    given = {"schedule": schedule_col, "weather": weather_col, "holiday": holiday_col,
+             "pv": pv_col, "instrument": instrument_col}  # fmt: skip
+    named = {k: (None if c is None else ext[c]) for k, c in given.items()}
+    try:
+        out = fit_cvr(stamps, secs, cols["v"] / v0, cols["p"], cols.get("q"), **named,
+                      knot_days=knot_days, min_switch=min_switch, drop_against=drop_against,
+                      instant=instant, sampler=sampler, step_sampler=step_sampler,
+                      s_base=s_base or 1.0)  # fmt: skip
+    except DataError as exc:  # from the arrays: the file is named here
+        if exc.path is not None:
+            raise
+        raise DataError(exc.message, path=path) from None
     if note:
         out["notes"].append(note)
-    names = {"t": t_col, "v": v_col, "p": p_col, "q": q_col, "schedule": schedule_col,
-             "weather": weather_col, "holiday": holiday_col, "pv": pv_col}  # fmt: skip
+    names = {"t": t_col, "v": v_col, "p": p_col, "q": q_col, **given}
     out["data"] = {"file": path, "rows": int(rows.size), "columns": names, "v_base": v_base,
                    "s_base": s_base, "v0": v0}  # fmt: skip
     return out
@@ -166,6 +171,7 @@ def fit_cvr(
     sampler: SamplerSettings | None = None,
     step_sampler: SamplerSettings | None = None,
     s_base: float = 1.0,
+    instrument: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The CVR fit on arrays: ``x = V / V0`` per sample, ``p`` (``q``) per unit.
 
@@ -223,7 +229,10 @@ def fit_cvr(
             "factor needs at least two of each (a day counts when the reduction is on or "
             "off all day and 80% of its samples are there)"
         )
-    des = design(days, knot_days=knot_days)
+    treat, cause = None, "the on/off switching"
+    if instrument is not None:
+        treat, cause = days.instrument, "the instrument column"
+    des = design(days, knot_days=knot_days, treat=treat, name="on")
     if des.z.shape[1] >= days.v.size:
         raise DataError(f"{days.v.size} days are too few for the {des.z.shape[1]} terms of "
                         "the regression (a longer test, or larger --knot-days)")  # fmt: skip
@@ -242,7 +251,7 @@ def fit_cvr(
             other = np.array([nm != "on" for nm in reg.names])
             adjusted = np.log(e) - des.z[:, other] @ mean[other]
         energy[ch] = interval(draws[ch])
-        energy[ch]["lambda_posterior"] = dict(zip(map(str, _lams()), reg.weights.tolist(),
+        energy[ch]["lambda_posterior"] = dict(zip(map(str, LAMBDAS), reg.weights.tolist(),
                                                   strict=True))  # fmt: skip
     dv_i = interval(dv)
     direct = interval(direct_factor(days, np.log(days.energy["p"]), gens[3 * sampler.chains :],
@@ -285,7 +294,8 @@ def fit_cvr(
         "instantaneous": inst,
         "voltage_change": {"log_dv": dv_i, "percent": 100 * (np.exp(dv_i["mean"]) - 1)},
         "schedule": sched,
-        "days": {"kept": used, **days.dropped, "table": _day_rows(days)},
+        "outside_cause": cause,
+        "days": {"kept": used, **days.dropped, "table": days.rows()},
         "glitches": gl.counts(),
         "reverse_flow": {"samples": int(reverse.sum()), "days": int(rev_days)},
         "source_impedance": imp,
@@ -309,25 +319,6 @@ def fit_cvr(
             "adjusted_log_energy": adjusted if "p" in energy else None,
         },
     }
-
-
-def _lams():
-    from loadbayes.fit.cvr_energy import LAMBDAS
-
-    return LAMBDAS
-
-
-def _day_rows(days) -> list[dict[str, Any]]:
-    out = []
-    for i in range(days.v.size):
-        row = {"date": str(days.date[i]), "on": int(days.on[i]), "v_pu": float(days.v[i]),
-               "energy_p": float(days.energy["p"][i])}  # fmt: skip
-        if "q" in days.energy:
-            row["energy_q"] = float(days.energy["q"][i])
-        if days.weather is not None:
-            row["weather"] = float(days.weather[i])
-        out.append(row)
-    return out
 
 
 def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):

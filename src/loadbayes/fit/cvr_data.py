@@ -188,7 +188,19 @@ class Days:
     holiday: np.ndarray
     weather: np.ndarray | None
     pv: np.ndarray | None = None
+    instrument: np.ndarray | None = None
     dropped: dict[str, int] = field(default_factory=dict)
+
+    def rows(self) -> list[dict[str, Any]]:
+        """One dict per day (the JSON's days table)."""
+        out = []
+        for i in range(self.v.size):
+            row = {"date": str(self.date[i]), "on": int(self.on[i]), "v_pu": float(self.v[i])}
+            row.update({f"energy_{k}": float(e[i]) for k, e in self.energy.items()})
+            if self.weather is not None:
+                row["weather"] = float(self.weather[i])
+            out.append(row)
+        return out
 
 
 def daily_table(
@@ -202,6 +214,7 @@ def daily_table(
     weather: np.ndarray | None = None,
     holiday: np.ndarray | None = None,
     pv: np.ndarray | None = None,
+    instrument: np.ndarray | None = None,
 ) -> Days:
     """The days of the record (module notes); ``stamps`` are datetime64 per sample."""
     day = stamps.astype("datetime64[D]")
@@ -240,6 +253,7 @@ def daily_table(
         holiday=np.asarray(hol, dtype=float)[keep],
         weather=mean(weather),
         pv=mean(pv),
+        instrument=mean(instrument),
         dropped={
             "short": int(short.sum()),
             "mixed": int(mixed.sum()),

@@ -16,9 +16,11 @@ The same regression with ``log V_d`` (the day's mean voltage) on the left gives 
 how far the reduction moved the voltage; the energy CVR factor is ``g / dv``, the
 percentage change of energy per percentage change of voltage that the switching caused.
 That is an instrumental-variable estimate (Wald's ratio): the on/off switching is an
-outside cause of V, whereas V's day-to-day moves follow the load through the source
-impedance, so regressing ``log E`` on ``log V`` directly (:func:`direct_factor`, given for
-comparison) is biased when the voltage answers to the load.
+outside cause of V (or an instrument the user names, whose daily mean then takes the
+place of ``on_d`` in both regressions), whereas V's day-to-day moves follow the load
+through the source impedance, so regressing ``log E`` on ``log V`` directly
+(:func:`direct_factor`, given for comparison) is biased when the voltage answers to the
+load.
 
 Each regression is one conjugate normal-gamma block (:class:`~loadbayes.core.priors.
 BlockPrior` with ``conjugate=True``; its exact posterior from
@@ -57,10 +59,13 @@ class Design:
     n_knots: int
 
 
-def design(days, *, knot_days: float = 7.0, treat: np.ndarray | None = None) -> Design:
+def design(
+    days, *, knot_days: float = 7.0, treat: np.ndarray | None = None, name: str = "log_v"
+) -> Design:
     """The design matrix of a :class:`~loadbayes.fit.cvr_data.Days` (module notes).
 
-    ``treat`` replaces the on/off column (the direct regression puts ``log V`` there).
+    ``treat`` replaces the on/off column, named ``name`` then (the direct regression
+    puts ``log V`` there; an instrument the user names, its daily mean).
     """
     d = (days.date - days.date[0]).astype(np.int64).astype(float)
     span = max(float(d[-1]), 1.0)
@@ -76,7 +81,7 @@ def design(days, *, knot_days: float = 7.0, treat: np.ndarray | None = None) -> 
     cols = [hat]
     names = [f"level_{j}" for j in range(k)]
     cols.append((days.on if treat is None else treat)[:, None].astype(float))
-    names.append("on" if treat is None else "log_v")
+    names.append("on" if treat is None else name)
     for w in range(1, 7):
         col = (days.weekday == w).astype(float)
         if col.any() and not col.all():
