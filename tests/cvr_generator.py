@@ -92,10 +92,16 @@ class Feeder:
     extra: dict = field(default_factory=dict)
 
 
+def _bump(hour: np.ndarray, centre: float, width: float) -> np.ndarray:
+    """A daily bump, periodic in the hour (no step at midnight)."""
+    d = (hour - centre + 12.0) % 24.0 - 12.0
+    return np.exp(-0.5 * (d / width) ** 2)
+
+
 def _occupancy(hour: np.ndarray, weekend: np.ndarray) -> np.ndarray:
-    morning = np.exp(-0.5 * ((hour - 7.5) / 1.5) ** 2)
-    evening = np.exp(-0.5 * ((hour - 19.0) / 2.0) ** 2)
-    day = np.exp(-0.5 * ((hour - 13.0) / 3.5) ** 2)
+    morning = _bump(hour, 7.5, 1.5)
+    evening = _bump(hour, 19.0, 2.0)
+    day = _bump(hour, 13.0, 3.5)
     work = 0.45 + 0.35 * morning + 0.6 * evening + 0.25 * day
     rest = 0.45 + 0.15 * morning + 0.55 * evening + 0.4 * day
     return np.where(weekend, rest, work)

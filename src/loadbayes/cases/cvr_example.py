@@ -39,9 +39,12 @@ def _inputs(seed: int):
     hour = (t % DAY) / 3600.0
     noon = (np.arange(DAYS) + 0.5) * DAY
     weekend = ((day % 7) >= 5) | np.isin(day, (20, 61))
-    occ = (0.45 + 0.3 * np.exp(-0.5 * ((hour - 7.5) / 1.5) ** 2)
-           + np.where(weekend, 0.45, 0.6) * np.exp(-0.5 * ((hour - 19) / 2.0) ** 2)
-           + np.where(weekend, 0.35, 0.2) * np.exp(-0.5 * ((hour - 13) / 3.5) ** 2))  # fmt: skip
+
+    def bump(centre, width):  # periodic in the hour: nothing jumps at midnight
+        return np.exp(-0.5 * (((hour - centre + 12.0) % 24.0 - 12.0) / width) ** 2)
+
+    occ = (0.45 + 0.3 * bump(7.5, 1.5) + np.where(weekend, 0.45, 0.6) * bump(19.0, 2.0)
+           + np.where(weekend, 0.35, 0.2) * bump(13.0, 3.5))  # fmt: skip
     occ *= np.interp(t, noon, np.exp(0.03 * rng.standard_normal(DAYS)))
     anomaly = np.zeros(DAYS)
     for d in range(1, DAYS):

@@ -147,6 +147,9 @@ def cvr(
         raise DataError(exc.message, path=path) from None
     if note:
         out["notes"].append(note)
+    dpdv = out["instantaneous"].get("dP/dV", {})
+    if "steps_at" in dpdv:  # the data rows (1-based) of the steps used
+        dpdv["step_rows"] = rows[dpdv.pop("steps_at")].tolist()
     names = {"t": t_col, "v": v_col, "p": p_col, "q": q_col, **given}
     out["data"] = {"file": path, "rows": int(rows.size), "columns": names, "v_base": v_base,
                    "s_base": s_base, "v0": v0}  # fmt: skip
@@ -289,6 +292,8 @@ def fit_cvr(
              "words": (f"the energy factor's 95% interval is +/-{hw:.2f} from {used} days; "
                        f"+/-{TARGET:g} needs about {need} on/off days of this feeder")}  # fmt: skip
     why = explain(energy.get("p"), inst.get("dP/dV"), draws.get("p"), inst_draws.get("dP/dV"))
+    if "steps_used" in inst_draws:  # the samples (0-based, of the arrays) the steps begin at
+        inst["dP/dV"]["steps_at"] = inst_draws.pop("steps_used").tolist()
     return {
         "energy": energy,
         "instantaneous": inst,
@@ -370,7 +375,7 @@ def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):
         return {}, at, {}, warnings
     samp = step_sampler or STEP_DEFAULTS.with_(draws=3_000, burn=500)
     post = fit_steps(xs, ps, qs, steps=pos, t=ts, v0=1.0, sampler=samp)
-    out, draws = {}, {}
+    out, draws = {}, {"steps_used": keep[[s.index for s in pos]]}
     for name, (i, j) in (("dP/dV", ("a1", "a2")), ("dQ/dV", ("a4", "a5"))):
         if i in post.draws:
             draws[name] = 2.0 * post.draws[i] + post.draws[j]
