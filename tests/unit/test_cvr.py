@@ -158,3 +158,18 @@ def test_an_instrument_the_user_names_takes_the_switchings_place():
     a, b = by_schedule["energy"]["p"], by_instrument["energy"]["p"]
     # a rescaled instrument leaves Wald's ratio as it was (the draws differ, not the law)
     assert abs(a["mean"] - b["mean"]) < 0.2 * a["sd"] and abs(a["sd"] / b["sd"] - 1) < 0.1
+
+
+def test_the_glitches_and_the_reverse_flow_are_listed_by_data_row(tmp_path):
+    cols, truth = _feeder(6, days=24, holidays=())
+    out = cvr(pd.DataFrame(cols), **COLS, schedule_col="cvr_on", instant=False, sampler=FAST)
+    kept = np.flatnonzero(truth["kept"])
+    row = {int(g): i + 1 for i, g in enumerate(kept)}  # generated sample -> data row
+    g = truth["glitches"]
+    assert out["glitches"]["spike_v_rows"] == [row[g["v_spike_row"]]]
+    assert out["glitches"]["spike_p_rows"] == [row[g["p_spike_row"]]]
+    stuck = [row[i] for i in range(*g["stuck_rows"]) if i in row]
+    assert out["glitches"]["stuck_rows"] == stuck
+    rev = (np.flatnonzero(cols["p_mw"] < 0) + 1).tolist()
+    flagged = [r for r in rev if r not in out["glitches"]["stuck_rows"]]
+    assert out["reverse_flow"]["reverse_rows"] == flagged[:100]

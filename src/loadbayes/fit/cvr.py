@@ -52,6 +52,8 @@ MIN_SWITCH = 0.015
 MAX_STEPS = 120
 #: A step counts as in the dark when the PV column is under this share of its largest.
 PV_DARK = 0.02
+#: The most data rows of each kind of flagged sample the JSON lists.
+FLAGGED_ROWS = 100
 #: The interval half-width the design's power is worked out for.
 TARGET = 0.1
 
@@ -147,6 +149,9 @@ def cvr(
         raise DataError(exc.message, path=path) from None
     if note:
         out["notes"].append(note)
+    for key, idx in out["draws"]["flagged"].items():  # the data rows, as the file counts them
+        where = out["reverse_flow"] if key == "reverse" else out["glitches"]
+        where[f"{key}_rows"] = rows[idx[:FLAGGED_ROWS]].tolist()
     dpdv = out["instantaneous"].get("dP/dV", {})
     if "steps_at" in dpdv:  # the data rows (1-based) of the steps used
         dpdv["step_rows"] = rows[dpdv.pop("steps_at")].tolist()
@@ -322,6 +327,12 @@ def fit_cvr(
             "instantaneous": inst_draws,
             "days": days,
             "adjusted_log_energy": adjusted if "p" in energy else None,
+            "flagged": {
+                "spike_v": np.flatnonzero(gl.spike_v),
+                "spike_p": np.flatnonzero(gl.spike_p),
+                "stuck": np.flatnonzero(gl.stuck),
+                "reverse": np.flatnonzero(reverse),
+            },
         },
     }
 
