@@ -83,15 +83,36 @@ def _run(occ, temp, sun, vs_day, z=0.003):
     return v, p, q, sens
 
 
-def cvr_truth(seed: int = 39) -> dict[str, float]:
-    """The example's energy and instantaneous factors (module notes)."""
+#: The generated samples left out of the telemetry (two gaps).
+GAPS = ((3000, 3040), (19000, 19020))
+
+
+def _kept(n: int) -> np.ndarray:
+    keep = np.ones(n, dtype=bool)
+    for a, b in GAPS:
+        keep[a:b] = False
+    return keep
+
+
+def cvr_truth(seed: int = 39, step_rows=None) -> dict[str, float]:
+    """The example's energy and instantaneous factors (module notes).
+
+    With ``step_rows`` (the 1-based data rows of the steps a fit used, as ``loadbayes
+    cvr``'s JSON lists them) also ``dp_dv_at_steps``: the mean of ``sum k_i P_i / P``
+    at those instants, what a fit from those steps estimates.
+    """
     _, t, day, occ, temp, sun, on, vs = _inputs(seed)
     v1, p1, q1, _ = _run(occ, temp, sun, vs - 0.03)
     v0, p0, q0, _ = _run(occ, temp, sun, vs)
     _, p, _, sens = _run(occ, temp, sun, vs - 0.03 * on[day])
     dark = sun < 0.02 * sun.max()
     lv = np.log(v0.mean() / v1.mean())
+    extra = {}
+    if step_rows is not None:
+        idx = np.flatnonzero(_kept(t.size))[np.asarray(step_rows, dtype=int) - 1]
+        extra["dp_dv_at_steps"] = float(np.mean(sens[idx] / p[idx]))
     return {
+        **extra,
         "cvr_energy_p": float(np.log(p0.sum() / p1.sum()) / lv),
         "cvr_energy_q": float(np.log(q0.sum() / q1.sum()) / lv),
         "dp_dv_dark_hours": float(sens[dark].sum() / p[dark].sum()),
@@ -110,9 +131,7 @@ def cvr_frame(seed: int = 39) -> pd.DataFrame:
     v[4000] *= 1.09
     p[15000] += 6.0
     p[9000:9024] = p[9000]
-    keep = np.ones(n, dtype=bool)
-    keep[3000:3040] = False
-    keep[19000:19020] = False
+    keep = _kept(n)
     stamps = pd.Timestamp("2026-01-05") + pd.to_timedelta(t, unit="s")
     frame = pd.DataFrame({
         "time": stamps.strftime("%Y-%m-%dT%H:%M:%S"),

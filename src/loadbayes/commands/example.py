@@ -84,7 +84,7 @@ def example_cmd(name, out, force):
                a1_true.. columns (loadbayes track zip)
     cvr        a 90-day CVR on/off test at a 12.47 kV feeder head every 5 minutes:
                thermostatic heaters, PV, weather, glitches; energy CVR factor 0.66,
-               dP/dV 1.16 in the dark hours (loadbayes cvr feeder.csv --v-col v_kv
+               dP/dV 1.16 over the dark hours (loadbayes cvr feeder.csv --v-col v_kv
                --p-col p_mw --q-col q_mvar --v-base 12.47 --s-base 10 --weather-col
                temp_c --holiday-col holiday --pv-col irradiance)
     composite  sag1.csv, sag2.csv: two sags at a ZIP + induction-motor load, motor

@@ -29,7 +29,8 @@ def cvr_lines(res: dict[str, Any]) -> list[str]:
         if ch in res["energy"]:
             out.append(f"energy CVR factor ({name}, %dE/%dV, 95%): {_iv(res['energy'][ch])}")
     for name, s in res["instantaneous"].items():
-        out.append(f"instantaneous {name} at V0 (95%, {s['steps']} voltage steps): {_iv(s)}")
+        out.append(f"instantaneous {name} at {s['at_v_pu']:.3f} p.u. (the steps' median; 95%, "
+                   f"{s['steps']} voltage steps): {_iv(s)}")  # fmt: skip
     if res.get("why", {}).get("words"):
         out.append(res["why"]["words"])
     out.append(res["power"]["words"])

@@ -38,7 +38,9 @@ def run(*, quick: bool = True, seed: int = 0) -> CVRStudy:
         pv_col="irradiance", sampler=CVR_DEFAULTS.with_(draws=draws, seed=seed),
         step_sampler=SamplerSettings(draws=draws + 300, burn=300, chains=2, seed=seed),
     )  # fmt: skip
-    return CVRStudy(res, cvr_truth(), {"draws": draws, "seed": seed, "quick": quick})
+    rows = res["instantaneous"].get("dP/dV", {}).get("step_rows")
+    return CVRStudy(res, cvr_truth(step_rows=rows), {"draws": draws, "seed": seed,
+                                                     "quick": quick})  # fmt: skip
 
 
 def _row(name: str, s: dict | None, truth: float | None) -> dict[str, Any]:
@@ -62,9 +64,9 @@ def html_section(study: CVRStudy) -> str:
         _row("energy CVR factor, P (%dE/%dV)", r["energy"].get("p"), t["cvr_energy_p"]),
         _row("energy CVR factor, Q", r["energy"].get("q"), t["cvr_energy_q"]),
         _row(
-            "instantaneous dP/dV at V0 (dark hours' steps)",
+            "instantaneous dP/dV (at the steps used)",
             r["instantaneous"].get("dP/dV"),
-            t["dp_dv_dark_hours"],
+            t.get("dp_dv_at_steps"),
         ),  # fmt: skip
         _row(
             "head voltage's sensitivity (p.u./MW)",
