@@ -3,9 +3,10 @@
 Each feeder is tests/cvr_generator.py's 90-day on/off test (thermostatic loads, PV, gaps,
 glitches) with its own seed and a source impedance from 0.002 to 0.005 p.u./MW; the
 schedule is found from the voltage (no column given), with the weather, holiday and
-irradiance columns. The energy factor's 95% interval must cover the counterfactual truth on at least 21
-of the 24 (the issue's 90%): a calibrated interval fails that with probability 3.0%
-(Binomial(24, 0.95)), the test's false-alarm rate. Fixed seeds. About a minute on the 2
+irradiance columns. The energy factor's 95% interval must cover the counterfactual truth
+on at least 21 of the 24 (the issue's 90%): a calibrated interval fails that with
+probability 3.0% (Binomial(24, 0.95)), the test's false-alarm rate. Fixed seeds. About two
+minutes on the 2
 shared cores, so it runs under `make validate` (LOADBAYES_VALIDATE=1) only; `make test`
 runs three feeders (tests/unit/test_cvr.py). The coverage of dP/dV at the instants of its
 steps is printed beside it (measured, not asserted).
