@@ -54,6 +54,7 @@ _cap_native_threads()
 
 from loadbayes.commands import andes_sim as _andes_sim  # noqa: E402
 from loadbayes.commands import composite as _composite  # noqa: E402
+from loadbayes.commands import cvr as _cvr  # noqa: E402
 from loadbayes.commands import example as _example  # noqa: E402
 from loadbayes.commands import exp as _exp  # noqa: E402
 from loadbayes.commands import export as _export  # noqa: E402
@@ -269,6 +270,7 @@ main.add_command(_example.example_cmd)
 main.add_command(_validate.validate_cmd)
 main.add_command(_playback.playback_cmd)
 main.add_command(_steps.steps_cmd)
+main.add_command(_cvr.cvr_cmd)
 
 if __name__ == "__main__":  # python -m loadbayes.cli ... did nothing and exited 0
     main(prog_name="loadbayes")

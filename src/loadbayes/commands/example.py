@@ -9,7 +9,7 @@ import click
 from loadbayes.commands.options import OneLineCommand
 
 #: One-file kinds, printed to stdout (or written to --out FILE).
-FILES = ("zip", "day")
+FILES = ("zip", "day", "cvr")
 #: Folder kinds (loadbayes.cases.examples.KINDS), written into --out DIR.
 FOLDERS = ("composite", "fleet", "comtrade", "pmu")
 
@@ -19,6 +19,10 @@ def _text(name: str) -> str:
         from importlib.resources import files
 
         return files("loadbayes").joinpath("data", "zip_example.csv").read_text(encoding="utf-8")
+    if name == "cvr":
+        from loadbayes.cases.cvr_example import cvr_frame
+
+        return cvr_frame().to_csv(index=False, lineterminator="\n")
     from loadbayes.cases.examples import day_frame
 
     return day_frame().to_csv(index=False)
@@ -60,7 +64,7 @@ def _write_folder(folder: Path, contents: dict, force: bool) -> list[Path]:
 @click.option(
     "--out",
     type=click.Path(dir_okay=True, path_type=Path),
-    help="zip, day: a file instead of stdout. composite, fleet, comtrade, pmu: the folder "
+    help="zip, day, cvr: a file instead of stdout. composite, fleet, comtrade, pmu: the folder "
     "to write into (required; created if missing).",
 )
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
@@ -78,6 +82,11 @@ def example_cmd(name, out, force):
                --t-col time --level drift)
     day        a day whose ZIP shares drift and jump, with the true shares as
                a1_true.. columns (loadbayes track zip)
+    cvr        a 90-day CVR on/off test at a 12.47 kV feeder head every 5 minutes:
+               thermostatic heaters, PV, weather, glitches; energy CVR factor 0.66,
+               dP/dV 1.16 over the dark hours (loadbayes cvr feeder.csv --v-col v_kv
+               --p-col p_mw --q-col q_mvar --v-base 12.47 --s-base 10 --weather-col
+               temp_c --holiday-col holiday --pv-col irradiance)
     composite  sag1.csv, sag2.csv: two sags at a ZIP + induction-motor load, motor
                share f_m = 0.5, point samples (loadbayes fit composite --window-s 0)
     fleet      part-*.parquet: 24 buses in three customer classes, per unit

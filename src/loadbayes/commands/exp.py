@@ -39,6 +39,8 @@ N_PARAMS = 8
 @accept_units_option
 @click.option("--f-col", default=None, help="Frequency column (fits kpf, kqf); none by default.")
 @click.option("--f0", type=float, default=60.0, show_default=True, help="Nominal frequency.")
+@click.option("--t-col", default=None, help="Time column (seconds or ISO timestamps): the "
+              "confounding check then asks whether the residuals drift in time.")  # fmt: skip
 @nominal_options()
 @click.option(
     "--noise",
@@ -66,6 +68,7 @@ def fit_exp_cmd(
     q_col,
     f_col,
     f0,
+    t_col,
     v0,
     p0,
     q0,
@@ -92,7 +95,7 @@ def fit_exp_cmd(
         force,
         stdout_ok=("--json",),
     )
-    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col)
+    distinct_columns(v_col=v_col, p_col=p_col, q_col=q_col, f_col=f_col, t_col=t_col)
     q_name, q_required = q_column(q_col)
     note = nominal_note(p0, q0, with_q=q_name is not None)
     p0_val, q0_val = nominal(p0, "--p0"), nominal(q0, "--q0")
@@ -167,9 +170,16 @@ def fit_exp_cmd(
     )  # fmt: skip
     if pc.n_dropped:
         warnings.append(f"{pc.n_dropped} rows with invalid values were dropped (--drop-invalid)")
+    times = None
+    if t_col:
+        from loadbayes.measurements.times import check_increasing, read_times
+
+        times = read_times(data, t_col, pc.rows)
+        check_increasing(times, pc.rows, path=str(data), column=t_col)
     try:
         post = fit_exp(
             pc.cols,
+            times=times,
             spec=fit_spec(f_col="f", v0=v0, p0=p0_val, q0=q0_val),
             with_q=with_q,
             with_f=with_f,

@@ -212,6 +212,7 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     t_im = time.perf_counter() - t0
     t0 = time.perf_counter()
     from loadbayes.studies import composite as composite_study
+    from loadbayes.studies import cvr as cvr_study
     from loadbayes.studies import fleet as fleet_study
     from loadbayes.studies import model_choice
     from loadbayes.studies import real_record as real_record_study
@@ -223,7 +224,7 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     for name, mod in (("composite", composite_study), ("real record", real_record_study),
                       ("physical load", physical_study), ("robust", robust_study),
                       ("tracking", tracking_study), ("model choice", model_choice),
-                      ("fleet", fleet_study)):  # fmt: skip
+                      ("fleet", fleet_study), ("cvr", cvr_study)):  # fmt: skip
         say(f"study past the paper: {name}")
         past.append(zip_study.marked(mod.html_section(mod.run(quick=quick, seed=seed)),
                                      f"loadbayes:section {name.replace(' ', '-')}"))  # fmt: skip

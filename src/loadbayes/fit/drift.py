@@ -30,6 +30,7 @@ __all__ = [
     "CONFOUNDED",
     "DRIFT_DEFAULTS",
     "confounding_warnings",
+    "drift_warnings",
     "fit_zip_drift",
     "residual_drift",
 ]
@@ -44,6 +45,10 @@ CONFOUNDED = (
 #: iteration runs two Kalman filters per channel over the whole record.
 DRIFT_DEFAULTS = SamplerSettings(draws=2500, burn=500, chains=2)
 
+
+#: The voltage the load moves (p.u., over its 5-95% range) above which a drift fit says
+#: that V answers to the load.
+ANSWERS_MIN_PU = 0.002
 
 #: Level path points kept in the JSON.
 LEVEL_POINTS = 500
@@ -199,4 +204,52 @@ def fit_zip_drift(
     )
     post.extra_json["level"] = level
     post.extra_json["level_model"] = record["level_model"]
+    for w in drift_warnings(post, x, np.asarray(cols["p"], dtype=float), t):
+        if w not in post.warnings:
+            post.warnings.append(w)
     return post
+
+
+def drift_warnings(post: Posterior, x: np.ndarray, p: np.ndarray, t: np.ndarray) -> list[str]:
+    """What a drifting-level fit cannot see for itself, in words.
+
+    * dP/dV below zero at v0 (docs/zip.md: no load draws less power at a higher voltage);
+    * a voltage that answers to the bus's own load: between voltage steps, V falls when
+      P rises (:func:`loadbayes.fit.cvr_data.voltage_answers_to_load`, the steps found by
+      :func:`loadbayes.measurements.steps.find_steps` left out). Then V is not an
+      outside cause of P, and the drift fit, which learns from every move of V, is
+      biased (issue 39: dP/dV -0.78 for a true 1.15 at 0.0047 p.u./MW); said when the
+      slope's interval is above zero and the load moves V by more than
+      ``ANSWERS_MIN_PU`` over its 5-95% range. The slope is a detection, not a model: noise
+      on P pulls it toward zero (measured on a generated week at 0.0047 p.u./MW: 0.0020
+      [0.0007, 0.0033]).
+    """
+    from loadbayes.fit.cvr_data import voltage_answers_to_load
+    from loadbayes.measurements.steps import find_steps
+
+    out = []
+    d = post.derived.get("dP/dV")
+    if d is not None and float(np.mean(d)) < 0:
+        out.append(f"dP/dV at v0 is negative ({float(np.mean(d)):.3g}): no load draws less "
+                   "power at a higher voltage; the voltage may answer to the load (fit the "
+                   "voltage steps: loadbayes steps)")  # fmt: skip
+    if x.size < 50:
+        return out
+    found, _ = find_steps(x, p, t=t)
+    imp = voltage_answers_to_load(x, p, np.ones(x.size, dtype=bool),
+                                  np.array([s.index for s in found], dtype=int))  # fmt: skip
+    if not imp:
+        return out
+    lo, hi = np.quantile(p, [0.05, 0.95])
+    moved = imp["z"] * float(hi - lo)
+    if imp["low"] > 0 and moved > ANSWERS_MIN_PU:
+        # recorded only when said: a fit that says nothing new writes the JSON it did
+        post.settings["voltage_answers_to_load"] = {**imp, "v_moved_by_load": moved}
+        out.append(
+            f"the voltage answers to the load: it falls by about {imp['z']:.2g} per unit of P "
+            f"[{imp['low']:.2g}, {imp['high']:.2g}] between voltage steps ({100 * moved:.2g}% "
+            "of v0 over the load's range), so V is not an outside cause of P and this fit, "
+            "which learns from every move of V, is biased; fit the voltage steps "
+            "(loadbayes steps) or, for an on/off test, loadbayes cvr"
+        )
+    return out

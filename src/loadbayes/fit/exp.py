@@ -17,7 +17,7 @@ from loadbayes.measurements.columns import read_power_columns, relocate
 from loadbayes.measurements.frame import is_path, read_frame
 from loadbayes.models.exponential import ExponentialModel, Noise, Nominal
 
-__all__ = ["EXP_SPEC", "fit_exp"]
+__all__ = ["EXP_SPEC", "exp_confounding", "fit_exp"]
 
 #: The data of an exponential fit when no ``spec`` is given: :class:`DataSpec`'s
 #: defaults, and a frequency column ``f`` read when present.
@@ -44,6 +44,7 @@ def fit_exp(
     warnings: list[str] | None = None,
     warn: bool = True,
     unit_check: bool = True,
+    times: np.ndarray | None = None,
 ):
     """Posterior of the exponential load model: the Python twin of ``loadbayes fit exp``.
 
@@ -80,6 +81,10 @@ def fit_exp(
     unit_check : bool
         ``False`` skips the unit and V-noise checks: for a caller that has run them on
         the raw file already (``loadbayes fit exp`` does, to word them with its options).
+    times : ndarray, optional
+        Seconds of each row kept (``loadbayes fit exp --t-col`` reads them); otherwise
+        ``spec.t_col`` is read when given. With them the confounding check also asks
+        whether the residuals drift in time (:func:`exp_confounding`).
 
     Returns
     -------
@@ -168,9 +173,65 @@ def fit_exp(
         )  # fmt: skip
     except DataError as exc:
         raise relocate(exc, where, rows, names) from None
+    if times is None and t_col is not None:
+        times = _times(data, t_col, rows)
+    for w in exp_confounding(post, cols, times):
+        if w not in post.warnings:
+            post.warnings.append(w)
     if warn:
         post.warn(stacklevel=3)  # past new_spelling's wrapper: the caller's line
     return post
+
+
+def _times(data: Any, t_col: str, rows: np.ndarray) -> np.ndarray | None:
+    """Seconds of the rows kept from a file's or a table's time column (None if absent)."""
+    from loadbayes.measurements.times import parse_times, read_times
+
+    if is_path(data):
+        return read_times(str(data), t_col, rows)
+    if hasattr(data, "keys") and t_col in data.keys():
+        return parse_times(np.asarray(data[t_col])[rows - 1], path="data", column=t_col,
+                           rows=rows)  # fmt: skip
+    return None
+
+
+def exp_confounding(post: Any, cols: Mapping[str, np.ndarray], t: np.ndarray | None) -> list:
+    """``fit zip``'s confounding check for the exponential load (one level P0, Q0).
+
+    The same two reasons, in the same words (:data:`loadbayes.fit.drift.CONFOUNDED`): an
+    exponent ``np`` below zero (dP/dV at V0 per unit of P0 is ``np``), and, given the
+    time of each row, residuals that drift with time
+    (:func:`loadbayes.fit.drift.residual_drift`, 0.1% false alarm on a well-fitted record).
+    """
+    from loadbayes.fit.drift import CONFOUNDED, residual_drift
+
+    reasons = []
+    d = post.draws.get("np")
+    if d is not None and float(np.mean(d)) < 0:
+        reasons.append(f"dP/dV at v0 is negative (np = {float(np.mean(d)):.3g}): no load "
+                       "draws less power at a higher voltage")  # fmt: skip
+    p0 = post.settings.get("p0")
+    if t is not None and d is not None and cols["p"].size >= 20:
+        scale = float(np.mean(post.draws["p0"])) if p0 == "auto" else float(p0)
+        x = np.asarray(cols["v"], dtype=float) / float(post.settings.get("v0", 1.0))
+        resid = np.asarray(cols["p"], dtype=float) - scale * x ** float(np.mean(d))
+        if "f" in cols and "kpf" in post.draws:
+            f0 = float(post.settings.get("f0") or 60.0)
+            df = (np.asarray(cols["f"], dtype=float) - f0) / f0
+            resid = np.asarray(cols["p"], dtype=float) - scale * x ** float(np.mean(d)) * (
+                1 + float(np.mean(post.draws["kpf"])) * df
+            )
+        share, pval = residual_drift(np.asarray(t, dtype=float), resid)
+        post.settings["residual_drift"] = {"share_of_variance": share, "p_value": pval}
+        if pval < 1e-3 and share > 0.05:
+            reasons.append(f"the residuals drift with time ({100 * share:.0f}% of their "
+                           f"variance follows the hour, p = {pval:.1g})")  # fmt: skip
+    if not reasons:
+        return []
+    hint = "" if t is not None else " (the time column: --t-col)"
+    text = CONFOUNDED.replace("use --level drift or fit the voltage steps",
+                              "fit the voltage steps (loadbayes steps)")  # fmt: skip
+    return [f"{text}{hint} ({'; '.join(reasons)})."]
 
 
 def _fit_exp_columns(
