@@ -4,7 +4,9 @@ The posterior is written here (NumPy draws: shares from a Dirichlet, motors arou
 WECC typical motors A and B), not by a fit. The expected record is computed here: the
 recorded bus's power by solving the feeder's circuit with SciPy (``fsolve``), the
 fractions as the draws' medians, and the CMLDBLU1 layout of the tests' GridDyn harness
-(``tests/griddyn_sim/cmld.py``), which CMLDBLU2's first 132 CONs must follow. The
+(``tests/griddyn_sim/cmld.py``), which CMLDBLU2's first 132 CONs must follow; GridDyn
+runs the exported record (skipped, saying why, without its environment) and the fit's own
+prediction of the same numbers is held to its P. The
 held-out playback of an ``slm`` fit is checked against the tests' own SciPy feeder
 simulator (``tests/feeder_generator.py``) with the posterior at its truth.
 """
@@ -294,3 +296,76 @@ def test_validate_plays_an_slm_fit_through_its_own_prediction(tmp_path):
     # measured 5e-5 and 8e-5 of P0 here; with the feeder's X five times the truth's,
     # 0.015 and 0.036.
     assert scores["rms_p"] < 1e-3 and scores["rms_q"] < 1e-3, scores
+
+
+def _griddyn_cmld(rec, load):
+    """The harness's CMLDBLU1 load from an exported CMLDBLU2 record (its own order)."""
+
+    def motor(m):
+        return Motor3(lfm=rec[f"LFm{m}"], rs=rec[f"Rs{m}"], ls=rec[f"Ls{m}"], lp=rec[f"Lp{m}"],
+                      tpo_s=rec[f"Tpo{m}"], h_s=rec[f"H{m}"], etrq=rec[f"Etrq{m}"])  # fmt: skip
+
+    return Cmld(
+        load_mw=load["pl"], load_mvar=load["ql"], mva_ratio=load["pl"] / rec["MVA"],
+        f_a=rec["Fma"], f_b=rec["Fmb"], f_d=rec["Fmd"], f_el=rec["Fel"],
+        motor_a=motor("A"), motor_b=motor("B"),
+        motor_d=MotorD(lfm=rec["CompLF"], comp_pf=rec["CompPF"], vstall=rec["Vstall"],
+                       rstall=rec["Rstall"], xstall=rec["Xstall"], tstall_s=rec["Tstall"],
+                       trst_s=rec["Trst"], frst=rec["Frst"], vrst=rec["Vrst"], fuvr=0.0),
+        r_fdr=rec["Rfdr"], x_fdr=rec["Xfdr"], fb=rec["Fb"], x_xf=rec["Xxf"], tap_ls=1.0,
+        pf_el=rec["PFel"], vd1=rec["Vd1"], vd2=rec["Vd2"], pf_s=rec["PFs"],
+        p1c=rec["P1c"], p2c=rec["P2c"], q1c=rec["Q1c"], q2c=rec["Q2c"],
+    )  # fmt: skip
+
+
+def test_griddyn_runs_the_exported_record_as_the_fit_predicts_it(cmld_lite):
+    """GridDyn simulates the exported load; loadbayes's prediction of the same numbers agrees.
+
+    The record goes through the tests' GridDyn harness (CMLDBLU1, GridDyn 0.13, a 15 %
+    sag); the package's own prediction (``predict_parts``, the feeder solved) is driven
+    by GridDyn's voltage at the load's bus with the record's numbers in the model's
+    coordinates. Measured: P within 0.39 % of P0 (RMS). GridDyn's Q is not compared: its
+    CMLD initialisation (a one-pass estimate, its reader says) sets the feeder's
+    compensation from the series losses only, so its Q before the fault is 0.68 p.u.
+    where the power flow's is 0.36, and the Q of its parts differs from the fit's.
+    """
+    import cases
+
+    reason = cases.skip_reason()
+    if reason is not None:
+        pytest.skip(reason)
+    from loadbayes.measurements.record import EventRecord
+    from loadbayes.models.parts_predict import predict_parts
+
+    folder, rec, med, _, _ = cmld_lite
+    load = read_loads(folder / "case.raw")["1"]
+    frame, truth = cases.run_case(cmld=_griddyn_cmld(rec, load), depth=0.15, t_end_s=0.6)
+    # GridDyn starts at the record's power flow P (its bus sits at its own voltage).
+    assert truth["event"]["p0"] * cases.S_BASE_MVA == pytest.approx(load["pl"], rel=0.02)
+    model = dynamic_model("cmld-lite", f_hz=cases.F_HZ)
+    p0, q0 = float(frame.p[0]), float(frame.q[0])
+    x_load_base = (rec["Xfdr"] + rec["Xxf"]) * cases.S_BASE_MVA / rec["MVA"] * abs(complex(p0, q0))
+    th = {"log_x_fd": math.log(x_load_base)}
+    for m in "AB":
+        t, t0 = "_" + m.lower(), med["t0_" + m.lower()]
+        rs, xo, xp, tp, h = (rec[f"{k}{m}"] for k in ("Rs", "Ls", "Lp", "Tpo", "H"))
+        th |= {f"log_rs_t0{t}": math.log(rs * t0), f"log_x_prime_t0{t}": math.log(xp * t0),
+               f"log_dx_t0{t}": math.log((xo - xp) * t0), f"log_t_prime{t}": math.log(tp),
+               f"log_h_over_t0{t}": math.log(h / t0), f"log_t0{t}": math.log(t0)}  # fmt: skip
+    fs = 1 - sum(rec[k] for k in ("Fma", "Fmb", "Fmd", "Fel"))
+    a3 = 1 - rec["P1c"] - rec["P2c"]
+    th |= {"lr_m_a": math.log(rec["Fma"] / fs), "lr_m_b": math.log(rec["Fmb"] / fs),
+           "lr_d": math.log(rec["Fmd"] / fs), "lr_el": math.log(rec["Fel"] / fs),
+           "lr_a1": math.log(rec["P1c"] / a3), "lr_a2": math.log(rec["P2c"] / a3)}  # fmt: skip
+    theta = np.array([th[n] for n in model.theta_names])
+    ev = EventRecord(frame.t_s.values, frame.v.values, frame.p.values, frame.q.values,
+                     frame.angle_rad.values, "griddyn")  # fmt: skip
+    shares = np.array([rec["Q1c"], rec["Q2c"], 1 - rec["Q1c"] - rec["Q2c"]])
+    mp, _, _ = predict_parts(model, ev, theta, p0, q0, shares)
+    rms_p = float(np.sqrt(np.mean((mp - frame.p.values) ** 2)) / p0)
+    # Measured 0.39 %. The same prediction without motor D and the electronics misses
+    # GridDyn by 1.4 %, which this bound sees; with motors A and B's shares swapped
+    # (0.25 %) or without the feeder (0.55 %) it does not: a 15 % sag of 0.1 s does not
+    # tell those apart.
+    assert rms_p < 0.01, rms_p
+    assert frame.v.min() < 0.9 * frame.v[0]  # the sag happened
