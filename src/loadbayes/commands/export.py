@@ -5,7 +5,7 @@ JSON summary or NetCDF draws), the values picked and said, then one writer.
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
 attaches it. The format writers are imported only once chosen.
 
-One idea at about 545 lines: one export, from reading and checking the posterior (half of
+One idea at about 565 lines: one export, from reading and checking the posterior (half of
 it: a JSON file may hold anything) through the checks of :mod:`loadbayes.export.checks`
 to one transaction of every file of every draw. Splitting the posterior reader out is
 the next step when it grows.
@@ -395,10 +395,16 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
         export.check_model(model)
     except ValueError as exc:
         raise DataError(str(exc), posterior) from None
+    said_stat = []
     if stat is None:
         # A model of parts' shares are skewed on their simplex: its median by default,
         # where the draws are there (a JSON holds the means only).
         stat = "median" if model in ("slm", "cmld-lite") and draws is not None else "mean"
+        if model in ("slm", "cmld-lite") and draws is None and n_draws is None:
+            said_stat.append(
+                f"the posterior means exported: {posterior} holds no draws, and a {model} "
+                "fit's medians (the default) need its NetCDF"
+            )
     reason = export.check_parameters(model, summary if draws is None else draws)
     if reason:
         raise DataError(reason, posterior)
@@ -447,6 +453,7 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             f"not '{outp.suffix or '(none)'}'"
         )
     s_used, v_used, base_notes = resolve_bases(settings, fmt, s_base=s_base, v_base=vn_kv)
+    base_notes = said_stat + base_notes
     options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
                "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
                "v0": settings.get("v0"), "f_hz": settings.get("f_hz"),

@@ -63,7 +63,7 @@ each a comment after the ``.raw``'s ``Q``, after the ``.dyr`` record's ``/`` and
 ``.dyd`` after ``#``).
 """
 
-# One idea at about 430 lines: the PSS/E case and its dynamic records, with their
+# One idea at about 445 lines: the PSS/E case and its dynamic records, with their
 # round-trip readers (the docstring above is a quarter of it).
 from __future__ import annotations
 
