@@ -369,3 +369,17 @@ def test_griddyn_runs_the_exported_record_as_the_fit_predicts_it(cmld_lite):
     # tell those apart.
     assert rms_p < 0.01, rms_p
     assert frame.v.min() < 0.9 * frame.v[0]  # the sag happened
+
+
+def test_a_json_gives_the_means_and_says_so(tmp_path):
+    draws, _ = _posterior(tmp_path / "fit.nc", "cmld-lite")
+    post = Posterior.from_netcdf(tmp_path / "fit.nc")
+    post.to_json(tmp_path / "fit.json")
+    res = _export(tmp_path / "fit.json", "--to", "psse", "--out", tmp_path / "j.raw")
+    assert res.exit_code == 0, res.output
+    assert "the posterior means exported" in res.output and "need its NetCDF" in res.output
+    rec = read_cmldblu2(tmp_path / "j.dyr")
+    assert rec["Fma"] == pytest.approx(float(np.mean(draws["f_m_a"])), rel=1e-6)
+    # The means of one simplex sum to 1: the static part is the mean of f_s.
+    static = 1 - sum(rec[n] for n in ("Fma", "Fmb", "Fmd", "Fel"))
+    assert static == pytest.approx(float(np.mean(draws["f_s"])), rel=1e-6)
