@@ -5,7 +5,7 @@ JSON summary or NetCDF draws), the values picked and said, then one writer.
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
 attaches it. The format writers are imported only once chosen.
 
-One idea at about 545 lines: one export, from reading and checking the posterior (half of
+One idea at about 565 lines: one export, from reading and checking the posterior (half of
 it: a JSON file may hold anything) through the checks of :mod:`loadbayes.export.checks`
 to one transaction of every file of every draw. Splitting the posterior reader out is
 the next step when it grows.
@@ -279,10 +279,9 @@ def summary_lines(
 )
 @click.option(
     "--stat",
-    default="mean",
-    show_default=True,
     help="mean, median or a marginal quantile qNN (q05, q95); needs draws (NetCDF) "
-    "except for the mean.",
+    "except for the mean. Default: mean; the median for a model of parts (slm, "
+    "cmld-lite) from its NetCDF.",
 )
 @click.option(
     "--draws",
@@ -377,7 +376,7 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     for name, val in (("--p-mw", p_mw), ("--q-mvar", q_mvar)):
         if val is not None and not math.isfinite(val):
             raise click.BadParameter("must be a finite number", param_hint=name)
-    if n_draws is not None and stat != "mean":
+    if n_draws is not None and stat is not None:
         raise UserError("give either --stat or --draws, not both")
     if case_in is not None and fmt != "andes":
         raise UserError("--case places the load in an ANDES case: it goes with --to andes")
@@ -390,10 +389,22 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     writer = export.get(fmt)
     model_raw, draws, summary, settings, interval, fid = _read_posterior(posterior)
     model = _MODEL_NAMES.get(model_raw, model_raw)
+    if model == "composite" and settings.get("model") in ("slm", "cmld-lite"):
+        model = settings["model"]  # a model of parts: its own mapping (export/partsload)
     try:
         export.check_model(model)
     except ValueError as exc:
         raise DataError(str(exc), posterior) from None
+    said_stat = []
+    if stat is None:
+        # A model of parts' shares are skewed on their simplex: its median by default,
+        # where the draws are there (a JSON holds the means only).
+        stat = "median" if model in ("slm", "cmld-lite") and draws is not None else "mean"
+        if model in ("slm", "cmld-lite") and draws is None and n_draws is None:
+            said_stat.append(
+                f"the posterior means exported: {posterior} holds no draws, and a {model} "
+                "fit's medians (the default) need its NetCDF"
+            )
     reason = export.check_parameters(model, summary if draws is None else draws)
     if reason:
         raise DataError(reason, posterior)
@@ -442,11 +453,14 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             f"not '{outp.suffix or '(none)'}'"
         )
     s_used, v_used, base_notes = resolve_bases(settings, fmt, s_base=s_base, v_base=vn_kv)
+    base_notes = said_stat + base_notes
     options = {"bus": bus, "s_base_mva": s_used, "p_mw": p_mw, "q_mvar": q_mvar,
                "vn_kv": v_used, "net": net_file, "load_index": load_index, "force": force,
                "v0": settings.get("v0"), "f_hz": settings.get("f_hz"),
                "motor_as": motor_as, "motor_record": motor_record,
                "case": case_in}  # fmt: skip
+    if model in ("slm", "cmld-lite"):
+        options["model_options"] = settings.get("model_options") or {}
     for key in ("s_base_mva", "vn_kv", "f_hz"):
         if options[key] is None:
             options.pop(key)
@@ -508,8 +522,9 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
 def _problems(jobs, summary, settings, interval, model, options, fmt):
     """(what, problems) of each job: the fit's own (a, d) and its parameter set's (b, c)."""
     from loadbayes.export.bases import DEFAULT_BASES
-    from loadbayes.export.checks import fit_problems, value_problems
+    from loadbayes.export.checks import fit_problems, parts_problems, value_problems
     from loadbayes.export.loadparts import load_parts
+    from loadbayes.export.partsload import PARTS_MODELS
 
     # The MW the writer will write: its default base when the fit has none.
     options = {"s_base_mva": DEFAULT_BASES[fmt][0], **options}
@@ -517,6 +532,9 @@ def _problems(jobs, summary, settings, interval, model, options, fmt):
     common = fit_problems(summary, settings, interval)
     out = []
     for _, values, what in jobs:
+        if model in PARTS_MODELS:
+            out.append((what, [*common, *parts_problems(values, options["model_options"])]))
+            continue
         try:
             parts = load_parts(values, model=model, options=options)
         except ValueError:  # the writer says why, in its own words

@@ -53,6 +53,22 @@ def _check_same_fit(result: str, export: str) -> str | None:
     return f"{export} is not checked to be the case of {result}: {why}"
 
 
+def _refuse_parts(result: str) -> None:
+    """A model of parts has no ANDES case to play into: said in one line, with the way."""
+    try:
+        doc = json.loads(Path(result).read_text(encoding="utf-8"))
+        name = doc["settings"]["model"]
+    except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
+        return  # read_fit says what is wrong with the file
+    if name in ("slm", "cmld-lite"):
+        raise UserError(
+            f"{result}: a {name} fit: playback plays a record into the ANDES case of a fit, "
+            f"and ANDES holds no {name} (export --to andes refuses it); play its events "
+            f"through the fit's own prediction, the feeder solved: loadbayes validate "
+            f"{result} EVENT (with the fit's NetCDF)"
+        )
+
+
 @click.command("playback", cls=OneLineCommand)
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))
 @click.argument("export", type=click.Path(exists=True, dir_okay=False))
@@ -99,6 +115,7 @@ def playback_cmd(
     from loadbayes.io.transaction import OutputSet
     from loadbayes.measurements.events import read_events
 
+    _refuse_parts(result)
     fit = read_fit(result)
     unchecked = _check_same_fit(result, export)
     evs = read_events(

@@ -99,6 +99,27 @@ def _check_same_fit(doc: dict, result: str, post, path: str) -> str | None:
     )
 
 
+def _scores(post, recs, masks, **kw):
+    """Each event scored: a model of parts through its own prediction (its feeder solved)."""
+    from loadbayes.export.partsload import rebuild_model
+    from loadbayes.fit.composite.validate import validate_events
+
+    try:
+        model = rebuild_model(post.settings)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    if model is None:
+        return validate_events(post, recs, exclude=masks, **kw)
+    from loadbayes.fit.composite.validate_parts import validate_parts_event
+
+    kw.pop("f_hz")  # the model's own
+    try:
+        return [validate_parts_event(post, model, e, exclude=m, **kw)
+                for e, m in zip(recs, masks, strict=True)]  # fmt: skip
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+
+
 @click.command("validate", cls=OneLineCommand)
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))
 @click.argument("events", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
@@ -172,7 +193,7 @@ def validate_cmd(
     inputs = [result, *events] + ([netcdf_in] if netcdf_in else [])
     check_outputs(outputs, inputs, force)
 
-    from loadbayes.fit.composite.validate import read_exclusions, validate_events
+    from loadbayes.fit.composite.validate import read_exclusions
     from loadbayes.io.transaction import OutputSet
     from loadbayes.measurements.events import read_events
     from loadbayes.measurements.record import check_units
@@ -200,9 +221,7 @@ def validate_cmd(
         check_units(evs, columns={"v": v_col, "p": p_col, "q": q_col}, overridable=False)
         recs += evs
         masks.append(read_exclusions(path, straddle_col, evs[0].n))
-    scores = validate_events(
-        post, recs, exclude=masks, f_hz=f_hz, n_draws=n_draws, prob=prob, seed=seed
-    )
+    scores = _scores(post, recs, masks, f_hz=f_hz, n_draws=n_draws, prob=prob, seed=seed)
     doc = {
         "result": str(result),
         "draws": str(netcdf_in or result),
@@ -229,7 +248,8 @@ def validate_cmd(
     if unchecked:  # after the work: an error stays the run's one line
         click.echo(f"loadbayes: note: {unchecked}", err=True)
     if not quiet:
-        click.echo(f"composite fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
+        what = m if (m := post.settings.get("model")) in ("slm", "cmld-lite") else "composite"
+        click.echo(f"{what} fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
         click.echo(
             f"{'event':<40} {'n':>5} {'excl':>5} {'rms_p':>7} {'rms_q':>7} "
             f"{'cov_p':>6} {'cov_q':>6}"

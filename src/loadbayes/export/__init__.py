@@ -26,8 +26,9 @@ FORMATS = {
     "andes": "loadbayes.export.andes.writer",
 }
 
-#: Models the exports take.
-MODELS = ("zip", "exponential", "composite")
+#: Models the exports take (``slm``, ``cmld-lite``: models of parts, a ``composite`` fit
+#: whose ``settings.model`` names them; :mod:`loadbayes.export.partsload`).
+MODELS = ("zip", "exponential", "composite", "slm", "cmld-lite")
 
 
 def get(fmt: str) -> ModuleType:
@@ -84,11 +85,17 @@ _NEEDS = {
     "exponential": ("np",),
     "composite": ("p0", "q0", "a1", "a2", "a4", "a5", "f_m", "rs", "xs", "xm", "rr", "xr",
                   "h_s", "t0"),
+    "slm": ("p0", "q0", "v0", "a1", "a2", "f_s", "f_m", "rs", "x_open", "x_prime", "t_prime_s",
+            "h_s", "t0", "x_fd", "r_fd", "cq2", "cq1", "cq0"),
+    "cmld-lite": ("p0", "q0", "v0", "a1", "a2", "f_s", "f_m_a", "f_m_b", "f_d", "f_el",
+                  "rs_a", "rs_b", "h_s_a", "h_s_b", "x_fd", "r_fd", "cq2", "cq1", "cq0"),
 }  # fmt: skip
 _BETRAY = {
     "zip": ("f_m", "rs", "t0", "np"),
     "exponential": ("a1", "f_m", "rs"),
     "composite": ("np",),
+    "slm": ("f_m_a", "np"),
+    "cmld-lite": ("f_m", "np"),
 }
 
 

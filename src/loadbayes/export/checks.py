@@ -35,6 +35,7 @@ __all__ = [
     "Problem",
     "comment_lines",
     "fit_problems",
+    "parts_problems",
     "value_problems",
 ]
 
@@ -45,7 +46,11 @@ RHAT_MAX = 1.01
 ESS_MIN = 400.0
 #: The parameters the writers read (the others are in the summary only).
 EXPORTED = ("p0", "q0", "v0", "a1", "a2", "a3", "a4", "a5", "a6", "np", "nq", "f_m", "rs",
-            "xs", "xm", "rr", "xr", "h_s", "t0", "a", "b", "c", "q_c")  # fmt: skip
+            "xs", "xm", "rr", "xr", "h_s", "t0", "a", "b", "c", "q_c",
+            # a model of parts' (slm, cmld-lite): names no other fit has
+            "x_fd", "r_fd", "f_d", "f_el", "f_s",
+            *(k + t for t in ("_a", "_b") for k in ("f_m", "rs", "x_open", "x_prime",
+                                                    "t_prime_s", "h_s", "t0")))  # fmt: skip
 _SHARES = ("a1", "a2", "a3", "a4", "a5", "a6", "f_m")
 #: How close an interval's end may come to 0 or 1 before the share is "at its bound"
 #: (it prints as 0.000 or 1.000).
@@ -191,6 +196,27 @@ def value_problems(values: Mapping[str, float], parts: Any, model: str) -> list[
                 "Mvar of the motor it compensates: it compensates more than the load's Q "
                 "(IEC 61970 LoadMotor: the shunt brings the motor's demand down, never past it)"
             ))  # fmt: skip
+    return out
+
+
+def parts_problems(values: Mapping[str, float], model_options: Mapping[str, Any]) -> list[Problem]:
+    """A model of parts' motors outside the published ranges (:data:`MOTOR_RANGES`), each.
+
+    Its shares are on their simplex by construction (the writer refuses any that are
+    not); its motors are named ``rs_a .. h_s_b`` (``cmld-lite``) or ``rs .. h_s`` (``slm``).
+    """
+    motors = list(model_options.get("motors") or [])
+    tags = [""] if len(motors) == 1 else [f"_{m}" for m in motors]
+    out = []
+    for m, t in zip(motors, tags, strict=True):
+        who = f"motor {m.upper()}" if t else "motor"
+        for n, (lo, hi, what) in MOTOR_RANGES.items():
+            v = _number(values.get(n + t))
+            if v is not None and not lo <= v <= hi:
+                out.append(Problem(
+                    f"{who} {what} = {v:.4g} is outside the published range [{lo:g}, {hi:g}] "
+                    "(WECC composite load model; IEEE load task force 1995)"
+                ))  # fmt: skip
     return out
 
 

@@ -15,11 +15,15 @@ Sources of the field order (docs/formats.md has the table with every field):
   133 27 146 48 0 0`` then the CONs, commented ``J .. J+132``) and with InterPSS's
   CMLDBLU2 parser test (ODM, ``10020 'USRLOD' 1 'CMLDBLU2' 12 1 2 133 27 146 48 0 0``).
 - Motors B and C (CON J+57 .. J+96) repeat motor A's 20 fields (both sources).
-- CON J+97 .. J+132 (motor D, the single-phase motor, and the rest): no reachable
-  source names them one by one for CMLDBLU2 (CMLDBLU1 has 132 CONs, CMLDBLU2 133, and
-  where the extra one sits could not be confirmed). They are written as 0: motor D's
-  fraction ``Fmd`` is 0, so PSS/E should not use them; if PSS/E refuses a zero there,
-  take those CONs from the Load Model Data Tool's typical record.
+- CON J+97 .. J+132 (motor D, the single-phase motor, and the rest): named one by one
+  by TDcoSim's CMLDBLU2 table (NREL, ``config/composite_load_model_rating.json``, written
+  with the header ``'USRLOD' 1 'CMLDBLU2' 12 1 2 133 27 146 48 0 0``): motor D's 35 CONs
+  in CMLDBLU1's order (``Tstall, Trst, Tv, Tf, CompLF, CompPF, Vstall ... UVtr2, Ttr2``,
+  the order the tests' GridDyn harness writes for CMLDBLU1) and then, the one CON
+  CMLDBLU2 adds, ``Frcel`` (the electronic load's fraction that recovers) at J+132.
+  So CMLDBLU2's CONs are CMLDBLU1's 132 followed by ``Frcel``. A composite fit
+  (``zip+motor``) writes them as 0 (``Fmd`` and ``Fel`` are 0); a model of parts
+  (:func:`parts_cmld_values`) fills them.
 - CMPLDW (PSLF ``.dyd``): ``cmpldw IBUS "NAME" BASEKV "ID" : #9 mva=MVA`` then the other
   parameters by position, in the order of InterPSS's PSLF reader
   (``org.ieee.odm.adapter.ge.parser.dynamic.load.PSLFDynLoadCMPLDWDataParser``, InterPSS
@@ -43,6 +47,9 @@ __all__ = [
     "CMPLDW_NAMES",
     "CON_NAMES",
     "cmld_values",
+    "cmpldw_extra",
+    "parts_note",
+    "parts_cmld_values",
     "cmldblu2_text",
     "cmpldw_text",
     "read_cmldblu2",
@@ -51,7 +58,12 @@ __all__ = [
 _MOTOR = ("Mtp{m}", "LFm{m}", "Rs{m}", "Ls{m}", "Lp{m}", "Lpp{m}", "Tpo{m}", "Tppo{m}",
           "H{m}", "Etrq{m}", "Vtr1{m}", "Ttr1{m}", "Ftr1{m}", "Vrc1{m}", "Trc1{m}",
           "Vtr2{m}", "Ttr2{m}", "Ftr2{m}", "Vrc2{m}", "Trc2{m}")  # fmt: skip
-#: CON J .. J+132 of CMLDBLU2, by name (``J+k`` where no source names the field).
+#: Motor D's CONs (J+97 .. J+131), CMLDBLU1's order (TDcoSim; the tests' GridDyn harness).
+_MOTOR_D = ("Tstall", "Trst", "Tv", "Tf", "CompLF", "CompPF", "Vstall", "Rstall", "Xstall",
+            "LFadj", "Kp1", "Np1", "Kq1", "Nq1", "Kp2", "Np2", "Kq2", "Nq2", "Vbrk", "Frst",
+            "Vrst", "CmpKpf", "CmpKqf", "Vc1off", "Vc2off", "Vc1on", "Vc2on", "Tth", "Th1t",
+            "Th2t", "Fuvr", "UVtr1", "Ttr1", "UVtr2", "Ttr2")  # fmt: skip
+#: CON J .. J+132 of CMLDBLU2, by name.
 CON_NAMES: tuple[str, ...] = (
     "MVA", "Bss", "Rfdr", "Xfdr", "Fb", "Xxf", "Tfixhs", "Tfixls", "LTC", "Tmin", "Tmax",
     "Step", "Vmin", "Vmax", "Tdel", "Ttap", "Rcomp", "Xcomp", "Fma", "Fmb", "Fmc", "Fmd",
@@ -60,7 +72,8 @@ CON_NAMES: tuple[str, ...] = (
     *(f.format(m="A") for f in _MOTOR),
     *(f.format(m="B") for f in _MOTOR),
     *(f.format(m="C") for f in _MOTOR),
-    *(f"J+{k}" for k in range(97, 133)),
+    *_MOTOR_D,
+    "Frcel",
 )  # fmt: skip
 assert len(CON_NAMES) == 133
 
@@ -146,6 +159,97 @@ def cmld_values(parts: LoadParts) -> dict[str, float]:
     return out
 
 
+#: Motor D's fields the fit has no part for, and what is written: no voltage or frequency
+#: filter (Tv, Tf 0: the fit reads the samples), the loading factor 1 (the fit's motor D
+#: draws 1 p.u. of its rating at 1 p.u.; so LFadj, written 1 as GridDyn's reader
+#: requires, moves nothing), the frequency dependence at the WECC typical values (a
+#: fault record's frequency barely moves; GridDyn's reader requires them), no contactors
+#: and no undervoltage relay (the fit's motor D has none), the thermal relay at the WECC
+#: typical values (it acts over seconds, beyond a fault record's window).
+_MOTOR_D_UNFITTED = {"Tv": 0.0, "Tf": 0.0, "CompLF": 1.0, "LFadj": 1.0, "CmpKpf": 1.0,
+                     "CmpKqf": -3.3, "Vc1off": 0.0, "Vc2off": 0.0, "Vc1on": 0.0, "Vc2on": 0.0,
+                     "Tth": 15.0, "Th1t": 0.7, "Th2t": 1.9, "Fuvr": 0.0, "UVtr1": 0.0,
+                     "Ttr1": 9999.0, "UVtr2": 0.0, "Ttr2": 9999.0}  # fmt: skip
+#: The fit's motor D constants (``settings.model_options.motor_d_params``) -> CONs.
+_MOTOR_D_FITTED = {"tstall": "Tstall", "trst": "Trst", "comp_pf": "CompPF",
+                   "vstall": "Vstall", "rstall": "Rstall", "xstall": "Xstall", "kp1": "Kp1",
+                   "np1": "Np1", "kq1": "Kq1", "nq1": "Nq1", "kp2": "Kp2", "np2": "Np2",
+                   "kq2": "Kq2", "nq2": "Nq2", "vbrk": "Vbrk", "frst": "Frst",
+                   "vrst": "Vrst"}  # fmt: skip
+
+
+def parts_cmld_values(pl) -> dict[str, float]:
+    """The 133 CONs of CMLDBLU2 (by name) for a model of parts (``slm``, ``cmld-lite``).
+
+    Parameters
+    ----------
+    pl : loadbayes.export.partsload.PartsLoad
+        From :func:`~loadbayes.export.partsload.parts_load`.
+
+    Returns
+    -------
+    dict
+        ``CON_NAMES`` -> value, in the record's order (see ``partsload``'s docstring for
+        the feeder's split, the static Q and the loading factors).
+    """
+    mo = pl.options
+    out = dict.fromkeys(CON_NAMES, 0.0)
+    x_fdr = min(pl.x_fd, pl.r_fd)
+    ps = pl.fractions["s"] * pl.p_load_mw
+    qs = pl.q_load_mvar
+    pfs = ps / math.hypot(ps, qs) if ps or qs else 1.0
+    out.update({
+        "MVA": pl.mva_base, "Bss": 0.0, "Rfdr": pl.r_fd, "Xfdr": x_fdr, "Fb": 0.0,
+        "Xxf": pl.x_fd - x_fdr,
+        "Tfixhs": 1.0, "Tfixls": 1.0, "Tmin": 0.9, "Tmax": 1.1, "Step": 0.00625,
+        "Vmin": 1.025, "Vmax": 1.04, "Tdel": 30.0, "Ttap": 5.0,  # LTC = 0: unused
+        "Fma": pl.fractions.get("A", 0.0), "Fmb": pl.fractions.get("B", 0.0), "Fmc": 0.0,
+        "Fmd": pl.fractions.get("D", 0.0), "Fel": pl.fractions.get("el", 0.0),
+        # The fit's electronics draw P only (their Q is in the static Q's terms).
+        "PFel": 1.0, "Vd1": float(mo.get("vd1", 0.7)), "Vd2": float(mo.get("vd2", 0.5)),
+        "PFs": math.copysign(pfs, qs) if qs else pfs,
+        "P1e": 2.0, "P1c": pl.zip_p[0], "P2e": 1.0, "P2c": pl.zip_p[1],
+        "Q1e": 2.0, "Q1c": pl.zip_q[0], "Q2e": 1.0, "Q2c": pl.zip_q[1],
+        "Frcel": float(mo.get("frcel", 0.0)),
+    })  # fmt: skip
+    for letter in "ABC":
+        m = pl.motors.get(letter) or pl.motors["A"]  # C (and an absent B): A's, fraction 0
+        fields = {"Mtp": 3.0, "LFm": m["lfm"], "Rs": m["rs"], "Ls": m["ls"], "Lp": m["lp"],
+                  "Lpp": m["lp"], "Tpo": m["tpo"], "Tppo": m["tpo"] / 100.0, "H": m["h"],
+                  "Etrq": m["etrq"], **_NO_TRIP}  # fmt: skip
+        for key, val in fields.items():
+            out[f"{key}{letter}"] = float(val)
+    out.update(_MOTOR_D_UNFITTED)
+    d = mo.get("motor_d_params") or {}
+    for key, con in _MOTOR_D_FITTED.items():
+        if key in d:
+            out[con] = float(d[key])
+    return out
+
+
+def parts_note(cons: dict[str, float]) -> str:
+    """What a model of parts' CMLDBLU2 holds, in one line (the files' comments)."""
+    fr = ", ".join(f"{k} {cons[k]:.6g}" for k in ("Fma", "Fmb", "Fmc", "Fmd", "Fel"))
+    static = 1.0 - sum(cons[k] for k in ("Fma", "Fmb", "Fmc", "Fmd", "Fel"))
+    return (
+        f"CMLDBLU2 (.dyr) and CMPLDW (.dyd) on MVA {cons['MVA']:.6g} (|S| of the load at "
+        f"v0): fractions {fr}, static {static:.6g} (P1c {cons['P1c']:.6g}, P2c "
+        f"{cons['P2c']:.6g}; PFs {cons['PFs']:.6g}, Q1c {cons['Q1c']:.6g}, Q2c "
+        f"{cons['Q2c']:.6g}); the fitted series impedance split as feeder Rfdr "
+        f"{cons['Rfdr']:.6g} + j Xfdr {cons['Xfdr']:.6g} (X/R 1, the WECC typical feeder) "
+        f"and transformer Xxf {cons['Xxf']:.6g} (the rest of the X), Fb 0 and Bss 0 (the "
+        "fit's capacitors are at the load bus), fixed tap 1; motor C at fraction 0; motor D "
+        "without contactors, relay or filters (as fitted), its thermal relay and frequency "
+        "terms at WECC typical values (not fitted)"
+    )
+
+
+def cmpldw_extra(cons: dict[str, float]) -> dict[str, float]:
+    """CMPLDW's names of the CMLDBLU2 fields it names otherwise (motor D's, ``frcel``)."""
+    return {"frcel": cons["Frcel"], "MtpD": 1.0, "LFmD": cons["CompLF"],
+            "Vtr1": cons["UVtr1"], "Vtr2": cons["UVtr2"]}  # fmt: skip
+
+
 def _fmt(x: float) -> str:
     return f"{x + 0.0:.10g}"
 
@@ -173,7 +277,9 @@ def cmldblu2_text(bus: int, load_id: str, cons: dict[str, float]) -> str:
     return head + "\n" + "\n".join(rows) + " /\n"
 
 
-def cmpldw_text(bus: int, load_id: str, cons: dict[str, float], *, vn_kv: float) -> str:
+def cmpldw_text(
+    bus: int, load_id: str, cons: dict[str, float], *, vn_kv: float, extra: dict | None = None
+) -> str:
     """The same load as a PSLF CMPLDW record (``.dyd``; :data:`CMPLDW_NAMES` by position).
 
     Parameters
@@ -186,6 +292,9 @@ def cmpldw_text(bus: int, load_id: str, cons: dict[str, float], *, vn_kv: float)
         From :func:`cmld_values`.
     vn_kv : float
         The bus's base kV.
+    extra : dict, optional
+        CMPLDW's own fields (:func:`cmpldw_extra`); default: a composite fit's (no motor
+        D, no electronics).
 
     Returns
     -------
@@ -194,7 +303,8 @@ def cmpldw_text(bus: int, load_id: str, cons: dict[str, float], *, vn_kv: float)
     """
     # CMPLDW's fields that CMLDBLU2 has not: the electronic load's recovering fraction
     # (Fel = 0: unused), motor D single-phase (MtpD = 1) and its fields (FmD = 0: 0).
-    extra = {"frcel": 1.0, "MtpD": 1.0}
+    if extra is None:
+        extra = {"frcel": 1.0, "MtpD": 1.0}
     vals = [_fmt(cons.get(n, extra.get(n, 0.0))) for n in CMPLDW_NAMES]
     head = f'cmpldw {bus} "LOADBAYES" {_fmt(vn_kv)} "{load_id}" : #9 mva={vals[0]}'
     rows = [" ".join(vals[k : k + 10]) for k in range(1, len(vals), 10)]

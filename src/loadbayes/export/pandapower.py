@@ -49,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from loadbayes.export.loadparts import LoadParts, load_parts
+from loadbayes.export.partsload import PARTS_MODELS, parts_load
 from loadbayes.io.atomic import atomic_write
 from loadbayes.io.errors import DataError
 
@@ -132,6 +133,23 @@ def _build_net(options: Mapping[str, Any]):
     return net, None
 
 
+def _power_flow_of_parts(values, model: str, options: Mapping[str, Any]) -> LoadParts:
+    """A model of parts as pandapower holds it: its whole P, Q at the bus, constant power.
+
+    The power flow's load is the recorded bus's P, Q at v0
+    (:func:`~loadbayes.export.partsload.parts_load`: the load bus's plus the feeder's
+    losses). Its feeder, motors, motor D and electronics have no pandapower element (a
+    power flow has no dynamics); they go out in the PSS/E export's CMLDBLU2.
+    """
+    pl = parts_load(values, model=model, options=options)
+    note = (
+        f"{model}: pandapower holds the power flow only: the whole load {pl.p_mw:.6g} MW, "
+        f"{pl.q_mvar:.6g} Mvar at v0 as constant power; its feeder, motors, motor D and "
+        "electronics are not in the net (export --to psse writes them as CMLDBLU2)"
+    )
+    return LoadParts(0.0, 0.0, pl.p_mw, 0.0, 0.0, pl.q_mvar, pl.v0, notes=[*pl.notes, note])
+
+
 def write(
     values: Mapping[str, float],
     out: Path,
@@ -167,7 +185,10 @@ def write(
     """
     import pandapower as pp
 
-    parts = load_parts(values, model=model, options=options)
+    if model in PARTS_MODELS:
+        parts = _power_flow_of_parts(values, model, options)
+    else:
+        parts = load_parts(values, model=model, options=options)
     motor_as = str(options.get("motor_as") or "power")
     if motor_as not in MOTOR_AS:
         raise ValueError(f"motor_as {motor_as!r}: expected one of {', '.join(MOTOR_AS)}")

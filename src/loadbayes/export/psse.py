@@ -1,8 +1,12 @@
 """Export to PSS/E: a version-33 ``.raw`` case with the load, and the composite's dynamics.
 
-A composite load goes out, by default (``options["motor_record"] = "cmldblu2"``), as the
-WECC composite load record CMLDBLU2 in the ``.dyr`` (PSS/E 35; the fitted motor as motor
-A, the static part on the record's static-load fields, every other fraction zero) with
+A model of parts (``slm``, ``cmld-lite``) goes out as CMLDBLU2 with every fraction
+(:func:`loadbayes.export.cmld.parts_cmld_values`; :mod:`loadbayes.export.partsload` says
+where each number comes from), the ``.raw``'s load ``'1'`` the whole load at the
+recorded bus. A composite load goes out, by default
+(``options["motor_record"] = "cmldblu2"``), as the WECC composite load record CMLDBLU2
+in the ``.dyr`` (PSS/E 35; the fitted motor as motor A, the static part on the record's
+static-load fields, every other fraction zero) with
 the same numbers as a PSLF CMPLDW record in a ``.dyd``; see
 :mod:`loadbayes.export.cmld` for the fields and their sources. The ``.raw`` then holds
 one load ``'1'`` drawing the whole load's P, Q at v0 (the power flow's constant power;
@@ -59,7 +63,7 @@ each a comment after the ``.raw``'s ``Q``, after the ``.dyr`` record's ``/`` and
 ``.dyd`` after ``#``).
 """
 
-# One idea at about 410 lines: the PSS/E case and its dynamic records, with their
+# One idea at about 445 lines: the PSS/E case and its dynamic records, with their
 # round-trip readers (the docstring above is a quarter of it).
 from __future__ import annotations
 
@@ -70,6 +74,7 @@ from typing import Any
 
 from loadbayes.export import cmld
 from loadbayes.export.loadparts import LoadParts, load_parts
+from loadbayes.export.partsload import PARTS_MODELS, parts_load
 from loadbayes.io.transaction import OutputSet
 
 __all__ = [
@@ -129,7 +134,7 @@ def _raw_text(
     src = 1 if bus != 1 else 2
     p_total = float(parts.p(parts.v0)) + (parts.motor.p_mw if parts.motor else 0.0)
     if whole:
-        q_total = float(parts.q(parts.v0)) + parts.motor.q_mvar
+        q_total = float(parts.q(parts.v0)) + (parts.motor.q_mvar if parts.motor else 0.0)
         load = _load_record(bus, "1", (p_total, 0.0, 0.0), (q_total, 0.0, 0.0))
         note = "composite load '1' (whole P, Q at v0) + CMLDBLU2 (.dyr)"
     else:
@@ -258,7 +263,19 @@ def write(
     record = str(opts.get("motor_record") or "cmldblu2")
     if record not in MOTOR_RECORDS:
         raise ValueError(f"motor_record {record!r}: expected one of {', '.join(MOTOR_RECORDS)}")
-    parts = load_parts(values, model=model, options=opts)
+    pl = None
+    if model in PARTS_MODELS:
+        if record != "cmldblu2":
+            raise ValueError(
+                f"a {model} fit goes out as CMLDBLU2 only: CIM5BL holds one motor, not "
+                "its feeder, motor D or electronics"
+            )
+        pl = parts_load(values, model=model, options=opts)
+        # The power flow's load: the whole load at the recorded bus (CMLDBLU2 takes it
+        # over at initialisation), as constant power.
+        parts = LoadParts(0.0, 0.0, pl.p_mw, 0.0, 0.0, pl.q_mvar, pl.v0, notes=list(pl.notes))
+    else:
+        parts = load_parts(values, model=model, options=opts)
     _check_record(parts)
     force = bool(opts.get("force"))
     what = header[0].split("exported: ")[-1] if header else "parameters given"
@@ -267,12 +284,23 @@ def write(
     f_hz = float(opts.get("f_hz") or 60.0)
     if not (math.isfinite(f_hz) and f_hz > 0):
         raise ValueError(f"the case frequency must be a positive number, got {f_hz}")
-    whole = parts.motor is not None and record == "cmldblu2"
+    whole = (parts.motor is not None or pl is not None) and record == "cmldblu2"
     text = _raw_text(parts, bus=bus, sbase=sbase, vn_kv=vn_kv, title=title, whole=whole, f_hz=f_hz)
     files = {"raw": raw}
     notes = list(parts.notes)
     dyr_text = dyd_text = None
-    if whole:
+    if pl is not None:
+        cons = cmld.parts_cmld_values(pl)
+        _check_fields(cons, "CMLDBLU2")
+        dyr_text = cmld.cmldblu2_text(bus, "1", cons)
+        dyd_text = cmld.cmpldw_text(bus, "1", cons, vn_kv=vn_kv, extra=cmld.cmpldw_extra(cons))
+        files["dyr"], files["dyd"] = dyr, dyr.with_suffix(".dyd")
+        said = cmld.parts_note(cons)
+        notes.append(said)
+        # After a record's "/" a line is a comment (.dyr); "#" starts one in the .dyd.
+        dyr_text = dyr_text.rstrip("\n") + f" loadbayes {model}: {said}\n"
+        dyd_text += f"# loadbayes {model}: {said}\n"
+    elif whole:
         cons = cmld.cmld_values(parts)
         _check_fields(cons, "CMLDBLU2")
         dyr_text = cmld.cmldblu2_text(bus, "1", cons)

@@ -75,6 +75,24 @@ def _sidecar(out: Path) -> Path:
     return out.with_name(out.name + ".summary.txt")
 
 
+#: Why a model of parts has no ANDES case (ANDES 1.9's load models: PQ, ZIP, FLoad, and
+#: the motors Motor3, Motor5; no composite load, no single-phase motor, no tripping
+#: electronics).
+_PARTS_REFUSED = {
+    "cmld-lite": (
+        "ANDES has no composite load (CMLD) and no model of motor D (single-phase air "
+        "conditioners that stall) or of power electronics that trip: a cmld-lite fit has "
+        "no ANDES case; export it --to psse (CMLDBLU2 with every part) or --to pandapower "
+        "(its power flow)"
+    ),
+    "slm": (
+        "ANDES has no load behind a feeder impedance in one model, and this export does "
+        "not build the slm's feeder as a bus and a line: an slm fit has no ANDES case; "
+        "export it --to psse (CMLDBLU2) or --to pandapower (its power flow)"
+    ),
+}
+
+
 def write(
     values: Mapping[str, float],
     out: Path,
@@ -123,6 +141,8 @@ def write(
     ValueError
         For another model or suffix, missing or inconsistent values.
     """
+    if model in _PARTS_REFUSED:
+        raise ValueError(_PARTS_REFUSED[model])
     if model not in _MODELS:
         hint = " (ANDES has no exponential static load)" if model == "exponential" else ""
         raise ValueError(f"ANDES export takes model 'zip' or 'composite', not {model!r}{hint}")
