@@ -37,10 +37,52 @@ def _interval(x: np.ndarray, prob: float) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+def parts_residuals(problem: Any, blocks: Any, n_draws: int = 20) -> dict[str, float]:
+    """Lag-1 autocorrelation of P's and Q's residuals, over a few posterior draws.
+
+    Each draw's residuals ``y - Z beta`` of every event (its kept samples, in time
+    order), the lag-1 autocorrelation of each channel, averaged over the draws and the
+    events weighted by their samples.
+    """
+    theta = blocks.theta.reshape(-1, blocks.theta.shape[-1])
+    betas = blocks.betas.reshape(-1, *blocks.betas.shape[-2:])
+    pick = np.linspace(0, theta.shape[0] - 1, min(n_draws, theta.shape[0])).astype(int)
+    acc, weight = np.zeros(2), 0.0
+    for i in pick:
+        for ev, b in zip(problem.events, betas[i], strict=True):
+            ch = problem.model.channels(ev, theta[i])
+            if ch is None:
+                continue
+            for g in range(2):
+                z, y = ch[g]
+                e = y - z @ b
+                e = e - e.mean()
+                den = float(e @ e)
+                acc[g] += (float(e[1:] @ e[:-1]) / den if den > 0 else 0.0) * y.size
+            weight += ch[0][1].size
+    lag = acc / weight if weight else np.zeros(2)
+    return {"lag1_p": float(lag[0]), "lag1_q": float(lag[1])}
+
+
 def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: list,
-                   hdi_prob: float = 0.95) -> None:  # fmt: skip
+                   hdi_prob: float = 0.95,
+                   residuals: dict[str, float] | None = None) -> None:  # fmt: skip
     """Add the words of a parts model's fit to ``post`` (warnings and ``extra_json``)."""
     words: dict[str, Any] = {"model": model.name, "parts": list(model.parts) + ["static"]}
+    if residuals:
+        # Residuals that run in stretches are model form, not noise: a white residual has
+        # lag-1 autocorrelation about 0; one part white noise and one part a smooth misfit
+        # (lag-1 about 1) has about the smooth part's share of the variance.
+        share = {k: max(v, 0.0) for k, v in residuals.items()}
+        words["residuals"] = {**residuals, "model_form_share_p": share["lag1_p"],
+                              "model_form_share_q": share["lag1_q"]}  # fmt: skip
+        if max(share.values()) > 0.3:
+            post.warnings.append(
+                f"the residuals run in stretches (lag-1 autocorrelation {residuals['lag1_p']:.2f} "
+                f"for P, {residuals['lag1_q']:.2f} for Q): about {share['lag1_p']:.0%} and "
+                f"{share['lag1_q']:.0%} of the error is the model's form, not noise, and the "
+                "white-noise likelihood does not widen the intervals for it"
+            )
     prior_of = {}
     for m, t in zip(model.motors, model._tags, strict=True):
         for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():

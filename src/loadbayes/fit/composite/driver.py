@@ -24,7 +24,7 @@ from loadbayes.core.settings import SamplerSettings, new_spelling
 from loadbayes.fit.composite.bounded import share_start
 from loadbayes.fit.composite.checks import check_run, convergence_warnings, start_warnings
 from loadbayes.fit.composite.describe import describe_fit
-from loadbayes.fit.composite.describe_parts import describe_parts
+from loadbayes.fit.composite.describe_parts import describe_parts, parts_residuals
 from loadbayes.fit.composite.design import DesignProblem
 from loadbayes.fit.composite.naming import (
     ChainDraws,
@@ -378,7 +378,8 @@ def fit_composite(
     else:
         post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))
         if hasattr(model, "parts"):  # a model of parts: physical, prior's, negative sequence
-            describe_parts(post, draws_named, model, events, run.hdi_prob)
+            describe_parts(post, draws_named, model, events, run.hdi_prob,
+                           residuals=parts_residuals(problem, blocks))  # fmt: skip
     if until is not None:
         post.settings["until_converged"] = {
             **until.record(),
