@@ -33,7 +33,15 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FEEDER_X", "MOTOR_CLASSES", "MOTOR_KEYS", "PartsPrior", "prior_ranges"]
+__all__ = [
+    "FEEDER_X",
+    "MOTOR_CLASSES",
+    "MOTOR_KEYS",
+    "THRESHOLD_PRIORS",
+    "PartsPrior",
+    "draw_thresholds",
+    "prior_ranges",
+]
 
 #: A motor's parameters, in the order of the sampled coordinates' source values.
 MOTOR_KEYS = ("rs", "x_prime", "dx", "t_prime_s", "h_s", "t0")
@@ -173,3 +181,36 @@ class PartsPrior:
             "beta_sd": self.beta_sd.tolist(),
             "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
         }
+
+
+#: Priors of the constants a fault record above their thresholds never informs, for
+#: predictions beyond the data (``loadbayes predict``): motor D's stall voltage and time,
+#: the electronics' trip voltages. ``(kind, centre, spread)``: ``normal`` (mean, sd) or
+#: ``lognormal`` (median, sd of the log). The centres are the WECC composite load model
+#: specification's typical values (Vstall 0.6 p.u., Tstall 0.033 s, Vd1 0.7, Vd2 0.5
+#: p.u.); the spreads are this package's choice, not a source's: wide enough that the
+#: 95 % range of the stall voltage (0.5 to 0.7 p.u.) spans what tested air conditioners
+#: are reported to do (PNNL-17796 found the stall voltage rising with the outdoor
+#: temperature), so that a prediction the data do not reach widens instead of resting on
+#: one typical number.
+THRESHOLD_PRIORS: Mapping[str, tuple[str, float, float]] = MappingProxyType(
+    {
+        "vstall": ("normal", 0.60, 0.05),
+        "tstall": ("lognormal", 0.033, 0.5),
+        "vd1": ("normal", 0.70, 0.05),
+        "vd2": ("normal", 0.50, 0.05),
+    }
+)
+
+
+def draw_thresholds(rng: np.random.Generator, n: int,
+                    priors: Mapping[str, tuple[str, float, float]] = THRESHOLD_PRIORS
+                    ) -> dict[str, np.ndarray]:  # fmt: skip
+    """``n`` draws of each threshold from its prior (Vd2 kept at least 0.05 below Vd1)."""
+    out = {}
+    for name, (kind, centre, spread) in priors.items():
+        z = rng.standard_normal(n)
+        out[name] = centre * np.exp(spread * z) if kind == "lognormal" else centre + spread * z
+    if "vd1" in out and "vd2" in out:
+        out["vd2"] = np.minimum(out["vd2"], out["vd1"] - 0.05)
+    return out
