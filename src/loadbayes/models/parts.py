@@ -45,15 +45,21 @@ from numpy.typing import NDArray
 from loadbayes.measurements.record import EventRecord
 
 __all__ = [
+    "GAP",
     "MOTOR_D_DEFAULTS",
     "NEG_SEQ_MIN",
     "LoadBus",
     "electronics_fraction",
+    "gaps_of",
     "load_bus",
     "motor_d",
     "motor_y2",
+    "step_knots",
 ]
 
+#: A sample interval this many times the median one is a gap: rows were left out there
+#: (their phasor window straddled a step), and the voltage steps at the gap's middle.
+GAP = 1.5
 #: |V2| (p.u.) above which a row's negative sequence is data: below it the current is
 #: the recorder's noise and the load's own imbalance more than the fault's.
 NEG_SEQ_MIN = 0.02
@@ -207,3 +213,37 @@ def motor_y2(rs, xp, dx, tp_s, f_hz: float, slip: float = 0.0):
     rotor = rr / (2.0 - slip) + 1j * xs
     z2 = rs + 1j * xs + (1j * xm * rotor) / (rotor + 1j * xm)
     return 1.0 / z2
+
+
+def gaps_of(t: NDArray) -> NDArray[np.bool_]:
+    """``gap[k]``: rows were left out between samples ``k`` and ``k + 1`` (:data:`GAP`)."""
+    dt = np.diff(np.asarray(t, dtype=float))
+    out = np.zeros(max(t.size, 1), dtype=bool)
+    if dt.size:
+        out[:-1] = dt > GAP * float(np.median(dt))
+    return out
+
+
+def step_knots(t: NDArray, v: NDArray, delta: NDArray | None, gap: NDArray[np.bool_]):
+    """The drive of a motor read as window means across gaps: a step at each gap's middle.
+
+    Returns ``(t, v, delta, real)``: the samples plus two knots 1 us either side of each
+    gap's middle, holding the values before and after it (the voltage steps there,
+    instead of ramping across the rows left out), and ``real``, the samples' positions.
+    """
+    if not gap.any():
+        return t, v, delta, np.arange(t.size)
+    ts, vs, ds, real = [], [], [], []
+    d = np.zeros(t.size) if delta is None else delta
+    for k in range(t.size):
+        real.append(len(ts))
+        ts.append(t[k])
+        vs.append(v[k])
+        ds.append(d[k])
+        if gap[k] and k + 1 < t.size:
+            mid = 0.5 * (t[k] + t[k + 1])
+            ts += [mid - 1e-6, mid + 1e-6]
+            vs += [v[k], v[k + 1]]
+            ds += [d[k], d[k + 1]]
+    return (np.array(ts), np.array(vs), None if delta is None else np.array(ds),
+            np.array(real, dtype=np.int64))  # fmt: skip

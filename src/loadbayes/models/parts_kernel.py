@@ -25,13 +25,13 @@ from loadbayes.models.motor_kernel import (
     integrate_window_into,
 )
 from loadbayes.models.part_priors import MOTOR_CLASSES
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 
 __all__ = ["event_sums", "model_sums"]
 
 
 @numba.njit(cache=True, nogil=True)
-def event_sums(t, v, delta, has_angle, p, q, keep, v2, i2, i2_rows, r, x, motors, window_s,
+def event_sums(t, v, delta, has_angle, p, q, gap, v2, i2, i2_rows, r, x, motors, window_s,
                shares, a_p, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, ztz, zty, yty,
                nn):  # pragma: no cover - compiled  # fmt: skip
     """Fill ``ztz (G, 4, 4)``, ``zty (G, 4)``, ``yty (G,)``, ``nn (G,)``; False if infeasible.
@@ -70,12 +70,33 @@ def event_sums(t, v, delta, has_angle, p, q, keep, v2, i2, i2_rows, r, x, motors
     pm = np.empty(n)
     qm = np.empty(n)
     states = np.empty((3, n))
-    real = np.arange(n)
+    # Window means across a gap (rows left out): the voltage steps at its middle
+    # (parts.step_knots), two knots 1 us either side.
+    n_gap = 0
+    if window_s > 0.0:
+        for k in range(n - 1):
+            if gap[k]:
+                n_gap += 1
+    ta = np.empty(n + 2 * n_gap)
+    va = np.empty(n + 2 * n_gap)
+    da = np.empty(n + 2 * n_gap)
+    real = np.empty(n, dtype=np.int64)
+    pos = 0
+    for k in range(n):
+        real[k] = pos
+        ta[pos], va[pos], da[pos] = t[k], vm[k], dl[k]
+        pos += 1
+        if n_gap > 0 and k + 1 < n and gap[k]:
+            mid = 0.5 * (t[k] + t[k + 1])
+            ta[pos], va[pos], da[pos] = mid - 1e-6, vm[k], dl[k]
+            ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
+            pos += 2
     for j in range(n_m):
         m = motors[j]
         if window_s > 0.0:
-            ok = integrate_window_into(t, vm, dl, real, window_s, m[0], m[1], m[2], m[3], m[4],
-                                       m[5], m[6], m[7], m[8], m[9], m[10], pm, qm)  # fmt: skip
+            ok = integrate_window_into(ta, va, da, real, window_s, m[0], m[1], m[2], m[3],
+                                       m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
+                                       qm)  # fmt: skip
         else:
             ok = integrate_into(t, vm, dl, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
                                 m[8], m[9], m[10], pm, qm, states)  # fmt: skip
@@ -118,8 +139,6 @@ def event_sums(t, v, delta, has_angle, p, q, keep, v2, i2, i2_rows, r, x, motors
     nn[:] = 0.0
     row = np.zeros(4)
     for k in range(n):
-        if not keep[k]:
-            continue
         if abs(col_p[k]) > 1e6 or abs(col_qp[k]) > 1e6:
             return False
         # P: [col_p, 0, 0, 0]
@@ -166,7 +185,7 @@ def model_sums(model, event, theta):
     """:func:`event_sums` for a ``PartsModel`` at ``theta``: ``(ztz, zty, yty, n)`` or None."""
     fixed = _fixed_of(model, event)
     c = model._split(np.asarray(theta, dtype=float))
-    x_fd = model.feeder_x(event.p[0], event.q[0], c)
+    x_fd = model.feeder_x(fixed[4][0], fixed[5][0], c)  # the first kept row's P, Q
     wb = 2.0 * math.pi * model.f_hz
     motors = np.empty((len(model.motors), 11))
     for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
@@ -189,18 +208,19 @@ def _fixed_of(model, event) -> tuple:
     # The event's arrays the kernel reads, once per event (kept on the model).
     key = (id(event), event.n)
     if key not in model._fixed:
+        keep = model.kept(event)
+        if keep.size < event.n:  # as channels: the rows left out make a gap
+            event = event.take(keep)
         n = event.n
-        keep = np.zeros(n, dtype=bool)
-        keep[model.kept(event)] = True
         ns = model.negative_sequence != "off" and model.uses_negative_sequence(event)
         v2 = np.zeros(n, complex) if not ns else np.asarray(event.v2, dtype=complex)
         i2 = np.zeros(n, complex) if not ns else np.asarray(event.i2, dtype=complex)
-        rows = keep & (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
+        rows = (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
         delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
         model._fixed[key] = (
             np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
             np.ascontiguousarray(delta), event.delta is not None,
             np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
-            keep, v2, i2, rows,
+            gaps_of(event.t), v2, i2, rows,
         )  # fmt: skip
     return model._fixed[key]

@@ -61,9 +61,11 @@ from loadbayes.models.parts import (
     MOTOR_D_DEFAULTS,
     NEG_SEQ_MIN,
     electronics_fraction,
+    gaps_of,
     load_bus,
     motor_d,
     motor_y2,
+    step_knots,
 )
 from loadbayes.models.parts_kernel import model_sums
 
@@ -232,6 +234,9 @@ class PartsModel:
     def channels(self, event: EventRecord, theta: NDArray) -> list[tuple[NDArray, NDArray]] | None:
         """Each channel's design on ``beta = (p0, cq2, cq1, cq0)`` and target: P, Q, maybe I2."""
         c = self._split(theta)
+        keep = self.kept(event)
+        if keep.size < event.n:  # the rows inside a step left out: a gap, stepped across
+            event = event.take(keep)
         x_fd = self.feeder_x(event.p[0], event.q[0], c)
         lb = load_bus(event, self.rx * x_fd, x_fd)
         ev = lb.event
@@ -241,10 +246,9 @@ class PartsModel:
         col_p, col_qp, y2p = cols
         xl = ev.v / ev.v[0]
         zero = np.zeros(ev.n)
-        keep = self.kept(event)
         out = [
-            (np.column_stack([col_p, zero, zero, zero])[keep], ev.p[keep]),
-            (np.column_stack([col_qp, xl * xl, xl, np.ones(ev.n)])[keep], ev.q[keep]),
+            (np.column_stack([col_p, zero, zero, zero]), ev.p),
+            (np.column_stack([col_qp, xl * xl, xl, np.ones(ev.n)]), ev.q),
         ]
         if self.negative_sequence != "off":
             out.append(self._i2(event, lb, y2p, ev.v[0]))
@@ -297,8 +301,15 @@ class PartsModel:
         col_qp = np.zeros(ev.n)
         v0 = ev.v[0]
         y2p = f[-1] / v0**2 + 0j
+        drive, real = ev, None
+        if self.window_s > 0:  # window means: across a gap the voltage steps (parts.step_knots)
+            gap = gaps_of(ev.t)
+            if gap.any():
+                t2, v2, d2, real = step_knots(ev.t, ev.v, ev.delta, gap)
+                drive = EventRecord(t2, v2, np.zeros(t2.size), np.zeros(t2.size), d2)
         for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
-            resp = motor_response(ev, logs, f_hz=self.f_hz, torque=MOTOR_CLASSES[m]["torque"],
+            resp = motor_response(drive, logs, f_hz=self.f_hz, real=real,
+                                  torque=MOTOR_CLASSES[m]["torque"],
                                   window_s=self.window_s)  # fmt: skip
             if resp is None:
                 return None
@@ -319,11 +330,10 @@ class PartsModel:
         return col_p, col_qp, y2p
 
     def _i2(self, event, lb, y2p, v0) -> tuple[NDArray, NDArray]:
+        # ``event``: the kept rows only (channels cut the rest).
         if not self.uses_negative_sequence(event):
             return np.zeros((0, len(self.beta_names))), np.zeros(0)
-        rows = np.zeros(event.n, dtype=bool)
-        rows[self.kept(event)] = True  # not the rows whose window straddles a step
-        rows &= np.abs(np.asarray(event.v2)) >= NEG_SEQ_MIN
+        rows = np.abs(np.asarray(event.v2)) >= NEG_SEQ_MIN
         v2l = lb.v2[rows]
         c1, c2 = v2l * y2p, v2l * (-1j / v0**2)
         i2 = np.asarray(event.i2)[rows]

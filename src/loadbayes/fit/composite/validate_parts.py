@@ -54,6 +54,10 @@ def validate_parts_event(
     if not scored.any():
         raise ValueError(f"{event.name or 'the event'}: every sample is excluded: nothing to score")
     p0n, q0n = operating_point(event, scored)
+    n_out = int(event.n - scored.sum())
+    if n_out:  # the rows straddling a step left out: the motors step across the gap
+        event = event.take(scored)
+        scored = np.ones(event.n, dtype=bool)
     theta = np.stack([d[n] for n in model.theta_names], -1)
     cq = np.stack([d["cq2"], d["cq1"], d["cq0"]], -1)
     means_p, means_q, noisy_p, noisy_q, logl = [], [], [], [], []
@@ -87,7 +91,7 @@ def validate_parts_event(
         inside = (x >= band[f"{ch}_lo"][scored]) & (x <= band[f"{ch}_hi"][scored])
         scores[f"coverage_{ch}"] = float(np.mean(inside))
     return EventValidation(
-        file=event.name, n=event.n, n_excluded=int(event.n - scored.sum()), event=event,
+        file=event.name, n=event.n + n_out, n_excluded=n_out, event=event,
         scored=scored, band=band, p0=p0n, q0=q0n, draws_used=len(means_p), scale=scale,
         lpd=pointwise_lpd(logl, scored), **scores,
     )  # fmt: skip
