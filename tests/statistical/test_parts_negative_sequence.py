@@ -23,11 +23,11 @@ What the checks found (each test says which):
   each step see a ramp that is not there. At the true parameters the kept rows' P misses
   the record by up to 0.033 p.u. (5% of P0; the noise is 1e-4) on a balanced sag. The
   zip+motor fit does not do this (fit/composite/problem.py: the events cut to the kept
-  rows, and ``StepGrid`` puts the step inside its interval). ``PartsModel._i2`` also
-  reads every row with ``|V2|`` >= NEG_SEQ_MIN, the rows across the steps included (2
-  of the 6 here). Besides (models/composite_steps.edge_runs, shared with zip+motor): at
-  ``--per-cycle 4`` a 13% sag moves at most 3.6% per row, under ``JUMP`` (5%), so no edge
-  is found and nothing is left out.
+  rows, and ``StepGrid`` puts the step inside its interval). The compiled sums
+  (models/parts_kernel.event_sums, ``real = np.arange(n)``) do the same; the I2 rows
+  are the kept ones in both. Besides (models/composite_steps.edge_runs, shared with
+  zip+motor): at ``--per-cycle 4`` a 13% sag moves at most 3.6% per row, under ``JUMP``
+  (5%), so no edge is found and nothing is left out.
 - **B. The motors' swing equation has no negative-sequence braking torque**
   (``|I_r2|^2 Rr / (2 - s)``, which the generator has). During the unbalanced fault the
   generator's motors slow more than the model's, and at the true parameters the model's P is low by
