@@ -1,0 +1,291 @@
+"""The motors' rating with and without the negative sequence, on a record the tests wrote.
+
+Issue 36, Checks: "three-phase waveforms of a known mix under phase-to-ground faults,
+with the motors' negative-sequence current; the motor rating is covered with the
+negative sequence, and is not without it." The record is :mod:`sequence_generator`'s
+(SciPy, no loadbayes): a static ZIP part (0.35 + j0.05 p.u.) and two third-order motors
+whose parameters lie in ``cmld-lite``'s motor classes' priors (models/part_priors.py)
+except their loading: motor A (constant torque, Rs 0.04, X' 0.118, X - X' 1.74, T' 0.10 s,
+H 0.12 s, rating 0.5) and motor B (torque ~ speed squared, Rs 0.03, X' 0.194, X - X' 1.61,
+T' 0.20 s, H 0.5 s, rating 0.3), both at T0 0.35, far below the prior's median 0.75, so
+that a rating resting on the prior of T0 misses the truth (0.8). A phase-A-to-ground
+fault (|V1| 0.87, |V2| 0.13) of 0.1017 s; 50 Hz waveforms at 3200 samples/s, written as
+COMTRADE and read by the package's reader as a user would (``loadbayes read comtrade``
+at its default one phasor a cycle, then ``loadbayes events``): 30 rows with V2 and I2.
+
+What the checks found (each test says which):
+
+- **A. Rows across a step are left out of the likelihood but not out of the motors'
+  input** (``PartsModel.channels`` / ``load_columns`` in models/parts_model.py). With
+  ``window_s`` > 0 the motors are integrated through every row of the event, the rows
+  that :meth:`PartsModel.kept` leaves out included: their one-cycle means across the
+  step become knots of a linear input voltage, so the motors of the clean rows beside
+  each step see a ramp that is not there. At the true parameters the kept rows' P misses
+  the record by up to 0.033 p.u. (5% of P0; the noise is 1e-4) on a balanced sag. The
+  zip+motor fit does not do this (fit/composite/problem.py: the events cut to the kept
+  rows, and ``StepGrid`` puts the step inside its interval). The compiled sums
+  (models/parts_kernel.event_sums, ``real = np.arange(n)``) do the same; the I2 rows
+  are the kept ones in both. Besides (models/composite_steps.edge_runs, shared with
+  zip+motor): at ``--per-cycle 4`` a 13% sag moves at most 3.6% per row, under ``JUMP``
+  (5%), so no edge is found and nothing is left out.
+- **B. The motors' swing equation has no negative-sequence braking torque**
+  (``|I_r2|^2 Rr / (2 - s)``, which the generator has). During the unbalanced fault the
+  generator's motors slow more than the model's, and at the true parameters the model's P is low by
+  0.012 p.u. (1.8% of P0) throughout the fault (0.0004 on the same sag balanced).
+- **C. The negative sequence does not see T0, the coordinate that sets the rating.** A
+  motor of rating S with own-base impedances Z is, at its terminals, Z / S in both
+  sequences: ``S / Z2`` is the same system-unit impedance the positive sequence sees.
+  In ``PartsModel``'s coordinates, moving ``log_t0`` with the scale-free ones fixed
+  changes the rating threefold and neither the P column nor the predicted I2 (to 1e-9).
+  The rating then comes from the priors alone: where I2 pins ``X' T0``, from the prior
+  of the own-base X' (sd of the log 0.3) beside T0's (0.25). parts_model.py's docstring
+  says the negative sequence sees ``log T0``: it does not.
+
+Measured on this record (4000 draws, 2000 burn-in, 2 chains, seed 0), total rating
+(truth 0.8), 95% interval:
+
+================================================== ================ ================
+events                                             with I2 ("auto") without ("off")
+================================================== ================ ================
+the reader's rows (this test)                      [0.107, 0.273]   [0.142, 0.256]
+rows across the steps dropped, steps as knots (A)  [0.380, 0.839]   [0.334, 1.405]
+A, and the generator without braking torque (B)    [0.402, 1.040]   [0.346, 0.868]
+================================================== ================ ================
+
+On the reader's rows the other quantities miss as well: ``f_motors`` [0.099, 0.335]
+with I2 and [0.199, 0.317] without, for 0.455; T0 of motor A [0.42, 1.19] and [0.56,
+1.56], of motor B [0.49, 1.21] and [0.53, 0.98], for 0.35 (X' is covered: A [0.091,
+0.278] and [0.097, 0.264] for 0.118, B [0.133, 0.293] and [0.144, 0.310] for 0.194).
+With A fixed, the rating is covered with I2 and narrower, but covered without it too;
+with A and B fixed, covered both ways and wider with I2: the chains have not converged
+(R-hat up to 1.5), and the negative sequence adds little on the rating (C). With A
+fixed ``f_motors`` is read high, 0.67 [0.57, 0.78] and 0.63 [0.49, 0.75] (B); with A
+and B fixed, 0.61 [0.52, 0.71] with I2 and 0.50 [0.41, 0.64] without: at the true
+parameters the I2 rows miss by up to 5.5e-3 (0.8% of ``|I2|``; the reader leaves up to
+4e-3 at one phasor a cycle, tests/unit/test_negative_sequence.py), not traced further.
+
+False-alarm rates: the residual checks are deterministic (fixed noise seed;
+thresholds of 15 to 25 times the noise of P); the rating test's coverage part, with
+calibrated intervals, fails 5% of the time, and its two other parts (missed without I2,
+narrower with it) are claims of power, not of calibration.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from loadbayes.cli import main
+from loadbayes.core.settings import SamplerSettings
+from loadbayes.fit.composite.driver import fit_composite
+from loadbayes.measurements.events import read_events
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.parts_model import PartsModel
+from sequence_generator import Fault, Motor, generate, write_record
+
+pytestmark = pytest.mark.statistical
+
+F_HZ, V_BASE, S_BASE = 50.0, 110.0, 40.0
+WB = 2 * math.pi * F_HZ
+FAULT_S = 0.1017
+DRAWS, BURN, CHAINS, SEED = 4000, 2000, 2, 0
+# Slips at which each motor carries T0 = 0.35 (found by the generator's steady state).
+MOTOR_A = Motor(rating=0.5, rs=0.04, xs=0.06, xm=1.8, xr=0.06, rr=1.86 / (WB * 0.10),
+                h_s=0.12, s0=0.02283, torque_exp=0)  # fmt: skip
+MOTOR_B = Motor(rating=0.3, rs=0.03, xs=0.10, xm=1.7, xr=0.10, rr=1.8 / (WB * 0.20),
+                h_s=0.5, s0=0.01156, torque_exp=2)  # fmt: skip
+BALANCED = {"v2": 0j, "v0": 0j}
+# What the checks found (the module docstring's A, B and C).
+WHY_A = (
+    "A: the rows across a step, left out of the likelihood, stay knots of the motors' "
+    "input; at the true parameters the kept rows beside the steps miss P by 0.033 p.u."
+)
+WHY_B = (
+    "B: the motors have no negative-sequence braking torque; at the true parameters P is "
+    "low by 0.012 p.u. (1.8% of P0) through the unbalanced fault"
+)
+WHY_ABC = (
+    "A, B and C of the module docstring: with I2 the rating's interval is [0.107, 0.273], "
+    "without [0.142, 0.256], for 0.8"
+)
+
+
+def _model(negative_sequence: str, window_s: float = 1 / F_HZ, cls=PartsModel, **extra):
+    return cls(motors=("a", "b"), feeder=False, f_hz=F_HZ, negative_sequence=negative_sequence,
+               window_s=window_s, **extra)  # fmt: skip
+
+
+def _read(tmp_path, **fault) -> tuple[EventRecord, dict, float]:
+    """The record through `read comtrade` and `events`: the event, the truth, its t0."""
+    cfg, rec = write_record(tmp_path / "gen", f_hz=F_HZ, rate_hz=3200.0, t_end_s=0.6,
+                            v_base_kv=V_BASE, s_base_mva=S_BASE, motors=(MOTOR_A, MOTOR_B),
+                            fault=Fault(duration_s=FAULT_S, **fault), seed=0)  # fmt: skip
+    runner = CliRunner()
+    res = runner.invoke(main, ["read", "comtrade", str(cfg), "--v-base", str(V_BASE),
+                               "--s-base", str(S_BASE), "--out", str(tmp_path / "rec.csv"),
+                               "--quiet"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(main, ["events", str(tmp_path / "rec.csv"), "--out",
+                               str(tmp_path / "ev"), "--quiet"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    (ev,) = read_events([str(tmp_path / "ev" / "event_001.csv")], f_hz=F_HZ)
+    t0 = float(pd.read_csv(tmp_path / "rec.csv", nrows=1)["t_s"].iloc[0])
+    return ev, rec.truth, t0
+
+
+def _true_theta(model: PartsModel, truth: dict) -> np.ndarray:
+    """The generator's mix in the model's sampled coordinates (motors as the model's closure)."""
+    p0 = truth["p0"]
+    phys = []
+    for m, mt in zip((MOTOR_A, MOTOR_B), truth["motors"], strict=True):
+        phys.append(np.log([m.rs, m.x1, m.x - m.x1, m.t0p(WB), m.h_s, mt["load_torque"]]))
+    f = [m.rating * mt["p_pre_motor_base"] / p0 for m, mt in
+         zip((MOTOR_A, MOTOR_B), truth["motors"], strict=True)]  # fmt: skip
+    f_s = truth["zip"]["p"] / p0
+    a1, a2, a3 = truth["zip"]["shares"][:3]
+    # The model's coordinates from the physical logs: (Rs T0, X' T0, (X - X') T0, T',
+    # H / T0, T0), as models/parts_model._SCALE_FREE maps them.
+    coords = []
+    for rs, xp, dx, tp, h, t0 in phys:
+        coords += [rs + t0, xp + t0, dx + t0, tp, h - t0, t0]
+    theta = np.array([*coords, math.log(f[0] / f_s), math.log(f[1] / f_s),
+                      math.log(a1 / a3), math.log(a2 / a3)])  # fmt: skip
+    phys_back = model.physical(theta)
+    assert phys_back["t0_a"] == pytest.approx(0.35, rel=1e-3)
+    assert phys_back["x_prime_b"] == pytest.approx(MOTOR_B.x1)
+    assert phys_back["f_motors"] == pytest.approx(sum(f))
+    return theta
+
+
+def _p_residual(model: PartsModel, event: EventRecord, theta: np.ndarray, p0: float):
+    (z, y), *_ = model.channels(event, theta)
+    return y - z[:, 0] * p0
+
+
+def test_the_generators_mix_has_the_rating_the_prior_of_t0_misses():
+    # The premise: lightly loaded motors, whose rating a T0 at the prior's median reads
+    # at less than half the truth.
+    *_, truth = generate(f_hz=F_HZ, rate_hz=400.0, t_end_s=0.3, motors=(MOTOR_A, MOTOR_B))
+    assert truth["motor_rating_total"] == pytest.approx(0.8)
+    p_motors = sum(m["rating"] * m["p_pre_motor_base"] for m in truth["motors"])
+    for m in truth["motors"]:
+        assert m["load_torque"] == pytest.approx(0.35, abs=1e-3)
+    assert p_motors / 0.75 < 0.5 * truth["motor_rating_total"]
+
+
+def test_the_motor_kernel_is_the_generators_on_a_balanced_sag():
+    # Point samples of the generator's own phasors (3200/s, no reader): at the true
+    # parameters the model's P during the fault is the generator's on average to 0.3% of
+    # P0 (measured 0.0004 p.u.). The check beside B's, which differs in V2 only.
+    t, sv, si, _, truth = generate(f_hz=F_HZ, rate_hz=3200.0, t_end_s=0.6,
+                                   motors=(MOTOR_A, MOTOR_B),
+                                   fault=Fault(duration_s=FAULT_S, **BALANCED))  # fmt: skip
+    s = sv[1] * np.conj(si[1])
+    ev = EventRecord(t, np.abs(sv[1]), s.real, s.imag, np.angle(sv[1]), "points")
+    model = _model("off", window_s=0.0)
+    r = _p_residual(model, ev, _true_theta(model, truth), truth["p0"])
+    during = (t > truth["fault"]["t_on_s"] + 0.001) & (t < truth["fault"]["t_off_s"])
+    assert abs(r[during].mean()) < 0.003 * truth["p0"], r[during].mean()
+
+
+@pytest.mark.xfail(strict=True, reason=WHY_B)
+def test_the_motors_positive_sequence_under_an_unbalanced_fault():
+    t, sv, si, _, truth = generate(f_hz=F_HZ, rate_hz=3200.0, t_end_s=0.6,
+                                   motors=(MOTOR_A, MOTOR_B),
+                                   fault=Fault(duration_s=FAULT_S))  # fmt: skip
+    s = sv[1] * np.conj(si[1])
+    ev = EventRecord(t, np.abs(sv[1]), s.real, s.imag, np.angle(sv[1]), "points")
+    model = _model("off", window_s=0.0)
+    r = _p_residual(model, ev, _true_theta(model, truth), truth["p0"])
+    during = (t > truth["fault"]["t_on_s"] + 0.001) & (t < truth["fault"]["t_off_s"])
+    assert abs(r[during].mean()) < 0.003 * truth["p0"], r[during].mean()
+
+
+@dataclass(frozen=True)
+class _StepsAsKnots(PartsModel):
+    """The likelihood on the rows marked real; the other rows only knots of the input."""
+
+    real: tuple[int, ...] = ()
+
+    def kept(self, event):  # noqa: D102
+        return np.asarray(self.real, dtype=np.int64)
+
+
+def _steps_as_knots(ev: EventRecord, truth: dict, t0: float) -> tuple[EventRecord, tuple]:
+    """The rows whose window lies on one side of each step, and two knots at each step."""
+    steps = np.array([truth["fault"]["t_on_s"], truth["fault"]["t_off_s"]]) - t0
+    clean = np.all(np.abs(ev.t[:, None] - steps[None, :]) > 0.5 / F_HZ + 1 / 3200, axis=1)
+    rows: list[tuple] = []
+    real: list[int] = []
+    for k in np.flatnonzero(clean):
+        for s in steps:
+            if rows and rows[-1][0] < s < ev.t[k]:
+                before = rows[-1]
+                rows.append((s - 1e-6, before[1], before[2], 0.0, 0.0, 0j, 0j))
+                rows.append((s, ev.v[k], ev.delta[k], 0.0, 0.0, 0j, 0j))
+        real.append(len(rows))
+        rows.append((ev.t[k], ev.v[k], ev.delta[k], ev.p[k], ev.q[k], ev.v2[k], ev.i2[k]))
+    t, v, d, p, q, v2, i2 = (np.array(c) for c in zip(*rows, strict=True))
+    return EventRecord(t, v, p, q, d, "knots", v2=v2, i2=i2), tuple(real)
+
+
+def test_with_the_steps_as_knots_the_model_is_the_record_at_the_truth(tmp_path):
+    # A balanced sag through the reader; the rows across a step left out and the step put
+    # between the kept rows (what zip+motor does): at the true parameters the model's P is
+    # the record's to 2.5e-3 p.u. (measured 5e-4: the noise is 1e-4).
+    ev, truth, t0 = _read(tmp_path, **BALANCED)
+    knotted, real = _steps_as_knots(ev, truth, t0)
+    model = _model("off", cls=_StepsAsKnots, real=real)
+    theta = _true_theta(model, truth)
+    r = _p_residual(model, knotted, theta, truth["p0"])
+    assert r.size == len(real) and np.abs(r).max() < 2.5e-3, np.abs(r).max()
+
+
+@pytest.mark.xfail(strict=True, reason=WHY_A)
+def test_the_model_is_the_readers_rows_at_the_truth(tmp_path):
+    ev, truth, _ = _read(tmp_path, **BALANCED)
+    model = _model("off")
+    r = _p_residual(model, ev, _true_theta(model, truth), truth["p0"])
+    assert r.size < ev.n  # the rows across the two steps are left out
+    assert np.abs(r).max() < 2.5e-3, np.abs(r).max()
+
+
+def test_the_negative_sequence_is_blind_to_the_coordinate_of_the_rating(tmp_path):
+    # C: along log_t0 (the scale-free coordinates held) the rating moves threefold, the
+    # P column and the predicted I2 do not: the rating is the priors'.
+    ev, truth, _ = _read(tmp_path)
+    model = _model("on")
+    theta = _true_theta(model, truth)
+    i_t0 = model.theta_names.index("log_t0_a")
+    out = []
+    for t0 in (0.35, 1.05):
+        th = theta.copy()
+        th[i_t0] = math.log(t0)
+        (zp, _), _, (zi, _) = model.channels(ev, th)
+        out.append((zp, zi, model.ratings(ev, th, np.array([truth["p0"]]))["mva_a"][0]))
+    (zp0, zi0, mva0), (zp1, zi1, mva1) = out
+    assert mva0 / mva1 == pytest.approx(3.0, rel=0.02)
+    assert np.allclose(zi0, zi1, rtol=1e-9, atol=1e-12)
+    assert np.allclose(zp0, zp1, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.xfail(strict=True, reason=WHY_ABC)
+def test_the_rating_is_covered_with_the_negative_sequence_and_not_without(tmp_path):
+    ev, truth, _ = _read(tmp_path)
+    assert ev.unbalanced and _model("auto").uses_negative_sequence(ev)
+    sampler = SamplerSettings(draws=DRAWS, burn=BURN, chains=CHAINS, seed=SEED)
+    got = {}
+    for mode in ("auto", "off"):
+        d = fit_composite(_model(mode), [ev], sampler=sampler).posterior.draws
+        total = np.asarray(d["mva_a"]) + np.asarray(d["mva_b"])
+        got[mode] = tuple(np.quantile(total, [0.025, 0.975]))
+    true = truth["motor_rating_total"]
+    (lo, hi), (lo_off, hi_off) = got["auto"], got["off"]
+    assert lo <= true <= hi, got
+    assert not lo_off <= true <= hi_off, got
+    assert hi - lo < hi_off - lo_off, got
