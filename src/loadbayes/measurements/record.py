@@ -72,6 +72,9 @@ class EventRecord:
     angle_from: str = ""
     v2: NDArray[np.complex128] | None = None
     i2: NDArray[np.complex128] | None = None
+    #: The rows whose phasor window straddles a voltage step (the reader's ``straddle``
+    #: column), or None: not known. A model reading window means leaves them out.
+    straddle: NDArray[np.bool_] | None = None
 
     @property
     def v0(self) -> float:
@@ -100,7 +103,8 @@ class EventRecord:
             return None if x is None else x[keep]
 
         return replace(self, t=self.t[keep], v=self.v[keep], p=self.p[keep], q=self.q[keep],
-                       delta=cut(self.delta), v2=cut(self.v2), i2=cut(self.i2))  # fmt: skip
+                       delta=cut(self.delta), v2=cut(self.v2), i2=cut(self.i2),
+                       straddle=cut(self.straddle))  # fmt: skip
 
     @property
     def unbalanced(self) -> bool:

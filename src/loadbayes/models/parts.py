@@ -55,6 +55,7 @@ __all__ = [
     "motor_d",
     "motor_y2",
     "step_knots",
+    "step_times",
 ]
 
 #: A sample interval this many times the median one is a gap: rows were left out there
@@ -215,21 +216,51 @@ def motor_y2(rs, xp, dx, tp_s, f_hz: float, slip: float = 0.0):
     return 1.0 / z2
 
 
-def gaps_of(t: NDArray) -> NDArray[np.bool_]:
-    """``gap[k]``: rows were left out between samples ``k`` and ``k + 1`` (:data:`GAP`)."""
+def gaps_of(t: NDArray, steps: NDArray | None = None) -> NDArray[np.bool_]:
+    """``gap[k]``: a step between samples ``k`` and ``k + 1``.
+
+    Rows were left out there (:data:`GAP`), or its instant is known (``steps[k]``).
+    """
     dt = np.diff(np.asarray(t, dtype=float))
     out = np.zeros(max(t.size, 1), dtype=bool)
     if dt.size:
         out[:-1] = dt > GAP * float(np.median(dt))
+    if steps is not None:
+        out |= np.isfinite(steps)
     return out
 
 
-def step_knots(t: NDArray, v: NDArray, delta: NDArray | None, gap: NDArray[np.bool_]):
-    """The drive of a motor read as window means across gaps: a step at each gap's middle.
+def step_times(t: NDArray, v: NDArray, keep: NDArray[np.int64], window_s: float) -> NDArray:
+    """Each gap's step instant, read from the rows left out (NaN: none to read).
+
+    ``step[k]`` belongs to the gap after kept row ``k``. A one-cycle phasor across a step
+    is about the window's mean, so a left-out row ``i`` between kept rows ``a`` and ``b``
+    says the step came at ``t_i - w/2 + w (v_i - v_b) / (v_a - v_b)`` when that share
+    lies strictly inside (0, 1); the estimates of a gap's rows are averaged.
+    """
+    out = np.full(keep.size, np.nan)
+    for k in range(keep.size - 1):
+        a, b = int(keep[k]), int(keep[k + 1])
+        if b - a < 2 or abs(v[a] - v[b]) < 1e-6:
+            continue
+        est = []
+        for i in range(a + 1, b):
+            share = (v[i] - v[b]) / (v[a] - v[b])
+            if 0.0 < share < 1.0:
+                est.append(t[i] - 0.5 * window_s + window_s * share)
+        if est:
+            out[k] = min(max(float(np.mean(est)), t[a] + 1e-5), t[b] - 1e-5)
+    return out
+
+
+def step_knots(t: NDArray, v: NDArray, delta: NDArray | None, gap: NDArray[np.bool_],
+               steps: NDArray | None = None):  # fmt: skip
+    """The drive of a motor read as window means across gaps: a step in each gap.
 
     Returns ``(t, v, delta, real)``: the samples plus two knots 1 us either side of each
-    gap's middle, holding the values before and after it (the voltage steps there,
-    instead of ramping across the rows left out), and ``real``, the samples' positions.
+    gap's step (``steps[k]`` where known, :func:`step_times`; else the gap's middle),
+    holding the values before and after it (the voltage steps there, instead of ramping
+    across the rows left out), and ``real``, the samples' positions.
     """
     if not gap.any():
         return t, v, delta, np.arange(t.size)
@@ -241,8 +272,10 @@ def step_knots(t: NDArray, v: NDArray, delta: NDArray | None, gap: NDArray[np.bo
         vs.append(v[k])
         ds.append(d[k])
         if gap[k] and k + 1 < t.size:
-            mid = 0.5 * (t[k] + t[k + 1])
-            ts += [mid - 1e-6, mid + 1e-6]
+            at = 0.5 * (t[k] + t[k + 1])
+            if steps is not None and np.isfinite(steps[k]):
+                at = float(steps[k])
+            ts += [at - 1e-6, at + 1e-6]
             vs += [v[k], v[k + 1]]
             ds += [d[k], d[k + 1]]
     return (np.array(ts), np.array(vs), None if delta is None else np.array(ds),

@@ -31,7 +31,7 @@ __all__ = ["event_sums", "model_sums"]
 
 
 @numba.njit(cache=True, nogil=True)
-def event_sums(t, v, delta, has_angle, p, q, gap, v2, i2, i2_rows, r, x, motors, window_s,
+def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors, window_s,
                shares, a_p, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, ztz, zty, yty,
                nn):  # pragma: no cover - compiled  # fmt: skip
     """Fill ``ztz (G, 4, 4)``, ``zty (G, 4)``, ``yty (G,)``, ``nn (G,)``; False if infeasible.
@@ -87,7 +87,7 @@ def event_sums(t, v, delta, has_angle, p, q, gap, v2, i2, i2_rows, r, x, motors,
         ta[pos], va[pos], da[pos] = t[k], vm[k], dl[k]
         pos += 1
         if n_gap > 0 and k + 1 < n and gap[k]:
-            mid = 0.5 * (t[k] + t[k + 1])
+            mid = steps[k] if math.isfinite(steps[k]) else 0.5 * (t[k] + t[k + 1])
             ta[pos], va[pos], da[pos] = mid - 1e-6, vm[k], dl[k]
             ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
             pos += 2
@@ -199,7 +199,7 @@ def model_sums(model, event, theta):
     ok = event_sums(*fixed, model.rx * x_fd, x_fd, motors, float(model.window_s),
                     np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
                     model.motor_d, d_params, model.electronics, float(model.vd1),
-                    float(model.vd2), float(model.frcel), g == 3 and bool(fixed[9].any()),
+                    float(model.vd2), float(model.frcel), g == 3 and bool(fixed[10].any()),
                     ztz, zty, yty, nn)  # fmt: skip
     return (ztz, zty, yty, nn) if ok else None
 
@@ -208,7 +208,7 @@ def _fixed_of(model, event) -> tuple:
     # The event's arrays the kernel reads, once per event (kept on the model).
     key = (id(event), event.n)
     if key not in model._fixed:
-        keep = model.kept(event)
+        keep, steps = model.drive_of(event)
         if keep.size < event.n:  # as channels: the rows left out make a gap
             event = event.take(keep)
         n = event.n
@@ -221,6 +221,6 @@ def _fixed_of(model, event) -> tuple:
             np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
             np.ascontiguousarray(delta), event.delta is not None,
             np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
-            gaps_of(event.t), v2, i2, rows,
+            gaps_of(event.t, steps), np.ascontiguousarray(steps, float), v2, i2, rows,
         )  # fmt: skip
     return model._fixed[key]

@@ -66,6 +66,7 @@ from loadbayes.models.parts import (
     motor_d,
     motor_y2,
     step_knots,
+    step_times,
 )
 from loadbayes.models.parts_kernel import model_sums
 
@@ -234,13 +235,13 @@ class PartsModel:
     def channels(self, event: EventRecord, theta: NDArray) -> list[tuple[NDArray, NDArray]] | None:
         """Each channel's design on ``beta = (p0, cq2, cq1, cq0)`` and target: P, Q, maybe I2."""
         c = self._split(theta)
-        keep = self.kept(event)
+        keep, steps = self.drive_of(event)
         if keep.size < event.n:  # the rows inside a step left out: a gap, stepped across
             event = event.take(keep)
         x_fd = self.feeder_x(event.p[0], event.q[0], c)
         lb = load_bus(event, self.rx * x_fd, x_fd)
         ev = lb.event
-        cols = self.load_columns(ev, c)
+        cols = self.load_columns(ev, c, steps)
         if cols is None:
             return None
         col_p, col_qp, y2p = cols
@@ -264,17 +265,26 @@ class PartsModel:
         """The samples the likelihood reads: with a phasor window, those outside a step.
 
         A phasor row whose window straddles a fault's inception or clearing is a mean
-        across the step (``models/composite_steps.FitSamples``, as ``zip+motor`` leaves
-        them out); point samples (``window_s`` 0) are all kept.
+        across the step: the event's own ``straddle`` flags where its reader set them,
+        else ``models/composite_steps.FitSamples``' edges (as ``zip+motor`` leaves them
+        out); point samples (``window_s`` 0) are all kept.
         """
+        return self.drive_of(event)[0]
+
+    def drive_of(self, event: EventRecord) -> tuple[NDArray[np.int64], NDArray]:
+        """``(kept, steps)``: the kept rows and each gap's step instant (``parts.step_times``)."""
         key = (id(event), event.n)
         if key not in self._kept:
+            keep = np.arange(event.n)
             if self.window_s > 0:
-                found = FitSamples.find([event.t], [event.v], window_s=self.window_s,
-                                        detect=True)  # fmt: skip
-                self._kept[key] = np.asarray(found.keep[0], dtype=np.int64)
-            else:
-                self._kept[key] = np.arange(event.n)
+                if event.straddle is not None:
+                    keep = np.flatnonzero(~np.asarray(event.straddle, dtype=bool))
+                else:
+                    found = FitSamples.find([event.t], [event.v], window_s=self.window_s,
+                                            detect=True)  # fmt: skip
+                    keep = np.asarray(found.keep[0], dtype=np.int64)
+            steps = step_times(event.t, event.v, keep, self.window_s)
+            self._kept[key] = (keep, steps)
         return self._kept[key]
 
     def event_sums(self, event: EventRecord, theta: NDArray):
@@ -289,7 +299,7 @@ class PartsModel:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""
         return float(c["x_fd"]) / float(np.hypot(p0, q0)) if self.feeder else 0.0
 
-    def load_columns(self, ev: EventRecord, c: dict[str, Any]):
+    def load_columns(self, ev: EventRecord, c: dict[str, Any], steps: NDArray | None = None):
         """At the load bus (``ev``): P's column on ``p0``, Q's on ``p0`` and ``Y2`` per ``p0``.
 
         ``c`` is :meth:`_split` of one ``theta``; None where a motor has no steady state.
@@ -303,9 +313,9 @@ class PartsModel:
         y2p = f[-1] / v0**2 + 0j
         drive, real = ev, None
         if self.window_s > 0:  # window means: across a gap the voltage steps (parts.step_knots)
-            gap = gaps_of(ev.t)
+            gap = gaps_of(ev.t, steps)
             if gap.any():
-                t2, v2, d2, real = step_knots(ev.t, ev.v, ev.delta, gap)
+                t2, v2, d2, real = step_knots(ev.t, ev.v, ev.delta, gap, steps)
                 drive = EventRecord(t2, v2, np.zeros(t2.size), np.zeros(t2.size), d2)
         for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
             resp = motor_response(drive, logs, f_hz=self.f_hz, real=real,
@@ -406,39 +416,7 @@ class PartsModel:
 
     @property
     def quantities(self) -> dict[str, tuple[str, str]]:
-        """Unit and meaning of every named draw."""
-        sys_, mb = "p.u. system base", "p.u. motor base"
-        q: dict[str, tuple[str, str]] = {
-            "p0": (sys_, "load-bus P at the first sample (behind the feeder)"),
-            "q0": (sys_, "load-bus Q at the first sample (behind the feeder)"),
-            "x_fd": ("p.u. load base", "series X: transformer and feeder"),
-            "r_fd": ("p.u. load base", "series R: transformer and feeder"),
-            "f_s": ("-", "static part's share of P"),
-            "f_motors": ("-", "three-phase motors' share of P, all together"),
-            "f_d": ("-", "motor D's (single-phase A/C) share of P"),
-            "f_el": ("-", "power electronics' share of P"),
-            "a1": ("-", "static P: constant-impedance share"),
-            "a2": ("-", "static P: constant-current share"),
-            "a3": ("-", "static P: constant-power share"),
-            "cq2": (sys_, "static Q and capacitors: constant-impedance term"),
-            "cq1": (sys_, "static Q: constant-current term"),
-            "cq0": (sys_, "static Q: constant-power term"),
-            "tau_p": ("1/(p.u.)^2", "noise precision of P"),
-            "tau_q": ("1/(p.u.)^2", "noise precision of Q"),
-            "tau_i2": ("1/(p.u.)^2", "noise precision of the negative-sequence current"),
-        }
-        for m, t in zip(self.motors, self._tags, strict=True):
-            what = MOTOR_CLASSES[m]["meaning"]
-            q["f_m" + t] = ("-", f"{what}: share of P")
-            q["mva" + (t or "_m")] = (sys_, f"{what}: rating (MVA)")
-            for k, (unit, meaning) in {
-                "rs": (mb, "stator resistance Rs"), "xs": (mb, "stator leakage Xs"),
-                "xm": (mb, "magnetising Xm"), "rr": (mb, "rotor resistance Rr"),
-                "xr": (mb, "rotor leakage Xr"), "h_s": ("s, motor base", "inertia H"),
-                "t0": (mb, "load torque T0"), "x_prime": (mb, "transient X'"),
-                "x_open": (mb, "open-circuit X"), "t_prime_s": ("s", "transient T'"),
-            }.items():  # fmt: skip
-                q[k + t] = (unit, f"{what}: {meaning}")
-        for name in self.theta_names:
-            q.setdefault(name, ("-", "sampled coordinate"))
-        return q
+        """Unit and meaning of every named draw (``models/parts_quantities.py``)."""
+        from loadbayes.models.parts_quantities import quantities
+
+        return quantities(self)

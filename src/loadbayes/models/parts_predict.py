@@ -57,9 +57,14 @@ def predict_parts(
     Returns
     -------
     (p, q, iterations) or None
+        At the kept rows (``model.kept``: with a phasor window, not those straddling a
+        step).
         None where a motor has no steady state or the loop does not converge.
     """
     c = model._split(np.asarray(theta, dtype=float))
+    keep, steps = model.drive_of(event)
+    if keep.size < event.n:  # the rows straddling a step left out: stepped across
+        event = event.take(keep)
     z = complex(model.rx, 1.0) * model.feeder_x(p0, q0, c)
     delta = np.zeros(event.n) if event.delta is None else event.delta - event.delta[0]
     v = event.v * np.exp(1j * delta)
@@ -69,7 +74,7 @@ def predict_parts(
     vl = v - z * i0
     for it in range(1, max_iterations + 1):
         ev = replace(event, v=np.abs(vl), delta=None if event.delta is None else np.angle(vl))
-        cols = model.load_columns(ev, c)
+        cols = model.load_columns(ev, c, steps)
         if cols is None:
             return None
         col_p, col_qp, _ = cols

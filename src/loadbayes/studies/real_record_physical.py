@@ -20,7 +20,7 @@ section shows, per transformer:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -112,7 +112,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Phys
         with_ns = ch.fits[best][1].posterior
         model = next(m for m in models if m.name == best)
         off = dynamic_model(best, negative_sequence="off", **parts)
-        first = events[0].take(~np.asarray(straddle[0], bool))  # as compare_models fits it
+        first = replace(events[0], straddle=np.asarray(straddle[0], bool))  # as compare_models
         without = fit_composite(off, [first], sampler=sampler).posterior
         used = with_ns.extra_json["parts"]["negative_sequence"]["summary"]
         col[f"{best}: motors' rating, with V2 and I2"] = _ci(_rating(with_ns))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -71,10 +71,11 @@ def compare_models(
         fits[model.name], held[model.name] = [], []
         parts = getattr(model, "parts", None) is not None
         for k, ev in enumerate(events):
-            # A model of parts fits without the rows left out of the scoring (they straddle
-            # a step: it steps across the gap, models/parts.step_knots); zip+motor finds
+            # A model of parts is told which rows straddle a step (the scoring's masks): it
+            # leaves them out and steps across (models/parts.step_knots); zip+motor finds
             # its own edges.
-            train = [e.take(~masks[j]) if parts and masks[j] is not None else e
+            train = [replace(e, straddle=np.asarray(masks[j], bool))
+                     if parts and masks[j] is not None else e
                      for j, e in enumerate(events) if j != k]  # fmt: skip
             fit = fit_composite(model, train, sampler=sampler)
             v = _held_out(model, fit.posterior, ev, masks[k], sampler.seed)

@@ -14,6 +14,7 @@ Gaussian likelihood, summed over the scored samples of P and Q), which
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -55,6 +56,7 @@ def validate_parts_event(
         raise ValueError(f"{event.name or 'the event'}: every sample is excluded: nothing to score")
     p0n, q0n = operating_point(event, scored)
     n_out = int(event.n - scored.sum())
+    full = replace(event, straddle=~scored) if n_out else event
     if n_out:  # the rows straddling a step left out: the motors step across the gap
         event = event.take(scored)
         scored = np.ones(event.n, dtype=bool)
@@ -63,7 +65,7 @@ def validate_parts_event(
     means_p, means_q, noisy_p, noisy_q, logl = [], [], [], [], []
     for i in pick:
         share = cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else np.array([0.0, 0.0, 1.0])
-        out = predict_parts(model, event, theta[i], p0n, q0n, share)
+        out = predict_parts(model, full, theta[i], p0n, q0n, share)
         if out is None:
             continue
         mp, mq, _ = out
