@@ -28,8 +28,11 @@ cq0`` is the whole load's Q. The recorded P, Q are ``P_L, Q_L`` plus the feeder'
 
 Each motor is sampled in its scale-free coordinates (``log(Rs T0), log(X' T0),
 log((X - X') T0), log T', log(H / T0)``: what a positive-sequence record determines)
-and ``log T0``, which positive-sequence data never see and the negative sequence does
-(a running motor's negative-sequence admittance is about its rating over ``Rs + jX'``).
+and ``log T0``, which terminal data never see: a motor of rating S with own-base
+impedances Z is Z / S at its terminals in both sequences, so the negative sequence
+(a running motor's admittance about S / (Rs + jX')) measures the same combination the
+positive sequence sees through ``X' T0``, more sharply; the rating in MVA then rests
+on the published range of the own-base X' (tests/statistical/test_parts_negative_sequence.py).
 The Gaussian log-normal priors of the physical parameters are mapped exactly into
 those coordinates (``part_priors.PartsPrior``).
 

@@ -139,7 +139,7 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
         words["negative_sequence"]["summary"] = (
             f"the negative sequence entered the fit at {sum(u['rows'] for u in used)} "
             f"rows of {len(used)} event(s) (|V2| >= {NEG_SEQ_MIN} p.u.): it measures the "
-            "motors' rating over their X'"
+            "motors' rating over their X' (S / X')"
         )
     else:
         words["negative_sequence"]["summary"] = (
