@@ -39,6 +39,7 @@ def predict_parts(
     *,
     tol: float = 1e-7,
     max_iterations: int = 60,
+    damping: float | None = None,
 ) -> tuple[NDArray, NDArray, int] | None:
     """P, Q at the recorded bus of one draw, and the iterations the loop took.
 
@@ -53,6 +54,11 @@ def predict_parts(
         The recorded bus's P and Q before the event (the operating point).
     q_shares : ndarray, shape (3,)
         The static Q's split among ``x^2, x, 1`` (``cq / sum(cq)`` of the fit).
+    damping : float, optional
+        Under-relaxation ``V_L += w (new - V_L)``. None: plain sweeps, then, where they do
+        not settle (a part that switches, motor D stalling or a motor slowing, can make
+        the sweeps bounce between two trajectories), again at ``w = 0.5`` for up to 200
+        sweeps, which settles them at the same fixed point.
 
     Returns
     -------
@@ -85,12 +91,15 @@ def predict_parts(
         current = np.conj((p_l + 1j * q_l) / vl)
         new = v - z * current
         moved = float(np.max(np.abs(new - vl)))
-        vl = new
-        if not np.isfinite(moved):
-            return None
-        if moved < tol:
+        if moved < tol:  # the fixed point: what the load draws is what it was driven by
             s = v * np.conj(current)
             return s.real, s.imag, it
+        vl = new if damping is None else vl + damping * (new - vl)
+        if not np.isfinite(moved):
+            return None
+    if damping is None:
+        return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
+                             max_iterations=200, damping=0.5)  # fmt: skip
     return None
 
 
