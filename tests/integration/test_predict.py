@@ -221,3 +221,37 @@ def test_griddyn_band_from_the_shallow_fault_alone_is_wider(griddyn):
         widths.append(float(np.mean(b["p_pred_hi"] - b["p_pred_lo"])))
     print("mean width of P's band, shallow+medium then shallow:", widths)
     assert widths[1] > widths[0]
+
+
+def _real():
+    for folder in Path(__file__).resolve().parents:
+        if (folder / "shared" / "real" / "xtz.cfg").is_file():
+            return folder / "shared" / "real" / "xtz.cfg"
+    return None
+
+
+@pytest.mark.statistical
+@pytest.mark.skipif(_real() is None, reason="shared/real is not beside the repository")
+@pytest.mark.skipif(__import__("os").environ.get("LOADBAYES_VALIDATE") != "1",
+                    reason="an slm fit of the real record (about 40 s): make validate")  # fmt: skip
+def test_the_real_record_at_a_50_percent_sag_says_it_extrapolates_from_13():
+    from loadbayes.measurements.events import events_from_arrays
+    from loadbayes.recordings.comtrade import read_comtrade
+    from loadbayes.recordings.record import phasor_rows, record_table
+
+    w = read_comtrade(_real(), bay="1号主变")
+    rows = phasor_rows(record_table(w, per_cycle=4).columns)
+    m = rows["segment"] == 0
+    cols = {"t": rows["t_s"][m] - rows["t_s"][m][0], "v": rows["v"][m], "p": rows["p"][m],
+            "q": rows["q"][m], "angle": rows["angle_rad"][m]}  # fmt: skip
+    names = {k: k for k in ("t", "v", "p", "q", "f", "angle", "event")}
+    (ev,) = events_from_arrays(cols, np.arange(1, m.sum() + 1), path="real", names=names,
+                               f_hz=w.f_nominal)  # fmt: skip
+    run = SamplerSettings(draws=2000, burn=1000, chains=2, seed=0)
+    post = fit_composite(dynamic_model("slm", f_hz=w.f_nominal), [ev], sampler=run).posterior
+    pred = predict(post, sag=0.5, duration=0.1, draws=200)
+    msg = pred.extrapolation["message"]
+    print(msg)
+    assert pred.extrapolation["extrapolated"]
+    assert "deepest 13%" in msg or "deepest 12%" in msg
+    assert "has no motor D" in msg  # slm: what a stall would do cannot appear

@@ -26,7 +26,14 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.composite.predict_scope import covered, recovery_time, sag_extent
+from loadbayes.fit.composite.predict_scope import (
+    MEANING,
+    covered,
+    extrapolation,
+    left_to_prior,
+    recovery_time,
+    sag_extent,
+)
 from loadbayes.fit.composite.predictive import events_of
 from loadbayes.fit.composite.validate import operating_point
 from loadbayes.measurements.record import EventRecord
@@ -44,9 +51,6 @@ PRIOR_SOURCE = (
     "choice, wide enough that Vstall's 95% range (0.5-0.7 p.u.) spans the tested air "
     "conditioners of PNNL-17796 (Lu, Xie and Huang 2008)"
 )
-_MEANING = {"vstall": "motor D's stall voltage (p.u.)", "tstall": "motor D's stall time (s)",
-            "vd1": "the electronics' voltage where tripping starts (p.u.)",
-            "vd2": "the electronics' voltage where all have tripped (p.u.)"}  # fmt: skip
 _PARTS_MODELS = ("slm", "cmld-lite")
 
 
@@ -148,46 +152,6 @@ def _spread(x: np.ndarray, prob: float) -> dict[str, Any]:
     else:
         out |= {"median": None, "interval": None}
     return out
-
-
-def _extrapolation(model, fault: dict, cover: dict, priors: Mapping) -> dict[str, Any]:
-    """Where the fault lies beyond the fitted events, and which priors then decide."""
-    why: list[str] = []
-    if cover["v_min"] is None:
-        why.append("the result keeps no recordings of its events: what they covered is unknown")
-    else:
-        if fault["depth"] > cover["depth_max"] + 0.02:
-            why.append(f"the sag reaches {fault['v_min']:.3g} p.u. ({fault['depth']:.0%}), "
-                       f"deeper than any fitted event (the deepest {cover['depth_max']:.0%}, "
-                       f"down to {cover['v_min']:.3g} p.u.)")  # fmt: skip
-        if fault["duration_s"] > 1.25 * cover["duration_max_s"] + 0.02:
-            why.append(f"it lasts {fault['duration_s']:.3g} s, longer than any fitted event "
-                       f"({cover['duration_max_s']:.3g} s at most)")  # fmt: skip
-    decide = []
-    v_seen = cover["v_min"] if cover["v_min"] is not None else 1.0
-    if model.motor_d:
-        kind, c, s = priors["vstall"]
-        top = c + 2 * s
-        if fault["v_min"] < top + 0.05:
-            decide += ["vstall", "tstall"]
-    if model.electronics:
-        kind, c, s = priors["vd1"]
-        if fault["v_min"] < c + 2 * s + 0.05:
-            decide += ["vd1", "vd2"]
-    words = []
-    if why:
-        words.append("Extrapolation: " + "; ".join(why) + ".")
-    if decide:
-        seen = (f"no fitted event went below {v_seen:.3g} p.u." if v_seen > 0.7 else
-                f"the fitted events went down to {v_seen:.3g} p.u.")  # fmt: skip
-        words.append(
-            f"The answer is decided by the priors of {', '.join(decide)} ("
-            + "; ".join(_MEANING[d] for d in decide)
-            + f"): the fit does not estimate them and {seen}; each draw takes them from "
-            "its prior (see thresholds, with the source)."
-        )
-    return {"extrapolated": bool(why), "why": why, "decided_by_prior": decide,
-            "message": " ".join(words) or "Within what the fitted events covered."}  # fmt: skip
 
 
 def predict(
@@ -344,7 +308,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     thresholds = {}
     for name, (kind, c, s) in priors.items():
         user = (kind, c, s) != THRESHOLD_PRIORS[name]
-        thresholds[name] = {"meaning": _MEANING[name], "prior": [kind, c, s],
+        thresholds[name] = {"meaning": MEANING[name], "prior": [kind, c, s],
                             "source": "given by the user (--prior)" if user else PRIOR_SOURCE,
                             "used": name in ("vstall", "tstall") and model.motor_d
                             or name in ("vd1", "vd2") and model.electronics}  # fmt: skip
@@ -354,7 +318,8 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
                          "from": "event 0's pre-fault P, Q at the recorded bus"},  # fmt: skip
         draws={"asked": int(n_draws), "played": int(pick.size), "used": used, "failed": failed},
         thresholds=thresholds, stall=stall, electronics_tripped=el, recovery=recovery,
-        coverage=cover, extrapolation=_extrapolation(model, fault, cover, priors), band=band,
+        coverage=cover, extrapolation=extrapolation(model, fault, cover, priors,
+                                    left_to_prior(model, post.draws)), band=band,
         prob=prob, warnings=warnings,
     )  # fmt: skip
 

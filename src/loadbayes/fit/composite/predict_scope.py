@@ -14,16 +14,33 @@ the depth) from which P or Q stays within 10 % of its pre-fault value.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from loadbayes.fit.composite.describe_parts import PRIOR_DRIVEN
 from loadbayes.io.errors import DataError
 from loadbayes.measurements.record import EventRecord
+from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES
 
-__all__ = ["covered", "read_profile", "recovery_time", "sag_extent", "sag_profile"]
+__all__ = [
+    "MEANING",
+    "covered",
+    "extrapolation",
+    "left_to_prior",
+    "read_profile",
+    "recovery_time",
+    "sag_extent",
+    "sag_profile",
+]
+
+#: What each threshold is (the thresholds of ``part_priors.THRESHOLD_PRIORS``).
+MEANING = {"vstall": "motor D's stall voltage (p.u.)", "tstall": "motor D's stall time (s)",
+           "vd1": "the electronics' voltage where tripping starts (p.u.)",
+           "vd2": "the electronics' voltage where all have tripped (p.u.)"}  # fmt: skip
 
 #: Seconds of steady voltage before a built sag, and after its recovery.
 PRE_S, POST_S = 0.2, 1.5
@@ -142,3 +159,78 @@ def recovery_time(t: np.ndarray, x: np.ndarray, t_clear: float, share: float = 0
     if bad[-1] == t.size - 1:
         return math.nan
     return float(t[bad[-1] + 1] - t_clear)
+
+
+def left_to_prior(model, draws: Mapping[str, np.ndarray]) -> list[str]:
+    """The motor and feeder parameters the fit left to their priors.
+
+    As ``describe_parts`` says them: the posterior's spread of the log above
+    ``PRIOR_DRIVEN`` of the prior's.
+    """
+    prior_of = {}
+    for m, t in zip(model.motors, model._tags, strict=True):
+        for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():
+            prior_of[k + t] = model.priors.get(k + t, (median, sd))
+    if model.feeder:
+        prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
+    out = []
+    for name, (_median, sd) in prior_of.items():
+        if name in draws and sd > 0:
+            x = np.asarray(draws[name], dtype=float).ravel()
+            if float(np.std(np.log(x))) / sd > PRIOR_DRIVEN:
+                out.append(name)
+    return out
+
+
+def extrapolation(model, fault: dict, cover: dict, priors: Mapping,
+                  left: Sequence[str] = ()) -> dict[str, Any]:  # fmt: skip
+    """Where the fault lies beyond the fitted events, and which priors then decide."""
+    why: list[str] = []
+    if cover["v_min"] is None:
+        why.append("the result keeps no recordings of its events: what they covered is unknown")
+    else:
+        if fault["depth"] > cover["depth_max"] + 0.02:
+            why.append(f"the sag reaches {fault['v_min']:.3g} p.u. ({fault['depth']:.0%}), "
+                       f"deeper than any fitted event (the deepest {cover['depth_max']:.0%}, "
+                       f"down to {cover['v_min']:.3g} p.u.)")  # fmt: skip
+        if fault["duration_s"] > 1.25 * cover["duration_max_s"] + 0.02:
+            why.append(f"it lasts {fault['duration_s']:.3g} s, longer than any fitted event "
+                       f"({cover['duration_max_s']:.3g} s at most)")  # fmt: skip
+    decide = []
+    v_seen = cover["v_min"] if cover["v_min"] is not None else 1.0
+    if model.motor_d:
+        kind, c, s = priors["vstall"]
+        top = c + 2 * s
+        if fault["v_min"] < top + 0.05:
+            decide += ["vstall", "tstall"]
+    if model.electronics:
+        kind, c, s = priors["vd1"]
+        if fault["v_min"] < c + 2 * s + 0.05:
+            decide += ["vd1", "vd2"]
+    words = []
+    if why:
+        words.append("Extrapolation: " + "; ".join(why) + ".")
+        if left:
+            words.append(
+                "The fit left " + ", ".join(left) + " to their priors (models/part_priors.py: "
+                "the WECC composite load model's typical data and PNNL's LMDT records): "
+                "beyond the fitted events they shape the answer as much as the data do."
+            )
+    if decide:
+        seen = (f"no fitted event went below {v_seen:.3g} p.u." if v_seen > 0.7 else
+                f"the fitted events went down to {v_seen:.3g} p.u.")  # fmt: skip
+        words.append(
+            f"The answer is decided by the priors of {', '.join(decide)} ("
+            + "; ".join(MEANING[d] for d in decide)
+            + f"): the fit does not estimate them and {seen}; each draw takes them from "
+            "its prior (see thresholds, with the source)."
+        )
+    absent = [w for w, on in (("motor D (air conditioners that stall)", model.motor_d),
+                              ("electronics that trip", model.electronics)) if not on]  # fmt: skip
+    if why and absent and fault["v_min"] < 0.8:
+        words.append(f"The {model.name} model has no {' and no '.join(absent)}: what they "
+                     "would do in this fault cannot appear in the answer (fit cmld-lite for "
+                     "them).")  # fmt: skip
+    return {"extrapolated": bool(why), "why": why, "decided_by_prior": decide,
+            "left_to_prior_by_the_fit": list(left),
+            "message": " ".join(words) or "Within what the fitted events covered."}  # fmt: skip
