@@ -233,7 +233,7 @@ def _real():
 @pytest.mark.statistical
 @pytest.mark.skipif(_real() is None, reason="shared/real is not beside the repository")
 @pytest.mark.skipif(__import__("os").environ.get("LOADBAYES_VALIDATE") != "1",
-                    reason="an slm fit of the real record (about 40 s): make validate")  # fmt: skip
+                    reason="an slm fit of the real record (10-20 s): make validate")  # fmt: skip
 def test_the_real_record_at_a_50_percent_sag_says_it_extrapolates_from_13():
     from loadbayes.measurements.events import events_from_arrays
     from loadbayes.recordings.comtrade import read_comtrade
