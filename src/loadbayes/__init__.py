@@ -29,6 +29,7 @@ __all__ = [
     "fit_zip",
     "fit_zip_drift",
     "fit_zip_file",
+    "predict",
     "track_zip",
     "zip_priors",
 ]
@@ -49,6 +50,7 @@ _LAZY = {
     "fit_steps": "loadbayes.fit",
     "fit_zip": "loadbayes.fit",
     "fit_zip_drift": "loadbayes.fit.drift",
+    "predict": "loadbayes.fit.composite.predict",
     "track_zip": "loadbayes.fit",
     "fit_zip_file": "loadbayes.fit",
     "zip_priors": "loadbayes.fit",

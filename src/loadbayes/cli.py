@@ -60,6 +60,7 @@ from loadbayes.commands import exp as _exp  # noqa: E402
 from loadbayes.commands import export as _export  # noqa: E402
 from loadbayes.commands import im as _im  # noqa: E402
 from loadbayes.commands import playback as _playback  # noqa: E402
+from loadbayes.commands import predict as _predict  # noqa: E402
 from loadbayes.commands import recordings as _recordings  # noqa: E402
 from loadbayes.commands import report as _report  # noqa: E402
 from loadbayes.commands import reproduce as _reproduce  # noqa: E402
@@ -269,6 +270,7 @@ main.add_command(_report.report_cmd)
 main.add_command(_example.example_cmd)
 main.add_command(_validate.validate_cmd)
 main.add_command(_playback.playback_cmd)
+main.add_command(_predict.predict_cmd)
 main.add_command(_steps.steps_cmd)
 main.add_command(_cvr.cvr_cmd)
 

@@ -156,6 +156,11 @@ def test_the_truth_predicts_an_independent_event_to_the_noise(held_out, tmp_path
     assert res.exit_code == 0, res.output
     (bad,) = json.loads((tmp_path / "s.json").read_text())["events"]
     assert bad["rms_p"] > 3 * ev["rms_p"] and bad["coverage_p"] < 0.8
+    # The grid-code windows (IEC 61400-27-2): the truth's errors in the fault are the
+    # noise's (MAE about 0.8 sd), the wrong motor share's several times larger.
+    good, wrong = ev["iec_windows"]["fault"]["p"], bad["iec_windows"]["fault"]["p"]
+    assert good["mae"] < 1.3 * NOISE / 0.9 and wrong["mae"] > 2 * good["mae"]
+    assert good["mxe"] >= good["mae"] >= abs(good["me"])
 
 
 def test_fit_composite_then_validate_round_trips(held_out, tmp_path):

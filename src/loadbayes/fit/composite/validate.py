@@ -92,7 +92,17 @@ class EventValidation:
             "p0": self.p0,
             "q0": self.q0,
             "draws_used": self.draws_used,
+            "iec_windows": self.window_errors(),
         }
+
+    def window_errors(self) -> dict[str, Any]:
+        """ME, MAE, MXE of the posterior-mean P, Q in the dip's windows (``windows.py``)."""
+        from loadbayes.fit.composite.windows import window_errors
+
+        ev = self.event
+        return window_errors(ev.t, ev.v, {"p": ev.p, "q": ev.q},
+                             {"p": self.band["p_mean"], "q": self.band["q_mean"]},
+                             scale=self.scale, scored=self.scored)  # fmt: skip
 
 
 def operating_point(event: EventRecord, scored: np.ndarray | None = None) -> tuple[float, float]:

@@ -1,0 +1,148 @@
+"""``loadbayes predict RESULT``: a fit of parts played through a fault it has not shown.
+
+A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py`` attaches
+it. The library does the work (:mod:`loadbayes.fit.composite.predict`); heavy imports
+stay inside the function.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import click
+
+from loadbayes.commands.options import OneLineCommand
+from loadbayes.commands.output import UserError, check_outputs, user_errors
+from loadbayes.commands.signals import _STOP, stop_if_signalled
+
+__all__ = ["predict_cmd"]
+
+
+def _depths(text: str) -> list[float]:
+    """``START:STOP:STEP`` (both ends kept) as a list of depths."""
+    try:
+        a, b, s = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise UserError(f"--sweep {text!r}: give START:STOP:STEP, as 0.1:0.6:0.05") from None
+    if not (0 < a <= b < 1 and s > 0) or (b - a) / s > 200:
+        raise UserError(f"--sweep {text!r}: depths in (0, 1), START <= STOP, at most 200 steps")
+    n = int(math.floor((b - a) / s + 1e-9)) + 1
+    return [round(a + k * s, 10) for k in range(n)]
+
+
+def _summary(pred) -> list[str]:
+    out = []
+    f = pred.fault
+    out.append(f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} "
+               f"below {f['v_pre']:.3g}) for {f['duration_s']:.3g} s; "
+               f"{pred.draws['used']} draws")  # fmt: skip
+    if pred.stall is not None:
+        lo, hi = pred.stall["interval"]
+        out.append(f"motor D stalls with probability {pred.stall['probability']:.2f} "
+                   f"[{lo:.2f}, {hi:.2f}]")  # fmt: skip
+    if pred.electronics_tripped is not None:
+        e = pred.electronics_tripped
+        out.append(f"electronics tripped: median {e['median']:.2f} "
+                   f"[{e['interval'][0]:.2f}, {e['interval'][1]:.2f}]")  # fmt: skip
+    for ch in ("p", "q"):
+        r = pred.recovery[ch]
+        med = "never" if r["median"] is None else f"median {r['median']:.3g} s"
+        out.append(f"{ch.upper()} back within 10%: {med}; not within the window in "
+                   f"{r['not_within_window']:.0%} of draws")  # fmt: skip
+    out.append(pred.extrapolation["message"])
+    out += [f"warning: {w}" for w in pred.warnings]
+    return out
+
+
+@click.command("predict", cls=OneLineCommand)
+@click.argument("result", type=click.Path(exists=True, dir_okay=False))
+@click.option("--sag", type=float, help="Sag depth, a share of the pre-fault voltage (0.45).")
+@click.option("--duration", type=float, help="Seconds the sag lasts at its bottom.")
+@click.option("--recovery", type=float, default=0.0, show_default=True,
+              help="Seconds of a linear voltage recovery after the fault.")  # fmt: skip
+@click.option("--angle", type=float, default=0.0, show_default=True,
+              help="Phase jump with the fault (degrees).")  # fmt: skip
+@click.option("--voltage", type=click.Path(exists=True, dir_okay=False),
+              help="A voltage profile CSV: t_s, v (p.u.), optionally angle_rad.")  # fmt: skip
+@click.option("--sweep", "sweep_spec", help="Depths START:STOP:STEP (with --duration): the "
+              "same answers per depth, one figure of the stall probability.")  # fmt: skip
+@click.option("--draws", type=click.IntRange(20, 20000), default=300, show_default=True,
+              help="Posterior draws played, each with its own thresholds.")  # fmt: skip
+@click.option("--prior", multiple=True, help="A threshold's prior over the default, "
+              "name=centre,spread (vstall=0.55,0.05): vstall, tstall, vd1, vd2.")  # fmt: skip
+@click.option("--prob", type=click.FloatRange(0.5, 1.0, max_open=True), default=0.95,
+              show_default=True, help="Probability of the bands and intervals.")  # fmt: skip
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed (draws, thresholds).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="The numbers.")
+@click.option("--plot", "plot_out", type=click.Path(dir_okay=False), help="The figure.")
+@click.option("--quiet", is_flag=True, help="No summary on stdout.")
+@click.option("--force", is_flag=True, help="Overwrite existing outputs.")
+@user_errors
+def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, draws, prior, prob,
+                seed, json_out, plot_out, quiet, force):  # fmt: skip
+    """Play a fault through a fit of parts (slm, cmld-lite) and say what the load does.
+
+    RESULT is the fit's NetCDF (fit composite --netcdf), or its JSON with that NetCDF of
+    the same name beside it. The fault is --sag DEPTH --duration S (and --recovery,
+    --angle), a --voltage profile, or --sweep START:STOP:STEP with --duration. Motor D's
+    stall voltage and time and the electronics' trip voltages come from their priors
+    (said, with their source, and replaced by --prior).
+    """
+    outputs = {"--json": json_out, "--plot": plot_out}
+    inputs = [result] + ([voltage] if voltage else [])
+    check_outputs(outputs, inputs, force)
+    given = [x for x, on in (("--sag", sag is not None), ("--voltage", voltage),
+                             ("--sweep", sweep_spec)) if on]  # fmt: skip
+    if len(given) != 1:
+        raise UserError("give the fault as one of --sag DEPTH --duration S, --voltage "
+                        "PROFILE.csv, --sweep START:STOP:STEP (given: "
+                        f"{', '.join(given) or 'none'})")  # fmt: skip
+    if sweep_spec and duration is None:
+        raise UserError("--sweep needs --duration S (the seconds each sag lasts)")
+
+    from loadbayes.fit.composite.predict import predict, sweep
+    from loadbayes.io.transaction import OutputSet
+
+    kw = {"draws": draws, "prior": list(prior), "prob": prob, "seed": seed}
+    if sweep_spec:
+        depths = _depths(sweep_spec)
+        preds = sweep(result, depths, duration=duration, recovery=recovery, angle=angle, **kw)
+        doc = {
+            "result": str(result),
+            "sweep": [
+                {"depth": d, **p.to_dict(band=False)} for d, p in zip(depths, preds, strict=True)
+            ],
+        }
+    else:
+        pred = predict(result, sag=sag, duration=duration, recovery=recovery, angle=angle,
+                       voltage=voltage, **kw)  # fmt: skip
+        doc = {"result": str(result), **pred.to_dict()}
+    text = json.dumps(doc, indent=1, allow_nan=False)
+    files = {k: v for k, v in outputs.items() if v}
+    stop_if_signalled()
+    with OutputSet(files, force=force) as out:
+        _STOP["outputs"] = out
+        if json_out:
+            out.temp("--json").write_text(text + "\n", encoding="utf-8")
+        if plot_out:
+            from loadbayes.plots.fit import save_figure
+            from loadbayes.plots.prediction import plot_prediction, plot_sweep
+
+            fig = (plot_sweep(preds, depths, title=f"{result}: sags of {duration:g} s")
+                   if sweep_spec else plot_prediction(pred, title=str(result)))  # fmt: skip
+            save_figure(fig, out.temp("--plot"), force=True)
+        out.commit()
+        _STOP["committed"] = True
+    if not quiet:
+        if sweep_spec:
+            for d, p in zip(depths, preds, strict=True):
+                st = "" if p.stall is None else (f"stall {p.stall['probability']:.2f} "
+                                                 f"[{p.stall['interval'][0]:.2f}, "
+                                                 f"{p.stall['interval'][1]:.2f}]")  # fmt: skip
+                flag = " extrapolated" if p.extrapolation["extrapolated"] else ""
+                click.echo(f"depth {d:.3g}: {st}{flag}")
+            click.echo(preds[-1].extrapolation["message"])
+        else:
+            for line in _summary(pred):
+                click.echo(line)

@@ -1,0 +1,366 @@
+"""What a fitted load of parts does in a fault it has not shown: a planner's prediction.
+
+:func:`predict` plays posterior draws of an ``slm`` or ``cmld-lite`` fit through a fault
+given by its voltage at the recorded bus (a sag built by ``predict_scope.sag_profile``
+or a recorded profile), the feeder's loop solved (``models/parts_predict.py``), at the
+fit's operating point (event 0's pre-fault P and Q at the recorded bus, as
+``validate`` plays a held-out event). A fault record above their thresholds never
+informs motor D's stall voltage and time or the electronics' trip voltages, and the fit
+does not estimate them: each draw takes them from their priors
+(``models/part_priors.THRESHOLD_PRIORS``, or the user's). It returns the 95 % band of
+P(t), Q(t) and the current (the model's, and with the fit's noise), the probability that
+motor D stalls (a Jeffreys interval over the draws played), the share of the
+electronics tripped, the time for P and Q to come back within 10 % of their pre-fault
+values, and, in words, where the fault lies beyond what the fitted events covered
+(``predict_scope.covered``) and which priors then decide. :func:`sweep` repeats it over
+sag depths.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from loadbayes.fit.composite.predict_scope import (
+    MEANING,
+    covered,
+    extrapolation,
+    left_to_prior,
+    recovery_time,
+    sag_extent,
+)
+from loadbayes.fit.composite.predictive import events_of
+from loadbayes.fit.composite.validate import operating_point
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, electronics_fraction, motor_d
+from loadbayes.models.parts_predict import predict_parts
+from loadbayes.posterior import Posterior
+
+__all__ = ["PRIOR_SOURCE", "Prediction", "load_result", "parse_priors", "predict", "sweep"]
+
+#: Where the thresholds' default priors come from (``part_priors.THRESHOLD_PRIORS``).
+PRIOR_SOURCE = (
+    "centres: the WECC composite load model specification's typical values (WECC MVWG "
+    "2015: Vstall 0.6 p.u., Tstall 0.033 s, Vd1 0.7, Vd2 0.5 p.u.); spreads: loadbayes' "
+    "choice, wide enough that Vstall's 95% range (0.5-0.7 p.u.) spans the tested air "
+    "conditioners of PNNL-17796 (Lu, Xie and Huang 2008)"
+)
+_PARTS_MODELS = ("slm", "cmld-lite")
+
+
+@dataclass
+class Prediction:
+    """One fault played through a posterior (see the module docstring); ``to_dict`` is the JSON."""
+
+    fault: dict[str, Any]
+    operating_point: dict[str, float]
+    draws: dict[str, int]
+    thresholds: dict[str, Any]
+    stall: dict[str, Any] | None
+    electronics_tripped: dict[str, Any] | None
+    recovery: dict[str, Any]
+    coverage: dict[str, Any]
+    extrapolation: dict[str, Any]
+    band: dict[str, np.ndarray]
+    prob: float
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self, *, band: bool = True) -> dict[str, Any]:
+        """JSON-ready numbers (``band=False``: the summary without the time series)."""
+        out = {k: getattr(self, k) for k in ("fault", "operating_point", "draws", "prob",
+               "thresholds", "stall", "electronics_tripped", "recovery", "coverage",
+               "extrapolation", "warnings")}  # fmt: skip
+        if band:
+            out["band"] = {k: [round(float(x), 7) for x in v] for k, v in self.band.items()}
+        return out
+
+
+def load_result(result: str | Path | Posterior) -> Posterior:
+    """A fit's posterior: a :class:`Posterior`, its NetCDF, or its JSON with the NetCDF beside."""
+    if isinstance(result, Posterior):
+        return result
+    path = Path(result)
+    if path.suffix.lower() == ".json":
+        beside = path.with_suffix(".nc")
+        if not beside.is_file():
+            raise ValueError(f"{path}: the JSON holds the summary of the draws, not the "
+                             "draws; give the fit's NetCDF (fit composite --netcdf)")  # fmt: skip
+        path = beside
+    try:
+        return Posterior.from_netcdf(path)
+    except Exception as exc:  # xarray/netCDF raise many types for a bad file
+        raise ValueError(f"{path}: not a loadbayes NetCDF posterior ({exc})") from None
+
+
+def parse_priors(specs: Sequence[str] | Mapping | None) -> dict[str, tuple[str, float, float]]:
+    """The thresholds' priors: the defaults with the user's ``name=centre,spread`` over them."""
+    out = dict(THRESHOLD_PRIORS)
+    if specs is None:
+        return out
+    items = specs.items() if isinstance(specs, Mapping) else [s.split("=", 1) for s in specs]
+    for item in items:
+        if len(item) != 2:
+            raise ValueError(f"--prior {item[0]!r}: give name=centre,spread (vstall=0.55,0.05)")
+        name, value = item
+        name = name.strip().lower()
+        if name not in THRESHOLD_PRIORS:
+            raise ValueError(f"--prior {name!r}: one of {', '.join(THRESHOLD_PRIORS)}")
+        try:
+            centre, spread = (float(x) for x in (value.split(",") if isinstance(value, str)
+                                                 else value))  # fmt: skip
+        except (TypeError, ValueError):
+            raise ValueError(f"--prior {name}={value}: give centre,spread (two numbers)") from None
+        if not (math.isfinite(centre) and math.isfinite(spread) and centre > 0 and spread >= 0):
+            raise ValueError(f"--prior {name}={value}: a positive centre and a spread >= 0")
+        out[name] = (THRESHOLD_PRIORS[name][0], centre, spread)
+    return out
+
+
+def _model_of(post: Posterior):
+    from loadbayes.export.partsload import rebuild_model
+
+    name = post.settings.get("model")
+    if name not in _PARTS_MODELS:
+        raise ValueError(f"a {name or 'zip+motor'} fit: predict plays the models of parts "
+                         f"({', '.join(_PARTS_MODELS)}); fit composite --model slm or "
+                         "cmld-lite")  # fmt: skip
+    return rebuild_model(post.settings)
+
+
+def _jeffreys(k: int, n: int, prob: float) -> list[float]:
+    from scipy.stats import beta
+
+    a = (1 - prob) / 2
+    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
+    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
+    return [lo, hi]
+
+
+def _spread(x: np.ndarray, prob: float) -> dict[str, Any]:
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    done = x[np.isfinite(x)]
+    out: dict[str, Any] = {"not_within_window": float(np.mean(~np.isfinite(x))) if x.size else 0.0}
+    if done.size:
+        out |= {"median": float(np.median(done)),
+                "interval": [float(v) for v in np.percentile(done, [lo, hi])]}  # fmt: skip
+    else:
+        out |= {"median": None, "interval": None}
+    return out
+
+
+def predict(
+    result: str | Path | Posterior,
+    *,
+    sag: float | None = None,
+    duration: float | None = None,
+    recovery: float = 0.0,
+    angle: float = 0.0,
+    voltage: str | Path | EventRecord | None = None,
+    draws: int = 300,
+    prior: Sequence[str] | Mapping | None = None,
+    prob: float = 0.95,
+    seed: int = 0,
+    rate_hz: float = 240.0,
+) -> Prediction:
+    """Play a fault through a fit of parts' posterior (see the module docstring).
+
+    Parameters
+    ----------
+    result : path or Posterior
+        The fit's NetCDF (or its JSON with the NetCDF of the same name beside it).
+    sag, duration, recovery, angle : float
+        The fault as a sag: depth (share of the pre-fault voltage), seconds at the bottom,
+        seconds of a linear recovery, the phase jump in degrees. Or ``voltage``:
+    voltage : path or EventRecord
+        A recorded profile (CSV of ``t_s, v``, optionally ``angle_rad``).
+    draws : int
+        Posterior draws played (each with its own thresholds).
+    prior : sequence of ``"name=centre,spread"`` or mapping, optional
+        Priors of ``vstall, tstall, vd1, vd2`` over the defaults (:data:`PRIOR_SOURCE`).
+    """
+    from loadbayes.fit.composite.predict_scope import read_profile, sag_profile
+
+    post = load_result(result)
+    model = _model_of(post)
+    if (voltage is None) == (sag is None):
+        raise ValueError("give the fault as --sag DEPTH --duration S, or as --voltage PROFILE.csv "
+                         "(one of them)")  # fmt: skip
+    if not 20 <= int(draws) <= 20000:
+        raise ValueError(f"--draws {draws}: 20 to 20000")
+    priors = parse_priors(prior)
+    events = events_of(post)
+    if not events:
+        raise ValueError("the result keeps no recordings of its events (written before they "
+                         "were kept): its operating point and what it covered are unknown; "
+                         "fit again")  # fmt: skip
+    p0, q0 = operating_point(events[0])
+    v0 = float(events[0].v0)
+    if voltage is not None:
+        event = voltage if isinstance(voltage, EventRecord) else read_profile(voltage)
+        kind = "profile"
+    else:
+        if duration is None:
+            raise ValueError("--sag needs --duration S (the seconds the fault lasts)")
+        event = sag_profile(sag, duration, recovery=recovery, angle_deg=angle, v0=v0,
+                            rate_hz=rate_hz)  # fmt: skip
+        kind = "sag"
+    ext = sag_extent(event.t, event.v)
+    fault = {"kind": kind, "name": event.name, "n": event.n, "t_end_s": float(event.t[-1]),
+             **ext} | ({"sag": sag, "duration": duration, "recovery": recovery,
+                        "angle_deg": angle} if kind == "sag" else {})  # fmt: skip
+    cover = covered(events)
+    return _play(post, model, event, fault, cover, priors, p0, q0, v0, draws, prob, seed)
+
+
+def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, seed):
+    d = {n: np.asarray(v, dtype=float).reshape(-1) for n, v in post.draws.items()}
+    missing = [n for n in (*model.theta_names, "cq2", "cq1", "cq0", "tau_p", "tau_q")
+               if n not in d]  # fmt: skip
+    if missing:
+        raise ValueError(f"the posterior holds no draws of {', '.join(missing)}: not a "
+                         f"{model.name} fit")  # fmt: skip
+    rng = np.random.default_rng(seed)
+    total = d["tau_p"].size
+    pick = rng.choice(total, size=min(int(n_draws), total), replace=False)
+    th = draw_thresholds(rng, pick.size, priors)
+    th["vd1"] = np.clip(th["vd1"], 0.06, 1.2)
+    th["vd2"] = np.clip(th["vd2"], 0.0, th["vd1"] - 0.05)
+    th["tstall"] = np.maximum(th["tstall"], 0.0)
+    theta = np.stack([d[n] for n in model.theta_names], -1)
+    cq = np.stack([d["cq2"], d["cq1"], d["cq0"]], -1)
+    v = event.v * np.exp(1j * (0 if event.delta is None else event.delta - event.delta[0]))
+    t = event.t
+    ps, qs, cur, noisy_p, noisy_q = [], [], [], [], []
+    stalled, tripped, rec_p, rec_q = [], [], [], []
+    failed = 0
+    for j, i in enumerate(pick):
+        params = {**model.motor_d_params, "vstall": float(th["vstall"][j]),
+                  "tstall": float(th["tstall"][j])}  # fmt: skip
+        mj = replace(model, motor_d_params=params, vd1=float(th["vd1"][j]),
+                     vd2=float(th["vd2"][j]))  # fmt: skip
+        share = cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else np.array([0.0, 0.0, 1.0])
+        out = predict_parts(mj, event, theta[i], p0, q0, share) or _damped(
+            mj, event, theta[i], p0, q0, share
+        )
+        if out is None:
+            failed += 1
+            continue
+        mp, mq, _ = out
+        s = mp + 1j * mq
+        current = np.conj(s / v)
+        ps.append(mp)
+        qs.append(mq)
+        cur.append(np.abs(current))
+        sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
+        noisy_p.append(mp + sp * rng.standard_normal(event.n))
+        noisy_q.append(mq + sq * rng.standard_normal(event.n))
+        rec_p.append(recovery_time(t, mp, fault["t_clear_s"]))
+        rec_q.append(recovery_time(t, mq, fault["t_clear_s"]))
+        # The load bus's voltage the parts saw: the recorded one less the feeder's drop.
+        c = mj._split(theta[i])
+        z = complex(mj.rx, 1.0) * mj.feeder_x(p0, q0, c)
+        vl = np.abs(v - z * current)
+        if model.motor_d:
+            kw = {**MOTOR_D_DEFAULTS, **params}
+            run = motor_d(t, vl, **(kw | {"vstall": -1.0}))[0]
+            stalled.append(bool(np.any(np.abs(motor_d(t, vl, **kw)[0] - run) > 1e-9)))
+        if model.electronics:
+            tripped.append(1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1]))
+    used = len(ps)
+    if not used:
+        raise ValueError(f"no posterior draw has a steady state at the operating point "
+                         f"(P {p0:.4g}, Q {q0:.4g} at {v0:.4g} p.u.)")  # fmt: skip
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    band: dict[str, np.ndarray] = {"t_s": t, "v": event.v}
+    for ch, arr in (("p", ps), ("q", qs), ("i", cur)):
+        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
+            np.array(arr), [lo, 50, hi], axis=0)  # fmt: skip
+    for ch, arr in (("p", noisy_p), ("q", noisy_q)):
+        band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
+                                                                     axis=0)  # fmt: skip
+    warnings = []
+    if failed:
+        warnings.append(f"{failed} of {pick.size} draws have no steady state or no converged "
+                        "feeder loop in this fault and are left out (a motor that cannot "
+                        "run at the voltage: the band is of the rest)")  # fmt: skip
+    stall = None
+    if model.motor_d:
+        k = int(np.sum(stalled))
+        stall = {"probability": k / used, "interval": _jeffreys(k, used, prob),
+                 "n_stalled": k, "n": used,
+                 "interval_is": "Jeffreys interval of the share of draws that stall"}  # fmt: skip
+    el = None
+    if model.electronics:
+        x = np.array(tripped)
+        el = {"median": float(np.median(x)),
+              "interval": [float(v) for v in np.percentile(x, [lo, hi])]}  # fmt: skip
+    recovery = {"p": _spread(np.array(rec_p), prob), "q": _spread(np.array(rec_q), prob),
+                "rule": "seconds after the clearing (the last sample below half the sag's "
+                        "depth) from which the model's P (Q) stays within 10% of its "
+                        "pre-fault value; not_within_window: share of draws still outside "
+                        f"at the record's end ({fault['t_end_s']:.3g} s)"}  # fmt: skip
+    thresholds = {}
+    for name, (kind, c, s) in priors.items():
+        user = (kind, c, s) != THRESHOLD_PRIORS[name]
+        thresholds[name] = {"meaning": MEANING[name], "prior": [kind, c, s],
+                            "source": "given by the user (--prior)" if user else PRIOR_SOURCE,
+                            "used": name in ("vstall", "tstall") and model.motor_d
+                            or name in ("vd1", "vd2") and model.electronics}  # fmt: skip
+    return Prediction(
+        fault=fault,
+        operating_point={"p0": p0, "q0": q0, "v0": v0,
+                         "from": "event 0's pre-fault P, Q at the recorded bus"},  # fmt: skip
+        draws={"asked": int(n_draws), "played": int(pick.size), "used": used, "failed": failed},
+        thresholds=thresholds, stall=stall, electronics_tripped=el, recovery=recovery,
+        coverage=cover, extrapolation=extrapolation(model, fault, cover, priors,
+                                    left_to_prior(model, post.draws)), band=band,
+        prob=prob, warnings=warnings,
+    )  # fmt: skip
+
+
+def _damped(model, event, theta, p0, q0, q_shares, *, w=0.5, tol=1e-7, max_iterations=200):
+    """``parts_predict.predict_parts``'s loop under-relaxed: ``V_L += w (new - V_L)``.
+
+    Where a part switches (motor D stalls, a motor slows down) the plain Gauss-Jacobi
+    sweep can bounce between two trajectories and never settle (about half the draws of
+    a 13 % fit played through a 46 % sag); halving each step settles them in about 20
+    sweeps to the same fixed point. Only the draws the plain loop leaves come here.
+    """
+    c = model._split(np.asarray(theta, dtype=float))
+    z = complex(model.rx, 1.0) * model.feeder_x(p0, q0, c)
+    delta = np.zeros(event.n) if event.delta is None else event.delta - event.delta[0]
+    v = event.v * np.exp(1j * delta)
+    i0 = np.conj(complex(p0, q0) / v[0])
+    vl0 = v[0] - z * i0
+    s_l0 = complex(p0, q0) - z * abs(i0) ** 2
+    vl = v - z * i0
+    for it in range(1, max_iterations + 1):
+        cols = model.load_columns(replace(event, v=np.abs(vl), delta=np.angle(vl)), c)
+        if cols is None:
+            return None
+        xl = np.abs(vl) / abs(vl0)
+        p_l = s_l0.real * cols[0]
+        q_l = s_l0.real * cols[1] + s_l0.imag * (q_shares[0] * xl * xl + q_shares[1] * xl
+                                                 + q_shares[2])  # fmt: skip
+        current = np.conj((p_l + 1j * q_l) / vl)
+        new = v - z * current
+        moved = float(np.max(np.abs(new - vl)))
+        if not np.isfinite(moved):
+            return None
+        if moved < tol:
+            s = v * np.conj(current)
+            return s.real, s.imag, it
+        vl = vl + w * (new - vl)
+    return None
+
+
+def sweep(result, depths: Sequence[float], *, duration: float, **kw) -> list[Prediction]:
+    """:func:`predict` at each sag depth (the same draws' seed each time)."""
+    post = load_result(result)
+    return [predict(post, sag=float(x), duration=duration, **kw) for x in depths]

@@ -1,0 +1,236 @@
+"""The fault a prediction plays, and what the fitted events covered of such faults.
+
+:func:`sag_profile` builds a voltage sag at the recorded bus (depth, duration, a linear
+recovery, a phase jump); :func:`read_profile` reads one from a CSV (``t_s, v`` and
+optionally ``angle_rad``). :func:`sag_extent` measures any voltage the same way, fitted
+or asked: its depth below the pre-fault voltage (the first sample) and its duration,
+the time the voltage stays below half that depth (a rectangular sag's own duration; a
+sag with a ramp's duration to the ramp's middle). :func:`covered` is the range the
+fitted events span (read from the recordings a fit keeps, ``predictive.events_of``), and
+:func:`recovery_time` the time after the fault's clearing (the last sample below half
+the depth) from which P or Q stays within 10 % of its pre-fault value.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from loadbayes.fit.composite.describe_parts import PRIOR_DRIVEN
+from loadbayes.io.errors import DataError
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES
+
+__all__ = [
+    "MEANING",
+    "covered",
+    "extrapolation",
+    "left_to_prior",
+    "read_profile",
+    "recovery_time",
+    "sag_extent",
+    "sag_profile",
+]
+
+#: What each threshold is (the thresholds of ``part_priors.THRESHOLD_PRIORS``).
+MEANING = {"vstall": "motor D's stall voltage (p.u.)", "tstall": "motor D's stall time (s)",
+           "vd1": "the electronics' voltage where tripping starts (p.u.)",
+           "vd2": "the electronics' voltage where all have tripped (p.u.)"}  # fmt: skip
+
+#: Seconds of steady voltage before a built sag, and after its recovery.
+PRE_S, POST_S = 0.2, 1.5
+
+
+def sag_profile(depth: float, duration: float, *, recovery: float = 0.0,
+                angle_deg: float = 0.0, v0: float = 1.0, rate_hz: float = 240.0,
+                post_s: float = POST_S) -> EventRecord:  # fmt: skip
+    """A sag of ``depth`` (share of ``v0``) for ``duration`` s, then a linear recovery.
+
+    The voltage steps down at ``PRE_S`` and holds ``v0 (1 - depth)`` for ``duration``;
+    it returns to ``v0`` linearly over ``recovery`` s (a step when 0) and the record
+    runs ``post_s`` s more. The angle jumps by ``angle_deg`` with the fault and returns
+    with the voltage. P and Q are zeros (a prediction does not read them).
+    """
+    if not (math.isfinite(depth) and 0 < depth < 1):
+        raise ValueError(f"--sag {depth!r}: a depth between 0 and 1 (0.45 for a 45% sag)")
+    if not (math.isfinite(duration) and 0 < duration <= 10):
+        raise ValueError(f"--duration {duration!r}: seconds, above 0 and at most 10")
+    if not (math.isfinite(recovery) and 0 <= recovery <= 30):
+        raise ValueError(f"--recovery {recovery!r}: seconds, 0 to 30")
+    if not (math.isfinite(angle_deg) and abs(angle_deg) <= 90):
+        raise ValueError(f"--angle {angle_deg!r}: degrees, -90 to 90")
+    dt = 1.0 / rate_hz
+    end = PRE_S + duration + recovery + post_s
+    t = np.arange(0.0, end + dt / 2, dt)
+    t_f, t_c = PRE_S, PRE_S + duration
+    share = np.where((t >= t_f) & (t < t_c), 1.0, 0.0)
+    if recovery > 0:
+        ramp = (t >= t_c) & (t < t_c + recovery)
+        share[ramp] = 1.0 - (t[ramp] - t_c) / recovery
+    v = v0 * (1.0 - depth * share)
+    delta = math.radians(angle_deg) * share
+    zeros = np.zeros(t.size)
+    return EventRecord(t, v, zeros, zeros, delta, f"sag {depth:g} for {duration:g} s")
+
+
+def read_profile(path: str | Path) -> EventRecord:
+    """A voltage profile from a CSV: ``t_s``, ``v`` (p.u.), optionally ``angle_rad``."""
+    name = str(path)
+    try:
+        frame = pd.read_csv(path)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataError(f"not a CSV of t_s, v ({str(exc).splitlines()[0]})", name) from None
+    cols = {}
+    for col in ("t_s", "v", "angle_rad"):
+        if col not in frame.columns:
+            if col == "angle_rad":
+                continue
+            raise DataError(f"no column {col!r} (a profile holds t_s, v and optionally "
+                            "angle_rad)", name)  # fmt: skip
+        x = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise DataError(f"not a finite number ({frame[col].iloc[bad[0]]!r})", name, col,
+                            int(bad[0]) + 2)  # fmt: skip
+        cols[col] = x
+    t, v = cols["t_s"], cols["v"]
+    if t.size < 10:
+        raise DataError(f"{t.size} rows: a profile needs at least 10", name)
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        raise DataError("time does not increase", name, "t_s", int(back[0]) + 3)
+    low = np.flatnonzero((v <= 0.0) | (v > 2.0))
+    if low.size:
+        raise DataError(f"{v[low[0]]:g} p.u.: a voltage per unit in (0, 2]", name, "v",
+                        int(low[0]) + 2)  # fmt: skip
+    zeros = np.zeros(t.size)
+    return EventRecord(t - t[0], v, zeros, zeros, cols.get("angle_rad"), Path(name).name)
+
+
+def sag_extent(t: np.ndarray, v: np.ndarray) -> dict[str, float]:
+    """Depth (share of the first sample's voltage), lowest V, duration and clearing time."""
+    v_pre = float(v[0])
+    v_min = float(np.min(v))
+    depth = 1.0 - v_min / v_pre
+    below = v < v_pre - 0.5 * (v_pre - v_min)
+    if depth < 1e-3 or not below.any():
+        return {"v_pre": v_pre, "v_min": v_min, "depth": max(depth, 0.0), "duration_s": 0.0,
+                "t_clear_s": float(t[0])}  # fmt: skip
+    dt = np.diff(t, append=t[-1] + (t[-1] - t[-2]))
+    last = int(np.flatnonzero(below)[-1])
+    return {"v_pre": v_pre, "v_min": v_min, "depth": depth,
+            "duration_s": float(np.sum(dt[below])),
+            "t_clear_s": float(t[min(last + 1, t.size - 1)])}  # fmt: skip
+
+
+def covered(events: Sequence[EventRecord]) -> dict:
+    """The voltages and durations the fitted events span (for extrapolation's words)."""
+    each = []
+    for ev in events:
+        ext = sag_extent(ev.t, ev.v)
+        each.append({"event": ev.name, "v_min": ext["v_min"], "depth": ext["depth"],
+                     "duration_s": ext["duration_s"]})  # fmt: skip
+    if not each:
+        return {"events": [], "v_min": None, "depth_max": None, "duration_max_s": None}
+    return {
+        "events": each,
+        "v_min": min(e["v_min"] for e in each),
+        "depth_max": max(e["depth"] for e in each),
+        "duration_max_s": max(e["duration_s"] for e in each),
+    }
+
+
+def recovery_time(t: np.ndarray, x: np.ndarray, t_clear: float, share: float = 0.1) -> float:
+    """Seconds after ``t_clear`` from which ``x`` stays within ``share`` of ``x[0]``.
+
+    NaN when the last sample is still outside (not recovered within the window).
+    """
+    tol = share * abs(float(x[0]))
+    out = np.abs(x - x[0]) > tol
+    after = t >= t_clear
+    bad = np.flatnonzero(out & after)
+    if bad.size == 0:
+        return 0.0
+    if bad[-1] == t.size - 1:
+        return math.nan
+    return float(t[bad[-1] + 1] - t_clear)
+
+
+def left_to_prior(model, draws: Mapping[str, np.ndarray]) -> list[str]:
+    """The motor and feeder parameters the fit left to their priors.
+
+    As ``describe_parts`` says them: the posterior's spread of the log above
+    ``PRIOR_DRIVEN`` of the prior's.
+    """
+    prior_of = {}
+    for m, t in zip(model.motors, model._tags, strict=True):
+        for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():
+            prior_of[k + t] = model.priors.get(k + t, (median, sd))
+    if model.feeder:
+        prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
+    out = []
+    for name, (_median, sd) in prior_of.items():
+        if name in draws and sd > 0:
+            x = np.asarray(draws[name], dtype=float).ravel()
+            if float(np.std(np.log(x))) / sd > PRIOR_DRIVEN:
+                out.append(name)
+    return out
+
+
+def extrapolation(model, fault: dict, cover: dict, priors: Mapping,
+                  left: Sequence[str] = ()) -> dict[str, Any]:  # fmt: skip
+    """Where the fault lies beyond the fitted events, and which priors then decide."""
+    why: list[str] = []
+    if cover["v_min"] is None:
+        why.append("the result keeps no recordings of its events: what they covered is unknown")
+    else:
+        if fault["depth"] > cover["depth_max"] + 0.02:
+            why.append(f"the sag reaches {fault['v_min']:.3g} p.u. ({fault['depth']:.0%}), "
+                       f"deeper than any fitted event (the deepest {cover['depth_max']:.0%}, "
+                       f"down to {cover['v_min']:.3g} p.u.)")  # fmt: skip
+        if fault["duration_s"] > 1.25 * cover["duration_max_s"] + 0.02:
+            why.append(f"it lasts {fault['duration_s']:.3g} s, longer than any fitted event "
+                       f"({cover['duration_max_s']:.3g} s at most)")  # fmt: skip
+    decide = []
+    v_seen = cover["v_min"] if cover["v_min"] is not None else 1.0
+    if model.motor_d:
+        kind, c, s = priors["vstall"]
+        top = c + 2 * s
+        if fault["v_min"] < top + 0.05:
+            decide += ["vstall", "tstall"]
+    if model.electronics:
+        kind, c, s = priors["vd1"]
+        if fault["v_min"] < c + 2 * s + 0.05:
+            decide += ["vd1", "vd2"]
+    words = []
+    if why:
+        words.append("Extrapolation: " + "; ".join(why) + ".")
+        if left:
+            words.append(
+                "The fit left " + ", ".join(left) + " to their priors (models/part_priors.py: "
+                "the WECC composite load model's typical data and PNNL's LMDT records): "
+                "beyond the fitted events they shape the answer as much as the data do."
+            )
+    if decide:
+        seen = (f"no fitted event went below {v_seen:.3g} p.u." if v_seen > 0.7 else
+                f"the fitted events went down to {v_seen:.3g} p.u.")  # fmt: skip
+        words.append(
+            f"The answer is decided by the priors of {', '.join(decide)} ("
+            + "; ".join(MEANING[d] for d in decide)
+            + f"): the fit does not estimate them and {seen}; each draw takes them from "
+            "its prior (see thresholds, with the source)."
+        )
+    absent = [w for w, on in (("motor D (air conditioners that stall)", model.motor_d),
+                              ("electronics that trip", model.electronics)) if not on]  # fmt: skip
+    if why and absent and fault["v_min"] < 0.8:
+        words.append(f"The {model.name} model has no {' and no '.join(absent)}: what they "
+                     "would do in this fault cannot appear in the answer (fit cmld-lite for "
+                     "them).")  # fmt: skip
+    return {"extrapolated": bool(why), "why": why, "decided_by_prior": decide,
+            "left_to_prior_by_the_fit": list(left),
+            "message": " ".join(words) or "Within what the fitted events covered."}  # fmt: skip
