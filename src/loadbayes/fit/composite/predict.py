@@ -245,9 +245,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         mj = replace(model, motor_d_params=params, vd1=float(th["vd1"][j]),
                      vd2=float(th["vd2"][j]))  # fmt: skip
         share = cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else np.array([0.0, 0.0, 1.0])
-        out = predict_parts(mj, event, theta[i], p0, q0, share) or _damped(
-            mj, event, theta[i], p0, q0, share
-        )
+        out = predict_parts(mj, event, theta[i], p0, q0, share)  # damped where it must
         if out is None:
             failed += 1
             continue
@@ -322,42 +320,6 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
                                     left_to_prior(model, post.draws)), band=band,
         prob=prob, warnings=warnings,
     )  # fmt: skip
-
-
-def _damped(model, event, theta, p0, q0, q_shares, *, w=0.5, tol=1e-7, max_iterations=200):
-    """``parts_predict.predict_parts``'s loop under-relaxed: ``V_L += w (new - V_L)``.
-
-    Where a part switches (motor D stalls, a motor slows down) the plain Gauss-Jacobi
-    sweep can bounce between two trajectories and never settle (about half the draws of
-    a 13 % fit played through a 46 % sag); halving each step settles them in about 20
-    sweeps to the same fixed point. Only the draws the plain loop leaves come here.
-    """
-    c = model._split(np.asarray(theta, dtype=float))
-    z = complex(model.rx, 1.0) * model.feeder_x(p0, q0, c)
-    delta = np.zeros(event.n) if event.delta is None else event.delta - event.delta[0]
-    v = event.v * np.exp(1j * delta)
-    i0 = np.conj(complex(p0, q0) / v[0])
-    vl0 = v[0] - z * i0
-    s_l0 = complex(p0, q0) - z * abs(i0) ** 2
-    vl = v - z * i0
-    for it in range(1, max_iterations + 1):
-        cols = model.load_columns(replace(event, v=np.abs(vl), delta=np.angle(vl)), c)
-        if cols is None:
-            return None
-        xl = np.abs(vl) / abs(vl0)
-        p_l = s_l0.real * cols[0]
-        q_l = s_l0.real * cols[1] + s_l0.imag * (q_shares[0] * xl * xl + q_shares[1] * xl
-                                                 + q_shares[2])  # fmt: skip
-        current = np.conj((p_l + 1j * q_l) / vl)
-        new = v - z * current
-        moved = float(np.max(np.abs(new - vl)))
-        if not np.isfinite(moved):
-            return None
-        if moved < tol:
-            s = v * np.conj(current)
-            return s.real, s.imag, it
-        vl = vl + w * (new - vl)
-    return None
 
 
 def sweep(result, depths: Sequence[float], *, duration: float, **kw) -> list[Prediction]:
