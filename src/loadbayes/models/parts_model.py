@@ -57,7 +57,7 @@ from numpy.typing import NDArray
 
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
-from loadbayes.models.composite import motor_physical, motor_response
+from loadbayes.models.composite import SCALE_FREE_MATRIX, motor_physical, motor_response
 from loadbayes.models.composite_steps import FitSamples
 from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS, PartsPrior
 from loadbayes.models.parts import (
@@ -76,16 +76,7 @@ from loadbayes.models.parts_kernel import model_sums
 __all__ = ["NEG_SEQ_MIN", "PartsModel"]
 
 # Scale-free motor coordinates from the logs of (Rs, X', X - X', T', H, T0).
-_SCALE_FREE = np.array(
-    [
-        [1.0, 0, 0, 0, 0, 1],
-        [0, 1, 0, 0, 0, 1],
-        [0, 0, 1, 0, 0, 1],
-        [0, 0, 0, 1, 0, 0],
-        [0, 0, 0, 0, 1, -1],
-        [0, 0, 0, 0, 0, 1],
-    ]
-)
+_SCALE_FREE = SCALE_FREE_MATRIX  # (Rs T0, X' T0, (X - X') T0, T', H / T0, T0) from the logs
 _INV_SCALE_FREE = np.linalg.inv(_SCALE_FREE)
 _MOTOR_COORDS = ("log_rs_t0", "log_x_prime_t0", "log_dx_t0", "log_t_prime", "log_h_over_t0",
                  "log_t0")  # fmt: skip

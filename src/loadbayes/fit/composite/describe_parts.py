@@ -16,7 +16,6 @@ The words go into the posterior's warnings and ``extra_json["parts"]`` (the JSON
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -24,7 +23,7 @@ import numpy as np
 from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES
 from loadbayes.models.parts_model import NEG_SEQ_MIN
 
-__all__ = ["PHYSICAL", "PRIOR_DRIVEN", "describe_parts"]
+__all__ = ["PHYSICAL", "PRIOR_DRIVEN", "describe_parts", "parts_residuals", "prior_driven"]
 
 #: The physical region of a motor on its own base: Rs at most 0.1, H at least 0.05 s.
 PHYSICAL = {"rs": (None, 0.1), "h_s": (0.05, None)}
@@ -35,6 +34,29 @@ PRIOR_DRIVEN = 0.7
 def _interval(x: np.ndarray, prob: float) -> tuple[float, float]:
     lo, hi = np.quantile(x, [(1 - prob) / 2, (1 + prob) / 2])
     return float(lo), float(hi)
+
+
+def prior_driven(model: Any, draws: dict[str, np.ndarray],
+                 hdi_prob: float = 0.95) -> list[tuple[str, tuple[float, float]]]:  # fmt: skip
+    """The motor and feeder parameters whose posterior keeps their prior's spread.
+
+    ``(name, interval)`` of each whose posterior sd of the log is above
+    :data:`PRIOR_DRIVEN` of the prior's (the events did not determine it).
+    """
+    prior_of = {}
+    for m, t in zip(model.motors, model._tags, strict=True):
+        for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():
+            prior_of[k + t] = model.priors.get(k + t, (median, sd))
+    if model.feeder:
+        prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
+    out = []
+    for name, (_median, sd) in prior_of.items():
+        if name not in draws or not sd > 0:
+            continue
+        x = np.asarray(draws[name], dtype=float).ravel()
+        if float(np.std(np.log(x))) / sd > PRIOR_DRIVEN:
+            out.append((name, _interval(x, hdi_prob)))
+    return out
 
 
 def parts_residuals(problem: Any, blocks: Any, n_draws: int = 20) -> dict[str, float]:
@@ -83,21 +105,9 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
                 f"{share['lag1_q']:.0%} of the error is the model's form, not noise, and the "
                 "white-noise likelihood does not widen the intervals for it"
             )
-    prior_of = {}
-    for m, t in zip(model.motors, model._tags, strict=True):
-        for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():
-            prior_of[k + t] = model.priors.get(k + t, (median, sd))
-    if model.feeder:
-        prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
-    driven, unphysical = [], []
-    for name, (_median, sd) in prior_of.items():
-        if name not in draws:
-            continue
-        x = np.asarray(draws[name], dtype=float).ravel()
-        ratio = float(np.std(np.log(x)) / sd) if sd > 0 else math.nan
-        if ratio > PRIOR_DRIVEN:
-            lo, hi = _interval(x, hdi_prob)
-            driven.append(f"{name} [{lo:.3g}, {hi:.3g}]")
+    driven = [f"{name} [{lo:.3g}, {hi:.3g}]" for name, (lo, hi) in
+              prior_driven(model, draws, hdi_prob)]  # fmt: skip
+    unphysical = []
     at_limit = []
     for t in model._tags:
         for key, (low, high) in PHYSICAL.items():

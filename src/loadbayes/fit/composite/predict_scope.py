@@ -21,10 +21,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from loadbayes.fit.composite.describe_parts import PRIOR_DRIVEN
+from loadbayes.fit.composite.describe_parts import prior_driven
 from loadbayes.io.errors import DataError
 from loadbayes.measurements.record import EventRecord
-from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES
 
 __all__ = [
     "MEANING",
@@ -162,24 +161,8 @@ def recovery_time(t: np.ndarray, x: np.ndarray, t_clear: float, share: float = 0
 
 
 def left_to_prior(model, draws: Mapping[str, np.ndarray]) -> list[str]:
-    """The motor and feeder parameters the fit left to their priors.
-
-    As ``describe_parts`` says them: the posterior's spread of the log above
-    ``PRIOR_DRIVEN`` of the prior's.
-    """
-    prior_of = {}
-    for m, t in zip(model.motors, model._tags, strict=True):
-        for k, (median, sd) in MOTOR_CLASSES[m]["prior"].items():
-            prior_of[k + t] = model.priors.get(k + t, (median, sd))
-    if model.feeder:
-        prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
-    out = []
-    for name, (_median, sd) in prior_of.items():
-        if name in draws and sd > 0:
-            x = np.asarray(draws[name], dtype=float).ravel()
-            if float(np.std(np.log(x))) / sd > PRIOR_DRIVEN:
-                out.append(name)
-    return out
+    """The motor and feeder parameters the fit left to their priors (``describe_parts``)."""
+    return [name for name, _ in prior_driven(model, draws)]
 
 
 def extrapolation(model, fault: dict, cover: dict, priors: Mapping,

@@ -35,6 +35,7 @@ __all__ = [
     "EventValidation",
     "operating_point",
     "read_exclusions",
+    "band_scores",
     "gaussian_logl",
     "pointwise_lpd",
     "validate_event",
@@ -205,20 +206,8 @@ def validate_event(
             f"{event.name or 'the event'}: no posterior draw has a steady state at its first "
             f"voltage ({event.v0:.4g} p.u.): the motor stalls there"
         )
-    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    band: dict[str, np.ndarray] = {}
-    for ch, noisy, mean in (("p", noisy_p, means_p), ("q", noisy_q, means_q)):
-        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
-            np.array(noisy), [lo, 50, hi], axis=0
-        )
-        band[f"{ch}_mean"] = np.mean(np.array(mean), axis=0)
     scale = float(np.mean(d["p0"]))
-    out = {}
-    for ch in ("p", "q"):
-        x = getattr(event, ch)[scored]
-        out[f"rms_{ch}"] = float(np.sqrt(np.mean((x - band[f"{ch}_mean"][scored]) ** 2)) / scale)
-        inside = (x >= band[f"{ch}_lo"][scored]) & (x <= band[f"{ch}_hi"][scored])
-        out[f"coverage_{ch}"] = float(np.mean(inside))
+    band, out = band_scores(event, scored, (noisy_p, noisy_q), (means_p, means_q), scale, prob)
     return EventValidation(
         file=event.name,
         n=event.n,
@@ -233,6 +222,30 @@ def validate_event(
         lpd=pointwise_lpd(logl, scored),
         **out,
     )
+
+
+def band_scores(event: EventRecord, scored: np.ndarray, noisy, means, scale: float,
+                prob: float) -> tuple[dict[str, np.ndarray], dict[str, float]]:  # fmt: skip
+    """The band of P and Q over the draws (with noise) and the event's scores against it.
+
+    ``noisy``, ``means``: each channel's per-draw predictions with and without the fit's
+    noise. Returns the band (``p_lo, p_mid, p_hi, p_mean``, the same for ``q``) and the
+    RMS (per unit of ``scale``) and coverage of the scored samples.
+    """
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    band: dict[str, np.ndarray] = {}
+    for ch, noisy_ch, mean in zip(("p", "q"), noisy, means, strict=True):
+        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
+            np.array(noisy_ch), [lo, 50, hi], axis=0
+        )
+        band[f"{ch}_mean"] = np.mean(np.array(mean), axis=0)
+    out = {}
+    for ch in ("p", "q"):
+        x = getattr(event, ch)[scored]
+        out[f"rms_{ch}"] = float(np.sqrt(np.mean((x - band[f"{ch}_mean"][scored]) ** 2)) / scale)
+        inside = (x >= band[f"{ch}_lo"][scored]) & (x <= band[f"{ch}_hi"][scored])
+        out[f"coverage_{ch}"] = float(np.mean(inside))
+    return band, out
 
 
 def gaussian_logl(event: EventRecord, mp, mq, tau_p: float, tau_q: float) -> np.ndarray:

@@ -21,6 +21,7 @@ import numpy as np
 from loadbayes.fit.composite.validate import (
     N_DRAWS,
     EventValidation,
+    band_scores,
     gaussian_logl,
     operating_point,
     pointwise_lpd,
@@ -78,20 +79,9 @@ def validate_parts_event(
     if not means_p:
         raise ValueError(f"{event.name or 'the event'}: no posterior draw has a steady state at "
                          f"its first voltage ({event.v0:.4g} p.u.)")  # fmt: skip
-    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    band: dict[str, np.ndarray] = {}
-    for ch, noisy, mean in (("p", noisy_p, means_p), ("q", noisy_q, means_q)):
-        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
-            np.array(noisy), [lo, 50, hi], axis=0
-        )
-        band[f"{ch}_mean"] = np.mean(np.array(mean), axis=0)
     scale = float(np.mean(d["p0"]))
-    scores = {}
-    for ch in ("p", "q"):
-        x = getattr(event, ch)[scored]
-        scores[f"rms_{ch}"] = float(np.sqrt(np.mean((x - band[f"{ch}_mean"][scored]) ** 2)) / scale)
-        inside = (x >= band[f"{ch}_lo"][scored]) & (x <= band[f"{ch}_hi"][scored])
-        scores[f"coverage_{ch}"] = float(np.mean(inside))
+    band, scores = band_scores(event, scored, (noisy_p, noisy_q), (means_p, means_q), scale,
+                               prob)  # fmt: skip
     return EventValidation(
         file=event.name, n=event.n + n_out, n_excluded=n_out, event=event,
         scored=scored, band=band, p0=p0n, q0=q0n, draws_used=len(means_p), scale=scale,
