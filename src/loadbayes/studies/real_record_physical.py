@@ -31,7 +31,7 @@ from loadbayes.studies.real_record import BAYS, SOURCE, events_of, find_record
 __all__ = ["PhysicalStudy", "html_section", "run", "text_table"]
 
 #: Iterations (burn-in) per chain, quick and full.
-QUICK, FULL = (8000, 3000), (24000, 6000)
+QUICK, FULL = (4000, 2000), (24000, 6000)
 
 
 @dataclass
