@@ -141,7 +141,8 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
     used = []
     for k, ev in enumerate(events):
         if model.negative_sequence != "off" and model.uses_negative_sequence(ev):
-            rows = int(np.sum(np.abs(ev.v2) >= NEG_SEQ_MIN))
+            keep = model.kept(ev)  # the rows the likelihood read (not those across a step)
+            rows = int(np.sum(np.abs(np.asarray(ev.v2)[keep]) >= NEG_SEQ_MIN))
             used.append({"event": k, "name": ev.name, "rows": rows,
                          "v2_max": float(np.max(np.abs(ev.v2)))})  # fmt: skip
     words["negative_sequence"] = {"events": used, "threshold_v2_pu": NEG_SEQ_MIN}
