@@ -29,12 +29,7 @@ from loadbayes.commands.output import (
     stop_if_signalled,
     user_errors,
 )
-from loadbayes.commands.settings import (
-    check_model_flags,
-    composite_model,
-    parts_model,
-    sampler_settings,
-)
+from loadbayes.commands.settings import check_model_flags, named_model, sampler_settings
 
 __all__ = ["fit_composite_cmd"]
 
@@ -70,12 +65,13 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
 @click.option(
     "--model",
     "model_name",
-    type=click.Choice(["zip+motor", "slm", "cmld-lite"]),
+    type=click.Choice(["zip+motor", "slm", "cmld-lite", "auto"]),
     default="zip+motor",
     show_default=True,
     help="The load model: 'zip+motor' (a ZIP part and one motor at the bus), 'slm' (ZIP + "
     "one motor behind the feeder's Rd + jXd), 'cmld-lite' (feeder, motors A and B, motor D, "
-    "electronics, static part; shares on their simplex, physical priors).",
+    "electronics, static part; shares on their simplex, physical priors); 'auto': the one "
+    "of the three that best predicts each event from the others (two or more events).",
 )
 @click.option(
     "--negative-sequence",
@@ -256,6 +252,7 @@ def fit_composite_cmd(
 
     from loadbayes.fit.composite import predictive_band
     from loadbayes.fit.composite.checks import check_run
+    from loadbayes.fit.composite.choice import choose_model
     from loadbayes.fit.composite.driver import fit_composite
     from loadbayes.measurements.events import index_bases, index_f_hz, read_events
     from loadbayes.measurements.record import check_units
@@ -275,15 +272,10 @@ def fit_composite_cmd(
     check_run(f_hz=f_hz, draws=sampler.draws, burn=sampler.burn, thin=sampler.thin,
               seed=sampler.seed, max_seconds=max_seconds)  # fmt: skip
     # The flags, mapped onto the model's fields in one table (commands/settings.py).
-    if parts:
-        model = parts_model(model_name, f_hz=f_hz, priors=_parse_priors(priors),
-                            negative_sequence=negative_sequence)  # fmt: skip
-    else:
-        model = composite_model(
-            f_hz=f_hz, torque=_parse_torque(torque), steps=steps, window_s=window_s,
-            shares=shares, noise=noise, likelihood=likelihood, nu=parse_nu(nu),
-            priors=_parse_priors(priors),
-        )  # fmt: skip
+    model = named_model(model_name, f_hz=f_hz, priors=_parse_priors(priors),
+                        negative_sequence=negative_sequence, torque=_parse_torque(torque),
+                        steps=steps, window_s=window_s, shares=shares, noise=noise,
+                        likelihood=likelihood, nu=parse_nu(nu))  # fmt: skip
     if until_converged is None:
         source = click.get_current_context().get_parameter_source("draws")
         until_converged = source in (None, click.core.ParameterSource.DEFAULT)
@@ -304,6 +296,13 @@ def fit_composite_cmd(
     # Named by the data's own columns (--v-col ...); the base check below then passes.
     check_units(events, accept_units=accept_units, columns={"v": v_col, "p": p_col, "q": q_col})
     unit_warnings = check_units(events, accept_units=accept_units)
+    choice = None
+    if model is None:  # --model auto: held-out prediction chooses (fit/composite/choice.py)
+        with _quiet_arviz():
+            model, choice = choose_model(events, f_hz=f_hz, sampler=sampler,
+                                         negative_sequence=negative_sequence)  # fmt: skip
+        click.echo(f"loadbayes: --model auto: {choice['words']}", err=True)
+        parts = model.name != "zip+motor"
     bases_note = None
     if v_base is None and s_base is None:
         # Per-unit events cut by `loadbayes events`: their bases are in events.csv.
@@ -357,6 +356,7 @@ def fit_composite_cmd(
                 progress=None if quiet else bar,  # --quiet: no cost to announce, no probe
                 data_warnings=unit_warnings,
                 provenance={
+                    **({"model_choice": choice} if choice else {}),
                     "files": list(files),
                     "v_base_kv": v_base_rec,
                     "s_base_mva": s_base_rec,

@@ -222,3 +222,17 @@ def check_model_flags(model_name: str, *, negative_sequence: str, plot: bool) ->
             raise UserError(f"{flag} is an option of --model zip+motor, not {model_name}")
     if plot:
         raise UserError(f"--plot draws zip+motor fits only so far, not {model_name}")
+
+
+def named_model(name: str, *, f_hz: float, priors: dict, negative_sequence: str,
+                **zip_motor: Any) -> Any:  # fmt: skip
+    """``fit composite --model NAME``'s model (None for ``auto``: chosen on the events)."""
+    from loadbayes.commands.output import UserError
+
+    if name == "auto":
+        if priors:
+            raise UserError("--prior needs a named --model (slm, cmld-lite or zip+motor)")
+        return None
+    if name != "zip+motor":
+        return parts_model(name, f_hz=f_hz, priors=priors, negative_sequence=negative_sequence)
+    return composite_model(f_hz=f_hz, priors=priors, **zip_motor)

@@ -26,7 +26,7 @@ from loadbayes.fit.composite.validate import validate_event
 from loadbayes.fit.composite.validate_parts import validate_parts_event
 from loadbayes.measurements.record import EventRecord
 
-__all__ = ["ModelChoice", "compare_models"]
+__all__ = ["ModelChoice", "choose_model", "compare_models"]
 
 
 @dataclass
@@ -109,3 +109,25 @@ def compare_models(
             words += (f"; {second['model']} is within {gap:.1f} (SE {se:.1f}): the data do "
                       "not settle the choice between them")  # fmt: skip
     return ModelChoice(rows, best, words, pointwise, fits, held)
+
+
+def choose_model(events: Sequence[EventRecord], *, f_hz: float, sampler: SamplerSettings,
+                 negative_sequence: str = "auto") -> tuple[Any, dict[str, Any]]:  # fmt: skip
+    """``--model auto``: ``zip+motor``, ``slm`` and ``cmld-lite`` compared, the best returned.
+
+    Each fitted to all events but one at ``sampler``'s draws (not run on to convergence)
+    and scored on the one left out; returns the model of the best ELPD and the
+    comparison's record (:meth:`ModelChoice.to_dict`).
+    """
+    from loadbayes.io.errors import OptionError
+    from loadbayes.models.dynamic import dynamic_model
+
+    if len(events) < 2:
+        raise OptionError("--model auto needs two or more events: it scores each model by "
+                          "predicting each event from the others")  # fmt: skip
+    ns = negative_sequence
+    models = [dynamic_model("zip+motor", f_hz=f_hz),
+              dynamic_model("slm", f_hz=f_hz, negative_sequence=ns),
+              dynamic_model("cmld-lite", f_hz=f_hz, negative_sequence=ns)]  # fmt: skip
+    ch = compare_models(models, events, sampler=sampler.with_(until_converged=False))
+    return next(m for m in models if m.name == ch.best), ch.to_dict()
