@@ -32,6 +32,7 @@ __all__ = [
     "confounding_warnings",
     "drift_warnings",
     "fit_zip_drift",
+    "drift_reason",
     "residual_drift",
 ]
 
@@ -85,6 +86,19 @@ def residual_drift(t: np.ndarray, resid: np.ndarray, *, segments: int = 24) -> t
     return between / total, float(stats.f.sf(f, k_used - 1, n - k_used))
 
 
+def drift_reason(post: Posterior, t: np.ndarray, resid: np.ndarray) -> list[str]:
+    """The residuals' drift with time, recorded in ``post.settings`` and said as a reason.
+
+    A reason past 0.1 % false alarm and 5 % of their variance (``fit zip``, ``fit exp``).
+    """
+    share, pval = residual_drift(np.asarray(t, dtype=float), resid)
+    post.settings["residual_drift"] = {"share_of_variance": share, "p_value": pval}
+    if pval < 1e-3 and share > 0.05:
+        return [f"the residuals drift with time ({100 * share:.0f}% of their variance "
+                f"follows the hour, p = {pval:.1g})"]  # fmt: skip
+    return []
+
+
 def confounding_warnings(
     post: Posterior, cols: dict, t: np.ndarray | None, model: Any = None
 ) -> list[str]:
@@ -101,11 +115,7 @@ def confounding_warnings(
         scale = m["p0"] if model.p0 == "auto" else float(model.p0)
         pred = scale * (m["a1"] * x * x + m["a2"] * x + m["a3"])
         resid = np.asarray(cols["p"], dtype=float) - pred
-        share, pval = residual_drift(np.asarray(t, float), resid)
-        post.settings["residual_drift"] = {"share_of_variance": share, "p_value": pval}
-        if pval < 1e-3 and share > 0.05:
-            reasons.append(f"the residuals drift with time ({100 * share:.0f}% of their "
-                           f"variance follows the hour, p = {pval:.1g})")  # fmt: skip
+        reasons += drift_reason(post, t, resid)
     if not reasons:
         return []
     hint = "" if t is not None else " (the time column: --t-col)"

@@ -203,7 +203,7 @@ def exp_confounding(post: Any, cols: Mapping[str, np.ndarray], t: np.ndarray | N
     time of each row, residuals that drift with time
     (:func:`loadbayes.fit.drift.residual_drift`, 0.1% false alarm on a well-fitted record).
     """
-    from loadbayes.fit.drift import CONFOUNDED, residual_drift
+    from loadbayes.fit.drift import CONFOUNDED, drift_reason
 
     reasons = []
     d = post.draws.get("np")
@@ -221,11 +221,7 @@ def exp_confounding(post: Any, cols: Mapping[str, np.ndarray], t: np.ndarray | N
             resid = np.asarray(cols["p"], dtype=float) - scale * x ** float(np.mean(d)) * (
                 1 + float(np.mean(post.draws["kpf"])) * df
             )
-        share, pval = residual_drift(np.asarray(t, dtype=float), resid)
-        post.settings["residual_drift"] = {"share_of_variance": share, "p_value": pval}
-        if pval < 1e-3 and share > 0.05:
-            reasons.append(f"the residuals drift with time ({100 * share:.0f}% of their "
-                           f"variance follows the hour, p = {pval:.1g})")  # fmt: skip
+        reasons += drift_reason(post, t, resid)
     if not reasons:
         return []
     hint = "" if t is not None else " (the time column: --t-col)"
