@@ -60,7 +60,7 @@ def zip_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dic
     ctx = click.get_current_context()
     src = click.core.ParameterSource.DEFAULT
     default = {k: ctx.get_parameter_source(k) == src for k in ("draws", "burn", "chains")}
-    if options.get("level") == "drift" and not options.get("by"):
+    if options.get("level") == "drift":  # one bus or a fleet: each bus's own chains
         values = dict(values)
         if default["draws"]:
             values["draws"] = DRIFT_DRAWS
