@@ -222,6 +222,8 @@ def fit_zip_cmd(
         )
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
+    if level == "drift" and str(v_noise).strip().lower() == "auto":
+        raise UserError("--level drift takes the instrument's sd (--v-noise 0.0005), not auto")
     v_noise_val = parse_v_noise(v_noise, likelihood=likelihood, scheme=scheme,
                                 conjugate=conjugate, with_q=q_name is not None)  # fmt: skip
     check_cost(
