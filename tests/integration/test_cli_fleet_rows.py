@@ -77,6 +77,16 @@ def test_drift_fleet_refusals_are_one_line(fleet_csv, tmp_path):
     assert res.exit_code == 2 and "no bus column 'bus_id'" in res.stderr
     fixed = _run("fit", "zip", path, "--by", "feeder", "--out", out, "--v-noise", "0.001", *COLS)
     assert fixed.exit_code == 2 and "--v-noise is for one bus or --level drift" in fixed.stderr
+    # a bad cell stops the fleet, named by its file and data row there (not the bus's row)
+    bad = pd.read_csv(path, dtype=str)
+    bad.loc[1000, "v_kv"] = "abc"
+    bad_path = tmp_path / "bad.csv"
+    bad.to_csv(bad_path, index=False)
+    res = _run("fit", "zip", bad_path, "--level", "drift", "--by", "feeder", "--out", out, *COLS)
+    assert res.exit_code == 2 and not out.exists()
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"loadbayes: error: {bad_path}: column 'v_kv', row 1001: non-numeric value 'abc'"
+    )
 
 
 def test_cvr_fleet_table_flags_and_page(tmp_path):

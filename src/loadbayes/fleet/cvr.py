@@ -33,7 +33,7 @@ from loadbayes.core.settings import SamplerSettings
 from loadbayes.fleet.engine import Engine
 from loadbayes.fleet.rows import BusTable, RowsResult, bus_tables, files_of, pool_table
 from loadbayes.fleet.summary import concat, failed_rows, stat_rows
-from loadbayes.io.errors import LoadbayesError, OptionError
+from loadbayes.io.errors import DataError, LoadbayesError, OptionError
 
 __all__ = ["FACTORS", "FLAGS", "cvr_feeder", "cvr_fleet"]
 
@@ -87,6 +87,9 @@ def cvr_feeder(
                   step_sampler=STEP_DEFAULTS.with_(draws=step_draws, burn=step_draws // 6,
                                                    seed=s_step), **options)  # fmt: skip
     except LoadbayesError as exc:
+        bad = item.located(exc) if isinstance(exc, DataError) else None
+        if bad is not None:
+            raise bad from None
         return failed_rows([item.bus], [item.cls], [n], [str(exc)]), {"error": str(exc)}
     draws = res.pop("draws")
     series = {k: draws[g][ch] for k, (g, ch) in FACTORS.items() if ch in draws[g]}

@@ -26,7 +26,7 @@ from loadbayes.core.settings import DataSpec, SamplerSettings
 from loadbayes.fleet.engine import Engine
 from loadbayes.fleet.rows import BusTable, RowsResult, bus_tables, files_of, pool_table
 from loadbayes.fleet.summary import concat, failed_rows, stat_rows
-from loadbayes.io.errors import LoadbayesError, OptionError
+from loadbayes.io.errors import DataError, LoadbayesError, OptionError
 
 __all__ = ["SENSITIVITIES", "fit_drift_bus", "fit_drift_fleet"]
 
@@ -50,6 +50,9 @@ def fit_drift_bus(
         post = fit_zip(item.frame, spec=spec, sampler=sampler.with_(seed=item.seed),
                        level="drift", v_noise=v_noise, warn=False)  # fmt: skip
     except LoadbayesError as exc:
+        bad = item.located(exc) if isinstance(exc, DataError) else None
+        if bad is not None:
+            raise bad from None
         return failed_rows([item.bus], [item.cls], [n], [str(exc)])
     series = dict(post.draws)
     series.update({SENSITIVITIES[k]: d for k, d in post.derived.items() if k in SENSITIVITIES})

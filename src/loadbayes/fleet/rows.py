@@ -28,18 +28,34 @@ from loadbayes.io.errors import DataError
 
 __all__ = ["BusTable", "RowsResult", "bus_tables", "files_of", "pool_table"]
 
+#: Columns added while reading: each row's file and 1-based data row there.
+_FILE, _ROW = "\0loadbayes-file", "\0loadbayes-row"
 #: Exact draws of a class's pooled model (two halves, as two chains, for R-hat).
 POOL_DRAWS = 4_000
 
 
 @dataclass(frozen=True)
 class BusTable:
-    """One bus's rows (its file's columns), its class, and the seed of its fit."""
+    """One bus's rows, its class, its fit's seed, and each row's file and 1-based data row."""
 
     bus: str
     cls: str | None
     frame: pd.DataFrame
     seed: np.random.SeedSequence
+    files: np.ndarray | None = None
+    rows: np.ndarray | None = None
+
+    def located(self, exc: DataError) -> DataError | None:
+        """A bad cell of the bus's table, named by its file and row there; None otherwise.
+
+        A bad cell stops the fleet, as a file that cannot be read stops the static one
+        (:mod:`loadbayes.fleet.run`); what the bus's data as a whole cannot give (too few
+        rows, no voltage steps) leaves the bus unfitted, with the reason, and the rest go on.
+        """
+        if exc.row is None or self.rows is None or not 1 <= exc.row <= self.rows.size:
+            return None
+        i = exc.row - 1
+        return DataError(exc.message, str(self.files[i]), exc.column, int(self.rows[i]))
 
 
 def _read(path: str, key_cols: Sequence[str]) -> pd.DataFrame:
@@ -69,6 +85,7 @@ def bus_tables(
     keys = [by] + ([class_col] if class_col else [])
     if isinstance(data, pd.DataFrame):
         frames = [(data.assign(**{c: data[c].astype(str) for c in keys if c in data}), "data")]
+        frames[0][0][_FILE], frames[0][0][_ROW] = "data", np.arange(1, len(data) + 1)
     else:
         frames = []
         for part in find_partitions(str(data)):
@@ -76,6 +93,7 @@ def bus_tables(
             for k, val in part.hive.items():
                 if k not in df:
                     df[k] = val
+            df[_FILE], df[_ROW] = part.path, np.arange(1, len(df) + 1)
             frames.append((df, part.path))
     for df, where in frames:
         for c in keys:
@@ -97,7 +115,9 @@ def bus_tables(
                 raise DataError(f"bus {bus!r} is given {found.size} classes in column "
                                 f"{class_col!r} ({shown})", where)  # fmt: skip
             cls = str(found[0])
-        out.append(BusTable(str(bus), cls, rows.reset_index(drop=True), ss))
+        where = rows[[_FILE, _ROW]].to_numpy().T
+        table = rows.drop(columns=[_FILE, _ROW]).reset_index(drop=True)
+        out.append(BusTable(str(bus), cls, table, ss, where[0], where[1].astype(np.int64)))
     return out
 
 
