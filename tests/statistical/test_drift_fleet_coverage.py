@@ -65,5 +65,5 @@ def test_dp_dv_covered_on_50_feeders(tmp_path):
 
 
 def test_dp_dv_covered_on_a_lean_fleet(tmp_path):
-    hits, d = _coverage(tmp_path, 3, 3, 400)
+    hits, d = _coverage(tmp_path, 3, 3, 600)
     assert hits >= 2, d[["bus", "mean", "hdi_low", "hdi_high"]]

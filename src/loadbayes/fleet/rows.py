@@ -54,8 +54,17 @@ class BusTable:
         """
         if exc.row is None or self.rows is None or not 1 <= exc.row <= self.rows.size:
             return None
+        import re
+
+        def file_row(m: re.Match) -> str:  # "at row 191" of the bus's table, as the file counts
+            k = int(m.group(1))
+            return f"at row {int(self.rows[k - 1])}" if 1 <= k <= self.rows.size else m.group(0)
+
+        msg = re.sub(r"at row (\d+)", file_row, exc.message).replace(
+            ", or fit each bus apart (--by)", " within each bus"
+        )
         i = exc.row - 1
-        return DataError(exc.message, str(self.files[i]), exc.column, int(self.rows[i]))
+        return DataError(msg, str(self.files[i]), exc.column, int(self.rows[i]))
 
 
 def _read(path: str, key_cols: Sequence[str]) -> pd.DataFrame:
