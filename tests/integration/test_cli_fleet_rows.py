@@ -56,7 +56,8 @@ def test_drift_fleet_pooled_by_class_and_its_report(fleet_csv, tmp_path):
     page = tmp_path / "f.html"
     rep = _run("report", out, "--out", page, "--quiet")
     assert rep.exit_code == 0, rep.output
-    assert "dp_dv" in page.read_text(encoding="utf-8")
+    text = page.read_text(encoding="utf-8")
+    assert "dp_dv" in text and "per unit of the level P0(t)" in text  # not the data's units
 
 
 def test_drift_fleet_refusals_are_one_line(fleet_csv, tmp_path):

@@ -59,7 +59,7 @@ def _coverage(tmp_path, n, days, draws):
 
 @pytest.mark.skipif(not FULL, reason="the 50 feeders run under make validate")
 def test_dp_dv_covered_on_50_feeders(tmp_path):
-    hits, d = _coverage(tmp_path, 50, 14, 2500)
+    hits, d = _coverage(tmp_path, 50, 14, 1500)
     print(f"dP/dV covered on {hits} of 50 feeders")
     assert hits >= 44, f"{hits} of 50 intervals cover the true dP/dV"
 

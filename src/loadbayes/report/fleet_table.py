@@ -200,6 +200,8 @@ class FleetTable:
         """
         ch = "P" if which == "dp_dv" else "Q"
         own = f"the data's {ch} units per p.u. of V"
+        if self.settings.get("level") == "drift":  # fleet/drift.py: per unit of the level
+            own = f"per unit of the level {ch}0(t) per p.u. of V"
         rel = f"per unit of {ch}0 per p.u. of V"
         keys = (_key(which), *SENSITIVITY[which])
         b = self.bus_rows.dropna(subset=["parameter"])
