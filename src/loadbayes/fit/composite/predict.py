@@ -4,16 +4,18 @@
 given by its voltage at the recorded bus (a sag built by ``predict_scope.sag_profile``
 or a recorded profile), the feeder's loop solved (``models/parts_predict.py``), at the
 fit's operating point (event 0's pre-fault P and Q at the recorded bus, as
-``validate`` plays a held-out event). A fault record above their thresholds never
-informs motor D's stall voltage and time or the electronics' trip voltages, and the fit
-does not estimate them: each draw takes them from their priors
-(``models/part_priors.THRESHOLD_PRIORS``, or the user's). It returns the 95 % band of
-P(t), Q(t) and the current (the model's, and with the fit's noise), the probability that
-motor D stalls (a Jeffreys interval over the draws played), the share of the
-electronics tripped, the time for P and Q to come back within 10 % of their pre-fault
-values, and, in words, where the fault lies beyond what the fitted events covered
-(``predict_scope.covered``) and which priors then decide. :func:`sweep` repeats it over
-sag depths.
+``validate`` plays a held-out event). Motor D's stall voltage and time and the
+electronics' trip voltages are sampled by the fit under their priors
+(``models/part_priors.THRESHOLD_PRIORS``): a fitted event that stalls or trips them
+determines them, one above them only rules out what would have stalled or tripped in it,
+and each played draw carries its own (``predict_scope.fitted_thresholds``; a user's
+prior reweights them; a fit that did not sample them takes them from their priors). It
+returns the 95 % band of P(t), Q(t) and the current (the model's, and with the fit's
+noise), the probability that motor D stalls (a Jeffreys interval over the draws played),
+the share of the electronics tripped, the time for P and Q to come back within 10 % of
+their pre-fault values, and, in words, where the fault lies beyond what the fitted
+events covered (``predict_scope.covered``) and which priors then decide. :func:`sweep`
+repeats it over sag depths.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from loadbayes.fit.composite.predict_scope import (
     MEANING,
     covered,
     extrapolation,
+    fitted_thresholds,
     left_to_prior,
     recovery_time,
     sag_extent,
@@ -232,6 +235,8 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     th["vd1"] = np.clip(th["vd1"], 0.06, 1.2)
     th["vd2"] = np.clip(th["vd2"], 0.0, th["vd1"] - 0.05)
     th["tstall"] = np.maximum(th["tstall"], 0.0)
+    pick, th, notes = fitted_thresholds(model, d, pick, th, priors, left_to_prior(model, d),
+                                        rng)  # fmt: skip
     theta = np.stack([d[n] for n in model.theta_names], -1)
     cq = np.stack([d["cq2"], d["cq1"], d["cq0"]], -1)
     v = event.v * np.exp(1j * (0 if event.delta is None else event.delta - event.delta[0]))
@@ -282,7 +287,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     for ch, arr in (("p", noisy_p), ("q", noisy_q)):
         band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
                                                                      axis=0)  # fmt: skip
-    warnings = []
+    warnings = list(notes)
     if failed:
         warnings.append(f"{failed} of {pick.size} draws have no steady state or no converged "
                         "feeder loop in this fault and are left out (a motor that cannot "
@@ -309,7 +314,13 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         thresholds[name] = {"meaning": MEANING[name], "prior": [kind, c, s],
                             "source": "given by the user (--prior)" if user else PRIOR_SOURCE,
                             "used": name in ("vstall", "tstall") and model.motor_d
-                            or name in ("vd1", "vd2") and model.electronics}  # fmt: skip
+                            or name in ("vd1", "vd2") and model.electronics,
+                            "fitted": name in getattr(model, "thresholds", ())}  # fmt: skip
+        if thresholds[name]["used"]:
+            x = np.asarray(th[name], dtype=float)
+            thresholds[name]["played"] = {
+                "median": float(np.median(x)),
+                "interval": [float(v) for v in np.percentile(x, [lo, hi])]}  # fmt: skip
     return Prediction(
         fault=fault,
         operating_point={"p0": p0, "q0": q0, "v0": v0,
