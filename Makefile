@@ -42,7 +42,7 @@ $(BENCH_VENV)/.installed: pyproject.toml
 bench: $(BENCH_VENV)/.installed
 	$(BENCH_VENV)/bin/python benchmarks/run_all.py
 
-# GridDyn (the independent CMLD simulator of tests/griddyn_sim) needs Python >= 3.13: an
+# GridDyn (the independent CMLD simulator of src/loadbayes/cases/griddyn) needs Python >= 3.13: an
 # environment of its own. Without a python3.13 (on PATH or under pyenv) `make test` goes
 # on and the GridDyn tests skip, saying why.
 PYTHON313 ?= $(shell for p in python3.13 $${PYENV_ROOT:-$$HOME/.pyenv}/versions/3.13*/bin/python3.13; do \

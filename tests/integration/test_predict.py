@@ -14,7 +14,6 @@ fault alone.
 """
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ import pytest
 from click.testing import CliRunner
 
 from feeder_generator import simulate
+from loadbayes.cases.griddyn import cases
 from loadbayes.cli import main
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
@@ -30,9 +30,6 @@ from loadbayes.fit.composite.predict import PRIOR_SOURCE, predict
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.dynamic import dynamic_model
 from loadbayes.posterior import Posterior
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "griddyn_sim"))
-import cases  # noqa: E402
 
 pytestmark = pytest.mark.integration
 
@@ -163,7 +160,7 @@ _REASON = cases.skip_reason()
 def griddyn(tmp_path_factory):
     if _REASON is not None:
         pytest.skip(_REASON)
-    from events import griddyn_events
+    from loadbayes.cases.griddyn.events import griddyn_events
 
     frames, _ = griddyn_events(depths=(0.13, 0.25, 0.46), seed_noise=0)
     evs = [EventRecord(f.t_s.to_numpy(), f.v.to_numpy(), f.p.to_numpy(), f.q.to_numpy(),

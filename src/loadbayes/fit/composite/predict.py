@@ -84,6 +84,34 @@ class Prediction:
         return out
 
 
+    def summary_lines(self) -> list[str]:
+        """What ``loadbayes predict`` prints: fault, stall, trip, thresholds, recovery, words."""
+        f = self.fault
+        out = [f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} below "
+               f"{f['v_pre']:.3g}) for {f['duration_s']:.3g} s; {self.draws['used']} draws"]
+        if self.stall is not None:
+            lo, hi = self.stall["interval"]
+            out.append(f"motor D stalls with probability {self.stall['probability']:.2f} "
+                       f"[{lo:.2f}, {hi:.2f}]")  # fmt: skip
+        if self.electronics_tripped is not None:
+            e = self.electronics_tripped
+            out.append(f"electronics tripped: median {e['median']:.2f} "
+                       f"[{e['interval'][0]:.2f}, {e['interval'][1]:.2f}]")  # fmt: skip
+        for name, th in self.thresholds.items():
+            if th.get("played"):
+                lo, hi = th["played"]["interval"]
+                how = "fitted" if th.get("fitted") else "from its prior"
+                out.append(f"{name} played: median {th['played']['median']:.3g} "
+                           f"[{lo:.3g}, {hi:.3g}] ({how})")  # fmt: skip
+        for ch in ("p", "q"):
+            r = self.recovery[ch]
+            med = "never" if r["median"] is None else f"median {r['median']:.3g} s"
+            out.append(f"{ch.upper()} back within 10%: {med}; not within the window in "
+                       f"{r['not_within_window']:.0%} of draws")  # fmt: skip
+        out.append(self.extrapolation["message"])
+        return out + [f"warning: {w}" for w in self.warnings]
+
+
 def load_result(result: str | Path | Posterior) -> Posterior:
     """A fit's posterior: a :class:`Posterior`, its NetCDF, or its JSON with the NetCDF beside."""
     if isinstance(result, Posterior):

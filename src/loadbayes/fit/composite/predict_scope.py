@@ -225,7 +225,7 @@ def extrapolation(model, fault: dict, cover: dict, priors: Mapping,
         )
     learned = [d for d in reached if d not in decide]
     if learned:
-        words.append("The fitted events determined " + ", ".join(learned) + " ("
+        words.append("The fitted events narrowed " + ", ".join(learned) + " ("
                      + "; ".join(MEANING[d] for d in learned) + "): each draw carries "
                      "the posterior's value.")  # fmt: skip
     absent = [w for w, on in (("motor D (air conditioners that stall)", model.motor_d),
