@@ -12,7 +12,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[grid,cluster,andes,test]"
 	touch $(STAMP)
 
-demo: $(STAMP)
+demo: $(STAMP) griddyn-env
 	$(VENV)/bin/loadbayes reproduce all --quick --out results --force
 	@echo "loadbayes is in $(VENV)/bin: put it on PATH with '. $(VENV)/bin/activate' (or run $(CURDIR)/$(VENV)/bin/loadbayes)"
 
