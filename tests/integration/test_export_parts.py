@@ -355,6 +355,8 @@ def test_griddyn_runs_the_exported_record_as_the_fit_predicts_it(cmld_lite):
     th |= {"lr_m_a": math.log(rec["Fma"] / fs), "lr_m_b": math.log(rec["Fmb"] / fs),
            "lr_d": math.log(rec["Fmd"] / fs), "lr_el": math.log(rec["Fel"] / fs),
            "lr_a1": math.log(rec["P1c"] / a3), "lr_a2": math.log(rec["P2c"] / a3)}  # fmt: skip
+    th |= {"vstall": rec["Vstall"], "log_tstall": math.log(rec["Tstall"]), "vd1": rec["Vd1"],
+           "vd2": rec["Vd2"]}  # fmt: skip
     theta = np.array([th[n] for n in model.theta_names])
     ev = EventRecord(frame.t_s.values, frame.v.values, frame.p.values, frame.q.values,
                      frame.angle_rad.values, "griddyn")  # fmt: skip

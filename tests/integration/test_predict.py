@@ -205,11 +205,14 @@ def test_griddyn_from_the_shallow_fault_alone_is_flagged(griddyn):
 
 
 @pytest.mark.statistical
-@pytest.mark.xfail(strict=True, reason="measured (seeds 7, 0): the band from the shallow fault "
-                   "alone is narrower (mean width of P's 95% band 0.64 p.u. against 1.21 from "
-                   "shallow + medium): the medium fault moves motor D's share up (median f_d "
-                   "0.27 against 0.17), and its stall sets the width; the extrapolation is "
-                   "flagged all the same (chains of 2000 draws, R-hat up to 1.9)")  # fmt: skip
+@pytest.mark.xfail(strict=True, reason="measured (seeds 7, 0; thresholds sampled): the band from "
+                   "the shallow fault alone is narrower (mean width of P's 95% band 0.64 p.u. "
+                   "against 1.09 from shallow + medium) and covers more of GridDyn's deep fault "
+                   "(P 98% against 94%): the medium fault moves motor D's share up, and motor "
+                   "D's stall sets the width; cmld-lite's motor D takes up constant power that "
+                   "GridDyn's static part holds (tests/statistical/test_parts_griddyn.py), so "
+                   "the width follows a misplaced share, not the data's reach; the extrapolation "
+                   "is flagged all the same")  # fmt: skip
 def test_griddyn_band_from_the_shallow_fault_alone_is_wider(griddyn):
     both, shallow, deep, _ = griddyn
     widths = []
