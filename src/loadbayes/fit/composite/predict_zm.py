@@ -11,8 +11,8 @@ its speed): a prediction is of the load's own P and Q, not of a recorder's windo
 
 **Stall.** A draw's motor stalls when, at the record's end, its slip is above its
 pull-out slip (the slip of the largest electrical torque on its steady-state torque
-curve, :func:`pull_out_slip`: past it the torque falls as the motor slows, so it cannot
-reaccelerate), or its slip is still rising faster than :data:`RISING_PER_S` over the
+curve, :func:`pull_out_slip`: a motor still past it when the record ends runs on the
+falling side of its torque curve, where it has not come back), or its slip is still rising faster than :data:`RISING_PER_S` over the
 last :data:`RISING_OVER_S` s (it was still slowing down when the record ended). The
 probability is the share of draws that stall, with its Jeffreys interval. The
 thresholds of a fit of parts (motor D's stall voltage and time, the electronics' trip
@@ -49,7 +49,7 @@ RISING_OVER_S = 0.1
 STALL_RULE = (
     "the induction motor stalls when, at the record's end, its slip is above its pull-out "
     "slip (the slip of the largest electrical torque on its steady-state torque curve: "
-    "past it the motor cannot reaccelerate) or still rising by more than "
+    "past it the motor runs on the curve's falling side) or still rising by more than "
     f"{RISING_PER_S:g} per second over the last {RISING_OVER_S:g} s"
 )
 #: What stands in for ``model`` in ``predict_scope.extrapolation``: no motor D, no electronics.
