@@ -30,6 +30,7 @@ __all__ = [
     "PlanningPick",
     "comment",
     "file_name",
+    "label",
     "model_options",
     "parse_quantiles",
     "select",
@@ -94,7 +95,7 @@ def select(outcomes: Mapping[str, np.ndarray], quantiles: Sequence[float], *,
 def label(q: float) -> str:
     """``q05``, ``q50``, ``q97.5``: a quantile in a file name (``export --stat``'s spelling)."""
     pct = f"{100 * q:.6g}"
-    return "q" + (pct.zfill(2) if "." not in pct else pct.zfill(4))
+    return "q" + (pct if "." in pct else pct.zfill(2))
 
 
 def file_name(out: Path, pick: PlanningPick) -> Path:

@@ -12,8 +12,9 @@ its speed): a prediction is of the load's own P and Q, not of a recorder's windo
 **Stall.** A draw's motor stalls when, at the record's end, its slip is above its
 pull-out slip (the slip of the largest electrical torque on its steady-state torque
 curve, :func:`pull_out_slip`: a motor still past it when the record ends runs on the
-falling side of its torque curve, where it has not come back), or its slip is still rising faster than :data:`RISING_PER_S` over the
-last :data:`RISING_OVER_S` s (it was still slowing down when the record ended). The
+falling side of its torque curve, where it has not come back), or its slip is still
+rising faster than :data:`RISING_PER_S` over the last :data:`RISING_OVER_S` s (it was
+still slowing down when the record ended). The
 probability is the share of draws that stall, with its Jeffreys interval. The
 thresholds of a fit of parts (motor D's stall voltage and time, the electronics' trip
 voltages) have no place here: they are listed with ``"used": false``.
