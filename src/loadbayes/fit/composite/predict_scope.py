@@ -323,6 +323,8 @@ def fitted_thresholds(model, d, pick, th, priors, left, rng):
     if "vd1" in th and "vd2" in th:
         th["vd2"] = np.minimum(th["vd2"], th["vd1"] - VD_GAP)
     return pick, th, notes
+
+
 def q_excess(t: np.ndarray, q: np.ndarray, t_clear: float) -> float:
     """:data:`OUTCOME`: the integral of ``max(Q - Q(0), 0)`` from ``t_clear`` to the end."""
     from scipy.integrate import trapezoid
