@@ -9,9 +9,10 @@ fault clears, which orders them by stall severity) and picks, for each asked qua
 the played draws' outcomes (the inverted empirical CDF: the smallest outcome with at
 least that share of draws at or below it, so the pick's value equals the prediction's
 quantile). Each file written carries a comment naming its quantile, the outcome's value,
-the fault and the draw's index (:func:`comment`). A fit of parts draws its thresholds
-(motor D's stall voltage and time, the electronics' trip voltages) with each draw:
-the pick's own go into its record (:func:`model_options`), so the record stalls as the
+the fault and the draw's index (:func:`comment`). A draw of a fit of parts is played
+with its own thresholds (motor D's stall voltage and time, the electronics' trip
+voltages: the fit's sampled ones, or its priors' for a fit that did not sample them):
+the pick's go into its record (:func:`model_options`), so the record stalls as the
 prediction did.
 """
 
