@@ -186,3 +186,19 @@ def test_quantile_labels_and_parsing():
     for bad in ("0,0.5", "0.5,1", "", "0.2,0.2"):
         with pytest.raises(ValueError, match="--quantiles"):
             parse_quantiles(bad)
+
+
+def test_a_voltage_profile_and_a_json_posterior(zip_motor, tmp_path):
+    df = ic.simulate_event(sags=(ic.Sag(0.2, 0.45, 0.15),), rate_hz=240, t_end_s=1.85,
+                           noise=0.0)[0]  # fmt: skip
+    profile = tmp_path / "deep.csv"
+    df[["t_s", "v"]].to_csv(profile, index=False)
+    r = _run("export", zip_motor, "--to", "psse", "--out", tmp_path / "v.raw", "--planning",
+             "--voltage", profile, "--quantiles", "0.5", "--played", 20)  # fmt: skip
+    assert r.exit_code == 0, r.output
+    text = (tmp_path / "v_q50.dyd").read_text()
+    assert "the 50% quantile of" in text and "in the fault 'deep.csv'" in text
+    js = tmp_path / "fit.json"
+    Posterior.from_netcdf(zip_motor).to_json(js)
+    r = _run("export", js, "--to", "psse", "--out", tmp_path / "j.raw", "--planning", *FAULT)
+    assert r.exit_code == 2 and "--planning needs the NetCDF posterior" in r.output, r.output
