@@ -144,10 +144,15 @@ def test_nothing_is_overwritten_without_force(fitted, tmp_path):
     assert out.read_text() == "keep"
 
 
-def test_a_zip_motor_fit_is_refused_in_one_line():
+def test_a_fit_predict_cannot_play_is_refused_in_one_line():
+    # A zip+motor fit is played (tests/integration/test_predict_zm.py); one without the
+    # recordings of its events has no operating point, and another model is refused.
     post = Posterior({"p0": np.ones((1, 5))}, model="composite", method="gibbs",
                      settings={"model": "zip+motor"})  # fmt: skip
-    with pytest.raises(ValueError, match="predict plays the models of parts"):
+    with pytest.raises(ValueError, match="keeps no recordings of its events"):
+        predict(post, sag=0.4, duration=0.1)
+    post.settings["model"] = "exp"
+    with pytest.raises(ValueError, match="a exp fit: predict plays zip\\+motor, slm, cmld-lite"):
         predict(post, sag=0.4, duration=0.1)
 
 

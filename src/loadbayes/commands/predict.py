@@ -1,4 +1,4 @@
-"""``loadbayes predict RESULT``: a fit of parts played through a fault it has not shown.
+"""``loadbayes predict RESULT``: a composite fit played through a fault it has not shown.
 
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py`` attaches
 it. The library does the work (:mod:`loadbayes.fit.composite.predict`); heavy imports
@@ -58,14 +58,15 @@ def _depths(text: str) -> list[float]:
 @user_errors
 def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, draws, prior, prob,
                 seed, json_out, plot_out, quiet, force):  # fmt: skip
-    """Play a fault through a fit of parts (slm, cmld-lite) and say what the load does.
+    """Play a fault through a composite fit (zip+motor, slm, cmld-lite): what the load does.
 
     RESULT is the fit's NetCDF (fit composite --netcdf), or its JSON with that NetCDF of
     the same name beside it. The fault is --sag DEPTH --duration S (and --recovery,
     --angle), a --voltage profile, or --sweep START:STOP:STEP with --duration. Motor D's
     stall voltage and time and the electronics' trip voltages are each draw's own (the
     fit samples them: where its events never reached them, they are their priors', said
-    with the source; --prior reweights them).
+    with the source; --prior reweights them); a zip+motor fit has none: its induction
+    motor stalls by its own torque curve.
     """
     outputs = {"--json": json_out, "--plot": plot_out}
     inputs = [result] + ([voltage] if voltage else [])

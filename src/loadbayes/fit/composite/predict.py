@@ -34,9 +34,12 @@ from loadbayes.fit.composite.predict_scope import (
     extrapolation,
     fitted_thresholds,
     left_to_prior,
+    q_excess,
     recovery_time,
     sag_extent,
 )
+from loadbayes.fit.composite.predict_scope import jeffreys as _jeffreys
+from loadbayes.fit.composite.predict_scope import spread as _spread
 from loadbayes.fit.composite.predictive import events_of
 from loadbayes.fit.composite.validate import operating_point
 from loadbayes.measurements.record import EventRecord
@@ -73,6 +76,9 @@ class Prediction:
     band: dict[str, np.ndarray]
     prob: float
     warnings: list[str] = field(default_factory=list)
+    #: Per draw played and kept: ``index`` (of the pooled draws), the planning outcome
+    #: (``predict_scope.OUTCOME``), ``stalled``, and for a fit of parts its thresholds.
+    outcomes: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     def to_dict(self, *, band: bool = True) -> dict[str, Any]:
         """JSON-ready numbers (``band=False``: the summary without the time series)."""
@@ -83,7 +89,6 @@ class Prediction:
             out["band"] = {k: [round(float(x), 7) for x in v] for k, v in self.band.items()}
         return out
 
-
     def summary_lines(self) -> list[str]:
         """What ``loadbayes predict`` prints: fault, stall, trip, thresholds, recovery, words."""
         f = self.fault
@@ -91,8 +96,8 @@ class Prediction:
                f"{f['v_pre']:.3g}) for {f['duration_s']:.3g} s; {self.draws['used']} draws"]
         if self.stall is not None:
             lo, hi = self.stall["interval"]
-            out.append(f"motor D stalls with probability {self.stall['probability']:.2f} "
-                       f"[{lo:.2f}, {hi:.2f}]")  # fmt: skip
+            out.append(f"{self.stall.get('part', 'motor D')} stalls with probability "
+                       f"{self.stall['probability']:.2f} [{lo:.2f}, {hi:.2f}]")  # fmt: skip
         if self.electronics_tripped is not None:
             e = self.electronics_tripped
             out.append(f"electronics tripped: median {e['median']:.2f} "
@@ -154,35 +159,16 @@ def parse_priors(specs: Sequence[str] | Mapping | None) -> dict[str, tuple[str, 
 
 
 def _model_of(post: Posterior):
+    """The fit's model of parts rebuilt; None for a ``zip+motor`` fit (``predict_zm.py``)."""
     from loadbayes.export.partsload import rebuild_model
 
     name = post.settings.get("model")
+    if name in (None, "zip+motor"):
+        return None
     if name not in _PARTS_MODELS:
-        raise ValueError(f"a {name or 'zip+motor'} fit: predict plays the models of parts "
-                         f"({', '.join(_PARTS_MODELS)}); fit composite --model slm or "
-                         "cmld-lite")  # fmt: skip
+        raise ValueError(f"a {name} fit: predict plays zip+motor, "
+                         f"{', '.join(_PARTS_MODELS)} fits")  # fmt: skip
     return rebuild_model(post.settings)
-
-
-def _jeffreys(k: int, n: int, prob: float) -> list[float]:
-    from scipy.stats import beta
-
-    a = (1 - prob) / 2
-    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
-    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
-    return [lo, hi]
-
-
-def _spread(x: np.ndarray, prob: float) -> dict[str, Any]:
-    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    done = x[np.isfinite(x)]
-    out: dict[str, Any] = {"not_within_window": float(np.mean(~np.isfinite(x))) if x.size else 0.0}
-    if done.size:
-        out |= {"median": float(np.median(done)),
-                "interval": [float(v) for v in np.percentile(done, [lo, hi])]}  # fmt: skip
-    else:
-        out |= {"median": None, "interval": None}
-    return out
 
 
 def predict(
@@ -246,6 +232,11 @@ def predict(
              **ext} | ({"sag": sag, "duration": duration, "recovery": recovery,
                         "angle_deg": angle} if kind == "sag" else {})  # fmt: skip
     cover = covered(events)
+    if model is None:  # a zip+motor fit: no feeder, no motor D, no thresholds
+        from loadbayes.fit.composite.predict_zm import play_zip_motor
+
+        return Prediction(**play_zip_motor(post, event, fault, cover, priors, p0, q0, v0,
+                                           draws, prob, seed))  # fmt: skip
     return _play(post, model, event, fault, cover, priors, p0, q0, v0, draws, prob, seed)
 
 
@@ -271,6 +262,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     t = event.t
     ps, qs, cur, noisy_p, noisy_q = [], [], [], [], []
     stalled, tripped, rec_p, rec_q = [], [], [], []
+    kept, excess = [], []
     failed = 0
     for j, i in enumerate(pick):
         params = {**model.motor_d_params, "vstall": float(th["vstall"][j]),
@@ -293,6 +285,8 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         noisy_q.append(mq + sq * rng.standard_normal(event.n))
         rec_p.append(recovery_time(t, mp, fault["t_clear_s"]))
         rec_q.append(recovery_time(t, mq, fault["t_clear_s"]))
+        kept.append(j)
+        excess.append(q_excess(t, mq, fault["t_clear_s"]))
         # The load bus's voltage the parts saw: the recorded one less the feeder's drop.
         c = mj._split(theta[i])
         z = complex(mj.rx, 1.0) * mj.feeder_x(p0, q0, c)
@@ -358,6 +352,9 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         coverage=cover, extrapolation=extrapolation(model, fault, cover, priors,
                                     left_to_prior(model, post.draws)), band=band,
         prob=prob, warnings=warnings,
+        outcomes={"index": pick[kept], "q_excess_pu_s": np.array(excess),
+                  "stalled": np.array(stalled if model.motor_d else [False] * used),
+                  **{k: np.asarray(v)[kept] for k, v in th.items()}},
     )  # fmt: skip
 
 

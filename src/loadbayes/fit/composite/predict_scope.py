@@ -11,7 +11,9 @@ fitted events span (read from the recordings a fit keeps, ``predictive.events_of
 the depth) from which P or Q stays within 10 % of its pre-fault value.
 :func:`fitted_thresholds` gives each played draw its thresholds (motor D's stall, the
 electronics' trip): the posterior's where the fit sampled them, reweighted for a prior
-the user gives.
+the user gives. :func:`q_excess`
+is the planning outcome (``export --planning`` orders the draws by it); :func:`jeffreys`
+and :func:`spread` summarise the draws' answers.
 """
 
 from __future__ import annotations
@@ -32,20 +34,36 @@ from loadbayes.models.part_priors import THRESHOLD_PRIORS, VD_GAP
 __all__ = [
     "MEANING",
     "MIN_ESS",
-    "fitted_thresholds",
+    "OUTCOME",
+    "OUTCOME_RULE",
     "covered",
     "extrapolation",
+    "fitted_thresholds",
+    "jeffreys",
     "left_to_prior",
+    "q_excess",
     "read_profile",
     "recovery_time",
     "sag_extent",
     "sag_profile",
+    "spread",
 ]
 
 #: What each threshold is (the thresholds of ``part_priors.THRESHOLD_PRIORS``).
 MEANING = {"vstall": "motor D's stall voltage (p.u.)", "tstall": "motor D's stall time (s)",
            "vd1": "the electronics' voltage where tripping starts (p.u.)",
            "vd2": "the electronics' voltage where all have tripped (p.u.)"}  # fmt: skip
+
+#: The planning outcome of each draw played (``Prediction.outcomes``): how hard the load
+#: pulls on the voltage after the fault, the quantity a planner's ensemble must span.
+OUTCOME = "q_excess_pu_s"
+OUTCOME_RULE = (
+    "the load's reactive energy above its pre-fault Q from the fault's clearing to the "
+    "record's end: the integral of max(Q(t) - Q(0), 0) dt, system p.u. times s. A motor "
+    "that reaccelerates slowly draws it for longer and one that stalls draws its locked "
+    "rotor's Q to the end, so it orders the draws by stall severity (fault-induced "
+    "delayed voltage recovery)"
+)
 
 #: Seconds of steady voltage before a built sag, and after its recovery.
 PRE_S, POST_S = 0.2, 1.5
@@ -305,3 +323,36 @@ def fitted_thresholds(model, d, pick, th, priors, left, rng):
     if "vd1" in th and "vd2" in th:
         th["vd2"] = np.minimum(th["vd2"], th["vd1"] - VD_GAP)
     return pick, th, notes
+
+
+def q_excess(t: np.ndarray, q: np.ndarray, t_clear: float) -> float:
+    """:data:`OUTCOME`: the integral of ``max(Q - Q(0), 0)`` from ``t_clear`` to the end."""
+    from scipy.integrate import trapezoid
+
+    after = t >= t_clear
+    if after.sum() < 2:
+        return 0.0
+    return float(trapezoid(np.maximum(q[after] - q[0], 0.0), t[after]))
+
+
+def jeffreys(k: int, n: int, prob: float) -> list[float]:
+    """The Jeffreys interval (``prob``) of a share ``k / n`` (0 and 1 at the ends)."""
+    from scipy.stats import beta
+
+    a = (1 - prob) / 2
+    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
+    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
+    return [lo, hi]
+
+
+def spread(x: np.ndarray, prob: float) -> dict[str, Any]:
+    """Median and central ``prob`` interval of the finite ``x``; the share not finite."""
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    done = x[np.isfinite(x)]
+    out: dict[str, Any] = {"not_within_window": float(np.mean(~np.isfinite(x))) if x.size else 0.0}
+    if done.size:
+        out |= {"median": float(np.median(done)),
+                "interval": [float(v) for v in np.percentile(done, [lo, hi])]}  # fmt: skip
+    else:
+        out |= {"median": None, "interval": None}
+    return out
