@@ -89,6 +89,14 @@ def test_a_deep_sag_is_said_to_extrapolate_and_names_the_priors(fitted):
     assert small.stall["probability"] == 0.0
 
 
+def test_every_fit_records_what_its_events_covered(fitted):
+    # Issue 37: the fit itself keeps the voltage range and durations its events span.
+    cover = Posterior.from_netcdf(fitted).settings["covered"]
+    assert cover["depth_max"] == pytest.approx(0.15, abs=0.02)  # the 15 % sag fitted
+    assert 0.1 <= cover["duration_max_s"] <= 0.16
+    assert cover["events"][0]["event"] == "sag 0.15"
+
+
 def test_a_users_prior_moves_the_stall_and_is_named(fitted):
     base = predict(fitted, sag=0.45, duration=0.1, draws=40)
     low = predict(fitted, sag=0.45, duration=0.1, draws=40, prior=["vstall=0.3,0.01"])
