@@ -198,15 +198,15 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 
 
 @numba.njit(cache=True, nogil=True)
-def _play_block(first, every, t, v, has_angle, gap, steps, window_s, t_all, v_all, z, s0, q_sh,
-                motors, shares, a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok,
-                stalled, tripped, its):  # pragma: no cover - compiled  # fmt: skip
+def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
+                a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
+                its):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
     # for up to 200 where they do not settle), then its stall and the electronics' trip
     # read off |V_L| at every sample, as fit/composite/predict.py read them.
-    n_all = t_all.size
+    n = t.size
     never = dp[0].copy()
-    vl = np.empty(n_all)
+    vl = np.empty(n)
     for i in range(first, shares.shape[0], every):
         got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                      shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
@@ -223,23 +223,23 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, t_all, v_al
             vl_out[i, :] = math.nan
             continue
         ok[i] = True
-        for k in range(n_all):
-            cur = _cdiv(complex(p[i, k], q[i, k]), v_all[k]).conjugate()
-            vl[k] = abs(v_all[k] - z[i] * cur)
+        for k in range(n):
+            cur = _cdiv(complex(p[i, k], q[i, k]), v[k]).conjugate()
+            vl[k] = abs(v[k] - z[i] * cur)
             vl_out[i, k] = vl[k]
         if d_on:
             never[:] = dp[i]
             never[_VSTALL] = -1.0
-            ps = _motor_d_of(t_all, vl, dp[i])
-            pn = _motor_d_of(t_all, vl, never)
-            for k in range(n_all):
+            ps = _motor_d_of(t, vl, dp[i])
+            pn = _motor_d_of(t, vl, never)
+            for k in range(n):
                 if abs(ps[k] - pn[k]) > 1e-9:
                     stalled[i] = True
                     break
         if el_on:
             low = 1.0
             ramp = 1.0
-            for k in range(n_all):
+            for k in range(n):
                 ramp = min(max((vl[k] - vd2[i]) / (vd1[i] - vd2[i]), 0.0), 1.0)
                 low = min(low, ramp)
             tripped[i] = 1.0 - (low + frcel * (ramp - low))
@@ -286,7 +286,8 @@ def play_draws(
     Returns
     -------
     Played
-        ``p, q, vl`` shaped (n, T) at the kept rows (``model.kept``), the rest (n,).
+        ``p, q, vl`` shaped (n, T) at the kept rows (``model.kept``: all of them without a
+        phasor window), the rest (n,).
     """
     th = np.atleast_2d(np.asarray(thetas, dtype=float))
     n = th.shape[0]
@@ -312,20 +313,14 @@ def play_draws(
     vd1 = np.broadcast_to(np.asarray(given.get("vd1", model.vd1), dtype=float), (n,)).copy()
     vd2 = np.broadcast_to(np.asarray(given.get("vd2", model.vd2), dtype=float), (n,)).copy()
 
-    def volts(e: EventRecord) -> NDArray:
-        return e.v * np.exp(1j * (0 if e.delta is None else e.delta - e.delta[0]))
-
-    v, v_all = volts(ev), volts(event)
+    v = ev.v * np.exp(1j * (0 if ev.delta is None else ev.delta - ev.delta[0]))
     gap = gaps_of(ev.t, steps)
-    t_all = np.ascontiguousarray(event.t, dtype=float)
-    shape = (n, ev.n)
-    p, q, vl = np.empty(shape), np.empty(shape), np.empty((n, event.n))
+    p, q, vl = np.empty((n, ev.n)), np.empty((n, ev.n)), np.empty((n, ev.n))
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
     args = (np.ascontiguousarray(ev.t, dtype=float), np.ascontiguousarray(v),
             ev.delta is not None, gap, np.ascontiguousarray(steps, dtype=float),
-            float(model.window_s), t_all, np.ascontiguousarray(v_all),
-            np.ascontiguousarray(z, dtype=complex), complex(p0, q0),
+            float(model.window_s), np.ascontiguousarray(z, dtype=complex), complex(p0, q0),
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,

@@ -119,9 +119,10 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
     n = th.shape[0]
     given = {k: np.broadcast_to(np.asarray(x, dtype=float), (n,)) for k, x in
              (thresholds or {}).items()}  # fmt: skip
-    d = np.zeros(event.n) if event.delta is None else event.delta - event.delta[0]
-    v = event.v * np.exp(1j * d)
-    out = [np.full((n, event.n), np.nan) for _ in range(3)]
+    keep = model.drive_of(event)[0]
+    ev = event.take(keep) if keep.size < event.n else event  # the rows predict_parts returns
+    v = ev.v * np.exp(1j * (np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]))
+    out = [np.full((n, ev.n), np.nan) for _ in range(3)]
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
     for j in range(n):
@@ -141,8 +142,8 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
         out[0][j], out[1][j], out[2][j] = mp, mq, vl
         if model.motor_d:
             kw = {**MOTOR_D_DEFAULTS, **params}
-            run = motor_d(event.t, vl, **(kw | {"vstall": -1.0}))[0]
-            stalled[j] = bool(np.any(np.abs(motor_d(event.t, vl, **kw)[0] - run) > 1e-9))
+            run = motor_d(ev.t, vl, **(kw | {"vstall": -1.0}))[0]
+            stalled[j] = bool(np.any(np.abs(motor_d(ev.t, vl, **kw)[0] - run) > 1e-9))
         if model.electronics:
             tripped[j] = 1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1])
     return Played(*out, ok, stalled, tripped, its)
