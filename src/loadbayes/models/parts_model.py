@@ -295,6 +295,17 @@ class PartsModel:
         """
         return model_sums(self, event, theta)
 
+    def with_thresholds(self, theta: NDArray, values: Mapping[str, NDArray]) -> NDArray:
+        """``theta`` (..., k) with the sampled thresholds set to ``values`` (by name)."""
+        out = np.array(theta, dtype=float)
+        for name in self.thresholds:
+            if name in values:
+                coord = THRESHOLD_COORDS[name]
+                x = np.asarray(values[name], dtype=float)
+                col = self.theta_names.index(coord)
+                out[..., col] = np.log(x) if coord.startswith("log_") else x
+        return out
+
     def lowest_voltage(self, event: EventRecord, theta: NDArray) -> float:
         """The load bus's lowest voltage over the rows the likelihood reads, at ``theta``.
 

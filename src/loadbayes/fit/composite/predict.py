@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -44,8 +44,7 @@ from loadbayes.fit.composite.predictive import events_of
 from loadbayes.fit.composite.validate import operating_point
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, electronics_fraction, motor_d
-from loadbayes.models.parts_predict import predict_parts
+from loadbayes.models.parts_play import play_draws
 from loadbayes.posterior import Posterior
 
 __all__ = ["PRIOR_SOURCE", "Prediction", "load_result", "parse_priors", "predict", "sweep"]
@@ -264,22 +263,19 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     stalled, tripped, rec_p, rec_q = [], [], [], []
     kept, excess = [], []
     failed = 0
+    # Every draw's feeder loop solved in compiled calls, in threads (models/parts_play.py;
+    # models/parts_predict.predict_parts is the same arithmetic, one draw in NumPy).
+    shares = np.array([cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else [0.0, 0.0, 1.0]
+                       for i in pick])  # fmt: skip
+    played = play_draws(model, event, theta[pick], p0, q0, shares, th)
     for j, i in enumerate(pick):
-        params = {**model.motor_d_params, "vstall": float(th["vstall"][j]),
-                  "tstall": float(th["tstall"][j])}  # fmt: skip
-        mj = replace(model, motor_d_params=params, vd1=float(th["vd1"][j]),
-                     vd2=float(th["vd2"][j]))  # fmt: skip
-        share = cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else np.array([0.0, 0.0, 1.0])
-        out = predict_parts(mj, event, theta[i], p0, q0, share)  # damped where it must
-        if out is None:
+        if not played.ok[j]:
             failed += 1
             continue
-        mp, mq, _ = out
-        s = mp + 1j * mq
-        current = np.conj(s / v)
+        mp, mq = played.p[j], played.q[j]
         ps.append(mp)
         qs.append(mq)
-        cur.append(np.abs(current))
+        cur.append(np.abs(np.conj((mp + 1j * mq) / v)))
         sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
         noisy_p.append(mp + sp * rng.standard_normal(event.n))
         noisy_q.append(mq + sq * rng.standard_normal(event.n))
@@ -287,16 +283,11 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         rec_q.append(recovery_time(t, mq, fault["t_clear_s"]))
         kept.append(j)
         excess.append(q_excess(t, mq, fault["t_clear_s"]))
-        # The load bus's voltage the parts saw: the recorded one less the feeder's drop.
-        c = mj._split(theta[i])
-        z = complex(mj.rx, 1.0) * mj.feeder_x(p0, q0, c)
-        vl = np.abs(v - z * current)
+        # Read off the load bus's voltage the parts saw (the recorded one less the drop).
         if model.motor_d:
-            kw = {**MOTOR_D_DEFAULTS, **params}
-            run = motor_d(t, vl, **(kw | {"vstall": -1.0}))[0]
-            stalled.append(bool(np.any(np.abs(motor_d(t, vl, **kw)[0] - run) > 1e-9)))
+            stalled.append(bool(played.stalled[j]))
         if model.electronics:
-            tripped.append(1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1]))
+            tripped.append(float(played.tripped[j]))
     used = len(ps)
     if not used:
         raise ValueError(f"no posterior draw has a steady state at the operating point "
