@@ -1,0 +1,391 @@
+r"""``loadbayes.archive.pool``: each station's composition over the year, events pooled.
+
+An archive's fits (:func:`loadbayes.archive.catalog.fits_frame`: one row per fitted event
+and part share) are many shallow measurements of a few slowly changing loads. For each
+part (``f_m``, the motor's share of ``zip+motor``; each share of a richer model, apart),
+every unit ``u`` (a station's bay) gets a curve over the covariates, and the units'
+curves are pooled:
+
+.. math::
+
+    y_e &= \operatorname{logit}(m_e), \quad s_e = sd_e / (m_e (1 - m_e)) \\
+    y_e &\sim N(x_e^\top \beta_{u(e)} + \eta_e,\; s_e^2), \quad
+    \eta_e \sim N(0, \tau_{u(e)}^2) \\
+    \beta_u &\sim N(\mu, \Sigma), \quad \mu \sim N(0, M_0), \quad
+    \Sigma \sim IW(\nu_0, \Psi_0), \quad \tau_u \sim \text{HalfNormal}(1)
+
+``m_e`` and ``sd_e`` are the event's posterior mean and sd of the share; ``x_e`` holds 1,
+the first and second harmonics of the day of the year (``sin, cos`` of ``2 pi k d /
+365.25``, k = 1, 2), those of the hour of the day when asked (``2 pi k h / 24``), and the
+temperature (standardised) when a table of it is given. ``eta_e`` is the event-to-event
+spread around the unit's curve. ``M_0 = diag(2.5^2, 1, ...)``; ``Psi_0`` makes the prior
+mean of ``Sigma`` ``diag(0.5^2, 0.3^2, ...)`` with ``nu_0 = p + 4``: with three or five
+stations the data hardly tell ``Sigma``, and this prior sets how far a station with few
+events may stray from the population.
+
+The approximation: an event's share posterior is taken as normal on the logit scale with
+the delta method's sd. It is poor where the posterior crowds 0 or 1 (its mean within two
+sd of a bound); such events are counted in the result's notes. The curve
+``logistic(x' beta_u)`` is the share of the unit's median event at ``x`` (the mean over
+events is pulled toward 1/2 by ``tau``). Parts are pooled one by one (their sum to one is
+not imposed).
+
+Sampled by Gibbs (:mod:`.pool_gibbs`), chains from one seed. Events whose fit failed
+(``status != "ok"``) or did not converge (``rhat > 1.05``) are left out and counted.
+
+Which units are alike (the rule): for each pair, the posterior probability that their
+curves differ by less than ``tolerance`` (share, default 0.1) everywhere on a grid of
+the covariates (weekly days, every third hour when hours are modelled, the 10/50/90 %
+temperatures); "alike" at 0.8 or more, "different" at 0.2 or less, "cannot tell"
+between (:mod:`.pool_words`). Groups are the connected sets of alike pairs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from loadbayes.archive.pool_gibbs import PoolData, PoolPrior, sample_pool
+from loadbayes.io.errors import DataError, OptionError
+
+__all__ = ["PartPool", "PoolResult", "design", "pool"]
+
+COLUMNS = ("station", "bay", "event_id", "time", "part", "mean", "sd", "rhat", "status")
+RHAT_EVENT = 1.05
+COVARIATES = ("season", "hour")
+TEMPERATURE_WINDOW = pd.Timedelta(hours=3)
+MONTHS = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
+_MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30])
+_MONTH_DAYS = np.diff(np.append(_MONTH_START, 365))
+
+
+def design(day: np.ndarray, hour: np.ndarray | None = None,
+           temperature: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:  # fmt: skip
+    """The covariate rows ``x``: 1, the seasonal harmonics, the hour's, the temperature."""
+    day = np.asarray(day, dtype=float)
+    cols, names = [np.ones_like(day)], ["intercept"]
+    for what, x, period in (("season", day, 365.25), ("hour", hour, 24.0)):
+        if x is None:
+            continue
+        for k in (1, 2):
+            a = 2 * np.pi * k * np.asarray(x, dtype=float) / period
+            cols += [np.sin(a), np.cos(a)]
+            names += [f"{what}_sin{k}", f"{what}_cos{k}"]
+    if temperature is not None:
+        cols.append(np.asarray(temperature, dtype=float))
+        names.append("temperature")
+    return np.stack(cols, axis=-1), names
+
+
+@dataclass
+class PartPool:
+    """One part's pooled fit: its units, draws, monthly table and alike pairs."""
+
+    part: str
+    units: list[tuple[str, str]]
+    events: np.ndarray
+    coefs: list[str]
+    draws: dict[str, np.ndarray]
+    observed: dict[str, np.ndarray]
+    monthly: pd.DataFrame
+    alike: pd.DataFrame
+    groups: list[list[str]]
+    diagnostics: dict[str, Any]
+    grid: dict[str, Any] = field(repr=False)
+
+    def inference_data(self):
+        """The draws as ArviZ ``InferenceData`` (posterior, observed and constant data)."""
+        from loadbayes.posterior import import_arviz
+
+        names = [f"{s} / {b}" for s, b in self.units]
+        return import_arviz().from_dict(
+            posterior={"beta": self.draws["beta"], "mu": self.draws["mu"],
+                       "Sigma": self.draws["sigma"], "tau": self.draws["tau"]},
+            sample_stats={"accept_tau": self.draws["accept_tau"]},
+            observed_data={"y_logit": self.observed["y"]},
+            constant_data={"s_logit": self.observed["s"], "unit_index": self.observed["unit"]},
+            coords={"unit": names, "coef": self.coefs, "coef_b": self.coefs},
+            dims={"beta": ["unit", "coef"], "mu": ["coef"], "Sigma": ["coef", "coef_b"],
+                  "tau": ["unit"], "y_logit": ["event"], "s_logit": ["event"],
+                  "unit_index": ["event"]},
+            attrs={"part": self.part, "model": "loadbayes.archive.pool"},
+        )  # fmt: skip
+
+    def curve(
+        self,
+        station: str,
+        bay: str,
+        day: np.ndarray,
+        hour: np.ndarray | None = None,
+        temperature: np.ndarray | None = None,
+        prob: float = 0.95,
+    ) -> pd.DataFrame:
+        """The unit's share at the covariates given: mean and equal-tailed band per row.
+
+        ``temperature`` in degrees (standardised here as the fit was).
+        """
+        u = self.units.index((station, bay))
+        t = None
+        if temperature is not None:
+            t = (np.asarray(temperature, float) - self.grid["t_mean"]) / self.grid["t_sd"]
+        x, _ = design(day, hour if self.grid["hour"] else None, t)
+        sh = _shares(self.draws["beta"][:, :, u], x).reshape(-1, x.shape[0])
+        lo, hi = np.quantile(sh, [(1 - prob) / 2, (1 + prob) / 2], axis=0)
+        return pd.DataFrame({"day": day, "mean": sh.mean(axis=0), "low": lo, "high": hi})
+
+
+@dataclass
+class PoolResult:
+    """What :func:`pool` returns: per part a :class:`PartPool`, the events left out, words."""
+
+    parts: dict[str, PartPool]
+    left_out: dict[str, int]
+    warnings: list[str]
+    notes: list[str]
+    settings: dict[str, Any]
+
+    def monthly(self) -> pd.DataFrame:
+        """Every part's monthly table (the population's rows have station ``(all)``)."""
+        return pd.concat([p.monthly for p in self.parts.values()], ignore_index=True)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON of ``archive pool --out``."""
+        return {
+            "settings": self.settings,
+            "left_out": self.left_out,
+            "warnings": self.warnings,
+            "notes": self.notes,
+            "parts": {
+                name: {
+                    "units": [
+                        {"station": s, "bay": b, "events": int(n)}
+                        for (s, b), n in zip(p.units, p.events, strict=True)
+                    ],
+                    "monthly": p.monthly.to_dict(orient="records"),
+                    "alike": p.alike.to_dict(orient="records"),
+                    "groups": p.groups,
+                    "diagnostics": p.diagnostics,
+                }  # fmt: skip
+                for name, p in self.parts.items()
+            },
+        }
+
+
+def _shares(beta: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-(beta @ x.T)))
+
+
+def _check(frame: pd.DataFrame, source: str | None) -> pd.DataFrame:
+    missing = [c for c in COLUMNS if c not in frame.columns]
+    if missing:
+        raise DataError(f"the catalog's fits have no column {missing[0]!r}", source, missing[0])
+    f = frame.reset_index(drop=True)
+    times = pd.to_datetime(f["time"], errors="coerce")
+    ok = f["status"].astype(str) == "ok"
+    for col in ("mean", "sd", "rhat"):
+        v = pd.to_numeric(f[col], errors="coerce")
+        bad = ok & (v.isna() if col != "sd" else ~(v > 0))
+        if col == "mean":
+            bad |= ok & ((v < 0) | (v > 1))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            what = {"mean": "a share in [0, 1]", "sd": "a positive sd", "rhat": "a number"}[col]
+            raise DataError(f"event {f['event_id'][i]!r}: {f[col][i]!r} is not {what}",
+                            source, col, i + 1)  # fmt: skip
+        f[col] = v
+    if times.isna().any():
+        i = int(np.flatnonzero(times.isna())[0])
+        raise DataError(f"event {f['event_id'][i]!r}: no time", source, "time", i + 1)
+    f["time"] = times
+    return f
+
+
+def _temperatures(f: pd.DataFrame, table: pd.DataFrame, name: str):
+    """Each event's temperature (the station's nearest reading within 3 h), or NaN."""
+    for col in ("station", "time", "temperature"):
+        if col not in table.columns:
+            raise DataError(f"no column {col!r} (needs station, time, temperature)", name, col)
+    t = table.reset_index(drop=True)
+    when = pd.to_datetime(t["time"], errors="coerce")
+    temp = pd.to_numeric(t["temperature"], errors="coerce")
+    for col, bad in (("time", when.isna()), ("temperature", temp.isna())):
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataError(f"{t[col][i]!r} is not a {col}", name, col, i + 1)
+    t = pd.DataFrame({"station": t["station"].astype(str), "time": when, "temperature": temp})
+    t = t.sort_values("time")
+    ev = f[["station", "time"]].assign(station=f["station"].astype(str), _i=np.arange(len(f)))
+    m = pd.merge_asof(ev.sort_values("time"), t, on="time", by="station",
+                      direction="nearest", tolerance=TEMPERATURE_WINDOW)  # fmt: skip
+    out = np.full(len(f), np.nan)
+    out[m["_i"].to_numpy()] = m["temperature"].to_numpy()
+    return out, t
+
+
+def pool(
+    frame: pd.DataFrame,
+    *,
+    covariates: tuple[str, ...] = ("season",),
+    temperature: pd.DataFrame | None = None,
+    draws: int = 2000,
+    burn: int | None = None,
+    chains: int = 4,
+    seed: int = 0,
+    tolerance: float = 0.1,
+    source: str | None = None,
+    temperature_source: str = "temperature table",
+) -> PoolResult:
+    """Pool the archive's fitted shares per part: each unit's curve over the covariates.
+
+    Parameters
+    ----------
+    frame : DataFrame
+        ``catalog.fits_frame``: station, bay, event_id, time, part, mean, sd, rhat, status.
+    covariates : tuple of str
+        ``"season"`` (always) and ``"hour"``.
+    temperature : DataFrame, optional
+        station, time, temperature (C): each event takes its station's nearest reading
+        within 3 h (events with none are left out and counted).
+    draws, burn, chains, seed : int
+        Kept draws per chain, burn-in (default ``draws // 2``), chains, the seed.
+    tolerance : float
+        The share difference under which two units are alike (see the module's rule).
+    source, temperature_source : str
+        Names for the errors (the catalog's and the temperature file's).
+    """
+    unknown = set(covariates) - set(COVARIATES)
+    if unknown or "season" not in covariates:
+        raise OptionError(f"covariates must include 'season' and may add 'hour'; got {covariates}")
+    if draws < 50 or chains < 1 or not 0 < tolerance < 1:
+        raise OptionError("draws must be at least 50, chains at least 1, tolerance in (0, 1)")
+    burn = draws // 2 if burn is None else burn
+    f = _check(frame, source)
+    left = {"fit failed": int((f["status"].astype(str) != "ok").sum())}
+    f = f[f["status"].astype(str) == "ok"]
+    left[f"did not converge (R-hat > {RHAT_EVENT})"] = int((f["rhat"] > RHAT_EVENT).sum())
+    f = f[~(f["rhat"] > RHAT_EVENT)].reset_index(drop=True)
+    temp, table, t_mean, t_sd = None, None, 0.0, 1.0
+    if temperature is not None:
+        raw, table = _temperatures(f, temperature, temperature_source)
+        left["no temperature within 3 h"] = int(np.isnan(raw).sum())
+        f, raw = f[~np.isnan(raw)].reset_index(drop=True), raw[~np.isnan(raw)]
+        t_mean, t_sd = (float(raw.mean()), float(raw.std()) or 1.0) if raw.size else (0.0, 1.0)
+        temp = (raw - t_mean) / t_sd
+    if f.empty:
+        raise DataError("no usable event: " + ", ".join(f"{k} {v}" for k, v in left.items()),
+                        source)  # fmt: skip
+    hour = "hour" in covariates
+    settings = {"covariates": list(covariates), "temperature": temperature is not None,
+                "draws": draws, "burn": burn, "chains": chains, "seed": seed,
+                "tolerance": tolerance, "rhat_event": RHAT_EVENT}  # fmt: skip
+    res = PoolResult({}, left, [], [], settings)
+    seeds = np.random.SeedSequence(seed).spawn(f["part"].nunique())
+    for part, sq in zip(sorted(f["part"].astype(str).unique()), seeds, strict=True):
+        rows = np.flatnonzero(f["part"].astype(str).to_numpy() == part)
+        grid = {"hour": hour, "t_mean": t_mean, "t_sd": t_sd, "table": table}
+        res.parts[part] = _fit_part(f.iloc[rows], None if temp is None else temp[rows], grid,
+                                    draws, burn, chains, sq, tolerance)  # fmt: skip
+        res.warnings += res.parts[part].diagnostics.pop("warnings")
+        res.notes += res.parts[part].diagnostics.pop("notes")
+    return res
+
+
+def _fit_part(f, temp, grid, draws, burn, chains, seed, tolerance) -> PartPool:
+    from loadbayes.archive.pool_words import alike_pairs, convergence_words, groups_of
+
+    part = str(f["part"].iloc[0])
+    keys = list(zip(f["station"].astype(str), f["bay"].astype(str), strict=True))
+    units = sorted(set(keys))
+    unit = np.array([units.index(k) for k in keys])
+    m = f["mean"].to_numpy(float).clip(1e-4, 1 - 1e-4)
+    sd = f["sd"].to_numpy(float)
+    y, s = np.log(m / (1 - m)), sd / (m * (1 - m))
+    t = pd.DatetimeIndex(f["time"])
+    day = (t.dayofyear - 1 + (t.hour + t.minute / 60) / 24).to_numpy(float)
+    hours = (t.hour + t.minute / 60).to_numpy(float) if grid["hour"] else None
+    x, coefs = design(day, hours, temp)
+    p = len(coefs)
+    data = PoolData.of(unit, x, y, s**2, len(units))
+    prior = PoolPrior(mu_sd=np.r_[2.5, np.ones(p - 1)], sigma_sd=np.r_[0.5, np.full(p - 1, 0.3)])
+    # a rough start: each unit's weighted least squares, shrunk to 0 by the prior of mu
+    start = np.empty((len(units), p))
+    for u in range(len(units)):
+        w = data.mask[u] / (data.s2[u] + 0.04)
+        a = (data.x[u] * w[:, None]).T @ data.x[u] + np.diag(1 / prior.sigma_sd**2)
+        start[u] = np.linalg.solve(a, (data.x[u] * w[:, None]).T @ data.y[u])
+    out = sample_pool(data, prior, draws=draws, burn=burn, chains=chains, seed=seed,
+                      start_beta=start)  # fmt: skip
+    crowded = int(np.sum((m < 2 * sd) | (1 - m < 2 * sd)))
+    notes = []
+    if crowded:
+        notes.append(
+            f"{part}: {crowded} events' shares lie within two sd of 0 or 1, where the "
+            "normal approximation on the logit scale is poor (they weigh less)"
+        )
+    names = [f"{a} / {b}" for a, b in units]
+    grid = {**grid, "month_temps": _month_temps(units, grid, temp, f)}
+    monthly, month_draws = _monthly(part, units, out, grid, np.bincount(unit, minlength=len(units)))
+    table = alike_pairs(names, out["beta"], _alike_grid(grid, temp), tolerance)
+    diag = convergence_words(part, names, coefs, out, month_draws)
+    return PartPool(part, units, np.bincount(unit, minlength=len(units)), coefs, out,
+                    {"y": y, "s": s, "unit": unit}, monthly, table,
+                    groups_of(names, table), {**diag, "notes": notes}, grid)  # fmt: skip
+
+
+def _month_temps(units, grid, temp, f) -> np.ndarray | None:
+    """Each unit's mean temperature per month (standardised), from the table given."""
+    if temp is None:
+        return None
+    tab = grid["table"]
+    out = np.zeros((len(units), 12))
+    for i, (station, _) in enumerate(units):
+        rows = tab[tab["station"] == station]
+        std = (rows["temperature"].to_numpy() - grid["t_mean"]) / grid["t_sd"]
+        by = pd.Series(std).groupby(rows["time"].dt.month.to_numpy()).mean()
+        out[i] = [by.get(mo, std.mean()) for mo in range(1, 13)]
+    return out
+
+
+def _monthly(part, units, out, grid, counts):
+    """The monthly table: each month's mean share over its days (and hours), with bands."""
+    k = 3 if grid["hour"] else 6
+    pieces = []
+    for mo in range(12):
+        d = _MONTH_START[mo] + _MONTH_DAYS[mo] * (np.arange(k) + 0.5) / k
+        h = np.arange(0, 24, 3) + 1.5 if grid["hour"] else None
+        dd, hh = (np.repeat(d, h.size), np.tile(h, d.size)) if h is not None else (d, None)
+        pieces.append((dd, hh))
+    rows, mdraws = [], []
+    populations = [("(all)", "(all)", out["mu"][:, :, None, :], None)]
+    for who in [(s, b, out["beta"][:, :, [u]], u) for u, (s, b) in enumerate(units)] + populations:
+        station, bay, beta, u = who
+        for mo, (dd, hh) in enumerate(pieces):
+            t = None
+            if grid["month_temps"] is not None:
+                t = np.full(dd.size, grid["month_temps"][u, mo] if u is not None else 0.0)
+            x, _ = design(dd, hh, t)
+            v = _shares(beta, x).mean(axis=-1)[:, :, 0]
+            lo, hi = np.quantile(v, [0.025, 0.975])
+            n = int(counts[u]) if u is not None else int(counts.sum())
+            rows.append({"part": part, "station": station, "bay": bay, "month": mo + 1,
+                         "name": MONTHS[mo], "mean": float(v.mean()), "low": float(lo),
+                         "high": float(hi), "events": n})  # fmt: skip
+            mdraws.append(v)
+    return pd.DataFrame(rows), np.stack(mdraws)
+
+
+def _alike_grid(grid, temp) -> np.ndarray:
+    days = np.arange(3.5, 365, 7.0)
+    hours = np.arange(0, 24, 3) + 1.5 if grid["hour"] else None
+    temps = [None] if temp is None else list(np.quantile(temp, [0.1, 0.5, 0.9]))
+    xs = []
+    for t in temps:
+        if hours is None:
+            dd, hh = days, None
+        else:
+            dd, hh = np.repeat(days, hours.size), np.tile(hours, days.size)
+        xs.append(design(dd, hh, None if t is None else np.full(dd.size, t))[0])
+    return np.concatenate(xs)
