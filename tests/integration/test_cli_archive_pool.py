@@ -39,7 +39,11 @@ def test_pool_writes_the_json_and_the_figure(catalog, tmp_path):
     r = _run("--catalog", path, "--draws", 100, "--chains", 2, "--out", out, "--plot", fig)
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
-    assert d["left_out"] == {"fit failed": 4, "did not converge (R-hat > 1.05)": 3}
+    assert d["left_out"] == {
+        "fit failed": 4,
+        "did not converge (R-hat > 1.05)": 3,
+        "no R-hat recorded": 0,
+    }
     assert len(d["parts"]["f_m"]["monthly"]) == 12 * 7
     assert fig.read_bytes()[:4] == b"\x89PNG"
     assert "events left out: fit failed: 4" in r.output

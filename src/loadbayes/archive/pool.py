@@ -8,34 +8,39 @@ curves are pooled:
 
 .. math::
 
-    y_e &= \operatorname{logit}(m_e), \quad s_e = sd_e / (m_e (1 - m_e)) \\
+    y_e &= \operatorname{logit}(c_e) + (m_e - c_e) / g_e, \quad s_e = sd_e / g_e,
+    \quad g_e = c_e (1 - c_e) \\
     y_e &\sim N(x_e^\top \beta_{u(e)} + \eta_e,\; s_e^2), \quad
     \eta_e \sim N(0, \tau_{u(e)}^2) \\
     \beta_u &\sim N(\mu, \Sigma), \quad \mu \sim N(0, M_0), \quad
     \Sigma \sim IW(\nu_0, \Psi_0), \quad \tau_u \sim \text{HalfNormal}(1)
 
-``m_e`` and ``sd_e`` are the event's posterior mean and sd of the share; ``x_e`` holds 1,
-the first and second harmonics of the day of the year (``sin, cos`` of ``2 pi k d /
-365.25``, k = 1, 2), those of the hour of the day when asked (``2 pi k h / 24``), and the
-temperature (standardised) when a table of it is given. ``eta_e`` is the event-to-event
-spread around the unit's curve. ``M_0 = diag(2.5^2, 1, ...)``; ``Psi_0`` makes the prior
-mean of ``Sigma`` ``diag(0.5^2, 0.3^2, ...)`` with ``nu_0 = p + 4``: with three or five
-stations the data hardly tell ``Sigma``, and this prior sets how far a station with few
-events may stray from the population.
+``m_e`` and ``sd_e`` are the event's posterior mean and sd of the share, ``c_e`` a rough
+curve of its unit at the event (:func:`.pool_data.working`); ``x_e`` holds 1, the first and second
+harmonics of the day of the year (``sin, cos`` of ``2 pi k d / 365.25``, k = 1, 2), those
+of the hour of the day when asked (``2 pi k h / 24``), and the temperature (standardised)
+when a table of it is given. ``eta_e`` is the event-to-event spread around the unit's
+curve. ``M_0 = diag(2.5^2, 1, ...)``; ``Psi_0`` makes the prior mean of ``Sigma``
+``diag(0.5^2, 0.3^2, ...)`` with ``nu_0 = p + 4``: with three or five stations the data
+hardly tell ``Sigma``, and this prior sets how far a station with few events may stray
+from the population.
 
-The approximation: an event's share posterior is taken as normal on the logit scale with
-the delta method's sd. It is poor where the posterior crowds 0 or 1 (its mean within two
-sd of a bound); such events are counted in the result's notes. The curve
-``logistic(x' beta_u)`` is the share of the unit's median event at ``x`` (the mean over
-events is pulled toward 1/2 by ``tau``). Parts are pooled one by one (their sum to one is
-not imposed).
+The approximation: an event's share posterior is taken as normal, and the logit is
+linearised around the unit's rough curve (iteratively reweighted least squares' working
+response; the delta method around the event's own mean gave a share measured low less
+weight and biased low shares' curves up). It is poor where the posterior crowds 0 or 1
+(its mean within two sd of a bound; counted in the result's notes) and where an event
+lies far from its unit's curve (the logit's curvature over the event-to-event spread).
+The curve ``logistic(x' beta_u)`` is the share of the unit's median event at ``x`` (the
+mean over events is pulled toward 1/2 by ``tau``). Parts are pooled one by one (their sum
+to one is not imposed).
 
 Sampled by Gibbs (:mod:`.pool_gibbs`), chains from one seed. Events whose fit failed
 (``status != "ok"``) or did not converge (``rhat > 1.05``) are left out and counted.
 
 Which units are alike (the rule): for each pair, the posterior probability that their
 curves differ by less than ``tolerance`` (share, default 0.1) everywhere on a grid of
-the covariates (weekly days, every third hour when hours are modelled, the 10/50/90 %
+the covariates (every other week, every third hour when hours are modelled, the 10/50/90 %
 temperatures); "alike" at 0.8 or more, "different" at 0.2 or less, "cannot tell"
 between (:mod:`.pool_words`). Groups are the connected sets of alike pairs.
 """
@@ -48,15 +53,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from loadbayes.archive.pool_data import RHAT_EVENT, check_fits, event_temperatures, working
 from loadbayes.archive.pool_gibbs import PoolData, PoolPrior, sample_pool
 from loadbayes.io.errors import DataError, OptionError
 
 __all__ = ["PartPool", "PoolResult", "design", "pool"]
 
-COLUMNS = ("station", "bay", "event_id", "time", "part", "mean", "sd", "rhat", "status")
-RHAT_EVENT = 1.05
 COVARIATES = ("season", "hour")
-TEMPERATURE_WINDOW = pd.Timedelta(hours=3)
 MONTHS = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
 _MONTH_START = np.cumsum([0, 31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30])
 _MONTH_DAYS = np.diff(np.append(_MONTH_START, 365))
@@ -125,12 +128,20 @@ class PartPool:
     ) -> pd.DataFrame:
         """The unit's share at the covariates given: mean and equal-tailed band per row.
 
-        ``temperature`` in degrees (standardised here as the fit was).
+        ``temperature`` in degrees (standardised here as the fit was; the events' mean
+        when the fit has a temperature term and none is given). ``hour`` is needed when
+        the fit has the hour's harmonics.
         """
         u = self.units.index((station, bay))
+        day = np.asarray(day, dtype=float)
+        if self.grid["hour"] and hour is None:
+            raise OptionError("this pool has the hour of day: give hour= with day=")
         t = None
-        if temperature is not None:
-            t = (np.asarray(temperature, float) - self.grid["t_mean"]) / self.grid["t_sd"]
+        if "temperature" in self.coefs:
+            given = self.grid["t_mean"] if temperature is None else temperature
+            t = (np.broadcast_to(np.asarray(given, float), day.shape) - self.grid["t_mean"]) / (
+                self.grid["t_sd"]
+            )
         x, _ = design(day, hour if self.grid["hour"] else None, t)
         sh = _shares(self.draws["beta"][:, :, u], x).reshape(-1, x.shape[0])
         lo, hi = np.quantile(sh, [(1 - prob) / 2, (1 + prob) / 2], axis=0)
@@ -178,59 +189,12 @@ def _shares(beta: np.ndarray, x: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 + np.exp(-(beta @ x.T)))
 
 
-def _check(frame: pd.DataFrame, source: str | None) -> pd.DataFrame:
-    missing = [c for c in COLUMNS if c not in frame.columns]
-    if missing:
-        raise DataError(f"the catalog's fits have no column {missing[0]!r}", source, missing[0])
-    f = frame.reset_index(drop=True)
-    times = pd.to_datetime(f["time"], errors="coerce")
-    ok = f["status"].astype(str) == "ok"
-    for col in ("mean", "sd", "rhat"):
-        v = pd.to_numeric(f[col], errors="coerce")
-        bad = ok & (v.isna() if col != "sd" else ~(v > 0))
-        if col == "mean":
-            bad |= ok & ((v < 0) | (v > 1))
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            what = {"mean": "a share in [0, 1]", "sd": "a positive sd", "rhat": "a number"}[col]
-            raise DataError(f"event {f['event_id'][i]!r}: {f[col][i]!r} is not {what}",
-                            source, col, i + 1)  # fmt: skip
-        f[col] = v
-    if times.isna().any():
-        i = int(np.flatnonzero(times.isna())[0])
-        raise DataError(f"event {f['event_id'][i]!r}: no time", source, "time", i + 1)
-    f["time"] = times
-    return f
-
-
-def _temperatures(f: pd.DataFrame, table: pd.DataFrame, name: str):
-    """Each event's temperature (the station's nearest reading within 3 h), or NaN."""
-    for col in ("station", "time", "temperature"):
-        if col not in table.columns:
-            raise DataError(f"no column {col!r} (needs station, time, temperature)", name, col)
-    t = table.reset_index(drop=True)
-    when = pd.to_datetime(t["time"], errors="coerce")
-    temp = pd.to_numeric(t["temperature"], errors="coerce")
-    for col, bad in (("time", when.isna()), ("temperature", temp.isna())):
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise DataError(f"{t[col][i]!r} is not a {col}", name, col, i + 1)
-    t = pd.DataFrame({"station": t["station"].astype(str), "time": when, "temperature": temp})
-    t = t.sort_values("time")
-    ev = f[["station", "time"]].assign(station=f["station"].astype(str), _i=np.arange(len(f)))
-    m = pd.merge_asof(ev.sort_values("time"), t, on="time", by="station",
-                      direction="nearest", tolerance=TEMPERATURE_WINDOW)  # fmt: skip
-    out = np.full(len(f), np.nan)
-    out[m["_i"].to_numpy()] = m["temperature"].to_numpy()
-    return out, t
-
-
 def pool(
     frame: pd.DataFrame,
     *,
     covariates: tuple[str, ...] = ("season",),
     temperature: pd.DataFrame | None = None,
-    draws: int = 2000,
+    draws: int = 1000,
     burn: int | None = None,
     chains: int = 4,
     seed: int = 0,
@@ -262,14 +226,15 @@ def pool(
     if draws < 50 or chains < 1 or not 0 < tolerance < 1:
         raise OptionError("draws must be at least 50, chains at least 1, tolerance in (0, 1)")
     burn = draws // 2 if burn is None else burn
-    f = _check(frame, source)
+    f = check_fits(frame, source)
     left = {"fit failed": int((f["status"].astype(str) != "ok").sum())}
     f = f[f["status"].astype(str) == "ok"]
     left[f"did not converge (R-hat > {RHAT_EVENT})"] = int((f["rhat"] > RHAT_EVENT).sum())
-    f = f[~(f["rhat"] > RHAT_EVENT)].reset_index(drop=True)
+    left["no R-hat recorded"] = int(f["rhat"].isna().sum())
+    f = f[f["rhat"] <= RHAT_EVENT].reset_index(drop=True)
     temp, table, t_mean, t_sd = None, None, 0.0, 1.0
     if temperature is not None:
-        raw, table = _temperatures(f, temperature, temperature_source)
+        raw, table = event_temperatures(f, temperature, temperature_source)
         left["no temperature within 3 h"] = int(np.isnan(raw).sum())
         f, raw = f[~np.isnan(raw)].reset_index(drop=True), raw[~np.isnan(raw)]
         t_mean, t_sd = (float(raw.mean()), float(raw.std()) or 1.0) if raw.size else (0.0, 1.0)
@@ -302,20 +267,14 @@ def _fit_part(f, temp, grid, draws, burn, chains, seed, tolerance) -> PartPool:
     unit = np.array([units.index(k) for k in keys])
     m = f["mean"].to_numpy(float).clip(1e-4, 1 - 1e-4)
     sd = f["sd"].to_numpy(float)
-    y, s = np.log(m / (1 - m)), sd / (m * (1 - m))
     t = pd.DatetimeIndex(f["time"])
     day = (t.dayofyear - 1 + (t.hour + t.minute / 60) / 24).to_numpy(float)
     hours = (t.hour + t.minute / 60).to_numpy(float) if grid["hour"] else None
     x, coefs = design(day, hours, temp)
     p = len(coefs)
-    data = PoolData.of(unit, x, y, s**2, len(units))
     prior = PoolPrior(mu_sd=np.r_[2.5, np.ones(p - 1)], sigma_sd=np.r_[0.5, np.full(p - 1, 0.3)])
-    # a rough start: each unit's weighted least squares, shrunk to 0 by the prior of mu
-    start = np.empty((len(units), p))
-    for u in range(len(units)):
-        w = data.mask[u] / (data.s2[u] + 0.04)
-        a = (data.x[u] * w[:, None]).T @ data.x[u] + np.diag(1 / prior.sigma_sd**2)
-        start[u] = np.linalg.solve(a, (data.x[u] * w[:, None]).T @ data.y[u])
+    start, y, s = working(x, unit, len(units), m, sd, prior.sigma_sd)
+    data = PoolData.of(unit, x, y, s**2, len(units))
     out = sample_pool(data, prior, draws=draws, burn=burn, chains=chains, seed=seed,
                       start_beta=start)  # fmt: skip
     crowded = int(np.sum((m < 2 * sd) | (1 - m < 2 * sd)))
@@ -330,6 +289,8 @@ def _fit_part(f, temp, grid, draws, burn, chains, seed, tolerance) -> PartPool:
     monthly, month_draws = _monthly(part, units, out, grid, np.bincount(unit, minlength=len(units)))
     table = alike_pairs(names, out["beta"], _alike_grid(grid, temp), tolerance)
     diag = convergence_words(part, names, coefs, out, month_draws)
+    if temp is not None:
+        diag["warnings"] += _confounded(part, x)
     return PartPool(part, units, np.bincount(unit, minlength=len(units)), coefs, out,
                     {"y": y, "s": s, "unit": unit}, monthly, table,
                     groups_of(names, table), {**diag, "notes": notes}, grid)  # fmt: skip
@@ -377,8 +338,19 @@ def _monthly(part, units, out, grid, counts):
     return pd.DataFrame(rows), np.stack(mdraws)
 
 
+def _confounded(part: str, x: np.ndarray) -> list[str]:
+    """Words when the temperature follows the season (and hour): R^2 of it on them."""
+    fit, *_ = np.linalg.lstsq(x[:, :-1], x[:, -1], rcond=None)
+    r2 = 1 - np.var(x[:, -1] - x[:, :-1] @ fit) / max(np.var(x[:, -1]), 1e-12)
+    if r2 < 0.9:
+        return []
+    return [f"{part}: the events' temperature follows the season (R^2 {r2:.2f} on the "
+            "harmonics): the data cannot tell the temperature's effect from the season's; "
+            "the curve over the year stands, its split between them does not"]  # fmt: skip
+
+
 def _alike_grid(grid, temp) -> np.ndarray:
-    days = np.arange(3.5, 365, 7.0)
+    days = np.arange(7.0, 365, 14.0)
     hours = np.arange(0, 24, 3) + 1.5 if grid["hour"] else None
     temps = [None] if temp is None else list(np.quantile(temp, [0.1, 0.5, 0.9]))
     xs = []

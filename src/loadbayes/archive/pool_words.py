@@ -14,6 +14,8 @@ __all__ = ["alike_pairs", "convergence_words", "groups_of"]
 
 #: At or above: "alike"; at or below DIFFERENT: "different"; between: "cannot tell".
 ALIKE, DIFFERENT = 0.8, 0.2
+#: Draws (all chains) the alike probabilities are counted over.
+THIN_DRAWS = 1000
 
 
 def alike_pairs(
@@ -27,9 +29,12 @@ def alike_pairs(
     rows = []
     if len(names) < 2:
         return pd.DataFrame(columns=["a", "b", "prob_alike", "max_diff_median", "verdict"])
-    shares = 1.0 / (1.0 + np.exp(-(beta @ x.T)))  # (chain, draw, unit, G)
+    # at most THIN_DRAWS draws: the probability to about 0.015, the memory bounded
+    flat = beta.reshape(-1, *beta.shape[2:])
+    flat = flat[:: max(1, flat.shape[0] // THIN_DRAWS)]
+    shares = 1.0 / (1.0 + np.exp(-(flat @ x.T)))  # (draw, unit, G)
     for i, j in itertools.combinations(range(len(names)), 2):
-        gap = np.abs(shares[:, :, i] - shares[:, :, j]).max(axis=-1)
+        gap = np.abs(shares[:, i] - shares[:, j]).max(axis=-1)
         prob = float(np.mean(gap < tolerance))
         verdict = "alike" if prob >= ALIKE else "different" if prob <= DIFFERENT else "cannot tell"
         rows.append({"a": names[i], "b": names[j], "prob_alike": prob,

@@ -70,8 +70,8 @@ def table_lines(res) -> list[str]:
 @click.option("--tolerance", type=click.FloatRange(0, 1, min_open=True, max_open=True),
               default=0.1, show_default=True,
               help="Share difference under which two stations' curves are alike.")  # fmt: skip
-@click.option("--draws", type=click.IntRange(min=50), default=2000, show_default=True,
-              help="Kept draws per chain.")  # fmt: skip
+@click.option("--draws", type=click.IntRange(min=50), default=1000, show_default=True,
+              help="Kept draws per chain (after half as many of burn-in).")  # fmt: skip
 @click.option("--chains", type=click.IntRange(min=1), default=4, show_default=True)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--out", "json_out", type=click.Path(dir_okay=False),
