@@ -61,7 +61,7 @@ def test_the_monthly_bands_cover_the_truth(pooled):
 
 def test_a_station_with_few_events_borrows_from_the_others(pooled):
     frame, _, res = pooled
-    alone = pool(frame[frame.station == "D"], draws=600, seed=1).monthly()
+    alone = pool(frame[frame.station == "D"], draws=300, seed=1).monthly()
     mo = res.monthly()
     assert _coverage(res, [("D", "T1"), ("D", "F2")]) >= 0.9
     for bay in ("T1", "F2"):

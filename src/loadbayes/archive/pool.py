@@ -281,8 +281,8 @@ def _fit_part(f, temp, grid, draws, burn, chains, seed, tolerance) -> PartPool:
     notes = []
     if crowded:
         notes.append(
-            f"{part}: {crowded} events' shares lie within two sd of 0 or 1, where the "
-            "normal approximation on the logit scale is poor (they weigh less)"
+            f"{part}: {crowded} event share(s) within two sd of 0 or 1, where the "
+            "normal approximation on the logit scale is poor"
         )
     names = [f"{a} / {b}" for a, b in units]
     grid = {**grid, "month_temps": _month_temps(units, grid, temp, f)}
