@@ -48,6 +48,10 @@ def test_pool_writes_the_json_and_the_figure(catalog, tmp_path):
     assert fig.read_bytes()[:4] == b"\x89PNG"
     assert "events left out: fit failed: 4" in r.output
     assert "alike within 0.1 (groups)" in r.output
+    r = _run("--catalog", path, "--draws", 60, "--chains", 2, "--by-bay", "--out", "-")
+    assert r.exit_code == 0, r.output
+    assert "population / T1" in r.output
+    assert json.loads(r.stdout)["settings"]["by_bay"] is True
 
 
 def test_nothing_is_overwritten_without_force(catalog, tmp_path):

@@ -80,6 +80,16 @@ def test_a_station_with_few_events_borrows_from_the_others(pooled):
         assert width < 0.7 * (alone_d["high"] - alone_d["low"]).to_numpy().mean()
 
 
+def test_a_population_per_bay_name(pooled):
+    frame, _, _ = pooled
+    res = pool(frame, draws=300, seed=2, by_bay=True)
+    pops = res.monthly().query("station == '(all)'").set_index(["bay", "month"])["mean"]
+    # two of three stations' T1 motors peak in summer, their F2 ones in winter
+    assert pops[("T1", 7)] > pops[("F2", 7)] + 0.1
+    assert res.parts["f_m"].inference_data().posterior["mu"].shape == (4, 300, 2, 5)
+    assert res.settings["by_bay"]
+
+
 def test_alike_stations_are_said_alike_and_different_ones_not(pooled):
     _, _, res = pooled
     pairs = res.parts["f_m"].alike.set_index(["a", "b"])["verdict"]

@@ -8,22 +8,24 @@ curves are pooled:
 
 .. math::
 
-    y_e &= \operatorname{logit}(c_e) + (m_e - c_e) / g_e, \quad s_e = sd_e / g_e,
-    \quad g_e = c_e (1 - c_e) \\
+    y_e &= \operatorname{logit}(c_e) + (m_e - c_e) / q_e, \quad s_e = sd_e / q_e,
+    \quad q_e = c_e (1 - c_e) \\
     y_e &\sim N(x_e^\top \beta_{u(e)} + \eta_e,\; s_e^2), \quad
     \eta_e \sim N(0, \tau_{u(e)}^2) \\
-    \beta_u &\sim N(\mu, \Sigma), \quad \mu \sim N(0, M_0), \quad
+    \beta_u &\sim N(\mu_{g(u)}, \Sigma), \quad \mu_g \sim N(0, M_0), \quad
     \Sigma \sim IW(\nu_0, \Psi_0), \quad \tau_u \sim \text{HalfNormal}(1)
 
 ``m_e`` and ``sd_e`` are the event's posterior mean and sd of the share, ``c_e`` a rough
-curve of its unit at the event (:func:`.pool_data.working`); ``x_e`` holds 1, the first and second
-harmonics of the day of the year (``sin, cos`` of ``2 pi k d / 365.25``, k = 1, 2), those
-of the hour of the day when asked (``2 pi k h / 24``), and the temperature (standardised)
-when a table of it is given. ``eta_e`` is the event-to-event spread around the unit's
-curve. ``M_0 = diag(2.5^2, 1, ...)``; ``Psi_0`` makes the prior mean of ``Sigma``
-``diag(0.5^2, 0.3^2, ...)`` with ``nu_0 = p + 4``: with three or five stations the data
-hardly tell ``Sigma``, and this prior sets how far a station with few events may stray
-from the population.
+curve of its unit at the event (:func:`.pool_data.working`); ``x_e`` holds 1, the first
+and second harmonics of the day of the year (``sin, cos`` of ``2 pi k d / 365.25``, k =
+1, 2), those of the hour of the day when asked (``2 pi k h / 24``), and the temperature
+(standardised) when a table of it is given. ``eta_e`` is the event-to-event spread around
+the unit's curve. ``g(u)`` is the unit's population: one for all the part's units, or one
+per bay name (``by_bay``: a transformer bay pooled with the other stations' of that
+name), with ``Sigma`` shared. ``M_0 = diag(2.5^2, 1, ...)``; ``Psi_0`` makes the prior
+mean of ``Sigma`` ``diag(0.5^2, 0.3^2, ...)`` with ``nu_0 = p + 4``: with three or five
+stations the data hardly tell ``Sigma``, and this prior sets how far a station with few
+events may stray from the population.
 
 The approximation: an event's share posterior is taken as normal, and the logit is
 linearised around the unit's rough curve (iteratively reweighted least squares' working
@@ -110,8 +112,9 @@ class PartPool:
             sample_stats={"accept_tau": self.draws["accept_tau"]},
             observed_data={"y_logit": self.observed["y"]},
             constant_data={"s_logit": self.observed["s"], "unit_index": self.observed["unit"]},
-            coords={"unit": names, "coef": self.coefs, "coef_b": self.coefs},
-            dims={"beta": ["unit", "coef"], "mu": ["coef"], "Sigma": ["coef", "coef_b"],
+            coords={"unit": names, "coef": self.coefs, "coef_b": self.coefs,
+                    "group": self.grid["groups"]},
+            dims={"beta": ["unit", "coef"], "mu": ["group", "coef"], "Sigma": ["coef", "coef_b"],
                   "tau": ["unit"], "y_logit": ["event"], "s_logit": ["event"],
                   "unit_index": ["event"]},
             attrs={"part": self.part, "model": "loadbayes.archive.pool"},
@@ -199,6 +202,7 @@ def pool(
     chains: int = 4,
     seed: int = 0,
     tolerance: float = 0.1,
+    by_bay: bool = False,
     source: str | None = None,
     temperature_source: str = "temperature table",
 ) -> PoolResult:
@@ -217,6 +221,9 @@ def pool(
         Kept draws per chain, burn-in (default ``draws // 2``), chains, the seed.
     tolerance : float
         The share difference under which two units are alike (see the module's rule).
+    by_bay : bool
+        A population per bay name (bays named alike at every station: a transformer's
+        with the transformers') instead of one for all the part's units.
     source, temperature_source : str
         Names for the errors (the catalog's and the temperature file's).
     """
@@ -245,12 +252,13 @@ def pool(
     hour = "hour" in covariates
     settings = {"covariates": list(covariates), "temperature": temperature is not None,
                 "draws": draws, "burn": burn, "chains": chains, "seed": seed,
-                "tolerance": tolerance, "rhat_event": RHAT_EVENT}  # fmt: skip
+                "tolerance": tolerance, "by_bay": by_bay,
+                "rhat_event": RHAT_EVENT}  # fmt: skip
     res = PoolResult({}, left, [], [], settings)
     seeds = np.random.SeedSequence(seed).spawn(f["part"].nunique())
     for part, sq in zip(sorted(f["part"].astype(str).unique()), seeds, strict=True):
         rows = np.flatnonzero(f["part"].astype(str).to_numpy() == part)
-        grid = {"hour": hour, "t_mean": t_mean, "t_sd": t_sd, "table": table}
+        grid = {"hour": hour, "t_mean": t_mean, "t_sd": t_sd, "table": table, "by_bay": by_bay}
         res.parts[part] = _fit_part(f.iloc[rows], None if temp is None else temp[rows], grid,
                                     draws, burn, chains, sq, tolerance)  # fmt: skip
         res.warnings += res.parts[part].diagnostics.pop("warnings")
@@ -275,8 +283,11 @@ def _fit_part(f, temp, grid, draws, burn, chains, seed, tolerance) -> PartPool:
     prior = PoolPrior(mu_sd=np.r_[2.5, np.ones(p - 1)], sigma_sd=np.r_[0.5, np.full(p - 1, 0.3)])
     start, y, s = working(x, unit, len(units), m, sd, prior.sigma_sd)
     data = PoolData.of(unit, x, y, s**2, len(units))
+    labels = sorted({b for _, b in units}) if grid["by_bay"] else ["(all)"]
+    group = np.array([labels.index(b) if grid["by_bay"] else 0 for _, b in units])
+    grid = {**grid, "groups": labels, "group": group}
     out = sample_pool(data, prior, draws=draws, burn=burn, chains=chains, seed=seed,
-                      start_beta=start)  # fmt: skip
+                      start_beta=start, group=group)  # fmt: skip
     crowded = int(np.sum((m < 2 * sd) | (1 - m < 2 * sd)))
     notes = []
     if crowded:
@@ -288,7 +299,7 @@ def _fit_part(f, temp, grid, draws, burn, chains, seed, tolerance) -> PartPool:
     grid = {**grid, "month_temps": _month_temps(units, grid, temp, f)}
     monthly, month_draws = _monthly(part, units, out, grid, np.bincount(unit, minlength=len(units)))
     table = alike_pairs(names, out["beta"], _alike_grid(grid, temp), tolerance)
-    diag = convergence_words(part, names, coefs, out, month_draws)
+    diag = convergence_words(part, names, labels, coefs, out, month_draws)
     if temp is not None:
         diag["warnings"] += _confounded(part, x)
     return PartPool(part, units, np.bincount(unit, minlength=len(units)), coefs, out,
@@ -320,9 +331,12 @@ def _monthly(part, units, out, grid, counts):
         dd, hh = (np.repeat(d, h.size), np.tile(h, d.size)) if h is not None else (d, None)
         pieces.append((dd, hh))
     rows, mdraws = [], []
-    populations = [("(all)", "(all)", out["mu"][:, :, None, :], None)]
-    for who in [(s, b, out["beta"][:, :, [u]], u) for u, (s, b) in enumerate(units)] + populations:
-        station, bay, beta, u = who
+    populations = [("(all)", g, out["mu"][:, :, [i]], None, grid["group"] == i)
+                   for i, g in enumerate(grid["groups"])]  # fmt: skip
+    for who in [(s, b, out["beta"][:, :, [u]], u, None) for u, (s, b) in enumerate(units)] + (
+        populations
+    ):
+        station, bay, beta, u, members = who
         for mo, (dd, hh) in enumerate(pieces):
             t = None
             if grid["month_temps"] is not None:
@@ -330,7 +344,7 @@ def _monthly(part, units, out, grid, counts):
             x, _ = design(dd, hh, t)
             v = _shares(beta, x).mean(axis=-1)[:, :, 0]
             lo, hi = np.quantile(v, [0.025, 0.975])
-            n = int(counts[u]) if u is not None else int(counts.sum())
+            n = int(counts[u]) if u is not None else int(counts[members].sum())
             rows.append({"part": part, "station": station, "bay": bay, "month": mo + 1,
                          "name": MONTHS[mo], "mean": float(v.mean()), "low": float(lo),
                          "high": float(hi), "events": n})  # fmt: skip

@@ -3,8 +3,9 @@
 The model (the equations are in :mod:`loadbayes.archive.pool`'s docstring): each unit
 (a station's bay) ``u`` has coefficients ``beta_u`` of a curve ``x' beta_u`` on the logit
 scale and an event-to-event spread ``tau_u``; each event ``e`` of the unit is measured as
-``y_e ~ N(x_e' beta_u, s_e^2 + tau_u^2)`` with its known ``s_e``; ``beta_u ~ N(mu,
-Sigma)``, ``mu ~ N(0, M0)``, ``Sigma ~ InvWishart(nu0, Psi0)``, ``tau_u ~ HalfNormal(T0)``.
+``y_e ~ N(x_e' beta_u, s_e^2 + tau_u^2)`` with its known ``s_e``; ``beta_u ~ N(mu_g,
+Sigma)`` with ``g`` the unit's group (one group, or one per bay name), ``mu_g ~ N(0,
+M0)``, ``Sigma ~ InvWishart(nu0, Psi0)`` shared, ``tau_u ~ HalfNormal(T0)``.
 
 One sweep:
 
@@ -14,8 +15,8 @@ One sweep:
    ``D = diag(s^2 + tau^2)``), then ``beta_u`` from its conjugate normal (precision
    ``Sigma^-1 + X' D^-1 X``). The measurement errors differ from event to event, so
    ``tau`` has no conjugate update; integrating ``beta_u`` out lets it move freely.
-2. ``mu`` from its conjugate normal given the ``beta_u``.
-3. ``Sigma`` from its conjugate inverse Wishart given the ``beta_u`` and ``mu``.
+2. each ``mu_g`` from its conjugate normal given its units' ``beta_u``.
+3. ``Sigma`` from its conjugate inverse Wishart given the ``beta_u - mu_g``.
 
 The Metropolis step's size is tuned per unit during burn-in (towards 44 % acceptance)
 and then frozen, so the kept draws are a Markov chain with a fixed kernel. Every unit is
@@ -90,10 +91,10 @@ def _collapsed(data: PoolData, lam: np.ndarray, mu: np.ndarray, sigma_inv: np.nd
     """Log density of each unit's ``y`` with ``beta_u`` integrated out, and its pieces.
 
     Returns ``(logp (U,), precision (U, p, p), cholesky (U, p, p), X'D^-1 r (U, p))`` with
-    ``r = y - X mu``.
+    ``r = y - X mu`` (``mu`` (U, p): each unit's group mean).
     """
     w = data.mask / (data.s2 + np.exp(lam)[:, None])
-    r = data.y - data.x @ mu
+    r = data.y - np.einsum("unp,up->un", data.x, mu)
     xtw = data.x * w[..., None]
     prec = sigma_inv + np.einsum("unp,unq->upq", xtw, data.x)
     chol = np.linalg.cholesky(prec)
@@ -112,15 +113,17 @@ def _log_prior_lam(lam: np.ndarray, scale: float) -> np.ndarray:
 
 
 def _chain(data: PoolData, prior: PoolPrior, draws: int, burn: int, rng: np.random.Generator,
-           start: dict[str, np.ndarray]) -> dict[str, np.ndarray]:  # fmt: skip
+           start: dict[str, np.ndarray], group: np.ndarray) -> dict[str, np.ndarray]:  # fmt: skip
     units, _, p = data.x.shape
+    groups = int(group.max()) + 1
+    members = np.bincount(group, minlength=groups)
     mu, lam = start["mu"].copy(), start["lam"].copy()
     sigma = prior.psi0 / prior.nu_extra
     mu_prec = np.diag(1.0 / prior.mu_sd**2)
     step = np.full(units, 0.8)
     out = {
         "beta": np.empty((draws, units, p)),
-        "mu": np.empty((draws, p)),
+        "mu": np.empty((draws, groups, p)),
         "sigma": np.empty((draws, p, p)),
         "tau": np.empty((draws, units)),
         "accept_tau": np.empty(draws),
@@ -130,12 +133,13 @@ def _chain(data: PoolData, prior: PoolPrior, draws: int, burn: int, rng: np.rand
             check_stop()
         sigma_inv = np.linalg.inv(sigma)
         logdet_sigma = float(np.linalg.slogdet(sigma)[1])
-        logp, chol, b = _collapsed(data, lam, mu, sigma_inv, logdet_sigma)
+        mu_u = mu[group]
+        logp, chol, b = _collapsed(data, lam, mu_u, sigma_inv, logdet_sigma)
         logp = logp + _log_prior_lam(lam, prior.tau_scale)
         moved = np.zeros(units)
         for _ in range(MH_STEPS):
             prop = lam + step * rng.standard_normal(units)
-            lp_new, chol_new, b_new = _collapsed(data, prop, mu, sigma_inv, logdet_sigma)
+            lp_new, chol_new, b_new = _collapsed(data, prop, mu_u, sigma_inv, logdet_sigma)
             lp_new = lp_new + _log_prior_lam(prop, prior.tau_scale)
             take = np.log(rng.random(units)) < lp_new - logp
             lam = np.where(take, prop, lam)
@@ -149,15 +153,18 @@ def _chain(data: PoolData, prior: PoolPrior, draws: int, burn: int, rng: np.rand
         z = np.linalg.solve(chol, b[..., None])
         noise = rng.standard_normal((units, p, 1))
         lt = np.swapaxes(chol, 1, 2)
-        beta = mu + np.linalg.solve(lt, z + noise)[..., 0]
-        # mu | beta, Sigma
-        prec = mu_prec + units * sigma_inv
+        beta = mu_u + np.linalg.solve(lt, z + noise)[..., 0]
+        # mu_g | beta, Sigma, each group apart
+        prec = mu_prec + members[:, None, None] * sigma_inv
         c = np.linalg.cholesky(prec)
-        rhs = sigma_inv @ beta.sum(axis=0)
-        mean = np.linalg.solve(c.T, np.linalg.solve(c, rhs))
-        mu = mean + np.linalg.solve(c.T, rng.standard_normal(p))
+        sums = np.zeros((groups, p))
+        np.add.at(sums, group, beta)
+        rhs = sums @ sigma_inv
+        mean = np.linalg.solve(np.swapaxes(c, 1, 2), np.linalg.solve(c, rhs[..., None]))[..., 0]
+        noise = rng.standard_normal((groups, p, 1))
+        mu = mean + np.linalg.solve(np.swapaxes(c, 1, 2), noise)[..., 0]
         # Sigma | beta, mu
-        dev = beta - mu
+        dev = beta - mu[group]
         scale = prior.psi0 + dev.T @ dev
         sigma = np.atleast_2d(invwishart.rvs(df=prior.nu0 + units, scale=scale, random_state=rng))
         if it >= burn:
@@ -177,21 +184,26 @@ def sample_pool(
     chains: int,
     seed: np.random.SeedSequence,
     start_beta: np.ndarray,
+    group: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Run ``chains`` chains; each array shaped (chain, draw, ...).
+
+    ``group`` (U,) the index of each unit's population (default: one for all).
 
     ``start_beta`` (U, p) is a rough per-unit estimate; each chain starts from its mean
     and a dispersed ``tau`` (its own generator), so that R-hat can see a chain stuck.
     """
     gens = chain_generators(seed, chains)
     units = start_beta.shape[0]
+    group = np.zeros(units, dtype=int) if group is None else np.asarray(group, dtype=int)
+    centre = np.stack([start_beta[group == g].mean(axis=0) for g in range(group.max() + 1)])
 
     def one(i: int, rng: np.random.Generator):
         start = {
-            "mu": start_beta.mean(axis=0) + 0.3 * rng.standard_normal(start_beta.shape[1]),
+            "mu": centre + 0.3 * rng.standard_normal(centre.shape),
             "lam": np.log(0.2**2) + rng.normal(0.0, 1.0, units),
         }
-        return _chain(data, prior, draws, burn, rng, start)
+        return _chain(data, prior, draws, burn, rng, start, group)
 
     # numpy's small batched solves hold the GIL for most of their time: one thread.
     runs = run_chains(one, gens, workers=1)

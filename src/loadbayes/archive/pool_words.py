@@ -59,8 +59,14 @@ def groups_of(names: list[str], pairs: pd.DataFrame) -> list[list[str]]:
     return sorted(out.values(), key=lambda g: names.index(g[0]))
 
 
-def convergence_words(part: str, names: list[str], coefs: list[str], out: dict[str, np.ndarray],
-                      monthly: np.ndarray) -> dict[str, Any]:  # fmt: skip
+def convergence_words(
+    part: str,
+    names: list[str],
+    groups: list[str],
+    coefs: list[str],
+    out: dict[str, np.ndarray],
+    monthly: np.ndarray,
+) -> dict[str, Any]:
     """R-hat and bulk ESS of every sampled quantity and monthly share, and the words.
 
     Thresholds as every fit's (:data:`loadbayes.diagnostics.RHAT_MAX`, ``ESS_MIN``).
@@ -70,17 +76,17 @@ def convergence_words(part: str, names: list[str], coefs: list[str], out: dict[s
     c, d, u, p = out["beta"].shape
     series = [
         np.moveaxis(out["beta"].reshape(c, d, u * p), 2, 0),
-        np.moveaxis(out["mu"], 2, 0),
+        np.moveaxis(out["mu"].reshape(c, d, len(groups) * p), 2, 0),
         np.moveaxis(out["tau"], 2, 0),
         np.log(np.moveaxis(np.diagonal(out["sigma"], axis1=2, axis2=3), 2, 0)),
         monthly,
     ]
     labels = (
         [f"beta[{n}, {k}]" for n in names for k in coefs]
-        + [f"mu[{k}]" for k in coefs]
+        + [f"mu[{g}, {k}]" for g in groups for k in coefs]
         + [f"tau[{n}]" for n in names]
         + [f"log Sigma[{k}, {k}]" for k in coefs]
-        + [f"share[{n}, month {m}]" for n in [*names, "(all)"] for m in range(1, 13)]
+        + [f"share[{n}, month {m}]" for n in [*names, *groups] for m in range(1, 13)]
     )
     s = summarize(np.concatenate(series), tail=False)
     rhat, ess = s["r_hat"], s["ess_bulk"]

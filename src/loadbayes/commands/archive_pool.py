@@ -51,7 +51,9 @@ def table_lines(res) -> list[str]:
         lines.append(f"{name}: the median event's share by month (95% bands in --out)")
         lines.append(f"{'station / bay':<24}{'events':>7} " + " ".join(f"{m:>4}" for m in MONTHS))
         for (station, bay), frame in part.monthly.groupby(["station", "bay"], sort=False):
-            who = "population" if station == "(all)" else f"{station} / {bay}"
+            who = f"{station} / {bay}"
+            if station == "(all)":
+                who = "population" if bay == "(all)" else f"population / {bay}"
             vals = " ".join(f"{v:4.2f}" for v in frame.sort_values("month")["mean"])
             lines.append(f"{who[:23]:<24}{int(frame['events'].iloc[0]):>7} {vals}")
         groups = "; ".join(", ".join(g) for g in part.groups)
@@ -67,6 +69,9 @@ def table_lines(res) -> list[str]:
 @click.option("--temperature", "temperature_csv", type=click.Path(exists=True, dir_okay=False),
               help="CSV of station, time, temperature (C): a temperature term.")  # fmt: skip
 @click.option("--hour", is_flag=True, help="Add the hour of day (two harmonics).")
+@click.option("--by-bay", is_flag=True,
+              help="A population per bay name across stations (bays named alike at every "
+              "station), instead of one for all bays.")  # fmt: skip
 @click.option("--tolerance", type=click.FloatRange(0, 1, min_open=True, max_open=True),
               default=0.1, show_default=True,
               help="Share difference under which two stations' curves are alike.")  # fmt: skip
@@ -81,7 +86,7 @@ def table_lines(res) -> list[str]:
 @click.option("--quiet", is_flag=True, help="No lines on standard error but warnings.")
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
-def pool_cmd(catalog, temperature_csv, hour, tolerance, draws, chains, seed, json_out,
+def pool_cmd(catalog, temperature_csv, hour, by_bay, tolerance, draws, chains, seed, json_out,
              plot_out, quiet, force):  # fmt: skip
     """Pool each station's fitted events: its composition over the year, with bands.
 
@@ -101,7 +106,8 @@ def pool_cmd(catalog, temperature_csv, hour, tolerance, draws, chains, seed, jso
         click.echo(f"loadbayes: pooling {len(frame)} fitted shares from {catalog}...", err=True)
     res = pool(frame, covariates=("season", "hour") if hour else ("season",),
                temperature=temps, draws=draws, chains=chains, seed=seed, tolerance=tolerance,
-               source=catalog, temperature_source=temperature_csv or "")  # fmt: skip
+               by_bay=by_bay, source=catalog,
+               temperature_source=temperature_csv or "")  # fmt: skip
     text = json.dumps(res.to_dict(), indent=2, allow_nan=False)
     with output_transaction({"--out": json_out, "--plot": plot_out}, force=force) as out:
         if json_out and json_out != "-":

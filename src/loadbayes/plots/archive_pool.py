@@ -13,7 +13,8 @@ def plot_pool(result: Any, *, truth: dict[tuple[str, str], np.ndarray] | None = 
     """One panel per station (a row per part): each bay's monthly share with its 95% band.
 
     ``result`` is :func:`loadbayes.archive.pool.pool`'s :class:`PoolResult`. The
-    population's curve (the stations pooled) is drawn dashed in every panel. ``truth``
+    population's curve (the stations pooled; one per bay name with ``by_bay``) is drawn
+    dashed in every panel. ``truth``
     (``{(station, bay): 12 monthly values}``) adds known curves as dots, for a generated
     archive.
     """
@@ -29,11 +30,13 @@ def plot_pool(result: Any, *, truth: dict[tuple[str, str], np.ndarray] | None = 
     months = np.arange(1, 13)
     for r, part in enumerate(parts):
         table = part.monthly
-        pop = table[table["station"] == "(all)"].sort_values("month")
+        pops = table[table["station"] == "(all)"]
         bays = sorted({b for _, b in part.units})
         for c, station in enumerate(stations):
             ax = axes[r, c]
-            ax.plot(months, pop["mean"], "--", color="0.5", lw=1, label="all stations")
+            one = pops[pops["bay"] == "(all)"].sort_values("month")
+            if not one.empty:
+                ax.plot(months, one["mean"], "--", color="0.5", lw=1, label="all stations")
             for k, bay in enumerate(bays):
                 rows = table[(table["station"] == station) & (table["bay"] == bay)]
                 if rows.empty:
@@ -44,6 +47,9 @@ def plot_pool(result: Any, *, truth: dict[tuple[str, str], np.ndarray] | None = 
                 ax.fill_between(months, rows["low"], rows["high"], color=colour, alpha=0.25,
                                 lw=0)  # fmt: skip
                 ax.plot(months, rows["mean"], "-", color=colour, label=f"{bay} ({n} events)")
+                pop = pops[pops["bay"] == bay].sort_values("month")
+                if not pop.empty:
+                    ax.plot(months, pop["mean"], "--", color=colour, lw=1)
                 if truth and (station, bay) in truth:
                     ax.plot(months, truth[(station, bay)], "o", ms=3, color=colour, mfc="none")
             ax.set_title(f"{station}: {part.part}", fontsize=9)
