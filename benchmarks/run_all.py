@@ -39,6 +39,7 @@ SCRIPTS = [
     ("bench_drift.py", "drift"),
     ("bench_fleet.py", "fleet"),
     ("bench_predict.py", "predict"),
+    ("bench_archive_pool.py", "archive_pool"),
 ]
 
 #: Everything after this line of the README is kept as written (the sections of scripts
