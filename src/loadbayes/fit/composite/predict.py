@@ -30,6 +30,7 @@ import numpy as np
 
 from loadbayes.fit.composite.predict_scope import (
     MEANING,
+    bands,
     covered,
     extrapolation,
     fitted_thresholds,
@@ -293,13 +294,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         raise ValueError(f"no posterior draw has a steady state at the operating point "
                          f"(P {p0:.4g}, Q {q0:.4g} at {v0:.4g} p.u.)")  # fmt: skip
     lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    band: dict[str, np.ndarray] = {"t_s": t, "v": event.v}
-    for ch, arr in (("p", ps), ("q", qs), ("i", cur)):
-        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
-            np.array(arr), [lo, 50, hi], axis=0)  # fmt: skip
-    for ch, arr in (("p", noisy_p), ("q", noisy_q)):
-        band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
-                                                                     axis=0)  # fmt: skip
+    band = bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
     warnings = list(notes)
     if failed:
         warnings.append(f"{failed} of {pick.size} draws have no steady state or no converged "

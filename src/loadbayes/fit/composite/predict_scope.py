@@ -34,6 +34,7 @@ from loadbayes.models.part_priors import THRESHOLD_PRIORS, VD_GAP
 __all__ = [
     "MEANING",
     "MIN_ESS",
+    "bands",
     "OUTCOME",
     "OUTCOME_RULE",
     "covered",
@@ -356,3 +357,20 @@ def spread(x: np.ndarray, prob: float) -> dict[str, Any]:
     else:
         out |= {"median": None, "interval": None}
     return out
+
+
+def bands(t: np.ndarray, v: np.ndarray, model: Mapping[str, list], noisy: Mapping[str, list],
+          prob: float) -> dict[str, np.ndarray]:  # fmt: skip
+    """A prediction's bands, from the draws played and the same with the fit's noise.
+
+    Each channel of ``model`` gets ``lo, mid, hi``; each of ``noisy`` ``pred_lo, pred_hi``.
+    """
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    band: dict[str, np.ndarray] = {"t_s": t, "v": v}
+    for ch, arr in model.items():
+        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
+            np.array(arr), [lo, 50, hi], axis=0)  # fmt: skip
+    for ch, arr in noisy.items():
+        band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
+                                                                     axis=0)  # fmt: skip
+    return band
