@@ -18,7 +18,6 @@ import pytest
 from click.testing import CliRunner
 
 import independent_composite as ic
-from feeder_generator import simulate
 from loadbayes.cli import main
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.export.cmld import read_cmldblu2
@@ -52,17 +51,9 @@ def zip_motor(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def cmld_lite(tmp_path_factory):
-    rng = np.random.default_rng(3)
-    t, v, d, p, q, _ = simulate(sag=0.15)
-    noise = 0.005 * np.hypot(p[0], q[0])
-    ev = EventRecord(t, v, p + rng.normal(0, noise, t.size), q + rng.normal(0, noise, t.size),
-                     d, "sag 0.15")  # fmt: skip
-    fit = fit_composite(dynamic_model("cmld-lite", f_hz=50.0), [ev],
-                        sampler=SamplerSettings(draws=300, burn=150, chains=1, seed=5))  # fmt: skip
-    path = tmp_path_factory.mktemp("planning_parts") / "cl.nc"
-    fit.posterior.to_netcdf(path)
-    return path
+def cmld_lite(cmld_lite_nc):
+    """The cmld-lite fit of one 15 % sag that test_predict plays too (tests/conftest.py)."""
+    return cmld_lite_nc
 
 
 def _run(*args):

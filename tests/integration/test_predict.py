@@ -21,7 +21,6 @@ import pandas as pd
 import pytest
 from click.testing import CliRunner
 
-from feeder_generator import simulate
 from loadbayes.cases.griddyn import cases
 from loadbayes.cli import main
 from loadbayes.core.settings import SamplerSettings
@@ -35,18 +34,9 @@ pytestmark = pytest.mark.integration
 
 
 @pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
-    """A cmld-lite fit of one 15 % sag (SciPy simulator), its NetCDF on disk."""
-    rng = np.random.default_rng(3)
-    t, v, d, p, q, _ = simulate(sag=0.15)
-    noise = 0.005 * np.hypot(p[0], q[0])
-    ev = EventRecord(t, v, p + rng.normal(0, noise, t.size), q + rng.normal(0, noise, t.size),
-                     d, "sag 0.15")  # fmt: skip
-    fit = fit_composite(dynamic_model("cmld-lite", f_hz=50.0), [ev],
-                        sampler=SamplerSettings(draws=300, burn=150, chains=1, seed=5))  # fmt: skip
-    path = tmp_path_factory.mktemp("predict") / "fit.nc"
-    fit.posterior.to_netcdf(path)
-    return path
+def fitted(cmld_lite_nc):
+    """A cmld-lite fit of one 15 % sag (SciPy simulator), its NetCDF (tests/conftest.py)."""
+    return cmld_lite_nc
 
 
 def _run(*args):
