@@ -1,0 +1,16 @@
+"""An archive of fault records: scanned into a catalog, fitted event by event, pooled.
+
+- :func:`scan` (:mod:`.scan`): a folder tree of COMTRADE records into the SQLite
+  catalog (:mod:`.catalog`), bays matched to loads by name rules (:mod:`.names`);
+- :func:`fit` (:mod:`.fit`): every usable event fitted, in one process or on Dask,
+  each result committed as it finishes (a rerun resumes);
+- :func:`fits_frame`: the fitted shares, one row per event and share.
+"""
+
+from __future__ import annotations
+
+from loadbayes.archive.catalog import failures_frame, fits_frame
+from loadbayes.archive.fit import fit
+from loadbayes.archive.scan import scan
+
+__all__ = ["failures_frame", "fit", "fits_frame", "scan"]
