@@ -179,8 +179,9 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
             raise DataError(f"data file {Path(path).with_suffix('.dat').name} not found", path)
     except (DataError, OSError) as exc:
         return {"status": "broken", "reason": _line(exc)}, []
-    start = comtrade_time(info.start)
-    trigger = comtrade_time(info.trigger)
+    # 1991 writes mm/dd/yy (the comtrade package reads the samples so).
+    start = comtrade_time(info.start, month_first=info.revision == "1991")
+    trigger = comtrade_time(info.trigger, month_first=info.revision == "1991")
     row.update(
         station=info.station, recorder=info.device, revision=info.revision,
         format=info.format, encoding=info.encoding,
