@@ -88,7 +88,7 @@ def test_broken_files_are_listed_with_their_reasons_and_the_scan_goes_on(archive
     folder, db, out, _ = _scanned(archive, tmp_path)
     broken = {p.rsplit("/", 1)[-1]: why for p, why in out.broken_files}
     assert set(broken) == {"bad_cfg.cfg", "short_dat.cfg", "no_dat.cfg"}
-    assert "line 10" in broken["bad_cfg.cfg"] and "channel counts" in broken["bad_cfg.cfg"]
+    assert broken["bad_cfg.cfg"].startswith("line 10: expected the line frequency alone")
     assert "truncated binary data" in broken["short_dat.cfg"]
     assert "no_dat.dat not found" in broken["no_dat.cfg"]
     (why,) = {r[0] for r in _rows(db, "SELECT b.reason FROM bays b JOIN files f USING (file_id) "
@@ -191,3 +191,17 @@ def test_the_command_scans_and_says_what_it_found_in_one_line_per_broken_file(ar
     assert r.output.strip().splitlines() == [
         f"loadbayes: error: {tmp_path / 'nowhere'}: folder not found"
     ]
+
+
+def test_the_example_archive_is_scanned_with_its_broken_files_and_truth(tmp_path):
+    from loadbayes.cases.archive_example import archive_files
+
+    for name, content in archive_files(records=1).items():
+        (tmp_path / "ex" / name).parent.mkdir(exist_ok=True)
+        (tmp_path / "ex" / name).write_bytes(content)
+    out = scan(tmp_path / "ex", tmp_path / "a.db")
+    assert (out.new, out.broken, out.events, out.usable) == (5, 2, 6, 6)
+    truth = pd.read_csv(tmp_path / "ex" / "truth.csv")
+    assert len(truth) == 6 and truth["f_m"].between(0.05, 0.9).all()
+    stations = {r[0] for r in _rows(tmp_path / "a.db", "SELECT DISTINCT station FROM events")}
+    assert stations == set(truth["station"])

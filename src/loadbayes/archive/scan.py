@@ -178,7 +178,7 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
         if find_dat(Path(path), path) is None:
             raise DataError(f"data file {Path(path).with_suffix('.dat').name} not found", path)
     except (DataError, OSError) as exc:
-        return {"status": "broken", "reason": _line(exc)}, []
+        return {"status": "broken", "reason": _line(exc, path)}, []
     # 1991 writes mm/dd/yy (the comtrade package reads the samples so).
     start = comtrade_time(info.start, month_first=info.revision == "1991")
     trigger = comtrade_time(info.trigger, month_first=info.revision == "1991")
@@ -212,7 +212,7 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
             )
             events = _bay_events(w, digest, name, start)
         except (DataError, ValueError) as exc:
-            bay_row.update(status="broken", reason=_line(exc))
+            bay_row.update(status="broken", reason=_line(exc, path))
         if bay_row["status"] == "ok" and not events:
             bay_row["reason"] = "no voltage dip of 4 % or more"
         bays.append((bay_row, events))
@@ -221,8 +221,10 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
     return row, bays
 
 
-def _line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
+def _line(exc: BaseException, path: str = "") -> str:
+    """The error in one line, without the ``.cfg``'s own path (the row names it)."""
+    text = " ".join(str(exc).split())
+    return text[len(path) + 2 :] if path and text.startswith(path + ": ") else text
 
 
 def _cfgs(root: Path) -> list[Path]:
