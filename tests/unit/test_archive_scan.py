@@ -205,3 +205,20 @@ def test_the_example_archive_is_scanned_with_its_broken_files_and_truth(tmp_path
     assert len(truth) == 6 and truth["f_m"].between(0.05, 0.9).all()
     stations = {r[0] for r in _rows(tmp_path / "a.db", "SELECT DISTINCT station FROM events")}
     assert stations == set(truth["station"])
+
+
+def test_fits_that_fail_are_recorded_with_their_reason_and_not_retried_unless_asked(
+    archive, tmp_path
+):
+    from loadbayes.archive import failures_frame, fit
+
+    folder, db, out, _ = _scanned(archive, tmp_path)
+    for dat in folder.rglob("*.dat"):
+        dat.unlink()  # the records gone after the scan: every fit fails, none stops the run
+    run = fit(db, draws=100, burn=0)
+    assert (run.done, run.failed) == (0, out.usable)
+    failed = failures_frame(db).query("what == 'fit'")
+    assert len(failed) == out.usable
+    assert failed["reason"].str.contains(r"zip\+motor: .*\.dat not found", regex=True).all()
+    assert (fit(db).failed, fit(db).skipped) == (0, out.usable)
+    assert fit(db, retry_failed=True, draws=100, burn=0).failed == out.usable

@@ -6,8 +6,9 @@ What ``archive scan`` found and what ``archive fit`` made of it, one table each:
   station, recorder, revision, data format, encoding, start and trigger times, nominal
   frequency, rate table), with ``status`` ``ok``, ``broken`` (``reason`` says why) or
   ``duplicate`` (the same content as another path);
-- ``bays``: per file, each three-phase current set (its bay name, the kind the name rules
-  gave it, the channels), ``status`` and ``reason``;
+- ``bays``: per file, each three-phase current set (its bay name, the ``.cfg``'s bay field
+  it was read by, the kind the name rules gave it, the channels), ``status`` (``ok``,
+  ``skipped``: not a load by the rules, ``broken``) and ``reason``;
 - ``events``: per bay, each voltage dip the trigger found (its window in record seconds,
   the sag's start, depth, duration, absolute time), ``usable`` and ``reason``; the id is
   a hash of the file's content, the bay and the dip's place, so a moved file keeps it;
@@ -59,6 +60,7 @@ CREATE TABLE IF NOT EXISTS bays (
     bay_id INTEGER PRIMARY KEY,
     file_id INTEGER NOT NULL REFERENCES files (file_id) ON DELETE CASCADE,
     bay TEXT NOT NULL,
+    field TEXT,
     kind TEXT NOT NULL,
     current TEXT NOT NULL,
     voltage TEXT,

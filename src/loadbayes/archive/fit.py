@@ -148,8 +148,11 @@ def fit_event(task: FitTask) -> dict:
         params = _summary(post, model.quantities)
         Path(task.netcdf).parent.mkdir(parents=True, exist_ok=True)
         post.to_netcdf(task.netcdf, force=True, pointwise=False)
-    except (DataError, OptionError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
-        return {**base, "status": "failed", "reason": " ".join(str(exc).split()),
+    except Exception as exc:  # noqa: BLE001 - one event's failure is recorded, never fatal
+        text = " ".join(str(exc).split())
+        if not isinstance(exc, (DataError, OptionError, ValueError)):
+            text = f"{type(exc).__name__}: {text}"
+        return {**base, "status": "failed", "reason": text,
                 "seconds": time.perf_counter() - t0}  # fmt: skip
     kept = [p for p in params if np.isfinite(p["rhat"])]
     return {
@@ -193,7 +196,7 @@ def _tasks(conn, db_path, model, draws, burn, chains, seed, per_cycle, retry_fai
     skip = "('done')" if retry_failed else "('done', 'failed')"
     rows = conn.execute(
         f"""
-        SELECT e.event_id, f.path, b.current, b.bay, e.segment, e.start_s, e.stop_s
+        SELECT e.event_id, f.path, b.current, b.field, e.segment, e.start_s, e.stop_s
         FROM events e JOIN bays b USING (bay_id) JOIN files f ON f.file_id = e.file_id
         WHERE e.usable = 1 AND f.status = 'ok' AND NOT EXISTS (
             SELECT 1 FROM fits x WHERE x.event_id = e.event_id AND x.model = ?
@@ -208,14 +211,13 @@ def _tasks(conn, db_path, model, draws, burn, chains, seed, per_cycle, retry_fai
     folder = results_folder(db_path)
     safe = model.replace("+", "_")
     tasks = []
-    for event_id, cfg, current, _bay, segment, start_s, stop_s in rows:
-        ccbm = _ccbm(cfg, json.loads(current))
+    for event_id, cfg, current, field, segment, start_s, stop_s in rows:
         tasks.append(
             FitTask(
                 event_id=event_id,
                 cfg=cfg,
                 current=tuple(json.loads(current)),
-                bay=ccbm,
+                bay=field,
                 segment=int(segment),
                 start_s=float(start_s),
                 stop_s=float(stop_s),
@@ -229,15 +231,6 @@ def _tasks(conn, db_path, model, draws, burn, chains, seed, per_cycle, retry_fai
             )  # fmt: skip
         )
     return tasks, int(already)
-
-
-def _ccbm(cfg: str, current: list[str]) -> str | None:
-    """The bay field the scan read the bay's voltages by (as ``read_comtrade``'s ``bay``)."""
-    from loadbayes.recordings.comtrade_cfg import parse_cfg
-
-    info = parse_cfg(cfg)
-    first = next((ch for ch in info.analog if str(ch.n) == current[0]), None)
-    return (first.ccbm.strip() or None) if first is not None else None
 
 
 def fit(

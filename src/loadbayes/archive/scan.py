@@ -177,7 +177,7 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
         info = parse_cfg(path)
         if find_dat(Path(path), path) is None:
             raise DataError(f"data file {Path(path).with_suffix('.dat').name} not found", path)
-    except (DataError, OSError) as exc:
+    except Exception as exc:  # noqa: BLE001 - a file that cannot be read is never fatal
         return {"status": "broken", "reason": _line(exc, path)}, []
     # 1991 writes mm/dd/yy (the comtrade package reads the samples so).
     start = comtrade_time(info.start, month_first=info.revision == "1991")
@@ -198,7 +198,8 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
         words = " ".join([name, *(ch.name for ch in trio)])
         kind = bay_kind(words, rules)
         current = [str(ch.n) for ch in trio]
-        bay_row = {"bay": name, "kind": kind, "current": json.dumps(current),
+        field = trio[0].ccbm.strip() or None
+        bay_row = {"bay": name, "field": field, "kind": kind, "current": json.dumps(current),
                    "voltage": None, "status": "ok", "reason": None}  # fmt: skip
         events: list[dict] = []
         if not is_load(kind):
@@ -206,12 +207,12 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
             bays.append((bay_row, events))
             continue
         try:
-            w = read_comtrade(path, current=current, bay=trio[0].ccbm.strip() or None)
+            w = read_comtrade(path, current=current, bay=field)
             bay_row["voltage"] = json.dumps(
                 [w.channels[f"v{p}"] for p in "abc"], ensure_ascii=False
             )
             events = _bay_events(w, digest, name, start)
-        except (DataError, ValueError) as exc:
+        except Exception as exc:  # noqa: BLE001 - a file that cannot be read is never fatal
             bay_row.update(status="broken", reason=_line(exc, path))
         if bay_row["status"] == "ok" and not events:
             bay_row["reason"] = "no voltage dip of 4 % or more"
@@ -222,8 +223,14 @@ def read_file(cfg: str | os.PathLike[str], digest: str, rules: Sequence[tuple[st
 
 
 def _line(exc: BaseException, path: str = "") -> str:
-    """The error in one line, without the ``.cfg``'s own path (the row names it)."""
+    """The error in one line, without the ``.cfg``'s own path (the row names it).
+
+    The reader's errors (:class:`DataError`, ``OSError``) are said as they are; anything
+    else a malformed file provokes deeper down is said with its type, never raised.
+    """
     text = " ".join(str(exc).split())
+    if not isinstance(exc, (DataError, OSError, ValueError)):
+        text = f"cannot be read ({type(exc).__name__}: {text})"
     return text[len(path) + 2 :] if path and text.startswith(path + ": ") else text
 
 
@@ -343,9 +350,9 @@ def _store(conn, out: ScanSummary, path, digest, size, old, by_hash, rules) -> N
             out.broken += 1
         for bay_row, events in bays:
             cur = conn.execute(
-                "INSERT INTO bays (file_id, bay, kind, current, voltage, status, reason) "
-                "VALUES (?,?,?,?,?,?,?)",
-                (file_id, bay_row["bay"], bay_row["kind"], bay_row["current"],
+                "INSERT INTO bays (file_id, bay, field, kind, current, voltage, status, reason) "
+                "VALUES (?,?,?,?,?,?,?,?)",
+                (file_id, bay_row["bay"], bay_row["field"], bay_row["kind"], bay_row["current"],
                  bay_row["voltage"], bay_row["status"], bay_row["reason"]),
             )  # fmt: skip
             bay_id = cur.lastrowid
