@@ -38,6 +38,7 @@ SCRIPTS = [
     ("bench_cli.py", "cli"),
     ("bench_drift.py", "drift"),
     ("bench_fleet.py", "fleet"),
+    ("bench_archive.py", "archive"),
 ]
 
 #: Everything after this line of the README is kept as written (the sections of scripts

@@ -99,6 +99,11 @@ def test_broken_files_are_listed_with_their_reasons_and_the_scan_goes_on(archive
 def test_a_rescan_reads_only_new_or_changed_files(archive, tmp_path):
     folder, db, first, truth = _scanned(archive, tmp_path)
     ids = dict(_rows(db, "SELECT event_id, time FROM events"))
+    rows = _rows(db, "SELECT path, hash, status, reason, station FROM files ORDER BY path")
+    two = tmp_path / "two.db"
+    assert scan(folder, two, workers=2).line() == first.line()  # read by 2 processes
+    assert _rows(two, "SELECT path, hash, status, reason, station FROM files ORDER BY path") == rows
+    assert dict(_rows(two, "SELECT event_id, time FROM events")) == ids
     again = scan(folder, db)
     assert (again.new, again.changed, again.unchanged) == (0, 0, first.new)
     assert dict(_rows(db, "SELECT event_id, time FROM events")) == ids

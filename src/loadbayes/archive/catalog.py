@@ -36,6 +36,7 @@ __all__ = [
     "connect",
     "failures_frame",
     "fits_frame",
+    "insert_file",
     "record_fit",
     "results_folder",
 ]
@@ -141,6 +142,44 @@ def results_folder(db_path: str | os.PathLike[str]) -> Path:
     """Where the fits' NetCDF files go: ``archive.results/`` beside ``archive.db``."""
     p = Path(db_path)
     return p.with_name(p.stem + ".results")
+
+
+def insert_file(conn: sqlite3.Connection, path, digest, size, row, bays, now) -> tuple:
+    """Write one scanned file, its bays and their events; ``(file_id, events, usable)``."""
+    cur = conn.execute(
+        "INSERT INTO files (path, hash, bytes, status, reason, station, recorder, "
+        "revision, format, encoding, start, trigger_time, f_nominal_hz, rates, n_analog, "
+        "scanned_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+        (
+            path, digest, size, row["status"], row["reason"], row.get("station"),
+            row.get("recorder"), row.get("revision"), row.get("format"),
+            row.get("encoding"), row.get("start"), row.get("trigger_time"),
+            row.get("f_nominal_hz"), row.get("rates"), row.get("n_analog"), now,
+        ),
+    )  # fmt: skip
+    file_id = cur.lastrowid
+    n = usable = 0
+    for bay_row, events in bays:
+        cur = conn.execute(
+            "INSERT INTO bays (file_id, bay, field, kind, current, voltage, status, reason) "
+            "VALUES (?,?,?,?,?,?,?,?)",
+            (file_id, bay_row["bay"], bay_row["field"], bay_row["kind"], bay_row["current"],
+             bay_row["voltage"], bay_row["status"], bay_row["reason"]),
+        )  # fmt: skip
+        bay_id = cur.lastrowid
+        for e in events:
+            conn.execute(
+                "INSERT OR REPLACE INTO events VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                (
+                    e["event_id"], file_id, bay_id, row.get("station"), bay_row["bay"],
+                    bay_row["kind"], e["idx"], e["segment"], e["start_s"], e["stop_s"],
+                    e["sag_start_s"], e["recovery_s"], e["time"], e["depth"], e["v1_depth"],
+                    e["duration_s"], e["recovered"], e["usable"], e["reason"],
+                ),
+            )  # fmt: skip
+            n += 1
+            usable += e["usable"]
+    return file_id, n, usable
 
 
 def record_fit(conn: sqlite3.Connection, result: dict) -> None:

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from loadbayes.archive.catalog import connect
+from loadbayes.archive.catalog import connect, insert_file
 from loadbayes.archive.names import bay_kind, is_load, read_rules
 from loadbayes.io.errors import DataError
 
@@ -248,6 +248,7 @@ def scan(
     *,
     rules: str | os.PathLike[str] | Sequence[tuple[str, str]] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
+    workers: int | None = None,
 ) -> ScanSummary:
     """Scan a folder tree of COMTRADE records into the catalog (made if missing).
 
@@ -260,7 +261,9 @@ def scan(
     rules : path or list of (pattern, kind), optional
         Bay name rules tried before the defaults (:mod:`loadbayes.archive.names`).
     progress : callable, optional
-        ``progress(done, total, path)`` after each file.
+        ``progress(done, total, path)`` after each new or changed file.
+    workers : int, optional
+        Read the files in this many processes (the catalog is written by this one).
 
     Returns
     -------
@@ -290,16 +293,24 @@ def scan(
                 "SELECT hash, file_id, path FROM files WHERE status != 'duplicate'"
             ).fetchall()
         }
-        for n, cfg in enumerate(cfgs, start=1):
+        plan = []
+        for cfg in cfgs:
             path = str(cfg.resolve())
             digest, size = _hash(cfg)
             old = known.get(path)
             if old is not None and old[1] == digest:
                 out.unchanged += 1
             else:
-                _store(conn, out, path, digest, size, old, by_hash, user_rules)
+                plan.append((path, digest, size, old))
+        # The files to read: one per new content (a copy or a move is not read again).
+        fresh = list({d: p for p, d, _, _ in reversed(plan) if d not in by_hash}.items())[::-1]
+        reads = _read_all(fresh, user_rules, workers)
+        done = out.unchanged
+        for path, digest, size, old in plan:
+            _store(conn, out, path, digest, size, old, by_hash, reads)
+            done += 1
             if progress is not None:
-                progress(n, len(cfgs), path)
+                progress(done, len(cfgs), path)
         rows = conn.execute(
             "SELECT path, reason FROM files WHERE status = 'broken' ORDER BY path"
         ).fetchall()
@@ -307,7 +318,47 @@ def scan(
     return out
 
 
-def _store(conn, out: ScanSummary, path, digest, size, old, by_hash, rules) -> None:
+def _read_all(fresh: list[tuple[str, str]], rules, workers: int | None):
+    """``{digest: read_file(...)}`` filled as the reads finish, in order (lazily).
+
+    With ``workers``, the files are read by that many processes (the reading and the
+    per-cycle phasors are the scan's cost; the catalog is written here, one file at a
+    time); otherwise one after another in this process.
+    """
+
+    class Reads(dict):
+        def __init__(self, results):
+            super().__init__()
+            self.results = results
+            self.planned = set(digests)
+
+        def get(self, path, digest):  # noqa: D102 - the file's reading, done or done now
+            if digest not in self.planned:  # a content whose first copy was changed meanwhile
+                return read_file(path, digest, rules)
+            while digest not in self:
+                d, result = next(self.results)
+                self[d] = result
+            return self.pop(digest)
+
+    digests = [d for d, _ in fresh]
+    if not workers or workers < 2 or len(fresh) < 2:
+        gen = ((d, read_file(p, d, rules)) for d, p in fresh)
+        return Reads(gen)
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(max_workers=workers)
+    results = pool.map(read_file, [p for _, p in fresh], digests, [rules] * len(fresh), chunksize=4)
+
+    def gen():
+        try:
+            yield from zip(digests, results, strict=True)
+        finally:
+            pool.shutdown(cancel_futures=True)
+
+    return Reads(gen())
+
+
+def _store(conn, out: ScanSummary, path, digest, size, old, by_hash, reads) -> None:
     """Read one new or changed file and write its rows, committed at once."""
     now = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     same = by_hash.get(digest)
@@ -332,41 +383,9 @@ def _store(conn, out: ScanSummary, path, digest, size, old, by_hash, rules) -> N
             return
         if old is None:
             out.new += 1
-        row, bays = read_file(path, digest, rules)
-        cur = conn.execute(
-            "INSERT INTO files (path, hash, bytes, status, reason, station, recorder, "
-            "revision, format, encoding, start, trigger_time, f_nominal_hz, rates, n_analog, "
-            "scanned_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-            (
-                path, digest, size, row["status"], row["reason"], row.get("station"),
-                row.get("recorder"), row.get("revision"), row.get("format"),
-                row.get("encoding"), row.get("start"), row.get("trigger_time"),
-                row.get("f_nominal_hz"), row.get("rates"), row.get("n_analog"), now,
-            ),
-        )  # fmt: skip
-        file_id = cur.lastrowid
+        row, bays = reads.get(path, digest)
+        file_id, events, usable = insert_file(conn, path, digest, size, row, bays, now)
         by_hash[digest] = (file_id, path)
-        if row["status"] == "broken":
-            out.broken += 1
-        for bay_row, events in bays:
-            cur = conn.execute(
-                "INSERT INTO bays (file_id, bay, field, kind, current, voltage, status, reason) "
-                "VALUES (?,?,?,?,?,?,?,?)",
-                (file_id, bay_row["bay"], bay_row["field"], bay_row["kind"], bay_row["current"],
-                 bay_row["voltage"], bay_row["status"], bay_row["reason"]),
-            )  # fmt: skip
-            bay_id = cur.lastrowid
-            for e in events:
-                conn.execute(
-                    "INSERT OR REPLACE INTO events VALUES "
-                    "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                    (
-                        e["event_id"], file_id, bay_id, row.get("station"), bay_row["bay"],
-                        bay_row["kind"], e["idx"], e["segment"], e["start_s"], e["stop_s"],
-                        e["sag_start_s"], e["recovery_s"], e["time"], e["depth"],
-                        e["v1_depth"], e["duration_s"], e["recovered"], e["usable"],
-                        e["reason"],
-                    ),
-                )  # fmt: skip
-                out.events += 1
-                out.usable += e["usable"]
+        out.broken += row["status"] == "broken"
+        out.events += events
+        out.usable += usable

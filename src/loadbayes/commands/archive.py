@@ -40,9 +40,11 @@ def _bar(total: int, label: str, quiet: bool):
 @click.option("--rules", type=click.Path(dir_okay=False),
               help="TOML of bay name rules, pattern = kind (\"主变\" = \"transformer\"), tried "
               "before the defaults.")  # fmt: skip
+@click.option("--workers", type=click.IntRange(1, None),
+              help="Read the files in N processes (default: this one).")  # fmt: skip
 @click.option("--quiet", is_flag=True)
 @user_errors
-def archive_scan_cmd(folder, catalog, rules, quiet):
+def archive_scan_cmd(folder, catalog, rules, workers, quiet):
     """Walk FOLDER's COMTRADE records into the catalog: station, bays, dips found.
 
     Every .cfg at any depth is read (any revision, data format, encoding). A file the
@@ -51,17 +53,18 @@ def archive_scan_cmd(folder, catalog, rules, quiet):
     """
     from loadbayes.archive import scan
 
-    state = {"bar": None}
+    state: dict = {"bar": None, "done": 0}
 
     def progress(done: int, total: int, path: str) -> None:
-        if state["bar"] is None and done == 1:
+        if state["bar"] is None and state["done"] == 0:
             state["bar"] = _bar(total, "files", quiet)
         if state["bar"] is not None:
             state["bar"].current_item = path[-40:]
-            state["bar"].update(1)
+            state["bar"].update(done - state["done"])
+        state["done"] = done
 
     try:
-        out = scan(folder, catalog, rules=rules, progress=progress)
+        out = scan(folder, catalog, rules=rules, progress=progress, workers=workers)
     finally:
         if state["bar"] is not None:
             state["bar"].__exit__(None, None, None)
