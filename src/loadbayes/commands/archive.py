@@ -98,7 +98,9 @@ def archive_fit_cmd(catalog, model, draws, burn, chains, seed, per_cycle, worker
     """Fit every usable event of the catalog, each result kept as it finishes.
 
     A killed run loses only the fits in flight; run again to resume (no event is fitted
-    twice). The draws go to NetCDF files in CATALOG's .results folder beside it.
+    twice). The draws go to NetCDF files in CATALOG's .results folder beside it. With
+    --scheduler, the workers read the records and write that folder by the catalog's
+    paths: both must be on storage every worker sees.
     """
     from loadbayes.archive import fit
 
