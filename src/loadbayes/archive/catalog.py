@@ -13,7 +13,8 @@ What ``archive scan`` found and what ``archive fit`` made of it, one table each:
   the sag's start, depth, duration, absolute time), ``usable`` and ``reason``; the id is
   a hash of the file's content, the bay and the dip's place, so a moved file keeps it;
 - ``fits``: per event and model, ``done`` or ``failed`` (``reason``), the seed, the run's
-  draws, R-hat and ESS at their worst, the fit's warnings (JSON) and the NetCDF path;
+  draws, phasors per cycle and the model's phasor window (NULL: one cycle), R-hat and ESS
+  at their worst, the fit's warnings (JSON) and the NetCDF path;
 - ``params``: per fit, each scalar parameter's mean, sd, 2.5 % and 97.5 % quantiles,
   R-hat and bulk ESS.
 
@@ -84,7 +85,7 @@ CREATE TABLE IF NOT EXISTS fits (
     status TEXT NOT NULL,
     reason TEXT,
     seed INTEGER, draws INTEGER, burn INTEGER, chains INTEGER, per_cycle INTEGER,
-    rhat_max REAL, ess_min REAL, warnings TEXT, netcdf TEXT,
+    window_s REAL, rhat_max REAL, ess_min REAL, warnings TEXT, netcdf TEXT,
     seconds REAL, finished_at TEXT,
     PRIMARY KEY (event_id, model)
 );
@@ -186,11 +187,12 @@ def record_fit(conn: sqlite3.Connection, result: dict) -> None:
     """Write one fit's result (done or failed) and commit: it survives a killed run."""
     with conn:
         conn.execute(
-            "INSERT OR REPLACE INTO fits VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,datetime('now'))",
+            "INSERT OR REPLACE INTO fits VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,datetime('now'))",
             (
                 result["event_id"], result["model"], result["status"], result.get("reason"),
                 result["seed"], result["draws"], result["burn"], result["chains"],
-                result["per_cycle"], result.get("rhat_max"), result.get("ess_min"),
+                result["per_cycle"], result.get("window_s"), result.get("rhat_max"),
+                result.get("ess_min"),
                 json.dumps(result.get("warnings", []), ensure_ascii=False),
                 result.get("netcdf"), result.get("seconds"),
             ),

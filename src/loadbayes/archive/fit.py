@@ -61,6 +61,7 @@ class FitTask:
     seed: int
     per_cycle: int
     netcdf: str
+    window_s: float | None = None
 
 
 @dataclass
@@ -132,14 +133,15 @@ def fit_event(task: FitTask) -> dict:
     t0 = time.perf_counter()
     base = {"event_id": task.event_id, "model": task.model, "seed": task.seed,
             "draws": task.draws, "burn": task.burn, "chains": task.chains,
-            "per_cycle": task.per_cycle}  # fmt: skip
+            "per_cycle": task.per_cycle, "window_s": task.window_s}  # fmt: skip
     try:
         from loadbayes.core.settings import SamplerSettings
         from loadbayes.fit.composite.driver import fit_composite
         from loadbayes.models.dynamic import dynamic_model
 
         event, f_hz = _event_record(task)
-        model = dynamic_model(task.model, f_hz=f_hz)
+        options = {} if task.window_s is None else {"window_s": task.window_s}
+        model = dynamic_model(task.model, f_hz=f_hz, **options)
         run = SamplerSettings(draws=task.draws, burn=task.burn, chains=task.chains,
                               seed=task.seed, threads=1, until_converged=False)  # fmt: skip
         with warnings.catch_warnings():
@@ -191,7 +193,8 @@ def _summary(post, quantities: dict) -> list[dict]:
     return out
 
 
-def _tasks(conn, db_path, model, draws, burn, chains, seed, per_cycle, retry_failed):
+def _tasks(conn, db_path, model, draws, burn, chains, seed, per_cycle, retry_failed,
+           window_s=None):  # fmt: skip
     """The usable events with no result for ``model`` (failed ones too when retrying)."""
     skip = "('done')" if retry_failed else "('done', 'failed')"
     rows = conn.execute(
@@ -228,6 +231,7 @@ def _tasks(conn, db_path, model, draws, burn, chains, seed, per_cycle, retry_fai
                 seed=event_seed(seed, model, event_id),
                 per_cycle=per_cycle,
                 netcdf=str(folder / f"{event_id}.{safe}.nc"),
+                window_s=window_s,
             )  # fmt: skip
         )
     return tasks, int(already)
@@ -242,6 +246,7 @@ def fit(
     chains: int = CHAINS,
     seed: int = 0,
     per_cycle: int = PER_CYCLE,
+    window_s: float | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     client=None,
@@ -261,6 +266,8 @@ def fit(
         Per event; the event's own seed is :func:`event_seed` of ``seed``.
     per_cycle : int
         Phasor estimates per cycle of the fitted rows.
+    window_s : float, optional
+        The model's phasor window (s); None: the model's default (one cycle).
     workers, scheduler, client
         Where to run (:class:`loadbayes.fleet.engine.Engine`); in this process by default.
     retry_failed : bool
@@ -288,7 +295,7 @@ def fit(
     out = FitRun()
     with connect(catalog) as conn:
         tasks, out.skipped = _tasks(conn, catalog, model, draws, burn, chains, seed, per_cycle,
-                                    retry_failed)  # fmt: skip
+                                    retry_failed, window_s)  # fmt: skip
         out.todo = len(tasks)
         if start is not None:
             start(len(tasks), out.skipped)

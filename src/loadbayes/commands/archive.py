@@ -88,13 +88,16 @@ def archive_scan_cmd(folder, catalog, rules, workers, quiet):
               help="Each event's seed comes from it and the event's content hash.")  # fmt: skip
 @click.option("--per-cycle", type=click.IntRange(1, 64), default=4, show_default=True,
               help="Phasor estimates per cycle of the fitted rows.")  # fmt: skip
+@click.option("--window-s", type=click.FloatRange(0.0, 1.0),
+              help="The model's phasor window (s); default one cycle, 0: point "
+              "samples.")  # fmt: skip
 @click.option("--workers", type=click.IntRange(1, None), help="A local Dask cluster of N workers.")
 @click.option("--scheduler", help="The address of a running Dask scheduler (tcp://host:8786).")
 @click.option("--retry-failed", is_flag=True, help="Fit again the events whose fit failed.")
 @click.option("--quiet", is_flag=True)
 @user_errors
-def archive_fit_cmd(catalog, model, draws, burn, chains, seed, per_cycle, workers, scheduler,
-                    retry_failed, quiet):  # fmt: skip
+def archive_fit_cmd(catalog, model, draws, burn, chains, seed, per_cycle, window_s, workers,
+                    scheduler, retry_failed, quiet):  # fmt: skip
     """Fit every usable event of the catalog, each result kept as it finishes.
 
     A killed run loses only the fits in flight; run again to resume (no event is fitted
@@ -125,7 +128,7 @@ def archive_fit_cmd(catalog, model, draws, burn, chains, seed, per_cycle, worker
     try:
         run = fit(
             catalog, model=model, draws=draws, burn=burn, chains=chains, seed=seed,
-            per_cycle=per_cycle, workers=workers, scheduler=scheduler,
+            per_cycle=per_cycle, window_s=window_s, workers=workers, scheduler=scheduler,
             retry_failed=retry_failed, progress=progress, start=start,
         )  # fmt: skip
     except KeyboardInterrupt:
