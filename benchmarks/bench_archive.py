@@ -29,9 +29,10 @@ import time
 from pathlib import Path
 
 
-def _machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    return f"{cpu}, {os.cpu_count()} CPUs; {platform.platform()}"
+def _machine(load: list[float]) -> dict:
+    return {"platform": platform.platform(), "cpu": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(), "cpus_usable": len(os.sched_getaffinity(0)),
+            "load_average_at_start": load, "python": platform.python_version()}  # fmt: skip
 
 
 def _copies(folder: Path, target: int) -> int:
@@ -141,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     out = {
         "benchmark": "archive",
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "machine": _machine() + f"; load average at start {', '.join(f'{x:.1f}' for x in load)}",
+        "machine": _machine(load),
         "versions": {"python": sys.version.split()[0]},
         "quick": args.quick,
         "results": [s, one, two],

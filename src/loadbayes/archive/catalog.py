@@ -12,7 +12,8 @@ What ``archive scan`` found and what ``archive fit`` made of it, one table each:
 - ``events``: per bay, each voltage dip the trigger found (its window in record seconds,
   the sag's start, depth, duration, absolute time), ``usable`` and ``reason``; the id is
   a hash of the file's content, the bay and the dip's place, so a moved file keeps it;
-- ``fits``: per event and model, ``done`` or ``failed`` (``reason``), the seed, the run's
+- ``fits``: per event and model, ``done``, ``failed`` (the data or options refused:
+  ``reason``) or ``error`` (anything else, fitted again by the next run), the seed, the run's
   draws, phasors per cycle and the model's phasor window (NULL: one cycle), R-hat and ESS
   at their worst, the fit's warnings (JSON) and the NetCDF path;
 - ``params``: per fit, each scalar parameter's mean, sd, 2.5 % and 97.5 % quantiles,

@@ -10,7 +10,8 @@ model of ``models/dynamic.py`` by name). The tasks run in this process or on Das
 existing one); each result is written to the catalog and committed as it comes back
 (:func:`~loadbayes.archive.catalog.record_fit`), its draws to a NetCDF file in the
 results folder beside the catalog. A killed run loses only the fits in flight; a rerun
-fits only the events with no result for the model, so none is fitted twice.
+fits only the events with no result for the model, so none is fitted twice (and those
+whose fit stopped on an unforeseen ``error``, which may not recur).
 
 The seed of an event's fit is derived from the run's seed, the model and the event's id
 (a hash of its record's content, bay and place), never from its order: the same seed gives
@@ -152,9 +153,12 @@ def fit_event(task: FitTask) -> dict:
         post.to_netcdf(task.netcdf, force=True, pointwise=False)
     except Exception as exc:  # noqa: BLE001 - one event's failure is recorded, never fatal
         text = " ".join(str(exc).split())
+        status = "failed"  # what the data or the options decide: the same on every run
         if not isinstance(exc, (DataError, OptionError, ValueError)):
-            text = f"{type(exc).__name__}: {text}"
-        return {**base, "status": "failed", "reason": text,
+            # Anything else may not recur (a compiled cache written by another process
+            # at that moment, memory): an "error", fitted again by the next run.
+            text, status = f"{type(exc).__name__}: {text}", "error"
+        return {**base, "status": status, "reason": text,
                 "seconds": time.perf_counter() - t0}  # fmt: skip
     kept = [p for p in params if np.isfinite(p["rhat"])]
     return {

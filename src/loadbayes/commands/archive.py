@@ -8,6 +8,7 @@ attaches the group. The work is :func:`loadbayes.archive.scan` and
 from __future__ import annotations
 
 import sys
+import time
 
 import click
 
@@ -109,7 +110,7 @@ def archive_fit_cmd(catalog, model, draws, burn, chains, seed, per_cycle, window
 
     if workers and scheduler:
         raise UserError("give --workers or --scheduler, not both")
-    state: dict = {"bar": None, "done": 0, "failed": 0}
+    state: dict = {"bar": None, "done": 0, "failed": 0, "t0": time.monotonic()}
 
     def start(todo: int, already: int) -> None:
         if not quiet:
@@ -124,6 +125,15 @@ def archive_fit_cmd(catalog, model, draws, burn, chains, seed, per_cycle, window
         if state["bar"] is not None:
             state["bar"].current_item = f"done {done}, failed {failed}, left {left}"
             state["bar"].update(1)
+            return
+        # No terminal (a batch job's log): a line at every tenth of the run.
+        total = done + failed + left
+        if quiet or (done + failed) % max(total // 10, 1) and left:
+            return
+        spent = time.monotonic() - state["t0"]
+        eta = spent / (done + failed) * left
+        click.echo(f"fits: {done} done, {failed} failed, {left} left, about {eta / 60:.1f} "
+                   "min left", err=True)  # fmt: skip
 
     try:
         run = fit(
