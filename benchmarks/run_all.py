@@ -40,6 +40,7 @@ SCRIPTS = [
     ("bench_fleet.py", "fleet"),
     ("bench_predict.py", "predict"),
     ("bench_archive_pool.py", "archive_pool"),
+    ("bench_archive.py", "archive"),
 ]
 
 #: Everything after this line of the README is kept as written (the sections of scripts
