@@ -250,6 +250,22 @@ def test_a_dat_or_cff_given_for_the_cfg_says_what_to_give(rec):
         read_comtrade(cff)
 
 
+@pytest.mark.parametrize(
+    ("station", "codec"),
+    [("Umspannwerk Größe", "latin-1"), ("Weißöl Nord", "latin-1"), ("Poste Sénégal", "latin-1"),
+     ("1号主变", "gb18030"), ("线路", "gb18030"), ("Größe主变", "utf-8")],
+)  # fmt: skip
+def test_the_station_is_read_as_written_whatever_its_encoding(rec, station, codec):
+    # 'Größe' in Latin-1 is 0xF6 0xDF: one GB18030 ideograph ('Gr鲞e'), read as such before.
+    cfg, _ = rec
+    lines = cfg.read_bytes().split(b"\r\n")
+    lines[0] = f"{station},rec,1999".encode(codec)
+    cfg.write_bytes(b"\r\n".join(lines))
+    info = parse_cfg(cfg)
+    assert info.station == station
+    assert info.encoding == codec
+
+
 def test_a_latin1_cfg_is_not_taken_for_gb18030_and_lines_split_at_line_breaks_only(rec):
     # M1 (cli-redteam-2): 'Üb' (0xDC 0x62) is a valid GB18030 ideograph: a Latin-1 .cfg
     # was decoded as GB18030 and its names garbled. M2: a cp1252 '…' (0x85, U+0085 in
@@ -264,9 +280,10 @@ def test_a_latin1_cfg_is_not_taken_for_gb18030_and_lines_split_at_line_breaks_on
         lines[k] = b",".join(f)
     cfg.write_bytes(b"\r\n".join(lines))
     info = parse_cfg(cfg)
-    assert info.encoding == "latin-1"
+    # 0x85 is a control code in Latin-1 and '…' in Windows-1252, which wrote it.
+    assert info.encoding == "cp1252"
     assert info.station == "BEIHU 220kV" and info.device == "Störschreiber"
     names = [ch.name for ch in info.analog[:3]]
-    assert names == ["Trafo1_Übertragung\x85_UA", "Trafo1_Übertragung\x0c_UB",
+    assert names == ["Trafo1_Übertragung…_UA", "Trafo1_Übertragung\x0c_UB",
                      "Trafo1_Übertragung\x1c_UC"]  # fmt: skip
     assert info.n_samples == 320

@@ -153,6 +153,13 @@ def parts_load(values: Mapping[str, float], *, model: str, options: Mapping[str,
     mo = options.get("model_options")
     if not isinstance(mo, Mapping):
         raise ValueError("settings.model_options is missing: the fit's parts cannot be rebuilt")
+    # Thresholds the fit sampled (``fit_thresholds``) are the parameter set's own.
+    fitted = {k: float(values[k]) for k in ("vstall", "tstall", "vd1", "vd2") if k in values}
+    if fitted:
+        d = {**(mo.get("motor_d_params") or {})}
+        d.update({k: fitted[k] for k in ("vstall", "tstall") if k in fitted})
+        mo = {**mo, **{k: fitted[k] for k in ("vd1", "vd2") if k in fitted},
+              "motor_d_params": d}  # fmt: skip
     missing = [n for n in parts_names(mo) if n not in values]
     if missing:
         raise ValueError(f"a {model} parameter set needs {', '.join(missing)}: missing")
@@ -243,6 +250,7 @@ def rebuild_model(settings: Mapping[str, Any]):
         )
     known = {f.name for f in dataclasses.fields(DYNAMIC_MODELS[name])}
     kw = {k: v for k, v in mo.items() if k in known}
+    kw.setdefault("fit_thresholds", False)  # a fit made before they were sampled
     if "motors" in kw:
         kw["motors"] = tuple(kw["motors"])
     if "priors" in kw:

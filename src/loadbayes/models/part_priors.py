@@ -37,9 +37,13 @@ __all__ = [
     "FEEDER_X",
     "MOTOR_CLASSES",
     "MOTOR_KEYS",
+    "THRESHOLD_COORDS",
     "THRESHOLD_PRIORS",
+    "THRESHOLD_RANGES",
+    "VD_GAP",
     "PartsPrior",
     "draw_thresholds",
+    "parts_prior",
     "prior_ranges",
 ]
 
@@ -126,6 +130,10 @@ class PartsPrior:
     #: index of its first coordinate (``log(Rs T0)``; ``log(H / T0)`` at ``i + 4``,
     #: ``log T0`` at ``i + 5``). Empty: no limits (the log-normal priors alone).
     limits: tuple[tuple[int, float, float], ...] = ()
+    #: Coordinates held in ``[lo, hi]``: ``(i, lo, hi)`` (the thresholds' physical ranges).
+    ranges: tuple[tuple[int, float, float], ...] = ()
+    #: ``(i, j, gap)``: ``u[j] <= u[i] - gap`` (the electronics' Vd2 below Vd1).
+    order: tuple[tuple[int, int, float], ...] = ()
 
     def __post_init__(self) -> None:
         n = self.mean.size + sum(b - a for a, b in self.groups)
@@ -158,11 +166,14 @@ class PartsPrior:
         return out
 
     def inside(self, u: np.ndarray) -> bool:
-        """Whether every motor of ``u`` lies in its physical region (:attr:`limits`)."""
+        """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold."""
         for i, rs_max, h_min in self.limits:
             if u[i] - u[i + 5] > math.log(rs_max) or u[i + 4] + u[i + 5] < math.log(h_min):
                 return False
-        return True
+        for i, lo, hi in self.ranges:
+            if not lo <= u[i] <= hi:
+                return False
+        return all(u[j] <= u[i] - gap for i, j, gap in self.order)
 
     def project(self, u: np.ndarray, margin: float = 0.05) -> np.ndarray:
         """``u`` moved just inside each motor's physical region (a start for the sampler)."""
@@ -170,12 +181,18 @@ class PartsPrior:
         for i, rs_max, h_min in self.limits:
             u[i] = min(u[i], math.log(rs_max) - margin + u[i + 5])
             u[i + 4] = max(u[i + 4], math.log(h_min) + margin - u[i + 5])
+        for i, lo, hi in self.ranges:
+            u[i] = min(max(u[i], lo + 1e-3 * (hi - lo)), hi - 1e-3 * (hi - lo))
+        for i, j, gap in self.order:
+            u[j] = min(u[j], u[i] - gap - 1e-3)
         return u
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (for the output's settings)."""
         return {
             "limits": [{"coordinate": i, "rs_max": r, "h_min": h} for i, r, h in self.limits],
+            "ranges": [{"coordinate": i, "low": lo, "high": hi} for i, lo, hi in self.ranges],
+            "order": [{"above": i, "below": j, "gap": g} for i, j, g in self.order],
             "gaussian": {"mean": self.mean.tolist(), "sd": np.sqrt(np.diag(self.cov)).tolist()},
             "simplexes": [list(g) for g in self.groups],
             "beta_sd": self.beta_sd.tolist(),
@@ -183,16 +200,17 @@ class PartsPrior:
         }
 
 
-#: Priors of the constants a fault record above their thresholds never informs, for
-#: predictions beyond the data (``loadbayes predict``): motor D's stall voltage and time,
-#: the electronics' trip voltages. ``(kind, centre, spread)``: ``normal`` (mean, sd) or
-#: ``lognormal`` (median, sd of the log). The centres are the WECC composite load model
-#: specification's typical values (Vstall 0.6 p.u., Tstall 0.033 s, Vd1 0.7, Vd2 0.5
-#: p.u.); the spreads are this package's choice, not a source's: wide enough that the
-#: 95 % range of the stall voltage (0.5 to 0.7 p.u.) spans what tested air conditioners
-#: are reported to do (PNNL-17796 found the stall voltage rising with the outdoor
-#: temperature), so that a prediction the data do not reach widens instead of resting on
-#: one typical number.
+#: Priors of motor D's stall voltage and time and the electronics' trip voltages: a fit
+#: samples them (``PartsModel.fit_thresholds``); a fault record above them informs them
+#: only by ruling out what would have stalled or tripped in it, so a prediction beyond
+#: the data (``loadbayes predict``) rests on these. ``(kind, centre, spread)``:
+#: ``normal`` (mean, sd) or ``lognormal`` (median, sd of the log). The centres are the
+#: WECC composite load model specification's typical values (Vstall 0.6 p.u., Tstall
+#: 0.033 s, Vd1 0.7, Vd2 0.5 p.u.); the spreads are this package's choice, not a
+#: source's: wide enough that the 95 % range of the stall voltage (0.5 to 0.7 p.u.)
+#: spans what tested air conditioners are reported to do (PNNL-17796 found the stall
+#: voltage rising with the outdoor temperature), so that a prediction the data do not
+#: reach widens instead of resting on one typical number.
 THRESHOLD_PRIORS: Mapping[str, tuple[str, float, float]] = MappingProxyType(
     {
         "vstall": ("normal", 0.60, 0.05),
@@ -201,6 +219,66 @@ THRESHOLD_PRIORS: Mapping[str, tuple[str, float, float]] = MappingProxyType(
         "vd2": ("normal", 0.50, 0.05),
     }
 )
+
+
+#: Each threshold's sampled coordinate (the log of the stall time, the others as they are).
+THRESHOLD_COORDS: Mapping[str, str] = MappingProxyType(
+    {"vstall": "vstall", "tstall": "log_tstall", "vd1": "vd1", "vd2": "vd2"}
+)
+#: Hard limits of each sampled coordinate: voltages in p.u. a part can have, a stall time
+#: from a millisecond to two seconds (its log).
+THRESHOLD_RANGES: Mapping[str, tuple[float, float]] = MappingProxyType(
+    {"vstall": (0.05, 1.0), "tstall": (math.log(1e-3), math.log(2.0)), "vd1": (0.06, 1.2),
+     "vd2": (0.0, 1.15)}  # fmt: skip
+)
+#: The electronics' Vd2 at least this far below Vd1 (p.u.).
+VD_GAP = 0.05
+
+
+def parts_prior(model, events) -> PartsPrior:
+    """A ``PartsModel``'s prior: log-normal physical priors in its sampled coordinates.
+
+    The feeder's X and each motor's parameters (:data:`MOTOR_CLASSES`, mapped exactly into
+    the scale-free coordinates), the sampled thresholds (:data:`THRESHOLD_PRIORS`, with
+    their :data:`THRESHOLD_RANGES` and Vd2 below Vd1), flat shares on their simplexes;
+    the user's ``model.priors`` by name over the defaults.
+    """
+    from loadbayes.models.composite import SCALE_FREE_MATRIX as sf
+
+    means, blocks = [], []
+    if model.feeder:
+        med, sd = model.priors.get("x_fd", FEEDER_X)
+        means.append([math.log(med)])
+        blocks.append(np.array([[sd * sd]]))
+    for m, t in zip(model.motors, model._tags, strict=True):
+        cls = MOTOR_CLASSES[m]["prior"]
+        med = np.array([math.log(model.priors.get(k + t, cls[k])[0]) for k in MOTOR_KEYS])
+        sd = np.array([model.priors.get(k + t, cls[k])[1] for k in MOTOR_KEYS])
+        means.append(sf @ med)
+        blocks.append(sf @ np.diag(sd**2) @ sf.T)
+    index = {}
+    for name in model.thresholds:
+        kind, centre, spread = THRESHOLD_PRIORS[name]
+        centre, spread = model.priors.get(name, (centre, spread))
+        index[name] = sum(b.shape[0] for b in blocks)
+        means.append([math.log(centre) if kind == "lognormal" else centre])
+        blocks.append(np.array([[spread * spread]]))
+    n = model._n_gauss
+    cov = np.zeros((n, n))
+    i = 0
+    for b in blocks:
+        cov[i : i + b.shape[0], i : i + b.shape[0]] = b
+        i += b.shape[0]
+    k = len(model.parts)
+    groups = ((n, n + k), (n + k, n + k + 2))
+    s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
+    first = 1 if model.feeder else 0
+    limits = tuple((first + 6 * j, model.rs_max, model.h_min) for j in range(len(model.motors)))
+    ranges = tuple((index[k], *THRESHOLD_RANGES[k]) for k in model.thresholds)
+    order = ((index["vd1"], index["vd2"], VD_GAP),) if "vd1" in index else ()
+    return PartsPrior(np.concatenate(means) if means else np.zeros(0), cov, groups,
+                      np.full(4, 10 * s), limits=limits if model.physical_region else (),
+                      ranges=ranges, order=order)  # fmt: skip
 
 
 def draw_thresholds(rng: np.random.Generator, n: int,
@@ -212,5 +290,5 @@ def draw_thresholds(rng: np.random.Generator, n: int,
         z = rng.standard_normal(n)
         out[name] = centre * np.exp(spread * z) if kind == "lognormal" else centre + spread * z
     if "vd1" in out and "vd2" in out:
-        out["vd2"] = np.minimum(out["vd2"], out["vd1"] - 0.05)
+        out["vd2"] = np.minimum(out["vd2"], out["vd1"] - VD_GAP)
     return out

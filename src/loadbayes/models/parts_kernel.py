@@ -194,12 +194,13 @@ def model_sums(model, event, theta):
         motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
     g = len(model.channel_names)
     ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
-    params = {**MOTOR_D_DEFAULTS, **model.motor_d_params}
+    params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
+              "tstall": float(c["tstall"])}  # fmt: skip
     d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
     ok = event_sums(*fixed, model.rx * x_fd, x_fd, motors, float(model.window_s),
                     np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
-                    model.motor_d, d_params, model.electronics, float(model.vd1),
-                    float(model.vd2), float(model.frcel), g == 3 and bool(fixed[10].any()),
+                    model.motor_d, d_params, model.electronics, float(c["vd1"]),
+                    float(c["vd2"]), float(model.frcel), g == 3 and bool(fixed[10].any()),
                     ztz, zty, yty, nn)  # fmt: skip
     return (ztz, zty, yty, nn) if ok else None
 

@@ -1,5 +1,9 @@
 """A dynamic load built from parts: feeder, motors, motor D, electronics, static ZIP.
 
+One idea needs these lines: :class:`PartsModel`, the one class that maps a sampled
+vector to every part's physics and the likelihood's channels (its prior is
+``part_priors.parts_prior``, its compiled sums ``parts_kernel``).
+
 :class:`PartsModel` is a :class:`~loadbayes.models.base.DynamicLoadModel` whose load is
 assembled from the parts of :mod:`loadbayes.models.parts` behind an optional series
 impedance; the named models (``slm``, ``cmld-lite``) are its instances with their parts
@@ -59,7 +63,14 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import SCALE_FREE_MATRIX, motor_physical, motor_response
 from loadbayes.models.composite_steps import FitSamples
-from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, MOTOR_KEYS, PartsPrior
+from loadbayes.models.part_priors import (
+    MOTOR_CLASSES,
+    MOTOR_KEYS,
+    THRESHOLD_COORDS,
+    THRESHOLD_PRIORS,
+    PartsPrior,
+    parts_prior,
+)
 from loadbayes.models.parts import (
     MOTOR_D_DEFAULTS,
     NEG_SEQ_MIN,
@@ -112,6 +123,10 @@ class PartsModel:
     vd1: float = 0.70
     vd2: float = 0.50
     frcel: float = 0.0
+    #: Sample motor D's stall voltage and time and the electronics' trip voltages
+    #: (``vstall, tstall, vd1, vd2``) under their priors (``part_priors.THRESHOLD_PRIORS``)
+    #: with the rest; False: hold them at ``motor_d_params`` and ``vd1, vd2``.
+    fit_thresholds: bool = True
     motor_d_params: Mapping[str, float] = field(default_factory=dict)
     priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     coefficient_priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
@@ -140,10 +155,14 @@ class PartsModel:
         names: list[str] = ["log_x_fd"] if self.feeder else []
         for t in tags:
             names += [c + t for c in _MOTOR_COORDS]
+        thr = []
+        if self.fit_thresholds:
+            thr = ["vstall", "tstall"] * self.motor_d + ["vd1", "vd2"] * self.electronics
+        names += [THRESHOLD_COORDS[k] for k in thr]
         n_gauss = len(names)
         names += [f"lr_{p}" for p in parts]  # log(f_part / f_static)
         names += ["lr_a1", "lr_a2"]
-        known = {*MOTOR_KEYS} | {"x_fd"}
+        known = {*MOTOR_KEYS} | {"x_fd"} | set(THRESHOLD_PRIORS)
         for key in self.priors:
             base = key.rsplit("_", 1)[0] if key.rsplit("_", 1)[-1] in ("a", "b") else key
             if base not in known:
@@ -156,6 +175,7 @@ class PartsModel:
         set_(self, "parts", tuple(parts))
         set_(self, "_n_gauss", n_gauss)
         set_(self, "_tags", tuple(tags))
+        set_(self, "thresholds", tuple(thr))
         set_(self, "_kept", {})
         set_(self, "_fixed", {})
 
@@ -166,31 +186,7 @@ class PartsModel:
 
     def default_prior(self, events: Sequence[EventRecord]) -> PartsPrior:
         """Log-normal physical priors mapped into the sampled coordinates, flat shares."""
-        means, blocks = [], []
-        if self.feeder:
-            med, sd = self.priors.get("x_fd", FEEDER_X)
-            means.append([math.log(med)])
-            blocks.append(np.array([[sd * sd]]))
-        for m, t in zip(self.motors, self._tags, strict=True):
-            cls = MOTOR_CLASSES[m]["prior"]
-            med = np.array([math.log(self.priors.get(k + t, cls[k])[0]) for k in MOTOR_KEYS])
-            sd = np.array([self.priors.get(k + t, cls[k])[1] for k in MOTOR_KEYS])
-            means.append(_SCALE_FREE @ med)
-            blocks.append(_SCALE_FREE @ np.diag(sd**2) @ _SCALE_FREE.T)
-        n = self._n_gauss
-        cov = np.zeros((n, n))
-        i = 0
-        for b in blocks:
-            cov[i : i + b.shape[0], i : i + b.shape[0]] = b
-            i += b.shape[0]
-        k = len(self.parts)
-        groups = ((n, n + k), (n + k, n + k + 2))
-        s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
-        first = 1 if self.feeder else 0
-        limits = tuple((first + 6 * j, self.rs_max, self.h_min) for j in range(len(self.motors)))
-        return PartsPrior(np.concatenate(means) if means else np.zeros(0), cov, groups,
-                          np.full(4, 10 * s),
-                          limits=limits if self.physical_region else ())  # fmt: skip
+        return parts_prior(self, events)
 
     # -- the physics -------------------------------------------------------------------
 
@@ -207,6 +203,16 @@ class PartsModel:
             logs = th[..., i : i + 6] @ inv.T
             out["motors"].append(logs)
             i += 6
+        params = {**MOTOR_D_DEFAULTS, **self.motor_d_params}
+        fixed = {"vstall": params["vstall"], "tstall": params["tstall"], "vd1": self.vd1,
+                 "vd2": self.vd2}  # fmt: skip
+        for name in fixed:
+            if name in self.thresholds:
+                x = th[..., i]
+                out[name] = np.exp(x) if THRESHOLD_COORDS[name].startswith("log_") else x
+                i += 1
+            else:
+                out[name] = fixed[name]
         k = len(self.parts)
         f = _softmax(th[..., i : i + k])  # parts..., static last
         out["f"] = f
@@ -289,6 +295,28 @@ class PartsModel:
         """
         return model_sums(self, event, theta)
 
+    def with_thresholds(self, theta: NDArray, values: Mapping[str, NDArray]) -> NDArray:
+        """``theta`` (..., k) with the sampled thresholds set to ``values`` (by name)."""
+        out = np.array(theta, dtype=float)
+        for name in self.thresholds:
+            if name in values:
+                coord = THRESHOLD_COORDS[name]
+                x = np.asarray(values[name], dtype=float)
+                col = self.theta_names.index(coord)
+                out[..., col] = np.log(x) if coord.startswith("log_") else x
+        return out
+
+    def lowest_voltage(self, event: EventRecord, theta: NDArray) -> float:
+        """The load bus's lowest voltage over the rows the likelihood reads, at ``theta``.
+
+        Below it no threshold is reached (``fit/composite/thresholds.py``).
+        """
+        keep, _ = self.drive_of(event)
+        if keep.size < event.n:
+            event = event.take(keep)
+        x_fd = self.feeder_x(event.p[0], event.q[0], self._split(theta)) if self.feeder else 0.0
+        return float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v))
+
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""
         return float(c["x_fd"]) / float(np.hypot(p0, q0)) if self.feeder else 0.0
@@ -324,13 +352,14 @@ class PartsModel:
             y2p += f[j] / pm[0] * (motor_y2(rs, xp, dx, tp, self.f_hz) + 1j * qm[0] / v0**2)
         j = len(self.motors)
         if self.motor_d:
-            pd, qd = motor_d(ev.t, ev.v, **self.motor_d_params)
+            pd, qd = motor_d(ev.t, ev.v, **{**self.motor_d_params, "vstall": c["vstall"],
+                                            "tstall": c["tstall"]})  # fmt: skip
             col_p += f[j] * pd / pd[0]
             col_qp += f[j] * (qd - qd[0] * xl * xl) / pd[0]
             y2p += f[j] / v0**2
             j += 1
         if self.electronics:
-            col_p += f[j] * electronics_fraction(ev.v, self.vd1, self.vd2, self.frcel)
+            col_p += f[j] * electronics_fraction(ev.v, c["vd1"], c["vd2"], self.frcel)
         return col_p, col_qp, y2p
 
     def _i2(self, event, lb, y2p, v0) -> tuple[NDArray, NDArray]:
@@ -358,6 +387,7 @@ class PartsModel:
             "window_s": self.window_s, "physical_region": self.physical_region,
             "rs_max": self.rs_max, "h_min": self.h_min,
             "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
+            "fit_thresholds": self.fit_thresholds,
             "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},
             "priors": {k: list(v) for k, v in self.priors.items()},
         }  # fmt: skip
@@ -400,6 +430,8 @@ class PartsModel:
         out["f_motors"] = np.asarray(motor_total)
         for i, name in enumerate(("a1", "a2", "a3")):
             out[name] = c["a_p"][..., i]
+        for name in self.thresholds:
+            out[name] = np.asarray(c[name])
         return out
 
     def ratings(self, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:

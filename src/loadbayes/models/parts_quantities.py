@@ -41,6 +41,10 @@ def quantities(model) -> dict[str, tuple[str, str]]:
             "x_open": (mb, "open-circuit X"), "t_prime_s": ("s", "transient T'"),
         }.items():  # fmt: skip
             q[k + t] = (unit, f"{what}: {meaning}")
+    q |= {"vstall": ("p.u.", "motor D: stall voltage (at the load bus)"),
+          "tstall": ("s", "motor D: time below the stall voltage before it stalls"),
+          "vd1": ("p.u.", "electronics: voltage where they start to trip"),
+          "vd2": ("p.u.", "electronics: voltage where all have tripped")}  # fmt: skip
     for name in model.theta_names:
         q.setdefault(name, ("-", "sampled coordinate"))
     return q

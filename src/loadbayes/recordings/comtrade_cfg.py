@@ -188,12 +188,14 @@ def _stamp(cells: list[str], line: int, path: str) -> str:
     return f"{date},{time}"
 
 
-#: Encodings tried in turn when none is given: UTF-8 (with or without a BOM), then the
-#: Chinese national standard GB18030 (a superset of GBK and GB2312, what State Grid
-#: recorders write), kept only when the text holds CJK characters and nearly all its
-#: non-ASCII characters are two high bytes (:func:`_mostly_double_byte`), then Latin-1, which
-#: decodes any byte (Western recorders' Windows code pages).
-ENCODINGS = ("utf-8-sig", "gb18030", "latin-1")
+#: Encodings tried in turn when none is given: UTF-8 (with or without a BOM), strictly;
+#: then the Chinese national standard GB18030 (a superset of GBK and GB2312, what State
+#: Grid recorders write), kept only when the text holds CJK characters, nearly all its
+#: non-ASCII characters are two high bytes (:func:`_mostly_double_byte`), it encodes back
+#: to the same bytes, and the high bytes do not read as accented letters inside Western
+#: words (:func:`_latin_words`); then Windows-1252 when bytes 0x80-0x9F are present and
+#: decode in it, else Latin-1, which decodes any byte (Western recorders' code pages).
+ENCODINGS = ("utf-8-sig", "gb18030", "cp1252", "latin-1")
 
 
 def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
@@ -216,11 +218,50 @@ def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
         pass
     try:
         text = raw.decode("gb18030")
-        if has_cjk(text) and _mostly_double_byte(text):
+        if (
+            has_cjk(text)
+            and _mostly_double_byte(text)
+            and text.encode("gb18030") == raw
+            and not _latin_words(raw)
+        ):
             return text, "gb18030"
     except UnicodeDecodeError:
         pass
+    if re.search(rb"[\x80-\x9f]", raw):
+        # Bytes 0x80-0x9F are control codes in Latin-1 and letters and marks in Windows-1252
+        # ("…", "€", "Š"), which Western recorders write.
+        try:
+            return raw.decode("cp1252"), "cp1252"
+        except UnicodeDecodeError:
+            pass
     return raw.decode("latin-1"), "latin-1"
+
+
+#: Latin-1's letters (À..ÿ without × and ÷).
+_LATIN_LETTERS = frozenset(range(0xC0, 0x100)) - {0xD7, 0xF7}
+
+
+def _latin_words(raw: bytes) -> bool:
+    """Whether every run of high bytes reads as accented letters inside Western words.
+
+    GB18030 pairs two high bytes into one ideograph, and Latin-1 text whose accented
+    letters come in pairs ("Größe": 0xF6 0xDF) passes :func:`_mostly_double_byte`. Such
+    pairs sit inside a word, between ASCII letters, and are letters themselves; Chinese
+    names are runs of several ideographs (four or more bytes: "主变", "高压侧") or sit
+    beside digits and separators ("1号", "_I"). A text whose every run of high bytes is at
+    most two Latin-1 letters with an ASCII letter on each side is taken as Latin-1.
+    """
+    runs = list(re.finditer(rb"[\x80-\xff]+", raw))
+    if not runs:
+        return False
+    for m in runs:
+        a, b = m.span()
+        if b - a > 2 or not all(x in _LATIN_LETTERS for x in raw[a:b]):
+            return False
+        before, after = raw[a - 1 : a], raw[b : b + 1]
+        if not (before.isalpha() and after.isalpha()):
+            return False
+    return True
 
 
 def _mostly_double_byte(text: str) -> bool:

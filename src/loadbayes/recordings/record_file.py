@@ -51,11 +51,12 @@ def meta_path(table: str | os.PathLike[str]) -> Path:
     return Path(os.fspath(table) + META_SUFFIX)
 
 
-def comtrade_time(stamp: str) -> dt.datetime | None:
+def comtrade_time(stamp: str, *, month_first: bool = False) -> dt.datetime | None:
     """A ``.cfg`` time stamp ``dd/mm/yyyy,hh:mm:ss.ffffff`` as a datetime (None if blank).
 
-    COMTRADE 1999 and later write the day first; a two-digit year (1991) is 19xx/20xx.
-    The recorder's clock has no zone in the file: the datetime is naive.
+    COMTRADE 1999 and later write the day first; 1991 the month (``month_first``, as the
+    ``comtrade`` package reads it); a two-digit year is 19xx/20xx. The recorder's clock
+    has no zone in the file: the datetime is naive.
     """
     if not stamp or "," not in stamp:
         return None
@@ -64,6 +65,8 @@ def comtrade_time(stamp: str) -> dt.datetime | None:
         return None
     try:
         d, m, y = (int(x) for x in date.split("/"))
+        if month_first:
+            d, m = m, d
         if y < 100:
             y += 2000 if y < 70 else 1900
         hh, mm, ss = time.split(":")

@@ -5,9 +5,10 @@ For a :class:`~loadbayes.models.parts_model.PartsModel` fit (``slm``, ``cmld-lit
 - **physical**: the shares are on their simplex by construction; each motor's Rs and H
   on its own base are checked against the physical region a planner can use (Rs <= 0.1,
   H >= 0.05 s, :data:`PHYSICAL`), on the posterior's median and interval;
-- **left to the prior**: a motor or feeder parameter whose posterior spread of the log
-  is more than :data:`PRIOR_DRIVEN` of the prior's was not determined by the events, and
-  is said to be the prior's (its interval is the published range it came from);
+- **left to the prior**: a motor, feeder or threshold parameter whose posterior spread
+  (of the log, where its prior is log-normal) is more than :data:`PRIOR_DRIVEN` of the
+  prior's was not determined by the events, and is said to be the prior's (its
+  interval is the published range it came from);
 - **the negative sequence**: which events it entered (rows, their |V2|), or why not, and
   the motors' ratings it speaks to.
 
@@ -20,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES
+from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, THRESHOLD_PRIORS
 from loadbayes.models.parts_model import NEG_SEQ_MIN
 
 __all__ = ["PHYSICAL", "PRIOR_DRIVEN", "describe_parts", "parts_residuals", "prior_driven"]
@@ -38,10 +39,12 @@ def _interval(x: np.ndarray, prob: float) -> tuple[float, float]:
 
 def prior_driven(model: Any, draws: dict[str, np.ndarray],
                  hdi_prob: float = 0.95) -> list[tuple[str, tuple[float, float]]]:  # fmt: skip
-    """The motor and feeder parameters whose posterior keeps their prior's spread.
+    """The motor, feeder and threshold parameters whose posterior keeps their prior's spread.
 
-    ``(name, interval)`` of each whose posterior sd of the log is above
-    :data:`PRIOR_DRIVEN` of the prior's (the events did not determine it).
+    ``(name, interval)`` of each whose posterior sd (of the log, for the log-normal
+    priors) is above :data:`PRIOR_DRIVEN` of the prior's (the events did not determine
+    it); the sampled thresholds (motor D's stall voltage and time, the electronics' trip
+    voltages) are judged the same way.
     """
     prior_of = {}
     for m, t in zip(model.motors, model._tags, strict=True):
@@ -49,12 +52,18 @@ def prior_driven(model: Any, draws: dict[str, np.ndarray],
             prior_of[k + t] = model.priors.get(k + t, (median, sd))
     if model.feeder:
         prior_of["x_fd"] = model.priors.get("x_fd", FEEDER_X)
+    logs = set(prior_of)
+    for name in getattr(model, "thresholds", ()):
+        kind, centre, sd = THRESHOLD_PRIORS[name]
+        prior_of[name] = model.priors.get(name, (centre, sd))
+        if kind == "lognormal":
+            logs.add(name)
     out = []
     for name, (_median, sd) in prior_of.items():
         if name not in draws or not sd > 0:
             continue
         x = np.asarray(draws[name], dtype=float).ravel()
-        if float(np.std(np.log(x))) / sd > PRIOR_DRIVEN:
+        if float(np.std(np.log(x) if name in logs else x)) / sd > PRIOR_DRIVEN:
             out.append((name, _interval(x, hdi_prob)))
     return out
 

@@ -188,6 +188,14 @@ class DesignProblem:
         lp = self.log_collapsed(sums, u, tau)
         return (lp, sums) if math.isfinite(lp) else (-math.inf, None)
 
+    def conditional_moves(self):
+        """The model's own steps after the block move (its thresholds'), or None."""
+        if not getattr(self.model, "thresholds", ()):
+            return None
+        from loadbayes.fit.composite.thresholds import ThresholdMoves
+
+        return ThresholdMoves(self)
+
     def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:
         """Every event's ``beta | u, tau`` (exact)."""
         return [draw_beta(s, tau, self.m0, self.p0, rng, positive=self.positive) for s in sums]

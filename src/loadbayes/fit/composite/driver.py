@@ -33,6 +33,7 @@ from loadbayes.fit.composite.naming import (
     named_draws,
 )
 from loadbayes.fit.composite.nls import NLSResult, nls
+from loadbayes.fit.composite.predict_scope import covered
 from loadbayes.fit.composite.predictive import event_arrays
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.provenance import (
@@ -366,6 +367,9 @@ def fit_composite(
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},
         settings={
             **common,
+            # The voltages and durations the events span: a prediction beyond them is
+            # said to extrapolate (``loadbayes predict``).
+            "covered": covered(events),
             **sampler_record(run, move, res, dict(seconds), likelihood),
             **robust_settings,
         },

@@ -9,6 +9,11 @@ sag with a ramp's duration to the ramp's middle). :func:`covered` is the range t
 fitted events span (read from the recordings a fit keeps, ``predictive.events_of``), and
 :func:`recovery_time` the time after the fault's clearing (the last sample below half
 the depth) from which P or Q stays within 10 % of its pre-fault value.
+:func:`fitted_thresholds` gives each played draw its thresholds (motor D's stall, the
+electronics' trip): the posterior's where the fit sampled them, reweighted for a prior
+the user gives. :func:`q_excess`
+is the planning outcome (``export --planning`` orders the draws by it); :func:`jeffreys`
+and :func:`spread` summarise the draws' answers.
 """
 
 from __future__ import annotations
@@ -24,22 +29,42 @@ import pandas as pd
 from loadbayes.fit.composite.describe_parts import prior_driven
 from loadbayes.io.errors import DataError
 from loadbayes.measurements.record import EventRecord
+from loadbayes.models.part_priors import THRESHOLD_PRIORS, VD_GAP
 
 __all__ = [
     "MEANING",
+    "MIN_ESS",
+    "bands",
+    "OUTCOME",
+    "OUTCOME_RULE",
     "covered",
     "extrapolation",
+    "fitted_thresholds",
+    "jeffreys",
     "left_to_prior",
+    "q_excess",
     "read_profile",
     "recovery_time",
     "sag_extent",
     "sag_profile",
+    "spread",
 ]
 
 #: What each threshold is (the thresholds of ``part_priors.THRESHOLD_PRIORS``).
 MEANING = {"vstall": "motor D's stall voltage (p.u.)", "tstall": "motor D's stall time (s)",
            "vd1": "the electronics' voltage where tripping starts (p.u.)",
            "vd2": "the electronics' voltage where all have tripped (p.u.)"}  # fmt: skip
+
+#: The planning outcome of each draw played (``Prediction.outcomes``): how hard the load
+#: pulls on the voltage after the fault, the quantity a planner's ensemble must span.
+OUTCOME = "q_excess_pu_s"
+OUTCOME_RULE = (
+    "the load's reactive energy above its pre-fault Q from the fault's clearing to the "
+    "record's end: the integral of max(Q(t) - Q(0), 0) dt, system p.u. times s. A motor "
+    "that reaccelerates slowly draws it for longer and one that stalls draws its locked "
+    "rotor's Q to the end, so it orders the draws by stall severity (fault-induced "
+    "delayed voltage recovery)"
+)
 
 #: Seconds of steady voltage before a built sag, and after its recovery.
 PRE_S, POST_S = 0.2, 1.5
@@ -181,33 +206,47 @@ def extrapolation(model, fault: dict, cover: dict, priors: Mapping,
                        f"({cover['duration_max_s']:.3g} s at most)")  # fmt: skip
     decide = []
     v_seen = cover["v_min"] if cover["v_min"] is not None else 1.0
+    fitted = set(getattr(model, "thresholds", ()))
+    reached = []  # the thresholds this fault's voltage comes near
     if model.motor_d:
         kind, c, s = priors["vstall"]
-        top = c + 2 * s
-        if fault["v_min"] < top + 0.05:
-            decide += ["vstall", "tstall"]
+        if fault["v_min"] < c + 2 * s + 0.05:
+            reached += ["vstall", "tstall"]
     if model.electronics:
         kind, c, s = priors["vd1"]
         if fault["v_min"] < c + 2 * s + 0.05:
-            decide += ["vd1", "vd2"]
+            reached += ["vd1", "vd2"]
+    # A sampled threshold the fitted events determined (a stall or a trip in them) is
+    # the data's; one whose posterior keeps its prior's spread is still the prior's.
+    decide = [d for d in reached if d not in fitted or d in left]
+    motor_left = [n for n in left if n not in MEANING]
     words = []
     if why:
         words.append("Extrapolation: " + "; ".join(why) + ".")
-        if left:
+        if motor_left:
             words.append(
-                "The fit left " + ", ".join(left) + " to their priors (models/part_priors.py: "
-                "the WECC composite load model's typical data and PNNL's LMDT records): "
-                "beyond the fitted events they shape the answer as much as the data do."
+                "The fit left " + ", ".join(motor_left) + " to their priors "
+                "(models/part_priors.py: the WECC composite load model's typical data and "
+                "PNNL's LMDT records): beyond the fitted events they shape the answer as "
+                "much as the data do."
             )
     if decide:
         seen = (f"no fitted event went below {v_seen:.3g} p.u." if v_seen > 0.7 else
                 f"the fitted events went down to {v_seen:.3g} p.u.")  # fmt: skip
+        how = ("the fit does not estimate them" if not fitted & set(decide) else
+               "the fitted events did not determine them (their posteriors keep the "
+               "priors' spread, less what the events rule out)")  # fmt: skip
         words.append(
             f"The answer is decided by the priors of {', '.join(decide)} ("
             + "; ".join(MEANING[d] for d in decide)
-            + f"): the fit does not estimate them and {seen}; each draw takes them from "
-            "its prior (see thresholds, with the source)."
+            + f"): {how} and {seen}; each draw carries its own, from that prior "
+            "(see thresholds, with the source)."
         )
+    learned = [d for d in reached if d not in decide]
+    if learned:
+        words.append("The fitted events narrowed " + ", ".join(learned) + " ("
+                     + "; ".join(MEANING[d] for d in learned) + "): each draw carries "
+                     "the posterior's value.")  # fmt: skip
     absent = [w for w, on in (("motor D (air conditioners that stall)", model.motor_d),
                               ("electronics that trip", model.electronics)) if not on]  # fmt: skip
     if why and absent and fault["v_min"] < 0.8:
@@ -215,5 +254,123 @@ def extrapolation(model, fault: dict, cover: dict, priors: Mapping,
                      "would do in this fault cannot appear in the answer (fit cmld-lite for "
                      "them).")  # fmt: skip
     return {"extrapolated": bool(why), "why": why, "decided_by_prior": decide,
+            "determined_by_the_fit": learned,
             "left_to_prior_by_the_fit": list(left),
             "message": " ".join(words) or "Within what the fitted events covered."}  # fmt: skip
+
+
+#: Effective draws below which a user's prior over a sampled threshold does not reweight
+#: the posterior (importance resampling) but replaces it (see :func:`fitted_thresholds`).
+MIN_ESS = 50.0
+
+
+def _log_prior(x: np.ndarray, prior) -> np.ndarray:
+    kind, centre, spread = prior
+    if kind == "lognormal":
+        return -0.5 * ((np.log(x) - math.log(centre)) / spread) ** 2 - np.log(x)
+    return -0.5 * ((x - centre) / spread) ** 2
+
+
+def fitted_thresholds(model, d, pick, th, priors, left, rng):
+    """Each played draw's thresholds: the posterior's, where the fit sampled them.
+
+    ``th`` holds prior draws (an older fit, or ``fit_thresholds`` off, samples none); a
+    threshold the fit sampled is replaced by the picked draws' own. A user's prior
+    (``--prior``) over a sampled threshold reweights the posterior's draws by the ratio
+    of the two priors (importance resampling, with replacement). Where that leaves fewer
+    than :data:`MIN_ESS` effective draws: a threshold the fit left to its prior is drawn
+    from the user's prior instead (what the fitted events rule out is then not applied:
+    said), and one the fitted events determined is refused (the prior and the data
+    disagree). Returns ``(pick, th, notes)``.
+    """
+    fitted = [n for n in getattr(model, "thresholds", ()) if n in d]
+    if not fitted:
+        return pick, th, []
+    notes = []
+    own = {n: (THRESHOLD_PRIORS[n][0], *model.priors.get(n, THRESHOLD_PRIORS[n][1:]))
+           for n in fitted}  # fmt: skip
+    changed = [n for n in fitted if tuple(priors[n]) != tuple(own[n])]
+    replaced: list[str] = []
+    if changed:
+        ess = 0.0
+        if all(priors[n][2] > 0 for n in changed):
+            logw = sum(_log_prior(d[n], priors[n]) - _log_prior(d[n], own[n]) for n in changed)
+            w = np.exp(logw - np.max(logw))
+            w /= w.sum()
+            ess = float(1.0 / np.sum(w * w))
+        names = ", ".join(changed)
+        if ess >= MIN_ESS:
+            pick = rng.choice(w.size, size=pick.size, replace=True, p=w)
+            notes.append(f"the prior given for {names} reweights the posterior's draws "
+                         f"(importance resampling: {ess:.0f} effective draws)")  # fmt: skip
+        else:
+            hard = [n for n in changed if n not in left]
+            if hard:
+                x = d[hard[0]]
+                raise ValueError(
+                    f"--prior {hard[0]}: the fitted events determine it (95% of the posterior "
+                    f"in [{np.percentile(x, 2.5):.3g}, {np.percentile(x, 97.5):.3g}]) and the "
+                    f"prior given puts almost no mass there ({ess:.1f} effective draws): the "
+                    "prior and the data disagree"
+                )
+            replaced = changed
+            notes.append(f"the prior given for {names} lies where the posterior has few draws "
+                         f"({ess:.1f} effective); the fitted events left {names} to the "
+                         "prior, so each draw takes them from the prior given (what the "
+                         "fitted events rule out is not applied)")  # fmt: skip
+    for n in fitted:
+        if n not in replaced:
+            th[n] = np.asarray(d[n], dtype=float)[pick]
+    if "vd1" in th and "vd2" in th:
+        th["vd2"] = np.minimum(th["vd2"], th["vd1"] - VD_GAP)
+    return pick, th, notes
+
+
+def q_excess(t: np.ndarray, q: np.ndarray, t_clear: float) -> float:
+    """:data:`OUTCOME`: the integral of ``max(Q - Q(0), 0)`` from ``t_clear`` to the end."""
+    from scipy.integrate import trapezoid
+
+    after = t >= t_clear
+    if after.sum() < 2:
+        return 0.0
+    return float(trapezoid(np.maximum(q[after] - q[0], 0.0), t[after]))
+
+
+def jeffreys(k: int, n: int, prob: float) -> list[float]:
+    """The Jeffreys interval (``prob``) of a share ``k / n`` (0 and 1 at the ends)."""
+    from scipy.stats import beta
+
+    a = (1 - prob) / 2
+    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
+    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
+    return [lo, hi]
+
+
+def spread(x: np.ndarray, prob: float) -> dict[str, Any]:
+    """Median and central ``prob`` interval of the finite ``x``; the share not finite."""
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    done = x[np.isfinite(x)]
+    out: dict[str, Any] = {"not_within_window": float(np.mean(~np.isfinite(x))) if x.size else 0.0}
+    if done.size:
+        out |= {"median": float(np.median(done)),
+                "interval": [float(v) for v in np.percentile(done, [lo, hi])]}  # fmt: skip
+    else:
+        out |= {"median": None, "interval": None}
+    return out
+
+
+def bands(t: np.ndarray, v: np.ndarray, model: Mapping[str, list], noisy: Mapping[str, list],
+          prob: float) -> dict[str, np.ndarray]:  # fmt: skip
+    """A prediction's bands, from the draws played and the same with the fit's noise.
+
+    Each channel of ``model`` gets ``lo, mid, hi``; each of ``noisy`` ``pred_lo, pred_hi``.
+    """
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    band: dict[str, np.ndarray] = {"t_s": t, "v": v}
+    for ch, arr in model.items():
+        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
+            np.array(arr), [lo, 50, hi], axis=0)  # fmt: skip
+    for ch, arr in noisy.items():
+        band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
+                                                                     axis=0)  # fmt: skip
+    return band

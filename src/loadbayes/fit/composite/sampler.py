@@ -212,6 +212,9 @@ class _Gibbs:
             self.tilted = _Tilted(problem, factor)
             betas = self.tilted.feasible(sums, tau, u, rng)
         self.start = _State(u, sums, tau, rho, betas, None)
+        # A model's own steps after the block move (a model of parts' thresholds).
+        own = getattr(problem, "conditional_moves", None)
+        self.own_moves = None if own is None else own()
         # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
         self.late_burn: list[np.ndarray] | None = [] if jumps else None
         # What a kept iteration stores, by name (ChainResult's fields).
@@ -239,6 +242,8 @@ class _Gibbs:
             lp, logp = wt.current(u, tau), wt.logp(tau)
         if self.tilted is None:
             (u, lp, sums), _ = self.am.step(BlockState(u, lp, sums), logp, rng, it)
+            if self.own_moves is not None:
+                u, lp, sums = self.own_moves(u, lp, sums, logp, rng)
             if problem.n_share_coords:
                 u = self._share_steps(u, lp, sums, tau, it)
 
