@@ -30,7 +30,18 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.parts_predict import predict_parts
 from loadbayes.posterior import Posterior
 
-__all__ = ["validate_parts_event"]
+__all__ = ["noise_precision", "validate_parts_event"]
+
+
+def noise_precision(d: dict, channel: str, i: int) -> float:
+    """Draw ``i``'s precision of one sample's noise: ``tau`` (white) or ``tau (1 - rho^2)``.
+
+    With AR(1) noise ``tau`` is the innovations'; a sample's own (stationary) variance is
+    ``1 / (tau (1 - rho^2))``, which the pointwise band and log-likelihood read.
+    """
+    tau = d[f"tau_{channel}"][i]
+    rho = d.get(f"rho_{channel}")
+    return tau if rho is None else tau * (1.0 - rho[i] ** 2)
 
 
 def validate_parts_event(
@@ -70,12 +81,13 @@ def validate_parts_event(
         if out is None:
             continue
         mp, mq, _ = out
-        sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
+        tau_p, tau_q = noise_precision(d, "p", i), noise_precision(d, "q", i)
+        sp, sq = 1 / math.sqrt(tau_p), 1 / math.sqrt(tau_q)
         means_p.append(mp)
         means_q.append(mq)
         noisy_p.append(mp + sp * rng.standard_normal(event.n))
         noisy_q.append(mq + sq * rng.standard_normal(event.n))
-        logl.append(gaussian_logl(event, mp, mq, d["tau_p"][i], d["tau_q"][i]))
+        logl.append(gaussian_logl(event, mp, mq, tau_p, tau_q))
     if not means_p:
         raise ValueError(f"{event.name or 'the event'}: no posterior draw has a steady state at "
                          f"its first voltage ({event.v0:.4g} p.u.)")  # fmt: skip
