@@ -138,7 +138,9 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     default="white",
     show_default=True,
     help="Noise on P and Q independent from sample to sample, or AR(1) in each channel "
-    "(rho_p, rho_q sampled): for recordings whose residuals run in stretches.",
+    "(rho_p, rho_q sampled; every --model; with slm and cmld-lite the negative-sequence "
+    "current stays white): for recordings whose residuals run in stretches, so that the "
+    "intervals widen instead of trusting each sample as independent.",
 )
 @click.option(
     "--window-s",
