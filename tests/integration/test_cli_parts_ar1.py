@@ -1,0 +1,58 @@
+"""``fit composite --model slm --noise ar1``: AR(1) noise for a model of parts, from the CLI.
+
+Two sags from the tests' own SciPy simulator (``tests/feeder_generator.py``) with white
+noise; the run must sample ``rho_p``, ``rho_q``, print them, record the option so the
+fit can be rebuilt, and ``--model auto`` refuses ``--noise`` in one line.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from feeder_generator import simulate
+from loadbayes.cli import main
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(scope="module")
+def sags(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ar1")
+    rng = np.random.default_rng(2)
+    paths = []
+    for k, sag in enumerate((0.15, 0.25)):
+        t, v, d, p, q, _ = simulate(sag=sag)
+        frame = pd.DataFrame({"t_s": t, "v": v, "p": p + rng.normal(0, 0.005, t.size),
+                              "q": q + rng.normal(0, 0.005, t.size), "angle_rad": d})  # fmt: skip
+        paths.append(root / f"sag{k}.csv")
+        frame.to_csv(paths[-1], index=False)
+    return root, [str(p) for p in paths]
+
+
+def test_slm_samples_ar1_noise_and_says_so(sags):
+    root, paths = sags
+    out = root / "ar1.json"
+    res = CliRunner().invoke(main, ["fit", "composite", *paths, "--model", "slm", "--noise",
+                                    "ar1", "--f-hz", "50", "--draws", "400", "--burn", "200",
+                                    "--json", str(out)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "rho_p" in res.stdout and "AR(1) coefficient of P's noise" in res.stdout
+    doc = json.loads(out.read_text())
+    assert {"rho_p", "rho_q", "tau_p", "tau_q"} <= set(doc["parameters"])
+    assert doc["settings"]["model_options"]["noise"] == "ar1"
+    assert "AR(1) noise" in doc["parts"]["residuals"]["noise"]
+
+
+def test_model_auto_refuses_noise_in_one_line(sags):
+    root, paths = sags
+    res = CliRunner().invoke(main, ["fit", "composite", *paths, "--model", "auto", "--noise",
+                                    "ar1", "--json", str(root / "x.json")])  # fmt: skip
+    assert res.exit_code == 2
+    assert res.stderr.strip() == (
+        "loadbayes: error: --noise needs a named --model (zip+motor, slm or cmld-lite), not auto"
+    )
