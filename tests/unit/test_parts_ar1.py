@@ -19,9 +19,10 @@ import numpy as np
 import pytest
 from test_parts_kernel import _events
 
-from loadbayes.fit.composite.design import DesignProblem
+from loadbayes.fit.composite.design import ARSums, DesignProblem
 from loadbayes.inference.ar1 import ar_moments, draw_rho, residual_stats, whitened
 from loadbayes.inference.condlinear import GroupSums
+from loadbayes.measurements.record import EventRecord
 from loadbayes.models.dynamic import dynamic_model
 
 
@@ -148,3 +149,27 @@ def test_rho_is_recovered_from_an_ar1_residual():
             draws.append(rho)
     assert abs(np.mean(draws) - rho_true) < 0.06, np.mean(draws)
     assert 0.005 < np.std(draws) < 0.05
+
+
+def test_the_threshold_steps_carry_the_ar_density():
+    # cmld-lite's own steps (fit/composite/thresholds.py) under AR(1) noise: over a deep
+    # sag they solve, and the density and sums they carry are the AR(1) ones at rho.
+    from feeder_generator import simulate
+
+    t, v, d, p, q, _ = simulate(sag=0.5)
+    ev = EventRecord(t, v, p, q, d, "deep")
+    model = dynamic_model("cmld-lite", f_hz=50.0, noise="ar1")
+    problem = DesignProblem(model, [ev], model.default_prior([ev]))
+    moves = problem.conditional_moves()
+    u = problem.prior.project(problem.prior.scale_free()[0][: problem.n_free].copy())
+    tau, rho = np.array([1e4, 1e4, 1.0]), np.array([0.5, 0.3])
+    lp, sums = problem.collapsed(u, tau, rho=rho)
+    rng = np.random.default_rng(0)
+    start = u.copy()
+    for _ in range(30):
+        u, lp, sums = moves(u, lp, sums, lambda c: problem.collapsed(c, tau, rho=rho), rng)
+    assert not np.array_equal(u, start)
+    assert isinstance(sums, ARSums)
+    again, fresh = problem.collapsed(u, tau, rho=rho)
+    assert lp == pytest.approx(again)
+    assert np.allclose(sums[0].ztz, fresh[0].ztz)

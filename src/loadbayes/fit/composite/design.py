@@ -38,7 +38,7 @@ from loadbayes.inference.condlinear import (
 )
 from loadbayes.measurements.record import EventRecord
 
-__all__ = ["DesignProblem"]
+__all__ = ["ARSums", "DesignProblem"]
 
 
 @dataclass
