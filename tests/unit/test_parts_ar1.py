@@ -173,3 +173,27 @@ def test_the_threshold_steps_carry_the_ar_density():
     again, fresh = problem.collapsed(u, tau, rho=rho)
     assert lp == pytest.approx(again)
     assert np.allclose(sums[0].ztz, fresh[0].ztz)
+
+
+def test_rho_max_bounds_the_draws_and_is_checked():
+    # A residual that is nearly a random walk: unbounded, rho runs to it; bounded at 0.9,
+    # every draw stays inside and piles at the bound.
+    rng = np.random.default_rng(5)
+    e = np.cumsum(rng.normal(0, 0.01, 400))
+    z = np.ones((400, 1))
+    first = np.zeros(400, dtype=bool)
+    zz, zy, yy = ar_moments(z, e, first)
+    stats = residual_stats(zz, zy, yy, np.zeros(1), 1.0)
+    for top, low in ((0.999, 0.95), (0.9, 0.85)):
+        rho, draws = 0.0, []
+        for _ in range(500):
+            rho, _ = draw_rho(stats, 1e4, rho, rng, top)
+            draws.append(rho)
+        assert max(draws) <= top and np.median(draws[100:]) > low
+    with pytest.raises(ValueError, match="rho_max"):
+        dynamic_model("slm", noise="ar1", rho_max=1.0)
+    model = dynamic_model("slm", noise="ar1", rho_max=0.9)
+    assert model.options()["rho_max"] == 0.9
+    assert "rho_max" not in dynamic_model("slm").options()  # white: the record as it was
+    events = _events(False, False)
+    assert DesignProblem(model, events, model.default_prior(events)).rho_max == 0.9

@@ -188,7 +188,7 @@ def composite_model(**fields: Any) -> Any:
 
 #: A model of parts' fields as ``fit composite`` spells them.
 PARTS_FLAGS = {"f_hz": "--f-hz", "priors": "--prior", "negative_sequence": "--negative-sequence",
-               "noise": "--noise"}  # fmt: skip
+               "noise": "--noise", "rho_max": "--rho-max"}  # fmt: skip
 
 
 def parts_model(name: str, **fields: Any) -> Any:
@@ -229,15 +229,19 @@ def check_model_flags(model_name: str, *, negative_sequence: str, plot: bool) ->
 
 
 def named_model(name: str, *, f_hz: float, priors: dict, negative_sequence: str,
-                noise: str = "white", **zip_motor: Any) -> Any:  # fmt: skip
+                noise: str = "white", rho_max: float | None = None,
+                **zip_motor: Any) -> Any:  # fmt: skip
     """``fit composite --model NAME``'s model (None for ``auto``: chosen on the events)."""
     from loadbayes.commands.output import UserError
 
+    if rho_max is not None and (name not in ("slm", "cmld-lite") or noise != "ar1"):
+        raise UserError("--rho-max is an option of --noise ar1 with --model slm or cmld-lite")
     if name == "auto":
         if priors:
             raise UserError("--prior needs a named --model (slm, cmld-lite or zip+motor)")
         return None
     if name != "zip+motor":
+        bound = {} if rho_max is None else {"rho_max": rho_max}
         return parts_model(name, f_hz=f_hz, priors=priors, negative_sequence=negative_sequence,
-                           noise=noise)  # fmt: skip
+                           noise=noise, **bound)  # fmt: skip
     return composite_model(f_hz=f_hz, priors=priors, noise=noise, **zip_motor)

@@ -29,19 +29,27 @@ RHO_MAX = 0.999
 
 
 def draw_rho(
-    stats: np.ndarray, tau: float, rho: float, rng: np.random.Generator
+    stats: np.ndarray,
+    tau: float,
+    rho: float,
+    rng: np.random.Generator,
+    rho_max: float = RHO_MAX,
 ) -> tuple[float, bool]:
-    """One step for ``rho``: ``stats = [b, sum e_k-1^2, sum e_s^2, S]``; (rho, moved)."""
+    """One step for ``rho``: ``stats = [b, sum e_k-1^2, sum e_s^2, S]``; (rho, moved).
+
+    The prior is uniform on ``(-rho_max, rho_max)`` (a smaller ``rho_max`` keeps the noise
+    from a random walk, whose stationary variance a short record cannot place).
+    """
     b, a_ns, a_st, segments = (float(v) for v in stats)
     a = a_ns - a_st
     if not (a > 0 and tau > 0):
         return rho, False
     m, sd = b / a, 1.0 / math.sqrt(tau * a)
-    lo, hi = special.ndtr((-RHO_MAX - m) / sd), special.ndtr((RHO_MAX - m) / sd)
+    lo, hi = special.ndtr((-rho_max - m) / sd), special.ndtr((rho_max - m) / sd)
     if not hi > lo:
         return rho, False
     w = rng.uniform(lo, hi)
-    cand = float(np.clip(m + sd * special.ndtri(w), -RHO_MAX, RHO_MAX))
+    cand = float(np.clip(m + sd * special.ndtri(w), -rho_max, rho_max))
     log_ratio = 0.5 * segments * (math.log1p(-cand * cand) - math.log1p(-rho * rho))
     if log_ratio >= 0 or rng.uniform() < math.exp(log_ratio):
         return cand, True

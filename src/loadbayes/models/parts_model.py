@@ -131,6 +131,10 @@ class PartsModel:
     #: ``"ar1"``: AR(1) noise on P and Q, one coefficient each (the negative-sequence
     #: current stays white); ``"white"``: independent from row to row.
     noise: str = "white"
+    #: AR(1) noise: ``rho_p``, ``rho_q`` uniform on ``(-rho_max, rho_max)``; 0.999 (the
+    #: sampler's own bound, ``inference/ar1.RHO_MAX``) leaves them free. On a short record
+    #: they can run to a random walk (docs/composite.md, "Known limitations").
+    rho_max: float = 0.999
     priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     coefficient_priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
@@ -145,6 +149,8 @@ class PartsModel:
             raise ModelOptionError("{negative_sequence}: one of auto, on, off")
         if self.noise not in ("white", "ar1"):
             raise ModelOptionError("{noise}: one of white, ar1")
+        if not 0 < self.rho_max <= 0.999:
+            raise ModelOptionError(f"{{rho_max}} {self.rho_max!r}: in (0, 0.999]")
         if not (math.isfinite(self.window_s) and 0 <= self.window_s <= 1):
             raise ModelOptionError(f"{{window_s}} {self.window_s!r}: 0 to 1 s")
         if not 0 <= self.vd2 < self.vd1 <= 1.2:
@@ -397,7 +403,7 @@ class PartsModel:
             "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},
             "priors": {k: list(v) for k, v in self.priors.items()},
             # Only where it is not white: a white-noise fit's record stays as it was.
-            **({"noise": self.noise} if self.noise != "white" else {}),
+            **({"noise": self.noise, "rho_max": self.rho_max} if self.noise != "white" else {}),
         }  # fmt: skip
 
     @property

@@ -120,6 +120,15 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
                 "takes the residuals' stretches as correlated error: the intervals widen "
                 "for the model's form instead of biasing"
             )
+            top = float(getattr(model, "rho_max", 0.999))
+            hi = {g: float(np.quantile(draws[f"rho_{g}"], 0.975)) for g in ("p", "q")}
+            at = [g.upper() for g in ("p", "q") if top < 0.999 and hi[g] > top - 0.01]
+            if at:
+                post.warnings.append(
+                    f"rho of {' and '.join(at)} sits at its bound {top:g} (rho_max, --rho-max): "
+                    "the bound, not the data, sets how correlated the noise is, and so how "
+                    "wide the intervals are"
+                )
             near = {g: r for g, r in rho.items() if r > RHO_RANDOM_WALK}
             if near:
                 said = ", ".join(f"{r:.3f} for {g.upper()}" for g, r in near.items())

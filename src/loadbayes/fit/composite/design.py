@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.fit.composite.naming import event_suffix
-from loadbayes.inference.ar1 import ar_moments, residual_stats, whitened
+from loadbayes.inference.ar1 import RHO_MAX, ar_moments, residual_stats, whitened
 from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
@@ -75,6 +75,8 @@ class DesignProblem:
         #: Channels of the likelihood, each with its noise precision: P, Q and any the
         #: model adds (the negative-sequence current: ``tau_i2``).
         self.channel_names = tuple(getattr(self.model, "channel_names", ("p", "q")))
+        #: AR(1) noise: the bound of the coefficients' uniform prior (the model's, if any).
+        self.rho_max = float(getattr(self.model, "rho_max", RHO_MAX))
         self.n_channels = len(self.channel_names)
 
     @property
