@@ -102,7 +102,7 @@ def test_ar1_noise_covers_the_motor_share_the_white_fit_misses(records):
 
 
 @pytest.mark.skipif(os.environ.get("LOADBAYES_VALIDATE") != "1",
-                    reason="ten noise seeds, about 4 minutes: make validate")  # fmt: skip
+                    reason="ten noise seeds, 2-4 minutes: make validate")  # fmt: skip
 def test_over_ten_noise_seeds_ar1_covers_more_often_with_wider_intervals(records):
     truth = records[SAGS[0]][-1]["f_m"]
     covered = {"white": 0, "ar1": 0}
