@@ -38,8 +38,7 @@ from loadbayes.fit.composite.predict_scope import (
     sag_extent,
 )
 from loadbayes.fit.composite.predictive import events_of
-from loadbayes.fit.composite.validate import operating_point
-from loadbayes.fit.composite.validate_parts import noise_precision
+from loadbayes.fit.composite.validate import noise_precision, operating_point
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, electronics_fraction, motor_d

@@ -23,6 +23,7 @@ from loadbayes.fit.composite.validate import (
     EventValidation,
     band_scores,
     gaussian_logl,
+    noise_precision,
     operating_point,
     pointwise_lpd,
 )
@@ -30,18 +31,7 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.parts_predict import predict_parts
 from loadbayes.posterior import Posterior
 
-__all__ = ["noise_precision", "validate_parts_event"]
-
-
-def noise_precision(d: dict, channel: str, i: int) -> float:
-    """Draw ``i``'s precision of one sample's noise: ``tau`` (white) or ``tau (1 - rho^2)``.
-
-    With AR(1) noise ``tau`` is the innovations'; a sample's own (stationary) variance is
-    ``1 / (tau (1 - rho^2))``, which the pointwise band and log-likelihood read.
-    """
-    tau = d[f"tau_{channel}"][i]
-    rho = d.get(f"rho_{channel}")
-    return tau if rho is None else tau * (1.0 - rho[i] ** 2)
+__all__ = ["validate_parts_event"]
 
 
 def validate_parts_event(
