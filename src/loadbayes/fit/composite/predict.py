@@ -42,7 +42,7 @@ from loadbayes.fit.composite.predict_scope import (
 from loadbayes.fit.composite.predict_scope import jeffreys as _jeffreys
 from loadbayes.fit.composite.predict_scope import spread as _spread
 from loadbayes.fit.composite.predictive import events_of
-from loadbayes.fit.composite.validate import operating_point
+from loadbayes.fit.composite.validate import noise_precision, operating_point
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
 from loadbayes.models.parts_play import play_draws
@@ -277,7 +277,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         ps.append(mp)
         qs.append(mq)
         cur.append(np.abs(np.conj((mp + 1j * mq) / v)))
-        sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
+        sp, sq = (1 / math.sqrt(noise_precision(d, ch, i)) for ch in ("p", "q"))
         noisy_p.append(mp + sp * rng.standard_normal(event.n))
         noisy_q.append(mq + sq * rng.standard_normal(event.n))
         rec_p.append(recovery_time(t, mp, fault["t_clear_s"]))
