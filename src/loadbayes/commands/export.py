@@ -392,6 +392,8 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, planning, sag, duration
     for name, val in (("--p-mw", p_mw), ("--q-mvar", q_mvar)):
         if val is not None and not math.isfinite(val):
             raise click.BadParameter("must be a finite number", param_hint=name)
+    if out.strip() in ("", "-"):  # '-' named the files -, -.dyr ...; '' the folder '.'
+        raise UserError(f"--out {out!r}: an export writes files: give a file name")
     if n_draws is not None and stat is not None:
         raise UserError("give either --stat or --draws, not both")
     fault_args = {"--sag": sag, "--duration": duration, "--voltage": profile,

@@ -306,8 +306,10 @@ def check_outputs(
 
     ins = {resolve(p, "the input") for p in inputs if p and p != "-"}
     for opt, path in outputs.items():
-        if not path:
+        if path is None:
             continue
+        if not path.strip():  # taken for "no output" it wrote nothing, with exit 0
+            raise UserError(f"{opt} {path!r}: an empty file name (give one, or leave {opt} out)")
         if path == "-":
             if opt not in stdout_ok:
                 raise UserError(f"{opt} -: standard output is only for --json")

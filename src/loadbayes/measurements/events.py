@@ -74,7 +74,7 @@ MAX_F_OFF = F_OFF
 MAX_OUTLIER = 1e6
 #: The remedy for an invalid cell in an event: no reader of events drops rows (an event's
 #: samples are read whole), so ``--drop-invalid`` is not one.
-NO_DROP = " (an event is read whole: fill the cell or delete the row)"
+NO_DROP = " (every row is read: fill the cell or delete the row)"
 
 
 def events_from_arrays(

@@ -264,7 +264,12 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
         if not _has_record_columns(record):
             return None
         meta = {}  # the table without its sidecar: no station, bay or start time
-    cols = phasor_rows(_read_table(record))
+    table = _read_table(record)
+    cols = phasor_rows(table)
+    if not len(cols["t_s"]):  # events are cut from the phasor rows alone
+        kinds = np.unique(table["kind"].astype(str), return_counts=True)
+        have = ", ".join(f"{n} {k} rows" for k, n in zip(*kinds, strict=True)) or "no rows"
+        raise DataError(f"no phasor rows ({have}): no event to cut", record)
     data = {c: np.asarray(cols[c], dtype=float) for c in EVENT_COLUMNS if c in cols}
     for c in ("t_s", "v", "p", "q"):
         bad = np.flatnonzero(~np.isfinite(data[c]))
