@@ -161,3 +161,18 @@ def test_a_record_table_without_phasor_rows_is_refused(tmp_path):
     assert res.exit_code == 2, res.output
     assert "amp.csv: no phasor rows (200 amplitude rows)" in res.output
     assert not (tmp_path / "ev").exists()
+
+
+def test_a_sidecar_of_another_format_says_which(tmp_path):
+    # Red-team L4: a sidecar with "format": "other" was said to have "no 'format' key".
+    t = np.arange(200) / 50
+    pd.DataFrame({"t_s": t, "v": np.ones_like(t), "p": 1.0, "q": 0.4, "segment": 0,
+                  "kind": "phasor"}).to_csv(tmp_path / "r.csv", index=False)  # fmt: skip
+    (tmp_path / "r.csv.meta.json").write_text('{"format": "other"}')
+    res = _run(tmp_path / "r.csv", "--out", tmp_path / "ev")
+    assert res.exit_code == 2, res.output
+    assert "r.csv.meta.json: not a loadbayes record metadata file (format 'other'" in res.output
+    (tmp_path / "r.csv.meta.json").write_text("[1, 2]")
+    res = _run(tmp_path / "r.csv", "--out", tmp_path / "ev")
+    assert "not a loadbayes record metadata file (no 'format' key)" in res.output
+    assert not (tmp_path / "ev").exists()

@@ -38,6 +38,8 @@ __all__ = [
 
 #: Suffix of the metadata sidecar, appended to the table's name.
 META_SUFFIX = ".meta.json"
+#: The sidecar's ``format`` key.
+FORMAT = "loadbayes record table 1"
 #: Columns of the phasor rows an event file keeps (``kind`` is "phasor" in all of them).
 EVENT_COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
@@ -99,7 +101,7 @@ def record_metadata(
             }
         )
     return {
-        "format": "loadbayes record table 1",
+        "format": FORMAT,
         "source": os.path.basename(source),
         "station": w.station,
         "encoding": w.encoding,
@@ -175,8 +177,10 @@ def read_record_meta(table: str | os.PathLike[str]) -> dict | None:
         meta = json.loads(side.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise DataError(f"not a readable record metadata file ({exc})", str(side)) from None
-    if not isinstance(meta, dict) or meta.get("format") != "loadbayes record table 1":
-        raise DataError("not a loadbayes record metadata file (no 'format' key)", str(side))
+    fmt = meta.get("format") if isinstance(meta, dict) else None
+    if fmt != FORMAT:
+        said = "no 'format' key" if fmt is None else f"format {str(fmt)[:40]!r}, not {FORMAT!r}"
+        raise DataError(f"not a loadbayes record metadata file ({said})", str(side))
     return meta
 
 
