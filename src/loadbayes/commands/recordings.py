@@ -62,9 +62,17 @@ def estimate_seconds(w, per_cycle: int, dc: str, windows: int, clock=None) -> fl
 __all__ = ["events_cmd", "read_group"]
 
 
+#: The bases a network can have: 1 V to 2000 kV, 1 VA to 1 TVA (1e308 kV was said to be
+#: "a dead or unscaled VT", 1e-308 MVA wrote overflowed powers).
+BASE_RANGE = {"--v-base": (1e-3, 2000.0, "kV"), "--s-base": (1e-6, 1e6, "MVA")}
+
+
 def _positive(value: float | None, name: str) -> float | None:
     if value is not None and not (math.isfinite(value) and value > 0):
         raise click.BadParameter("must be a positive finite number", param_hint=name)
+    lo, hi, unit = BASE_RANGE[name]
+    if value is not None and not lo <= value <= hi:
+        raise UserError(f"{name} {value:g}: outside [{lo:g}, {hi:g}] {unit}, no network's base")
     return value
 
 
