@@ -197,6 +197,25 @@ def test_statistics_that_cannot_be_shown_are_refused_by_row(fleet, tmp_path, col
     assert str(err.value).startswith(f"{tmp_path / 'bad.parquet'}: {words}"), str(err.value)
 
 
+def test_a_table_with_one_row_twice_is_refused_by_row(fleet, tmp_path):
+    # Red-team L1: a pooled table whose class column was set to one value (two classes'
+    # rows then share their names) ended in pandas' "The truth value of a Series is
+    # ambiguous" (exit 2, no file, no row).
+    _, _, out = fleet
+    t = pd.read_parquet(out["class"])
+    t["class"] = "x"
+    t.to_parquet(tmp_path / "one.parquet")
+    with pytest.raises(DataError) as err:
+        load_fleet(tmp_path / "one.parquet")
+    msg = str(err.value)
+    assert msg.startswith(f"{tmp_path / 'one.parquet'}: column 'class', row "), msg
+    assert "class 'x', parameter 'a1' is on rows" in msg and "one row per" in msg
+    t = pd.read_parquet(out["none"])
+    pd.concat([t, t.iloc[[3]]]).to_parquet(tmp_path / "twice.parquet")
+    with pytest.raises(DataError, match=r"column 'bus', row \d+: bus 'b0', parameter 'a4'"):
+        load_fleet(tmp_path / "twice.parquet")
+
+
 def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     """The fleet branch's additions (docs/fleet.md there): 'converged', class warnings."""
     _, _, out = fleet

@@ -279,6 +279,7 @@ def load_fleet(path: str | Path) -> FleetTable:
     if not (levels == "bus").any():
         raise DataError("no bus rows: not a fleet result", name, column="level")
     _check_statistics(df, name)
+    _check_unique(df, name)
     settings: dict[str, Any] = {}
     meta = table.schema.metadata or {}
     if b"loadbayes" in meta:
@@ -289,6 +290,28 @@ def load_fleet(path: str | Path) -> FleetTable:
         if not isinstance(settings, dict):
             settings = {}
     return FleetTable(name, df, settings)
+
+
+def _check_unique(df: pd.DataFrame, name: str) -> None:
+    """One row per bus (or class) and parameter (``df`` has a range index).
+
+    A repeated one (a pooled table's class column set to one value) was pandas' "The truth
+    value of a Series is ambiguous", with no file nor row.
+    """
+    for level in ("bus", "class"):
+        key = df.loc[(df["level"].astype(str) == level) & df["parameter"].notna(),
+                     [level, "parameter"]]  # fmt: skip
+        twice = key[key.duplicated(keep=False)]
+        if len(twice):
+            who, par = twice.iloc[0]
+            rows = [
+                int(i) + 1 for i in twice.index[(twice[level] == who) & (twice["parameter"] == par)]
+            ]
+            raise DataError(
+                f"{level} {who!r}, parameter {par!r} is on rows {', '.join(map(str, rows[:5]))}: "
+                f"a fleet table has one row per {level} and parameter (an edited table?)",
+                name, column=level, row=rows[1],
+            )  # fmt: skip
 
 
 #: A statistic beyond this cannot be drawn (its square overflows) and is no fit's.
