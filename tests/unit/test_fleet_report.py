@@ -210,6 +210,14 @@ def test_a_table_with_one_row_twice_is_refused_by_row(fleet, tmp_path):
     msg = str(err.value)
     assert msg.startswith(f"{tmp_path / 'one.parquet'}: column 'class', row "), msg
     assert "class 'x', parameter 'a1' is on rows" in msg and "one row per" in msg
+    from click.testing import CliRunner
+
+    from loadbayes.cli import main
+
+    res = CliRunner().invoke(main, ["report", str(tmp_path / "one.parquet"), "--out",
+                                    str(tmp_path / "r.html")])  # fmt: skip
+    assert res.exit_code == 2 and res.output.strip() == f"loadbayes: error: {msg}", res.output
+    assert not (tmp_path / "r.html").exists()
     t = pd.read_parquet(out["none"])
     pd.concat([t, t.iloc[[3]]]).to_parquet(tmp_path / "twice.parquet")
     with pytest.raises(DataError, match=r"column 'bus', row \d+: bus 'b0', parameter 'a4'"):
