@@ -76,7 +76,12 @@ def _refuse_parts(result: str) -> None:
 @event_column_options
 @click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
 @click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="The numbers.")
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False),
+    help="The numbers (- for standard output).",
+)
 @click.option(
     "--plot", "plot_out", type=click.Path(dir_okay=False), help="V, P, Q recorded vs played."
 )

@@ -155,7 +155,12 @@ def _scores(post, recs, masks, **kw):
     help="Probability of the posterior-predictive band.",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed (draws picked, noise).")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Scores per event.")
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False),
+    help="Scores per event (- for standard output).",
+)
 @click.option("--plot", "plot_out", type=click.Path(dir_okay=False), help="V, P, Q vs the band.")
 @click.option("--quiet", is_flag=True, help="No table on stdout.")
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
