@@ -33,6 +33,11 @@ __all__ = ["export_cmd", "pick_values", "summary_lines"]
 #: Largest parameter magnitude exported (shares, p.u., MW, seconds): past it a value is
 #: a corrupt file, and products of it overflow in the writers.
 VALUE_MAX = 1e12
+#: Smallest load level exported (per unit): below it products of it underflow to 0 (p0
+#: 1e-300 was a ZeroDivisionError in the pandapower writer).
+P0_MIN = 1e-9
+#: The bases a network can have: 1 VA to 1 TVA, 1 V to 2000 kV.
+BASE_RANGE = {"--s-base": (1e-6, 1e6, "MVA"), "--vn-kv": (1e-3, 2000.0, "kV")}
 _STAT = re.compile(r"^(mean|median|q(\d{1,2}(?:\.\d+)?))$")
 _MODEL_NAMES = {"zip": "zip", "exp": "exponential", "exponential": "exponential",
                 "composite": "composite"}  # fmt: skip
@@ -169,6 +174,11 @@ def _check_values(values: dict, source: str) -> None:
     for name, val in values.items():
         if not math.isfinite(val):
             raise DataError(f"parameter {name!r} is {val}, expected a finite number", source)
+        if name == "p0" and abs(val) < P0_MIN:
+            raise DataError(
+                f"parameter 'p0' is {val:.6g}: below {P0_MIN:g} per unit, no load to export",
+                source,
+            )
         if abs(val) > VALUE_MAX:
             raise DataError(
                 f"parameter {name!r} is {val:.6g}: beyond {VALUE_MAX:g}, not a load's value",
@@ -389,9 +399,14 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, planning, sag, duration
     for name, val in (("--s-base", s_base), ("--vn-kv", vn_kv)):
         if val is not None and not (math.isfinite(val) and val > 0):
             raise click.BadParameter("must be a positive finite number", param_hint=name)
+        lo, hi, unit = BASE_RANGE[name]
+        if val is not None and not lo <= val <= hi:  # 1e-300 MVA was exported without a word
+            raise UserError(f"{name} {val:g}: outside [{lo:g}, {hi:g}] {unit}, no network's base")
     for name, val in (("--p-mw", p_mw), ("--q-mvar", q_mvar)):
         if val is not None and not math.isfinite(val):
             raise click.BadParameter("must be a finite number", param_hint=name)
+    if out.strip() in ("", "-"):  # '-' named the files -, -.dyr ...; '' the folder '.'
+        raise UserError(f"--out {out!r}: an export writes files: give a file name")
     if n_draws is not None and stat is not None:
         raise UserError("give either --stat or --draws, not both")
     fault_args = {"--sag": sag, "--duration": duration, "--voltage": profile,

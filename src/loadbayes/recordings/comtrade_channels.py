@@ -6,6 +6,8 @@ how channels are chosen).
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from loadbayes.io.errors import DataError
@@ -103,7 +105,7 @@ def _by_spec(info: CfgInfo, spec: str, kind: str) -> AnalogChannel:
     for ch in info.analog:
         if ch.name == spec:
             return ch
-    if spec.strip().isdigit():
+    if re.fullmatch(r"[0-9]+", spec.strip()):  # not isdigit(): '²' is a digit to it
         for ch in info.analog:
             if ch.n == int(spec):
                 return ch
@@ -111,9 +113,10 @@ def _by_spec(info: CfgInfo, spec: str, kind: str) -> AnalogChannel:
             f"no analog channel number {spec} (channels 1 to {len(info.analog)}; --{kind})",
             info.path,
         )
+    names = [ch.name for ch in info.analog]
+    more = f", ... and {len(names) - 20} more" if len(names) > 20 else ""  # one line, short
     raise DataError(
-        f"no analog channel {spec!r} (channels: {', '.join(ch.name for ch in info.analog)})",
-        info.path,
+        f"no analog channel {spec!r} (channels: {', '.join(names[:20])}{more})", info.path
     )
 
 
