@@ -215,7 +215,8 @@ def edge_runs(
     if dv.size == 0:
         return []
     noise = 1.4826 * float(np.median(np.abs(dv - np.median(dv))))
-    core = np.abs(dv) > jump * abs(v[0])
+    single = np.abs(dv) > jump * abs(v[0])
+    core = single.copy()
     if span > 1 and dv.size >= span:
         core |= _smeared_core(dv, span, jump * abs(v[0]), NOISE_SIGMAS * noise)
     out: list[tuple[int, int]] = []
@@ -230,7 +231,7 @@ def edge_runs(
         while k1 < dv.size and core[k1] and np.sign(dv[k1]) == sign:
             k1 += 1
         big = float(np.max(np.abs(dv[k0:k1])))
-        if span > 1:  # a smeared step: its neighbours are judged against the whole step
+        if not single[k0:k1].any():  # a smeared step: judged against its whole change
             big = max(big, abs(float(np.sum(dv[k0:k1]))))
         floor = max(grow * big, NOISE_SIGMAS * noise)
 
@@ -262,15 +263,18 @@ def _smeared_core(dv: NDArray[np.float64], span: int, limit: float, floor: float
     """Intervals of a smeared step: in ``span`` intervals the voltage moves by ``limit``.
 
     Within each run of ``span`` intervals whose sum (the change from its first sample to
-    its last) exceeds ``limit``, the intervals moving that way by more than half an even
-    share of ``limit`` (and than ``floor``, the noise's): the step's body, not the drift
-    beside it (a real fault's level moves by 0.1-0.2% a row; those and the step's partly
-    covered end intervals join the edge by the growth rule of :func:`edge_runs`).
+    its last) exceeds ``limit`` and none of which does alone, the intervals moving that
+    way by more than half an even share of ``limit`` (and than ``floor``, the noise's):
+    the step's body, not the drift beside it (a real fault's level moves by 0.1-0.2% a
+    row; those and the step's partly covered end intervals join the edge by the growth
+    rule of :func:`edge_runs`, judged against the whole step).
     """
     sums = np.convolve(dv, np.ones(span), mode="valid")  # sums[j] = dv[j : j + span].sum()
+    # Runs holding an interval over ``limit`` are the single-interval rule's, as before.
+    single = np.convolve(np.abs(dv) > limit, np.ones(span), mode="valid") > 0
     out = np.zeros(dv.size, dtype=bool)
     body = max(floor, 0.5 * limit / span)
-    for j in np.flatnonzero(np.abs(sums) > limit):
+    for j in np.flatnonzero((np.abs(sums) > limit) & ~single):
         part = dv[j : j + span]
         out[j : j + span] |= (np.sign(part) == np.sign(sums[j])) & (np.abs(part) > body)
     return out
