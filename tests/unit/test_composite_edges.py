@@ -207,3 +207,37 @@ def test_a_phasor_ramp_keeps_the_samples_whose_window_lies_on_it(rate, ramp):
         # The stamps sit half a window after the values they hold (the window's end).
         assert ta == pytest.approx(start + w / 2, abs=1.5e-3)
         assert tb == pytest.approx(start + ramp + w / 2, abs=1.5e-3)
+
+
+@pytest.mark.parametrize(
+    "rate, depth, start",
+    [(240.0, 0.06, 0.40131), (240.0, 0.10, 0.40131), (240.0, 0.20, 0.40131),
+     (200.0, 0.10, 0.40131), (60.0, 0.08, 0.40 + 0.5 / 60.0)],
+)  # fmt: skip
+def test_a_shallow_step_smeared_by_the_window_is_still_an_edge(rate, depth, start):
+    # With several phasors a window, a step moves each of the samples whose window holds
+    # it by a fraction of the step: at 4 a cycle a 20% step moves each by 5%, the core
+    # threshold of one interval, and a shallower one by less. No edge was found, the
+    # window means were read as a ramp that drove the motor, and the model smeared it
+    # once more: the archive generator's 5-30% dips at 4 phasors a cycle gave f_m
+    # 1.2-1.4 times the truth, the 95% interval excluding it on 11 events of 12. At
+    # 60/s a step half-way between two samples moves each interval by half of it.
+    t, v = _record(rate, start, depth, 0.0, phasor=True, noise=0.0005)
+    fs = FitSamples.find([t], [v], window_s=1 / F_HZ)
+    ((k0, k1),) = fs.edges[0]
+    # _record's window ends at the stamp: the samples whose window holds the step.
+    contaminated = _inside(t, start, start + 1 / F_HZ)
+    assert contaminated <= set(range(k0 + 1, k1))
+    assert k1 - k0 <= max_intervals(t, 1 / F_HZ)
+    assert np.setdiff1d(np.arange(t.size), fs.keep[0]).tolist() == list(range(k0 + 1, k1))
+
+
+def test_window_noise_and_a_slow_recovery_at_four_phasors_a_cycle_are_no_edge():
+    # The edge's core over several intervals asks them all to move the same way by
+    # more than JUMP together: 0.5% noise on the window means, or a 300 ms recovery
+    # (2% a window), does not.
+    for seed in range(5):
+        t, v = _record(240.0, 0.4013, 0.0, 0.0, phasor=True, noise=0.005, seed=seed)
+        assert FitSamples.find([t], [v], window_s=1 / F_HZ).edges[0] == []
+    t, v = _record(240.0, 0.4013, 0.3, 0.3, phasor=True, noise=0.0005)
+    assert FitSamples.find([t], [v], window_s=1 / F_HZ).edges[0] == []

@@ -25,7 +25,10 @@ one after. :func:`edge_runs` finds such **edges**: a run of consecutive interval
 which the voltage moves the same way, at least one of them by more than ``JUMP v0``, the
 others by more than ``GROW`` of that (``GROW_WINDOW`` with a window; and more than
 ``NOISE_SIGMAS`` times the record's interval-to-interval noise), no longer than the
-window allows (``max_intervals``). The samples inside an edge are left out of the fit
+window allows (``max_intervals``); with a window that spreads a step over several
+intervals (``smear_intervals``), a run of that many intervals moving more than ``JUMP v0``
+together is a core too (a 10% step read at 4 phasors a cycle moves each by 2.5%). The
+samples inside an edge are left out of the fit
 (their window straddles the change; how many is reported), and the edge becomes one
 step interval from the sample before it to the sample after it, the step at an unknown
 instant in it as above. A run longer than that, up to a ramp of ``RAMP_MAX_S`` plus the
@@ -51,7 +54,7 @@ inside, the line is theirs (least squares) and both ends are fixed where it reac
 the ESS of a 50 ms ramp at 120/s from 133 to 25). The angle follows the same knots. An
 edge of one interval (no sample inside) stays a step.
 
-One idea needs these 556 lines: where a voltage step fell between two samples, found
+One idea needs these 607 lines: where a voltage step fell between two samples, found
 (steps, edges, ramps, for point and phasor samples apart as above) and put into the
 motor's input as virtual knots.
 Physics only: no sampling here. ``phi`` is sampled directly, uniform on [0, 1]
@@ -86,6 +89,7 @@ __all__ = [
     "ramp_ends",
     "ramp_intervals",
     "ramp_start_bound",
+    "smear_intervals",
     "step_intervals",
     "window_ramp_intervals",
     "window_ramp_samples",
@@ -142,6 +146,21 @@ def max_intervals(t: NDArray[np.float64], window_s: float) -> int:
     return max(2, int(np.ceil(window_s / dt - 1e-9)) + 1 + ramp)
 
 
+def smear_intervals(t: NDArray[np.float64], window_s: float) -> int:
+    """Intervals over which a ``window_s`` phasor window spreads one voltage step.
+
+    The samples whose window holds the step (``window / dt`` of them, at most
+    ``ceil(window / dt)``) each read part of it: the window means move across one
+    interval more than that. With several samples a window (a one-cycle phasor at 4 a
+    cycle: ``W / dt`` = 4) each interval moves a fraction of the step, under
+    :data:`JUMP` for any step under ``JUMP (ceil(W / dt) + 1)``; the edge is found from
+    the change over this many intervals instead (:func:`edge_runs`). 1 for point samples.
+    """
+    if window_s <= 0:
+        return 1
+    return int(np.ceil(window_s / _interval(t) - 1e-9)) + 1
+
+
 def window_ramp_intervals(t: NDArray[np.float64], window_s: float) -> int:
     """The longest edge, in intervals, of phasor samples: a smeared ramp.
 
@@ -169,7 +188,12 @@ def window_ramp_samples(
 
 
 def edge_runs(
-    v: NDArray[np.float64], *, longest: int, jump: float = JUMP, grow: float = GROW
+    v: NDArray[np.float64],
+    *,
+    longest: int,
+    jump: float = JUMP,
+    grow: float = GROW,
+    span: int = 1,
 ) -> list[tuple[int, int]]:
     """The edges of one voltage record: ``(k0, k1)``, from sample ``k0`` to ``k1``.
 
@@ -177,13 +201,24 @@ def edge_runs(
 
     A single-interval edge is a step interval of :func:`step_intervals`; a longer one
     holds ``k1 - k0 - 1`` samples inside it, which the fit leaves out.
+
+    ``span`` (phasor samples: :func:`smear_intervals`) is how many intervals a window
+    spreads one step over. An edge's core is then also any ``span`` consecutive
+    intervals over which the voltage moves by more than ``jump`` (those of them moving
+    that way by more than the noise floor), not only a single interval that does: at 4
+    phasors a cycle a step of 20% moves each of its intervals by about 5%, and read as a
+    ramp through the window means (not a step) it biased f_m up by a fifth and T'
+    five-fold (docs/composite.md, "Several phasors a window").
     """
     v = np.asarray(v, dtype=float)
     dv = np.diff(v)
     if dv.size == 0:
         return []
     noise = 1.4826 * float(np.median(np.abs(dv - np.median(dv))))
-    core = np.abs(dv) > jump * abs(v[0])
+    single = np.abs(dv) > jump * abs(v[0])
+    core = single.copy()
+    if span > 1 and dv.size >= span:
+        core |= _smeared_core(dv, span, jump * abs(v[0]), NOISE_SIGMAS * noise)
     out: list[tuple[int, int]] = []
     k = 0
     while k < dv.size:
@@ -196,6 +231,8 @@ def edge_runs(
         while k1 < dv.size and core[k1] and np.sign(dv[k1]) == sign:
             k1 += 1
         big = float(np.max(np.abs(dv[k0:k1])))
+        if not single[k0:k1].any():  # a smeared step: judged against its whole change
+            big = max(big, abs(float(np.sum(dv[k0:k1]))))
         floor = max(grow * big, NOISE_SIGMAS * noise)
 
         def joins(i: int, sign=sign, floor=floor) -> bool:
@@ -219,6 +256,27 @@ def edge_runs(
         elif not grown_out and k1 - k0 <= longest and (not out or k0 >= out[-1][1]):
             out.append((k0, k1))
         k = k1
+    return out
+
+
+def _smeared_core(dv: NDArray[np.float64], span: int, limit: float, floor: float):
+    """Intervals of a smeared step: in ``span`` intervals the voltage moves by ``limit``.
+
+    Within each run of ``span`` intervals whose sum (the change from its first sample to
+    its last) exceeds ``limit`` and none of which does alone, the intervals moving that
+    way by more than half an even share of ``limit`` (and than ``floor``, the noise's):
+    the step's body, not the drift beside it (a real fault's level moves by 0.1-0.2% a
+    row; those and the step's partly covered end intervals join the edge by the growth
+    rule of :func:`edge_runs`, judged against the whole step).
+    """
+    sums = np.convolve(dv, np.ones(span), mode="valid")  # sums[j] = dv[j : j + span].sum()
+    # Runs holding an interval over ``limit`` are the single-interval rule's, as before.
+    single = np.convolve(np.abs(dv) > limit, np.ones(span), mode="valid") > 0
+    out = np.zeros(dv.size, dtype=bool)
+    body = max(floor, 0.5 * limit / span)
+    for j in np.flatnonzero((np.abs(sums) > limit) & ~single):
+        part = dv[j : j + span]
+        out[j : j + span] |= (np.sign(part) == np.sign(sums[j])) & (np.abs(part) > body)
     return out
 
 
@@ -539,7 +597,8 @@ class FitSamples:
             point = window_s <= 0
             grow = GROW if point else GROW_WINDOW
             longest = ramp_intervals(t) if point else window_ramp_intervals(t, window_s)
-            runs = edge_runs(v, longest=longest, grow=grow) if detect else []
+            span = smear_intervals(t, window_s)
+            runs = edge_runs(v, longest=longest, grow=grow, span=span) if detect else []
             mask = np.ones(t.size, dtype=bool)
             if not point:
                 step = max_intervals(t, window_s)
