@@ -67,6 +67,7 @@ validate: $(STAMP)
 		--output results/validation/fleet_coverage.json
 	LOADBAYES_VALIDATE=1 $(PY) -m pytest -q -p no:cacheprovider -m statistical \
 		tests/integration/test_cli_exit_clean.py tests/statistical/test_cvr_coverage.py \
+		tests/statistical/test_drift_year.py \
 		tests/integration/test_predict.py
 
 clean:

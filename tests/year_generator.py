@@ -9,7 +9,8 @@ Independent of the package: nothing here imports loadbayes. What it makes, every
   about 3% over days);
 * a voltage with its own daily cycle of +/-1% (its phase not the load's: the source's
   own profile), a slow wander of its own (OU, 0.3% over hours), tap steps of 0.625% at
-  random times (about 120 a year) that pull it back toward 1 p.u., and 0.01% noise;
+  random times (about 120 a year) that pull it back toward 1 p.u., and no measurement
+  noise unless ``v_noise`` is given (0.01% is a 1-minute mean of a class 0.2 transducer);
 * P = level x (a1 x^2 + a2 x + a3) and Q = 0.4 level x (a4 x^2 + a5 x + a6), x = V/v0,
   with 0.3% noise on each; the truth dP/dV = 2 a1 + a2 at v0 = 1 (per unit of the level
   per unit of V), dQ/dV = 2 a4 + a5.

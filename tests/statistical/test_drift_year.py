@@ -9,11 +9,11 @@ voltage dependence on such a year (issue 39: 7.55 for 1.15).
 
 * ``make test``: four spans of 28 days at 5 minutes (8,064 rows each). At least three of
   the four 95% intervals must cover the truth: a calibrated interval fails that with
-  probability 1.4% (Binomial(4, 0.95)), the test's false-alarm rate. About 10 s.
+  probability 1.4% (Binomial(4, 0.95)), the test's false-alarm rate. About 10 s of CPU.
 * ``make validate`` (LOADBAYES_VALIDATE=1): twenty years at 1 minute (525,600 rows each),
   P only, the defaults of ``fit zip --level drift``. At least 17 of the 20 must cover:
   a calibrated interval fails that with probability 1.6% (Binomial(20, 0.95); 16 or fewer),
-  the false-alarm rate. The upper side is not tested. About 3 minutes on 2 shared cores.
+  the false-alarm rate. The upper side is not tested. About 16 s of CPU a year.
 
 Fixed seeds: the result is the same on every run. The voltage carries no measurement
 noise here: with 0.01% on V the fit attenuates (errors in variables, ``--v-noise``).

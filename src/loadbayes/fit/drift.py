@@ -8,8 +8,8 @@ The model, per channel (P shown; Q the same with a4, a5 and its own level)::
     P0(t) = u(t) + s(t) sum_j f_j(t) c_j            (a smooth level + a daily profile)
     e_t / s_t = rho e_{t-1} / s_{t-1} + N(0, sigma^2)
 
-``u`` is linear between knots (every ``max(median dt, span / 35040)`` seconds: 15 minutes on a
-year) whose second differences are Gaussian (an integrated random walk: a level that
+``u`` is linear between knots (every ``max(median dt, span / 35040)`` seconds: 15
+minutes on a year) whose second differences are Gaussian (an integrated random walk: a level that
 bends but does not jump, its smoothness learned). ``f_j`` are four harmonics of the time
 of day on records of three days or more: the mean daily profile (one for every day: the
 times carry no calendar, so the knots take the weekends), scaled by the load's daily
@@ -21,9 +21,10 @@ Why (issue 39): with a random walk at every sample (the model before), a voltage
 own daily cycle stood in for the load's daily profile, which the walk found dearer to
 follow: dP/dV 7.55 [7.33, 7.79] for 1.15 on the issue's year; on 28 days of the tests'
 year generator 0.54 [0.38, 0.71] for 0.006 and 1.58 [1.41, 1.78] for 1.24 (4 of 4 spans
-missed). The profile takes what repeats daily and the
-knots what drifts slowly; the shares are learned from what neither can explain: tap and capacitor steps, a CVR window, the voltage's own slow wander. The
-sampler is :func:`loadbayes.inference.knots.sample_knot_level` (the level and the noise
+missed). The profile takes what repeats daily and the knots what drifts slowly; the
+shares are learned from what neither can explain: tap and capacitor steps, a CVR window,
+the voltage's own wander. The sampler is
+:func:`loadbayes.inference.knots.sample_knot_level` (the level and the noise
 integrated out through sums over the knots: a year at 1 min in seconds).
 """
 
