@@ -12,7 +12,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[grid,cluster,andes,test]"
 	touch $(STAMP)
 
-demo: $(STAMP)
+demo: $(STAMP) griddyn-env
 	$(VENV)/bin/loadbayes reproduce all --quick --out results --force
 	@echo "loadbayes is in $(VENV)/bin: put it on PATH with '. $(VENV)/bin/activate' (or run $(CURDIR)/$(VENV)/bin/loadbayes)"
 
@@ -42,7 +42,7 @@ $(BENCH_VENV)/.installed: pyproject.toml
 bench: $(BENCH_VENV)/.installed
 	$(BENCH_VENV)/bin/python benchmarks/run_all.py
 
-# GridDyn (the independent CMLD simulator of tests/griddyn_sim) needs Python >= 3.13: an
+# GridDyn (the independent CMLD simulator of src/loadbayes/cases/griddyn) needs Python >= 3.13: an
 # environment of its own. Without a python3.13 (on PATH or under pyenv) `make test` goes
 # on and the GridDyn tests skip, saying why.
 PYTHON313 ?= $(shell for p in python3.13 $${PYENV_ROOT:-$$HOME/.pyenv}/versions/3.13*/bin/python3.13; do \
@@ -67,7 +67,8 @@ validate: $(STAMP)
 		--output results/validation/fleet_coverage.json
 	LOADBAYES_VALIDATE=1 $(PY) -m pytest -q -p no:cacheprovider -m statistical \
 		tests/integration/test_cli_exit_clean.py tests/statistical/test_cvr_coverage.py \
-		tests/integration/test_predict.py
+		tests/integration/test_predict.py tests/statistical/test_archive_pool_coverage.py \
+		tests/statistical/test_drift_fleet_coverage.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(GRIDDYN_VENV) results .pytest_cache .ruff_cache

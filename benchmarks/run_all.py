@@ -38,6 +38,9 @@ SCRIPTS = [
     ("bench_cli.py", "cli"),
     ("bench_drift.py", "drift"),
     ("bench_fleet.py", "fleet"),
+    ("bench_predict.py", "predict"),
+    ("bench_archive_pool.py", "archive_pool"),
+    ("bench_archive.py", "archive"),
 ]
 
 #: Everything after this line of the README is kept as written (the sections of scripts
@@ -368,6 +371,13 @@ def splice_sections(readme: Path, fresh: str, names: list[str]) -> None:
         if at:  # the script's target rows, where its first one was
             rest = [x for x in old if not x.startswith(prefix)]
             old = rest[: at[0]] + [x for x in new if x.startswith(prefix)] + rest[at[0] :]
+        elif "## Targets" in old:  # a script's first targets: at the end of the table
+            end = old.index("## Targets") + 1
+            while end < len(old) and (not old[end] or old[end].startswith("|")):
+                end += 1
+            while not old[end - 1]:
+                end -= 1
+            old = old[:end] + [x for x in new if x.startswith(prefix)] + old[end:]
         a, b = section(new, script)
         try:
             c, d = section(old, script)

@@ -284,3 +284,35 @@ def to_csv(cols: dict, path) -> None:
         arrays = [cols[k] for k in names]
         for row in zip(*arrays, strict=True):
             fh.write(",".join(r if isinstance(r, str) else f"{r:.6g}" for r in row) + "\n")
+
+
+def zip_fleet(n: int, *, days: int = 14, v_noise: float = 0.0005, seed: int = 39):
+    """A fleet of ``n`` feeders whose load is a true ZIP, for the drifting-level fleet fit.
+
+    Each feeder is :func:`feeder` (seed ``2000 + i``) with no source impedance (the head
+    voltage is an outside cause of P, as the drifting level assumes), no PV, no
+    thermostatic loads and no glitches, and resistive and electronic loads in a share
+    drawn per feeder (uniform 0.15-0.75 of 3 MW). Its P is ``(R x^2 + E) occ(t)``: the
+    level P0(t) is ``(R + E) occ(t)`` and dP/dV at v0 per unit of it is ``2 R / (R + E)``,
+    the truth returned. What :func:`feeder` makes for a seed is unchanged.
+
+    Returns
+    -------
+    (columns with a ``feeder`` column, {feeder: dP/dV at v0})
+    """
+    rng = np.random.default_rng(seed)
+    cols_all: dict[str, list] = {}
+    truth = {}
+    for i in range(n):
+        share = float(rng.uniform(0.15, 0.75))
+        f = Feeder(days=days, z_pu_per_mw=0.0, pv_mw=0.0, heat_mw_per_deg=0.0,
+                   cool_mw_per_deg=0.0, glitches=False, resistive_mw=3.0 * share,
+                   electronics_mw=3.0 * (1.0 - share), v_noise=v_noise)  # fmt: skip
+        cols, _ = feeder(2000 + i, f)
+        name = f"F{i:02d}"
+        cols = {k: cols[k] for k in ("time", "v_kv", "p_mw", "q_mvar")}
+        cols["feeder"] = np.full(cols["time"].size, name)
+        for k, val in cols.items():
+            cols_all.setdefault(k, []).append(val)
+        truth[name] = 2.0 * share
+    return {k: np.concatenate(v) for k, v in cols_all.items()}, truth

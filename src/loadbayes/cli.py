@@ -53,6 +53,8 @@ _UNDER_A_LIMIT = {
 _cap_native_threads()
 
 from loadbayes.commands import andes_sim as _andes_sim  # noqa: E402
+from loadbayes.commands import archive as _archive  # noqa: E402
+from loadbayes.commands import archive_pool as _archive_pool  # noqa: E402
 from loadbayes.commands import composite as _composite  # noqa: E402
 from loadbayes.commands import cvr as _cvr  # noqa: E402
 from loadbayes.commands import example as _example  # noqa: E402
@@ -273,6 +275,8 @@ main.add_command(_playback.playback_cmd)
 main.add_command(_predict.predict_cmd)
 main.add_command(_steps.steps_cmd)
 main.add_command(_cvr.cvr_cmd)
+_archive.archive_group.add_command(_archive_pool.pool_cmd)
+main.add_command(_archive.archive_group)
 
 if __name__ == "__main__":  # python -m loadbayes.cli ... did nothing and exited 0
     main(prog_name="loadbayes")

@@ -119,6 +119,31 @@ def test_bad_composite_options_are_one_line(tmp_path, args, words):
 
 
 @pytest.mark.parametrize(
+    "args, words",
+    [
+        # Red-team L1: an sd of 1e-300 overflowed ("overflow encountered in multiply") and
+        # ended in "no starting coefficients where the coefficient prior is positive".
+        (["--prior", "a1=0.3,1e-300"], "--prior: a1: SD 1e-300 is below 1e-06"),
+        # L12: a median of 1e300 gave two raw overflow warnings and a fit; a mean outside
+        # [0, 1] for a share held in [0, 1] was accepted.
+        (["--prior", "h_s=1e300,1"], "--prior: h_s: MEDIAN 1e+300 is outside [1e-06, 1e+06]"),
+        (["--prior", "h_s=0.5,50"], "--prior: h_s: SD_LOG 50 is above 5"),
+        (
+            ["--shares", "bounded", "--prior", "f_m=2,0.1"],
+            "--prior: f_m: MEAN 2 is outside [0, 1], where --shares bounded holds f_m",
+        ),
+    ],
+)
+def test_priors_that_cannot_be_sampled_are_one_line(tmp_path, args, words):
+    _csv(tmp_path / "sag.csv")
+    res = _run(tmp_path / "sag.csv", "--json", tmp_path / "x.json", *args, *SHORT)
+    assert res.exit_code == 2, res.output
+    line = res.output.strip()
+    assert "\n" not in line and words in line, line
+    assert not (tmp_path / "x.json").exists()
+
+
+@pytest.mark.parametrize(
     "extra, absent",
     [(["--noise", "ar1"], "rho_p"), (["--torque", "estimate"], "log_a_over_c")],
 )

@@ -128,3 +128,51 @@ def test_a_signal_while_removing_stale_events_waits_for_the_last(tmp_path, monke
     files = sorted(p.name for p in (tmp_path / "ev").iterdir() if p.name != "events.csv")
     assert files == sorted(listed) and len(listed) == 3
     assert len([n for n in removed if n.startswith("event_")]) == 13 - 3  # all stale ones
+
+
+@pytest.mark.parametrize("out", ["", "-"])
+def test_an_empty_or_dash_out_is_refused(tmp_path, monkeypatch, out):
+    # Red-team L5: --out '' wrote the events into the working folder, "written to " (blank).
+    monkeypatch.chdir(tmp_path)
+    _record(tmp_path / "rec.csv")
+    res = _run("rec.csv", "--out", out)
+    assert res.exit_code == 2, res.output
+    assert res.output.strip() == f"loadbayes: error: --out {out!r}: give the folder to write to"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
+
+
+def test_an_empty_cell_names_a_remedy_events_has(tmp_path):
+    # Red-team L2: the message offered --drop-invalid, which events does not have.
+    df = _record(tmp_path / "rec.csv")
+    df.loc[5, "v"] = np.nan
+    df.to_csv(tmp_path / "holed.csv", index=False)
+    res = _run(tmp_path / "holed.csv", "--out", tmp_path / "ev")
+    assert res.exit_code == 2, res.output
+    assert "holed.csv: column 'v', row 6: empty cell" in res.output
+    assert "drop-invalid" not in res.output and "fill the cell or delete the row" in res.output
+
+
+def test_a_record_table_without_phasor_rows_is_refused(tmp_path):
+    # Red-team L13: a `read comtrade` table with amplitude rows only gave "0 event(s)".
+    t = np.arange(200) / 50
+    pd.DataFrame({"t_s": t, "v": np.ones_like(t), "p": 1.0, "q": 0.4, "segment": 0,
+                  "kind": "amplitude"}).to_csv(tmp_path / "amp.csv", index=False)  # fmt: skip
+    res = _run(tmp_path / "amp.csv", "--out", tmp_path / "ev")
+    assert res.exit_code == 2, res.output
+    assert "amp.csv: no phasor rows (200 amplitude rows)" in res.output
+    assert not (tmp_path / "ev").exists()
+
+
+def test_a_sidecar_of_another_format_says_which(tmp_path):
+    # Red-team L4: a sidecar with "format": "other" was said to have "no 'format' key".
+    t = np.arange(200) / 50
+    pd.DataFrame({"t_s": t, "v": np.ones_like(t), "p": 1.0, "q": 0.4, "segment": 0,
+                  "kind": "phasor"}).to_csv(tmp_path / "r.csv", index=False)  # fmt: skip
+    (tmp_path / "r.csv.meta.json").write_text('{"format": "other"}')
+    res = _run(tmp_path / "r.csv", "--out", tmp_path / "ev")
+    assert res.exit_code == 2, res.output
+    assert "r.csv.meta.json: not a loadbayes record metadata file (format 'other'" in res.output
+    (tmp_path / "r.csv.meta.json").write_text("[1, 2]")
+    res = _run(tmp_path / "r.csv", "--out", tmp_path / "ev")
+    assert "not a loadbayes record metadata file (no 'format' key)" in res.output
+    assert not (tmp_path / "ev").exists()

@@ -225,3 +225,42 @@ def test_andes_case_and_bus_place_the_load_in_that_case(tmp_path, monkeypatch):
         one_line(run("post.json", *args, "--out", out, cwd=tmp_path, monkeypatch=monkeypatch),
                  needle)  # fmt: skip
         assert not (tmp_path / out).exists()
+
+
+# ------------------------------------------------------- the red-team's Lows (L9, L13)
+@pytest.mark.parametrize("fmt", ["psse", "pandapower", "andes"])
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("--vn-kv", "1e300"), "--vn-kv 1e+300: outside [0.001, 2000] kV"),
+        (("--s-base", "1e-300"), "--s-base 1e-300: outside [1e-06, 1e+06] MVA"),
+        (("--s-base", "1e300"), "--s-base 1e+300: outside [1e-06, 1e+06] MVA"),
+    ],
+)
+def test_bases_no_network_has_are_refused(tmp_path, monkeypatch, fmt, args, needle):
+    # L9: --vn-kv 1e300 and --s-base 1e-300 were exported without a word.
+    posterior_json(tmp_path / "z.json", ZIP)
+    out = {"psse": "c.raw", "pandapower": "n.json", "andes": "c.xlsx"}[fmt]
+    one_line(run("z.json", "--to", fmt, "--out", out, *args, cwd=tmp_path,
+                 monkeypatch=monkeypatch), needle)  # fmt: skip
+    assert files(tmp_path) == ["z.json"]
+
+
+@pytest.mark.parametrize("fmt", ["psse", "pandapower", "andes"])
+def test_a_vanishing_load_is_refused(tmp_path, monkeypatch, fmt):
+    # L9: p0 1e-300 (a tampered JSON) was a ZeroDivisionError traceback from pandapower.
+    posterior_json(tmp_path / "post.json", dict(COMPOSITE, p0=1e-300), "composite")
+    out = {"psse": "c.raw", "pandapower": "n.json", "andes": "c.xlsx"}[fmt]
+    r = run("post.json", "--to", fmt, "--out", out, cwd=tmp_path, monkeypatch=monkeypatch)
+    one_line(r, "post.json", "parameter 'p0' is 1e-300: below 1e-09 per unit, no load")
+    assert files(tmp_path) == ["post.json"]
+
+
+def test_a_case_andes_cannot_find_buses_in_is_not_an_andes_case(tmp_path, monkeypatch):
+    # L13: --case /etc/passwd said "no bus 2 (its buses: none)".
+    posterior_json(tmp_path / "c.json", COMPOSITE, "composite")
+    (tmp_path / "passwd").write_text("root:x:0:0:root:/root:/bin/bash\n")
+    r = run("c.json", "--to", "andes", "--out", "c.json.xlsx", "--case", "passwd", "--bus", 2,
+            cwd=tmp_path, monkeypatch=monkeypatch)  # fmt: skip
+    one_line(r, "--case passwd: not an ANDES case")
+    assert files(tmp_path) == ["c.json", "passwd"]

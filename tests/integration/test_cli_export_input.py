@@ -112,3 +112,14 @@ def test_out_over_the_input_is_refused(tmp_path, monkeypatch):
                    "--draws", "1"), "would overwrite the posterior")  # fmt: skip
     assert (tmp_path / "p_draw001.nc").stat().st_size == size
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json", "p_draw001.nc"]
+
+
+@pytest.mark.parametrize("fmt", ["psse", "pandapower", "andes"])
+@pytest.mark.parametrize("out", ["", "-"])
+def test_an_empty_or_dash_out_is_refused(tmp_path, monkeypatch, fmt, out):
+    # Red-team L5: --out - wrote files named -, -.dyr, -.dyd, -.summary.txt; --out '' said
+    # "PosixPath('.') has an empty name".
+    _json(tmp_path / "c.json", "composite", COMPOSITE)
+    r = _run(tmp_path, monkeypatch, "c.json", "--to", fmt, "--out", out)
+    _one_line(r, f"--out {out!r}", "a file name")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json"]

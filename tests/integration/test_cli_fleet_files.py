@@ -257,6 +257,28 @@ def test_ids_stored_as_different_types_are_said_to_merge(tmp_path, monkeypatch):
     assert r.exit_code == 0 and "matched as text" not in r.stderr, r.stderr
 
 
+def test_ids_that_differ_by_spaces_around_them_are_said_to_merge(tmp_path, monkeypatch):
+    # Red-team L6: ' sp' and 'sp ' were read as one bus 'sp' (n 400) without a word.
+    pd.concat([bus_rows(" sp", n=120, seed=1), bus_rows("sp ", n=80, seed=2),
+               bus_rows("other", seed=3)]).to_csv(tmp_path / "sp.csv", index=False)  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # pytest makes warnings errors; the CLI says them
+        r = run("sp.csv", "--by", "bus_id", "--out", "f.parquet", *FAST, cwd=tmp_path,
+                monkeypatch=monkeypatch)  # fmt: skip
+    assert r.exit_code == 0, r.output
+    assert (
+        "bus ids in column 'bus_id' are read without the spaces around them: ' sp' and "
+        "'sp ' are bus 'sp'" in r.stderr
+    ), r.stderr
+    t = pd.read_parquet(tmp_path / "f.parquet")
+    assert set(t["bus"]) == {"sp", "other"} and set(t.loc[t.bus == "sp", "n"]) == {200}
+    # Ids without spaces: no word.
+    bus_rows("b1").to_csv(tmp_path / "plain.csv", index=False)
+    r = run("plain.csv", "--by", "bus_id", "--out", "g.parquet", *FAST, cwd=tmp_path,
+            monkeypatch=monkeypatch)  # fmt: skip
+    assert r.exit_code == 0 and "spaces around" not in r.stderr, r.stderr
+
+
 def test_a_header_only_file_in_the_folder_is_skipped_and_named(tmp_path, monkeypatch):
     # Red-team of issue 24: one empty export among a fleet's files stopped every fit.
     # It holds no bus, so it is skipped and named; a folder of nothing else is refused.

@@ -108,3 +108,20 @@ def test_standard_output_that_fits_is_byte_identical(bus, tmp_path):
     r = run(["example", "zip", "--out", "b.csv"], cwd=tmp_path)
     assert r.returncode == 0
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+CLOSED = "loadbayes: error: standard output is closed (>&-): what it would print is lost"
+
+
+@pytest.mark.parametrize("args", PRINTERS)
+def test_a_closed_standard_output_is_one_line(bus, args):
+    # Red-team L10: `example zip >&-` and `fit zip ... --json - >&-` ended 0, nothing
+    # written anywhere (Python sets sys.stdout to None and click's echo drops the text).
+    env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    before = sorted(p.name for p in bus.iterdir())
+    r = subprocess.run([sys.executable, "-m", "loadbayes", *args], cwd=bus, env=env,
+                       stderr=subprocess.PIPE, text=True, timeout=300,
+                       preexec_fn=lambda: os.close(1))  # fmt: skip
+    assert r.returncode == 2, r.stderr[-3000:]
+    assert _one_line(r.stderr) == CLOSED
+    assert sorted(p.name for p in bus.iterdir()) == before

@@ -63,3 +63,24 @@ def test_a_bad_int_option_is_one_line_exit_2(tmp_path, monkeypatch, args, option
     assert len(lines) == 1 and lines[0].startswith("loadbayes: error: "), res.stderr
     assert option in lines[0] and "Traceback" not in res.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["fit", "zip", "bus.csv", "--json", ""],
+        ["fit", "zip", "bus.csv", "--netcdf", " "],
+        ["steps", "bus.csv", "--out", ""],
+    ],
+)
+def test_an_empty_output_name_is_refused(tmp_path, monkeypatch, args):
+    # Red-team L5: an empty output name was taken for "no output": exit 0, nothing written.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bus.csv").write_text("v,p,q\n1.0,1.0,0.5\n1.01,1.01,0.51\n")
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2, res.output
+    opt = args[args.index("bus.csv") + 1]
+    assert res.output.strip() == (
+        f"loadbayes: error: {opt} {args[-1]!r}: an empty file name (give one, or leave {opt} out)"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bus.csv"]

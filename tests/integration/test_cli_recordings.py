@@ -131,3 +131,26 @@ def test_read_pmu_reports_and_export_draws(tmp_path):
     res = run("export", "post.nc", "--to", "pandapower", "--out", "net.json", "--draws", "3",
               "--q-mvar", "0", cwd=tmp_path)  # fmt: skip
     one_line_error(res, "net_draw001.json: exists; use --force")
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("--v-base", "1e308"), "--v-base 1e+308: outside [0.001, 2000] kV"),
+        (("--s-base", "1e-308"), "--s-base 1e-308: outside [1e-06, 1e+06] MVA"),
+        (("--v-base", "1e308", "--s-base", "1e-308"), "--v-base 1e+308: outside [0.001, 2000] kV"),
+    ],
+)
+def test_bases_no_network_has_are_refused_by_option(tmp_path, args, needle):
+    # Red-team L4: --v-base 1e308 said "the first cycle has no voltage (a dead or unscaled
+    # VT)"; --s-base 1e-308 wrote a table of overflowed powers with numpy's warning.
+    from click.testing import CliRunner
+
+    from loadbayes.cli import main
+
+    _record(tmp_path / "rec", "1999", "BINARY")
+    res = CliRunner().invoke(main, ["read", "comtrade", str(tmp_path / "rec.cfg"), "--out",
+                                    str(tmp_path / "x.csv"), *args])  # fmt: skip
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines() == [f"loadbayes: error: {needle}, no network's base"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.cfg", "rec.dat"]

@@ -81,6 +81,22 @@ def test_no_steps_no_fit(tmp_path):
     assert "0 voltage step(s) found" in res.output and "at least two" in res.output
 
 
+def test_no_steps_with_a_table_is_said_once(tmp_path):
+    # Red-team L7: --min-step 1e308 printed pandas' "Empty DataFrame / Columns: [...] /
+    # Index: []" after the count; the count alone says it.
+    path = tmp_path / "day.csv"
+    _csv(path)
+    out = tmp_path / "s.csv"
+    res = CliRunner().invoke(main, ["steps", str(path), *COLS, "--t-col", "time", "--min-step",
+                                    "1e308", "--out", str(out)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert res.output.strip().splitlines() == [
+        line for line in res.output.strip().splitlines() if "0 voltage step(s) found" in line
+    ]
+    assert "Empty DataFrame" not in res.output and "Index: []" not in res.output
+    assert list(pd.read_csv(out).columns)[:3] == ["time", "v_before", "dv"]  # the header
+
+
 @pytest.mark.parametrize("how", ["semicolon", "gb18030"])
 def test_the_time_column_of_a_spreadsheets_csv(tmp_path, how):
     # A ';'-separated file, and one with Chinese names in GB18030: the V, P, Q reader

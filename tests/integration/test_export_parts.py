@@ -4,7 +4,7 @@ The posterior is written here (NumPy draws: shares from a Dirichlet, motors arou
 WECC typical motors A and B), not by a fit. The expected record is computed here: the
 recorded bus's power by solving the feeder's circuit with SciPy (``fsolve``), the
 fractions as the draws' medians, and the CMLDBLU1 layout of the tests' GridDyn harness
-(``tests/griddyn_sim/cmld.py``), which CMLDBLU2's first 132 CONs must follow; GridDyn
+(``loadbayes.cases.griddyn/cmld.py``), which CMLDBLU2's first 132 CONs must follow; GridDyn
 runs the exported record (skipped, saying why, without its environment) and the fit's own
 prediction of the same numbers is held to its P. The
 held-out playback of an ``slm`` fit is checked against the tests' own SciPy feeder
@@ -20,14 +20,12 @@ import pytest
 from click.testing import CliRunner
 from scipy.optimize import fsolve
 
+from loadbayes.cases.griddyn.cmld import Cmld, Motor3, MotorD
 from loadbayes.cli import main
 from loadbayes.export.cmld import CON_NAMES, read_cmldblu2
 from loadbayes.export.psse import read_loads
 from loadbayes.models.dynamic import dynamic_model
 from loadbayes.posterior import Posterior
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "griddyn_sim"))
-from cmld import Cmld, Motor3, MotorD  # noqa: E402
 
 pytestmark = pytest.mark.integration
 
@@ -329,7 +327,7 @@ def test_griddyn_runs_the_exported_record_as_the_fit_predicts_it(cmld_lite):
     compensation from the series losses only, so its Q before the fault is 0.68 p.u.
     where the power flow's is 0.36, and the Q of its parts differs from the fit's.
     """
-    import cases
+    from loadbayes.cases.griddyn import cases
 
     reason = cases.skip_reason()
     if reason is not None:
@@ -357,6 +355,8 @@ def test_griddyn_runs_the_exported_record_as_the_fit_predicts_it(cmld_lite):
     th |= {"lr_m_a": math.log(rec["Fma"] / fs), "lr_m_b": math.log(rec["Fmb"] / fs),
            "lr_d": math.log(rec["Fmd"] / fs), "lr_el": math.log(rec["Fel"] / fs),
            "lr_a1": math.log(rec["P1c"] / a3), "lr_a2": math.log(rec["P2c"] / a3)}  # fmt: skip
+    th |= {"vstall": rec["Vstall"], "log_tstall": math.log(rec["Tstall"]), "vd1": rec["Vd1"],
+           "vd2": rec["Vd2"]}  # fmt: skip
     theta = np.array([th[n] for n in model.theta_names])
     ev = EventRecord(frame.t_s.values, frame.v.values, frame.p.values, frame.q.values,
                      frame.angle_rad.values, "griddyn")  # fmt: skip

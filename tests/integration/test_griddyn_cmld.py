@@ -1,6 +1,6 @@
 """GridDyn's WECC composite load (CMLDBLU1) as an independent simulator (issue 36, Checks).
 
-The cases (tests/griddyn_sim) run GridDyn 0.13.0 in its own Python >= 3.13 environment,
+The cases (loadbayes.cases.griddyn) run GridDyn 0.13.0 in its own Python >= 3.13 environment,
 one child process per case, cached on disk; each takes about a second. These checks
 hold the harness to what GridDyn did: the pre-fault P, Q of the frames against the
 power flow GridDyn initialised (and against the .raw's P), the sag depths asked for,
@@ -8,16 +8,12 @@ motor D's stall in the deep case and not in the shallow one, the same numbers on
 rerun, and the files `loadbayes fit composite` reads. No loadbayes code makes the data.
 """
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "griddyn_sim"))
-import cases  # noqa: E402
-from events import griddyn_events, write_events_csv  # noqa: E402
+from loadbayes.cases.griddyn import cases
+from loadbayes.cases.griddyn.events import griddyn_events, write_events_csv
 
 pytestmark = pytest.mark.integration
 

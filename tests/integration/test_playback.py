@@ -162,6 +162,16 @@ def test_cli_playback_reproduces_the_event_within_the_fit_noise(event):
     assert (d / "pb.json").read_bytes() == before
 
 
+def test_json_to_standard_output(event, tmp_path):
+    # Red-team L3: `--json -` was refused ("standard output is only for --json").
+    d, _, _ = event
+    r = cli("playback", d / "fit.json", d / "case.json", d / "noisy.csv", "--json", "-")
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)  # the JSON alone on stdout; the verdict went to stderr
+    assert doc["event"] == str(d / "noisy.csv") and doc["reproduces"] is True
+    assert "reproduces the record" in r.stderr and not Path("-").exists()
+
+
 def test_the_case_of_another_fit_is_refused_naming_both_files(event, tmp_path):
     # Red-team M7: the case exported from one fit was played as another's (exit 0, titled
     # as the JSON given). Two fits of the same event by the same method, seeds 1 and 2

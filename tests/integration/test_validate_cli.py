@@ -295,3 +295,30 @@ def test_a_json_written_before_fit_ids_is_accepted_with_a_note(held_out, tmp_pat
     res = _run(js, folder / "held_out.csv", "--netcdf", nc, "--n-draws", 20, "--quiet")
     assert res.exit_code == 0, res.output
     assert "note" in res.output and "no fit id" in res.output and str(js) in res.output
+
+
+# ----------------------------------------------------- the red-team's Lows (L2, L3, L8)
+def test_json_to_standard_output_and_an_n_draws_beyond_the_draws(held_out, tmp_path):
+    # L3: `--json -` was refused ("standard output is only for --json"); L8: --n-draws
+    # 100000000 used the 120 draws there are without a word.
+    folder, _ = held_out
+    nc = _truth_posterior(tmp_path / "truth.nc")  # 2 chains x 60 draws
+    res = _run(nc, folder / "held_out.csv", "--json", "-", "--n-draws", 100000000)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)  # stdout holds the JSON alone; the table went to stderr
+    assert doc["events"][0]["n"] > 0
+    assert "rms_p" in res.stderr and not (tmp_path / "-").exists()
+    assert "only 120 draws" in res.stderr and "--n-draws 100000000" in res.stderr
+
+
+def test_an_empty_cell_names_a_remedy_validate_has(held_out, tmp_path):
+    # L2: the message offered --drop-invalid, which validate (and events) do not have.
+    folder, df = held_out
+    nc = _truth_posterior(tmp_path / "truth.nc")
+    holed = df.copy()
+    holed.loc[5, "v"] = np.nan
+    holed.to_csv(tmp_path / "holed.csv", index=False)
+    line = _bad(nc, tmp_path / "holed.csv")
+    assert "holed.csv: column 'v', row 6: empty cell" in line
+    assert "drop-invalid" not in line and "drop_invalid" not in line
+    assert "fill the cell or delete the row" in line

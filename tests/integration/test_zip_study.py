@@ -147,3 +147,13 @@ def test_reproduce_all_quick_through_the_cli(tmp_path):
     assert '<section id="zip">' in report and '<section id="im">' in report
     assert "<img" in report and 'src="http' not in report
     assert list(pd.read_csv(root / "zip" / "table2.csv").method) == ["GS", "LS", "KF"]
+    # The planning section: the real record asked for a 50 % sag says it extrapolates
+    # (when the shared record is beside the checkout), and GridDyn's deep fault is either
+    # checked against the simulator or said not to run, with the reason.
+    assert '<section id="planning">' in report
+    planning = report[report.index('<section id="planning">'):]
+    planning = planning[: planning.index("</section>")]
+    if "the shared real record was not found" not in planning:
+        assert "deeper than any fitted event (the deepest 1" in planning
+        assert "decided by the priors of vstall" in planning
+    assert "Against the simulator" in planning or "GridDyn" in planning

@@ -2,7 +2,7 @@
 
 Issue 36, Checks: "Fit the shallow and medium events: the total motor share and the
 static shares are covered by their 95% intervals, and every share is physical." The
-data are GridDyn's (tests/griddyn_sim, the harness's default load: motors A 0.15 and B
+data are GridDyn's (loadbayes.cases.griddyn, the harness's default load: motors A 0.15 and B
 0.10, motor D 0.15, electronics 0.15, static 0.45, behind a transformer with a fixed
 1.05 tap and a feeder): the 13% and 25% sags at the measured bus, one-cycle window means
 at 60/s, 0.5% noise on P and Q (noise seed 0), from 0.1 s before the fault to 0.4 s after
@@ -69,20 +69,15 @@ constant power is found or said to be the prior's; its false alarm would then be
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from loadbayes.cases.griddyn import cases
+from loadbayes.cases.griddyn.events import griddyn_events
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.dynamic import dynamic_model
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "griddyn_sim"))
-import cases  # noqa: E402
-from events import griddyn_events  # noqa: E402
 
 _REASON = cases.skip_reason()
 pytestmark = [

@@ -250,6 +250,22 @@ def test_a_dat_or_cff_given_for_the_cfg_says_what_to_give(rec):
         read_comtrade(cff)
 
 
+@pytest.mark.parametrize(
+    ("station", "codec"),
+    [("Umspannwerk Größe", "latin-1"), ("Weißöl Nord", "latin-1"), ("Poste Sénégal", "latin-1"),
+     ("1号主变", "gb18030"), ("线路", "gb18030"), ("Größe主变", "utf-8")],
+)  # fmt: skip
+def test_the_station_is_read_as_written_whatever_its_encoding(rec, station, codec):
+    # 'Größe' in Latin-1 is 0xF6 0xDF: one GB18030 ideograph ('Gr鲞e'), read as such before.
+    cfg, _ = rec
+    lines = cfg.read_bytes().split(b"\r\n")
+    lines[0] = f"{station},rec,1999".encode(codec)
+    cfg.write_bytes(b"\r\n".join(lines))
+    info = parse_cfg(cfg)
+    assert info.station == station
+    assert info.encoding == codec
+
+
 def test_a_latin1_cfg_is_not_taken_for_gb18030_and_lines_split_at_line_breaks_only(rec):
     # M1 (cli-redteam-2): 'Üb' (0xDC 0x62) is a valid GB18030 ideograph: a Latin-1 .cfg
     # was decoded as GB18030 and its names garbled. M2: a cp1252 '…' (0x85, U+0085 in
@@ -264,9 +280,89 @@ def test_a_latin1_cfg_is_not_taken_for_gb18030_and_lines_split_at_line_breaks_on
         lines[k] = b",".join(f)
     cfg.write_bytes(b"\r\n".join(lines))
     info = parse_cfg(cfg)
-    assert info.encoding == "latin-1"
+    # 0x85 is a control code in Latin-1 and '…' in Windows-1252, which wrote it.
+    assert info.encoding == "cp1252"
     assert info.station == "BEIHU 220kV" and info.device == "Störschreiber"
     names = [ch.name for ch in info.analog[:3]]
-    assert names == ["Trafo1_Übertragung\x85_UA", "Trafo1_Übertragung\x0c_UB",
+    assert names == ["Trafo1_Übertragung…_UA", "Trafo1_Übertragung\x0c_UB",
                      "Trafo1_Übertragung\x1c_UC"]  # fmt: skip
     assert info.n_samples == 320
+
+
+# --------------------------------------------------- the red-team's Lows (cli-redteam-2)
+def test_a_unicode_digit_is_not_a_channel_number(rec):
+    # L1: '²' passes str.isdigit() but not int(): "invalid literal for int() ...".
+    cfg, _ = rec
+    with pytest.raises(DataError, match=r"no analog channel '²' \(channels: VA, VB"):
+        read_comtrade(cfg, voltage=["²", "2", "3"])
+    f = cfg.read_text().splitlines()[2].split(",")
+    _rewrite(cfg, 3, ",".join(["²", *f[1:]]))
+    _error(cfg, "line 3", "analog channel index '²' is not a number")
+
+
+def test_a_missing_channel_lists_twenty_names_at_most(tmp_path):
+    # L4: a 10,000-channel .cfg printed a 119 kB line listing every channel.
+    from loadbayes.recordings.comtrade_cfg import AnalogChannel, CfgInfo
+    from loadbayes.recordings.comtrade_channels import _by_spec
+
+    chans = [AnalogChannel(k, f"CH{k}", "", "V", 1, 0, 0, 1, 1, "P", k + 2) for k in range(1, 501)]
+    info = CfgInfo("big.cfg", "1999", "s", "d", chans, 0, 50.0, [(1600.0, 10)], "ASCII", 1.0, "")
+    with pytest.raises(DataError) as err:
+        _by_spec(info, "nosuch", "voltage")
+    msg = str(err.value)
+    assert "CH20," in msg and "CH21," not in msg and "and 480 more" in msg and len(msg) < 400
+
+
+def test_a_2013_cfg_whose_last_line_lacks_a_field_is_located(tmp_path):
+    # L1: a last line '0' (tmq_code,leapsec cut) gave "cannot be read: not enough values
+    # to unpack (expected 2, got 1)" from the comtrade package, with no line.
+    t, v, i = _waves()
+    cfg, _ = write_comtrade(tmp_path / "rec", t, v, i, revision="2013", fmt="BINARY")
+    lines = cfg.read_text().splitlines()
+    n = len(lines)
+    cfg.write_text("\r\n".join(lines[:15] + ["+0,+0", "0"]) + "\r\n")
+    _error(cfg, str(cfg), "line 17", "expected tmq_code,leapsec")
+    cfg.write_text("\r\n".join(lines[:15] + ["+0"]) + "\r\n")
+    _error(cfg, str(cfg), "line 16", "expected time_code,local_code")
+    cfg.write_text("\r\n".join(lines[:15] + ["+0,+0"]) + "\r\n")
+    _error(cfg, str(cfg), "line 17", "file ends early, expected tmq_code,leapsec")
+    cfg.write_text("\r\n".join(lines[:15] + ["+0,+0", "F,0"]) + "\r\n")
+    assert read_comtrade(cfg).t_s.size == 320 and n >= 15
+
+
+def test_a_utf16_cfg_is_hinted_and_nul_bytes_are_located(rec):
+    # L4: a UTF-16 .cfg read as "line 1: NUL bytes: a binary file" (it reads with
+    # --encoding utf-16); 512 NUL bytes after the last line were said to be on line 1.
+    cfg, _ = rec
+    text = cfg.read_text()
+    cfg.write_bytes(text.encode("utf-16"))
+    _error(cfg, "line 1", "UTF-16", "encoding utf-16")
+    assert parse_cfg(cfg, encoding="utf-16").n_samples == 320
+    cfg.write_bytes(text.encode("ascii") + b"\0" * 512)
+    _error(cfg, f"line {len(text.splitlines()) + 1}", "NUL bytes")
+
+
+def test_a_rate_count_that_disagrees_with_the_rate_lines_is_said(rec):
+    # L4: nrates 1 with two rate lines read the second as a time stamp ("date '3200' is
+    # not dd/mm/yyyy"); nrates 2 with one read the stamp as a rate.
+    cfg, _ = rec
+    lines = cfg.read_text().splitlines()
+    one = list(lines)
+    one[10:11] = ["1600,100", "1600,320"]
+    cfg.write_text("\r\n".join(one) + "\r\n")
+    _error(cfg, "line 12", "a rate line", "nrates (1) on line 10")
+    two = list(lines)
+    two[9] = "2"
+    cfg.write_text("\r\n".join(two) + "\r\n")
+    _error(cfg, "line 12", "nrates (2) on line 10")
+
+
+def test_a_utf8_bom_before_an_ascii_dat_is_skipped(tmp_path):
+    # L4: "'ï»¿1' is not a number" for a BOM that an editor put before the first sample.
+    t, v, i = _waves()
+    cfg, dat = write_comtrade(tmp_path / "rec", t, v, i, revision="1999", fmt="ASCII")
+    plain = read_comtrade(cfg)
+    dat.write_bytes(b"\xef\xbb\xbf" + dat.read_bytes())
+    w = read_comtrade(cfg)
+    np.testing.assert_array_equal(w.v, plain.v)
+    np.testing.assert_array_equal(w.t_s, plain.t_s)

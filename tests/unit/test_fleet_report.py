@@ -174,6 +174,56 @@ def test_bad_tables_are_refused_naming_the_file_and_column(fleet, tmp_path):
         read_coords(tmp_path / "c.csv", by="bus_id")
 
 
+@pytest.mark.parametrize(
+    ("column", "value", "words"),
+    [
+        ("mean", np.nan, "column 'mean', row 1: nan in a fitted row (parameter 'a1')"),
+        ("mean", 1e308, "column 'mean', row 1: 1e+308 in a fitted row (parameter 'a1')"),
+        ("hdi_high", np.inf, "column 'hdi_high', row 1: inf in a fitted row"),
+        ("sd", -0.5, "column 'sd', row 1: -0.5 is negative: not a posterior sd"),
+    ],
+)
+def test_statistics_that_cannot_be_shown_are_refused_by_row(fleet, tmp_path, column, value, words):
+    # Red-team L11: NaN means, 1e308 means and a negative sd made a report (exit 0) with
+    # numpy's "Mean of empty slice", matplotlib's "overflow encountered in multiply", or
+    # the negative sd shown.
+    _, _, out = fleet
+    t = pd.read_parquet(out["none"])
+    assert t.loc[0, "parameter"] == "a1"
+    t.loc[0, column] = value
+    t.to_parquet(tmp_path / "bad.parquet")
+    with pytest.raises(DataError) as err:
+        load_fleet(tmp_path / "bad.parquet")
+    assert str(err.value).startswith(f"{tmp_path / 'bad.parquet'}: {words}"), str(err.value)
+
+
+def test_a_table_with_one_row_twice_is_refused_by_row(fleet, tmp_path):
+    # Red-team L1: a pooled table whose class column was set to one value (two classes'
+    # rows then share their names) ended in pandas' "The truth value of a Series is
+    # ambiguous" (exit 2, no file, no row).
+    _, _, out = fleet
+    t = pd.read_parquet(out["class"])
+    t["class"] = "x"
+    t.to_parquet(tmp_path / "one.parquet")
+    with pytest.raises(DataError) as err:
+        load_fleet(tmp_path / "one.parquet")
+    msg = str(err.value)
+    assert msg.startswith(f"{tmp_path / 'one.parquet'}: column 'class', row "), msg
+    assert "class 'x', parameter 'a1' is on rows" in msg and "one row per" in msg
+    from click.testing import CliRunner
+
+    from loadbayes.cli import main
+
+    res = CliRunner().invoke(main, ["report", str(tmp_path / "one.parquet"), "--out",
+                                    str(tmp_path / "r.html")])  # fmt: skip
+    assert res.exit_code == 2 and res.output.strip() == f"loadbayes: error: {msg}", res.output
+    assert not (tmp_path / "r.html").exists()
+    t = pd.read_parquet(out["none"])
+    pd.concat([t, t.iloc[[3]]]).to_parquet(tmp_path / "twice.parquet")
+    with pytest.raises(DataError, match=r"column 'bus', row \d+: bus 'b0', parameter 'a4'"):
+        load_fleet(tmp_path / "twice.parquet")
+
+
 def test_a_later_tables_convergence_words_and_column_are_shown(fleet, tmp_path):
     """The fleet branch's additions (docs/fleet.md there): 'converged', class warnings."""
     _, _, out = fleet

@@ -583,3 +583,14 @@ def test_the_by_name_rule_catches_a_planted_lookup(tmp_path):
     (pkg / "fit").mkdir(parents=True)
     (pkg / "fit" / "x.py").write_text('importlib.import_module("loadbayes.report.text")\n')
     assert imports_by_name(pkg) == {("loadbayes.fit.x", "loadbayes.report.text")}
+
+
+def test_the_griddyn_harness_imports_nothing_else_of_loadbayes():
+    # GridDyn is the tests' independent simulator: its harness writes GridDyn's input from
+    # its own description of the load and never reaches the package's models or fits.
+    harness = {m: deps for m, deps in IMPORTS.items() if m.startswith("loadbayes.cases.griddyn")}
+    assert len(harness) >= 3
+    for module, deps in harness.items():
+        other = {d for d in deps if d.startswith("loadbayes") and
+                 not d.startswith("loadbayes.cases.griddyn")}  # fmt: skip
+        assert not other, (module, sorted(other))

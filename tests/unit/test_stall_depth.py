@@ -50,6 +50,8 @@ def test_levels_not_crossed_within_the_sweep_are_null_and_said():
 def test_no_motor_d_and_bad_depths():
     none = stall_depth([0.1, 0.2], [None, None])
     assert none["depth"] is None and "no motor D" in none["message"]
+    zm = stall_depth([0.1, 0.2], [0.0, 1.0], part="the induction motor")
+    assert zm["message"].startswith("the induction motor stalls with probability 0.5")
     with pytest.raises(ValueError, match="ascending"):
         stall_depth([0.2, 0.1], [0.0, 1.0])
     with pytest.raises(ValueError, match="one stall probability"):

@@ -132,14 +132,13 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     help="'bounded' holds every static ZIP share in [0, 1] (so f_m in (0, 1)) by its "
     "prior: a load a simulator can take; 'free' lets the data put them anywhere.",
 )
-@click.option(
-    "--noise",
-    type=click.Choice(["white", "ar1"]),
-    default="white",
-    show_default=True,
-    help="Noise on P and Q independent from sample to sample, or AR(1) in each channel "
-    "(rho_p, rho_q sampled): for recordings whose residuals run in stretches.",
-)
+@click.option("--noise", type=click.Choice(["white", "ar1"]), default="white", show_default=True,
+              help="Noise on P and Q independent from sample to sample, or AR(1) in each "
+              "channel (rho_p, rho_q sampled; with slm and cmld-lite I2 stays white): for "
+              "residuals that run in stretches, so that the intervals widen.")  # fmt: skip
+@click.option("--rho-max", type=click.FloatRange(min=0, max=0.999, min_open=True),
+              help="--noise ar1 with slm or cmld-lite: rho uniform on (-RHO_MAX, RHO_MAX) "
+              "[0.999]; 0.9 keeps a short record's noise from a random walk.")  # fmt: skip
 @click.option(
     "--window-s",
     type=click.FloatRange(min=0, max=1),
@@ -214,6 +213,7 @@ def fit_composite_cmd(
     priors,
     shares,
     noise,
+    rho_max,
     window_s,
     sampler,
     max_seconds,
@@ -275,6 +275,7 @@ def fit_composite_cmd(
     model = named_model(model_name, f_hz=f_hz, priors=_parse_priors(priors),
                         negative_sequence=negative_sequence, torque=_parse_torque(torque),
                         steps=steps, window_s=window_s, shares=shares, noise=noise,
+                        rho_max=rho_max,
                         likelihood=likelihood, nu=parse_nu(nu))  # fmt: skip
     if until_converged is None:
         source = click.get_current_context().get_parameter_source("draws")

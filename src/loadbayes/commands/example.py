@@ -11,7 +11,7 @@ from loadbayes.commands.options import OneLineCommand
 #: One-file kinds, printed to stdout (or written to --out FILE).
 FILES = ("zip", "day", "cvr")
 #: Folder kinds (loadbayes.cases.examples.KINDS), written into --out DIR.
-FOLDERS = ("composite", "fleet", "comtrade", "pmu")
+FOLDERS = ("composite", "fleet", "comtrade", "pmu", "archive")
 
 
 def _text(name: str) -> str:
@@ -61,14 +61,15 @@ def _write_folder(folder: Path, contents: dict, force: bool) -> list[Path]:
 
 @click.command("example", cls=OneLineCommand)
 @click.argument("name", type=click.Choice(FILES + FOLDERS))
+@click.argument("folder", required=False, type=click.Path(path_type=Path))
 @click.option(
     "--out",
     type=click.Path(dir_okay=True, path_type=Path),
-    help="zip, day, cvr: a file instead of stdout. composite, fleet, comtrade, pmu: the folder "
-    "to write into (required; created if missing).",
+    help="zip, day, cvr: a file instead of stdout. composite, fleet, comtrade, pmu, archive: "
+    "the folder to write into (required; created if missing).",
 )
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
-def example_cmd(name, out, force):
+def example_cmd(name, folder, out, force):
     """Write an example input, e.g. loadbayes example zip > bus.csv.
 
     Each is simulated with a known answer, in the units real data come in (the bus is
@@ -95,9 +96,18 @@ def example_cmd(name, out, force):
                (loadbayes read comtrade, then loadbayes events)
     pmu        historian.csv and its map.toml: 2 minutes of 30 frame/s phasors with
                one sag (loadbayes read pmu --map)
+    archive    a year of COMTRADE records at 3 stations x 2 bays, the motor share
+               seasonal, two files broken, truth.csv beside (loadbayes archive scan
+               DIR --catalog archive.db; about half a minute to write)
+
+    The folder may be given as the second argument instead of --out.
     """  # noqa: D301 (click's \b keeps the table's line breaks)
     from loadbayes.commands.output import UserError
 
+    if folder is not None:
+        if out is not None:
+            raise UserError(f"give the folder once: {folder} or --out {out}")
+        out = folder
     if name in FILES:
         text = _text(name)
         if out is None:
@@ -115,6 +125,13 @@ def example_cmd(name, out, force):
         return
     if out is None:
         raise UserError(f"example {name} writes several files: give the folder with --out DIR")
+    if name == "archive":
+        from loadbayes.cases.archive_example import archive_files
+
+        written = _write_folder(out, archive_files(), force)
+        click.echo(f"loadbayes: wrote {len(written)} files into {out} (truth.csv: the motor "
+                   "shares)", err=True)  # fmt: skip
+        return
     from loadbayes.cases.examples import KINDS
 
     written = _write_folder(out, KINDS[name](), force)

@@ -5,10 +5,12 @@ JSON summary or NetCDF draws), the values picked and said, then one writer.
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
 attaches it. The format writers are imported only once chosen.
 
-One idea at about 565 lines: one export, from reading and checking the posterior (half of
+One idea at about 625 lines: one export, from reading and checking the posterior (half of
 it: a JSON file may hold anything) through the checks of :mod:`loadbayes.export.checks`
-to one transaction of every file of every draw. Splitting the posterior reader out is
-the next step when it grows.
+to one transaction of every file of every draw (a statistic, N draws, or the planning
+ensemble's draws at quantiles of a predicted fault, picked by
+:mod:`loadbayes.export.planning`). Splitting the posterior reader out is the next step
+when it grows.
 """
 
 from __future__ import annotations
@@ -31,6 +33,11 @@ __all__ = ["export_cmd", "pick_values", "summary_lines"]
 #: Largest parameter magnitude exported (shares, p.u., MW, seconds): past it a value is
 #: a corrupt file, and products of it overflow in the writers.
 VALUE_MAX = 1e12
+#: Smallest load level exported (per unit): below it products of it underflow to 0 (p0
+#: 1e-300 was a ZeroDivisionError in the pandapower writer).
+P0_MIN = 1e-9
+#: The bases a network can have: 1 VA to 1 TVA, 1 V to 2000 kV.
+BASE_RANGE = {"--s-base": (1e-6, 1e6, "MVA"), "--vn-kv": (1e-3, 2000.0, "kV")}
 _STAT = re.compile(r"^(mean|median|q(\d{1,2}(?:\.\d+)?))$")
 _MODEL_NAMES = {"zip": "zip", "exp": "exponential", "exponential": "exponential",
                 "composite": "composite"}  # fmt: skip
@@ -167,6 +174,11 @@ def _check_values(values: dict, source: str) -> None:
     for name, val in values.items():
         if not math.isfinite(val):
             raise DataError(f"parameter {name!r} is {val}, expected a finite number", source)
+        if name == "p0" and abs(val) < P0_MIN:
+            raise DataError(
+                f"parameter 'p0' is {val:.6g}: below {P0_MIN:g} per unit, no load to export",
+                source,
+            )
         if abs(val) > VALUE_MAX:
             raise DataError(
                 f"parameter {name!r} is {val:.6g}: beyond {VALUE_MAX:g}, not a load's value",
@@ -289,7 +301,20 @@ def summary_lines(
     type=click.IntRange(min=1),
     help="Export N posterior draws instead, one output each (_draw001 ...).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Which draws (--draws).")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Which draws (--draws, --planning).")  # fmt: skip
+@click.option("--planning", is_flag=True, help="A planning ensemble: play the posterior "
+              "through a fault (--sag and --duration, or --voltage) and write the draws at "
+              "--quantiles of its outcome (the load's reactive energy above its pre-fault Q "
+              "after the fault clears), one output each (_q05 ...).")  # fmt: skip
+@click.option("--sag", type=float, help="--planning: the sag's depth (0.45).")
+@click.option("--duration", type=float, help="--planning: seconds the sag lasts.")
+@click.option("--voltage", "profile", type=click.Path(exists=True, dir_okay=False),
+              help="--planning: a voltage profile CSV (t_s, v, optionally angle_rad).")  # fmt: skip
+@click.option("--quantiles", help="--planning: the outcome's quantiles written "
+              "[default: 0.05,0.5,0.95].")  # fmt: skip
+@click.option("--played", type=click.IntRange(20, 20000), help="--planning: posterior draws "
+              "played through the fault [default: 300].")  # fmt: skip
 @click.option(
     "--bus",
     type=click.IntRange(min=0),
@@ -362,9 +387,10 @@ def summary_lines(
 @click.option("--quiet", is_flag=True)
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
 @user_errors
-def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mvar, vn_kv,
-               net_file, load_index, motor_as, motor_record, case_in, load_mode,
-               force_unphysical, quiet, force):  # fmt: skip
+def export_cmd(posterior, fmt, out, stat, n_draws, seed, planning, sag, duration, profile,
+               quantiles, played, bus, s_base, p_mw, q_mvar, vn_kv, net_file, load_index,
+               motor_as, motor_record, case_in, load_mode, force_unphysical, quiet,
+               force):  # fmt: skip
     """Write a fitted load model into pandapower, PSS/E or ANDES files.
 
     The posterior summary (mean, sd and interval of each parameter, the source and the
@@ -373,11 +399,26 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
     for name, val in (("--s-base", s_base), ("--vn-kv", vn_kv)):
         if val is not None and not (math.isfinite(val) and val > 0):
             raise click.BadParameter("must be a positive finite number", param_hint=name)
+        lo, hi, unit = BASE_RANGE[name]
+        if val is not None and not lo <= val <= hi:  # 1e-300 MVA was exported without a word
+            raise UserError(f"{name} {val:g}: outside [{lo:g}, {hi:g}] {unit}, no network's base")
     for name, val in (("--p-mw", p_mw), ("--q-mvar", q_mvar)):
         if val is not None and not math.isfinite(val):
             raise click.BadParameter("must be a finite number", param_hint=name)
+    if out.strip() in ("", "-"):  # '-' named the files -, -.dyr ...; '' the folder '.'
+        raise UserError(f"--out {out!r}: an export writes files: give a file name")
     if n_draws is not None and stat is not None:
         raise UserError("give either --stat or --draws, not both")
+    fault_args = {"--sag": sag, "--duration": duration, "--voltage": profile,
+                  "--quantiles": quantiles, "--played": played}  # fmt: skip
+    alone = [k for k, v in fault_args.items() if v is not None]
+    if alone and not planning:
+        raise UserError(f"{alone[0]} goes with --planning (a planning ensemble)")
+    if planning and (n_draws is not None or stat is not None):
+        raise UserError("--planning picks its own draws: not with --stat or --draws")
+    if planning and fmt == "pandapower":
+        raise UserError("--planning writes dynamic cases: --to psse (CMLDBLU2 .dyr, CMPLDW "
+                        ".dyd) or --to andes")  # fmt: skip
     if case_in is not None and fmt != "andes":
         raise UserError("--case places the load in an ANDES case: it goes with --to andes")
     if case_in is not None and bus is None:
@@ -414,7 +455,13 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
         # --out, and none may be written over another (nor a .summary.txt over a case).
         if outp.suffix.lower() in (".raw", ".dyr", ".dyd"):
             outp = outp.with_suffix(".raw")
-    if n_draws is None:
+    job_options: dict = {}  # per output: a planning draw's comment and thresholds
+    if planning:
+        if draws is None:
+            raise UserError(f"{posterior}: --planning needs the NetCDF posterior (fit --netcdf)")
+        asked = {"sag": sag, "duration": duration, "voltage": profile, "quantiles": quantiles}
+        jobs, job_options = _planning_jobs(posterior, outp, draws, settings, played, seed, asked)
+    elif n_draws is None:
         jobs = [(outp, _fill(pick_values(draws, summary, stat), settings), stat)]
     else:
         import numpy as np
@@ -486,13 +533,14 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
             header = summary_lines(posterior, model, summary, what, interval, fit_id=fid)
             header += base_notes
             header += [f"warning: {w}" for w in warns]
+            said_to = {"warnings": warns, "force": True}
             try:
                 paths = writer.write(
                     values,
                     stage / path.name,
                     model=model,
                     header=header,
-                    options={**options, "warnings": warns, "force": True},
+                    options={**options, **job_options.get(path, {}), **said_to},
                 )
             except ValueError as exc:
                 if isinstance(exc, DataError):
@@ -517,6 +565,36 @@ def export_cmd(posterior, fmt, out, stat, n_draws, seed, bus, s_base, p_mw, q_mv
         for note in [*base_notes, *dict.fromkeys(notes)]:
             click.echo(f"loadbayes: note: {note}", err=True)
         click.echo(f"{posterior}: {model} exported to {fmt}: {', '.join(written)}", err=True)
+
+
+def _planning_jobs(posterior, outp, draws, settings, played, seed, asked):
+    """The jobs of a planning ensemble (``export/planning.py``) and each one's options."""
+    from loadbayes.export.planning import (
+        DEFAULT_QUANTILES,
+        comment,
+        file_name,
+        model_options,
+        parse_quantiles,
+        select,
+    )
+    from loadbayes.fit.composite.predict import predict
+    from loadbayes.fit.composite.predict_scope import OUTCOME
+
+    quantiles = asked.pop("quantiles")
+    qs = DEFAULT_QUANTILES if quantiles is None else parse_quantiles(quantiles)
+    pred = predict(posterior, **asked, draws=300 if played is None else played, seed=seed)
+    stall_of = None if pred.stall is None else pred.stall.get("part", "motor D")
+    jobs, extra = [], {}
+    for pick in select(pred.outcomes, qs, outcome=OUTCOME):
+        path = file_name(outp, pick)
+        what = comment(pick, pred.fault, outcome=OUTCOME, unit="p.u. s", stall_of=stall_of,
+                       meaning="the load's reactive energy above its pre-fault Q after "
+                       "the fault clears")  # fmt: skip
+        jobs.append((path, _fill({n: float(d[pick.index]) for n, d in draws.items()},
+                                 settings), what))  # fmt: skip
+        mo = model_options(settings.get("model_options"), pick)
+        extra[path] = {"comments": [what], **({"model_options": mo} if mo else {})}
+    return jobs, extra
 
 
 def _problems(jobs, summary, settings, interval, model, options, fmt):

@@ -14,6 +14,7 @@ output or none (:func:`user_errors`; the handlers are in :mod:`.signals`).
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import io
 import json
@@ -166,10 +167,36 @@ class _WholeWrites(io.RawIOBase):
         return done
 
 
+class _ClosedStdout(io.TextIOBase):
+    """Standard output of a process started with it closed (``>&-``): every write fails.
+
+    Python sets ``sys.stdout`` to None then, and click's echo dropped the text: exit 0 and
+    nothing written anywhere (red-team L10).
+    """
+
+    def writable(self) -> bool:  # noqa: D102
+        return True
+
+    def write(self, s: str) -> int:  # noqa: D102
+        exc = OSError(errno.EBADF, "closed")
+        _WholeWrites.failed = _WholeWrites.failed or exc
+        raise exc
+
+
 def check_stdout_writes() -> None:
     """Standard output through :class:`_WholeWrites` (for the program, not a test's runner)."""
     old = sys.stdout
-    if old is None or not hasattr(old, "buffer") or getattr(old, "fileno", None) is None:
+    if old is None:
+        try:
+            os.fstat(1)
+        except OSError:  # closed: hold descriptor 1 so that no output file is opened on it
+            fd = os.open(os.devnull, os.O_WRONLY)
+            if fd != 1:
+                os.dup2(fd, 1)
+                os.close(fd)
+        sys.stdout = _ClosedStdout()
+        return
+    if not hasattr(old, "buffer") or getattr(old, "fileno", None) is None:
         return
     try:
         if old.fileno() != 1:
@@ -233,6 +260,8 @@ def memory_line() -> str:
 
 def stdout_line(exc: OSError) -> str:
     """The one line for a failed write to standard output."""
+    if exc.errno == errno.EBADF:
+        return "standard output is closed (>&-): what it would print is lost"
     return f"standard output: {exc.strerror or exc}; what was printed is incomplete"
 
 
@@ -306,8 +335,10 @@ def check_outputs(
 
     ins = {resolve(p, "the input") for p in inputs if p and p != "-"}
     for opt, path in outputs.items():
-        if not path:
+        if path is None:
             continue
+        if not path.strip():  # taken for "no output" it wrote nothing, with exit 0
+            raise UserError(f"{opt} {path!r}: an empty file name (give one, or leave {opt} out)")
         if path == "-":
             if opt not in stdout_ok:
                 raise UserError(f"{opt} -: standard output is only for --json")

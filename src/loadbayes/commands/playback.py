@@ -76,7 +76,12 @@ def _refuse_parts(result: str) -> None:
 @event_column_options
 @click.option("--v-base", type=float, help="Voltage base: data volts / v-base = per unit.")
 @click.option("--s-base", type=float, help="Power base: data P, Q / s-base = per unit.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="The numbers.")
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False),
+    help="The numbers (- for standard output).",
+)
 @click.option(
     "--plot", "plot_out", type=click.Path(dir_okay=False), help="V, P, Q recorded vs played."
 )
@@ -109,7 +114,7 @@ def playback_cmd(
     of the fitted P0, is compared with the fit's residual noise.
     """
     outputs = {"--json": json_out, "--plot": plot_out}
-    check_outputs(outputs, [result, export, event], force)
+    check_outputs(outputs, [result, export, event], force, stdout_ok=("--json",))
 
     from loadbayes.export.andes.playback import compare, playback, read_fit
     from loadbayes.io.transaction import OutputSet
@@ -147,11 +152,11 @@ def playback_cmd(
     doc = {"result": str(result), "export": str(export), "event": str(event), **numbers}
     doc["units"] = "rms_*, max_abs_*, fit_residual_* per unit of the fitted P0 (p0)"
     text = json.dumps(doc, indent=2, allow_nan=False)
-    files = {k: v for k, v in outputs.items() if v}
+    files = {k: v for k, v in outputs.items() if v and v != "-"}
     stop_if_signalled()
     with OutputSet(files, force=force) as out:
         _STOP["outputs"] = out
-        if json_out:
+        if json_out and json_out != "-":
             out.temp("--json").write_text(text + "\n", encoding="utf-8")
         if plot_out:
             from loadbayes.plots.fit import save_figure
@@ -161,8 +166,11 @@ def playback_cmd(
             save_figure(fig, out.temp("--plot"), force=True)
         out.commit()
         _STOP["committed"] = True
+    if json_out == "-":
+        click.echo(text)
     if unchecked:  # after the work: an error stays the run's one line
         click.echo(f"loadbayes: note: {unchecked}", err=True)
     if not quiet:
         click.echo(f"{event} played into {export} ({pb.t_s.size} samples, ANDES step "
-                   f"{pb.step_s:.3g} s): {numbers['verdict']}")  # fmt: skip
+                   f"{pb.step_s:.3g} s): {numbers['verdict']}",
+                   err=json_out == "-")  # fmt: skip

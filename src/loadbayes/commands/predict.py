@@ -1,4 +1,4 @@
-"""``loadbayes predict RESULT``: a fit of parts played through a fault it has not shown.
+"""``loadbayes predict RESULT``: a composite fit played through a fault it has not shown.
 
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py`` attaches
 it. The library does the work (:mod:`loadbayes.fit.composite.predict`); heavy imports
@@ -31,30 +31,6 @@ def _depths(text: str) -> list[float]:
     return [round(a + k * s, 10) for k in range(n)]
 
 
-def _summary(pred) -> list[str]:
-    out = []
-    f = pred.fault
-    out.append(f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} "
-               f"below {f['v_pre']:.3g}) for {f['duration_s']:.3g} s; "
-               f"{pred.draws['used']} draws")  # fmt: skip
-    if pred.stall is not None:
-        lo, hi = pred.stall["interval"]
-        out.append(f"motor D stalls with probability {pred.stall['probability']:.2f} "
-                   f"[{lo:.2f}, {hi:.2f}]")  # fmt: skip
-    if pred.electronics_tripped is not None:
-        e = pred.electronics_tripped
-        out.append(f"electronics tripped: median {e['median']:.2f} "
-                   f"[{e['interval'][0]:.2f}, {e['interval'][1]:.2f}]")  # fmt: skip
-    for ch in ("p", "q"):
-        r = pred.recovery[ch]
-        med = "never" if r["median"] is None else f"median {r['median']:.3g} s"
-        out.append(f"{ch.upper()} back within 10%: {med}; not within the window in "
-                   f"{r['not_within_window']:.0%} of draws")  # fmt: skip
-    out.append(pred.extrapolation["message"])
-    out += [f"warning: {w}" for w in pred.warnings]
-    return out
-
-
 @click.command("predict", cls=OneLineCommand)
 @click.argument("result", type=click.Path(exists=True, dir_okay=False))
 @click.option("--sag", type=float, help="Sag depth, a share of the pre-fault voltage (0.45).")
@@ -70,7 +46,8 @@ def _summary(pred) -> list[str]:
 @click.option("--draws", type=click.IntRange(20, 20000), default=300, show_default=True,
               help="Posterior draws played, each with its own thresholds.")  # fmt: skip
 @click.option("--prior", multiple=True, help="A threshold's prior over the default, "
-              "name=centre,spread (vstall=0.55,0.05): vstall, tstall, vd1, vd2.")  # fmt: skip
+              "name=centre,spread (vstall=0.55,0.05): vstall, tstall, vd1, vd2 (reweights the "
+              "posterior's draws where the fit sampled them).")  # fmt: skip
 @click.option("--prob", type=click.FloatRange(0.5, 1.0, max_open=True), default=0.95,
               show_default=True, help="Probability of the bands and intervals.")  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed (draws, thresholds).")
@@ -81,13 +58,15 @@ def _summary(pred) -> list[str]:
 @user_errors
 def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, draws, prior, prob,
                 seed, json_out, plot_out, quiet, force):  # fmt: skip
-    """Play a fault through a fit of parts (slm, cmld-lite) and say what the load does.
+    """Play a fault through a composite fit (zip+motor, slm, cmld-lite): what the load does.
 
     RESULT is the fit's NetCDF (fit composite --netcdf), or its JSON with that NetCDF of
     the same name beside it. The fault is --sag DEPTH --duration S (and --recovery,
     --angle), a --voltage profile, or --sweep START:STOP:STEP with --duration. Motor D's
-    stall voltage and time and the electronics' trip voltages come from their priors
-    (said, with their source, and replaced by --prior).
+    stall voltage and time and the electronics' trip voltages are each draw's own (the
+    fit samples them: where its events never reached them, they are their priors', said
+    with the source; --prior reweights them); a zip+motor fit has none: its induction
+    motor stalls by its own torque curve.
     """
     outputs = {"--json": json_out, "--plot": plot_out}
     inputs = [result] + ([voltage] if voltage else [])
@@ -119,7 +98,8 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
                 [p.stall and p.stall["probability"] for p in preds],
                 prob=prob,
                 duration=duration,
-            ),  # fmt: skip
+                part=(preds[0].stall or {}).get("part", "motor D"),
+            ),
         }
     else:
         pred = predict(result, sag=sag, duration=duration, recovery=recovery, angle=angle,
@@ -152,5 +132,5 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
             click.echo(doc["stall_depth"]["message"])
             click.echo(preds[-1].extrapolation["message"])
         else:
-            for line in _summary(pred):
+            for line in pred.summary_lines():
                 click.echo(line)

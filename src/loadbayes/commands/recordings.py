@@ -62,9 +62,17 @@ def estimate_seconds(w, per_cycle: int, dc: str, windows: int, clock=None) -> fl
 __all__ = ["events_cmd", "read_group"]
 
 
+#: The bases a network can have: 1 V to 2000 kV, 1 VA to 1 TVA (1e308 kV was said to be
+#: "a dead or unscaled VT", 1e-308 MVA wrote overflowed powers).
+BASE_RANGE = {"--v-base": (1e-3, 2000.0, "kV"), "--s-base": (1e-6, 1e6, "MVA")}
+
+
 def _positive(value: float | None, name: str) -> float | None:
     if value is not None and not (math.isfinite(value) and value > 0):
         raise click.BadParameter("must be a positive finite number", param_hint=name)
+    lo, hi, unit = BASE_RANGE[name]
+    if value is not None and not lo <= value <= hi:
+        raise UserError(f"{name} {value:g}: outside [{lo:g}, {hi:g}] {unit}, no network's base")
     return value
 
 
@@ -285,8 +293,10 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
     import numpy as np
 
     from loadbayes.commands.output import stop_if_signalled
+    from loadbayes.io.cells import DROP_HINT
     from loadbayes.io.errors import DataError
     from loadbayes.io.tables import read_columns, write_table
+    from loadbayes.measurements.events import NO_DROP
     from loadbayes.recordings.events import cut_events, find_sags
     from loadbayes.recordings.record_file import record_events
 
@@ -297,6 +307,8 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
             raise UserError(f"{opt} {value}: must be a finite number")
         if opt in ("--min-duration", "--pre", "--post") and value < 0:
             raise UserError(f"{opt} {value:g}: must be a finite number >= 0")
+    if out.strip() in ("", "-"):  # '' wrote into the working folder, '-' into a folder '-'
+        raise UserError(f"--out {out!r}: give the folder to write to")
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"{out}: --out is a file, expected a folder")
@@ -312,10 +324,14 @@ def events_cmd(record, out, threshold, hysteresis, min_duration, pre, post, v_re
         data, windows = found.data, found.windows
     else:
         # v may be 0 (an interruption in a long record): not refused here.
-        data, _ = read_columns(
-            record, ["t_s", "v", "p", "q"],
-            optional=["angle_rad", "f", "rocof", "v2_re", "v2_im", "i2_re", "i2_im"],
-        )  # fmt: skip
+        try:
+            data, _ = read_columns(
+                record, ["t_s", "v", "p", "q"],
+                optional=["angle_rad", "f", "rocof", "v2_re", "v2_im", "i2_re", "i2_im"],
+            )  # fmt: skip
+        except DataError as exc:  # the record is read whole: --drop-invalid is not offered
+            raise DataError(exc.message.replace(DROP_HINT, NO_DROP), exc.path, exc.column,
+                            exc.row) from None  # fmt: skip
         t = data["t_s"]
         back = np.flatnonzero(~(np.diff(t) > 0))
         if back.size:

@@ -100,7 +100,9 @@ def report_cmd(result, out, truth, title, coords, unpooled, force, quiet):
 
 def _fleet(result, out, coords, unpooled, title, force, quiet) -> None:
     from loadbayes.report.fleet_report import write_fleet_report
+    from loadbayes.report.fleet_table import load_fleet
 
+    load_fleet(result)  # a bad table is the run's one line, before the note below
     if not quiet:
         click.echo(f"loadbayes: drawing the figures of the fleet {result}...", err=True)
     write_fleet_report(result, out, unpooled=unpooled, coords=coords, title=title, force=force)

@@ -215,6 +215,7 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     from loadbayes.studies import cvr as cvr_study
     from loadbayes.studies import fleet as fleet_study
     from loadbayes.studies import model_choice
+    from loadbayes.studies import planning as planning_study
     from loadbayes.studies import real_record as real_record_study
     from loadbayes.studies import real_record_physical as physical_study
     from loadbayes.studies import robust as robust_study
@@ -222,7 +223,8 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
 
     past = []
     for name, mod in (("composite", composite_study), ("real record", real_record_study),
-                      ("physical load", physical_study), ("robust", robust_study),
+                      ("physical load", physical_study), ("planning", planning_study),
+                      ("robust", robust_study),
                       ("tracking", tracking_study), ("model choice", model_choice),
                       ("fleet", fleet_study), ("cvr", cvr_study)):  # fmt: skip
         say(f"study past the paper: {name}")

@@ -187,7 +187,8 @@ def composite_model(**fields: Any) -> Any:
 
 
 #: A model of parts' fields as ``fit composite`` spells them.
-PARTS_FLAGS = {"f_hz": "--f-hz", "priors": "--prior", "negative_sequence": "--negative-sequence"}
+PARTS_FLAGS = {"f_hz": "--f-hz", "priors": "--prior", "negative_sequence": "--negative-sequence",
+               "noise": "--noise", "rho_max": "--rho-max"}  # fmt: skip
 
 
 def parts_model(name: str, **fields: Any) -> Any:
@@ -204,7 +205,7 @@ def parts_model(name: str, **fields: Any) -> Any:
 
 #: The options of ``--model zip+motor`` alone, by parameter name.
 ZIP_MOTOR_ONLY = {"torque": "--torque", "steps": "--steps", "shares": "--shares",
-                  "noise": "--noise", "likelihood": "--likelihood", "window_s": "--window-s",
+                  "likelihood": "--likelihood", "window_s": "--window-s",
                   "nu": "--nu"}  # fmt: skip
 
 
@@ -217,6 +218,9 @@ def check_model_flags(model_name: str, *, negative_sequence: str, plot: bool) ->
             raise UserError("--negative-sequence is an option of --model slm and cmld-lite")
         return
     ctx = click.get_current_context()
+    if model_name == "auto" and ctx.get_parameter_source("noise") not in (
+        None, click.core.ParameterSource.DEFAULT):  # fmt: skip
+        raise UserError("--noise needs a named --model (zip+motor, slm or cmld-lite), not auto")
     for name, flag in ZIP_MOTOR_ONLY.items():
         if ctx.get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT):
             raise UserError(f"{flag} is an option of --model zip+motor, not {model_name}")
@@ -225,14 +229,19 @@ def check_model_flags(model_name: str, *, negative_sequence: str, plot: bool) ->
 
 
 def named_model(name: str, *, f_hz: float, priors: dict, negative_sequence: str,
+                noise: str = "white", rho_max: float | None = None,
                 **zip_motor: Any) -> Any:  # fmt: skip
     """``fit composite --model NAME``'s model (None for ``auto``: chosen on the events)."""
     from loadbayes.commands.output import UserError
 
+    if rho_max is not None and (name not in ("slm", "cmld-lite") or noise != "ar1"):
+        raise UserError("--rho-max is an option of --noise ar1 with --model slm or cmld-lite")
     if name == "auto":
         if priors:
             raise UserError("--prior needs a named --model (slm, cmld-lite or zip+motor)")
         return None
     if name != "zip+motor":
-        return parts_model(name, f_hz=f_hz, priors=priors, negative_sequence=negative_sequence)
-    return composite_model(f_hz=f_hz, priors=priors, **zip_motor)
+        bound = {} if rho_max is None else {"rho_max": rho_max}
+        return parts_model(name, f_hz=f_hz, priors=priors, negative_sequence=negative_sequence,
+                           noise=noise, **bound)  # fmt: skip
+    return composite_model(f_hz=f_hz, priors=priors, noise=noise, **zip_motor)

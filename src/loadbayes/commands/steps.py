@@ -152,7 +152,7 @@ def _write(post, table, *, table_out, json_out, hdi_prob, force, quiet):
             click.echo(f"loadbayes: warning: {w}", err=True)
     if quiet:
         return
-    if table_out != "-":
+    if table_out != "-" and len(table):  # no steps: the count above says it
         click.echo(table.to_string(index=False, float_format=lambda x: f"{x:.4g}"), err=True)
     if post is not None:
         d = post.extra_json["derived"]

@@ -8,6 +8,7 @@ the posterior-predictive band. Heavy imports stay inside the function.
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -154,7 +155,12 @@ def _scores(post, recs, masks, **kw):
     help="Probability of the posterior-predictive band.",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed (draws picked, noise).")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Scores per event.")
+@click.option(
+    "--json",
+    "json_out",
+    type=click.Path(dir_okay=False),
+    help="Scores per event (- for standard output).",
+)
 @click.option("--plot", "plot_out", type=click.Path(dir_okay=False), help="V, P, Q vs the band.")
 @click.option("--quiet", is_flag=True, help="No table on stdout.")
 @click.option("--force", is_flag=True, help="Overwrite existing outputs.")
@@ -191,7 +197,7 @@ def validate_cmd(
     """
     outputs = {"--json": json_out, "--plot": plot_out}
     inputs = [result, *events] + ([netcdf_in] if netcdf_in else [])
-    check_outputs(outputs, inputs, force)
+    check_outputs(outputs, inputs, force, stdout_ok=("--json",))
 
     from loadbayes.fit.composite.validate import read_exclusions
     from loadbayes.io.transaction import OutputSet
@@ -222,6 +228,11 @@ def validate_cmd(
         recs += evs
         masks.append(read_exclusions(path, straddle_col, evs[0].n))
     scores = _scores(post, recs, masks, f_hz=f_hz, n_draws=n_draws, prob=prob, seed=seed)
+    notes = [unchecked] if unchecked else []
+    total = post.n_chains * post.n_draws
+    if n_draws > total:  # the scores use every draw there is: said, not silently
+        notes.append(f"only {total} draws exist in {netcdf_in or result}: all {total} used "
+                     f"(--n-draws {n_draws})")  # fmt: skip
     doc = {
         "result": str(result),
         "draws": str(netcdf_in or result),
@@ -232,11 +243,11 @@ def validate_cmd(
         "events": [s.to_dict() for s in scores],
     }
     text = json.dumps(doc, indent=2, allow_nan=False)
-    files = {k: v for k, v in outputs.items() if v}
+    files = {k: v for k, v in outputs.items() if v and v != "-"}
     stop_if_signalled()
     with OutputSet(files, force=force) as out:
         _STOP["outputs"] = out
-        if json_out:
+        if json_out and json_out != "-":
             out.temp("--json").write_text(text + "\n", encoding="utf-8")
         if plot_out:
             from loadbayes.plots.fit import save_figure
@@ -245,18 +256,21 @@ def validate_cmd(
             save_figure(plot_validation(scores, prob=prob), out.temp("--plot"), force=True)
         out.commit()
         _STOP["committed"] = True
-    if unchecked:  # after the work: an error stays the run's one line
-        click.echo(f"loadbayes: note: {unchecked}", err=True)
+    if json_out == "-":
+        click.echo(text)
+    for note in notes:  # after the work: an error stays the run's one line
+        click.echo(f"loadbayes: note: {note}", err=True)
     if not quiet:
+        echo = functools.partial(click.echo, err=json_out == "-")  # stdout holds the JSON
         what = m if (m := post.settings.get("model")) in ("slm", "cmld-lite") else "composite"
-        click.echo(f"{what} fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
-        click.echo(
+        echo(f"{what} fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
+        echo(
             f"{'event':<40} {'n':>5} {'excl':>5} {'rms_p':>7} {'rms_q':>7} "
             f"{'cov_p':>6} {'cov_q':>6}"
         )
         for s in scores:
-            click.echo(
+            echo(
                 f"{s.file[-40:]:<40} {s.n:>5} {s.n_excluded:>5} {s.rms_p:>7.4f} "
                 f"{s.rms_q:>7.4f} {s.coverage_p:>6.2f} {s.coverage_q:>6.2f}"
             )
-        click.echo("rms per unit of the fitted P0; cov: share of scored samples in the band")
+        echo("rms per unit of the fitted P0; cov: share of scored samples in the band")

@@ -60,7 +60,7 @@ it); the ``.raw`` title lines name the model and the statistic. Options: ``bus``
 (default 230), ``f_hz`` (the case frequency BASFRQ: the fit's, default 60), ``p_mw``,
 ``q_mvar``, ``force``, ``warnings`` (the export's checks, :mod:`loadbayes.export.checks`:
 each a comment after the ``.raw``'s ``Q``, after the ``.dyr`` record's ``/`` and in the
-``.dyd`` after ``#``).
+``.dyd`` after ``#``), ``comments`` (lines said the same way: a planning draw's quantile).
 """
 
 # One idea at about 445 lines: the PSS/E case and its dynamic records, with their
@@ -323,6 +323,12 @@ def write(
             f"CIM5BL: t0 = {parts.motor.t0:.6g} (own base), torque a, b, c = "
             f"{pr.a:.4g}, {pr.b:.4g}, {pr.c:.4g} -> D = {cim['D']:.4g}"
         )
+    for line in opts.get("comments") or ():  # a planning draw's quantile and fault
+        text += f"@! loadbayes: {line}\n"
+        if dyr_text is not None:
+            dyr_text = dyr_text.rstrip("\n") + f" loadbayes: {line}\n"
+        if dyd_text is not None:
+            dyd_text += f"# loadbayes: {line}\n"
     warns = list(opts.get("warnings") or [])
     if warns:
         # PSS/E (and ANDES's reader) stop at "Q"; after a record's "/" a line is a

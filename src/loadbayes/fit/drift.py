@@ -133,6 +133,7 @@ def fit_zip_drift(
     settings: dict[str, Any] | None = None,
     warnings: list[str] | None = None,
     progress=None,
+    v_noise: float | None = None,
 ) -> Posterior:
     """ZIP shares with a drifting level P0(t) (Q0(t)); see the module notes.
 
@@ -147,6 +148,9 @@ def fit_zip_drift(
     sampler : SamplerSettings, optional
         How the chains run (:data:`DRIFT_DEFAULTS` when not given); each channel's
         chains draw from their own child of its ``seed``.
+    v_noise : float, optional
+        The sd of the noise on V in per unit of v0: errors in variables, the channels
+        fitted together with a latent true voltage (:mod:`loadbayes.fit.drift_eiv`).
 
     Returns
     -------
@@ -172,9 +176,16 @@ def fit_zip_drift(
     else:
         seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         seeds = list(seq.spawn(len(channels)))
+    eiv: dict[str, Any] = {}
+    if v_noise is not None:  # one chain for the channels: they share the latent voltage
+        from loadbayes.fit.drift_eiv import sample_drift_eiv
+
+        eiv, eiv_x = sample_drift_eiv({ch: np.asarray(cols[ch], dtype=float) for ch, _ in channels},
+                                      x, dt, float(v_noise), settings=sampler, b_sd=prior_sd,
+                                      keep_points=LEVEL_POINTS)  # fmt: skip
     for i, (ch, (c1, c2, c3)) in enumerate(channels):
         seed_ch = seeds[i]
-        res = sample_level_regression(
+        res = eiv.get(ch) or sample_level_regression(
             np.asarray(cols[ch], dtype=float), z1, z2, dt, settings=sampler.with_(seed=seed_ch),
             b_sd=(prior_sd, prior_sd), keep_points=LEVEL_POINTS,
             progress=progress if i == 0 else None,
@@ -198,11 +209,15 @@ def fit_zip_drift(
         level="drift", level_model="Gaussian random walk on P0(t) (Q0(t)), step variance "
         "q dt; shares from what the walk cannot explain", acceptance_shares=accept,
     )  # fmt: skip
+    if eiv:
+        record.update(v_noise=float(v_noise), acceptance_v=eiv_x["acceptance_x"].tolist(),
+                      v_model="latent true V: a random walk with Student-t steps, learned "
+                      "scale; measured V = true V + N(0, v_noise^2)")  # fmt: skip
     names = [c for _, cs in channels for c in cs]
     post = Posterior(
         draws_out,
         model="zip",
-        method="drift-kalman-mwg",
+        method="drift-eiv-kalman-mwg" if eiv else "drift-kalman-mwg",
         coefficients=names,
         free=[c for _, cs in channels for c in cs[:2]],
         settings=record,

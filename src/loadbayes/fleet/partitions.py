@@ -73,6 +73,7 @@ class BusChunk:
     cls: pa.Array | None  # strings, or None without a class column
     rows: np.ndarray  # 1-based data rows of the file
     n_dropped: int
+    spaced: tuple[str, ...] = ()  # bus ids as written with spaces around them (a few)
 
 
 def _is_data_file(name: str, *, text: bool = True) -> bool:
@@ -241,23 +242,29 @@ class _Aligned:
         return out
 
 
-def _trimmed(labels: pa.Array) -> pa.Array:
+def _trimmed(labels: pa.Array, spaced: set[str] | None = None) -> pa.Array:
     """Ids without the spaces around them; an id of spaces only is missing.
 
-    A spreadsheet's ' bus07 ' and 'bus07' are one bus: read as written they became two,
-    each fitted on part of its rows.
+    A spreadsheet's ' bus07 ' and 'bus07' are one bus: read as written they became two.
+    A few ids as written go in ``spaced``, to say what merged (' sp', 'sp ': bus 'sp').
     """
-    labels = pc.utf8_trim_whitespace(labels)
-    return pc.if_else(pc.equal(labels, ""), pa.scalar(None, pa.string()), labels)
+    trimmed = pc.utf8_trim_whitespace(labels)
+    if spaced is not None and len(spaced) < 6:  # a few, for the note
+        changed = pc.fill_null(pc.not_equal(labels, trimmed), False)
+        if pc.any(changed).as_py():
+            spaced.update(labels.filter(changed).unique().to_pylist()[:6])
+    return pc.if_else(pc.equal(trimmed, ""), pa.scalar(None, pa.string()), trimmed)
 
 
-def _labels(part: Partition, col: str | None, name: str, what: str) -> _Aligned | str | None:
+def _labels(
+    part: Partition, col: str | None, name: str, what: str, spaced: set[str] | None = None
+) -> _Aligned | str | None:
     """Labels from a column, else a constant from a hive folder, else None."""
     if col is None:
         return None
     batches = _label_batches(part, col, name)
     if batches is not None:
-        return _Aligned((_trimmed(b) for b in batches), name, col)
+        return _Aligned((_trimmed(b, spaced) for b in batches), name, col)
     if col in part.hive:
         return part.hive[col]
     have = _columns_said(part.path, col)
@@ -351,7 +358,8 @@ def read_partition(part: Partition, spec: ReadSpec) -> Iterator[BusChunk]:
         missing bus id.
     """
     name = part.path
-    bus_src = _labels(part, spec.by, name, "bus")
+    spaced: set[str] = set()
+    bus_src = _labels(part, spec.by, name, "bus", spaced)
     cls_src = _labels(part, spec.class_col, name, "class")
     optional = [spec.q_col] if spec.q_col and not spec.q_required else []
     required = [spec.v_col, spec.p_col] + ([spec.q_col] if spec.q_col and spec.q_required else [])
@@ -387,7 +395,7 @@ def read_partition(part: Partition, spec: ReadSpec) -> Iterator[BusChunk]:
                     keep[chunk.dropped_rows - chunk.start_row] = False
                     arr = arr.filter(pa.array(keep))
                 labels.append(arr)
-        yield BusChunk(cols, labels[0], labels[1], chunk.rows, chunk.n_dropped)
+        yield BusChunk(cols, labels[0], labels[1], chunk.rows, chunk.n_dropped, tuple(spaced))
 
 
 def display(path: str) -> str:

@@ -1,6 +1,6 @@
 """The fleet pipeline: find files -> statistics map-reduce -> per-bus or pooled fits -> table.
 
-One idea needs these 728 lines: the fleet pipeline end to end (files, statistics,
+One idea needs these 758 lines: the fleet pipeline end to end (files, statistics,
 per-bus or pooled fits, the table with its notes and checks).
 """
 
@@ -158,6 +158,27 @@ def _warn_mixed_ids(parts: list[Partition], col: str) -> None:
     )
 
 
+def _warn_spaced_ids(spaced: tuple[str, ...], col: str) -> None:
+    """Say which bus ids were read without the spaces around them (and so merged)."""
+    import warnings
+
+    if not spaced:
+        return
+    as_read: dict[str, list[str]] = {}
+    for raw in spaced:
+        as_read.setdefault(raw.strip(), []).append(raw)
+    shown = "; ".join(
+        f"{' and '.join(map(repr, raws))} {'are' if len(raws) > 1 else 'is'} bus {bus!r}"
+        for bus, raws in list(as_read.items())[:3]
+    )
+    warnings.warn(
+        f"bus ids in column {col!r} are read without the spaces around them: {shown}"
+        f"{' ...' if len(as_read) > 3 else ''} (rename them to keep them apart)",
+        UserWarning,
+        stacklevel=2,
+    )
+
+
 def fleet_statistics(
     data: str,
     spec: ReadSpec,
@@ -191,6 +212,7 @@ def fleet_statistics(
         raise DataError("no data rows" + ("" if one_file else " in any file"), data)
     _warn_empty_files(partials)
     merged = merge(partials)
+    _warn_spaced_ids(merged.spaced, spec.by)
     if not merged.buses.size:
         raise DataError("no valid rows in any file", data)
     return finish(merged), model, len(parts)

@@ -61,6 +61,8 @@ class PartialStats:
         Invalid rows dropped (``drop_invalid``).
     empty_files : tuple of str
         Files with no data rows, skipped (a map output's own file; merges do not keep it).
+    spaced : tuple of str
+        A few bus ids as written with spaces around them (read without: merged).
     """
 
     names: tuple[str, ...]
@@ -74,6 +76,7 @@ class PartialStats:
     where: np.ndarray
     n_dropped: int = 0
     empty_files: tuple[str, ...] = ()
+    spaced: tuple[str, ...] = ()
 
     @classmethod
     def empty(cls, names: Sequence[str]) -> PartialStats:
@@ -190,8 +193,10 @@ def _partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> Partia
 
         times = read_times(str(part.path), spec.t_col)
     last_time: dict[str, tuple[float, int]] = {}
+    spaced: tuple[str, ...] = ()
     for ch in read_partition(part, spec):
         dropped += ch.n_dropped
+        spaced = ch.spaced
         if not ch.rows.size:
             continue
         if times is not None:
@@ -236,6 +241,7 @@ def _partition_stats(part: Partition, spec: ReadSpec, model: ZIPModel) -> Partia
         bad[order],
         np.array(where, dtype=object)[order],
         dropped,
+        spaced=tuple(sorted(spaced)),
     )
 
 
@@ -344,6 +350,7 @@ def merge(parts: Iterable[PartialStats]) -> PartialStats:
         bad,
         where,
         sum(p.n_dropped for p in parts),
+        spaced=tuple(sorted({s for p in given for s in p.spaced})),
     )
 
 

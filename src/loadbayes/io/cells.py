@@ -21,6 +21,9 @@ import pyarrow.compute as pc
 from loadbayes.io.errors import DataError
 
 _SHOW_CHARS = 20
+#: The remedy an invalid cell's message names; a reader that never drops rows (events,
+#: read whole) puts its own in its place.
+DROP_HINT = " (--drop-invalid, or drop_invalid=True, drops such rows)"
 
 # Cells that mean "no value": pandas' default NA strings.
 _NULL_TOKENS = (
@@ -212,7 +215,7 @@ def _describe(arr: pa.Array, x: float, i: int) -> str:
     cell = arr[i].as_py()
     if isinstance(cell, bytes):
         cell = cell.decode("utf-8", errors="replace")
-    hint = " (--drop-invalid, or drop_invalid=True, drops such rows)"
+    hint = DROP_HINT
     if cell is None:
         return "missing value (null)" + hint
     # Text cells are shown as written, numbers as Arrow holds them ('-2' for an int).

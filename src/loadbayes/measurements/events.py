@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from loadbayes.io.cells import DROP_HINT
 from loadbayes.io.errors import DataError
 from loadbayes.measurements.record import SEQUENCE_COLUMNS, EventRecord, sequence_phasors
 from loadbayes.measurements.units import F_OFF
@@ -71,6 +72,9 @@ MAX_F_OFF = F_OFF
 #: at least 1) is a corrupt cell, not a measurement (it made the fit's linear algebra
 #: singular, with no location).
 MAX_OUTLIER = 1e6
+#: The remedy for an invalid cell in an event: no reader of events drops rows (an event's
+#: samples are read whole), so ``--drop-invalid`` is not one.
+NO_DROP = " (every row is read: fill the cell or delete the row)"
 
 
 def events_from_arrays(
@@ -327,6 +331,9 @@ def read_events(
             except DataError as exc:
                 text = exc.column in (t_col, event_col) and exc.column not in as_text
                 stamped = exc.column == t_col and "has type timestamp" in exc.message
+                if DROP_HINT in exc.message:  # an event is read whole: no row is dropped
+                    msg = exc.message.replace(DROP_HINT, NO_DROP)
+                    raise DataError(msg, exc.path, exc.column, exc.row) from None
                 if not (text and ("non-numeric" in exc.message or stamped)):
                     raise
                 as_text.add(exc.column)  # type: ignore[arg-type]

@@ -33,7 +33,7 @@ __all__ = ["event_sums", "model_sums"]
 @numba.njit(cache=True, nogil=True)
 def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors, window_s,
                shares, a_p, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, ztz, zty, yty,
-               nn):  # pragma: no cover - compiled  # fmt: skip
+               nn, ar, mzz, mzy, myy):  # pragma: no cover - compiled  # fmt: skip
     """Fill ``ztz (G, 4, 4)``, ``zty (G, 4)``, ``yty (G,)``, ``nn (G,)``; False if infeasible.
 
     ``motors`` (k, 11): ``rs, xp, dx, tp, h, wb, t0, a, b, c, h_step`` each; ``shares``
@@ -154,6 +154,8 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
                 ztz[1, a, b] += row[a] * row[b]
         yty[1] += ql[k] * ql[k]
         nn[1] += 1.0
+    if ar:
+        _ar_moments_into(col_p, col_qp, xl, pl, ql, gap, mzz, mzy, myy)
     if ns_on:
         for k in range(n):
             if not i2_rows[k]:
@@ -181,8 +183,51 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
     return True
 
 
-def model_sums(model, event, theta):
-    """:func:`event_sums` for a ``PartsModel`` at ``theta``: ``(ztz, zty, yty, n)`` or None."""
+@numba.njit(cache=True, nogil=True)
+def _ar_moments_into(col_p, col_qp, xl, pl, ql, gap, mzz, mzy, myy):  # pragma: no cover
+    # P's and Q's rows as in event_sums; a segment starts at row 0 and after each gap.
+    mzz[:] = 0.0
+    mzy[:] = 0.0
+    myy[:] = 0.0
+    zc = np.zeros((2, 4))
+    zl = np.zeros((2, 4))
+    yc = np.zeros(2)
+    yl = np.zeros(2)
+    for k in range(col_p.size):
+        zc[0, 0] = col_p[k]
+        zc[1, 0], zc[1, 1], zc[1, 2], zc[1, 3] = col_qp[k], xl[k] * xl[k], xl[k], 1.0
+        yc[0], yc[1] = pl[k], ql[k]
+        first = k == 0 or gap[k - 1]
+        for g in range(2):
+            if first:
+                for a in range(4):
+                    mzy[g, 3, a] += zc[g, a] * yc[g]
+                    for b in range(4):
+                        mzz[g, 3, a, b] += zc[g, a] * zc[g, b]
+                myy[g, 3] += yc[g] * yc[g]
+            else:
+                for a in range(4):
+                    mzy[g, 0, a] += zc[g, a] * yc[g]
+                    mzy[g, 1, a] += zc[g, a] * yl[g] + zl[g, a] * yc[g]
+                    mzy[g, 2, a] += zl[g, a] * yl[g]
+                    for b in range(4):
+                        mzz[g, 0, a, b] += zc[g, a] * zc[g, b]
+                        mzz[g, 1, a, b] += zc[g, a] * zl[g, b] + zl[g, a] * zc[g, b]
+                        mzz[g, 2, a, b] += zl[g, a] * zl[g, b]
+                myy[g, 0] += yc[g] * yc[g]
+                myy[g, 1] += 2.0 * yc[g] * yl[g]
+                myy[g, 2] += yl[g] * yl[g]
+            for a in range(4):
+                zl[g, a] = zc[g, a]
+            yl[g] = yc[g]
+
+
+def model_sums(model, event, theta, ar=False):
+    """:func:`event_sums` for a ``PartsModel`` at ``theta``: ``(ztz, zty, yty, n)`` or None.
+
+    With ``ar``, ``((ztz, zty, yty, n), (mzz, mzy, myy, segments))``: P's and Q's AR(1)
+    sums beside them (``inference.ar1.ar_moments``' stacks, one per channel).
+    """
     fixed = _fixed_of(model, event)
     c = model._split(np.asarray(theta, dtype=float))
     x_fd = model.feeder_x(fixed[4][0], fixed[5][0], c)  # the first kept row's P, Q
@@ -194,6 +239,8 @@ def model_sums(model, event, theta):
         motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
     g = len(model.channel_names)
     ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
+    moments = ((np.empty((2, 4, 4, 4)), np.empty((2, 4, 4)), np.empty((2, 4))) if ar
+               else _NO_MOMENTS)  # fmt: skip
     params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
               "tstall": float(c["tstall"])}  # fmt: skip
     d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
@@ -201,8 +248,17 @@ def model_sums(model, event, theta):
                     np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
                     model.motor_d, d_params, model.electronics, float(c["vd1"]),
                     float(c["vd2"]), float(model.frcel), g == 3 and bool(fixed[10].any()),
-                    ztz, zty, yty, nn)  # fmt: skip
-    return (ztz, zty, yty, nn) if ok else None
+                    ztz, zty, yty, nn, ar, *moments)  # fmt: skip
+    if not ok:
+        return None
+    if not ar:
+        return ztz, zty, yty, nn
+    segments = 1.0 + float(np.count_nonzero(fixed[6][:-1]))
+    return (ztz, zty, yty, nn), (*moments, segments)
+
+
+#: The AR(1) sums' arguments of the white-noise kernel call (not read).
+_NO_MOMENTS = (np.zeros((2, 4, 4, 4)), np.zeros((2, 4, 4)), np.zeros((2, 4)))
 
 
 def _fixed_of(model, event) -> tuple:

@@ -128,6 +128,13 @@ class PartsModel:
     #: with the rest; False: hold them at ``motor_d_params`` and ``vd1, vd2``.
     fit_thresholds: bool = True
     motor_d_params: Mapping[str, float] = field(default_factory=dict)
+    #: ``"ar1"``: AR(1) noise on P and Q, one coefficient each (the negative-sequence
+    #: current stays white); ``"white"``: independent from row to row.
+    noise: str = "white"
+    #: AR(1) noise: ``rho_p``, ``rho_q`` uniform on ``(-rho_max, rho_max)``; 0.999 (the
+    #: sampler's own bound, ``inference/ar1.RHO_MAX``) leaves them free. On a short record
+    #: they can run to a random walk (docs/composite.md, "Known limitations").
+    rho_max: float = 0.999
     priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     coefficient_priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
@@ -140,6 +147,10 @@ class PartsModel:
             raise ModelOptionError(f"{{f_hz}} {self.f_hz!r}: a positive frequency")
         if self.negative_sequence not in ("auto", "on", "off"):
             raise ModelOptionError("{negative_sequence}: one of auto, on, off")
+        if self.noise not in ("white", "ar1"):
+            raise ModelOptionError("{noise}: one of white, ar1")
+        if not 0 < self.rho_max <= 0.999:
+            raise ModelOptionError(f"{{rho_max}} {self.rho_max!r}: in (0, 0.999]")
         if not (math.isfinite(self.window_s) and 0 <= self.window_s <= 1):
             raise ModelOptionError(f"{{window_s}} {self.window_s!r}: 0 to 1 s")
         if not 0 <= self.vd2 < self.vd1 <= 1.2:
@@ -287,13 +298,36 @@ class PartsModel:
             self._kept[key] = (keep, steps)
         return self._kept[key]
 
-    def event_sums(self, event: EventRecord, theta: NDArray):
+    def event_sums(self, event: EventRecord, theta: NDArray, ar: bool = False):
         """The channels' sums ``(ztz, zty, yty, n)`` at ``theta`` in one compiled call.
 
         The same numbers as :meth:`channels` summed (``models/parts_kernel.py``); None
-        where infeasible.
+        where infeasible. With ``ar``, P's and Q's AR(1) sums beside them
+        (``parts_kernel.model_sums``), the same as :meth:`first_rows` and ``channels``
+        give ``inference.ar1.ar_moments``.
         """
-        return model_sums(self, event, theta)
+        return model_sums(self, event, theta, ar)
+
+    def first_rows(self, event: EventRecord) -> NDArray[np.bool_]:
+        """Over the kept rows, True where an AR(1) segment starts: the first, after a gap.
+
+        The noise runs on from row to row except where rows were left out (a phasor
+        window across a step) or the record has a hole (``parts.gaps_of``).
+        """
+        keep, steps = self.drive_of(event)
+        gap = gaps_of(np.asarray(event.t, dtype=float)[keep], steps)
+        return np.concatenate([[True], gap[: keep.size - 1]])
+
+    def with_thresholds(self, theta: NDArray, values: Mapping[str, NDArray]) -> NDArray:
+        """``theta`` (..., k) with the sampled thresholds set to ``values`` (by name)."""
+        out = np.array(theta, dtype=float)
+        for name in self.thresholds:
+            if name in values:
+                coord = THRESHOLD_COORDS[name]
+                x = np.asarray(values[name], dtype=float)
+                col = self.theta_names.index(coord)
+                out[..., col] = np.log(x) if coord.startswith("log_") else x
+        return out
 
     def lowest_voltage(self, event: EventRecord, theta: NDArray) -> float:
         """The load bus's lowest voltage over the rows the likelihood reads, at ``theta``.
@@ -379,6 +413,8 @@ class PartsModel:
             "fit_thresholds": self.fit_thresholds,
             "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},
             "priors": {k: list(v) for k, v in self.priors.items()},
+            # Only where it is not white: a white-noise fit's record stays as it was.
+            **({"noise": self.noise, "rho_max": self.rho_max} if self.noise != "white" else {}),
         }  # fmt: skip
 
     @property

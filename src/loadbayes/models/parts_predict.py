@@ -12,11 +12,17 @@ recorded bus: ``S = V conj(I) = S_L + Z |I|^2``.
 
 The operating point is the event's own (its pre-fault P, Q at the recorded bus), as in
 ``fit/composite/validate.py``: what carries over from a fit is the load's make-up.
+
+:func:`play_reference` plays many draws one by one through :func:`predict_parts` and reads
+motor D's stall and the electronics' trip off each converged load bus, as a prediction
+did before ``models/parts_play.play_draws`` did the same in compiled calls: the reference
+that ``tests/unit/test_parts_play.py`` and ``benchmarks/bench_predict.py`` hold it to.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -25,8 +31,9 @@ from numpy.typing import NDArray
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.motor_kernel import steady_state
 from loadbayes.models.part_priors import MOTOR_CLASSES
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, electronics_fraction, motor_d
 
-__all__ = ["motor_ratings", "predict_parts"]
+__all__ = ["motor_ratings", "play_reference", "predict_parts"]
 
 
 def predict_parts(
@@ -101,6 +108,46 @@ def predict_parts(
         return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
                              max_iterations=200, damping=0.5)  # fmt: skip
     return None
+
+
+def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: float,
+                   q_shares: NDArray, thresholds: Mapping[str, NDArray] | None = None):  # fmt: skip
+    """``parts_play.play_draws``' answer, draw by draw in NumPy (the readable reference)."""
+    from loadbayes.models.parts_play import Played
+
+    th = np.atleast_2d(np.asarray(thetas, dtype=float))
+    n = th.shape[0]
+    given = {k: np.broadcast_to(np.asarray(x, dtype=float), (n,)) for k, x in
+             (thresholds or {}).items()}  # fmt: skip
+    th = model.with_thresholds(th, given)  # a model that samples them reads them from theta
+    keep = model.drive_of(event)[0]
+    ev = event.take(keep) if keep.size < event.n else event  # the rows predict_parts returns
+    v = ev.v * np.exp(1j * (np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]))
+    out = [np.full((n, ev.n), np.nan) for _ in range(3)]
+    ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
+    tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
+    for j in range(n):
+        params = {**model.motor_d_params}
+        params |= {k: float(given[k][j]) for k in ("vstall", "tstall") if k in given}
+        mj = replace(model, motor_d_params=params, vd1=float(given.get("vd1", [model.vd1] * n)[j]),
+                     vd2=float(given.get("vd2", [model.vd2] * n)[j]))  # fmt: skip
+        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j])  # damped where it must
+        if got is None:
+            continue
+        mp, mq, its[j] = got
+        ok[j] = True
+        current = np.conj((mp + 1j * mq) / v)
+        # The load bus's voltage the parts saw: the recorded one less the feeder's drop.
+        z = complex(mj.rx, 1.0) * mj.feeder_x(p0, q0, mj._split(th[j]))
+        vl = np.abs(v - z * current)
+        out[0][j], out[1][j], out[2][j] = mp, mq, vl
+        if model.motor_d:
+            kw = {**MOTOR_D_DEFAULTS, **params}
+            run = motor_d(ev.t, vl, **(kw | {"vstall": -1.0}))[0]
+            stalled[j] = bool(np.any(np.abs(motor_d(ev.t, vl, **kw)[0] - run) > 1e-9))
+        if model.electronics:
+            tripped[j] = 1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1])
+    return Played(*out, ok, stalled, tripped, its)
 
 
 def motor_ratings(model, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:

@@ -45,6 +45,9 @@ def quantities(model) -> dict[str, tuple[str, str]]:
           "tstall": ("s", "motor D: time below the stall voltage before it stalls"),
           "vd1": ("p.u.", "electronics: voltage where they start to trip"),
           "vd2": ("p.u.", "electronics: voltage where all have tripped")}  # fmt: skip
+    if getattr(model, "noise", "white") == "ar1":
+        q |= {"rho_p": ("-", "AR(1) coefficient of P's noise (row to row)"),
+              "rho_q": ("-", "AR(1) coefficient of Q's noise (row to row)")}  # fmt: skip
     for name in model.theta_names:
         q.setdefault(name, ("-", "sampled coordinate"))
     return q

@@ -141,7 +141,19 @@ def _nu(likelihood: str, nu: Any) -> float | str:
     return value
 
 
-def _pair(name: str, value: Any, *, log_normal: bool) -> tuple[float, float]:
+#: A motor prior's median (in its unit) and sd of the log: beyond these the draws of
+#: ``exp(log median + sd_log z)`` overflow (h_s=1e300 was two raw overflow warnings and a
+#: fit), and no motor parameter is a millionth or a million of its unit.
+MEDIAN_RANGE = (1e-6, 1e6)
+MAX_SD_LOG = 5.0
+#: A normal prior's smallest sd: a narrower one pins the quantity, its factor underflows
+#: to 0 at every starting point (sd 1e-300 overflowed, then "no starting coefficients").
+MIN_SD = 1e-6
+#: The quantities that ``shares="bounded"`` holds in [0, 1].
+SHARES = ("a1", "a2", "a3", "a4", "a5", "a6", "f_m")
+
+
+def _pair(name: str, value: Any, *, log_normal: bool, bounded: bool = False) -> tuple[float, float]:
     what = "(MEDIAN, SD_LOG)" if log_normal else "(MEAN, SD)"
     try:
         a, b = (float(x) for x in value)
@@ -151,6 +163,18 @@ def _pair(name: str, value: Any, *, log_normal: bool) -> tuple[float, float]:
         raise _Err(f"{{priors}} {name}: MEDIAN and SD_LOG must be positive and finite")
     if not log_normal and not (math.isfinite(a) and b > 0 and math.isfinite(b)):
         raise _Err(f"{{priors}} {name}: MEAN must be finite and SD positive")
+    lo, hi = MEDIAN_RANGE
+    if log_normal and not lo <= a <= hi:
+        raise _Err(f"{{priors}} {name}: MEDIAN {a:g} is outside [{lo:g}, {hi:g}]")
+    if log_normal and b > MAX_SD_LOG:
+        raise _Err(f"{{priors}} {name}: SD_LOG {b:g} is above {MAX_SD_LOG:g} (a factor of "
+                   f"e^{MAX_SD_LOG:g} either way is no prior knowledge)")  # fmt: skip
+    if not log_normal and b < MIN_SD:
+        raise _Err(f"{{priors}} {name}: SD {b:g} is below {MIN_SD:g} (so narrow a prior "
+                   "pins it: no starting point meets it)")  # fmt: skip
+    if bounded and name in SHARES and not 0 <= a <= 1:
+        raise _Err(f"{{priors}} {name}: MEAN {a:g} is outside [0, 1], where {{shares}} "
+                   f"bounded holds {name}")  # fmt: skip
     return a, b
 
 
@@ -241,7 +265,8 @@ class CompositeModel:
         checked = {}
         for name, value in dict(self.priors or {}).items():
             if name in COEFFICIENT_PRIOR_NAMES:
-                checked[name] = _pair(name, value, log_normal=False)
+                checked[name] = _pair(name, value, log_normal=False,
+                                      bounded=self.shares == "bounded")  # fmt: skip
             elif name in MOTOR_PRIOR_NAMES:
                 checked[name] = _pair(name, value, log_normal=True)
             else:

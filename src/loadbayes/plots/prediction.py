@@ -37,7 +37,10 @@ def plot_prediction(pred: Any, *, title: str = "") -> Any:
     words = []
     if pred.stall is not None:
         lo, hi = pred.stall["interval"]
-        words.append(f"motor D stalls: {pred.stall['probability']:.2f} [{lo:.2f}, {hi:.2f}]")
+        words.append(
+            f"{pred.stall.get('part', 'motor D')} stalls: "
+            f"{pred.stall['probability']:.2f} [{lo:.2f}, {hi:.2f}]"
+        )
     if pred.extrapolation["extrapolated"]:
         words.append("EXTRAPOLATED beyond the fitted events")
     ax[0].set_title("\n".join([title or pred.fault["name"], "; ".join(words)]), fontsize=9)
@@ -55,7 +58,8 @@ def plot_sweep(preds: Sequence[Any], depths: Sequence[float], *, title: str = ""
         lo = [p.stall["interval"][0] for p in preds]
         hi = [p.stall["interval"][1] for p in preds]
         ax.fill_between(x, lo, hi, color="C3", alpha=0.25, lw=0)
-        ax.plot(x, prob, "o-", color="C3", label="P(motor D stalls)")
+        part = preds[0].stall.get("part", "motor D")
+        ax.plot(x, prob, "o-", color="C3", label=f"P({part} stalls)")
     if all(p.electronics_tripped is not None for p in preds):
         med = [p.electronics_tripped["median"] for p in preds]
         lo = [p.electronics_tripped["interval"][0] for p in preds]

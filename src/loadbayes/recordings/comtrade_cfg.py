@@ -1,6 +1,6 @@
 """The COMTRADE ``.cfg`` file (IEEE C37.111 1991, 1999, 2013), parsed and checked line by line.
 
-One idea at about 435 lines: every field of the file checked in order, each with its line.
+One idea at about 480 lines: every field of the file checked in order, each with its line.
 
 The ``comtrade`` package parses the ``.cfg`` too, but raises bare ``ValueError`` without a
 line and only warns on an unknown revision; this parser checks every field first so that
@@ -162,6 +162,8 @@ def _num(cell: str, what: str, path: str, line: int, kind=float, default=None):
     return value
 
 
+_INDEX = re.compile(r"[0-9]+")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _DATE = re.compile(r"\d{1,2}/\d{1,2}/\d{2,4}")
 _TIME = re.compile(r"(\d{1,2}):(\d{2}):(\d{1,2})(\.\d{1,12})?")
 
@@ -188,12 +190,14 @@ def _stamp(cells: list[str], line: int, path: str) -> str:
     return f"{date},{time}"
 
 
-#: Encodings tried in turn when none is given: UTF-8 (with or without a BOM), then the
-#: Chinese national standard GB18030 (a superset of GBK and GB2312, what State Grid
-#: recorders write), kept only when the text holds CJK characters and nearly all its
-#: non-ASCII characters are two high bytes (:func:`_mostly_double_byte`), then Latin-1, which
-#: decodes any byte (Western recorders' Windows code pages).
-ENCODINGS = ("utf-8-sig", "gb18030", "latin-1")
+#: Encodings tried in turn when none is given: UTF-8 (with or without a BOM), strictly;
+#: then the Chinese national standard GB18030 (a superset of GBK and GB2312, what State
+#: Grid recorders write), kept only when the text holds CJK characters, nearly all its
+#: non-ASCII characters are two high bytes (:func:`_mostly_double_byte`), it encodes back
+#: to the same bytes, and the high bytes do not read as accented letters inside Western
+#: words (:func:`_latin_words`); then Windows-1252 when bytes 0x80-0x9F are present and
+#: decode in it, else Latin-1, which decodes any byte (Western recorders' code pages).
+ENCODINGS = ("utf-8-sig", "gb18030", "cp1252", "latin-1")
 
 
 def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
@@ -216,11 +220,50 @@ def _decode(raw: bytes, encoding: str | None, path: str) -> tuple[str, str]:
         pass
     try:
         text = raw.decode("gb18030")
-        if has_cjk(text) and _mostly_double_byte(text):
+        if (
+            has_cjk(text)
+            and _mostly_double_byte(text)
+            and text.encode("gb18030") == raw
+            and not _latin_words(raw)
+        ):
             return text, "gb18030"
     except UnicodeDecodeError:
         pass
+    if re.search(rb"[\x80-\x9f]", raw):
+        # Bytes 0x80-0x9F are control codes in Latin-1 and letters and marks in Windows-1252
+        # ("…", "€", "Š"), which Western recorders write.
+        try:
+            return raw.decode("cp1252"), "cp1252"
+        except UnicodeDecodeError:
+            pass
     return raw.decode("latin-1"), "latin-1"
+
+
+#: Latin-1's letters (À..ÿ without × and ÷).
+_LATIN_LETTERS = frozenset(range(0xC0, 0x100)) - {0xD7, 0xF7}
+
+
+def _latin_words(raw: bytes) -> bool:
+    """Whether every run of high bytes reads as accented letters inside Western words.
+
+    GB18030 pairs two high bytes into one ideograph, and Latin-1 text whose accented
+    letters come in pairs ("Größe": 0xF6 0xDF) passes :func:`_mostly_double_byte`. Such
+    pairs sit inside a word, between ASCII letters, and are letters themselves; Chinese
+    names are runs of several ideographs (four or more bytes: "主变", "高压侧") or sit
+    beside digits and separators ("1号", "_I"). A text whose every run of high bytes is at
+    most two Latin-1 letters with an ASCII letter on each side is taken as Latin-1.
+    """
+    runs = list(re.finditer(rb"[\x80-\xff]+", raw))
+    if not runs:
+        return False
+    for m in runs:
+        a, b = m.span()
+        if b - a > 2 or not all(x in _LATIN_LETTERS for x in raw[a:b]):
+            return False
+        before, after = raw[a - 1 : a], raw[b : b + 1]
+        if not (before.isalpha() and after.isalpha()):
+            return False
+    return True
 
 
 def _mostly_double_byte(text: str) -> bool:
@@ -233,6 +276,32 @@ def _mostly_double_byte(text: str) -> bool:
     high = [ch for ch in text if ord(ch) >= 0x80]
     double = sum(min(ch.encode("gb18030")) >= 0x80 for ch in high)
     return double >= 0.9 * len(high)
+
+
+def _utf16(raw: bytes) -> bool:
+    """Whether the bytes look like UTF-16 text: a byte-order mark, or every other byte 0."""
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return True
+    head = raw[:64]
+    return len(head) >= 8 and any(head[k::2].count(0) == len(head[k::2]) for k in (0, 1))
+
+
+def _time_codes(rd: _Lines, name: str) -> None:
+    """The 2013 revision's time_code,local_code and tmq_code,leapsec lines, when given.
+
+    Optional as a pair; the ``comtrade`` package unpacks two fields from each and raised
+    "not enough values to unpack" without a line for a cut one.
+    """
+    codes = rd.optional()
+    if codes is None:
+        return
+    if len(codes) != 2:
+        raise DataError(
+            f"line {rd.n}: expected time_code,local_code (2013), got {len(codes)} field(s)", name
+        )
+    f, ln = rd.next("tmq_code,leapsec (2013)")
+    if len(f) != 2:
+        raise DataError(f"line {ln}: expected tmq_code,leapsec (2013), got {len(f)} field(s)", name)
 
 
 def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> CfgInfo:
@@ -269,9 +338,13 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
         elif p.suffix.lower() == ".cff":
             hint = ": the single-file .cff form of 2013 is not read (split it into .cfg and .dat)"
         raise DataError("expected a COMTRADE .cfg file" + hint, name)
-    text, used = _decode(p.read_bytes(), encoding, name)
+    raw = p.read_bytes()
+    text, used = _decode(raw, encoding, name)
     if "\0" in text:
-        raise DataError("line 1: NUL bytes: a binary file, not a .cfg?", name)
+        if _utf16(raw):
+            raise DataError("line 1: NUL bytes: UTF-16 text? read it with --encoding utf-16", name)
+        line = len(re.split(r"\r\n|\n|\r", text[: text.index("\0")]))
+        raise DataError(f"line {line}: NUL bytes: a binary file, not a .cfg?", name)
     rd = _Lines(text, name)
 
     head, ln = rd.next("station_name,rec_dev_id,rev_year")
@@ -321,7 +394,7 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
                 f"(the counts on line {ln_counts} say {n_a} analog channels)",
                 name,
             )
-        if not f[0].isdigit():
+        if not _INDEX.fullmatch(f[0]):  # not isdigit(): '²' is a digit to it, not to int()
             raise DataError(
                 f"line {ln}: analog channel index {f[0][:20]!r} is not a number "
                 f"(the counts on line {ln_counts} say {n_a} analog channels)",
@@ -347,7 +420,7 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
         )
     for k in range(n_d):
         f, ln = rd.next(f"status channel {k + 1} of {n_d}")
-        if len(f) < 3 or not f[0].isdigit():
+        if len(f) < 3 or not _INDEX.fullmatch(f[0]):
             raise DataError(
                 f"line {ln}: expected status channel {k + 1} of {n_d} "
                 f"(the counts on line {ln_counts}), got {len(f)} fields",
@@ -381,12 +454,17 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
     if nrates < 0:
         raise DataError(f"line {ln_rates}: nrates must be >= 0", name)
     rates = []
+    # A rate count that disagrees with the rate lines shows as a bad rate or time stamp.
+    check_count = f"does nrates ({nrates}) on line {ln_rates} match the rate lines?"
     for _ in range(max(nrates, 1)):
         f, ln = rd.next("samp,endsamp")
         if len(f) != 2:
-            raise DataError(f"line {ln}: expected samp,endsamp", name)
-        samp = _num(f[0], "sample rate", name, ln)
-        end = _num(f[1], "end sample", name, ln, int)
+            raise DataError(f"line {ln}: expected samp,endsamp ({check_count})", name)
+        try:
+            samp = _num(f[0], "sample rate", name, ln)
+            end = _num(f[1], "end sample", name, ln, int)
+        except DataError as exc:
+            raise DataError(f"{exc.message} ({check_count})", name) from None
         if samp < 0 or end < 1 or (rates and end <= rates[-1][1]):
             raise DataError(f"line {ln}: sample rate {samp} / end sample {end} invalid", name)
         if samp == 0 and nrates > 0:
@@ -397,6 +475,12 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
             )
         rates.append((samp, end))
     start_cells, ln = rd.next("first-sample time stamp")
+    if len(start_cells) == 2 and all(_NUMBER.fullmatch(c) for c in start_cells):
+        raise DataError(
+            f"line {ln}: expected the first-sample time stamp, got "
+            f"{','.join(start_cells)[:30]!r}, a rate line: {check_count}",
+            name,
+        )
     rd.lines[ln - 1] = _stamp(start_cells, ln, name)
     trig_cells, ln = rd.next("trigger time stamp")
     rd.lines[ln - 1] = _stamp(trig_cells, ln, name)
@@ -415,6 +499,8 @@ def parse_cfg(path: str | os.PathLike[str], *, encoding: str | None = None) -> C
             timemult = _num(rest[0], "time multiplier", name, rd.n)
             if timemult <= 0:
                 raise DataError(f"line {rd.n}: time multiplier must be > 0", name)
+    if revision == "2013":
+        _time_codes(rd, name)
     return CfgInfo(
         path=name,
         revision=revision,

@@ -6,12 +6,21 @@ how channels are chosen).
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from loadbayes.io.errors import DataError
 from loadbayes.recordings.comtrade_cfg import AnalogChannel, CfgInfo
 
-__all__ = ["dead_channels", "missing_note", "pick_channels", "scale_channel", "unit_factor"]
+__all__ = [
+    "current_sets",
+    "dead_channels",
+    "missing_note",
+    "pick_channels",
+    "scale_channel",
+    "unit_factor",
+]
 
 
 _UNIT_SCALE = {"V": 1.0, "kV": 1e3, "KV": 1e3, "MV": 1e6, "mV": 1e-3,
@@ -96,7 +105,7 @@ def _by_spec(info: CfgInfo, spec: str, kind: str) -> AnalogChannel:
     for ch in info.analog:
         if ch.name == spec:
             return ch
-    if spec.strip().isdigit():
+    if re.fullmatch(r"[0-9]+", spec.strip()):  # not isdigit(): '²' is a digit to it
         for ch in info.analog:
             if ch.n == int(spec):
                 return ch
@@ -104,9 +113,10 @@ def _by_spec(info: CfgInfo, spec: str, kind: str) -> AnalogChannel:
             f"no analog channel number {spec} (channels 1 to {len(info.analog)}; --{kind})",
             info.path,
         )
+    names = [ch.name for ch in info.analog]
+    more = f", ... and {len(names) - 20} more" if len(names) > 20 else ""  # one line, short
     raise DataError(
-        f"no analog channel {spec!r} (channels: {', '.join(ch.name for ch in info.analog)})",
-        info.path,
+        f"no analog channel {spec!r} (channels: {', '.join(names[:20])}{more})", info.path
     )
 
 
@@ -131,6 +141,17 @@ def _trios(chans: list[AnalogChannel]) -> list[list[AnalogChannel]]:
 
 def _bays(info: CfgInfo) -> list[str]:
     return list(dict.fromkeys(ch.ccbm.strip() for ch in info.analog if ch.ccbm.strip()))
+
+
+def current_sets(info: CfgInfo) -> list[tuple[str, list[AnalogChannel]]]:
+    """Every three-phase current set of the file, in file order, with its bay's name.
+
+    The name is the set's bay field (``ccbm``), or else the phase a channel's name
+    (a file without bay fields). An archive's scan lists a record's bays with it.
+    """
+    cands = [ch for ch in info.analog if ch.unit.strip().upper().endswith("A")]
+    cands = [ch for ch in cands if unit_factor(ch.unit) is not None and not _zero_sequence(ch)]
+    return [(t[0].ccbm.strip() or t[0].name.strip(), t) for t in _trios(cands)]
 
 
 def pick_channels(

@@ -76,6 +76,9 @@ def find_dat(cfg: Path, where: str) -> Path | None:
     return None
 
 
+_BOM = b"\xef\xbb\xbf"
+
+
 def declared_bytes(info: CfgInfo, dat: Path) -> tuple[bytes, int]:
     """The ``.dat``'s declared samples' bytes, and how many bytes follow them.
 
@@ -93,6 +96,8 @@ def declared_bytes(info: CfgInfo, dat: Path) -> tuple[bytes, int]:
             block = fh.read(1 << 20)
             if not block:
                 break
+            if not chunks and block.startswith(_BOM):  # an editor's UTF-8 mark, not data
+                block, used = block[len(_BOM) :], len(_BOM)
             have = block.count(b"\n")
             if lines + have >= info.n_samples:
                 cut = -1

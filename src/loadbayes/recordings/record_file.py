@@ -38,6 +38,8 @@ __all__ = [
 
 #: Suffix of the metadata sidecar, appended to the table's name.
 META_SUFFIX = ".meta.json"
+#: The sidecar's ``format`` key.
+FORMAT = "loadbayes record table 1"
 #: Columns of the phasor rows an event file keeps (``kind`` is "phasor" in all of them).
 EVENT_COLUMNS = (
     "t_s", "v", "angle_rad", "p", "q", "f", "p_total", "q_total", "v2", "i2",
@@ -51,11 +53,12 @@ def meta_path(table: str | os.PathLike[str]) -> Path:
     return Path(os.fspath(table) + META_SUFFIX)
 
 
-def comtrade_time(stamp: str) -> dt.datetime | None:
+def comtrade_time(stamp: str, *, month_first: bool = False) -> dt.datetime | None:
     """A ``.cfg`` time stamp ``dd/mm/yyyy,hh:mm:ss.ffffff`` as a datetime (None if blank).
 
-    COMTRADE 1999 and later write the day first; a two-digit year (1991) is 19xx/20xx.
-    The recorder's clock has no zone in the file: the datetime is naive.
+    COMTRADE 1999 and later write the day first; 1991 the month (``month_first``, as the
+    ``comtrade`` package reads it); a two-digit year is 19xx/20xx. The recorder's clock
+    has no zone in the file: the datetime is naive.
     """
     if not stamp or "," not in stamp:
         return None
@@ -64,6 +67,8 @@ def comtrade_time(stamp: str) -> dt.datetime | None:
         return None
     try:
         d, m, y = (int(x) for x in date.split("/"))
+        if month_first:
+            d, m = m, d
         if y < 100:
             y += 2000 if y < 70 else 1900
         hh, mm, ss = time.split(":")
@@ -99,7 +104,7 @@ def record_metadata(
             }
         )
     return {
-        "format": "loadbayes record table 1",
+        "format": FORMAT,
         "source": os.path.basename(source),
         "station": w.station,
         "encoding": w.encoding,
@@ -175,8 +180,10 @@ def read_record_meta(table: str | os.PathLike[str]) -> dict | None:
         meta = json.loads(side.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise DataError(f"not a readable record metadata file ({exc})", str(side)) from None
-    if not isinstance(meta, dict) or meta.get("format") != "loadbayes record table 1":
-        raise DataError("not a loadbayes record metadata file (no 'format' key)", str(side))
+    fmt = meta.get("format") if isinstance(meta, dict) else None
+    if fmt != FORMAT:
+        said = "no 'format' key" if fmt is None else f"format {str(fmt)[:40]!r}, not {FORMAT!r}"
+        raise DataError(f"not a loadbayes record metadata file ({said})", str(side))
     return meta
 
 
@@ -264,7 +271,12 @@ def record_events(record: str, *, v_ref: float | None = None, **settings) -> Rec
         if not _has_record_columns(record):
             return None
         meta = {}  # the table without its sidecar: no station, bay or start time
-    cols = phasor_rows(_read_table(record))
+    table = _read_table(record)
+    cols = phasor_rows(table)
+    if not len(cols["t_s"]):  # events are cut from the phasor rows alone
+        kinds = np.unique(table["kind"].astype(str), return_counts=True)
+        have = ", ".join(f"{n} {k} rows" for k, n in zip(*kinds, strict=True)) or "no rows"
+        raise DataError(f"no phasor rows ({have}): no event to cut", record)
     data = {c: np.asarray(cols[c], dtype=float) for c in EVENT_COLUMNS if c in cols}
     for c in ("t_s", "v", "p", "q"):
         bad = np.flatnonzero(~np.isfinite(data[c]))

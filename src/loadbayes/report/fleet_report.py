@@ -364,6 +364,13 @@ def write_fleet_report(
     from loadbayes.io.errors import DataError
 
     ft = load_fleet(result)
+    if ft.settings.get("kind") == "cvr-fleet":  # loadbayes cvr --by: its own page
+        from loadbayes.report.cvr_fleet import cvr_fleet_page
+
+        text = cvr_fleet_page(ft.table, ft.settings, title=title, source=Path(result).name)
+        with atomic_write(Path(out), force=force) as tmp:
+            Path(tmp).write_text(text, encoding="utf-8")
+        return Path(out)
     other = load_fleet(unpooled) if unpooled else None
     if other is not None:  # the figure calls them each bus's own, unpooled estimates
         if other.settings.get("pool") == "class" or (other.table["level"] == "class").any():

@@ -200,6 +200,8 @@ class FleetTable:
         """
         ch = "P" if which == "dp_dv" else "Q"
         own = f"the data's {ch} units per p.u. of V"
+        if self.settings.get("level") == "drift":  # fleet/drift.py: per unit of the level
+            own = f"per unit of the level {ch}0(t) per p.u. of V"
         rel = f"per unit of {ch}0 per p.u. of V"
         keys = (_key(which), *SENSITIVITY[which])
         b = self.bus_rows.dropna(subset=["parameter"])
@@ -278,6 +280,8 @@ def load_fleet(path: str | Path) -> FleetTable:
                         column="level", row=row + 1)  # fmt: skip
     if not (levels == "bus").any():
         raise DataError("no bus rows: not a fleet result", name, column="level")
+    _check_statistics(df, name)
+    _check_unique(df, name)
     settings: dict[str, Any] = {}
     meta = table.schema.metadata or {}
     if b"loadbayes" in meta:
@@ -288,6 +292,55 @@ def load_fleet(path: str | Path) -> FleetTable:
         if not isinstance(settings, dict):
             settings = {}
     return FleetTable(name, df, settings)
+
+
+def _check_unique(df: pd.DataFrame, name: str) -> None:
+    """One row per bus (or class) and parameter (``df`` has a range index).
+
+    A repeated one (a pooled table's class column set to one value) was pandas' "The truth
+    value of a Series is ambiguous", with no file nor row.
+    """
+    for level in ("bus", "class"):
+        key = df.loc[(df["level"].astype(str) == level) & df["parameter"].notna(),
+                     [level, "parameter"]]  # fmt: skip
+        twice = key[key.duplicated(keep=False)]
+        if len(twice):
+            who, par = twice.iloc[0]
+            rows = [
+                int(i) + 1 for i in twice.index[(twice[level] == who) & (twice["parameter"] == par)]
+            ]
+            raise DataError(
+                f"{level} {who!r}, parameter {par!r} is on rows {', '.join(map(str, rows[:5]))}: "
+                f"a fleet table has one row per {level} and parameter (an edited table?)",
+                name, column=level, row=rows[1],
+            )  # fmt: skip
+
+
+#: A statistic beyond this cannot be drawn (its square overflows) and is no fit's.
+MAX_STATISTIC = 1e150
+
+
+def _check_statistics(df: pd.DataFrame, name: str) -> None:
+    """A fitted row's mean, sd and interval are finite, drawable numbers; an sd is >= 0.
+
+    NaN and 1e308 made a report with numpy's and matplotlib's warnings (a bus not fitted
+    has a null parameter and null statistics: not checked).
+    """
+    fitted = df["parameter"].notna().to_numpy()
+    for col in ("mean", "sd", "hdi_low", "hdi_high"):
+        x = df[col].to_numpy(dtype=float)
+        bad = fitted & ~(np.abs(x) <= MAX_STATISTIC)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"{x[i]:g} in a fitted row (parameter {df['parameter'].iloc[i]!r}): not a "
+                "statistic the report can show (a damaged table?)",
+                name, column=col, row=i + 1,
+            )  # fmt: skip
+        if col == "sd" and (fitted & (x < 0)).any():
+            i = int(np.flatnonzero(fitted & (x < 0))[0])
+            raise DataError(f"{x[i]:g} is negative: not a posterior sd", name, column=col,
+                            row=i + 1)  # fmt: skip
 
 
 def _read_any(path: str | Path) -> pd.DataFrame:

@@ -23,7 +23,7 @@ def parts_lines(post: Any, table: Any, *, quantities: Any, hdi_prob: float = 0.9
     for tag in ("", "_a", "_b", "_m"):
         names += [k + tag for k in _MOTOR if k + tag in table.index and k + tag not in names]
     names += [n for n in table.index if n.startswith("mva") and "_e" not in n and n not in names]
-    names += [n for n in table.index if n in ("p0", "q0")]
+    names += [n for n in table.index if n in ("p0", "q0", "rho_p", "rho_q")]
     lo, hi = table.columns[2], table.columns[3]
     out = [f"{'quantity':<12} {'mean':>9} {f'{hdi_prob:.0%} interval':>22}  meaning"]
     for n in names:

@@ -60,7 +60,7 @@ def zip_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dic
     ctx = click.get_current_context()
     src = click.core.ParameterSource.DEFAULT
     default = {k: ctx.get_parameter_source(k) == src for k in ("draws", "burn", "chains")}
-    if options.get("level") == "drift" and not options.get("by"):
+    if options.get("level") == "drift":  # one bus or a fleet: each bus's own chains
         values = dict(values)
         if default["draws"]:
             values["draws"] = DRIFT_DRAWS
@@ -222,6 +222,8 @@ def fit_zip_cmd(
         )
     if likelihood == "normal" and nu.strip().lower() != "auto":
         raise UserError("--nu needs --likelihood student-t")
+    if level == "drift" and str(v_noise).strip().lower() == "auto":
+        raise UserError("--level drift takes the instrument's sd (--v-noise 0.0005), not auto")
     v_noise_val = parse_v_noise(v_noise, likelihood=likelihood, scheme=scheme,
                                 conjugate=conjugate, with_q=q_name is not None)  # fmt: skip
     check_cost(

@@ -100,11 +100,9 @@ def _refuse_single_bus_options(p: dict[str, Any]) -> None:
         raise UserError("a fleet is fitted with the Gaussian likelihood; drop --likelihood")
     if p.get("conjugate"):
         raise UserError("--conjugate is not available for fleets")
-    if p.get("v_noise") is not None:
-        raise UserError("--v-noise is for one bus (a fleet keeps no rows to visit)")
-    if p.get("level", "fixed") != "fixed":
-        raise UserError("a fleet is fitted with a fixed level (from its sums); fit one bus "
-                        "with --level drift")  # fmt: skip
+    if p.get("v_noise") is not None and p.get("level", "fixed") != "drift":
+        raise UserError("--v-noise is for one bus or --level drift (a fleet of fixed level "
+                        "keeps no rows to visit)")  # fmt: skip
 
 
 def fleet_sampler_defaults(values: dict[str, Any], options: dict[str, Any]) -> dict[str, Any]:
@@ -140,6 +138,14 @@ def run_fleet_command(params: dict[str, Any], sampler: SamplerSettings) -> None:
     if p["pool"] == "class" and p.get("netcdf_dir"):
         raise UserError("--netcdf-dir is for --pool none (pooled draws stay together)")
     check_outputs({"--out": p["fleet_out"]}, [p["data"]], p["force"])
+    if p.get("level") == "drift":  # every bus's rows, fitted one by one
+        from loadbayes.commands.zip.drift_fleet import run_drift
+
+        res = run_drift(p, sampler)
+        _refuse_if_none_fitted(res.table, p["data"])
+        _commit(res.table, p["fleet_out"], p["force"], _NetcdfStaging(None, False), res.settings)
+        _report(res, p["fleet_out"], p["quiet"])
+        return
     p0, q0 = nominal(p["p0"], "--p0"), nominal(p["q0"], "--q0")
     from loadbayes.commands.options import parse_coef_priors
     from loadbayes.fit import zip_priors

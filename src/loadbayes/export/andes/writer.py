@@ -246,7 +246,9 @@ def _load_host(name: str, bus: int) -> tuple[Any, float, float]:
             raise ValueError(
                 f"--case {name}: ANDES cannot read it ({type(exc).__name__})"
             ) from None
-    if host is None or bus not in list(host.Bus.idx.v):
+    if host is None or not host.Bus.n:  # a text file ANDES reads as an empty system
+        raise ValueError(f"--case {name}: not an ANDES case (ANDES finds no bus in it)")
+    if bus not in list(host.Bus.idx.v):
         known = [] if host is None else list(host.Bus.idx.v)
         shown = ", ".join(map(str, known[:12])) + (" ..." if len(known) > 12 else "")
         raise ValueError(f"--case {name}: no bus {bus} (its buses: {shown or 'none'})")

@@ -68,6 +68,10 @@ def prior_driven(model: Any, draws: dict[str, np.ndarray],
     return out
 
 
+#: A median AR(1) coefficient above which the noise is said to be nearly a random walk.
+RHO_RANDOM_WALK = 0.95
+
+
 def parts_residuals(problem: Any, blocks: Any, n_draws: int = 20) -> dict[str, float]:
     """Lag-1 autocorrelation of P's and Q's residuals, over a few posterior draws.
 
@@ -107,7 +111,34 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
         share = {k: max(v, 0.0) for k, v in residuals.items()}
         words["residuals"] = {**residuals, "model_form_share_p": share["lag1_p"],
                               "model_form_share_q": share["lag1_q"]}  # fmt: skip
-        if max(share.values()) > 0.3:
+        ar = getattr(model, "noise", "white") == "ar1" and "rho_p" in draws
+        if ar:  # the share is modelled: said with the coefficients, not warned of
+            rho = {g: float(np.median(draws[f"rho_{g}"])) for g in ("p", "q")}
+            words["residuals"]["rho_p"], words["residuals"]["rho_q"] = rho["p"], rho["q"]
+            words["residuals"]["noise"] = (
+                f"AR(1) noise (rho {rho['p']:.2f} for P, {rho['q']:.2f} for Q, medians) "
+                "takes the residuals' stretches as correlated error: the intervals widen "
+                "for the model's form instead of biasing"
+            )
+            top = float(getattr(model, "rho_max", 0.999))
+            hi = {g: float(np.quantile(draws[f"rho_{g}"], 0.975)) for g in ("p", "q")}
+            at = [g.upper() for g in ("p", "q") if top < 0.999 and hi[g] > top - 0.01]
+            if at:
+                post.warnings.append(
+                    f"rho of {' and '.join(at)} sits at its bound {top:g} (rho_max, --rho-max): "
+                    "the bound, not the data, sets how correlated the noise is, and so how "
+                    "wide the intervals are"
+                )
+            near = {g: r for g, r in rho.items() if r > RHO_RANDOM_WALK}
+            if near:
+                said = ", ".join(f"{r:.3f} for {g.upper()}" for g, r in near.items())
+                post.warnings.append(
+                    f"the AR(1) noise is nearly a random walk (rho {said}): it takes up the "
+                    "slow part of the response the parts would explain, and the parts' values "
+                    "rest on the rows' differences alone; do not use them without comparing "
+                    "the white-noise fit (--noise white) and a held-out event"
+                )
+        elif max(share.values()) > 0.3:
             post.warnings.append(
                 f"the residuals run in stretches (lag-1 autocorrelation {residuals['lag1_p']:.2f} "
                 f"for P, {residuals['lag1_q']:.2f} for Q): about {share['lag1_p']:.0%} and "

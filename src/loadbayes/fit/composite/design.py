@@ -7,8 +7,17 @@ own: for free coordinates ``u`` it asks the model for each event's response and 
 integrates the linear coefficients out exactly (``inference/condlinear.py``), as
 :class:`~loadbayes.fit.composite.problem.CompositeProblem` does for ``zip+motor`` in one
 compiled call. It reads the events as point samples with no steps between them and takes
-the Gaussian white-noise likelihood; the options beyond those (steps, phasor windows,
-Student-t, AR(1), bounded shares, an estimated torque) are the ``zip+motor`` problem's.
+the Gaussian likelihood, white or AR(1) on P and Q; the options beyond those (steps,
+Student-t, bounded shares, an estimated torque) are the ``zip+motor`` problem's.
+
+**AR(1) noise** (a model whose ``noise`` is ``"ar1"``): P's and Q's rows are whitened
+for their coefficients ``rho`` (Prais-Winsten: ``z_k - rho z_k-1``, each segment's first
+row scaled by ``sqrt(1 - rho^2)``, segments broken where rows were left out). The sums of
+the whitened design are a closed form in ``rho`` (``inference/ar1.ar_moments``,
+``whitened``), so the sampler's draw of ``rho`` re-whitens them without solving the model
+again (:meth:`DesignProblem.resum`). The negative-sequence current stays white: its rows
+are the few where the fault is unbalanced, two parts of one phasor interleaved, too short
+a run to place a coefficient of its own.
 """
 
 from __future__ import annotations
@@ -20,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.fit.composite.naming import event_suffix
+from loadbayes.inference.ar1 import RHO_MAX, ar_moments, residual_stats, whitened
 from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
@@ -28,7 +38,7 @@ from loadbayes.inference.condlinear import (
 )
 from loadbayes.measurements.record import EventRecord
 
-__all__ = ["DesignProblem"]
+__all__ = ["ARSums", "DesignProblem"]
 
 
 @dataclass
@@ -65,6 +75,8 @@ class DesignProblem:
         #: Channels of the likelihood, each with its noise precision: P, Q and any the
         #: model adds (the negative-sequence current: ``tau_i2``).
         self.channel_names = tuple(getattr(self.model, "channel_names", ("p", "q")))
+        #: AR(1) noise: the bound of the coefficients' uniform prior (the model's, if any).
+        self.rho_max = float(getattr(self.model, "rho_max", RHO_MAX))
         self.n_channels = len(self.channel_names)
 
     @property
@@ -179,14 +191,74 @@ class DesignProblem:
         return float(out)
 
     def collapsed(self, u, tau, torque=None, rho=None) -> tuple[float, list[GroupSums] | None]:
-        """The log-density at ``u`` and the events' sums (``(-inf, None)`` if infeasible)."""
-        if rho is not None:
-            raise ValueError("AR(1) noise is the zip+motor problem's")
-        sums = self.sums(u)
+        """The log-density at ``u`` and the events' sums (``(-inf, None)`` if infeasible).
+
+        ``rho`` (2,): AR(1) noise on P and Q, the sums whitened for it (:class:`ARSums`,
+        which :meth:`resum` whitens again for another ``rho``; the log-determinant,
+        which does not depend on ``u``, is left out, as the ``zip+motor`` problem does).
+        """
+        if rho is None:
+            sums = self.sums(u)
+        else:
+            sums = self.ar_sums(u)
+            sums = None if sums is None else self.resum(sums, rho)
         if sums is None:
             return -math.inf, None
         lp = self.log_collapsed(sums, u, tau)
         return (lp, sums) if math.isfinite(lp) else (-math.inf, None)
+
+    def ar_sums(self, u: np.ndarray) -> ARSums | None:
+        """Each event's white sums and P's, Q's AR(1) sums at ``u`` (not yet whitened).
+
+        The model's compiled kernel where it has one (``event_sums(..., ar=True)``), else
+        :func:`~loadbayes.inference.ar1.ar_moments` of its channels' arrays, segments
+        where the model's ``first_rows`` says (one per event for a model with none).
+        """
+        compiled = getattr(self.model, "event_sums", None)
+        white, moments = [], []
+        if compiled is not None:
+            self.evaluations += 1
+            if not self.in_support(u):
+                return None
+            theta = self.theta(u)
+            for ev in self.events:
+                got = compiled(ev, theta, ar=True)
+                if got is None:
+                    return None
+                white.append(GroupSums(*got[0]))
+                moments.append(got[1])
+            return ARSums(white, white, moments)
+        ch = self.channels(u)
+        if ch is None:
+            return None
+        first_rows = getattr(self.model, "first_rows", None)
+        for ev, c in zip(self.events, ch, strict=True):
+            white.append(GroupSums.from_arrays([z for z, _ in c], [y for _, y in c]))
+            n = c[0][1].size
+            first = np.zeros(n, dtype=bool) if first_rows is None else first_rows(ev)
+            got = [ar_moments(z, y, first) for z, y in c[:2]]
+            moments.append((*(np.stack(m) for m in zip(*got, strict=True)),
+                            float(max(np.count_nonzero(first[1:]) + 1, 1))))  # fmt: skip
+        return ARSums(white, white, moments)
+
+    def resum(self, sums: ARSums, rho: np.ndarray) -> ARSums:
+        """The events' sums whitened for AR(1) coefficients ``rho`` (no model solve)."""
+        groups = []
+        for w, (mzz, mzy, myy, _) in zip(sums.white, sums.moments, strict=True):
+            ztz, zty, yty = w.ztz.copy(), w.zty.copy(), w.yty.copy()
+            for g in range(2):  # P, Q; a third channel (I2) stays white
+                r = float(rho[g])
+                ztz[g], zty[g], yty[g] = (whitened(m[g], r) for m in (mzz, mzy, myy))
+            groups.append(GroupSums(ztz, zty, yty, w.n))
+        return ARSums(groups, sums.white, sums.moments)
+
+    def ar_statistics(self, sums: ARSums, betas) -> np.ndarray:
+        """P's and Q's residual sums for the AR(1) step (``inference/ar1.draw_rho``'s)."""
+        out = np.zeros((2, 4))
+        for (mzz, mzy, myy, segments), beta in zip(sums.moments, betas, strict=True):
+            for g in range(2):
+                out[g] += residual_stats(mzz[g], mzy[g], myy[g], beta, segments)
+        return out
 
     def conditional_moves(self):
         """The model's own steps after the block move (its thresholds'), or None."""
@@ -240,3 +312,26 @@ class DesignProblem:
             if rows[g] > 0:  # a channel no event has data for has no noise to report
                 out[f"tau_{name}"] = tau[..., g]
         return out
+
+
+@dataclass
+class ARSums:
+    """The events' whitened :class:`GroupSums`, with the sums they were whitened from.
+
+    Iterates as the plain list does; ``white`` are the unwhitened sums (the third
+    channel's are used as they are), ``moments`` each event's ``(mzz, mzy, myy,
+    segments)``: P's and Q's ``inference/ar1.ar_moments`` stacks and its segment count.
+    """
+
+    groups: list[GroupSums]
+    white: list[GroupSums]
+    moments: list[tuple]
+
+    def __iter__(self):
+        return iter(self.groups)
+
+    def __len__(self) -> int:
+        return len(self.groups)
+
+    def __getitem__(self, event: int) -> GroupSums:
+        return self.groups[event]

@@ -33,6 +33,7 @@ from loadbayes.fit.composite.naming import (
     named_draws,
 )
 from loadbayes.fit.composite.nls import NLSResult, nls
+from loadbayes.fit.composite.predict_scope import covered
 from loadbayes.fit.composite.predictive import event_arrays
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.provenance import (
@@ -219,7 +220,7 @@ def fit_composite(
         phasor window, frequency, priors; checked when it was built), or any other
         model of the registry (``models/dynamic.py``), fitted through its design
         matrices (:class:`~loadbayes.fit.composite.design.DesignProblem`: point samples,
-        Gaussian white noise).
+        Gaussian noise, white or AR(1) as the model's ``noise`` says).
     events : sequence of EventRecord
         Recordings in per unit (each its own operating point; the motor is shared),
         checked by their reader (:func:`loadbayes.fit.composite.api.read`).
@@ -276,6 +277,8 @@ def fit_composite(
         options = _PLAIN
     torque, estimate = options.torque, options.estimate_torque
     likelihood, nu, shares, noise = options.likelihood, options.nu, options.shares, options.noise
+    if not zip_motor:  # a model of parts may carry AR(1) noise (design.py's whitened sums)
+        noise = getattr(model, "noise", noise)
     bounded = shares == "bounded"
     coefficient_prior = dict(options.coefficient_priors)
     # With bounded shares a prior on a share is part of the sampled density (exact and
@@ -366,6 +369,9 @@ def fit_composite(
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},
         settings={
             **common,
+            # The voltages and durations the events span: a prediction beyond them is
+            # said to extrapolate (``loadbayes predict``).
+            "covered": covered(events),
             **sampler_record(run, move, res, dict(seconds), likelihood),
             **robust_settings,
         },

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -30,20 +30,23 @@ import numpy as np
 
 from loadbayes.fit.composite.predict_scope import (
     MEANING,
+    bands,
     covered,
     extrapolation,
     fitted_thresholds,
     left_to_prior,
+    q_excess,
     recovery_time,
     sag_extent,
     static_q_terms,
 )
+from loadbayes.fit.composite.predict_scope import jeffreys as _jeffreys
+from loadbayes.fit.composite.predict_scope import spread as _spread
 from loadbayes.fit.composite.predictive import events_of
-from loadbayes.fit.composite.validate import operating_point
+from loadbayes.fit.composite.validate import noise_precision, operating_point
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, electronics_fraction, motor_d
-from loadbayes.models.parts_predict import predict_parts
+from loadbayes.models.parts_play import play_draws
 from loadbayes.posterior import Posterior
 
 __all__ = ["PRIOR_SOURCE", "Prediction", "load_result", "parse_priors", "predict", "sweep"]
@@ -74,6 +77,9 @@ class Prediction:
     band: dict[str, np.ndarray]
     prob: float
     warnings: list[str] = field(default_factory=list)
+    #: Per draw played and kept: ``index`` (of the pooled draws), the planning outcome
+    #: (``predict_scope.OUTCOME``), ``stalled``, and for a fit of parts its thresholds.
+    outcomes: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     def to_dict(self, *, band: bool = True) -> dict[str, Any]:
         """JSON-ready numbers (``band=False``: the summary without the time series)."""
@@ -83,6 +89,33 @@ class Prediction:
         if band:
             out["band"] = {k: [round(float(x), 7) for x in v] for k, v in self.band.items()}
         return out
+
+    def summary_lines(self) -> list[str]:
+        """What ``loadbayes predict`` prints: fault, stall, trip, thresholds, recovery, words."""
+        f = self.fault
+        out = [f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} below "
+               f"{f['v_pre']:.3g}) for {f['duration_s']:.3g} s; {self.draws['used']} draws"]
+        if self.stall is not None:
+            lo, hi = self.stall["interval"]
+            out.append(f"{self.stall.get('part', 'motor D')} stalls with probability "
+                       f"{self.stall['probability']:.2f} [{lo:.2f}, {hi:.2f}]")  # fmt: skip
+        if self.electronics_tripped is not None:
+            e = self.electronics_tripped
+            out.append(f"electronics tripped: median {e['median']:.2f} "
+                       f"[{e['interval'][0]:.2f}, {e['interval'][1]:.2f}]")  # fmt: skip
+        for name, th in self.thresholds.items():
+            if th.get("played"):
+                lo, hi = th["played"]["interval"]
+                how = "fitted" if th.get("fitted") else "from its prior"
+                out.append(f"{name} played: median {th['played']['median']:.3g} "
+                           f"[{lo:.3g}, {hi:.3g}] ({how})")  # fmt: skip
+        for ch in ("p", "q"):
+            r = self.recovery[ch]
+            med = "never" if r["median"] is None else f"median {r['median']:.3g} s"
+            out.append(f"{ch.upper()} back within 10%: {med}; not within the window in "
+                       f"{r['not_within_window']:.0%} of draws")  # fmt: skip
+        out.append(self.extrapolation["message"])
+        return out + [f"warning: {w}" for w in self.warnings]
 
 
 def load_result(result: str | Path | Posterior) -> Posterior:
@@ -127,35 +160,16 @@ def parse_priors(specs: Sequence[str] | Mapping | None) -> dict[str, tuple[str, 
 
 
 def _model_of(post: Posterior):
+    """The fit's model of parts rebuilt; None for a ``zip+motor`` fit (``predict_zm.py``)."""
     from loadbayes.export.partsload import rebuild_model
 
     name = post.settings.get("model")
+    if name in (None, "zip+motor"):
+        return None
     if name not in _PARTS_MODELS:
-        raise ValueError(f"a {name or 'zip+motor'} fit: predict plays the models of parts "
-                         f"({', '.join(_PARTS_MODELS)}); fit composite --model slm or "
-                         "cmld-lite")  # fmt: skip
+        raise ValueError(f"a {name} fit: predict plays zip+motor, "
+                         f"{', '.join(_PARTS_MODELS)} fits")  # fmt: skip
     return rebuild_model(post.settings)
-
-
-def _jeffreys(k: int, n: int, prob: float) -> list[float]:
-    from scipy.stats import beta
-
-    a = (1 - prob) / 2
-    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
-    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
-    return [lo, hi]
-
-
-def _spread(x: np.ndarray, prob: float) -> dict[str, Any]:
-    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    done = x[np.isfinite(x)]
-    out: dict[str, Any] = {"not_within_window": float(np.mean(~np.isfinite(x))) if x.size else 0.0}
-    if done.size:
-        out |= {"median": float(np.median(done)),
-                "interval": [float(v) for v in np.percentile(done, [lo, hi])]}  # fmt: skip
-    else:
-        out |= {"median": None, "interval": None}
-    return out
 
 
 def predict(
@@ -219,6 +233,11 @@ def predict(
              **ext} | ({"sag": sag, "duration": duration, "recovery": recovery,
                         "angle_deg": angle} if kind == "sag" else {})  # fmt: skip
     cover = covered(events)
+    if model is None:  # a zip+motor fit: no feeder, no motor D, no thresholds
+        from loadbayes.fit.composite.predict_zm import play_zip_motor
+
+        return Prediction(**play_zip_motor(post, event, fault, cover, priors, p0, q0, v0,
+                                           draws, prob, seed))  # fmt: skip
     return _play(post, model, event, fault, cover, priors, p0, q0, v0, draws, prob, seed)
 
 
@@ -244,50 +263,39 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     t = event.t
     ps, qs, cur, noisy_p, noisy_q = [], [], [], [], []
     stalled, tripped, rec_p, rec_q = [], [], [], []
+    kept, excess = [], []
     failed = 0
+    # Every draw's feeder loop solved in compiled calls, in threads (models/parts_play.py;
+    # models/parts_predict.predict_parts is the same arithmetic, one draw in NumPy).
+    shares = np.array([cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else [0.0, 0.0, 1.0]
+                       for i in pick])  # fmt: skip
+    played = play_draws(model, event, theta[pick], p0, q0, shares, th)
     for j, i in enumerate(pick):
-        params = {**model.motor_d_params, "vstall": float(th["vstall"][j]),
-                  "tstall": float(th["tstall"][j])}  # fmt: skip
-        mj = replace(model, motor_d_params=params, vd1=float(th["vd1"][j]),
-                     vd2=float(th["vd2"][j]))  # fmt: skip
-        share = cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else np.array([0.0, 0.0, 1.0])
-        out = predict_parts(mj, event, theta[i], p0, q0, share)  # damped where it must
-        if out is None:
+        if not played.ok[j]:
             failed += 1
             continue
-        mp, mq, _ = out
-        s = mp + 1j * mq
-        current = np.conj(s / v)
+        mp, mq = played.p[j], played.q[j]
         ps.append(mp)
         qs.append(mq)
-        cur.append(np.abs(current))
-        sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
+        cur.append(np.abs(np.conj((mp + 1j * mq) / v)))
+        sp, sq = (1 / math.sqrt(noise_precision(d, ch, i)) for ch in ("p", "q"))
         noisy_p.append(mp + sp * rng.standard_normal(event.n))
         noisy_q.append(mq + sq * rng.standard_normal(event.n))
         rec_p.append(recovery_time(t, mp, fault["t_clear_s"]))
         rec_q.append(recovery_time(t, mq, fault["t_clear_s"]))
-        # The load bus's voltage the parts saw: the recorded one less the feeder's drop.
-        c = mj._split(theta[i])
-        z = complex(mj.rx, 1.0) * mj.feeder_x(p0, q0, c)
-        vl = np.abs(v - z * current)
+        kept.append(j)
+        excess.append(q_excess(t, mq, fault["t_clear_s"]))
+        # Read off the load bus's voltage the parts saw (the recorded one less the drop).
         if model.motor_d:
-            kw = {**MOTOR_D_DEFAULTS, **params}
-            run = motor_d(t, vl, **(kw | {"vstall": -1.0}))[0]
-            stalled.append(bool(np.any(np.abs(motor_d(t, vl, **kw)[0] - run) > 1e-9)))
+            stalled.append(bool(played.stalled[j]))
         if model.electronics:
-            tripped.append(1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1]))
+            tripped.append(float(played.tripped[j]))
     used = len(ps)
     if not used:
         raise ValueError(f"no posterior draw has a steady state at the operating point "
                          f"(P {p0:.4g}, Q {q0:.4g} at {v0:.4g} p.u.)")  # fmt: skip
     lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    band: dict[str, np.ndarray] = {"t_s": t, "v": event.v}
-    for ch, arr in (("p", ps), ("q", qs), ("i", cur)):
-        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
-            np.array(arr), [lo, 50, hi], axis=0)  # fmt: skip
-    for ch, arr in (("p", noisy_p), ("q", noisy_q)):
-        band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
-                                                                     axis=0)  # fmt: skip
+    band = bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
     warnings = list(notes)
     if failed:
         warnings.append(f"{failed} of {pick.size} draws have no steady state or no converged "
@@ -331,6 +339,9 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         coverage=cover, extrapolation=extrapolation(model, fault, cover, priors,
                                     left_to_prior(model, post.draws)), band=band,
         prob=prob, warnings=warnings,
+        outcomes={"index": pick[kept], "q_excess_pu_s": np.array(excess),
+                  "stalled": np.array(stalled if model.motor_d else [False] * used),
+                  **{k: np.asarray(v)[kept] for k, v in th.items()}},
     )  # fmt: skip
 
 

@@ -11,7 +11,9 @@ fitted events span (read from the recordings a fit keeps, ``predictive.events_of
 the depth) from which P or Q stays within 10 % of its pre-fault value.
 :func:`fitted_thresholds` gives each played draw its thresholds (motor D's stall, the
 electronics' trip): the posterior's where the fit sampled them, reweighted for a prior
-the user gives.
+the user gives. :func:`q_excess`
+is the planning outcome (``export --planning`` orders the draws by it); :func:`jeffreys`
+and :func:`spread` summarise the draws' answers.
 """
 
 from __future__ import annotations
@@ -32,14 +34,20 @@ from loadbayes.models.part_priors import THRESHOLD_PRIORS, VD_GAP
 __all__ = [
     "MEANING",
     "MIN_ESS",
-    "fitted_thresholds",
+    "bands",
+    "OUTCOME",
+    "OUTCOME_RULE",
     "covered",
     "extrapolation",
+    "fitted_thresholds",
+    "jeffreys",
     "left_to_prior",
+    "q_excess",
     "read_profile",
     "recovery_time",
     "sag_extent",
     "sag_profile",
+    "spread",
     "static_q_terms",
 ]
 
@@ -47,6 +55,17 @@ __all__ = [
 MEANING = {"vstall": "motor D's stall voltage (p.u.)", "tstall": "motor D's stall time (s)",
            "vd1": "the electronics' voltage where tripping starts (p.u.)",
            "vd2": "the electronics' voltage where all have tripped (p.u.)"}  # fmt: skip
+
+#: The planning outcome of each draw played (``Prediction.outcomes``): how hard the load
+#: pulls on the voltage after the fault, the quantity a planner's ensemble must span.
+OUTCOME = "q_excess_pu_s"
+OUTCOME_RULE = (
+    "the load's reactive energy above its pre-fault Q from the fault's clearing to the "
+    "record's end: the integral of max(Q(t) - Q(0), 0) dt, system p.u. times s. A motor "
+    "that reaccelerates slowly draws it for longer and one that stalls draws its locked "
+    "rotor's Q to the end, so it orders the draws by stall severity (fault-induced "
+    "delayed voltage recovery)"
+)
 
 #: Seconds of steady voltage before a built sag, and after its recovery.
 PRE_S, POST_S = 0.2, 1.5
@@ -246,7 +265,7 @@ def extrapolation(model, fault: dict, cover: dict, priors: Mapping,
         )
     learned = [d for d in reached if d not in decide]
     if learned:
-        words.append("The fitted events determined " + ", ".join(learned) + " ("
+        words.append("The fitted events narrowed " + ", ".join(learned) + " ("
                      + "; ".join(MEANING[d] for d in learned) + "): each draw carries "
                      "the posterior's value.")  # fmt: skip
     absent = [w for w, on in (("motor D (air conditioners that stall)", model.motor_d),
@@ -326,3 +345,53 @@ def fitted_thresholds(model, d, pick, th, priors, left, rng):
     if "vd1" in th and "vd2" in th:
         th["vd2"] = np.minimum(th["vd2"], th["vd1"] - VD_GAP)
     return pick, th, notes
+
+
+def q_excess(t: np.ndarray, q: np.ndarray, t_clear: float) -> float:
+    """:data:`OUTCOME`: the integral of ``max(Q - Q(0), 0)`` from ``t_clear`` to the end."""
+    from scipy.integrate import trapezoid
+
+    after = t >= t_clear
+    if after.sum() < 2:
+        return 0.0
+    return float(trapezoid(np.maximum(q[after] - q[0], 0.0), t[after]))
+
+
+def jeffreys(k: int, n: int, prob: float) -> list[float]:
+    """The Jeffreys interval (``prob``) of a share ``k / n`` (0 and 1 at the ends)."""
+    from scipy.stats import beta
+
+    a = (1 - prob) / 2
+    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
+    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
+    return [lo, hi]
+
+
+def spread(x: np.ndarray, prob: float) -> dict[str, Any]:
+    """Median and central ``prob`` interval of the finite ``x``; the share not finite."""
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    done = x[np.isfinite(x)]
+    out: dict[str, Any] = {"not_within_window": float(np.mean(~np.isfinite(x))) if x.size else 0.0}
+    if done.size:
+        out |= {"median": float(np.median(done)),
+                "interval": [float(v) for v in np.percentile(done, [lo, hi])]}  # fmt: skip
+    else:
+        out |= {"median": None, "interval": None}
+    return out
+
+
+def bands(t: np.ndarray, v: np.ndarray, model: Mapping[str, list], noisy: Mapping[str, list],
+          prob: float) -> dict[str, np.ndarray]:  # fmt: skip
+    """A prediction's bands, from the draws played and the same with the fit's noise.
+
+    Each channel of ``model`` gets ``lo, mid, hi``; each of ``noisy`` ``pred_lo, pred_hi``.
+    """
+    lo, hi = 50 * (1 - prob), 50 * (1 + prob)
+    band: dict[str, np.ndarray] = {"t_s": t, "v": v}
+    for ch, arr in model.items():
+        band[f"{ch}_lo"], band[f"{ch}_mid"], band[f"{ch}_hi"] = np.percentile(
+            np.array(arr), [lo, 50, hi], axis=0)  # fmt: skip
+    for ch, arr in noisy.items():
+        band[f"{ch}_pred_lo"], band[f"{ch}_pred_hi"] = np.percentile(np.array(arr), [lo, hi],
+                                                                     axis=0)  # fmt: skip
+    return band

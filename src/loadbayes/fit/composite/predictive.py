@@ -120,11 +120,16 @@ def predictive_band(
 
 
 def _noise(post: Posterior, ch: str, idx: np.ndarray, shape, rng) -> np.ndarray:
-    # Each used draw's own noise: its precision, and its Student-t nu when sampled.
+    # Each used draw's own noise: its precision (a sample's own, with AR(1) noise), and its
+    # Student-t nu when sampled.
     tau = post.draws.get(f"tau_{ch}")
     if tau is None or idx.size == 0:
         return np.zeros(shape)
-    sd = 1.0 / np.sqrt(tau.reshape(-1)[idx])[:, None]
+    tau = tau.reshape(-1)[idx]
+    rho = post.draws.get(f"rho_{ch}")
+    if rho is not None:  # AR(1): a sample's own variance is the innovations' / (1 - rho^2)
+        tau = tau * (1.0 - rho.reshape(-1)[idx] ** 2)
+    sd = 1.0 / np.sqrt(tau)[:, None]
     nu = post.draws.get(f"nu_{ch}")
     if nu is not None:
         return sd * rng.standard_t(nu.reshape(-1)[idx][:, None], size=shape)

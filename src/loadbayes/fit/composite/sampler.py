@@ -32,7 +32,7 @@ from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.checks import MIN_KEPT
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
-from loadbayes.inference.ar1 import draw_rho
+from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
 from loadbayes.inference.moves import MOVES, BlockState
@@ -255,7 +255,8 @@ class _Gibbs:
             self.late_burn.append(np.array(u, dtype=float))
         if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
             stats = problem.ar_statistics(sums, betas)
-            rho = np.array([draw_rho(stats[g], float(tau[g]), float(rho[g]), rng)[0]
+            top = getattr(problem, "rho_max", RHO_MAX)  # a model of parts' own bound
+            rho = np.array([draw_rho(stats[g], float(tau[g]), float(rho[g]), rng, top)[0]
                             for g in range(2)])  # fmt: skip
             sums = problem.resum(sums, rho)
         if wt is not None:  # (nu, lambda) | u, beta, tau; then tau sees the weighted SSR

@@ -42,11 +42,13 @@ def crossing(depths: Sequence[float], share: Sequence[float], level: float):
 
 
 def stall_depth(depths: Sequence[float], probabilities: Sequence[float | None], *,
-                prob: float = 0.95, duration: float | None = None) -> dict[str, Any]:  # fmt: skip
-    """The sag depth where motor D's stall probability crosses one half, with its interval.
+                prob: float = 0.95, duration: float | None = None,
+                part: str = "motor D") -> dict[str, Any]:  # fmt: skip
+    """The sag depth where a part's stall probability crosses one half, with its interval.
 
     ``depths`` ascending, ``probabilities`` the stall probability at each (None where
-    the model has no motor D). Returns ``{"depth", "interval": [lo, hi], "levels",
+    the model has no part that stalls); ``part`` names what stalls (motor D; a
+    ``zip+motor`` fit's induction motor). Returns ``{"depth", "interval": [lo, hi], "levels",
     "message"}``: ``depth`` the crossing of 0.5, ``interval`` those of ``(1 - prob) / 2``
     and ``(1 + prob) / 2``, each None where the sweep does not cross it; ``message`` says
     it in words (module docstring).
@@ -59,14 +61,14 @@ def stall_depth(depths: Sequence[float], probabilities: Sequence[float | None], 
     levels = [(1.0 - prob) / 2.0, 0.5, (1.0 + prob) / 2.0]
     if any(p is None for p in probabilities):
         return {"depth": None, "interval": [None, None], "levels": levels,
-                "message": "the model has no motor D: nothing stalls"}  # fmt: skip
+                "message": f"the model has no {part}: nothing stalls"}  # fmt: skip
     found = [crossing(x, probabilities, lv) for lv in levels]
     lo, mid, hi = (d for d, _ in found)
     span = f"{x[0]:.3g} to {x[-1]:.3g}"
     of = f" of sags lasting {duration:g} s" if duration is not None else ""
     words = []
     if mid is not None:
-        words.append(f"motor D stalls with probability 0.5 at a sag {mid:.3g} deep{of}")
+        words.append(f"{part} stalls with probability 0.5 at a sag {mid:.3g} deep{of}")
     # One sentence per side: the highest level already reached, the lowest never reached.
     above = [lv for (_, why), lv in zip(found, levels, strict=True) if why == "above"]
     below = [lv for (_, why), lv in zip(found, levels, strict=True) if why == "below"]

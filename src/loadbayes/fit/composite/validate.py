@@ -3,8 +3,9 @@
 Each held-out event's recorded voltage (magnitude and angle) drives the fitted load: every
 posterior draw's motor (``THETA_NAMES``, torque shares) and composition (``f_m``, the ZIP
 shares ``a1..a6`` of event 0) is set at the held-out event's own operating point, and the
-noise of the fit (``tau_p``, ``tau_q``) is added to give the posterior-predictive band of
-P and Q. The recorded P and Q are then scored against it.
+noise of the fit (``tau_p``, ``tau_q``; with AR(1) noise a sample's own precision,
+``tau (1 - rho^2)``) is added to give the posterior-predictive band of P and Q. The
+recorded P and Q are then scored against it.
 
 The operating point is the held-out event's: ``p0, q0`` are the means of its recorded P
 and Q over the steady rows before the voltage first moves (by more than
@@ -37,6 +38,7 @@ __all__ = [
     "read_exclusions",
     "band_scores",
     "gaussian_logl",
+    "noise_precision",
     "pointwise_lpd",
     "validate_event",
     "validate_events",
@@ -116,6 +118,17 @@ def operating_point(event: EventRecord, scored: np.ndarray | None = None) -> tup
     if scored is not None and scored[rows].any():
         rows = rows[scored[rows]]
     return float(np.mean(event.p[rows])), float(np.mean(event.q[rows]))
+
+
+def noise_precision(d: dict, channel: str, i: int) -> float:
+    """Draw ``i``'s precision of one sample's noise: ``tau`` (white) or ``tau (1 - rho^2)``.
+
+    With AR(1) noise ``tau`` is the innovations'; a sample's own (stationary) variance is
+    ``1 / (tau (1 - rho^2))``, which the pointwise band and log-likelihood read.
+    """
+    tau = d[f"tau_{channel}"][i]
+    rho = d.get(f"rho_{channel}")
+    return tau if rho is None else tau * (1.0 - rho[i] ** 2)
 
 
 def _draws(post: Posterior) -> dict[str, np.ndarray]:
@@ -198,9 +211,10 @@ def validate_event(
         mp, mq = zp @ beta, zq @ beta
         means_p.append(mp)
         means_q.append(mq)
-        noisy_p.append(mp + rng.standard_normal(ev.n) / np.sqrt(d["tau_p"][i]))
-        noisy_q.append(mq + rng.standard_normal(ev.n) / np.sqrt(d["tau_q"][i]))
-        logl.append(gaussian_logl(event, mp, mq, d["tau_p"][i], d["tau_q"][i]))
+        tau_p, tau_q = noise_precision(d, "p", i), noise_precision(d, "q", i)
+        noisy_p.append(mp + rng.standard_normal(ev.n) / np.sqrt(tau_p))
+        noisy_q.append(mq + rng.standard_normal(ev.n) / np.sqrt(tau_q))
+        logl.append(gaussian_logl(event, mp, mq, tau_p, tau_q))
     if not means_p:
         raise ValueError(
             f"{event.name or 'the event'}: no posterior draw has a steady state at its first "

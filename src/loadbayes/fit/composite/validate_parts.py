@@ -23,6 +23,7 @@ from loadbayes.fit.composite.validate import (
     EventValidation,
     band_scores,
     gaussian_logl,
+    noise_precision,
     operating_point,
     pointwise_lpd,
 )
@@ -70,12 +71,13 @@ def validate_parts_event(
         if out is None:
             continue
         mp, mq, _ = out
-        sp, sq = 1 / math.sqrt(d["tau_p"][i]), 1 / math.sqrt(d["tau_q"][i])
+        tau_p, tau_q = noise_precision(d, "p", i), noise_precision(d, "q", i)
+        sp, sq = 1 / math.sqrt(tau_p), 1 / math.sqrt(tau_q)
         means_p.append(mp)
         means_q.append(mq)
         noisy_p.append(mp + sp * rng.standard_normal(event.n))
         noisy_q.append(mq + sq * rng.standard_normal(event.n))
-        logl.append(gaussian_logl(event, mp, mq, d["tau_p"][i], d["tau_q"][i]))
+        logl.append(gaussian_logl(event, mp, mq, tau_p, tau_q))
     if not means_p:
         raise ValueError(f"{event.name or 'the event'}: no posterior draw has a steady state at "
                          f"its first voltage ({event.v0:.4g} p.u.)")  # fmt: skip

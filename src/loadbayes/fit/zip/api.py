@@ -166,12 +166,12 @@ def fit_zip(
     """
     spec = spec if spec is not None else DataSpec()
     v_noise = check_v_noise(v_noise, likelihood, scheme)
-    if v_noise is not None and level == "drift":
-        raise OptionError("v_noise and level='drift' are not combined: give one of them")
+    if v_noise == "auto" and level == "drift":
+        raise OptionError("level='drift' takes the instrument's sd as v_noise (0.0005), not 'auto'")
     if sampler is None:
         sampler = (
-            EIV_DEFAULTS if v_noise is not None
-            else DRIFT_DEFAULTS if level == "drift" else MODEL_DEFAULTS
+            DRIFT_DEFAULTS if level == "drift"
+            else EIV_DEFAULTS if v_noise is not None else MODEL_DEFAULTS
         )  # fmt: skip
     check_likelihood(likelihood, scheme)
     _check_level(level)
@@ -262,7 +262,9 @@ def fit_zip_file(
                    likelihood=likelihood)  # fmt: skip
     read = dict(chunk_rows=chunk_rows, progress=progress)
     name = variant_of(likelihood, level, v_noise)
-    if spec.t_col is not None and v_noise is None:
+    if level == "drift" and v_noise == "auto":
+        raise OptionError("level='drift' takes the instrument's sd as v_noise (0.0005), not 'auto'")
+    if spec.t_col is not None and (v_noise is None or level == "drift"):
         if level == "drift":
             # the level's path is the nominal power: nothing to check P0, Q0 against
             nominal = dict(nominal, p0="auto", q0="auto")

@@ -68,12 +68,13 @@ def _student_t(model, cols, rows, t, *, priors, nu, sampler, record, warnings, *
     return post
 
 
-def _drift(model, cols, rows, t, *, likelihood, sampler, record, warnings, **_):
-    """A level that drifts in time (:func:`loadbayes.fit.drift.fit_zip_drift`)."""
+def _drift(model, cols, rows, t, *, likelihood, sampler, record, warnings, v_noise=None, **_):
+    """A level that drifts in time (:func:`loadbayes.fit.drift.fit_zip_drift`), with noise on V."""
     if likelihood != "normal":
         raise OptionError("a drifting level has a Gaussian likelihood only")
     warnings = warnings + model.check(accumulate(model, [cols]))
-    return fit_zip_drift(cols, t, v0=model.v0, sampler=sampler, settings=record, warnings=warnings)
+    return fit_zip_drift(cols, t, v0=model.v0, sampler=sampler, settings=record, warnings=warnings,
+                         v_noise=v_noise)  # fmt: skip
 
 
 def _eiv(model, cols, rows, t, *, v_noise, priors, sampler, record, warnings, **_):
@@ -114,11 +115,11 @@ VARIANTS: dict[str, Variant] = {
 
 
 def variant_of(likelihood: str, level: str, v_noise: Any) -> str:
-    """The variant of a ZIP fit's options: errors in variables, drift, then likelihood."""
-    if v_noise is not None:
-        return "eiv"
+    """The variant of a ZIP fit's options: drift (noise on V or not), errors in variables."""
     if level == "drift":
         return "drift"
+    if v_noise is not None:
+        return "eiv"
     return "student-t" if likelihood == "student-t" else "normal"
 
 

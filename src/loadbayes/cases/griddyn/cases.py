@@ -3,7 +3,9 @@
 GridDyn (LLNL, BSD; ``griddyn`` 0.13.0) needs Python >= 3.13, so it runs in its own
 environment (``make test`` builds ``.venv-griddyn``; ``LOADBAYES_GRIDDYN_PYTHON`` names
 another interpreter) and each case in a child process (``run_case.py``). Nothing here
-imports loadbayes.
+imports the rest of loadbayes (its fits and models): the harness only writes GridDyn's
+input from its own description of the load (``cmld.py``) and reads GridDyn's output
+(``tests/unit/test_layout.py`` checks the imports).
 
 The case: a classical machine (GENCLS, large) behind a line to a fault bus, a second line
 to the measured bus (where a recorder would sit), and there one CMLDBLU1 record in
@@ -33,12 +35,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from cmld import F_HZ, S_BASE_MVA, V_BASE_KV, Cmld, Motor3, MotorD
+
+from loadbayes.cases.griddyn.cmld import F_HZ, S_BASE_MVA, V_BASE_KV, Cmld, Motor3, MotorD
 
 __all__ = ["F_HZ", "S_BASE_MVA", "V_BASE_KV", "Cmld", "Motor3", "MotorD", "run_case"]
 
 HERE = Path(__file__).resolve().parent
-REPO = HERE.parents[1]
+REPO = HERE.parents[3]  # src/loadbayes/cases/griddyn: the checkout (an editable install)
 RUNNER = HERE / "run_case.py"
 
 # Sags at the measured bus. Deep is 46%: in GridDyn 0.13.0 motor D's stall is not

@@ -135,6 +135,7 @@ def _calibrate(spec: dict) -> complex:
 
 
 def main(spec_path: str, out_path: str) -> None:
+    """Run the case ``spec_path`` describes; write ``out_path`` (see the module docstring)."""
     spec = json.loads(Path(spec_path).read_text())
     y_fault = _calibrate(spec)
     rows, start, y_fault = _robust_run(spec, y_fault, spec["t_end_s"])

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from cases import DEPTHS, Cmld, run_case
+
+from loadbayes.cases.griddyn.cases import DEPTHS, Cmld, run_case
 
 
 def griddyn_events(

@@ -1,0 +1,341 @@
+"""Many draws of a model of parts played through one voltage, in compiled calls.
+
+:func:`loadbayes.models.parts_predict.predict_parts` is the readable reference: one
+draw, the feeder's loop ``V_L = V - Z I`` solved by waveform relaxation in NumPy, each
+sweep driving the parts through ``PartsModel.load_columns``. A prediction plays a
+thousand draws, and each takes tens of sweeps: in NumPy the Python around the compiled
+motor integrators cost as much as the integrators. :func:`play_draws` does the same
+arithmetic (the same sweeps, the same stopping rule, the same damped second try) in one
+``numba`` function per draw: the motors through ``motor_kernel``'s integrators (at the
+samples or as window means, across gaps as ``parts_kernel`` does), motor D through
+``parts._motor_d``, the electronics, the static part; then what a prediction reads off
+the converged load bus: whether motor D stalled (its trajectory against one that never
+stalls, as ``fit/composite/predict.py`` decided it) and the electronics' share tripped.
+The draws run in threads (the kernels release the GIL), each draw on its own, so the
+answer does not depend on the number of threads. Complex division is NumPy's (Smith's
+rule, as its ``divide`` loop), so the sweeps see the reference's numbers to rounding:
+``tests/unit/test_parts_play.py`` checks every field against
+``parts_predict.play_reference`` (``predict_parts`` draw by draw) to 1e-8.
+
+The cost is now the motor integrators' (``benchmarks/bench_predict.py``: about 2.5 ms of
+CPU a draw of ``cmld-lite`` through a 1 s record at 240/s, some 28 sweeps of two motors;
+the NumPy loop took twice that). Fewer sweeps (an accelerated or a sample-by-sample
+solve of the loop) would move each answer by up to the loop's tolerance, 1e-7, and is
+not done here: a prediction keeps the numbers it gave.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from loadbayes.core.parallel import num_threads, run_threads
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.motor_kernel import (
+    H_MAX_S,
+    TP_STEPS,
+    integrate_into,
+    integrate_window_into,
+)
+from loadbayes.models.part_priors import MOTOR_CLASSES
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
+
+__all__ = ["Played", "play_draws"]
+
+_D_KEYS = tuple(MOTOR_D_DEFAULTS)
+_VSTALL, _TSTALL = _D_KEYS.index("vstall"), _D_KEYS.index("tstall")
+
+
+@dataclass(frozen=True)
+class Played:
+    """What :func:`play_draws` returns, one row per draw (rows of failed draws are NaN).
+
+    ``p, q``: the recorded bus's P, Q; ``vl``: the load bus's ``|V_L|``; ``ok``: the loop
+    converged (False where a motor has no steady state or the sweeps do not settle);
+    ``stalled``: motor D stalled; ``tripped``: the electronics' share tripped at the
+    end; ``iterations``: the sweeps of the try that converged.
+    """
+
+    p: NDArray[np.float64]
+    q: NDArray[np.float64]
+    vl: NDArray[np.float64]
+    ok: NDArray[np.bool_]
+    stalled: NDArray[np.bool_]
+    tripped: NDArray[np.float64]
+    iterations: NDArray[np.int64]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cdiv(a, b):  # pragma: no cover - compiled
+    # NumPy's complex division (its divide loop, Smith's rule): the reference's rounding.
+    br, bi = b.real, b.imag
+    if abs(br) >= abs(bi):
+        if br == 0.0 and bi == 0.0:
+            return complex(a.real / abs(br), a.imag / abs(br))
+        rat = bi / br
+        scl = 1.0 / (br + bi * rat)
+        return complex((a.real + a.imag * rat) * scl, (a.imag - a.real * rat) * scl)
+    rat = br / bi
+    scl = 1.0 / (bi + br * rat)
+    return complex((a.real * rat + a.imag) * scl, (a.imag * rat - a.real) * scl)
+
+
+@numba.njit(cache=True, nogil=True)
+def _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on, vd1, vd2,
+             frcel, col_p, col_qp, pm, qm, states):  # pragma: no cover - compiled  # fmt: skip
+    # PartsModel.load_columns at the load bus (vm, dl: |V_L| and its angle from the first
+    # sample): P's column on p0 and Q's; False where a motor has no steady state.
+    n = t.size
+    v0 = vm[0]
+    f_s = shares[shares.size - 1]
+    for k in range(n):
+        xl = vm[k] / v0
+        col_p[k] = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
+        col_qp[k] = 0.0
+    n_gap = 0
+    if window_s > 0.0:
+        for k in range(n - 1):
+            if gap[k]:
+                n_gap += 1
+    ta = np.empty(n + 2 * n_gap)
+    va = np.empty(n + 2 * n_gap)
+    da = np.empty(n + 2 * n_gap)
+    real = np.empty(n, dtype=np.int64)
+    pos = 0
+    for k in range(n):  # parts.step_knots: the voltage steps in each gap
+        real[k] = pos
+        ta[pos], va[pos], da[pos] = t[k], vm[k], dl[k]
+        pos += 1
+        if n_gap > 0 and k + 1 < n and gap[k]:
+            mid = steps[k] if math.isfinite(steps[k]) else 0.5 * (t[k] + t[k + 1])
+            ta[pos], va[pos], da[pos] = mid - 1e-6, vm[k], dl[k]
+            ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
+            pos += 2
+    for j in range(motors.shape[0]):
+        m = motors[j]
+        if window_s > 0.0:
+            ok = integrate_window_into(ta, va, da, real, window_s, m[0], m[1], m[2], m[3],
+                                       m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
+                                       qm)  # fmt: skip
+        else:
+            ok = integrate_into(t, vm, dl, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
+                                m[8], m[9], m[10], pm, qm, states)  # fmt: skip
+        if not ok:
+            return False
+        fj = shares[j]
+        for k in range(n):
+            xl = vm[k] / v0
+            col_p[k] += fj * pm[k] / pm[0]
+            col_qp[k] += fj * (qm[k] - qm[0] * xl * xl) / pm[0]
+    j = motors.shape[0]
+    if d_on:
+        pd, qd = _motor_d(t, vm, dp[0], dp[1], dp[2], dp[3], dp[4], dp[5], dp[6], dp[7],
+                          dp[8], dp[9], dp[10], dp[11], dp[12], dp[13], dp[14], dp[15],
+                          dp[16])  # fmt: skip
+        fj = shares[j]
+        for k in range(n):
+            xl = vm[k] / v0
+            col_p[k] += fj * pd[k] / pd[0]
+            col_qp[k] += fj * (qd[k] - qd[0] * xl * xl) / pd[0]
+        j += 1
+    if el_on:
+        fj = shares[j]
+        low = 1.0
+        for k in range(n):
+            ramp = min(max((vm[k] - vd2) / (vd1 - vd2), 0.0), 1.0)
+            low = min(low, ramp)
+            col_p[k] += fj * (low + frcel * (ramp - low))
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
+           dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo):  # pragma: no cover  # fmt: skip
+    # One try of parts_predict.predict_parts' loop: the sweeps it took, -1 where a motor
+    # has no steady state or the loop leaves the finite numbers, 0 where it does not settle.
+    n = t.size
+    i0 = _cdiv(s0, v[0]).conjugate()
+    vl0 = v[0] - z * i0
+    s_l0 = s0 - z * abs(i0) ** 2  # the load bus's S before the event
+    vl = np.empty(n, dtype=np.complex128)
+    cur = np.empty(n, dtype=np.complex128)
+    for k in range(n):
+        vl[k] = v[k] - z * i0
+    vm, dl = np.empty(n), np.zeros(n)
+    col_p, col_qp, pm, qm = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    states = np.empty((3, n))
+    m_vl0 = abs(vl0)
+    for it in range(1, max_it + 1):
+        for k in range(n):
+            vm[k] = abs(vl[k])
+        if has_angle:
+            first = math.atan2(vl[0].imag, vl[0].real)
+            for k in range(n):
+                dl[k] = math.atan2(vl[k].imag, vl[k].real) - first
+        if not _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on,
+                        vd1, vd2, frcel, col_p, col_qp, pm, qm, states):  # fmt: skip
+            return -1
+        moved = 0.0
+        bad = False
+        for k in range(n):
+            xl = vm[k] / m_vl0
+            p_l = s_l0.real * col_p[k]
+            q_l = s_l0.real * col_qp[k] + s_l0.imag * (q_sh[0] * xl * xl + q_sh[1] * xl + q_sh[2])
+            cur[k] = _cdiv(complex(p_l, q_l), vl[k]).conjugate()
+            new = v[k] - z * cur[k]
+            d = abs(new - vl[k])
+            if not math.isfinite(d):
+                bad = True
+            elif d > moved:
+                moved = d
+            vl[k] = new if damp <= 0.0 else vl[k] + damp * (new - vl[k])
+        if not bad and moved < tol:  # the fixed point: what the load draws drove it
+            for k in range(n):
+                s = v[k] * cur[k].conjugate()
+                po[k], qo[k] = s.real, s.imag
+            return it
+        if bad:
+            return -1
+    return 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
+                a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
+                its):  # pragma: no cover - compiled  # fmt: skip
+    # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
+    # for up to 200 where they do not settle), then its stall and the electronics' trip
+    # read off |V_L| at every sample, as fit/composite/predict.py read them.
+    n = t.size
+    never = dp[0].copy()
+    vl = np.empty(n)
+    for i in range(first, shares.shape[0], every):
+        got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
+                     shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
+                     0.0, p[i], q[i])  # fmt: skip
+        if got == 0:
+            got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
+                         shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol,
+                         200, 0.5, p[i], q[i])  # fmt: skip
+        its[i] = got
+        if got <= 0:
+            ok[i] = False
+            p[i, :] = math.nan
+            q[i, :] = math.nan
+            vl_out[i, :] = math.nan
+            continue
+        ok[i] = True
+        for k in range(n):
+            cur = _cdiv(complex(p[i, k], q[i, k]), v[k]).conjugate()
+            vl[k] = abs(v[k] - z[i] * cur)
+            vl_out[i, k] = vl[k]
+        if d_on:
+            never[:] = dp[i]
+            never[_VSTALL] = -1.0
+            ps = _motor_d_of(t, vl, dp[i])
+            pn = _motor_d_of(t, vl, never)
+            for k in range(n):
+                if abs(ps[k] - pn[k]) > 1e-9:
+                    stalled[i] = True
+                    break
+        if el_on:
+            low = 1.0
+            ramp = 1.0
+            for k in range(n):
+                ramp = min(max((vl[k] - vd2[i]) / (vd1[i] - vd2[i]), 0.0), 1.0)
+                low = min(low, ramp)
+            tripped[i] = 1.0 - (low + frcel * (ramp - low))
+
+
+@numba.njit(cache=True, nogil=True)
+def _motor_d_of(t, v, x):  # pragma: no cover - compiled
+    # Motor D's P with its 17 constants in MOTOR_D_DEFAULTS' order.
+    return _motor_d(t, v, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10],
+                    x[11], x[12], x[13], x[14], x[15], x[16])[0]  # fmt: skip
+
+
+def play_draws(
+    model,
+    event: EventRecord,
+    thetas: NDArray,
+    p0: float,
+    q0: float,
+    q_shares: NDArray,
+    thresholds: Mapping[str, NDArray] | None = None,
+    *,
+    tol: float = 1e-7,
+    threads: int | None = None,
+) -> Played:
+    """Each draw's P, Q at the recorded bus through ``event``'s voltage (see the docstring).
+
+    Parameters
+    ----------
+    model : PartsModel
+    event : EventRecord
+        The recorded bus's voltage (and angle); its P, Q are not read.
+    thetas : ndarray, shape (n, k)
+        Draws of the model's ``theta_names``.
+    p0, q0 : float
+        The recorded bus's P and Q before the event (the operating point).
+    q_shares : ndarray, shape (n, 3)
+        Each draw's static Q split among ``x^2, x, 1``.
+    thresholds : mapping of name to ndarray (n,), optional
+        Each draw's ``vstall, tstall`` (motor D) and ``vd1, vd2`` (electronics); a name
+        left out is the model's own value for every draw.
+    threads : int, optional
+        Threads to run the draws on (default ``core.parallel.num_threads()``).
+
+    Returns
+    -------
+    Played
+        ``p, q, vl`` shaped (n, T) at the kept rows (``model.kept``: all of them without a
+        phasor window), the rest (n,).
+    """
+    th = np.atleast_2d(np.asarray(thetas, dtype=float))
+    n = th.shape[0]
+    c = model._split(th)
+    keep, steps = model.drive_of(event)
+    ev = event.take(keep) if keep.size < event.n else event
+    wb = 2.0 * math.pi * model.f_hz
+    motors = np.empty((n, len(model.motors), 11))
+    for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
+        a, b, cc = MOTOR_CLASSES[m]["torque"]
+        rs, xp, dx, tp, h, t0 = np.exp(logs).T
+        motors[:, j] = np.column_stack([rs, xp, dx, tp, h, np.full(n, wb), t0, np.full(n, a),
+                                        np.full(n, b), np.full(n, cc),
+                                        np.minimum(H_MAX_S, tp / TP_STEPS)])  # fmt: skip
+    x_fd = c["x_fd"] / float(np.hypot(p0, q0)) if model.feeder else np.zeros(n)
+    z = complex(model.rx, 1.0) * x_fd
+    base = {**MOTOR_D_DEFAULTS, **model.motor_d_params}
+    dp = np.tile(np.array([float(base[k]) for k in _D_KEYS]), (n, 1))
+    # A model that samples its thresholds carries them in theta; those given win.
+    given = {k: np.broadcast_to(c[k], (n,)) for k in model.thresholds} | dict(thresholds or {})
+    for key, col in (("vstall", _VSTALL), ("tstall", _TSTALL)):
+        if key in given:
+            dp[:, col] = np.broadcast_to(np.asarray(given[key], dtype=float), (n,))
+    vd1 = np.broadcast_to(np.asarray(given.get("vd1", model.vd1), dtype=float), (n,)).copy()
+    vd2 = np.broadcast_to(np.asarray(given.get("vd2", model.vd2), dtype=float), (n,)).copy()
+
+    v = ev.v * np.exp(1j * (0 if ev.delta is None else ev.delta - ev.delta[0]))
+    gap = gaps_of(ev.t, steps)
+    p, q, vl = np.empty((n, ev.n)), np.empty((n, ev.n)), np.empty((n, ev.n))
+    ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
+    tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
+    args = (np.ascontiguousarray(ev.t, dtype=float), np.ascontiguousarray(v),
+            ev.delta is not None, gap, np.ascontiguousarray(steps, dtype=float),
+            float(model.window_s), np.ascontiguousarray(z, dtype=complex), complex(p0, q0),
+            np.ascontiguousarray(q_shares, dtype=float), motors,
+            np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
+            dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
+            stalled, tripped, its)  # fmt: skip
+    k = max(1, min(threads or num_threads(), n))
+    run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
+    tripped[~ok] = np.nan
+    if not model.electronics:
+        tripped[:] = np.nan
+    return Played(p, q, vl, ok, stalled, tripped, its)

@@ -1,0 +1,103 @@
+"""The compiled play of many draws equals ``predict_parts``, draw for draw.
+
+``models/parts_play.play_draws`` solves each draw's feeder loop in one compiled call;
+``models/parts_predict.play_reference`` is the NumPy reference (``predict_parts`` draw
+by draw, then the stall and the trip read as ``fit/composite/predict.py`` read them
+before). On random draws around the models' priors (``slm`` and ``cmld-lite``) and
+faults built here (a shallow sag, a deep one that stalls motor D and trips the
+electronics, one with a phase jump and a recovery ramp, a profile without an angle,
+window means), every draw's P, Q at the recorded bus, the load bus's |V_L|, the sweeps
+the loop took, whether it converged, whether motor D stalled (its trajectory against one
+that never stalls) and the share of the electronics tripped must agree with the
+reference, P, Q and |V_L| to 1e-8 p.u. Deterministic (fixed seeds); each case also
+asserts it saw what it is about (stalls, trips, a draw with no steady state planted), so
+a vacuous pass fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loadbayes.measurements.record import EventRecord
+from loadbayes.models.dynamic import dynamic_model
+from loadbayes.models.parts_play import play_draws
+from loadbayes.models.parts_predict import play_reference
+
+P0, Q0 = 0.9, 0.3
+
+
+def _fault(depth, *, angle_deg=0.0, recovery=0.0, rate=120.0, end=0.8, with_angle=True):
+    # A sag at 0.1 s for 0.1 s, written here (not predict_scope.sag_profile).
+    t = np.arange(0.0, end, 1.0 / rate)
+    share = np.where((t >= 0.1) & (t < 0.2), 1.0, 0.0)
+    if recovery > 0:
+        ramp = (t >= 0.2) & (t < 0.2 + recovery)
+        share[ramp] = 1.0 - (t[ramp] - 0.2) / recovery
+    zeros = np.zeros(t.size)
+    delta = np.radians(angle_deg) * share if with_angle else None
+    return EventRecord(t, 1.0 - depth * share, zeros, zeros, delta, f"sag {depth}")
+
+
+def _draws(model, n, seed):
+    # Draws around the model's prior (its scale-free Gaussian, shrunk), shares included.
+    t = np.linspace(0, 0.5, 31)
+    ev = EventRecord(t, np.ones(t.size), np.full(t.size, P0), np.full(t.size, Q0))
+    mean, cov, _, _ = model.default_prior([ev]).scale_free()
+    rng = np.random.default_rng(seed)
+    theta = rng.multivariate_normal(mean, 0.1 * cov, size=n)
+    q_sh = rng.dirichlet([2.0, 2.0, 2.0], size=n) * rng.choice([1.0, -0.5], size=(n, 1))
+    q_sh /= q_sh.sum(-1, keepdims=True)
+    th = {"vstall": rng.uniform(0.45, 0.75, n), "tstall": rng.uniform(0.0, 0.2, n),
+          "vd1": rng.uniform(0.6, 0.85, n)}  # fmt: skip
+    th["vd2"] = th["vd1"] - rng.uniform(0.05, 0.4, n)
+    return theta, q_sh, th
+
+
+CASES = [  # model, window, fault, draws, seed
+    ("slm", 0.0, dict(depth=0.45), 12, 1),
+    ("slm", 0.0, dict(depth=0.6, angle_deg=-25.0, recovery=0.15), 12, 2),
+    ("slm", 1 / 60, dict(depth=0.3, with_angle=False), 8, 3),
+    ("cmld-lite", 0.0, dict(depth=0.15), 12, 4),
+    ("cmld-lite", 0.0, dict(depth=0.4), 16, 5),
+    ("cmld-lite", 0.0, dict(depth=0.4, angle_deg=20.0, recovery=0.1), 16, 6),
+    ("cmld-lite", 1 / 60, dict(depth=0.3, with_angle=False), 12, 7),
+]
+
+
+@pytest.mark.parametrize(("name", "window", "fault", "n", "seed"), CASES)
+def test_the_compiled_play_is_predict_parts(name, window, fault, n, seed):
+    model = dynamic_model(name, f_hz=60.0, window_s=window)
+    event = _fault(**fault)
+    theta, q_sh, th = _draws(model, n, seed)
+    # A draw whose motor cannot run at the voltage (load torque far past breakdown): both
+    # paths must refuse it.
+    theta[0, model.theta_names.index("log_x_prime_t0" + model._tags[0])] += 3.0
+    got = play_draws(model, event, theta, P0, Q0, q_sh, th)
+    ref = play_reference(model, event, theta, P0, Q0, q_sh, th)
+    np.testing.assert_array_equal(got.ok, ref.ok)
+    np.testing.assert_array_equal(got.iterations[ref.ok], ref.iterations[ref.ok])
+    for a, b in ((got.p, ref.p), (got.q, ref.q), (got.vl, ref.vl), (got.tripped, ref.tripped)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-8)  # NaN where failed, in both
+    np.testing.assert_array_equal(got.stalled, ref.stalled)
+    seen = {"ok": int(ref.ok.sum()), "failed": int((~ref.ok).sum()),
+            "stalled": int(ref.stalled[ref.ok].sum()), "running": int((~ref.stalled[ref.ok]).sum()),
+            "tripped": int(np.sum(ref.tripped[ref.ok] > 0.01))}  # fmt: skip
+    assert seen["failed"] >= 1 and seen["ok"] >= n // 2, seen
+    if model.motor_d and fault["depth"] >= 0.4:  # deep: some draws stall, some ride through
+        assert seen["stalled"] >= 1 and seen["running"] >= 1, seen
+        assert seen["tripped"] >= 1, seen
+    if model.motor_d and fault["depth"] < 0.2:  # shallow: above every stall voltage drawn
+        assert seen["stalled"] == 0, seen
+
+
+def test_the_answer_does_not_depend_on_the_threads():
+    model = dynamic_model("cmld-lite", f_hz=60.0)
+    event = _fault(0.4, angle_deg=10.0)
+    theta, q_sh, th = _draws(model, 9, 8)
+    one = play_draws(model, event, theta, P0, Q0, q_sh, th, threads=1)
+    three = play_draws(model, event, theta, P0, Q0, q_sh, th, threads=3)
+    for a, b in zip((one.p, one.q, one.vl, one.ok, one.stalled, one.tripped, one.iterations),
+                    (three.p, three.q, three.vl, three.ok, three.stalled, three.tripped,
+                     three.iterations), strict=True):  # fmt: skip
+        np.testing.assert_array_equal(a, b)
