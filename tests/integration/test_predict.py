@@ -100,10 +100,18 @@ def test_a_sweep_gives_one_answer_per_depth(fitted, tmp_path):
     r = _run("predict", fitted, "--sweep", "0.1:0.5:0.2", "--duration", 0.1, "--draws", 20,
              "--json", out, "--plot", tmp_path / "s.png")  # fmt: skip
     assert r.exit_code == 0, r.output
-    sweep = json.loads(out.read_text())["sweep"]
+    doc = json.loads(out.read_text())
+    sweep = doc["sweep"]
     assert [s["depth"] for s in sweep] == [0.1, 0.3, 0.5]
     stall = [s["stall"]["probability"] for s in sweep]
     assert stall[0] == 0.0 and stall[-1] > stall[0]
+    # The planner's summary: the crossings of 0.025, 0.5, 0.975 (stall_depth's own
+    # numbers are tested by hand in tests/unit/test_stall_depth.py), in words on stdout.
+    sd = doc["stall_depth"]
+    assert set(sd) == {"depth", "interval", "levels", "message"}
+    assert sd["levels"] == pytest.approx([0.025, 0.5, 0.975])
+    assert sd["interval"][0] is None or 0.1 < sd["interval"][0] <= 0.5
+    assert sd["message"] in r.output
 
 
 @pytest.mark.parametrize(

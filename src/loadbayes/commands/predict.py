@@ -81,6 +81,7 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
         raise UserError("--sweep needs --duration S (the seconds each sag lasts)")
 
     from loadbayes.fit.composite.predict import predict, sweep
+    from loadbayes.fit.composite.stall_depth import stall_depth
     from loadbayes.io.transaction import OutputSet
 
     kw = {"draws": draws, "prior": list(prior), "prob": prob, "seed": seed}
@@ -92,6 +93,13 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
             "sweep": [
                 {"depth": d, **p.to_dict(band=False)} for d, p in zip(depths, preds, strict=True)
             ],
+            "stall_depth": stall_depth(
+                depths,
+                [p.stall and p.stall["probability"] for p in preds],
+                prob=prob,
+                duration=duration,
+                part=(preds[0].stall or {}).get("part", "motor D"),
+            ),
         }
     else:
         pred = predict(result, sag=sag, duration=duration, recovery=recovery, angle=angle,
@@ -121,6 +129,7 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
                                                  f"{p.stall['interval'][1]:.2f}]")  # fmt: skip
                 flag = " extrapolated" if p.extrapolation["extrapolated"] else ""
                 click.echo(f"depth {d:.3g}: {st}{flag}")
+            click.echo(doc["stall_depth"]["message"])
             click.echo(preds[-1].extrapolation["message"])
         else:
             for line in pred.summary_lines():

@@ -38,6 +38,7 @@ from loadbayes.fit.composite.predict_scope import (
     q_excess,
     recovery_time,
     sag_extent,
+    static_q_terms,
 )
 from loadbayes.fit.composite.predict_scope import jeffreys as _jeffreys
 from loadbayes.fit.composite.predict_scope import spread as _spread
@@ -257,7 +258,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     pick, th, notes = fitted_thresholds(model, d, pick, th, priors, left_to_prior(model, d),
                                         rng)  # fmt: skip
     theta = np.stack([d[n] for n in model.theta_names], -1)
-    cq = np.stack([d["cq2"], d["cq1"], d["cq0"]], -1)
+    cq, _ = static_q_terms(d, cover)  # the deepest fitted event's: the least extrapolated
     v = event.v * np.exp(1j * (0 if event.delta is None else event.delta - event.delta[0]))
     t = event.t
     ps, qs, cur, noisy_p, noisy_q = [], [], [], [], []

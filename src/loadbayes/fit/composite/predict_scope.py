@@ -48,6 +48,7 @@ __all__ = [
     "sag_extent",
     "sag_profile",
     "spread",
+    "static_q_terms",
 ]
 
 #: What each threshold is (the thresholds of ``part_priors.THRESHOLD_PRIORS``).
@@ -167,6 +168,26 @@ def covered(events: Sequence[EventRecord]) -> dict:
         "depth_max": max(e["depth"] for e in each),
         "duration_max_s": max(e["duration_s"] for e in each),
     }
+
+
+def static_q_terms(draws: Mapping[str, np.ndarray], cover: dict) -> tuple[np.ndarray, str]:
+    """The static Q's terms ``(cq2, cq1, cq0)`` per draw, of the fitted event that went lowest.
+
+    A fit estimates them for each event (``cq2`` for event 0, ``cq2_e1``... for the
+    others); over a shallow event their split among x^2, x and 1 is barely determined,
+    and played through a deeper fault it extrapolates (measured: a 15 % sag's terms gave
+    Q -0.48 p.u. at a 38 % sag where the load drew +0.31, which lifted the load bus above
+    the recorded one and hid motor D's stall). The event that reached the lowest voltage
+    spans the widest range of it. Returns ``(terms (n, 3), its event's name)``.
+    """
+    each = cover.get("events") or []
+    k = int(np.argmin([e["v_min"] for e in each])) if each else 0
+    sfx = f"_e{k}" if k else ""
+    if f"cq2{sfx}" not in draws:  # a posterior thinned to event 0's names
+        sfx, k = "", 0
+    terms = np.stack([np.asarray(draws[n + sfx], dtype=float).reshape(-1)
+                      for n in ("cq2", "cq1", "cq0")], -1)  # fmt: skip
+    return terms, (each[k]["event"] if each else "event 0")
 
 
 def recovery_time(t: np.ndarray, x: np.ndarray, t_clear: float, share: float = 0.1) -> float:
