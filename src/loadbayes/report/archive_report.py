@@ -244,7 +244,9 @@ def archive_report(
                 sec.add(table_html(["unit", "unit", "P(alike)", "largest gap (median)",
                                     "verdict"], rows, text_cols=(0, 1, 4),
                                    caption=f"{part.part}: which bays are alike"))  # fmt: skip
-        left = [f"{k}: {v}" for k, v in res.left_out.items() if v]
+        # the pool's "fit failed" counts every share fits_frame did not mark ok
+        said = {"fit failed": "unconverged or unphysical (fits_frame's status)"}
+        left = [f"{said.get(k, k)}: {v}" for k, v in res.left_out.items() if v]
         if n_fit_bad:
             left.append(f"no fit (it failed; see below): {n_fit_bad}")
         sec.text(f"Events left out of the pool: {', '.join(left) or 'none'}.")
