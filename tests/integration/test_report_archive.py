@@ -136,3 +136,15 @@ def test_bad_options_and_files_are_one_line_errors(catalog, tmp_path):
     r = runner.invoke(main, ["report", str(not_db), "--out", out])
     assert r.exit_code == 2 and "not a loadbayes archive catalog" in r.output, r.output
     assert not (tmp_path / "x.html").exists()
+
+
+def test_example_archive_takes_its_size_and_the_others_refuse_it(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "small"
+    r = runner.invoke(main, ["example", "archive", str(out), "--records", "2", "--bays", "1"])
+    assert r.exit_code == 0, r.output
+    truth = pd.read_csv(out / "truth.csv")
+    assert len(truth) == 6 and truth.groupby("station")["bay"].nunique().max() == 1
+    assert len(list(out.glob("*.cfg"))) == 6 + 2  # 3 stations x 2 records, 2 broken
+    r = runner.invoke(main, ["example", "zip", "--records", "2"])
+    assert r.exit_code == 2 and "--records and --bays are for the archive example" in r.output

@@ -119,6 +119,8 @@ def example_cmd(name, folder, out, records, bays, force):
     """  # noqa: D301 (click's \b keeps the table's line breaks)
     from loadbayes.commands.output import UserError
 
+    if name != "archive" and (records != 50 or bays != 2):
+        raise UserError(f"--records and --bays are for the archive example, not {name}")
     if folder is not None:
         if out is not None:
             raise UserError(f"give the folder once: {folder} or --out {out}")
@@ -140,8 +142,6 @@ def example_cmd(name, folder, out, records, bays, force):
         return
     if out is None:
         raise UserError(f"example {name} writes several files: give the folder with --out DIR")
-    if name != "archive" and (records != 50 or bays != 2):
-        raise UserError(f"--records and --bays are for the archive example, not {name}")
     if name == "archive":
         from loadbayes.cases.archive_example import archive_files
 
