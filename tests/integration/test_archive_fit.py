@@ -137,3 +137,38 @@ def test_the_real_record_goes_through_archive_scan_and_fit(tmp_path):
     # The fault and the reclose 1.1 s later, on the recorder's clock.
     assert list(frame["time"].dt.strftime("%Y-%m-%d %H:%M:%S")) == [
         "2023-05-12 19:45:25", "2023-05-12 19:45:26"]  # fmt: skip
+
+
+def test_a_worker_killed_on_a_local_cluster_loses_no_event(scanned, tmp_path):
+    # Issue 38: a worker killed in the middle of a run loses no event. After the first
+    # result the worker still fitting the other event is killed (os._exit); Dask re-runs
+    # its task on the worker that is left (or the one the nanny restarts), and the
+    # catalog ends with every event fitted once, the same bits as in one process.
+    distributed = pytest.importorskip("dask.distributed")
+    import os
+
+    here = _copy(scanned, tmp_path / "one")
+    fit(here, **RUN)
+    there = _copy(scanned, tmp_path / "two")
+    killed: list[str] = []
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                 dashboard_address=None) as cluster,
+        distributed.Client(cluster) as client,
+    ):  # fmt: skip
+
+        def kill_busy(result, done, failed, left):
+            busy = [w for w, keys in client.processing().items() if keys]
+            if left and busy and not killed:
+                killed.append(busy[0])
+                try:  # the worker dies mid-call: the call itself may fail
+                    client.run(os._exit, 1, workers=[busy[0]], wait=False)
+                except Exception:  # noqa: BLE001
+                    pass
+
+        run = fit(there, client=client, progress=kill_busy, **RUN)
+    assert killed, "no worker was busy when the first result came back"
+    assert (run.done, run.failed) == (2, 0)
+    fits = _fits(there)
+    assert len(fits) == 2 and set(fits["status"]) == {"done"}
+    pd.testing.assert_frame_equal(_params(here), _params(there))

@@ -6,7 +6,8 @@ standing for ``sys.executable -m loadbayes`` (PYTHONPATH from the environment), 
 line that exits with a code other than 0 fails the test, named with its stderr.
 
 The fast test runs every line but those of :data:`SLOW` (the composite fit and the
-exports that read it, the motor fit, the ANDES simulation), which the statistical tier
+exports that read it, the motor fit, the ANDES simulation, the example archive's scan,
+fit, pool and report), which the statistical tier
 runs after the ``loadbayes example`` lines that write their inputs; a static check sees
 that no two lines write the same file (which would stop a run of the whole block in one
 folder). Measured on the shared 2-core machine at a load average of 6 to 11: 200 s for
@@ -33,6 +34,8 @@ SLOW = (
     "loadbayes simulate im",
     "loadbayes simulate andes",
     "loadbayes playback",
+    "loadbayes archive",  # scan, fit and pool of the example archive (9 fits)
+    "loadbayes report archive.db",
 )
 
 
@@ -66,7 +69,7 @@ def test_usage_block_is_found():
     lines = usage_lines(README.read_text(encoding="utf-8"))
     assert lines[0].startswith("loadbayes example zip > bus.csv")
     # Every kind of example the README's lines read is written by an earlier line.
-    for kind in ("zip", "day", "composite", "fleet", "comtrade", "pmu"):
+    for kind in ("zip", "day", "composite", "fleet", "comtrade", "pmu", "archive"):
         assert any(line.startswith(f"loadbayes example {kind}") for line in lines), kind
     assert all("\\" not in line for line in lines)
 
@@ -97,7 +100,7 @@ def test_readme_usage_runs_slow_lines(tmp_path):
     lines = usage_lines(README.read_text(encoding="utf-8"))
     run_lines([ln for ln in lines if ln.startswith(SLOW + ("loadbayes example",))], tmp_path)
     for name in ("comp.json", "load.json", "load.raw", "case.xlsx", "im.json", "ev.csv",
-                 "playback.png"):  # fmt: skip
+                 "playback.png", "archive.db", "pool.json", "archive.html"):  # fmt: skip
         assert (tmp_path / name).exists(), name
 
 

@@ -157,3 +157,8 @@ def test_reproduce_all_quick_through_the_cli(tmp_path):
         assert "deeper than any fitted event (the deepest 1" in planning
         assert "decided by the priors of vstall" in planning
     assert "Against the simulator" in planning or "GridDyn" in planning
+    # The archive section: a year of 3 stations against the truth, the broken files listed.
+    archive = report[report.index('<section id="archive">'):]
+    archive = archive[: archive.index("</section>")]
+    assert "station-months" in archive and "no_data.cfg" in archive
+    assert "broken_counts.cfg" in archive

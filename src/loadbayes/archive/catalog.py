@@ -36,11 +36,13 @@ __all__ = [
     "SCHEMA",
     "SCHEMA_VERSION",
     "connect",
+    "events_frame",
     "failures_frame",
     "fits_frame",
     "insert_file",
     "record_fit",
     "results_folder",
+    "units_frame",
 ]
 
 SCHEMA_VERSION = "1"
@@ -269,3 +271,52 @@ def failures_frame(db_path: str | os.PathLike[str]):
     """
     with connect(db_path) as conn:
         return pd.read_sql_query(sql, conn)
+
+
+_UNITS_SQL = """
+SELECT f.station, b.bay, b.kind, b.status,
+       COUNT(DISTINCT f.file_id) AS files,
+       COUNT(e.event_id) AS events,
+       COALESCE(SUM(e.usable), 0) AS usable,
+       COALESCE(SUM(x.done), 0) AS fitted,
+       COALESCE(SUM(x.bad AND NOT x.done), 0) AS fit_failed,
+       SUM(e.event_id IS NULL AND b.status = 'ok') AS no_event_files
+FROM bays b JOIN files f USING (file_id)
+LEFT JOIN events e USING (bay_id)
+LEFT JOIN (SELECT event_id, MAX(status = 'done') AS done,
+                  MAX(status IN ('failed', 'error')) AS bad
+           FROM fits GROUP BY event_id) x ON x.event_id = e.event_id
+GROUP BY f.station, b.bay, b.kind, b.status
+ORDER BY f.station, b.bay, b.status
+"""
+
+
+def units_frame(db_path: str | os.PathLike[str]):
+    """One row per station, bay and bay status: files, events found, usable, fitted.
+
+    Columns ``station, bay, kind, status`` (``ok``, ``skipped``, ``broken``), ``files``,
+    ``events``, ``usable``, ``fitted`` (events with a fit ``done``, by any model),
+    ``fit_failed`` (events with only ``failed`` or ``error`` fits) and
+    ``no_event_files`` (files read whose bay had no dip).
+    """
+    import pandas as pd
+
+    with connect(db_path) as conn:
+        return pd.read_sql_query(_UNITS_SQL, conn)
+
+
+def events_frame(db_path: str | os.PathLike[str]):
+    """One row per event found, usable or not.
+
+    Columns ``station, bay, kind, event_id, time`` (datetime64), ``depth, duration_s,
+    usable, reason`` and ``path`` (its record's ``.cfg``).
+    """
+    import pandas as pd
+
+    sql = """SELECT e.station, e.bay, e.kind, e.event_id, e.time, e.depth, e.duration_s,
+             e.usable, e.reason, f.path FROM events e JOIN files f USING (file_id)
+             ORDER BY e.station, e.bay, e.time"""
+    with connect(db_path) as conn:
+        df = pd.read_sql_query(sql, conn)
+    df["time"] = pd.to_datetime(df["time"], errors="coerce")
+    return df

@@ -1,11 +1,12 @@
 """``loadbayes example archive``: a year of fault records at three stations, and its truth.
 
 Three stations, two bays each (a transformer and a feeder), 50 records per station spread
-over 2025: at each fault the bus voltage dips by 5-30 % for 60-150 ms and recovers over
-50-200 ms; each bay's load is a ZIP part and an induction motor
+over 2025 (fewer, or the transformer alone, by ``records`` and ``bays``): at each fault
+the bus voltage dips by 5-30 % for 60-150 ms and recovers over 50-200 ms; each bay's
+load is a ZIP part and an induction motor
 (:func:`loadbayes.cases.composite_sim.simulate_event`, the library's
-``small_industrial`` motor at 50 Hz) whose share of the bay's power follows the
-station's seasonal curve, highest in summer (air conditioning), plus event-to-event noise
+``small_industrial`` motor at 50 Hz) whose share of the bay's power follows the station's
+seasonal curve, highest in summer (air conditioning), plus event-to-event noise
 (sd 0.03). The waveforms are sampled at 1200 Hz (24 per cycle) with 0.2 % noise and
 written as COMTRADE 1999 (ASCII or BINARY) with the station's name in its own encoding:
 GB18030 (``城东变电站``), ASCII, Latin-1 (``Umspannwerk Größe``). Two files are broken
@@ -86,7 +87,8 @@ def _record(st: _Station, when: dt.datetime, t, v, powers, rng, fmt: str) -> tup
     shift = (0.0, -2.0 * math.pi / 3.0, 2.0 * math.pi / 3.0)
     chans = [(f"U{p}", p, "Bus", "kV", math.sqrt(2) * vph * v * np.cos(theta + s))
              for p, s in zip("ABC", shift, strict=True)]  # fmt: skip
-    for bay, s_pu, mva in zip(st.bays, powers, st.mva, strict=True):
+    n = len(powers)  # the bays simulated: the transformer's first
+    for bay, s_pu, mva in zip(st.bays[:n], powers, st.mva[:n], strict=True):
         i_pu = np.conj(s_pu / v)
         amp = math.sqrt(2) * mva * 1e3 / (math.sqrt(3.0) * KV) * np.abs(i_pu)
         chans += [(f"{bay}_I{p}", p, bay, "A", amp * np.cos(theta + np.angle(i_pu) + s))
@@ -115,10 +117,18 @@ def _record(st: _Station, when: dt.datetime, t, v, powers, rng, fmt: str) -> tup
     return cfg, rec.tobytes()
 
 
-def archive_files(*, records: int = 50, seed: int = 38, year: int = 2025) -> dict[str, bytes]:
-    """The archive's files by name (``<station>_<time>.cfg/.dat``) and ``truth.csv``."""
+def archive_files(
+    *, records: int = 50, bays: int = 2, seed: int = 38, year: int = 2025
+) -> dict[str, bytes]:
+    """The archive's files by name (``<station>_<time>.cfg/.dat``) and ``truth.csv``.
+
+    ``records`` per station (each holds every bay: records per bay); ``bays`` 1 writes the
+    transformer's alone (half the simulation, half the fits).
+    """
     import pandas as pd
 
+    if records < 1 or bays not in (1, 2):
+        raise ValueError(f"records {records} must be at least 1 and bays 1 or 2, not {bays}")
     rng = np.random.default_rng(seed)
     out: dict[str, bytes] = {}
     truth = []
@@ -130,7 +140,7 @@ def archive_files(*, records: int = 50, seed: int = 38, year: int = 2025) -> dic
             rec, start = rng.uniform(0.05, 0.2), 0.2 + rng.uniform(0.0, 0.02)
             powers = []
             name = f"{st.code}_{when:%Y%m%d_%H%M%S}"
-            for b in range(2):
+            for b in range(bays):
                 mean = seasonal_share(si, b, float(day))
                 f_m = float(np.clip(mean + 0.03 * rng.standard_normal(), 0.05, 0.9))
                 t, v, s = _bay_power(depth, start, dur, rec, f_m, 1.1, seed + k)

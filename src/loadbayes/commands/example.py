@@ -68,8 +68,22 @@ def _write_folder(folder: Path, contents: dict, force: bool) -> list[Path]:
     help="zip, day, cvr: a file instead of stdout. composite, fleet, comtrade, pmu, archive: "
     "the folder to write into (required; created if missing).",
 )
+@click.option(
+    "--records",
+    type=click.IntRange(min=1),
+    default=50,
+    show_default=True,
+    help="archive: records per station (each bay has one per record).",
+)
+@click.option(
+    "--bays",
+    type=click.IntRange(1, 2),
+    default=2,
+    show_default=True,
+    help="archive: bays per station (1: the transformer alone).",
+)
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
-def example_cmd(name, folder, out, force):
+def example_cmd(name, folder, out, records, bays, force):
     """Write an example input, e.g. loadbayes example zip > bus.csv.
 
     Each is simulated with a known answer, in the units real data come in (the bus is
@@ -98,12 +112,15 @@ def example_cmd(name, folder, out, force):
                one sag (loadbayes read pmu --map)
     archive    a year of COMTRADE records at 3 stations x 2 bays, the motor share
                seasonal, two files broken, truth.csv beside (loadbayes archive scan
-               DIR --catalog archive.db; about half a minute to write)
+               DIR --catalog archive.db); --records N per station (50, about half a
+               minute to write), --bays 1 the transformer alone
 
     The folder may be given as the second argument instead of --out.
     """  # noqa: D301 (click's \b keeps the table's line breaks)
     from loadbayes.commands.output import UserError
 
+    if name != "archive" and (records != 50 or bays != 2):
+        raise UserError(f"--records and --bays are for the archive example, not {name}")
     if folder is not None:
         if out is not None:
             raise UserError(f"give the folder once: {folder} or --out {out}")
@@ -128,7 +145,7 @@ def example_cmd(name, folder, out, force):
     if name == "archive":
         from loadbayes.cases.archive_example import archive_files
 
-        written = _write_folder(out, archive_files(), force)
+        written = _write_folder(out, archive_files(records=records, bays=bays), force)
         click.echo(f"loadbayes: wrote {len(written)} files into {out} (truth.csv: the motor "
                    "shares)", err=True)  # fmt: skip
         return

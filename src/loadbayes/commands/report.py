@@ -1,6 +1,7 @@
-"""``loadbayes report``: the HTML report of a fit (JSON, NetCDF) or of a fleet (Parquet).
+"""``loadbayes report``: the HTML report of a fit, a fleet or an archive's catalog.
 
-The command dispatches on the file's type: a Parquet file is a fleet table.
+The command dispatches on the file's type: a Parquet file is a fleet table, an SQLite file
+(by its header, or a ``.db`` suffix) an archive's catalog, any other a fit's JSON or NetCDF.
 """
 
 from __future__ import annotations
@@ -56,25 +57,46 @@ def _parse_truth(items: tuple[str, ...]) -> dict[str, float]:
     help="A --pool none fleet table of the same buses: each bus's own estimate, drawn "
     "against its pooled one.",
 )
+@click.option(
+    "--pool",
+    "pool_json",
+    type=str,
+    metavar="FILE",
+    help="An archive's catalog: the composition from this archive pool --out JSON "
+    "(default: pooled here with 500 draws x 4 chains).",
+)
 @click.option("--force", is_flag=True, help="Overwrite an existing report.")
 @click.option("--quiet", is_flag=True, help="Do not say where the report was written.")
 @user_errors
-def report_cmd(result, out, truth, title, coords, unpooled, force, quiet):
-    """Write the HTML report of RESULT: a fit's .nc or .json, or a fleet's .parquet.
+def report_cmd(result, out, truth, title, coords, unpooled, pool_json, force, quiet):
+    """Write the HTML report of RESULT: a fit's .nc or .json, a fleet's .parquet, a catalog.
+
+    A catalog is an archive's archive.db (loadbayes archive scan).
 
     The report starts with a summary (what was fitted, the headline numbers with their
     intervals, the diagnostics' verdict, the warnings), then a contents list, the
     parameter table, the load curves, marginals, pair plots and traces (from a NetCDF
     result), the correlations and the settings. A fleet's report has the class mixes,
-    the shrinkage, the buses flagged, dP/dV and dQ/dV per bus and the settings.
+    the shrinkage, the buses flagged, dP/dV and dQ/dV per bus and the settings. An
+    archive's has its stations and bays, the events per month, each station's composition
+    over the year with bands, and what failed and why.
     """
-    check_outputs({"--out": out}, [result, coords or "", unpooled or ""], force)
+    check_outputs({"--out": out}, [result, coords or "", unpooled or "", pool_json or ""], force)
     truth_val = _parse_truth(truth)
     from pathlib import Path
 
     from loadbayes.io.atomic import atomic_write
+    from loadbayes.report.archive_report import is_catalog
     from loadbayes.report.fleet_table import is_parquet
 
+    if is_catalog(result):
+        for flag, value in (("--truth", truth_val), ("--coords", coords), ("--unpooled", unpooled)):
+            if value:
+                raise UserError(f"{flag} is not for an archive's catalog ({result})")
+        _archive(result, out, pool_json, title, force, quiet)
+        return
+    if pool_json:
+        raise UserError(f"--pool is for an archive's catalog; {result} is not one")
     if is_parquet(result):
         if truth_val:
             raise UserError("--truth is for the report of one fit, not of a fleet")
@@ -106,5 +128,17 @@ def _fleet(result, out, coords, unpooled, title, force, quiet) -> None:
     if not quiet:
         click.echo(f"loadbayes: drawing the figures of the fleet {result}...", err=True)
     write_fleet_report(result, out, unpooled=unpooled, coords=coords, title=title, force=force)
+    if not quiet:
+        click.echo(f"loadbayes: wrote {out}", err=True)
+
+
+def _archive(result, out, pool_json, title, force, quiet) -> None:
+    from loadbayes.report.archive_report import POOL_CHAINS, POOL_DRAWS, write_archive_report
+
+    if not quiet:
+        how = f"the pool of {pool_json}" if pool_json else (
+            f"pooling its fits ({POOL_DRAWS} draws x {POOL_CHAINS} chains)")  # fmt: skip
+        click.echo(f"loadbayes: reporting the archive {result}, {how}...", err=True)
+    write_archive_report(result, out, pool=pool_json, title=title, force=force)
     if not quiet:
         click.echo(f"loadbayes: wrote {out}", err=True)

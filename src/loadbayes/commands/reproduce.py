@@ -211,6 +211,7 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
     im_study.write(ims, root, force=force)
     t_im = time.perf_counter() - t0
     t0 = time.perf_counter()
+    from loadbayes.studies import archive as archive_study
     from loadbayes.studies import composite as composite_study
     from loadbayes.studies import cvr as cvr_study
     from loadbayes.studies import fleet as fleet_study
@@ -226,7 +227,8 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
                       ("physical load", physical_study), ("planning", planning_study),
                       ("robust", robust_study),
                       ("tracking", tracking_study), ("model choice", model_choice),
-                      ("fleet", fleet_study), ("cvr", cvr_study)):  # fmt: skip
+                      ("fleet", fleet_study), ("cvr", cvr_study),
+                      ("archive", archive_study)):  # fmt: skip
         say(f"study past the paper: {name}")
         past.append(zip_study.marked(mod.html_section(mod.run(quick=quick, seed=seed)),
                                      f"loadbayes:section {name.replace(' ', '-')}"))  # fmt: skip

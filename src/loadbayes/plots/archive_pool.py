@@ -2,11 +2,38 @@
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 
-__all__ = ["plot_pool"]
+__all__ = ["CJK_FONTS", "names_drawn", "plot_pool"]
+
+#: Fonts with CJK ideographs, tried (when installed) for station and bay names.
+CJK_FONTS = ("Noto Sans CJK SC", "Noto Sans SC", "Source Han Sans SC", "WenQuanYi Zen Hei",
+             "WenQuanYi Micro Hei", "SimHei", "Microsoft YaHei", "PingFang SC",
+             "Hiragino Sans GB", "AR PL UMing CN")  # fmt: skip
+
+
+@contextmanager
+def names_drawn(names: list[str]) -> Iterator[bool]:
+    """While a figure with these names is drawn: CJK fonts as fallbacks where installed.
+
+    Yields whether some name has ideographs no installed font has: those glyphs are drawn
+    as boxes (matplotlib's warning for each is silenced; the caller says it in words).
+    """
+    import matplotlib as mpl
+    from matplotlib import font_manager
+
+    have = {f.name for f in font_manager.fontManager.ttflist}
+    extra = [f for f in CJK_FONTS if f in have]
+    cjk = any(0x2E80 <= ord(c) <= 0x9FFF or 0xF900 <= ord(c) <= 0xFAFF for n in names for c in n)
+    rc = {"font.sans-serif": [*mpl.rcParams["font.sans-serif"], *extra]} if extra else {}
+    with mpl.rc_context(rc), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+        yield cjk and not extra
 
 
 def plot_pool(result: Any, *, truth: dict[tuple[str, str], np.ndarray] | None = None) -> Any:
