@@ -27,7 +27,7 @@ from loadbayes.models.motor_kernel import (
 from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 
-__all__ = ["event_sums", "model_sums"]
+__all__ = ["event_sums", "knots_of", "model_sums"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -70,27 +70,8 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
     pm = np.empty(n)
     qm = np.empty(n)
     states = np.empty((3, n))
-    # Window means across a gap (rows left out): the voltage steps at its middle
-    # (parts.step_knots), two knots 1 us either side.
-    n_gap = 0
-    if window_s > 0.0:
-        for k in range(n - 1):
-            if gap[k]:
-                n_gap += 1
-    ta = np.empty(n + 2 * n_gap)
-    va = np.empty(n + 2 * n_gap)
-    da = np.empty(n + 2 * n_gap)
-    real = np.empty(n, dtype=np.int64)
-    pos = 0
-    for k in range(n):
-        real[k] = pos
-        ta[pos], va[pos], da[pos] = t[k], vm[k], dl[k]
-        pos += 1
-        if n_gap > 0 and k + 1 < n and gap[k]:
-            mid = steps[k] if math.isfinite(steps[k]) else 0.5 * (t[k] + t[k + 1])
-            ta[pos], va[pos], da[pos] = mid - 1e-6, vm[k], dl[k]
-            ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
-            pos += 2
+    # Window means across a gap (rows left out): the voltage steps at its middle.
+    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)
     for j in range(n_m):
         m = motors[j]
         if window_s > 0.0:
@@ -220,6 +201,38 @@ def _ar_moments_into(col_p, col_qp, xl, pl, ql, gap, mzz, mzy, myy):  # pragma: 
             for a in range(4):
                 zl[g, a] = zc[g, a]
             yl[g] = yc[g]
+
+
+@numba.njit(cache=True, nogil=True)
+def knots_of(t, vm, dl, gap, steps, window_s):  # pragma: no cover - compiled
+    """The drive of window means across gaps: ``(ta, va, da, real)`` (``parts.step_knots``).
+
+    Each gap (rows left out, ``gap[k]`` between rows k and k + 1) gets two knots 1 us
+    either side of its step instant (``steps[k]``, else the gap's middle), where the
+    voltage steps from row k's value to row k + 1's; ``real`` gives each row's position.
+    Without a window (point samples) no knots are added.
+    """
+    n = t.size
+    n_gap = 0
+    if window_s > 0.0:
+        for k in range(n - 1):
+            if gap[k]:
+                n_gap += 1
+    ta = np.empty(n + 2 * n_gap)
+    va = np.empty(n + 2 * n_gap)
+    da = np.empty(n + 2 * n_gap)
+    real = np.empty(n, dtype=np.int64)
+    pos = 0
+    for k in range(n):
+        real[k] = pos
+        ta[pos], va[pos], da[pos] = t[k], vm[k], dl[k]
+        pos += 1
+        if n_gap > 0 and k + 1 < n and gap[k]:
+            mid = steps[k] if math.isfinite(steps[k]) else 0.5 * (t[k] + t[k + 1])
+            ta[pos], va[pos], da[pos] = mid - 1e-6, vm[k], dl[k]
+            ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
+            pos += 2
+    return ta, va, da, real
 
 
 def model_sums(model, event, theta, ar=False):

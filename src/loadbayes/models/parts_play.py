@@ -44,6 +44,7 @@ from loadbayes.models.motor_kernel import (
 )
 from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
+from loadbayes.models.parts_kernel import knots_of
 
 __all__ = ["Played", "play_draws"]
 
@@ -97,25 +98,7 @@ def _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_
         xl = vm[k] / v0
         col_p[k] = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
         col_qp[k] = 0.0
-    n_gap = 0
-    if window_s > 0.0:
-        for k in range(n - 1):
-            if gap[k]:
-                n_gap += 1
-    ta = np.empty(n + 2 * n_gap)
-    va = np.empty(n + 2 * n_gap)
-    da = np.empty(n + 2 * n_gap)
-    real = np.empty(n, dtype=np.int64)
-    pos = 0
-    for k in range(n):  # parts.step_knots: the voltage steps in each gap
-        real[k] = pos
-        ta[pos], va[pos], da[pos] = t[k], vm[k], dl[k]
-        pos += 1
-        if n_gap > 0 and k + 1 < n and gap[k]:
-            mid = steps[k] if math.isfinite(steps[k]) else 0.5 * (t[k] + t[k + 1])
-            ta[pos], va[pos], da[pos] = mid - 1e-6, vm[k], dl[k]
-            ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
-            pos += 2
+    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)  # parts.step_knots
     for j in range(motors.shape[0]):
         m = motors[j]
         if window_s > 0.0:
