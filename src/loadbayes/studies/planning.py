@@ -18,7 +18,7 @@ to (``loadbayes.predict``):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -59,7 +59,7 @@ def _real(draws, burn, seed) -> dict[str, Any]:
     bay, short = BAYS[0]
     events, flags, info = events_of(cfg, bay)
     f = info["f_hz"]
-    evs = [e.__class__(**{**e.__dict__, "straddle": np.asarray(fl["straddle"], bool)})
+    evs = [replace(e, straddle=np.asarray(fl["straddle"], bool))
            for e, fl in zip(events[:2], flags[:2], strict=True)]  # fmt: skip
     post = _fit(dynamic_model("cmld-lite", f_hz=f, window_s=1.0 / f), evs, draws, burn, seed)
     pred = predict(post, sag=SAG, duration=DURATION, draws=PLAYED, seed=seed)
