@@ -114,13 +114,10 @@ def pool_cmd(catalog, temperature_csv, hour, by_bay, tolerance, draws, chains, s
             out.temp("--out").write_text(text + "\n", encoding="utf-8")
         if plot_out:
             from loadbayes.plots.archive_pool import plot_pool
-            from loadbayes.plots.fit import pyplot
+            from loadbayes.plots.fit import save_figure
 
             fig = plot_pool(res)
-            target = out.temp("--plot")
-            fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
-                        bbox_inches="tight")  # fmt: skip
-            pyplot().close(fig)
+            save_figure(fig, out.temp("--plot"), force=True)
     if json_out == "-":
         click.echo(text)
     for w in res.warnings:

@@ -398,17 +398,14 @@ def fit_composite_cmd(
             stop_if_signalled()
         if plot_out:
             from loadbayes.plots.composite import plot_composite_fit
-            from loadbayes.plots.fit import pyplot
+            from loadbayes.plots.fit import save_figure
             from loadbayes.report.composite_table import run_lines, static_lines
 
             ident = post.extra_json["identifiability"]
             notes = [ident["summary"], *static_lines(ident["static_part"]), *run_lines(post)]
             fig = plot_composite_fit(post, events, bands, faults, baseline=fit.baseline,
                                      notes=notes)  # fmt: skip
-            target = out.temp("--plot")
-            fig.savefig(target, format=target.suffix.lstrip(".").lower(), dpi=110,
-                        bbox_inches="tight")  # fmt: skip
-            pyplot().close(fig)
+            save_figure(fig, out.temp("--plot"), force=True)
     if json_out == "-":
         click.echo(text)
     for w in post.warnings:
