@@ -8,11 +8,21 @@ the data are in MW with ``s_base`` 10 MVA. ``n_rich`` more buses per fleet have 
 such a band lacks: 1,500 rows on a +/-12% swing at 8 MW (Q0 0.6 P0).
 
 On that band no ordinary bus's data fix its shares' split along the curvature
-``a1 - 2 a2 + a3`` (sd 0.12 at best, 16 on thin buses): the split is its class's, and
-the intervals of a1, a2 cover at the nominal rate only when the class spread is the
-prior's own (0.1). What the data fix, dP/dV = P0 (2 a1 + a2), covers whatever the
-spread; the table says which buses' a1, a2 are the class's (``prior_driven``).
+``a1 - 2 a2 + a3`` (sd 0.12 at best, 16 on thin buses): the split is its class's, set by
+the class mean and the class spread along that direction. With the spread's scale fixed
+by the hyperprior (until 2026-11-29) the shares covered only where the truth's spread was
+the prior's: 89.4% at 0.1 and 82% at 0.2 on these fleets. With each class's scale learned
+(``HierPrior.spread_scale``, the default) from what the data see, the spread along the
+slope ``2 a1 + a2``, they cover at every spread tried (0.05, 0.1, 0.2). The buses of a
+class share the class mean's error along the curvature, so a fleet's share intervals hit
+or miss together, class by class: one fleet is a few trials, not hundreds, and the checks
+below are on means over fleets with the spread of single fleets measured.
+
+``make test`` runs 3 fleets at spread 0.1 and 3 at 0.2 (seconds); ``make validate``
+(LOADBAYES_VALIDATE=1) 40 fleets at each of 0.05, 0.1 and 0.2, two-sided.
 """
+
+import os
 
 import numpy as np
 import pandas as pd
@@ -23,6 +33,10 @@ from loadbayes.fleet.partitions import ReadSpec
 from loadbayes.fleet.run import run_fleet
 
 pytestmark = pytest.mark.statistical
+
+FULL = os.environ.get("LOADBAYES_VALIDATE") == "1"
+#: The issue's margin: +/-1.96 binomial sd of 300 intervals at 0.95.
+MARGIN = 0.038
 
 MIXES = {
     "residential": (0.45, 0.25, 0.60, 0.20),
@@ -97,35 +111,76 @@ def fleets(tmp_path_factory):
     return [_fit(tmp, seed, n_rich=3) for seed in range(3)]
 
 
-def test_slopes_and_shares_cover_at_the_priors_spread(fleets):
-    # Three fleets of 60 buses (+3 rich), 95% HDIs, truth spread 0.1 (the prior's).
-    # (a) dP/dV and dQ/dV: 378 intervals. (b) a1, a2, a4, a5: 756.
-    # The buses of a class share the class mean's error along the curvature, so a fleet's
-    # intervals are not independent trials. Measured on 20 fleets of this generator and
-    # sampler (seeds 100-119): slopes 0.950 on average, one fleet's sd 0.017 (binomial
-    # 0.011); shares 0.894 on average, one fleet's sd 0.061 (binomial 0.008).
-    # (a) The slopes, what the data fix, cover at the nominal rate: |mean - 0.95| within
-    # 0.029, three sd of a mean of three fleets (the binomial margin of 378 independent
-    # intervals, 0.022, widened by the measured design effect): false alarm about 0.3%.
-    # (b) The shares, whose split is the class's on every ordinary bus (the next test),
-    # under-cover at this size even at the prior's own spread: 20 buses a class leave the
-    # class spread along the curvature to the inverse-Wishart hyperprior, whose bulk lies
-    # below its mean 0.1 (on the issue's 150 buses, 93%: the study fleet_coverage). Not
-    # within the binomial margin of 0.95; checked against what was measured, >= 0.894 - 3
-    # sd of a mean of three fleets (0.035) = 0.79: false alarm about 0.1%.
-    slope, share = [], []
-    for bus, _ in fleets:
-        for p, t in (("dp_dv", bus["p0"] * (2 * bus["a1"] + bus["a2"])),
-                     ("dq_dv", bus["q0"] * (2 * bus["a4"] + bus["a5"]))):  # fmt: skip
-            r = bus["parameter"] == p
-            slope.append(_inside(bus[r], t[r].to_numpy()))
-        for p in ("a1", "a2", "a4", "a5"):
-            r = bus["parameter"] == p
-            share.append(_inside(bus[r], bus.loc[r, p].to_numpy()))
-    slope, share = np.concatenate(slope), np.concatenate(share)
-    assert slope.size == 378 and share.size == 756
-    assert abs(slope.mean() - 0.95) <= 0.029, slope.mean()
-    assert share.mean() >= 0.79, share.mean()
+@pytest.fixture(scope="module")
+def wide(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("hetero_wide")
+    return [_fit(tmp, seed, n_rich=3, spread=0.2) for seed in range(3)]
+
+
+def _hits(bus):
+    """One fleet's interval hits per quantity: dp_dv, dq_dv and the shares a1, a2, a4, a5."""
+    out = {}
+    for p, t in (("dp_dv", bus["p0"] * (2 * bus["a1"] + bus["a2"])),
+                 ("dq_dv", bus["q0"] * (2 * bus["a4"] + bus["a5"]))):  # fmt: skip
+        r = bus["parameter"] == p
+        out[p] = _inside(bus[r], t[r].to_numpy())
+    for p in ("a1", "a2", "a4", "a5"):
+        r = bus["parameter"] == p
+        out[p] = _inside(bus[r], bus.loc[r, p].to_numpy())
+    return out
+
+
+def _rates(fleet_list):
+    """Per fleet, the share of intervals that cover: slopes, a1 and a2, all four shares."""
+    rows = []
+    for bus, _ in fleet_list:
+        h = _hits(bus)
+        rows.append({
+            "slopes": np.r_[h["dp_dv"], h["dq_dv"]].mean(),
+            "a1_a2": np.r_[h["a1"], h["a2"]].mean(),
+            "shares": np.r_[h["a1"], h["a2"], h["a4"], h["a5"]].mean(),
+        })  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def test_slopes_and_shares_cover_at_two_spreads(fleets, wide):
+    # Six fleets of 60 buses (+3 rich), 95% HDIs: three at a true spread of 0.1, three at
+    # 0.2; 756 slope (dP/dV, dQ/dV) and 1,512 share (a1, a2, a4, a5) intervals. The buses
+    # of a class hit or miss together along the curvature, so the six fleets' mean is
+    # judged against what single fleets were measured to do (seeds 100-119 of this
+    # generator and sampler, 20 fleets a spread): shares 0.965 at 0.1 (sd 0.048 a fleet)
+    # and 0.962 at 0.2 (sd 0.044); slopes 0.953 (sd 0.016). With the class scale fixed at
+    # the hyperprior's 0.1 (spread_scale=None, the default until 2026-11-29) the shares
+    # were 0.894 (sd 0.061) and 0.775 (sd 0.076): this test fails on it.
+    # (a) Shares: the mean of the six fleets at least 0.95 - 0.038 (the issue's margin, the
+    # binomial one of 300 independent intervals): resampling the 40 measured fleets, a mean
+    # of three at each spread falls below it 0.8% of the time (the false alarm), and 99.9%
+    # of the time with the fixed scale. The upper side (over-coverage) needs more fleets
+    # than seconds allow: make validate checks both sides on 40 fleets a spread.
+    # (b) Slopes, what the data fix: the mean within 0.029 of 0.95 (the binomial margin of
+    # 756 intervals, 0.016, widened by the measured design effect): false alarm < 0.01%.
+    both = pd.concat([_rates(fleets), _rates(wide)], ignore_index=True)
+    assert sum(b["parameter"].eq("a1").sum() for b, _ in fleets + wide) == 378
+    assert both["shares"].mean() >= 0.95 - MARGIN, both
+    assert abs(both["slopes"].mean() - 0.95) <= 0.029, both
+
+
+@pytest.mark.skipif(not FULL, reason="make validate (LOADBAYES_VALIDATE=1): 120 fleets")
+@pytest.mark.parametrize("spread", [0.05, 0.1, 0.2])
+def test_shares_cover_within_the_margin_at_each_spread(tmp_path, spread):
+    # 40 fleets a spread (seeds 100-139): 7,560 share intervals, 120 classes' errors
+    # along the curvature. The mean over the fleets of all four shares within the issue's
+    # margin (0.95 +/- 0.038) on both sides, of a1, a2 at least 0.95 - 0.038 (the issue's
+    # under-coverage), of the slopes within 0.022. From the 20 single fleets measured a
+    # spread (shares 0.962-0.965, sd 0.044-0.053; a1, a2 0.962-0.972, sd 0.053-0.063;
+    # slopes sd 0.016) a mean of 40 has sd 0.010 at most: the nearest bound is 2.7 sd away
+    # (shares at 0.05 against 0.988), the others 5 sd and more: false alarm about 0.5% over
+    # the three spreads.
+    rates = _rates([_fit(tmp_path, seed, n_rich=3, spread=spread) for seed in range(100, 140)])
+    print(spread, rates.mean().to_dict(), rates.std().to_dict())
+    assert abs(rates["shares"].mean() - 0.95) <= MARGIN, rates.describe()
+    assert rates["a1_a2"].mean() >= 0.95 - MARGIN, rates.describe()
+    assert abs(rates["slopes"].mean() - 0.95) <= 0.022, rates.describe()
 
 
 def test_the_table_says_which_buses_shares_are_their_class(fleets):

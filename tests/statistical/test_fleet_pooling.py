@@ -15,7 +15,10 @@ from loadbayes.models.zip import ZIPModel
 
 pytestmark = pytest.mark.statistical
 
-PRIOR = H.HierPrior(mean_sd=0.3, nu0=6.0, spread=0.1, tau_shape=20.0, tau_rate=0.05)
+# the fixed-scale inverse-Wishart (spread_scale=None): the prior this file simulates from
+PRIOR = H.HierPrior(
+    mean_sd=0.3, nu0=6.0, spread=0.1, tau_shape=20.0, tau_rate=0.05, spread_scale=None
+)
 
 
 def _simulate(rng, n_buses=8, rows=30):

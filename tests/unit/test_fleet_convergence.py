@@ -100,10 +100,12 @@ def _data(fleet, p0="auto"):
     return H.prepare(stats, model)[0]
 
 
-def test_a_continued_chain_is_one_long_chain(fleet):
+@pytest.mark.parametrize("scale", [None, 0.5], ids=["fixed-scale", "learned-scale"])
+def test_a_continued_chain_is_one_long_chain(fleet, scale):
+    # the learned class scales (spread_scale) are part of the state a chain hands on
     data = _data(fleet)
     seed = H.chain_seeds(3, 1)[0]
-    prior = H.HierPrior()
+    prior = H.HierPrior(spread_scale=scale)
     first = H.run_chain(seed, data, prior, SamplerSettings(chains=1, draws=30, burn=10))
     rest = H.run_chain(first.state, data, prior, SamplerSettings(chains=1, draws=30, burn=10))
     whole = H.run_chain(seed, data, prior, SamplerSettings(chains=1, draws=50, burn=10))

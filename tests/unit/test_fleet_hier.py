@@ -154,7 +154,7 @@ def _scale_tries_dense(gen, psi0, nu0, v, sigma, sig_inv, a, b, tries=2, step=0.
         k = c - 1.0
         ci = eye + (1.0 / c - 1.0)[:, None, None] * vv[None]
         new_inv = ci @ sig_inv @ ci
-        dtr = np.einsum("ij,cji->c", psi0, new_inv - sig_inv)
+        dtr = np.einsum("cij,cji->c", psi0, new_inv - sig_inv)
         take = logu < -0.5 * k * k * a + k * b - nu0 * logc - 0.5 * dtr
         cm = eye + np.where(take, k, 0.0)[:, None, None] * vv[None]
         sigma = cm @ sigma @ cm
@@ -168,12 +168,13 @@ def _scale_tries_dense(gen, psi0, nu0, v, sigma, sig_inv, a, b, tries=2, step=0.
 def test_compiled_scale_tries_match_the_matrix_form():
     # The same normals and uniforms (drawn in the matrix form's order) must give the same
     # accepted scalings and the same Sigma and Sigma^-1 to rounding, for classes that
-    # accept and classes that refuse (A, B drawn so that both happen).
+    # accept and classes that refuse (A, B drawn so that both happen). Each class has its
+    # own Psi0 (the learned scales, HierPrior.spread_scale).
     from loadbayes.fleet.hier_kernels import _scale_tries
 
     rng = np.random.default_rng(3)
     ncls, d = 7, 4
-    psi0 = _spd(rng, d) * 0.01
+    psi0 = np.stack([_spd(rng, d) * 0.01 * (1 + c) for c in range(ncls)])
     accepted = 0
     for trial in range(40):
         sigma = np.stack([_spd(rng, d) * 0.01 for _ in range(ncls)])

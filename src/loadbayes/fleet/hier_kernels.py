@@ -257,15 +257,15 @@ def _scale_tries(psi0, nu0, v, step, sigma, sig_inv, a, b, z, uni, total):  # pr
     ``2 al v'Psi0 S v + al^2 (v'S v)(v'Psi0 v)``; an accepted ``c`` stretches ``Sigma``
     the same way with ``k = c - 1``. ``z``, ``uni`` (tries x classes) are the normals and
     uniforms the matrix form drew, in its order, so the chain's stream is unchanged.
-    ``total`` (per class) is multiplied by each accepted ``c``.
+    ``total`` (per class) is multiplied by each accepted ``c``; ``psi0`` is per class.
     """
     ncls, d = sigma.shape[0], sigma.shape[1]
-    pv = psi0 @ v
-    vpv = 0.0
-    for i in range(d):
-        vpv += v[i] * pv[i]
     w = np.empty(d)
     for c in range(ncls):
+        pv = psi0[c] @ v
+        vpv = 0.0
+        for i in range(d):
+            vpv += v[i] * pv[i]
         ac, bc = a[c], b[c]
         for r in range(z.shape[0]):
             logc = step * z[r, c]

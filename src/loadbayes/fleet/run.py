@@ -512,7 +512,7 @@ def _fits(stats, model, pool, priors, hyper, sampler, eng, netcdf_dir, force,
                 chains = _pooled_chains(data_h, hp, sampler, eng, max_seconds, info, folder)
                 table = hier.summarize_chains(data_h, chains, sampler)
                 _note_prior_decided(table, data_h.params, hp.mean_sd, info)
-                _note_few_buses(table, data_h.params, hp.spread, info)
+                _note_few_buses(table, data_h.params, hp, info)
                 frames = [table, failed]
             finally:
                 if folder is not None:
@@ -564,20 +564,25 @@ def _warn_class(table: pd.DataFrame, rows, name, words: str, info: dict) -> None
 SPREAD_MIN_BUSES = 3
 
 
-def _note_few_buses(table: pd.DataFrame, params, spread: float, info: dict) -> None:
+def _note_few_buses(table: pd.DataFrame, params, hp: hier.HierPrior, info: dict) -> None:
     """Warn on the class rows whose spreads one or two buses cannot inform.
 
     A spread is a variation between buses: one bus holds none of it, so its posterior is
-    the inverse-Wishart prior's (typical value ``spread``), and two barely move it. The
-    class mean of such a class is its buses' own estimate, which the note does not touch.
+    the hyperprior's (typical value ``spread``, or its learned scale's half-normal), and
+    two barely move it. The class mean of such a class is its buses' own estimate, which
+    the note does not touch.
     """
+    if hp.spread_scale is None:
+        typical = f"typical {hp.spread:g}"
+    else:
+        typical = f"a typical spread half-normal of scale {hp.spread_scale:g}"
     for name, rows, n in _class_rows(table):
         if n >= SPREAD_MIN_BUSES:
             continue
         words = (
             f"only {n} bus{'es' if n != 1 else ''} in this class: its spreads "
-            f"({', '.join(f'sd_{p}' for p in params)}) are mostly the prior's (typical "
-            f"{spread:g}), not a measured variation between buses"
+            f"({', '.join(f'sd_{p}' for p in params)}) are mostly the prior's ({typical}), "
+            "not a measured variation between buses"
         )
         spreads = rows & table["parameter"].astype(str).str.startswith("sd_")
         _warn_class(table, spreads, name, words, info)

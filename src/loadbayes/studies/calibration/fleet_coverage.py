@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["MIXES", "fleet_coverage", "hetero_fleet", "run_study", "table"]
+__all__ = ["MIXES", "fleet_coverage", "hetero_fleet", "prior_fleet", "run_study", "table"]
 
 MIXES = {
     "residential": (0.45, 0.25, 0.60, 0.20),
@@ -56,6 +56,41 @@ def hetero_fleet(seed: int, n_buses: int = 150, spread: float = 0.1):
     names = list(MIXES)
     cls = rng.integers(0, 3, n_buses)
     theta = np.array([MIXES[names[c]] for c in cls]) + spread * rng.standard_normal((n_buses, 4))
+    return _design(rng, cls, theta)
+
+
+def prior_fleet(seed: int, hyper, n_buses: int = 60):
+    """A fleet drawn from the pooled model's own prior, with the issue's design.
+
+    Per class, ``lam_c`` from the hyperprior (``sqrt(lam_c)`` half-normal of scale
+    ``spread_scale``; ``spread^2`` when it is None), ``Sigma_c ~ IW(nu0, lam_c (nu0 - d - 1)
+    I)`` (SciPy's), each bus's ``(a1, a2, a4, a5) ~ N(mix_c, Sigma_c)``; the class means at
+    the mixes (the ``N(0, 10^2)`` prior of ``mu_c`` is flat at their scale), rows, P0 and
+    noise as :func:`hetero_fleet`. Fitted with ``hyper``, its intervals must cover at the
+    nominal rate on average over fleets: the sampler's check against its own model.
+    """
+    from scipy.stats import invwishart
+
+    rng = np.random.default_rng(seed)
+    d = 4
+    _, _, nu0, psi0 = hyper.matrices(d)
+    names = list(MIXES)
+    cls = rng.integers(0, 3, n_buses)
+    sig = []
+    for _ in names:
+        scale = psi0  # spread^2 (nu0 - d - 1) I
+        if hyper.spread_scale is not None:  # lam_c (nu0 - d - 1) I, lam_c = (A z)^2
+            scale = psi0 * (hyper.spread_scale * rng.standard_normal()) ** 2 / hyper.spread**2
+        sig.append(invwishart(df=nu0, scale=scale).rvs(random_state=rng))
+    mix = np.array([MIXES[names[c]] for c in cls])
+    theta = np.array([rng.multivariate_normal(mix[b], sig[cls[b]]) for b in range(n_buses)])
+    return _design(rng, cls, theta)
+
+
+def _design(rng, cls, theta):
+    """Rows and truth of a fleet whose shares are ``theta`` (the issue's design)."""
+    names = list(MIXES)
+    n_buses = cls.size
     p0 = np.exp(rng.uniform(np.log(0.3), np.log(8.0), n_buses))
     q0 = p0 * rng.uniform(0.2, 0.6, n_buses)
     rows, truth = [], []
@@ -91,11 +126,15 @@ def fleet_coverage(table: pd.DataFrame, truth: pd.DataFrame) -> dict[str, Any]:
         flag.append(r["prior_driven"].astype(bool).to_numpy())
     slope = [hits("dp_dv", lambda r: r["p0"] * (2 * r["a1"] + r["a2"]))[0],
              hits("dq_dv", lambda r: r["q0"] * (2 * r["a4"] + r["a5"]))[0]]  # fmt: skip
+    share_list = share
     share, flag, slope = np.concatenate(share), np.concatenate(flag), np.concatenate(slope)
     cls = table[table["level"] == "class"]
+    a12 = np.concatenate(share_list[:2])
     return {
         "shares": float(share.mean()),
         "slopes": float(slope.mean()),
+        "a1_a2": float(a12.mean()),
+        "n_a1_a2": int(a12.size),
         "n_shares": int(share.size),
         "n_slopes": int(slope.size),
         "prior_driven": float(flag.mean()),
@@ -106,10 +145,17 @@ def fleet_coverage(table: pd.DataFrame, truth: pd.DataFrame) -> dict[str, Any]:
     }
 
 
-def run_study(fleets: int = 10, buses: int = 150, spreads=SPREADS, *, chains: int = 4,
-              draws: int = 2000, burn: int = 500, seed: int = 0) -> dict[str, Any]:  # fmt: skip
-    """Fit ``fleets`` fleets at each spread (fleet seeds 0..fleets-1) and count hits."""
+def run_study(fleets: int = 30, buses: int = 150, spreads=SPREADS, *, chains: int = 4,
+              draws: int = 2000, burn: int = 500, seed: int = 0,
+              prior_fleets: int = 60) -> dict[str, Any]:  # fmt: skip
+    """Fit ``fleets`` fleets at each spread (fleet seeds 0..fleets-1) and count hits.
+
+    Then ``prior_fleets`` fleets of 60 buses drawn from each hyperprior (the default,
+    learned scale, and the fixed one) by :func:`prior_fleet` (seeds 1000..), each fitted
+    with its own prior (``own_prior`` in the result).
+    """
     from loadbayes.core.settings import SamplerSettings
+    from loadbayes.fleet.hierarchical import HierPrior
     from loadbayes.fleet.partitions import ReadSpec
     from loadbayes.fleet.run import run_fleet
 
@@ -124,9 +170,12 @@ def run_study(fleets: int = 10, buses: int = 150, spreads=SPREADS, *, chains: in
             "burn": burn,
             "seed": seed,
             "hdi_prob": sampler.hdi_prob,
+            "prior_fleets": prior_fleets,
         },  # fmt: skip
         "spreads": {},
+        "own_prior": {},
     }
+    spec = ReadSpec(class_col="customer_class", s_base=S_BASE)
     with tempfile.TemporaryDirectory() as tmp:
         for spread in spreads:
             per = []
@@ -135,21 +184,34 @@ def run_study(fleets: int = 10, buses: int = 150, spreads=SPREADS, *, chains: in
                 path = Path(tmp) / f"fleet_{spread}_{k}.parquet"
                 rows.to_parquet(path)
                 t0 = time.perf_counter()
-                res = run_fleet(str(path), ReadSpec(class_col="customer_class", s_base=S_BASE),
-                                pool="class", p0="auto", q0="auto", sampler=sampler)  # fmt: skip
+                res = run_fleet(str(path), spec, pool="class", p0="auto", q0="auto",
+                                sampler=sampler)  # fmt: skip
                 rec = {"fleet": k, **fleet_coverage(res.table, truth),
                        "seconds": round(time.perf_counter() - t0, 1)}  # fmt: skip
                 per.append(rec)
                 print(f"spread {spread} fleet {k}: shares {rec['shares']:.3f} slopes "
                       f"{rec['slopes']:.3f}", file=sys.stderr, flush=True)  # fmt: skip
             out["spreads"][str(spread)] = {"fleets": per, **_sum_up(per)}
+        for label, hyper in (("learned scale", HierPrior()),
+                             ("fixed scale", HierPrior(spread_scale=None))):  # fmt: skip
+            per = []
+            for k in range(prior_fleets):
+                rows, truth = prior_fleet(1000 + k, hyper)
+                path = Path(tmp) / f"prior_{k}.parquet"
+                rows.to_parquet(path)
+                res = run_fleet(str(path), spec, pool="class", p0="auto", q0="auto",
+                                hyper=hyper, sampler=sampler)  # fmt: skip
+                per.append({"fleet": 1000 + k, **fleet_coverage(res.table, truth)})
+            out["own_prior"][label] = {"fleets": per, **_sum_up(per)}
+            print(f"own prior, {label}: shares {out['own_prior'][label]['shares']['mean']:.3f}",
+                  file=sys.stderr, flush=True)  # fmt: skip
     return out
 
 
 def _sum_up(per: list[dict]) -> dict[str, Any]:
     """Mean over the fleets (weighted by intervals, all equal), single-fleet range."""
     out: dict[str, Any] = {}
-    for k in ("shares", "slopes"):
+    for k in ("shares", "a1_a2", "slopes"):
         v = np.array([r[k] for r in per])
         n = sum(r[f"n_{k}"] for r in per)
         out[k] = {"mean": float(v.mean()), "min": float(v.min()), "max": float(v.max()),
@@ -167,18 +229,21 @@ def _sum_up(per: list[dict]) -> dict[str, Any]:
 
 def table(res: dict[str, Any]) -> str:
     """The study's table in Markdown (as in docs/fleet.md)."""
-    head = ("| true spread | a1, a2, a4, a5: mean [single fleets] | dP/dV, dQ/dV: mean "
-            "[single fleets] | prior_driven | shares covered: prior_driven / others |")  # fmt: skip
-    lines = [head, "| --- | --- | --- | --- | --- |"]
+    head = ("| true spread | a1, a2, a4, a5: mean [single fleets] | a1, a2: mean | "
+            "dP/dV, dQ/dV: mean [single fleets] | prior_driven | "
+            "shares covered: prior_driven / others |")  # fmt: skip
+    lines = [head, "| --- | --- | --- | --- | --- | --- |"]
 
     def pct(x):
         return "-" if x is None else f"{100 * x:.1f}%"
 
-    for spread, s in res["spreads"].items():
+    rows = [(str(k), v) for k, v in res["spreads"].items()]
+    rows += [(f"its own prior ({k})", v) for k, v in res.get("own_prior", {}).items()]
+    for spread, s in rows:
         sh, sl = s["shares"], s["slopes"]
         lines.append(
             f"| {spread} | {pct(sh['mean'])} [{pct(sh['min'])}, {pct(sh['max'])}] | "
-            f"{pct(sl['mean'])} [{pct(sl['min'])}, {pct(sl['max'])}] | "
+            f"{pct(s['a1_a2']['mean'])} | {pct(sl['mean'])} [{pct(sl['min'])}, {pct(sl['max'])}] | "
             f"{pct(s['prior_driven'])} | {pct(s['shares_prior_driven'])} / "
             f"{pct(s['shares_determined'])} |"
         )
@@ -188,7 +253,8 @@ def table(res: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry: run the study, write its JSON and print the table."""
     ap = argparse.ArgumentParser(description="Pooled fleet coverage (issue 40's fleet).")
-    ap.add_argument("--fleets", type=int, default=10)
+    ap.add_argument("--fleets", type=int, default=30)
+    ap.add_argument("--prior-fleets", type=int, default=60)
     ap.add_argument("--buses", type=int, default=150)
     ap.add_argument("--spreads", default=",".join(map(str, SPREADS)))
     ap.add_argument("--draws", type=int, default=2000)
@@ -196,7 +262,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--output", required=True)
     args = ap.parse_args(argv)
     spreads = tuple(float(s) for s in args.spreads.split(","))
-    res = run_study(args.fleets, args.buses, spreads, draws=args.draws, burn=args.burn)
+    res = run_study(
+        args.fleets,
+        args.buses,
+        spreads,
+        draws=args.draws,
+        burn=args.burn,
+        prior_fleets=args.prior_fleets,
+    )
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     with open(args.output, "w") as fh:
         json.dump(res, fh, indent=1)
