@@ -111,21 +111,16 @@ def _sweep(w, bb, by, yy, nn, tau, m0, p0, positive, pairs, pick, shifts, normal
     # The rounds of transfers and joint steps (the module docstring); counts: accepted,
     # tried of each kind. With adapt, the scales move toward their targets and s1, s2
     # gather the weights' sums for the joint step's covariance.
-    lp = _log_target(w, bb, by, yy, nn, tau, m0, p0, positive)
+    data = (bb, by, yy, nn, tau, m0, p0, positive)
+    lp = _log_target(w, *data)
     nf = w.size - 1
     for r in range(pick.size):
         k = pick[r]
-        i, j = pairs[k, 0], pairs[k, 1]
         cand = w.copy()
         d = pair_sd[k] * shifts[r]
-        cand[i] -= d
-        cand[j] += d
-        lc = _log_target(cand, bb, by, yy, nn, tau, m0, p0, positive)
-        ok = logu[r, 0] < lc - lp
-        if ok:
-            w, lp = cand, lc
-            counts[0] += 1
-        counts[1] += 1
+        cand[pairs[k, 0]] -= d
+        cand[pairs[k, 1]] += d
+        w, lp, ok = _metropolis(w, lp, cand, logu[r, 0], data, counts, 0)
         if adapt:
             pair_sd[k] *= math.exp(GAIN * ((1.0 if ok else 0.0) - TRANSFER_ACCEPT))
         step = lam[0] * (chol @ normals[r])
@@ -133,12 +128,7 @@ def _sweep(w, bb, by, yy, nn, tau, m0, p0, positive, pairs, pick, shifts, normal
         for a in range(nf):
             cand[a] += step[a]
             cand[nf] -= step[a]
-        lc = _log_target(cand, bb, by, yy, nn, tau, m0, p0, positive)
-        ok = logu[r, 1] < lc - lp
-        if ok:
-            w, lp = cand, lc
-            counts[2] += 1
-        counts[3] += 1
+        w, lp, ok = _metropolis(w, lp, cand, logu[r, 1], data, counts, 2)
         if adapt:
             lam[0] *= math.exp(GAIN * ((1.0 if ok else 0.0) - JOINT_ACCEPT))
             for a in range(nf):
@@ -146,6 +136,18 @@ def _sweep(w, bb, by, yy, nn, tau, m0, p0, positive, pairs, pick, shifts, normal
                 for b in range(nf):
                     s2[a, b] += w[a] * w[b]
     return w
+
+
+@numba.njit(cache=True, nogil=True)
+def _metropolis(w, lp, cand, logu, data, counts, at):  # pragma: no cover - compiled
+    # One Metropolis decision on a symmetric proposal; counts[at], counts[at + 1]:
+    # accepted, tried.
+    lc = _log_target(cand, *data)
+    counts[at + 1] += 1
+    if logu < lc - lp:
+        counts[at] += 1
+        return cand, lc, True
+    return w, lp, False
 
 
 class ShareMoves:
