@@ -196,6 +196,7 @@ def _reference(toy, tau, m0, p0, draws, rng):
     return mean, sd, 1.0 / float(np.sum(weight**2))
 
 
+@pytest.mark.statistical
 def test_the_steps_sample_a_known_posterior():
     # False alarm: 10 checks (5 means, 5 sds) at 4.5 combined standard errors each, about
     # 7e-5 in all; the run is deterministic (fixed seeds).
