@@ -45,8 +45,13 @@ Measured on this record (4000 draws, 2000 burn-in, 2 chains, seed 0), total rati
 events                                             with I2 ("auto") without ("off")
 ================================================== ================ ================
 the reader's rows, before A was fixed              [0.107, 0.273]   [0.142, 0.256]
-the reader's rows, A fixed (this test)             [0.476, 0.984]   [0.239, 0.681]
+the reader's rows, A fixed, before the share steps [0.476, 0.984]   [0.239, 0.681]
+the same, with the share steps (this test)         [0.457, 1.040]   [0.230, 0.885]
 ================================================== ================ ================
+
+(The share steps: ``fit/composite/shares.py``. With them the interval without I2 covers
+the truth, at R-hat 1.22 against 1.09 before: unconverged either way, so the claim that
+the positive sequence alone misses the rating is a strict xfail until it is settled.)
 
 With A fixed the rating is covered with I2 and missed without it (the prior of T0,
 median 0.75 where the truth is 0.35, decides it then), as the issue asks; it is not
@@ -219,12 +224,10 @@ def test_the_negative_sequence_is_blind_to_the_coordinate_of_the_rating(tmp_path
     assert np.allclose(zp0, zp1, rtol=1e-9, atol=1e-12)
 
 
-def test_the_rating_is_covered_with_the_negative_sequence_and_not_without(tmp_path):
-    # With A fixed (measured: [0.476, 0.984] with I2, [0.239, 0.681] without, for 0.8).
-    # Not asserted: a narrower interval with I2 (it is not: 0.51 against 0.44 wide); by C
-    # the negative sequence measures S / X', which the positive sequence sees through X'
-    # T0 too, so what it adds is a second, sharper look at that one combination.
-    ev, truth, _ = _read(tmp_path)
+@pytest.fixture(scope="module")
+def ratings(tmp_path_factory):
+    """The total rating's 95% interval with I2 ("auto") and without ("off"), and the truth."""
+    ev, truth, _ = _read(tmp_path_factory.mktemp("ratings"))
     assert ev.unbalanced and _model("auto").uses_negative_sequence(ev)
     sampler = SamplerSettings(draws=DRAWS, burn=BURN, chains=CHAINS, seed=SEED)
     got = {}
@@ -232,7 +235,27 @@ def test_the_rating_is_covered_with_the_negative_sequence_and_not_without(tmp_pa
         d = fit_composite(_model(mode), [ev], sampler=sampler).posterior.draws
         total = np.asarray(d["mva_a"]) + np.asarray(d["mva_b"])
         got[mode] = tuple(np.quantile(total, [0.025, 0.975]))
-    true = truth["motor_rating_total"]
-    (lo, hi), (lo_off, hi_off) = got["auto"], got["off"]
+    return got, truth["motor_rating_total"]
+
+
+def test_the_rating_is_covered_with_the_negative_sequence(ratings):
+    # With A fixed (measured with the shares' own steps: [0.457, 1.040] for 0.8, R-hat
+    # 1.20; before them [0.476, 0.984], R-hat 1.05). Not asserted: a narrower interval
+    # with I2; by C the negative sequence measures S / X', which the positive sequence
+    # sees through X' T0 too, so what it adds is a second, sharper look at that one
+    # combination.
+    got, true = ratings
+    lo, hi = got["auto"]
     assert lo <= true <= hi, got
+
+
+@pytest.mark.xfail(strict=True, reason="measured with the sampler's share-only steps "
+                   "(fit/composite/shares.py): without I2 the rating is [0.230, 0.885] at R-hat "
+                   "1.22, covering 0.8; before those steps [0.239, 0.681] at R-hat 1.09, missed, "
+                   "but at sampler seeds 1 and 2 it covered 0.8 then too ([0.278, 0.899], "
+                   "[0.285, 0.936]). Unconverged at these draws either way: whether the "
+                   "positive sequence alone misses the rating here is not settled")  # fmt: skip
+def test_the_rating_is_missed_without_the_negative_sequence(ratings):
+    got, true = ratings
+    lo_off, hi_off = got["off"]
     assert not lo_off <= true <= hi_off, got

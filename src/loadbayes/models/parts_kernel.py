@@ -1,5 +1,9 @@
 """The sums a model of parts' likelihood needs, for one event, in one compiled call.
 
+One idea needs these lines: one event's parts solved once (:func:`_parts_of`) and
+summed two ways, at given shares (:func:`event_sums`) or as the shares' basis
+(:func:`event_basis`), with the AR(1) stacks of each.
+
 :meth:`PartsModel.channels <loadbayes.models.parts_model.PartsModel.channels>` builds
 each channel's design and target in NumPy (the NLS start and the tests read those);
 the sampler needs only their sums ``Z'Z, Z'y, y'y`` per channel, at every proposal.
@@ -9,6 +13,18 @@ the samples or as window means), motor D (``parts._motor_d``), the electronics, 
 static part, and the negative-sequence rows; the same arithmetic as ``channels``, which
 ``tests/unit/test_parts_kernel.py`` checks to 1e-9 on random draws. About a tenth of the
 NumPy path's cost (measured on ``cmld-lite`` with two 0.6 s events at 60/s).
+
+**The shares' basis.** Given everything but the shares, each part's response is fixed
+(the load bus comes from the recorded current), and every channel's design is linear
+in the weights ``w = (f_1, ..., f_K, f_s a1, f_s a2, f_s a3)`` (the dynamic parts'
+shares, then the static part's Z, I, P shares of the load's P): ``Z_g = B_g W(w)`` with
+``W = [[w, 0], [0, I_3]]`` and ``B_g`` (n_g, K + 6) the channel's basis: one column per
+weight (each part's own response, normalised as the design normalises it) and three
+fixed columns (Q's ``x^2, x, 1``; the negative-sequence current's ``-j V2_L / V_L(0)^2``
+three times; P's none, zeros). :func:`event_basis` returns the basis' sums ``B'B, B'y,
+y'y`` (and P's and Q's AR(1) stacks of them), so the sums at any shares are
+``W'(B'B)W, W'(B'y), y'y`` with no motor solve (``fit/composite/shares.py``). Both
+kernels read the parts' responses from one function, :func:`_parts_of`.
 """
 
 from __future__ import annotations
@@ -27,7 +43,87 @@ from loadbayes.models.motor_kernel import (
 from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 
-__all__ = ["event_sums", "knots_of", "model_sums"]
+__all__ = ["event_basis", "event_sums", "knots_of", "model_basis", "model_sums"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _parts_of(t, v, delta, has_angle, p, q, gap, steps, r, x, motors, window_s, d_on,
+              d_params, el_on, vd1, vd2, frcel):  # pragma: no cover - compiled  # fmt: skip
+    """Every part's own response at the load bus, for one event: no share enters here.
+
+    Returns ``(ok, vm, xl, pl, ql, pr, qr, yraw)``: the load bus's voltage and its ratio
+    to the first sample; the load's P and Q (the feeder's losses taken out); each dynamic
+    part's P and Q (rows: the motors, motor D, the electronics' connected share with Q
+    0); each motor's negative-sequence admittance at slip ``2 - s`` with its capacitor,
+    per unit of its first P (``parts.motor_y2``). ``ok`` is False where a motor has no
+    steady state.
+    """
+    n = t.size
+    zc = complex(r, x)
+    vm = np.empty(n)
+    dl = np.zeros(n)
+    pl = np.empty(n)
+    ql = np.empty(n)
+    a0 = 0.0
+    for k in range(n):
+        vk = v[k] * complex(math.cos(delta[k]), math.sin(delta[k]))
+        cur = ((p[k] + 1j * q[k]) / vk).conjugate()
+        vl = vk - zc * cur
+        i2k = cur.real * cur.real + cur.imag * cur.imag
+        pl[k] = p[k] - r * i2k
+        ql[k] = q[k] - x * i2k
+        vm[k] = abs(vl)
+        if has_angle:
+            if k == 0:
+                a0 = math.atan2(vl.imag, vl.real)
+            dl[k] = math.atan2(vl.imag, vl.real) - a0
+    v0 = vm[0]
+    xl = vm / v0
+    n_m = motors.shape[0]
+    n_dyn = n_m + (1 if d_on else 0) + (1 if el_on else 0)
+    pr = np.zeros((n_dyn, n))
+    qr = np.zeros((n_dyn, n))
+    yraw = np.zeros(n_dyn, dtype=np.complex128)
+    states = np.empty((3, n))
+    # Window means across a gap (rows left out): the voltage steps at its middle.
+    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)
+    for j in range(n_m):
+        m = motors[j]
+        pm = pr[j]
+        qm = qr[j]
+        if window_s > 0.0:
+            ok = integrate_window_into(ta, va, da, real, window_s, m[0], m[1], m[2], m[3],
+                                       m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
+                                       qm)  # fmt: skip
+        else:
+            ok = integrate_into(t, vm, dl, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
+                                m[8], m[9], m[10], pm, qm, states)  # fmt: skip
+        if not ok or not (pm[0] != 0.0):
+            return False, vm, xl, pl, ql, pr, qr, yraw
+        # The negative-sequence admittance at slip 2 - s (parts.motor_y2) and the capacitor.
+        xo = m[1] + m[2]
+        xmag = math.sqrt(xo * m[2])
+        xs = xo - xmag
+        rr = xo / (m[5] * m[3])
+        rotor = complex(rr / 2.0, xs)
+        z2 = complex(m[0], xs) + (1j * xmag * rotor) / (rotor + 1j * xmag)
+        yraw[j] = 1.0 / z2 + 1j * qm[0] / (v0 * v0)
+    j = n_m
+    if d_on:
+        dp = d_params
+        pd, qd = _motor_d(t, vm, dp[0], dp[1], dp[2], dp[3], dp[4], dp[5], dp[6], dp[7],
+                          dp[8], dp[9], dp[10], dp[11], dp[12], dp[13], dp[14], dp[15],
+                          dp[16])  # fmt: skip
+        pr[j] = pd
+        qr[j] = qd
+        j += 1
+    if el_on:
+        low = 1.0
+        for k in range(n):
+            ramp = min(max((vm[k] - vd2) / (vd1 - vd2), 0.0), 1.0)
+            low = min(low, ramp)
+            pr[j, k] = low + frcel * (ramp - low)
+    return True, vm, xl, pl, ql, pr, qr, yraw
 
 
 @numba.njit(cache=True, nogil=True)
@@ -41,103 +137,49 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
     last); ``a_p`` the static P's Z, I, P split; ``d_params`` motor D's 17 constants in
     ``parts.MOTOR_D_DEFAULTS``' order.
     """
+    ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
+                                                 r, x, motors, window_s, d_on, d_params,
+                                                 el_on, vd1, vd2, frcel)  # fmt: skip
+    if not ok:
+        return False
     n = t.size
     zc = complex(r, x)
-    vl = np.empty(n, dtype=np.complex128)
-    vm = np.empty(n)
-    dl = np.zeros(n)
-    pl = np.empty(n)
-    ql = np.empty(n)
-    for k in range(n):
-        vk = v[k] * complex(math.cos(delta[k]), math.sin(delta[k]))
-        cur = ((p[k] + 1j * q[k]) / vk).conjugate()
-        vl[k] = vk - zc * cur
-        i2k = cur.real * cur.real + cur.imag * cur.imag
-        pl[k] = p[k] - r * i2k
-        ql[k] = q[k] - x * i2k
-        vm[k] = abs(vl[k])
-    if has_angle:
-        a0 = math.atan2(vl[0].imag, vl[0].real)
-        for k in range(n):
-            dl[k] = math.atan2(vl[k].imag, vl[k].real) - a0
     v0 = vm[0]
-    xl = vm / v0
-    n_m = motors.shape[0]
+    n_q = motors.shape[0] + (1 if d_on else 0)  # the parts with a Q of their own
     f_s = shares[shares.size - 1]
     col_p = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
     col_qp = np.zeros(n)
     y2p = complex(f_s / (v0 * v0), 0.0)
-    pm = np.empty(n)
-    qm = np.empty(n)
-    states = np.empty((3, n))
-    # Window means across a gap (rows left out): the voltage steps at its middle.
-    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)
-    for j in range(n_m):
-        m = motors[j]
-        if window_s > 0.0:
-            ok = integrate_window_into(ta, va, da, real, window_s, m[0], m[1], m[2], m[3],
-                                       m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
-                                       qm)  # fmt: skip
-        else:
-            ok = integrate_into(t, vm, dl, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
-                                m[8], m[9], m[10], pm, qm, states)  # fmt: skip
-        if not ok or not (pm[0] != 0.0):
-            return False
+    for j in range(pr.shape[0]):
         fj = shares[j]
+        if j >= n_q:  # the electronics: their connected share, no Q
+            for k in range(n):
+                col_p[k] += fj * pr[j, k]
+            continue
         for k in range(n):
-            col_p[k] += fj * pm[k] / pm[0]
-            col_qp[k] += fj * (qm[k] - qm[0] * xl[k] * xl[k]) / pm[0]
-        # The negative-sequence admittance at slip 2 - s (parts.motor_y2) and the capacitor.
-        xo = m[1] + m[2]
-        xmag = math.sqrt(xo * m[2])
-        xs = xo - xmag
-        rr = xo / (m[5] * m[3])
-        rotor = complex(rr / 2.0, xs)
-        z2 = complex(m[0], xs) + (1j * xmag * rotor) / (rotor + 1j * xmag)
-        y2p += fj / pm[0] * (1.0 / z2 + 1j * qm[0] / (v0 * v0))
-    j = n_m
-    if d_on:
-        dp = d_params
-        pd, qd = _motor_d(t, vm, dp[0], dp[1], dp[2], dp[3], dp[4], dp[5], dp[6], dp[7],
-                          dp[8], dp[9], dp[10], dp[11], dp[12], dp[13], dp[14], dp[15],
-                          dp[16])  # fmt: skip
-        fj = shares[j]
-        for k in range(n):
-            col_p[k] += fj * pd[k] / pd[0]
-            col_qp[k] += fj * (qd[k] - qd[0] * xl[k] * xl[k]) / pd[0]
-        y2p += fj / (v0 * v0)
-        j += 1
-    if el_on:
-        fj = shares[j]
-        low = 1.0
-        for k in range(n):
-            ramp = min(max((vm[k] - vd2) / (vd1 - vd2), 0.0), 1.0)
-            low = min(low, ramp)
-            col_p[k] += fj * (low + frcel * (ramp - low))
+            col_p[k] += fj * pr[j, k] / pr[j, 0]
+            col_qp[k] += fj * (qr[j, k] - qr[j, 0] * xl[k] * xl[k]) / pr[j, 0]
+        if j < motors.shape[0]:
+            y2p += fj / pr[j, 0] * yraw[j]
+        else:  # motor D: the constant impedance of its operating point
+            y2p += fj / (v0 * v0)
     ztz[:] = 0.0
     zty[:] = 0.0
     yty[:] = 0.0
     nn[:] = 0.0
-    row = np.zeros(4)
+    z = np.zeros((2, n, 4))  # P's rows [col_p, 0, 0, 0], Q's [col_qp, x^2, x, 1]
     for k in range(n):
         if abs(col_p[k]) > 1e6 or abs(col_qp[k]) > 1e6:
             return False
-        # P: [col_p, 0, 0, 0]
-        ztz[0, 0, 0] += col_p[k] * col_p[k]
-        zty[0, 0] += col_p[k] * pl[k]
-        yty[0] += pl[k] * pl[k]
-        nn[0] += 1.0
-        # Q: [col_qp, x^2, x, 1]
-        row[0], row[1], row[2], row[3] = col_qp[k], xl[k] * xl[k], xl[k], 1.0
-        for a in range(4):
-            zty[1, a] += row[a] * ql[k]
-            for b in range(4):
-                ztz[1, a, b] += row[a] * row[b]
-        yty[1] += ql[k] * ql[k]
-        nn[1] += 1.0
+        z[0, k, 0] = col_p[k]
+        z[1, k, 0], z[1, k, 1], z[1, k, 2], z[1, k, 3] = col_qp[k], xl[k] * xl[k], xl[k], 1.0
+    y = np.empty((2, n))
+    y[0], y[1] = pl, ql
+    _gram_into(z, y, ztz, zty, yty, nn)
     if ar:
-        _ar_moments_into(col_p, col_qp, xl, pl, ql, gap, mzz, mzy, myy)
+        _ar_moments_into(z, y, gap, mzz, mzy, myy)
     if ns_on:
+        row = np.zeros(4)
         for k in range(n):
             if not i2_rows[k]:
                 continue
@@ -147,15 +189,12 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
             for part in range(2):
                 if part == 0:
                     row[0], row[1], row[2], row[3] = c1.real, c2.real, c2.real, c2.real
-                    y = i2[k].real
+                    yk = i2[k].real
                 else:
                     row[0], row[1], row[2], row[3] = c1.imag, c2.imag, c2.imag, c2.imag
-                    y = i2[k].imag
-                for a in range(4):
-                    zty[2, a] += row[a] * y
-                    for b in range(4):
-                        ztz[2, a, b] += row[a] * row[b]
-                yty[2] += y * y
+                    yk = i2[k].imag
+                _add_row(row, yk, ztz[2], zty[2])
+                yty[2] += yk * yk
                 nn[2] += 1.0
     for g in range(ztz.shape[0]):
         for a in range(4):
@@ -165,42 +204,129 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
 
 
 @numba.njit(cache=True, nogil=True)
-def _ar_moments_into(col_p, col_qp, xl, pl, ql, gap, mzz, mzy, myy):  # pragma: no cover
-    # P's and Q's rows as in event_sums; a segment starts at row 0 and after each gap.
+def event_basis(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors,
+                window_s, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, bb, by, yy, nn, ar,
+                mbb, mby, myy):  # pragma: no cover - compiled  # fmt: skip
+    """Fill the shares' basis sums (module docstring); False if infeasible at some shares.
+
+    ``bb (G, M, M)``, ``by (G, M)``, ``yy (G,)``, ``nn (G,)`` with ``M = K + 6`` (the
+    ``K`` dynamic parts, the static part's three, three fixed columns); with ``ar``, P's
+    and Q's AR(1) stacks ``mbb (2, 4, M, M)``, ``mby (2, 4, M)``, ``myy (2, 4)``. False
+    also where a basis column passes 1e6 (:func:`event_sums` refuses a column that large:
+    below it every share vector is feasible, above it some are not).
+    """
+    ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
+                                                 r, x, motors, window_s, d_on, d_params,
+                                                 el_on, vd1, vd2, frcel)  # fmt: skip
+    if not ok:
+        return False
+    n = t.size
+    n_dyn = pr.shape[0]
+    n_m = motors.shape[0]
+    n_q = n_m + (1 if d_on else 0)
+    m_cols = n_dyn + 6
+    zc = complex(r, x)
+    v0 = vm[0]
+    z = np.zeros((2, n, m_cols))
+    for k in range(n):
+        for j in range(n_dyn):
+            if j < n_q:
+                z[0, k, j] = pr[j, k] / pr[j, 0]
+                z[1, k, j] = (qr[j, k] - qr[j, 0] * xl[k] * xl[k]) / pr[j, 0]
+            else:
+                z[0, k, j] = pr[j, k]
+        z[0, k, n_dyn], z[0, k, n_dyn + 1], z[0, k, n_dyn + 2] = xl[k] * xl[k], xl[k], 1.0
+        z[1, k, n_dyn + 3], z[1, k, n_dyn + 4], z[1, k, n_dyn + 5] = xl[k] * xl[k], xl[k], 1.0
+        for c in range(m_cols):
+            if abs(z[0, k, c]) > 1e6 or abs(z[1, k, c]) > 1e6:
+                return False
+    y = np.empty((2, n))
+    y[0], y[1] = pl, ql
+    bb[:] = 0.0
+    by[:] = 0.0
+    yy[:] = 0.0
+    nn[:] = 0.0
+    _gram_into(z, y, bb, by, yy, nn)
+    if ar:
+        _ar_moments_into(z, y, gap, mbb, mby, myy)
+    if ns_on:
+        cols = np.zeros(m_cols, dtype=np.complex128)
+        row = np.zeros(m_cols)
+        for k in range(n):
+            if not i2_rows[k]:
+                continue
+            v2l = v2[k] - zc * i2[k]
+            for j in range(n_dyn):
+                if j < n_m:
+                    cols[j] = v2l * (yraw[j] / pr[j, 0])
+                elif j < n_q:
+                    cols[j] = v2l / (v0 * v0)
+            for c in range(3):
+                cols[n_dyn + c] = v2l / (v0 * v0)
+                cols[n_dyn + 3 + c] = v2l * (-1j / (v0 * v0))
+            for part in range(2):
+                for c in range(m_cols):
+                    row[c] = cols[c].real if part == 0 else cols[c].imag
+                yk = i2[k].real if part == 0 else i2[k].imag
+                _add_row(row, yk, bb[2], by[2])
+                yy[2] += yk * yk
+                nn[2] += 1.0
+    for g in range(bb.shape[0]):
+        for a in range(m_cols):
+            if not math.isfinite(by[g, a]):
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _add_row(row, y, zz, zy):  # pragma: no cover - compiled
+    # One row's terms of Z'Z and Z'y.
+    for a in range(row.size):
+        zy[a] += row[a] * y
+        for b in range(row.size):
+            zz[a, b] += row[a] * row[b]
+
+
+@numba.njit(cache=True, nogil=True)
+def _gram_into(z, y, zz, zy, yy, nn):  # pragma: no cover - compiled
+    # P's and Q's rows (z (2, n, k), y (2, n)) added to groups 0 and 1, row by row.
+    for k in range(z.shape[1]):
+        for g in range(2):
+            _add_row(z[g, k], y[g, k], zz[g], zy[g])
+            yy[g] += y[g, k] * y[g, k]
+            nn[g] += 1.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _ar_moments_into(z, y, gap, mzz, mzy, myy):  # pragma: no cover - compiled
+    # P's and Q's rows z (2, n, k), y (2, n); a segment starts at row 0 and after each gap.
     mzz[:] = 0.0
     mzy[:] = 0.0
     myy[:] = 0.0
-    zc = np.zeros((2, 4))
-    zl = np.zeros((2, 4))
-    yc = np.zeros(2)
-    yl = np.zeros(2)
-    for k in range(col_p.size):
-        zc[0, 0] = col_p[k]
-        zc[1, 0], zc[1, 1], zc[1, 2], zc[1, 3] = col_qp[k], xl[k] * xl[k], xl[k], 1.0
-        yc[0], yc[1] = pl[k], ql[k]
+    nk = z.shape[2]
+    for k in range(z.shape[1]):
         first = k == 0 or gap[k - 1]
         for g in range(2):
+            zc, yc = z[g, k], y[g, k]
             if first:
-                for a in range(4):
-                    mzy[g, 3, a] += zc[g, a] * yc[g]
-                    for b in range(4):
-                        mzz[g, 3, a, b] += zc[g, a] * zc[g, b]
-                myy[g, 3] += yc[g] * yc[g]
+                for a in range(nk):
+                    mzy[g, 3, a] += zc[a] * yc
+                    for b in range(nk):
+                        mzz[g, 3, a, b] += zc[a] * zc[b]
+                myy[g, 3] += yc * yc
             else:
-                for a in range(4):
-                    mzy[g, 0, a] += zc[g, a] * yc[g]
-                    mzy[g, 1, a] += zc[g, a] * yl[g] + zl[g, a] * yc[g]
-                    mzy[g, 2, a] += zl[g, a] * yl[g]
-                    for b in range(4):
-                        mzz[g, 0, a, b] += zc[g, a] * zc[g, b]
-                        mzz[g, 1, a, b] += zc[g, a] * zl[g, b] + zl[g, a] * zc[g, b]
-                        mzz[g, 2, a, b] += zl[g, a] * zl[g, b]
-                myy[g, 0] += yc[g] * yc[g]
-                myy[g, 1] += 2.0 * yc[g] * yl[g]
-                myy[g, 2] += yl[g] * yl[g]
-            for a in range(4):
-                zl[g, a] = zc[g, a]
-            yl[g] = yc[g]
+                zl, yl = z[g, k - 1], y[g, k - 1]
+                for a in range(nk):
+                    mzy[g, 0, a] += zc[a] * yc
+                    mzy[g, 1, a] += zc[a] * yl + zl[a] * yc
+                    mzy[g, 2, a] += zl[a] * yl
+                    for b in range(nk):
+                        mzz[g, 0, a, b] += zc[a] * zc[b]
+                        mzz[g, 1, a, b] += zc[a] * zl[b] + zl[a] * zc[b]
+                        mzz[g, 2, a, b] += zl[a] * zl[b]
+                myy[g, 0] += yc * yc
+                myy[g, 1] += 2.0 * yc * yl
+                myy[g, 2] += yl * yl
 
 
 @numba.njit(cache=True, nogil=True)
@@ -241,6 +367,45 @@ def model_sums(model, event, theta, ar=False):
     With ``ar``, ``((ztz, zty, yty, n), (mzz, mzy, myy, segments))``: P's and Q's AR(1)
     sums beside them (``inference.ar1.ar_moments``' stacks, one per channel).
     """
+    fixed, parts, ns_on, c = _arguments(model, event, theta)
+    g = len(model.channel_names)
+    ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
+    moments = ((np.empty((2, 4, 4, 4)), np.empty((2, 4, 4)), np.empty((2, 4))) if ar
+               else _NO_MOMENTS)  # fmt: skip
+    r, x, motors, window_s, d_on, d_params, el_on, vd1, vd2, frcel = parts
+    ok = event_sums(*fixed, r, x, motors, window_s, np.ascontiguousarray(c["f"]),
+                    np.ascontiguousarray(c["a_p"]), d_on, d_params, el_on, vd1, vd2, frcel,
+                    ns_on, ztz, zty, yty, nn, ar, *moments)  # fmt: skip
+    return _result(ok, (ztz, zty, yty, nn), moments, fixed, ar)
+
+
+def model_basis(model, event, theta, ar=False):
+    """:func:`event_basis` for a ``PartsModel`` at ``theta`` (its shares not read).
+
+    ``(bb, by, yy, n)`` or None, as :func:`model_sums` returns; with ``ar`` their AR(1)
+    stacks and segment count beside them.
+    """
+    fixed, parts, ns_on, _ = _arguments(model, event, theta)
+    g = len(model.channel_names)
+    m = len(model.parts) + 6
+    bb, by, yy, nn = np.empty((g, m, m)), np.empty((g, m)), np.empty(g), np.empty(g)
+    moments = (np.empty((2, 4, m, m)), np.empty((2, 4, m)), np.empty((2, 4)))
+    ok = event_basis(*fixed, *parts, ns_on, bb, by, yy, nn, ar, *moments)
+    return _result(ok, (bb, by, yy, nn), moments, fixed, ar)
+
+
+def _result(ok, sums, moments, fixed, ar):
+    if not ok:
+        return None
+    if not ar:
+        return sums
+    segments = 1.0 + float(np.count_nonzero(fixed[6][:-1]))
+    return sums, (*moments, segments)
+
+
+def _arguments(model, event, theta) -> tuple:
+    # The kernels' arguments at theta: the event's arrays, the parts' constants, whether
+    # the negative sequence is read, and theta split (its shares for event_sums).
     fixed = _fixed_of(model, event)
     c = model._split(np.asarray(theta, dtype=float))
     x_fd = model.feeder_x(fixed[4][0], fixed[5][0], c)  # the first kept row's P, Q
@@ -250,24 +415,13 @@ def model_sums(model, event, theta, ar=False):
         rs, xp, dx, tp, h, t0 = np.exp(logs)
         a, b, cc = MOTOR_CLASSES[m]["torque"]
         motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
-    g = len(model.channel_names)
-    ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
-    moments = ((np.empty((2, 4, 4, 4)), np.empty((2, 4, 4)), np.empty((2, 4))) if ar
-               else _NO_MOMENTS)  # fmt: skip
     params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
               "tstall": float(c["tstall"])}  # fmt: skip
     d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
-    ok = event_sums(*fixed, model.rx * x_fd, x_fd, motors, float(model.window_s),
-                    np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]),
-                    model.motor_d, d_params, model.electronics, float(c["vd1"]),
-                    float(c["vd2"]), float(model.frcel), g == 3 and bool(fixed[10].any()),
-                    ztz, zty, yty, nn, ar, *moments)  # fmt: skip
-    if not ok:
-        return None
-    if not ar:
-        return ztz, zty, yty, nn
-    segments = 1.0 + float(np.count_nonzero(fixed[6][:-1]))
-    return (ztz, zty, yty, nn), (*moments, segments)
+    parts = (model.rx * x_fd, x_fd, motors, float(model.window_s), model.motor_d, d_params,
+             model.electronics, float(c["vd1"]), float(c["vd2"]), float(model.frcel))  # fmt: skip
+    ns_on = len(model.channel_names) == 3 and bool(fixed[10].any())
+    return fixed, parts, ns_on, c
 
 
 #: The AR(1) sums' arguments of the white-noise kernel call (not read).

@@ -82,9 +82,13 @@ from loadbayes.models.parts import (
     step_knots,
     step_times,
 )
-from loadbayes.models.parts_kernel import model_sums
+from loadbayes.models.parts_kernel import model_basis, model_sums
 
-__all__ = ["NEG_SEQ_MIN", "PartsModel"]
+__all__ = ["NEG_SEQ_MIN", "SHARE_STEPS", "PartsModel"]
+
+#: The sampler's rounds of share-only steps per iteration by default (docs/composite.md,
+#: "The shares' own steps": their cost measured against the joint move's).
+SHARE_STEPS = 20
 
 # Scale-free motor coordinates from the logs of (Rs, X', X - X', T', H, T0).
 _SCALE_FREE = SCALE_FREE_MATRIX  # (Rs T0, X' T0, (X - X') T0, T', H / T0, T0) from the logs
@@ -135,6 +139,9 @@ class PartsModel:
     #: sampler's own bound, ``inference/ar1.RHO_MAX``) leaves them free. On a short record
     #: they can run to a random walk (docs/composite.md, "Known limitations").
     rho_max: float = 0.999
+    #: Rounds of the sampler's share-only steps per iteration (``fit/composite/shares.py``:
+    #: the shares moved through their basis, no motor solve); 0: none, the joint move alone.
+    share_steps: int = SHARE_STEPS
     priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     coefficient_priors: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
@@ -151,6 +158,8 @@ class PartsModel:
             raise ModelOptionError("{noise}: one of white, ar1")
         if not 0 < self.rho_max <= 0.999:
             raise ModelOptionError(f"{{rho_max}} {self.rho_max!r}: in (0, 0.999]")
+        if not (isinstance(self.share_steps, int) and 0 <= self.share_steps <= 10_000):
+            raise ModelOptionError(f"{{share_steps}} {self.share_steps!r}: 0 to 10000 rounds")
         if not (math.isfinite(self.window_s) and 0 <= self.window_s <= 1):
             raise ModelOptionError(f"{{window_s}} {self.window_s!r}: 0 to 1 s")
         if not 0 <= self.vd2 < self.vd1 <= 1.2:
@@ -308,6 +317,16 @@ class PartsModel:
         """
         return model_sums(self, event, theta, ar)
 
+    def event_basis(self, event: EventRecord, theta: NDArray, ar: bool = False):
+        """The shares' basis sums at ``theta``'s other coordinates (``parts_kernel``).
+
+        ``(bb, by, yy, n)``: each channel's ``B'B, B'y, y'y`` over the weights ``(f_1,
+        ..., f_K, f_s a1, f_s a2, f_s a3)`` and three fixed columns, so that
+        :meth:`event_sums` at any shares is ``W'(B'B)W, W'(B'y), y'y``
+        (``parts_kernel.event_basis``); None where some shares would be infeasible.
+        """
+        return model_basis(self, event, theta, ar)
+
     def first_rows(self, event: EventRecord) -> NDArray[np.bool_]:
         """Over the kept rows, True where an AR(1) segment starts: the first, after a gap.
 
@@ -415,6 +434,7 @@ class PartsModel:
             "priors": {k: list(v) for k, v in self.priors.items()},
             # Only where it is not white: a white-noise fit's record stays as it was.
             **({"noise": self.noise, "rho_max": self.rho_max} if self.noise != "white" else {}),
+            **({"share_steps": self.share_steps} if self.share_steps != SHARE_STEPS else {}),
         }  # fmt: skip
 
     @property

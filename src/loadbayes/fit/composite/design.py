@@ -252,6 +252,10 @@ class DesignProblem:
             groups.append(GroupSums(ztz, zty, yty, w.n))
         return ARSums(groups, sums.white, sums.moments)
 
+    def ar_whitened(self, white: list[GroupSums], moments: list[tuple], rho) -> ARSums:
+        """Sums given as :attr:`ARSums.white` and :attr:`ARSums.moments`, whitened for ``rho``."""
+        return self.resum(ARSums(white, white, moments), rho)
+
     def ar_statistics(self, sums: ARSums, betas) -> np.ndarray:
         """P's and Q's residual sums for the AR(1) step (``inference/ar1.draw_rho``'s)."""
         out = np.zeros((2, 4))
@@ -261,12 +265,24 @@ class DesignProblem:
         return out
 
     def conditional_moves(self):
-        """The model's own steps after the block move (its thresholds'), or None."""
-        if not getattr(self.model, "thresholds", ()):
-            return None
+        """The model's own steps after the block move, run in turn, or None.
+
+        Its thresholds' (``thresholds.py``), then its shares' (``shares.py``, where the
+        model has a basis of its shares and ``share_steps`` is not 0).
+        """
+        from loadbayes.fit.composite.shares import ShareMoves
         from loadbayes.fit.composite.thresholds import ThresholdMoves
 
-        return ThresholdMoves(self)
+        moves = []
+        if getattr(self.model, "thresholds", ()):
+            moves.append(ThresholdMoves(self))
+        # The shares' basis is the model's (its theta); u must be that theta.
+        same = self.n_free == self.n_theta and np.array_equal(self._to_theta, np.eye(self.n_free))
+        if getattr(self.model, "share_steps", 0) and hasattr(self.model, "event_basis") and same:
+            moves.append(ShareMoves(self))
+        if not moves:
+            return None
+        return moves[0] if len(moves) == 1 else _InTurn(moves)
 
     def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:
         """Every event's ``beta | u, tau`` (exact)."""
@@ -312,6 +328,21 @@ class DesignProblem:
             if rows[g] > 0:  # a channel no event has data for has no noise to report
                 out[f"tau_{name}"] = tau[..., g]
         return out
+
+
+class _InTurn:
+    """Several of a model's own steps run one after the other (each keeps the posterior)."""
+
+    def __init__(self, moves) -> None:
+        self.moves = moves
+
+    def __getattr__(self, name):  # the first move's attributes (the thresholds' tests)
+        return getattr(self.moves[0], name)
+
+    def __call__(self, u, lp, sums, logp, rng, **state):
+        for move in self.moves:
+            u, lp, sums = move(u, lp, sums, logp, rng, **state)
+        return u, lp, sums
 
 
 @dataclass

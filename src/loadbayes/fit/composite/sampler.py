@@ -243,7 +243,9 @@ class _Gibbs:
         if self.tilted is None:
             (u, lp, sums), _ = self.am.step(BlockState(u, lp, sums), logp, rng, it)
             if self.own_moves is not None:
-                u, lp, sums = self.own_moves(u, lp, sums, logp, rng)
+                u, lp, sums = self.own_moves(u, lp, sums, logp, rng, rho=rho,
+                                             tau=tau if wt is None else None,
+                                             adapting=it < self.burn)  # fmt: skip
             if problem.n_share_coords:
                 u = self._share_steps(u, lp, sums, tau, it)
 

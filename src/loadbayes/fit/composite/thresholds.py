@@ -58,7 +58,7 @@ class ThresholdMoves:
         theta = self.problem.theta(u)
         return min(self.model.lowest_voltage(ev, theta) for ev in self.problem.events)
 
-    def __call__(self, u, lp, sums, logp, rng):
+    def __call__(self, u, lp, sums, logp, rng, **state):
         """One independence and (where the voltages are reached) one random-walk step per pair."""
         prior, inside = self.problem.prior, self.problem.in_support
         low = self.lowest_voltage(u)
