@@ -108,3 +108,23 @@ def simulate(*, f_hz=50.0, rs=0.04, xs=0.1, xm=3.0, rr=0.03, h=0.4, t0=0.7, torq
         "q_static": qs,
     }  # fmt: skip
     return ts, out[0], out[1], out[2], out[3], truth
+
+
+def write_sags(root, sags=(0.15, 0.25), seed=2, noise=0.005):
+    """Two (or more) sags of the default load as CSVs in ``root`` (``t_s, v, p, q,
+    angle_rad``, 0.5% noise on P and Q, one generator of ``seed`` for all): their paths.
+
+    The CLI tests that fit a small pair of events (``--model auto``, ``--noise ar1``)
+    read these.
+    """
+    import pandas as pd
+
+    rng = np.random.default_rng(seed)
+    paths = []
+    for k, sag in enumerate(sags):
+        t, v, d, p, q, _ = simulate(sag=sag)
+        frame = pd.DataFrame({"t_s": t, "v": v, "p": p + rng.normal(0, noise, t.size),
+                              "q": q + rng.normal(0, noise, t.size), "angle_rad": d})  # fmt: skip
+        paths.append(root / f"sag{k}.csv")
+        frame.to_csv(paths[-1], index=False)
+    return paths

@@ -13,12 +13,10 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
-import pandas as pd
 import pytest
 from click.testing import CliRunner
 
-from feeder_generator import simulate
+from feeder_generator import write_sags
 from loadbayes.cli import main
 
 pytestmark = pytest.mark.integration
@@ -27,14 +25,7 @@ pytestmark = pytest.mark.integration
 @pytest.fixture(scope="module")
 def sags(tmp_path_factory):
     root = tmp_path_factory.mktemp("auto")
-    rng = np.random.default_rng(2)
-    paths = []
-    for k, sag in enumerate((0.15, 0.25)):
-        t, v, d, p, q, _ = simulate(sag=sag)
-        frame = pd.DataFrame({"t_s": t, "v": v, "p": p + rng.normal(0, 0.005, t.size),
-                              "q": q + rng.normal(0, 0.005, t.size), "angle_rad": d})  # fmt: skip
-        paths.append(root / f"sag{k}.csv")
-        frame.to_csv(paths[-1], index=False)
+    paths = write_sags(root)
     return root, paths
 
 
