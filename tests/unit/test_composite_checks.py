@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from loadbayes.fit.composite.checks import jumps, sampling_warnings
+from loadbayes.fit.composite.checks import jumps, own_bases_warnings, sampling_warnings
 from loadbayes.measurements.record import EventRecord
 
 
@@ -39,3 +39,22 @@ def test_an_angle_read_from_frequency_is_flagged_only_where_the_voltage_steps():
     assert len(out) == 1 and "angle_rad" in out[0]
     assert sampling_warnings([_event(angle_from="angle")], np.full(10, 0.5)) == []
     assert sampling_warnings([_event(angle_from="frequency", smooth=True)], np.full(10, 0.5)) == []
+
+
+def test_p_and_q_each_per_unit_of_its_own_initial_value_are_warned_of():
+    # The fan motor of issue 35 wrote P/P0 and Q/Q0: both 1 before the sag, Q on a base
+    # P0/Q0 times P's, and the fit (which ties the motor's Q to its P) read f_m 0.337
+    # [0.308, 0.370] for 0.400. Both channels at 1 in every event is that signature; a
+    # load on one base (Q0 = 0.3 P0) is not warned of, nor one event of many at 1.
+    t = np.arange(120) / 60.0
+    v = np.where((t > 1.0) & (t < 1.2), 0.7, 1.0)
+    rng = np.random.default_rng(0)
+
+    def event(q0):
+        p = v**2 + 0.005 * rng.standard_normal(t.size)
+        return EventRecord(t, v, p, q0 * v**2 + 0.005 * rng.standard_normal(t.size))
+
+    (words,) = own_bases_warnings([event(1.0), event(1.0)])
+    assert "P/P0, Q/Q0" in words and "one base" in words
+    assert own_bases_warnings([event(0.3)]) == []
+    assert own_bases_warnings([event(1.0), event(0.3)]) == []

@@ -140,6 +140,28 @@ def test_a_step_between_point_samples_stays_a_step():
                                atol=1e-12)  # fmt: skip
 
 
+@pytest.mark.parametrize("rate", [60.0, 120.0])
+@pytest.mark.parametrize("noise", [0.0, 0.001])
+def test_a_step_into_a_level_that_moves_on_stays_a_step(rate, noise):
+    # A grid's bus after a fault (ANDES's IEEE 14-bus case): the voltage steps from 0.952
+    # to 0.676 just after a sample, then falls on by itself, 1.9/s easing off with a time
+    # constant of 60 ms; the recovery the same way up. The level's first intervals move
+    # more than 5% of the step and grew the edge into a ramp through them (read as a
+    # ramp, the step was spread over a whole interval: f_m 0.386-0.392, T' 0.14 s for
+    # 0.50 at 60/s); they are the level's, and the edge is the step's one interval.
+    t = np.arange(int(1.0 * rate) + 1) / rate
+    drift = 0.114 * (1 - np.exp(-np.clip(t - 0.5001, 0, None) / 0.06))
+    v = np.where(t <= 0.5001, 0.952, 0.676 - drift)
+    rec = np.clip(t - 0.6001, 0, None)
+    v = np.where(t > 0.6001, 0.80 + 0.09 * (1 - np.exp(-rec / 0.06)), v)
+    v = v + noise * np.random.default_rng(3).standard_normal(t.size)
+    fs = FitSamples.find([t], [v], window_s=0.0)
+    edges = fs.edges[0]
+    assert len(edges) == 2 and fs.ramps == 0, edges
+    for (k0, k1), at in zip(edges, (0.5001, 0.6001), strict=True):
+        assert k1 == k0 + 1 and t[k0] < at < t[k1]
+
+
 @pytest.mark.parametrize("noise", [0.0, 0.001])
 @pytest.mark.parametrize(
     "rate, ramp, start",

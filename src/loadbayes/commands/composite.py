@@ -143,10 +143,10 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     "--window-s",
     type=click.FloatRange(min=0, max=1),
     default=None,
-    help="The recorder's phasor window in s (default one cycle of --f-hz): each sample is "
-    "read as the motor's mean over this window centred on its stamp, and the samples inside "
-    "a fault's edge, whose window straddles the change, are left out of the fit. 0: point "
-    "samples (instantaneous values, as simulators write them).",
+    help="The recorder's phasor window in s: each sample is read as the motor's mean over "
+    "it, centred on its stamp (a fault's edge's samples left out). 0: point samples (as "
+    "simulators write them). Default: one cycle for events cut by `loadbayes events`; for a "
+    "plain table, points or one-cycle means, whichever fits better (the run says which).",
 )
 @sampler_settings(
     draws=16_000,
@@ -254,6 +254,7 @@ def fit_composite_cmd(
     from loadbayes.fit.composite.checks import check_run
     from loadbayes.fit.composite.choice import choose_model
     from loadbayes.fit.composite.driver import fit_composite
+    from loadbayes.fit.composite.reading import reading_model
     from loadbayes.measurements.events import index_bases, index_f_hz, read_events
     from loadbayes.measurements.record import check_units
 
@@ -304,6 +305,8 @@ def fit_composite_cmd(
                                          negative_sequence=negative_sequence)  # fmt: skip
         click.echo(f"loadbayes: --model auto: {choice['words']}", err=True)
         parts = model.name != "zip+motor"
+    # A plain table does not say how it was sampled (events.csv does): read by the data.
+    model, reading = reading_model(model, events, chosen=window_s is not None or bool(f_found))
     bases_note = None
     if v_base is None and s_base is None:
         # Per-unit events cut by `loadbayes events`: their bases are in events.csv.
@@ -328,8 +331,9 @@ def fit_composite_cmd(
     if not quiet:
         if bases_note:
             click.echo(f"loadbayes: note: {bases_note}", err=True)
-        if f_note:
-            click.echo(f"loadbayes: note: {f_note}", err=True)
+        for note in (f_note, reading and f"samples {reading.words}"):
+            if note:
+                click.echo(f"loadbayes: note: {note}", err=True)
         n = sum(e.n for e in events)
         click.echo(
             f"fitting {len(events)} event(s), {n} samples: NLS start, then sampling", err=True
@@ -358,6 +362,7 @@ def fit_composite_cmd(
                 data_warnings=unit_warnings,
                 provenance={
                     **({"model_choice": choice} if choice else {}),
+                    **({"sample_reading": reading.as_dict()} if reading else {}),
                     "files": list(files),
                     "v_base_kv": v_base_rec,
                     "s_base_mva": s_base_rec,

@@ -22,7 +22,12 @@ import numpy as np
 
 from loadbayes.core.settings import SamplerSettings, new_spelling
 from loadbayes.fit.composite.bounded import share_start
-from loadbayes.fit.composite.checks import check_run, convergence_warnings, start_warnings
+from loadbayes.fit.composite.checks import (
+    check_run,
+    convergence_warnings,
+    own_bases_warnings,
+    start_warnings,
+)
 from loadbayes.fit.composite.describe import describe_fit
 from loadbayes.fit.composite.describe_parts import describe_parts, parts_residuals
 from loadbayes.fit.composite.design import DesignProblem
@@ -363,7 +368,7 @@ def fit_composite(
         model="composite",
         method=METHOD[move] + ("-student-t" if student_t else ""),
         constant={**constant, **event_arrays(events)},  # the recordings, for the report
-        warnings=unit_warnings + start_warnings(events) + robust_warn,
+        warnings=unit_warnings + start_warnings(events) + own_bases_warnings(events) + robust_warn,
         coefficients=coefficients,
         free=free,
         observed={"t_s": events[0].t, "v": events[0].v, "p": events[0].p, "q": events[0].q},
