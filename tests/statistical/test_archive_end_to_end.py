@@ -28,7 +28,8 @@ broken files are listed with their reasons.
   214 pooled, ratio 1.009, events covered 62% (one-cycle phasors read as point samples
   misfit: intervals too narrow), cells 70 of 72 (97%): the pool's event-to-event spread
   takes up the misfit.
-  22 and 13 minutes of fitting on 2 shared cores (load 12-16). Before the torque fix:
+  15 and 5 minutes of fitting on 2 shared cores (22 and 13 at a load of 12-16); the
+  two tests 20.5 minutes under pytest. Before the torque fix:
   1.066 and 45 of 72 cells (default), 1.045 and 38 of 72 (``window_s=0``, measured
   before the smeared-edge rule).
 - The suite's lean version: one record a station (6 events), 300 draws per event: the
