@@ -41,12 +41,18 @@ def test_pool_writes_the_json_and_the_figure(catalog, tmp_path):
     d = json.loads(out.read_text())
     assert d["left_out"] == {
         "fit failed": 4,
-        "did not converge (R-hat > 1.05)": 3,
+        "share outside [0, 1]": 0,
+        "chains disagree on the share (R-hat >= 1.05)": 3,
+        "too few effective draws of the share (ESS < 100)": 0,
         "no R-hat recorded": 0,
     }
+    assert d["events"] == {"rows": 67, "pooled": 60}
     assert len(d["parts"]["f_m"]["monthly"]) == 12 * 7
     assert fig.read_bytes()[:4] == b"\x89PNG"
-    assert "events left out: fit failed: 4" in r.output
+    assert (
+        "60 of 67 fitted event shares pooled; left out: fit failed 4, chains disagree "
+        "on the share (R-hat >= 1.05) 3"
+    ) in r.output
     assert "alike within 0.1 (groups)" in r.output
     r = _run("--catalog", path, "--draws", 60, "--chains", 2, "--by-bay", "--out", "-")
     assert r.exit_code == 0, r.output

@@ -8,7 +8,9 @@ each of the four rows whose window holds its edge by 2%: before, no edge was fou
 window means drove the motor as a ramp and the model averaged its response once more, and
 f_m came out 1.2-1.4 times the truth with the 95% interval excluding it (measured on the
 generator's 5-7% dips; here 0.421 [0.400, 0.443] for 0.35, no row left out). Found as an
-edge, the dip's interval covers the truth (0.385 [0.282, 0.486] at this seed). One record,
+edge, the dip's interval covers the truth (0.385 [0.282, 0.486] at this seed with the
+generator's first motor, a constant load torque; 0.401 [0.258, 0.466] with its load torque
+T0 w^2, the law the fit assumes). One record,
 one seed: a 95% interval misses with probability about 5% for a fresh seed; this one is
 fixed. About 10 s.
 """

@@ -105,9 +105,27 @@ def test_alike_stations_are_said_alike_and_different_ones_not(pooled):
 def test_failed_and_unconverged_events_are_counted_and_left_out(pooled):
     _, bad, res = pooled
     assert res.left_out["fit failed"] == bad["failed"]
-    assert res.left_out["did not converge (R-hat > 1.05)"] == bad["unconverged"]
+    assert res.left_out["chains disagree on the share (R-hat >= 1.05)"] == bad["unconverged"]
     units = dict(zip(res.parts["f_m"].units, res.parts["f_m"].events, strict=True))
     assert units[("A", "T1")] == 30 and units[("D", "F2")] == 4
+    assert res.events == {"rows": 6 * 30 + 8 + bad["failed"] + bad["unconverged"],
+                          "pooled": 6 * 30 + 8}  # fmt: skip
+    assert res.events_line().startswith(f"{6 * 30 + 8} of ")
+
+
+def test_the_pool_asks_convergence_of_the_share_alone():
+    # Judged from the share's own R-hat and ESS (whatever T' did), each reason counted
+    # apart, and a share outside [0, 1] likewise; the rest pooled.
+    frame, _ = archive(6, events=6, failed=0, unconverged=0)
+    frame.loc[[0, 1], ["ess", "status"]] = [80.0, "unconverged"]
+    frame.loc[[2], ["rhat", "status"]] = [1.07, "unconverged"]
+    frame.loc[[3], "status"] = "unphysical"
+    res = pool(frame, draws=60, chains=2)
+    assert res.left_out["too few effective draws of the share (ESS < 100)"] == 2
+    assert res.left_out["chains disagree on the share (R-hat >= 1.05)"] == 1
+    assert res.left_out["share outside [0, 1]"] == 1
+    assert res.events == {"rows": len(frame), "pooled": len(frame) - 4}
+    assert res.events_line().startswith(f"{len(frame) - 4} of {len(frame)} fitted event")
 
 
 def test_inference_data_and_json(pooled):

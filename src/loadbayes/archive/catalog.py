@@ -103,7 +103,8 @@ CREATE TABLE IF NOT EXISTS params (
 );
 """
 
-#: A share's row is ``ok`` below this R-hat and above this bulk ESS.
+#: A share's row is ``ok`` below this R-hat and at or above this bulk ESS (why these:
+#: ``pool_data.RHAT_EVENT``, what the pool asks of an event).
 RHAT_OK = 1.05
 ESS_OK = 100.0
 

@@ -37,14 +37,21 @@ The curve ``logistic(x' beta_u)`` is the share of the unit's median event at ``x
 mean over events is pulled toward 1/2 by ``tau``). Parts are pooled one by one (their sum
 to one is not imposed).
 
-Sampled by Gibbs (:mod:`.pool_gibbs`), chains from one seed. Events whose fit failed
-(``status != "ok"``) or did not converge (``rhat > 1.05``) are left out and counted.
+Sampled by Gibbs (:mod:`.pool_gibbs`), chains from one seed. What the pool asks of an
+event is asked of its share only (:func:`.pool_data.usable`, why these numbers): the
+chains agree on it (R-hat under 1.05) and it has 100 effective draws or more, whatever
+the motor's other coordinates did. Events whose fit failed, whose share is outside
+[0, 1], or that miss either number are left out and counted by reason (``left_out``);
+``events`` says how many were pooled.
 
-Which units are alike (the rule): for each pair, the posterior probability that their
-curves differ by less than ``tolerance`` (share, default 0.1) everywhere on a grid of
-the covariates (every other week, every third hour when hours are modelled, the 10/50/90 %
-temperatures); "alike" at 0.8 or more, "different" at 0.2 or less, "cannot tell"
-between (:mod:`.pool_words`). Groups are the connected sets of alike pairs.
+Which units are alike (the rule, :mod:`.pool_words`), on a grid of the covariates (every
+other week, every third hour when hours are modelled, the 10/50/90 % temperatures):
+"alike" when the posterior probability that the two curves differ by less than
+``tolerance`` (share, default 0.1) everywhere on the grid is 0.8 or more; "different"
+when the simultaneous 95% band of their difference lies beyond ``+-tolerance`` at some
+point (``prob_apart``, the largest simultaneous level at which it does, 0.95 or more);
+"cannot tell" otherwise, which is what wide bands give whether or not the curves are
+the same. Groups are the connected sets of alike pairs.
 """
 
 from __future__ import annotations
@@ -55,7 +62,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from loadbayes.archive.pool_data import RHAT_EVENT, check_fits, event_temperatures, working
+from loadbayes.archive.pool_data import (
+    ESS_EVENT,
+    RHAT_EVENT,
+    check_fits,
+    event_temperatures,
+    usable,
+    working,
+)
 from loadbayes.archive.pool_gibbs import PoolData, PoolPrior, sample_pool
 from loadbayes.io.errors import DataError, OptionError
 
@@ -160,6 +174,14 @@ class PoolResult:
     warnings: list[str]
     notes: list[str]
     settings: dict[str, Any]
+    #: ``rows``: the fitted shares given (one per event and part); ``pooled``: those read.
+    events: dict[str, int] = field(default_factory=dict)
+
+    def events_line(self) -> str:
+        """How many event shares were pooled, and why the others were left out."""
+        left = ", ".join(f"{k} {v}" for k, v in self.left_out.items() if v)
+        n, m = self.events.get("pooled", 0), self.events.get("rows", 0)
+        return f"{n} of {m} fitted event shares pooled" + (f"; left out: {left}" if left else "")
 
     def monthly(self) -> pd.DataFrame:
         """Every part's monthly table (the population's rows have station ``(all)``)."""
@@ -169,6 +191,7 @@ class PoolResult:
         """The JSON of ``archive pool --out``."""
         return {
             "settings": self.settings,
+            "events": self.events,
             "left_out": self.left_out,
             "warnings": self.warnings,
             "notes": self.notes,
@@ -234,11 +257,8 @@ def pool(
         raise OptionError("draws must be at least 50, chains at least 1, tolerance in (0, 1)")
     burn = draws // 2 if burn is None else burn
     f = check_fits(frame, source)
-    left = {"fit failed": int((f["status"].astype(str) != "ok").sum())}
-    f = f[f["status"].astype(str) == "ok"]
-    left[f"did not converge (R-hat > {RHAT_EVENT})"] = int((f["rhat"] > RHAT_EVENT).sum())
-    left["no R-hat recorded"] = int(f["rhat"].isna().sum())
-    f = f[f["rhat"] <= RHAT_EVENT].reset_index(drop=True)
+    fitted = len(f)
+    f, left = usable(f)
     temp, table, t_mean, t_sd = None, None, 0.0, 1.0
     if temperature is not None:
         raw, table = event_temperatures(f, temperature, temperature_source)
@@ -253,8 +273,8 @@ def pool(
     settings = {"covariates": list(covariates), "temperature": temperature is not None,
                 "draws": draws, "burn": burn, "chains": chains, "seed": seed,
                 "tolerance": tolerance, "by_bay": by_bay,
-                "rhat_event": RHAT_EVENT}  # fmt: skip
-    res = PoolResult({}, left, [], [], settings)
+                "rhat_event": RHAT_EVENT, "ess_event": ESS_EVENT}  # fmt: skip
+    res = PoolResult({}, left, [], [], settings, {"rows": fitted, "pooled": len(f)})
     seeds = np.random.SeedSequence(seed).spawn(f["part"].nunique())
     for part, sq in zip(sorted(f["part"].astype(str).unique()), seeds, strict=True):
         rows = np.flatnonzero(f["part"].astype(str).to_numpy() == part)

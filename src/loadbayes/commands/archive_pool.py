@@ -58,8 +58,7 @@ def table_lines(res) -> list[str]:
             lines.append(f"{who[:23]:<24}{int(frame['events'].iloc[0]):>7} {vals}")
         groups = "; ".join(", ".join(g) for g in part.groups)
         lines.append(f"{name}: alike within {res.settings['tolerance']:g} (groups): {groups}")
-    left = ", ".join(f"{k}: {v}" for k, v in res.left_out.items() if v)
-    lines.append(f"events left out: {left or 'none'}")
+    lines.append(res.events_line())
     return lines
 
 
@@ -92,8 +91,10 @@ def pool_cmd(catalog, temperature_csv, hour, by_bay, tolerance, draws, chains, s
 
     Per part share (the motor's for zip+motor), a hierarchical model over the stations'
     bays: a seasonal curve per bay, event-to-event spread around it, the curves pooled
-    across stations. Says which stations are alike. Events whose fit failed or did not
-    converge (R-hat > 1.05) are left out and counted.
+    across stations. Says which stations are alike, different, or not told apart. Each
+    event's share is pooled when its chains agree on it (R-hat < 1.05) with 100 effective
+    draws or more, whatever its other coordinates did; the others are left out and
+    counted by reason.
     """
     inputs = [catalog] + ([temperature_csv] if temperature_csv else [])
     check_outputs({"--out": json_out, "--plot": plot_out}, inputs, force,

@@ -66,6 +66,7 @@ class _Pool:
     warnings: list[str]
     notes: list[str]
     settings: dict[str, Any]
+    events: dict[str, int]
 
 
 def read_pool_json(path: str | os.PathLike[str]) -> _Pool:
@@ -95,7 +96,7 @@ def read_pool_json(path: str | os.PathLike[str]) -> _Pool:
         raise DataError(f"not the JSON of loadbayes archive pool --out (no {exc})",
                         os.fspath(path)) from None  # fmt: skip
     return _Pool(parts, d.get("left_out", {}), d.get("warnings", []), d.get("notes", []),
-                 d.get("settings", {}))  # fmt: skip
+                 d.get("settings", {}), d.get("events", {}))  # fmt: skip
 
 
 def _run_pool(fits: pd.DataFrame, db: str):
@@ -239,17 +240,19 @@ def archive_report(
             sec.add(_monthly_table(part))
             if len(part.alike):
                 rows = [[str(r["a"]), str(r["b"]), f"{r['prob_alike']:.2f}",
-                         f"{r['max_diff_median']:.2f}", str(r["verdict"])]
+                         _apart_cell(r), f"{r['max_diff_median']:.2f}", str(r["verdict"])]
                         for _, r in part.alike.iterrows()]  # fmt: skip
-                sec.add(table_html(["unit", "unit", "P(alike)", "largest gap (median)",
-                                    "verdict"], rows, text_cols=(0, 1, 4),
+                sec.add(table_html(["unit", "unit", "P(alike)", "P(apart)",
+                                    "largest gap (median)", "verdict"], rows,
+                                   text_cols=(0, 1, 5),
                                    caption=f"{part.part}: which bays are alike"))  # fmt: skip
-        # the pool's "fit failed" counts every share fits_frame did not mark ok
-        said = {"fit failed": "unconverged or unphysical (fits_frame's status)"}
-        left = [f"{said.get(k, k)}: {v}" for k, v in res.left_out.items() if v]
+        left = [f"{k}: {v}" for k, v in res.left_out.items() if v]
         if n_fit_bad:
             left.append(f"no fit (it failed; see below): {n_fit_bad}")
-        sec.text(f"Events left out of the pool: {', '.join(left) or 'none'}.")
+        counts = getattr(res, "events", None) or {}
+        pooled = (f"{counts['pooled']} of {counts['rows']} fitted event shares pooled. "
+                  if {"pooled", "rows"} <= set(counts) else "")  # fmt: skip
+        sec.text(f"{pooled}Events left out of the pool: {', '.join(left) or 'none'}.")
         for n in res.notes:
             sec.text(n)
 
@@ -299,6 +302,12 @@ def _monthly_table(part: Any) -> str:
             for m, lo, hi in zip(g["mean"], g["low"], g["high"], strict=True)])  # fmt: skip
     return table_html(["station / bay", "events", *MONTHS], rows, wide=True,
                       caption=f"{part.part} by month: mean [95% band]")  # fmt: skip
+
+
+def _apart_cell(row: Any) -> str:
+    """P(apart) of a pair, or a dash for a pool written before it was kept."""
+    v = row.get("prob_apart")
+    return "-" if v is None or pd.isna(v) else f"{v:.2f}"
 
 
 def _text(v: Any) -> str:
