@@ -252,8 +252,13 @@ def sample_knot_level(
     post = _Marginal(*args, rho, wk, b_mean, b_sd, floor, order) if rho != 0.0 else white
     work = post.work()
     if rho != 0.0:  # from the white fit's mode, in the coordinates its curvature whitens
-        shape = np.linalg.cholesky(_curvature(lambda u: white(u, white.work())[0], mode))
-        mode = _mode(lambda u: post(u, work)[0], mode, shape)
+        shape = _curvature(lambda u: white(u, white.work())[0], mode)
+        # (when the curvature there is not a covariance, the raw search: measured on a
+        # day at 1 s, whitening by the diagonal guess led to a point whose curvature
+        # failed too, and the chains' ESS fell from 454 to 156)
+        usable = not np.array_equal(shape, _GUESS)
+        mode = _mode(lambda u: post(u, work)[0], mode,
+                     np.linalg.cholesky(shape) if usable else None)  # fmt: skip
     cov = _curvature(lambda u: post(u, work)[0], mode)
     kept = len(range(burn, draws, thin))
     path_every = max(1, kept // max(path_draws, 1))
@@ -323,4 +328,8 @@ def _curvature(f, x):
     from loadbayes.inference.ffbs import _laplace_cov
 
     step = np.array([1e-3, 1e-3, 1e-2])
-    return _laplace_cov(f, x, step, np.diag([1e-4, 1e-4, 0.1]))
+    return _laplace_cov(f, x, step, _GUESS)
+
+
+#: The diagonal covariance taken when the curvature at a mode is not one.
+_GUESS = np.diag([1e-4, 1e-4, 0.1])
