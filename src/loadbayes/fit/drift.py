@@ -232,8 +232,7 @@ def fit_zip_drift(
     # With --v-noise the errors-in-variables chain (fit/drift_eiv.py: a random-walk level,
     # the latent voltage sampled); otherwise the knots and daily profile, the channels side
     # by side: each has its own seed, so the draws are those of one after the other, and
-    # the serial parts of each (the sums, the mode's search) overlap (a year at 1 min:
-    # half the wall time on 2 cores)
+    # the serial parts of each (the sums, the mode's search) overlap
     tasks = [partial(knots_fit, i, ch) for i, (ch, _) in enumerate(channels) if ch not in eiv]
     if sampler.threads == 1 or len(tasks) < 2:
         for task in tasks:

@@ -156,7 +156,7 @@ def _mode(f, start, scale=None):
     in the coordinates it whitens, from a simplex one sd wide. Why: a1 and a2 lie on a
     narrow ridge (2 a1 + a2 is known far better than either), which the simplex crawls
     along in the raw coordinates (measured on a year at 1 min: 5,181 evaluations, 10 s,
-    and stopped by the iteration limit before the mode; some 200 whitened).
+    and stopped by the iteration limit before the mode; 321 whitened).
     """
     from scipy.optimize import minimize
 
