@@ -47,9 +47,10 @@ The energy CVR factor is the counterfactual: the same 90 days (same weather, sun
 noise-free) run with the reduction on every day and off every day;
 ``cvr_energy = log(E_off / E_on) / log(V_off / V_on)`` with E the head's net energy and V
 the head's mean voltage. The instantaneous factor ``dP/dV`` at V0, per unit of the net
-level: ``sum_i k_i P_i / P_net`` at each sample (``sens`` and ``p_net`` per sample, so
-that a test can weigh it where it likes); ``cvr_inst`` is its energy-weighted mean over
-the record, ``sum(sens) / sum(p_net)`` over the noise-free samples.
+level: ``sum_i k_i P_i / P_net`` at each sample (``sens``, ``p_net`` and the head's ``v``
+per sample, so that a test can weigh it where it likes: :func:`dpdv_at_steps`);
+``cvr_inst`` is its energy-weighted mean over the record, ``sum(sens) / sum(p_net)``
+over the noise-free samples.
 """
 
 from __future__ import annotations
@@ -258,6 +259,7 @@ def feeder(seed: int, f: Feeder | None = None):
         "cvr_inst": float(run["sens"].sum() / clean.sum()),
         "sens": run["sens"],
         "p_net": clean,
+        "v": run["v"],
         "z_pu_per_mw": f.z_pu_per_mw,
         "on": on,
         "depth": f.depth,
@@ -269,6 +271,24 @@ def feeder(seed: int, f: Feeder | None = None):
         "kept": keep,
     }
     return cols, truth
+
+
+def dpdv_at_steps(truth: dict, step_rows) -> float:
+    """dP/dV at V0 at the steps a fit used, each weighted by its voltage change squared.
+
+    ``step_rows``: the 1-based data rows of the steps (``loadbayes cvr``'s JSON), whose
+    samples are those after each step. The instantaneous response ``sum_i k_i P_i / P`` at
+    each step (before the thermostats recover), averaged with the weight each step has in
+    the data: a fit of one dP/dV to steps whose own dP/dV differ estimates their mean
+    weighted by ``dV^2`` (a 3% CVR switch says 23 times what a 0.625% tap does). Why not
+    the plain mean over the steps: the thermostatic share moves with the hour and the
+    weather, so the steps' dP/dV spread over 0.75-1.5 on these feeders, and the switches
+    at midnight (cold, the heaters on) sit above the taps of the day: on seed 1000 the
+    plain mean is 1.177, the 68 switches' 1.226, the weighted mean 1.221.
+    """
+    at = np.flatnonzero(truth["kept"])[np.asarray(step_rows, dtype=int) - 1]
+    w = (truth["v"][at] - truth["v"][at - 1]) ** 2
+    return float(np.sum(w * truth["sens"][at] / truth["p_net"][at]) / np.sum(w))
 
 
 def _non_thermostatic(f: Feeder, parts: dict, on: np.ndarray) -> np.ndarray:

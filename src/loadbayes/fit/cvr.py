@@ -15,7 +15,11 @@ optionally Q, every few seconds to minutes) and says how sure the answer is:
    the voltage change the switching caused (:mod:`loadbayes.fit.cvr_energy`);
 4. beside it the instantaneous factor, dP/dV per unit of the level at the steps' median
    voltage (where the feeder runs, not carried to V0 by a ZIP curve), from the windows
-   around the voltage steps (:func:`loadbayes.fit.steps.fit_steps`);
+   around the voltage steps (:func:`loadbayes.fit.steps.fit_steps`), each with a
+   recovery term so that the jump is the load's response at the step's instant, before
+   its thermostats take the power back; one dP/dV for steps whose own differ (the
+   thermostatic share follows the hour) is their mean weighted by dV^2, so mostly that
+   of the on/off switching itself;
 5. whether the head voltage answers to the feeder's own load (the source impedance) and
    what a regression on the measured voltage would have said; the design's power (the
    on/off days an interval of +/-0.1 needs); and why the two factors differ when they do.
@@ -354,7 +358,7 @@ def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):
     ``PV_DARK`` of its largest are used; without one, when the net load reverses somewhere,
     the steps where the net level is under half its median are left out.
     """
-    from loadbayes.fit.steps import STEP_DEFAULTS, fit_steps
+    from loadbayes.fit.steps import RECOVERY_LAG_S, STEP_DEFAULTS, fit_steps
     from loadbayes.measurements.steps import find_steps
 
     keep = np.flatnonzero(good)
@@ -396,7 +400,11 @@ def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):
     # at the steps' own voltage: a ZIP curve carried from there to V0 adds its
     # curvature's error (measured: 0.88 for a true 1.23 with the steps near 0.96 p.u.)
     v_op = float(np.median([s.v_before + 0.5 * s.dv for s in pos]))
-    post = fit_steps(xs / v_op, ps, qs, steps=_rescaled(pos, v_op), t=ts, v0=1.0, sampler=samp)
+    # recovery: thermostats have moved back by the first sample after a step, and the
+    # jump alone reads dP/dV low (the 3% switches of the tests' feeders: 0.037 low, se
+    # 0.009, over six; tests/statistical/test_cvr_coverage.py)
+    post = fit_steps(xs / v_op, ps, qs, steps=_rescaled(pos, v_op), t=ts, v0=1.0, sampler=samp,
+                     recovery=RECOVERY_LAG_S)  # fmt: skip
     out, draws = {}, {"steps_used": keep[[s.index for s in pos]]}
     for name, (i, j) in (("dP/dV", ("a1", "a2")), ("dQ/dV", ("a4", "a5"))):
         if i in post.draws:

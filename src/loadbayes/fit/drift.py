@@ -30,10 +30,12 @@ integrated out through sums over the knots: a year at 1 min in seconds).
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
 
+from loadbayes.core.parallel import run_threads
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.sampler import new_spelling
 from loadbayes.inference.ffbs import local_scale
@@ -216,16 +218,29 @@ def fit_zip_drift(
                                       keep_points=LEVEL_POINTS)  # fmt: skip
     design = level_design(t)
     ar1 = {}
-    for i, (ch, (c1, c2, c3)) in enumerate(channels):
+    fits: dict[str, Any] = dict(eiv)
+
+    def knots_fit(i: int, ch: str) -> None:
         y = np.asarray(cols[ch], dtype=float)
-        # With --v-noise the errors-in-variables chain (fit/drift_eiv.py: a random-walk
-        # level, the latent voltage sampled); otherwise the knots and daily profile.
-        res = eiv.get(ch) or sample_knot_level(
+        fits[ch] = sample_knot_level(
             y, z1, z2, t, local_scale(y, dt) ** 2, design, settings=sampler.with_(seed=seeds[i]),
             b_sd=(prior_sd, prior_sd), keep_points=LEVEL_POINTS,
             profile_scale=local_scale(y, dt, window_s=86_400.0),
             progress=progress if i == 0 else None,
         )  # fmt: skip
+
+    # With --v-noise the errors-in-variables chain (fit/drift_eiv.py: a random-walk level,
+    # the latent voltage sampled); otherwise the knots and daily profile, the channels side
+    # by side: each has its own seed, so the draws are those of one after the other, and
+    # the serial parts of each (the sums, the mode's search) overlap
+    tasks = [partial(knots_fit, i, ch) for i, (ch, _) in enumerate(channels) if ch not in eiv]
+    if sampler.threads == 1 or len(tasks) < 2:
+        for task in tasks:
+            task()
+    else:
+        run_threads(tasks)
+    for ch, (c1, c2, c3) in channels:
+        res = fits[ch]
         a1, a2 = res.b[..., 0], res.b[..., 1]
         draws_out[c1], draws_out[c2], draws_out[c3] = a1, a2, 1.0 - a1 - a2
         draws_out[f"tau_{ch}"] = res.tau

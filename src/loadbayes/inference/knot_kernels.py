@@ -29,8 +29,8 @@ def sums(yt, x1, x2, sw, k, lam, ptype, phase, ps, link, rho, nk, nh, m):  # pra
     ``sum_t row_c row_c'`` for the six pairs of (1, x1, x2) (band, border, profile
     blocks) and ``sum_t row_c target``; an AR(1) row is built from two samples.
     """
-    gb = np.zeros((6, 3, nk))
-    guf = np.zeros((6, nk, m))
+    gb = np.zeros((nk, 3, 6))  # knot-major: factor reads one knot's sums together
+    guf = np.zeros((nk, m, 6))
     gff = np.zeros((6, m, m))
     r = np.zeros((3, nk + m))
     yy = 0.0
@@ -75,7 +75,7 @@ def sums(yt, x1, x2, sw, k, lam, ptype, phase, ps, link, rho, nk, nh, m):  # pra
                     if two:
                         e += v[cb, i + d] * v[ca, i]
                     if base + i + d < nk:
-                        gb[p, d, base + i] += e
+                        gb[base + i, d, p] += e
             for i in range(3):
                 if base + i >= nk:
                     continue
@@ -83,7 +83,7 @@ def sums(yt, x1, x2, sw, k, lam, ptype, phase, ps, link, rho, nk, nh, m):  # pra
                     e = v[ca, i] * v[cb, 3 + j]
                     if two:
                         e += v[cb, i] * v[ca, 3 + j]
-                    guf[p, base + i, j] += e
+                    guf[base + i, j, p] += e
             for i in range(m):
                 for j in range(m):
                     e = v[ca, 3 + i] * v[cb, 3 + j]
@@ -110,7 +110,7 @@ def factor(gb, guf, gff, r, q0b, qs, b1, b2, lb, y, ls, sr):  # pragma: no cover
     (nk, m + 1) gets ``L^-1 [C | r_u]``, ``ls`` the Schur complement's factor and ``sr``
     its right-hand side.
     """
-    nk = gb.shape[2]
+    nk = gb.shape[0]
     m = gff.shape[1]
     co = (1.0, b1, b2, b1 * b1, b1 * b2, b2 * b2)
     logdet = 0.0
@@ -123,11 +123,11 @@ def factor(gb, guf, gff, r, q0b, qs, b1, b2, lb, y, ls, sr):  # pragma: no cover
         b1i = qs * q0b[1, i - 1] if i > 0 else 0.0
         b2i = qs * q0b[2, i - 2] if i > 1 else 0.0
         for p in range(6):
-            d0 += co[p] * gb[p, 0, i]
+            d0 += co[p] * gb[i, 0, p]
             if i > 0:
-                b1i += co[p] * gb[p, 1, i - 1]
+                b1i += co[p] * gb[i - 1, 1, p]
             if i > 1:
-                b2i += co[p] * gb[p, 2, i - 2]
+                b2i += co[p] * gb[i - 2, 2, p]
         l2 = b2i / lb[0, i - 2] if i > 1 else 0.0
         l1 = (b1i - (l2 * lb[1, i - 2] if i > 1 else 0.0)) / lb[0, i - 1] if i > 0 else 0.0
         dd = d0 - l2 * l2 - l1 * l1
@@ -143,7 +143,7 @@ def factor(gb, guf, gff, r, q0b, qs, b1, b2, lb, y, ls, sr):  # pragma: no cover
             if j < m:
                 rhs = 0.0
                 for p in range(6):
-                    rhs += co[p] * guf[p, i, j]
+                    rhs += co[p] * guf[i, j, p]
             else:
                 rhs = r[0, i] + b1 * r[1, i] + b2 * r[2, i]
             if i > 0:
