@@ -220,11 +220,13 @@ def test_griddyn_from_the_shallow_fault_alone_is_flagged(griddyn):
                    "own steps): the band from the shallow fault alone is narrower (mean width "
                    "of P's 95% band 0.97 p.u. against 1.18 from shallow + medium; without those "
                    "steps 0.64 against 1.09) and covers as much of GridDyn's deep fault (P 99% "
-                   "against 98%): the medium fault moves motor D's share up, and motor "
-                   "D's stall sets the width; cmld-lite's motor D takes up constant power that "
-                   "GridDyn's static part holds (tests/statistical/test_parts_griddyn.py), so "
-                   "the width follows a misplaced share, not the data's reach; the extrapolation "
-                   "is flagged all the same")  # fmt: skip
+                   "against 98%). The width during the stall scales with motor D's share: "
+                   "GridDyn's is 0.15; the shallow fault alone gives 0.125 [0.010, 0.376], "
+                   "shallow + medium 0.281 [0.026, 0.464], both covering it, and the stall "
+                   "probability 0.76 against 0.97. A wider band from less data holds on average "
+                   "over data sets (the law of total variance), not in each: here the medium "
+                   "fault moved motor D's share up within its interval, and the band with it. "
+                   "The extrapolation is flagged all the same")  # fmt: skip
 def test_griddyn_band_from_the_shallow_fault_alone_is_wider(griddyn):
     both, shallow, deep, _ = griddyn
     widths = []
