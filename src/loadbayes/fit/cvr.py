@@ -26,6 +26,10 @@ optionally Q, every few seconds to minutes) and says how sure the answer is:
 
 Both factors are fitted from outside causes of V only (the switching, the steps), so a
 voltage that sags with the load does not bias them.
+
+One idea needs these lines: the CVR answer as one sequence (steps 1-5 above, each the
+call of its own module), with the result's words and the design's power beside it; the
+data, the energy regression and the words are the modules named above.
 """
 
 from __future__ import annotations
