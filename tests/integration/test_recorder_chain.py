@@ -1,0 +1,132 @@
+"""Issue 35's recorder chain, measured: COMTRADE -> read comtrade -> events -> fit composite.
+
+The event (tests/recorder_chain.py, SciPy and NumPy only): a 13.8 kV feeder, a motor of
+T' 0.488 s taking f_m 0.42 of a motor + ZIP load, a 33% sag of six cycles with a -6
+degree angle jump; the system at 59.98 Hz with a 60 mHz dip after the sag; 3rd and 5th
+harmonics; the motor's decaying DC offset on the currents at both steps (stator time
+constant 31 ms); 64 samples per cycle, noise on every sample, C37.111-1999 ASCII. It
+goes through the CLI as a user's record does.
+
+What the chain does to T' (2 chains x 6,000 draws, seed 0; the same noise in every run):
+
+- the whole chain: f_m 0.438 [0.407, 0.477] (covered), T' 0.130 [0.112, 0.147] s for
+  0.488 (the issue's 0.110 [0.104, 0.117]);
+- everything but the offset: T' 0.207 [0.155, 0.272] s; none of it (a plain 60 Hz sag
+  without harmonics, angle jump, dip or offset): 0.369 [0.192, 0.594] s, covered;
+- the offset alone: T' 0.139 [0.101, 0.190] s. Taking one switch off the whole chain
+  leaves T' at 0.131 (harmonics), 0.136 (60.00 Hz), 0.149 (angle jump), 0.157 s (dip).
+
+So the offset moves T'. The reader's rows hold the trajectory's one-cycle window means
+to their noise (sd 0.0010 in P and Q) in every row but the steps' straddling ones, with
+the harmonics, at 59.98 Hz, through the dip and the angle jump; with the offset, the
+three rows after each step that the decay test filters are off in P by -0.015, -0.009,
+-0.009 (the sag) and +0.026, +0.017, +0.011 (the recovery), 9 to 26 noise sd. That
+is the mimic filter on a moving phasor: ``y = x + tau dx/dt`` turns a phasor ``X(t)``
+into ``(1 + j w tau) X + tau X'``, so the filtered phasor is off by
+``tau X' / (1 + j w tau)`` (about ``X' / (j w)``, whatever tau): the motor's current
+recovering after the step (time constant about ``T' X' / X``, 37 ms here) is read, turned
+by 90 degrees, into P. Predicted from the trajectory's current: -0.021, -0.014, -0.009
+and +0.028, +0.019, +0.012, as measured (``--dc on`` rows: -0.016, -0.009, -0.008,
++0.027, +0.015, +0.010). A fast decay of P after each step is what a small T' explains.
+``--dc off`` instead leaves the offset in Q (-0.027, -0.016, -0.010). Through the fit:
+``--dc on`` T' 0.111 [0.091, 0.136] s (f_m 0.462 [0.423, 0.504]); ``--dc off`` T' 0.261
+[0.177, 0.349] s (f_m 0.469 [0.430, 0.507], missed). Fitting the
+phasor's ramp in the filtered window removes 80% of the bias but multiplies the noise by
+170 (the ramp is nearly in the span of the harmonics over one cycle): no small fix.
+
+False alarms: the rows' bound (6 noise sd on a row) is crossed by noise with probability
+below 1e-6 per row. The two strict xfails record the measured misses; either passing
+would say that the reader changed (strict: then the xfail must go).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from loadbayes.cli import main
+from recorder_chain import SAG, write_chain_event
+from waveform_composite import window_means
+
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.statistical,
+    pytest.mark.usefixtures("no_cost_probe"),
+]
+
+V_BASE_KV, S_BASE_MVA, F0 = 13.8, 10.0, 60.0
+STEPS = (SAG.start_s, SAG.start_s + SAG.duration_s)
+FIT = ("--draws", 6000, "--burn", 1500, "--chains", 2, "--seed", 0)
+
+
+def cli(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    return res
+
+
+@pytest.fixture(scope="module")
+def chain(tmp_path_factory):
+    """The whole chain's event, and the same event without the motor's offset, read."""
+    folder = tmp_path_factory.mktemp("chain")
+    out = {}
+    for name, offset in (("whole", True), ("no_offset", False)):
+        cfg, truth, traj = write_chain_event(folder / name, dc_offset=offset)
+        csv = folder / f"{name}.csv"
+        cli("read", "comtrade", cfg, "--out", csv, "--v-base", V_BASE_KV,
+            "--s-base", S_BASE_MVA, "--quiet")  # fmt: skip
+        out[name] = (csv, truth, traj)
+    return out
+
+
+def row_errors(csv, traj):
+    """The rows' V, P, Q minus the window means; which rows count; the noise sd."""
+    rows = pd.read_csv(csv)
+    t = rows["t_s"].to_numpy()
+    err = np.vstack([rows[c].to_numpy() for c in ("v", "p", "q")])
+    err = err - window_means(traj, t, 1.0 / F0)
+    keep = ~rows["straddle"].to_numpy(dtype=bool)
+    far = np.all([np.abs(t - ts) > 3.0 / F0 for ts in STEPS], axis=0)
+    return err, keep, err[:, keep & far].std(axis=1)
+
+
+def test_rows_hold_the_window_means_through_frequency_harmonics_and_angle(chain):
+    """Without the offset, every non-straddling row is its window mean to 6 noise sd."""
+    csv, _, traj = chain["no_offset"]
+    err, keep, sd = row_errors(csv, traj)
+    assert np.all(sd < 0.0015), sd  # 0.10-0.12% of the base in P and Q (measured)
+    worst = np.max(np.abs(err[:, keep]) / sd[:, None], axis=1)
+    assert np.all(worst < 6.0), dict(zip("vpq", worst.round(1), strict=True))
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the mimic filter reads the motor's moving current into P: the 3 filtered rows "
+    "after each step are off by -0.015..-0.009 and +0.026..+0.011 in P (up to 25 sd; Q up "
+    "to 10 sd; measured)",
+)
+def test_rows_after_the_steps_hold_the_window_means_with_the_offset(chain):
+    """With the motor's decaying offset, the rows after the steps are their window means."""
+    csv, _, traj = chain["whole"]
+    err, keep, sd = row_errors(csv, traj)
+    worst = np.max(np.abs(err[:, keep]) / sd[:, None], axis=1)
+    assert np.all(worst < 6.0), dict(zip("vpq", worst.round(1), strict=True))
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="T' 0.130 [0.112, 0.147] s for 0.488 through read -> events -> fit "
+    "(2 x 6,000 draws, seed 0; f_m 0.438 [0.407, 0.477] covered): the offset's rows",
+)
+def test_fit_composite_covers_t_prime_through_the_chain(chain, tmp_path):
+    csv, truth, _ = chain["whole"]
+    cli("events", csv, "--out", tmp_path / "ev", "--quiet")
+    out = tmp_path / "fit.json"
+    cli("fit", "composite", tmp_path / "ev" / "event_001.csv", "--json", out,
+        "--quiet", *FIT)  # fmt: skip
+    par = json.loads(out.read_text())["parameters"]["t_prime_s"]
+    assert par["hdi_low"] <= truth["t_prime_s"] <= par["hdi_high"], par
