@@ -17,9 +17,10 @@ optionally Q, every few seconds to minutes) and says how sure the answer is:
    voltage (where the feeder runs, not carried to V0 by a ZIP curve), from the windows
    around the voltage steps (:func:`loadbayes.fit.steps.fit_steps`), each with a
    recovery term so that the jump is the load's response at the step's instant, before
-   its thermostats take the power back; one dP/dV for steps whose own differ (the
-   thermostatic share follows the hour) is their mean weighted by dV^2, so mostly that
-   of the on/off switching itself;
+   its thermostats take the power back (its lag averaged over 15 min-4 h, each lag
+   weighted by its marginal likelihood: the feeder's own is not known); one dP/dV for
+   steps whose own differ (the thermostatic share follows the hour) is their mean
+   weighted by dV^2, so mostly that of the on/off switching itself;
 5. whether the head voltage answers to the feeder's own load (the source impedance) and
    what a regression on the measured voltage would have said; the design's power (the
    on/off days an interval of +/-0.1 needs); and why the two factors differ when they do.

@@ -22,6 +22,11 @@ The steps span a narrow band of V each (a tap is 0.6%), so the data determine
 ``2 a1 + a2`` (dP/dV at V0, per unit of the level) well and ``a1`` against ``a2`` only
 through the spread of the voltages at which the steps happen; the identifiability
 warnings of every fit say so, and the JSON gives dP/dV and dQ/dV under ``derived``.
+
+A step's recovery (thermostats taking the power back) has a lag the feeder does not
+state: ``recovery="prior"`` averages the fit over a grid of lags by their marginal
+likelihoods (:func:`fit_steps`). One idea needs these 420 lines: the fit from the steps'
+windows, whose passes the mixture over lags repeats, so they stay together.
 """
 
 from __future__ import annotations
@@ -273,19 +278,37 @@ def fit_steps(
         :data:`STEP_DEFAULTS` when not given.
     settings, warnings
         Recorded with the result.
-    recovery : float, optional
+    recovery : float, "prior" or sequence of float, optional
         A lag in seconds (``inf``: a straight line): give each step a recovery after it,
         ``1 - exp(-s / lag)`` of the time ``s`` since the last sample before it, with its
         own size per step. A load that recovers after a step (thermostats whose duty
         cycle lengthens) has already moved back by the first sample after it, and the
         jump alone reads that as a smaller response; with the term the jump is the
         response at the step's instant (the step taken to act just after the sample
-        before it). The lag is assumed, not fitted: over a window of a few samples the
-        shapes of different lags differ by far less than the noise. Measured on
-        tests/cvr_generator.py's feeders (5-minute samples, thermostats with a 1 h lag),
-        the jumps of the 3% switches: dP/dV 0.056 low without the term (se 0.009, 5
-        feeders), 0.003 low with a lag of 1 h (:data:`RECOVERY_LAG_S`), 0.018 low with
-        a straight line.
+        before it). Measured on tests/cvr_generator.py's feeders (5-minute samples,
+        thermostats with a 1 h lag), the jumps of the 3% switches: dP/dV 0.056 low
+        without the term (se 0.009, 5 feeders), 0.003 low with a lag of 1 h
+        (:data:`RECOVERY_LAG_S`), 0.018 low with a straight line.
+
+        A fixed lag is the feeder's own only by luck, and a wrong one biases the jump
+        (thermostats with a 30 min lag read with 1 h: dP/dV 9 posterior sd low,
+        tests/unit/test_steps.py). ``"prior"`` (or a sequence of lags): the lag is
+        uncertain, equally likely at each of :data:`RECOVERY_LAGS_S` (15 min to 4 h, each
+        a doubling: a log-uniform prior), and the draws are those of each lag's fit in
+        proportion to prior x its exact marginal likelihood (:func:`_mixture`); the lags
+        and their weights are in ``settings`` (``recovery_lags_s``,
+        ``recovery_lag_weights``) and ``extra_json["recovery"]`` (with the words). The
+        range: a thermostatic population's recovery after a voltage change is set by the
+        units' duty cycles and thermal time constants, minutes for water heaters and
+        cooling compressors cycling a few times an hour, one to a few hours for space
+        heating of buildings (the cold-load-pickup and CVR literature: payback within
+        15 min to a few hours); a lag under the 5-minute sample is a load that has
+        recovered before the first sample and reads as a smaller jump whatever the fit,
+        one over 4 h is a straight line over a window of half an hour. Whether the data
+        tell the lags apart depends on the noise and the step sizes: 60 switches of 3% at
+        0.1% noise pin 30 min (weight 1.00); tests/cvr_generator.py's feeders (120 steps,
+        mostly taps, a level that moves) put their weight on 2-4 h whatever the true lag
+        (docs/zip.md).
 
     Returns
     -------
