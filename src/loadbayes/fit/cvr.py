@@ -363,7 +363,7 @@ def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):
     ``PV_DARK`` of its largest are used; without one, when the net load reverses somewhere,
     the steps where the net level is under half its median are left out.
     """
-    from loadbayes.fit.steps import STEP_DEFAULTS, fit_steps
+    from loadbayes.fit.steps import RECOVERY_LAG_S, STEP_DEFAULTS, fit_steps
     from loadbayes.measurements.steps import find_steps
 
     keep = np.flatnonzero(good)
@@ -407,18 +407,14 @@ def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):
     v_op = float(np.median([s.v_before + 0.5 * s.dv for s in pos]))
     # recovery: thermostats have moved back by the first sample after a step, and the
     # jump alone reads dP/dV low (the 3% switches of the tests' feeders: 0.037 low, se
-    # 0.009, over six; tests/statistical/test_cvr_coverage.py); its lag is the feeder's
-    # own, so it is averaged over a prior (fit_steps' recovery="prior")
+    # 0.009, over six; tests/statistical/test_cvr_coverage.py)
     post = fit_steps(xs / v_op, ps, qs, steps=_rescaled(pos, v_op), t=ts, v0=1.0, sampler=samp,
-                     recovery="prior")  # fmt: skip
-    rec = post.extra_json["recovery"]
-    lag = {k: rec[k] for k in ("lags_s", "weights", "words")}
+                     recovery=RECOVERY_LAG_S)  # fmt: skip
     out, draws = {}, {"steps_used": keep[[s.index for s in pos]]}
     for name, (i, j) in (("dP/dV", ("a1", "a2")), ("dQ/dV", ("a4", "a5"))):
         if i in post.draws:
             draws[name] = 2.0 * post.draws[i] + post.draws[j]
-            out[name] = {**interval(draws[name]), "steps": len(pos), "at_v_pu": v_op,
-                         "recovery_lag": lag}  # fmt: skip
+            out[name] = {**interval(draws[name]), "steps": len(pos), "at_v_pu": v_op}
     against = sum(1 for s in pos if s.dv * s.dp < 0)
     if against:
         warnings.append(f"at {against} of {len(pos)} voltage steps used P moved against V "

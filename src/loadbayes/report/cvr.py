@@ -31,9 +31,6 @@ def cvr_lines(res: dict[str, Any]) -> list[str]:
     for name, s in res["instantaneous"].items():
         out.append(f"instantaneous {name} at {s['at_v_pu']:.3f} p.u. (the steps' median; 95%, "
                    f"{s['steps']} voltage steps): {_iv(s)}")  # fmt: skip
-    lag = res["instantaneous"].get("dP/dV", {}).get("recovery_lag")
-    if lag:
-        out.append(f"the steps' recovery: {lag['words']}")
     if res.get("why", {}).get("words"):
         out.append(res["why"]["words"])
     out.append(res["power"]["words"])
