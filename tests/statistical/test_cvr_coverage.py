@@ -33,8 +33,8 @@ with no thermostats, on 23 (z -0.20, spread 1.01). Two causes, both of the therm
 
 With both, measured: dP/dV covered on 23 of 24 (z -0.31, spread 1.16; against the plain
 mean it would be 18, z +0.98); the energy factor on 22 of 24. With the recovery's lag
-averaged over 15 min-4 h (fit_steps(recovery="prior"), what cvr uses now): dP/dV on 21
-of 24 (z -0.59, spread 1.16), the energy factor on 22 of 24: the lag weights go to
+averaged over 15 min-4 h (fit_steps(recovery="prior"), tried for cvr and not kept): dP/dV
+on 21 of 24 (z -0.59, spread 1.16), the energy factor on 22 of 24: the lag weights go to
 2-4 h on these feeders though their lag is 1 h (docs/zip.md).
 """
 

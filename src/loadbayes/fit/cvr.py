@@ -17,8 +17,9 @@ optionally Q, every few seconds to minutes) and says how sure the answer is:
    voltage (where the feeder runs, not carried to V0 by a ZIP curve), from the windows
    around the voltage steps (:func:`loadbayes.fit.steps.fit_steps`), each with a
    recovery term so that the jump is the load's response at the step's instant, before
-   its thermostats take the power back (its lag averaged over 15 min-4 h, each lag
-   weighted by its marginal likelihood: the feeder's own is not known); one dP/dV for
+   its thermostats take the power back (a lag of 1 h, assumed: docs/zip.md measures
+   what a feeder of another lag reads, and why the lag is not averaged over a prior
+   here); one dP/dV for
    steps whose own differ (the thermostatic share follows the hour) is their mean
    weighted by dV^2, so mostly that of the on/off switching itself;
 5. whether the head voltage answers to the feeder's own load (the source impedance) and
@@ -414,7 +415,8 @@ def _instant(x, p, q, t, good, reverse, pv, drop_against, step_sampler):
     for name, (i, j) in (("dP/dV", ("a1", "a2")), ("dQ/dV", ("a4", "a5"))):
         if i in post.draws:
             draws[name] = 2.0 * post.draws[i] + post.draws[j]
-            out[name] = {**interval(draws[name]), "steps": len(pos), "at_v_pu": v_op}
+            out[name] = {**interval(draws[name]), "steps": len(pos), "at_v_pu": v_op,
+                         "recovery_lag_s": RECOVERY_LAG_S}  # fmt: skip
     against = sum(1 for s in pos if s.dv * s.dp < 0)
     if against:
         warnings.append(f"at {against} of {len(pos)} voltage steps used P moved against V "

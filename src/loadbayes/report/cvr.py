@@ -31,6 +31,11 @@ def cvr_lines(res: dict[str, Any]) -> list[str]:
     for name, s in res["instantaneous"].items():
         out.append(f"instantaneous {name} at {s['at_v_pu']:.3f} p.u. (the steps' median; 95%, "
                    f"{s['steps']} voltage steps): {_iv(s)}")  # fmt: skip
+    lag = next((s.get("recovery_lag_s") for s in res["instantaneous"].values()), None)
+    if lag:
+        out.append(f"read at each step's instant: a thermostatic recovery with a lag of "
+                   f"{lag / 3600:g} h assumed, not fitted (a feeder whose loads recover faster "
+                   "reads dP/dV low: docs/zip.md)")  # fmt: skip
     if res.get("why", {}).get("words"):
         out.append(res["why"]["words"])
     out.append(res["power"]["words"])
