@@ -87,6 +87,12 @@ def check_run(
         )
 
 
+def _head(e: EventRecord) -> np.ndarray | slice:
+    """The samples before the event moves: within ``START_SPAN_S`` of its first, at least 3."""
+    head = e.t <= e.t[0] + START_SPAN_S
+    return head if head.sum() >= 3 else slice(0, 3)
+
+
 def start_warnings(events: Sequence[EventRecord]) -> list[str]:
     """Plain-words warnings for an event that does not start in a steady state.
 
@@ -98,8 +104,7 @@ def start_warnings(events: Sequence[EventRecord]) -> list[str]:
     for e in events:
         v0 = float(e.v[0])
         tail = float(np.median(e.v[-max(e.n // 10, 1) :]))
-        head = e.v[e.t <= e.t[0] + START_SPAN_S]
-        head = head if head.size >= 3 else e.v[:3]
+        head = e.v[_head(e)]
         span = float(np.ptp(head)) / abs(v0) if v0 else np.inf
         why = None
         if tail > v0 * (1 + START_BELOW):
@@ -136,8 +141,7 @@ def own_bases_warnings(events: Sequence[EventRecord]) -> list[str]:
     event (two or more samples before the voltage moves): on one base that needs Q0 = P0.
     """
     for e in events:
-        head = e.t <= e.t[0] + START_SPAN_S
-        head = head if head.sum() >= 3 else slice(0, 3)
+        head = _head(e)
         p, q = float(np.median(e.p[head])), float(np.median(e.q[head]))
         if not (abs(p - 1) < OWN_BASE_TOL and abs(q - 1) < OWN_BASE_TOL):
             return []
