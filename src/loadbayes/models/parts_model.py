@@ -97,7 +97,8 @@ _MOTOR_COORDS = ("log_rs_t0", "log_x_prime_t0", "log_dx_t0", "log_t_prime", "log
                  "log_t0")  # fmt: skip
 
 
-def _softmax(z: NDArray) -> NDArray:
+def alr_simplex(z: NDArray) -> NDArray:
+    """The shares whose additive log-ratios are ``z`` (last axis; the last share's is 0)."""
     z = np.concatenate([z, np.zeros(z.shape[:-1] + (1,))], axis=-1)
     e = np.exp(z - z.max(axis=-1, keepdims=True))
     return e / e.sum(axis=-1, keepdims=True)
@@ -234,9 +235,9 @@ class PartsModel:
             else:
                 out[name] = fixed[name]
         k = len(self.parts)
-        f = _softmax(th[..., i : i + k])  # parts..., static last
+        f = alr_simplex(th[..., i : i + k])  # parts..., static last
         out["f"] = f
-        out["a_p"] = _softmax(th[..., i + k : i + k + 2])
+        out["a_p"] = alr_simplex(th[..., i + k : i + k + 2])
         return out
 
     def uses_negative_sequence(self, event: EventRecord) -> bool:

@@ -44,6 +44,7 @@ import numpy as np
 
 from loadbayes.inference.ar1 import whitened
 from loadbayes.inference.condlinear import GroupSums, log_marginal_arrays
+from loadbayes.models.parts_model import alr_simplex
 
 __all__ = ["ShareMoves"]
 
@@ -179,8 +180,8 @@ class ShareMoves:
 
     def weights(self, u: np.ndarray) -> np.ndarray:
         """``w = (f_1, ..., f_K, f_s a1, f_s a2, f_s a3)`` of the sampled vector ``u``."""
-        f = _simplex(u[self.f_index])
-        a = _simplex(u[self.a_index])
+        f = alr_simplex(u[self.f_index])
+        a = alr_simplex(u[self.a_index])
         return np.concatenate([f[:-1], f[-1] * a])
 
     def with_weights(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -290,12 +291,6 @@ class ShareMoves:
             self.chol = np.linalg.cholesky(cov + 1e-10 * np.eye(nf))
         except np.linalg.LinAlgError:
             return
-
-
-def _simplex(z: np.ndarray) -> np.ndarray:
-    # The shares of additive log-ratios z (the last share's ratio 0).
-    e = np.exp(np.append(z, 0.0) - max(float(np.max(z)), 0.0))
-    return e / e.sum()
 
 
 def _projected(sums, w: np.ndarray) -> GroupSums:
