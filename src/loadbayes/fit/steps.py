@@ -349,10 +349,9 @@ def fit_steps(
     info = None
     if lags is not None:
         raw, info = _mixture(x, tt, steps, chans, levels, xs, which, sampler, first, lags)
-        idx = _design(x, tt, steps)[0]
     else:
-        if lag is not None:
-            idx, which, xs, design = _design(x, tt, steps, lag)
+        if lag is not None:  # the same rows, with the recovery's columns
+            design = _design(x, tt, steps, lag)[3]
         # pass 1 on the mean levels, pass 2 on the levels at V0 with pass 1's shares
         levels = _first_pass(design, chans, levels, xs, which, k, first, lag is not None)
         ys = {ch: chans[ch] / levels[ch][which] for ch in chans}
