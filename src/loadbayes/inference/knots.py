@@ -250,9 +250,9 @@ def sample_knot_level(
         rho = float(np.clip(np.sum(e[1:][ln[1:]] * e[:-1][ln[1:]])
                             / max(np.sum(e[:-1][ln[1:]] ** 2), 1e-300), -0.95, 0.99))  # fmt: skip
     post = _Marginal(*args, rho, wk, b_mean, b_sd, floor, order) if rho != 0.0 else white
-    work = post.work()
+    white_work, work = work, post.work()
     if rho != 0.0:  # from the white fit's mode, in the coordinates its curvature whitens
-        shape = _curvature(lambda u: white(u, white.work())[0], mode)
+        shape = _curvature(lambda u: white(u, white_work)[0], mode)
         # (when the curvature there is not a covariance, the raw search: measured on a
         # day at 1 s, whitening by the diagonal guess led to a point whose curvature
         # failed too, and the chains' ESS fell from 454 to 156)
