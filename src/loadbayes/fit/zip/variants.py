@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from loadbayes.fit.core import MAX_OBSERVED, accumulate, fit_gram
 from loadbayes.fit.drift import fit_zip_drift
 from loadbayes.fit.eiv import fit_zip_eiv
@@ -72,9 +74,37 @@ def _drift(model, cols, rows, t, *, likelihood, sampler, record, warnings, v_noi
     """A level that drifts in time (:func:`loadbayes.fit.drift.fit_zip_drift`), with noise on V."""
     if likelihood != "normal":
         raise OptionError("a drifting level has a Gaussian likelihood only")
-    warnings = warnings + model.check(accumulate(model, [cols]))
+    cols, t, said = _without_glitches(cols, rows, t, record)
+    warnings = warnings + said + model.check(accumulate(model, [cols]))
     return fit_zip_drift(cols, t, v0=model.v0, sampler=sampler, settings=record, warnings=warnings,
                          v_noise=v_noise)  # fmt: skip
+
+
+def _without_glitches(cols, rows, t, record):
+    """The columns less their glitches (``loadbayes cvr``'s rule), said and recorded.
+
+    A spike in V or P, or a run of stuck readings, is one sample the drifting level
+    cannot follow and the shares then answer to (a single +9% V spike moved a week's
+    dP/dV from -8.9 to -0.4, issue 39): the drift fit leaves them out as ``loadbayes
+    cvr`` does (:func:`loadbayes.fit.cvr_data.find_glitches`), counts them by kind and
+    names their data rows (``settings["glitches"]``). Data without any are passed on as
+    they are.
+    """
+    from loadbayes.fit.cvr_data import find_glitches
+
+    gl = find_glitches(cols["v"], cols["p"], cols.get("q"))
+    bad = gl.bad
+    if not bad.any():
+        return cols, t, []
+    c = gl.counts()
+    where = [int(r) for r in np.asarray(rows)[bad]]
+    record["glitches"] = {**c, "rows": where}
+    listed = ", ".join(map(str, where[:10])) + (", ..." if len(where) > 10 else "")
+    said = (f"glitches left out of the fit: {c['spikes_v']} V spike(s), {c['spikes_p']} P "
+            f"spike(s), {c['stuck']} stuck sample(s) ({c['left_out']} samples; data rows "
+            f"{listed}; the rule of loadbayes cvr, docs/zip.md)")  # fmt: skip
+    keep = ~bad
+    return {k: np.asarray(x)[keep] for k, x in cols.items()}, np.asarray(t)[keep], [said]
 
 
 def _eiv(model, cols, rows, t, *, v_noise, priors, sampler, record, warnings, **_):
