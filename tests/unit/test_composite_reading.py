@@ -13,12 +13,15 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from independent_composite import Sag, simulate_event
 from loadbayes.cli import main
+from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.api import read
+from loadbayes.fit.composite.driver import fit_composite
 from loadbayes.fit.composite.reading import EVIDENCE, choose_reading
 from loadbayes.models.zip_motor import CompositeModel
 
@@ -64,3 +67,19 @@ def test_the_command_says_which_reading_and_keeps_a_given_window(tmp_path):
     assert "samples read as" not in res.output
     settings = json.loads((tmp_path / "b.json").read_text())["settings"]
     assert "sample_reading" not in settings and settings["samples"]["window_s"] > 0
+
+
+def test_the_fit_starts_from_the_chosen_readings_nls_and_gets_the_same_draws():
+    # The choice ran the chosen reading's NLS; the fit takes it as its start instead of
+    # running the same least squares again, and its draws are those of a fit that ran it.
+    events = read(_event("point", 0.001))
+    got = choose_reading(CompositeModel(), events)
+    model = CompositeModel(window_s=got.window_s)
+    run = SamplerSettings(draws=100, burn=50, chains=2, seed=3)
+    own = fit_composite(model, events, sampler=run)
+    given = fit_composite(model, events, sampler=run, start=got.start)
+    assert np.array_equal(given.start.u, own.start.u)
+    for name in ("f_m", "t_prime_s"):
+        assert np.array_equal(given.posterior.draws[name], own.posterior.draws[name])
+    with pytest.raises(ValueError, match="start="):  # another problem's start: refused
+        fit_composite(model, events + events, sampler=run, start=got.start)

@@ -367,6 +367,7 @@ def fit_composite_cmd(
                     "v_base_kv": v_base_rec,
                     "s_base_mva": s_base_rec,
                 },
+                start=reading.start if reading else None,
             )
     finally:
         bar.close()

@@ -214,6 +214,7 @@ def fit_composite(
     progress: SamplingProgress | None = None,
     data_warnings: Sequence[str] = (),
     provenance: Mapping[str, Any] | None = None,
+    start: NLSResult | None = None,
 ) -> CompositeFit:
     """Fit a dynamic load model to one or more recorded events of the same load.
 
@@ -243,6 +244,11 @@ def fit_composite(
         the posterior's warnings.
     provenance : mapping, optional
         Extra settings recorded in the result (the files, their bases).
+    start : NLSResult, optional
+        The NLS estimate of this ``zip+motor`` model on these events, when the caller
+        has already run it (the choice of the samples' reading does,
+        :func:`~loadbayes.fit.composite.reading.choose_reading`): the fit starts from
+        it instead of running the same least squares again.
 
     Returns
     -------
@@ -297,7 +303,10 @@ def fit_composite(
         {n: v for n, v in coefficient_prior.items() if not (bounded and n[0] == "a")}, move
     )
     t0 = time.perf_counter()
-    start = nls(problem)
+    if start is None:
+        start = nls(problem)
+    elif not zip_motor or start.u.size != problem.dim or start.betas.shape[0] != len(events):
+        raise ValueError("start= is the NLS estimate of a zip+motor fit of the same events")
     project = getattr(prior, "project", None)
     if project is not None and not prior.inside(start.u):  # hard limits: start inside them
         start = replace(start, u=project(start.u))

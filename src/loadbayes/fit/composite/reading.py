@@ -23,7 +23,7 @@ same events (tests/independent_composite.py's fan and fast motors, 0.5% noise).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -46,6 +46,8 @@ class SampleReading:
     delta_loglik: float  # points minus window means, on the samples both keep
     samples: int  # the samples both keep, over all events
     words: str
+    #: The chosen reading's NLS estimate: the fit's start, which it need not run again.
+    start: Any = field(default=None, repr=False, compare=False)
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON record (``settings.sample_reading``)."""
@@ -61,7 +63,7 @@ class SampleReading:
 
 
 def _residuals(model: Any, events: list[EventRecord], prior: Any, window_s: float):
-    """Each event's kept sample indices and its P, Q residuals at the NLS estimate."""
+    """The NLS estimate, each event's kept sample indices and its P, Q residuals there."""
     problem = CompositeProblem(events, prior, f_hz=model.f_hz, torque=model.fixed_torque,
                                h_max=model.h_max, steps=model.steps,
                                window_s=window_s)  # fmt: skip
@@ -70,7 +72,7 @@ def _residuals(model: Any, events: list[EventRecord], prior: Any, window_s: floa
     if chans is None:
         return None
     res = [(p - zp @ b, q - zq @ b) for ((zp, p), (zq, q)), b in zip(chans, est.betas, strict=True)]
-    return problem.fit_samples.keep, res
+    return est, problem.fit_samples.keep, res
 
 
 def choose_reading(model: Any, events: list[EventRecord]) -> SampleReading:
@@ -97,7 +99,7 @@ def choose_reading(model: Any, events: list[EventRecord]) -> SampleReading:
         w = cycle if point is None else 0.0
         return SampleReading(w, 0.0, 0, "only one reading had a feasible motor")
     ss_p, ss_w, n = np.zeros(2), np.zeros(2), 0
-    for kp, rp, kw, rw in zip(*point, *window, strict=True):
+    for kp, rp, kw, rw in zip(*point[1:], *window[1:], strict=True):
         common = np.intersect1d(kp, kw)
         ip, iw = np.searchsorted(kp, common), np.searchsorted(kw, common)
         for c in range(2):
@@ -111,17 +113,17 @@ def choose_reading(model: Any, events: list[EventRecord]) -> SampleReading:
     if dl >= EVIDENCE:
         return SampleReading(0.0, dl, n, (
             f"read as points: they fit better than one-cycle window means (log-"
-            f"likelihood {dl:+.1f} on the {size}); --window-s to choose"))  # fmt: skip
+            f"likelihood {dl:+.1f} on the {size}); --window-s to choose"), point[0])  # fmt: skip
     if dl <= -EVIDENCE:
         return SampleReading(cycle, dl, n, (
             f"read as one-cycle window means ({cycle:.6g} s): they fit better than point "
             f"samples (log-likelihood {-dl:+.1f} on the {size}); --window-s 0 reads them "
-            "as points"))  # fmt: skip
+            "as points"), window[0])  # fmt: skip
     return SampleReading(0.0, dl, n, (
         f"read as points: the file carries no record of a phasor window, and "
         f"one-cycle window means fit no better (log-likelihood difference {dl:+.1f} on "
         f"the {size}, under {EVIDENCE:g}); --window-s {cycle:.6g} reads them as a "
-        "recorder's window means"))  # fmt: skip
+        "recorder's window means"), point[0])  # fmt: skip
 
 
 def reading_model(model: Any, events: list[EventRecord], *, chosen: bool) -> tuple[Any, Any]:
