@@ -143,6 +143,8 @@ def _brake_of(v, v2, z, s0, motors, shares, d_on):  # pragma: no cover - compile
     for j in range(motors.shape[0]):
         m = motors[j]
         pm0, qm0 = steady_state(m[0], m[1], m[2], m[3], m[5], v0, m[6], m[7], m[8], m[9])[3:]
+        if not math.isfinite(pm0):  # no steady state: the draw fails
+            return np.full(v2.size, math.nan)
         xo = m[1] + m[2]
         xmag = math.sqrt(xo * m[2])
         xs = xo - xmag

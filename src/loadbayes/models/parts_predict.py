@@ -68,6 +68,8 @@ def brake_of(model, c, v: NDArray, v2: NDArray | None, z: complex, s0: complex):
         rs, xp, dx, tp, _, t0 = np.exp(logs)
         a, b, cc = MOTOR_CLASSES[m]["torque"]
         pm0, qm0 = steady_state(rs, xp, dx, tp, wb, v0, t0, a, b, cc)[3:]
+        if not math.isfinite(pm0):  # no steady state: the draw fails
+            return np.full(len(v2), np.nan)
         y2p += f[j] / pm0 * (motor_y2(rs, xp, dx, tp, model.f_hz) + 1j * qm0 / v0**2)
     if model.motor_d:
         y2p += f[len(model.motors)] / v0**2
