@@ -64,7 +64,8 @@ without [0.307, 0.848] (1.17, covered) and [0.210, 0.691] (1.33, missed); before
 braking seeds 1 and 2 gave [0.315, 0.932] and [0.486, 1.144] with, [0.276, 0.880] and
 [0.232, 0.955] without, all covering. At 4 chains of 12000 (6000 burn-in), seed 0: with
 the braking [0.400, 1.115] with I2 and [0.259, 0.867] without (R-hat 1.14 both), both
-covering; before it [0.242, 1.161] with I2 (R-hat 1.27).
+covering; before it [0.242, 1.161] with I2 (R-hat 1.27) and [0.269, 0.940] without
+(1.07).
 
 With A fixed the rating is covered with I2 and (at this seed and these draws) missed
 without it (the prior of T0, median 0.75 where the truth is 0.35, decides it then), as
