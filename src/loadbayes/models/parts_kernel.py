@@ -81,11 +81,19 @@ def motor_into(m, t, vm, dl, u2, drive, window_s, pm, qm, states):  # pragma: no
     or ``drive[3]`` (at the knots). Writes ``pm``, ``qm``; False where it has no steady
     state or leaves the finite numbers.
     """
+    # Without a drive the integrators get None: the braking compiled out (motor_kernel).
     if window_s > 0.0:
         ta, va, da, ua, real = drive
+        if ua.size == 0:
+            return integrate_window_v2_into(ta, va, da, None, real, window_s, m[0], m[1], m[2],
+                                            m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
+                                            qm)  # fmt: skip
         return integrate_window_v2_into(ta, va, da, ua, real, window_s, m[0], m[1], m[2], m[3],
                                         m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
                                         qm)  # fmt: skip
+    if u2.size == 0:
+        return integrate_v2_into(t, vm, dl, None, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
+                                 m[8], m[9], m[10], pm, qm, states)  # fmt: skip
     return integrate_v2_into(t, vm, dl, u2, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
                              m[8], m[9], m[10], pm, qm, states)  # fmt: skip
 
