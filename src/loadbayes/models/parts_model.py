@@ -46,7 +46,9 @@ phasors ``v2, i2`` (``EventRecord``) and is unbalanced (some ``|V2|`` above
 ``I2 = V2_L (p0 Y_p - j q0 / V_L(0)^2)`` with each part's negative-sequence admittance (the
 motors at slip ``2 - s`` with their capacitors, the static part and motor D as the
 constant impedances of their operating points, the electronics none), behind the same
-series impedance, with its own noise precision.
+series impedance, with its own noise precision. Whatever that option, the motors brake
+with the load bus's ``|V2_L|`` at those rows (``motor_kernel.brake_torque``,
+``parts.brake_drive``): the negative sequence is their physics as well as data.
 """
 
 from __future__ import annotations
