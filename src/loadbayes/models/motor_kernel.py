@@ -39,7 +39,7 @@ Against the tests' SciPy generator (``tests/sequence_generator.py``) at the true
 parameters of a phase-to-ground fault, the model's P during the fault moved from 0.012 p.u.
 (1.8 % of P0) low to 3.9e-4, the balanced sag's residual.
 
-One idea needs these 666 lines: the motor integrated through a sampled voltage, at the
+One idea needs these 678 lines: the motor integrated through a sampled voltage, at the
 samples and as window means, in compiled loops that share the steady state and the RK4
 step (the braking torque's drive carried beside the voltage).
 """
@@ -244,7 +244,7 @@ def _on_chord(t, v, delta, v2, k, j):  # pragma: no cover - compiled
             return False
         if abs(delta[i] - (delta[k] + fr * (delta[j] - delta[k]))) > LINEAR_TOL:
             return False
-        if abs(_at(v2, i) - (_at(v2, k) + fr * (_at(v2, j) - _at(v2, k)))) > LINEAR_TOL:
+        if _off_chord(v2, i, k, j, fr):
             return False
     return True
 
@@ -262,6 +262,10 @@ def _circuit_if(v2, xp, dx, tp, wb):  # pragma: no cover - compiled only
 
 def _merged_v2(t, v2, real, window, n_m):  # pragma: no cover - compiled only
     """|V2| at integrate_window_v2_into's merged knots (_merge_bounds on V2 alone)."""
+
+
+def _off_chord(v2, i, k, j, fr):  # pragma: no cover - compiled only
+    """Whether |V2| at i leaves the chord from k to j (never without a V2)."""
 
 
 def _brake_of(b2, w, rs, nb):  # pragma: no cover - compiled only
@@ -299,6 +303,13 @@ def _merged_v2_impl(t, v2, real, window, n_m):  # pragma: no cover - at numba's 
         return out
 
     return impl
+
+
+@overload(_off_chord, jit_options={"cache": True, "nogil": True})
+def _off_chord_impl(v2, i, k, j, fr):  # pragma: no cover - at numba's typing
+    if _none(v2):
+        return lambda v2, i, k, j, fr: False
+    return lambda v2, i, k, j, fr: abs(v2[i] - (v2[k] + fr * (v2[j] - v2[k]))) > LINEAR_TOL
 
 
 @overload(_brake_of, jit_options={"cache": True, "nogil": True})

@@ -99,8 +99,8 @@ def motor_into(m, t, vm, dl, u2, drive, window_s, pm, qm, states):  # pragma: no
 
 
 @numba.njit(cache=True, nogil=True)
-def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2b, i2b, brows, r, x, motors,
-              window_s, d_on, d_params, el_on, vd1, vd2, frcel):  # pragma: no cover  # fmt: skip
+def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2, i2, r, x, motors, window_s, d_on,
+              d_params, el_on, vd1, vd2, frcel):  # pragma: no cover - compiled  # fmt: skip
     """Every part's own response at the load bus, for one event: no share enters here.
 
     Returns ``(ok, vm, xl, pl, ql, pr, qr, yraw)``: the load bus's voltage and its ratio
@@ -108,20 +108,20 @@ def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2b, i2b, brows, r, x, m
     part's P and Q (rows: the motors, motor D, the electronics' connected share with Q
     0); each motor's negative-sequence admittance at slip ``2 - s`` with its capacitor,
     per unit of its first P (``parts.motor_y2``). ``ok`` is False where a motor has no
-    steady state. The motors brake with ``|V2 - Z I2|`` at the rows ``brows``
-    (``parts.brake_drive``; none: the balanced arithmetic).
+    steady state. The motors brake with ``|V2 - Z I2|`` at the rows ``|V2| >=
+    NEG_SEQ_MIN`` (``parts.brake_drive``; none: the balanced arithmetic).
     """
     n = t.size
     zc = complex(r, x)
     n_b = 0
     for k in range(n):
-        if brows[k]:
+        if abs(v2[k]) >= NEG_SEQ_MIN:
             n_b += 1
     u2 = np.zeros(n if n_b > 0 else 0)
     if n_b > 0:
         for k in range(n):
-            if brows[k]:
-                u2[k] = abs(v2b[k] - zc * i2b[k])
+            if abs(v2[k]) >= NEG_SEQ_MIN:
+                u2[k] = abs(v2[k] - zc * i2[k])
     vm = np.empty(n)
     dl = np.zeros(n)
     pl = np.empty(n)
@@ -183,21 +183,21 @@ def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2b, i2b, brows, r, x, m
 
 
 @numba.njit(cache=True, nogil=True)
-def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, v2b, i2b, brows, r, x,
-               motors, window_s, shares, a_p, d_on, d_params, el_on, vd1, vd2, frcel, ns_on,
-               ztz, zty, yty, nn, ar, mzz, mzy, myy):  # pragma: no cover - compiled  # fmt: skip
+def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors, window_s,
+               shares, a_p, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, ztz, zty, yty,
+               nn, ar, mzz, mzy, myy):  # pragma: no cover - compiled  # fmt: skip
     """Fill ``ztz (G, 4, 4)``, ``zty (G, 4)``, ``yty (G,)``, ``nn (G,)``; False if infeasible.
 
     ``motors`` (k, 11): ``rs, xp, dx, tp, h, wb, t0, a, b, c, h_step`` each; ``shares``
     the parts' shares of P (motors, then motor D, then electronics, the static part
     last); ``a_p`` the static P's Z, I, P split; ``d_params`` motor D's 17 constants in
-    ``parts.MOTOR_D_DEFAULTS``' order; ``v2b, i2b, brows`` the braking's V2, I2 and rows
-    (:func:`_parts_of`), read whatever the I2 channel's ``ns_on``.
+    ``parts.MOTOR_D_DEFAULTS``' order; ``v2, i2`` the event's (zeros without), which
+    brake the motors (:func:`_parts_of`) whatever ``ns_on``; ``i2_rows`` the I2
+    channel's rows (none where it is off).
     """
     ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
-                                                 v2b, i2b, brows, r, x, motors, window_s,
-                                                 d_on, d_params, el_on, vd1, vd2,
-                                                 frcel)  # fmt: skip
+                                                 v2, i2, r, x, motors, window_s, d_on,
+                                                 d_params, el_on, vd1, vd2, frcel)  # fmt: skip
     if not ok:
         return False
     n = t.size
@@ -262,9 +262,9 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, v2b, i
 
 
 @numba.njit(cache=True, nogil=True)
-def event_basis(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, v2b, i2b, brows, r,
-                x, motors, window_s, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, bb, by, yy,
-                nn, ar, mbb, mby, myy):  # pragma: no cover - compiled  # fmt: skip
+def event_basis(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors,
+                window_s, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, bb, by, yy, nn, ar,
+                mbb, mby, myy):  # pragma: no cover - compiled  # fmt: skip
     """Fill the shares' basis sums (module docstring); False if infeasible at some shares.
 
     ``bb (G, M, M)``, ``by (G, M)``, ``yy (G,)``, ``nn (G,)`` with ``M = K + 6`` (the
@@ -274,9 +274,8 @@ def event_basis(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, v2b, 
     below it every share vector is feasible, above it some are not).
     """
     ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
-                                                 v2b, i2b, brows, r, x, motors, window_s,
-                                                 d_on, d_params, el_on, vd1, vd2,
-                                                 frcel)  # fmt: skip
+                                                 v2, i2, r, x, motors, window_s, d_on,
+                                                 d_params, el_on, vd1, vd2, frcel)  # fmt: skip
     if not ok:
         return False
     n = t.size
@@ -496,21 +495,19 @@ def _fixed_of(model, event) -> tuple:
             event = event.take(keep)
         n = event.n
         ns = model.negative_sequence != "off" and model.uses_negative_sequence(event)
-        v2 = np.zeros(n, complex) if not ns else np.asarray(event.v2, dtype=complex)
-        i2 = np.zeros(n, complex) if not ns else np.asarray(event.i2, dtype=complex)
+        # V2 and I2 wherever the event has them (the motors brake with them, parts.brake_drive,
+        # I2 channel or not: without I2 the feeder's drop of V2 is unknown, left out).
+        has_v2 = getattr(event, "v2", None) is not None
+        v2 = np.asarray(event.v2, dtype=complex) if has_v2 else np.zeros(n, complex)
+        i2 = (np.asarray(event.i2, dtype=complex) if has_v2 and event.i2 is not None
+              else np.zeros(n, complex))  # fmt: skip
         rows = (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
         delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
-        # The motors' braking (parts.brake_drive): wherever the event has V2, I2 or not.
-        has_v2 = getattr(event, "v2", None) is not None
-        v2b = np.asarray(event.v2, dtype=complex) if has_v2 else np.zeros(n, complex)
-        i2b = (np.asarray(event.i2, dtype=complex) if has_v2 and event.i2 is not None
-               else np.zeros(n, complex))  # fmt: skip
-        brows = np.abs(v2b) >= NEG_SEQ_MIN
         model._fixed[key] = (
             np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
             np.ascontiguousarray(delta), event.delta is not None,
             np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
-            gaps_of(event.t, steps), np.ascontiguousarray(steps, float), v2, i2, rows,
-            np.ascontiguousarray(v2b), np.ascontiguousarray(i2b), brows,
+            gaps_of(event.t, steps), np.ascontiguousarray(steps, float),
+            np.ascontiguousarray(v2), np.ascontiguousarray(i2), rows,
         )  # fmt: skip
     return model._fixed[key]
