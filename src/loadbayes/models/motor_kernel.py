@@ -39,7 +39,7 @@ Against the tests' SciPy generator (``tests/sequence_generator.py``) at the true
 parameters of a phase-to-ground fault, the model's P during the fault moved from 0.012 p.u.
 (1.8 % of P0) low to 3.9e-4, the balanced sag's residual.
 
-One idea needs these 678 lines: the motor integrated through a sampled voltage, at the
+One idea needs these 677 lines: the motor integrated through a sampled voltage, at the
 samples and as window means, in compiled loops that share the steady state and the RK4
 step (the braking torque's drive carried beside the voltage).
 """
