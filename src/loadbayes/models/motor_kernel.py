@@ -57,9 +57,9 @@ from numpy.typing import NDArray
 __all__ = [
     "H_MAX_S",
     "TP_STEPS",
-    "integrate",
     "brake_circuit",
     "brake_torque",
+    "integrate",
     "integrate_into",
     "integrate_v2_into",
     "integrate_window_into",
@@ -338,8 +338,8 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
     """:func:`integrate_into` with the negative sequence's braking torque (:func:`brake_torque`).
 
     ``v2``: ``|V2|`` at the samples, linear between them as V is (None: none, compiled
-    apart, the arithmetic of a balanced input to the bit). The steady state at the first sample is
-    the balanced one (a row below ``parts.NEG_SEQ_MIN`` brakes with 0).
+    apart, the arithmetic of a balanced input to the bit). The steady state at the first
+    sample is the balanced one (a row below ``parts.NEG_SEQ_MIN`` brakes with 0).
     """  # pragma: no cover - compiled
     n = t.size
     ed, eq, w, p0, q0 = steady_state(rs, xp, dx, tp, wb, v[0], t0, a, b, c)
