@@ -142,6 +142,28 @@ def test_a_bad_profile_names_the_file_column_and_row(fitted, tmp_path):
     assert "v.csv" in r.output and "'v'" in r.output and "row 9" in r.output
 
 
+def test_a_profile_with_v2_brakes_the_motors(fitted, tmp_path):
+    # A 20 % sag with |V2| 0.15 (a phase-to-ground fault's negative sequence): the same
+    # draws play it with the motors braked (models/motor_kernel.brake_torque), so the
+    # band's P during the fault moves from the same profile without V2's; v2_re alone is
+    # refused in one line naming the file and the column.
+    t = np.arange(0.0, 0.8, 1 / 120)
+    on = (t >= 0.1) & (t < 0.25)
+    frame = pd.DataFrame({"t_s": t, "v": np.where(on, 0.8, 1.0)})
+    plain, neg, half = tmp_path / "plain.csv", tmp_path / "neg.csv", tmp_path / "half.csv"
+    frame.to_csv(plain, index=False)
+    frame.assign(v2_re=np.where(on, -0.15, 0.0), v2_im=0.0).to_csv(neg, index=False)
+    frame.assign(v2_re=0.0).to_csv(half, index=False)
+    a = predict(fitted, voltage=plain, draws=30).to_dict()
+    b = predict(fitted, voltage=neg, draws=30).to_dict()
+    assert "v2_max" not in a["fault"] and b["fault"]["v2_max"] == pytest.approx(0.15)
+    gap = np.abs(np.asarray(a["band"]["p_mid"]) - np.asarray(b["band"]["p_mid"]))
+    assert gap[on].max() > 1e-3 and gap[t < 0.1].max() < 1e-9, gap.max()
+    r = _run("predict", fitted, "--voltage", half)
+    assert r.exit_code == 2 and "half.csv" in r.output and "'v2_re' without 'v2_im'" in r.output
+    assert len(r.output.strip().splitlines()) == 1
+
+
 def test_nothing_is_overwritten_without_force(fitted, tmp_path):
     out = tmp_path / "p.json"
     out.write_text("keep")

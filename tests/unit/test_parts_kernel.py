@@ -58,3 +58,36 @@ def test_the_compiled_sums_are_the_channels_sums(name, window, angle, negative):
                 assert np.allclose(a, b, rtol=1e-9, atol=1e-9)
             checked += 1
     assert checked > 40
+
+
+@pytest.mark.parametrize(("name", "window"), [("cmld-lite", 0.0), ("slm", 1 / 60)])
+def test_the_motors_brake_alike_in_the_kernel_and_the_channels(name, window):
+    # An unbalanced event (|V2| 0.1 through the sag): the motors brake with |V2 - Z I2|
+    # (motor_kernel.brake_torque) in the compiled sums as in the NumPy channels, to 1e-9,
+    # with the I2 channel off too (the braking is the motors', not the I2 data's); and
+    # it moves the sums, which the same event without V2 does not give.
+    from dataclasses import replace
+
+    events = _events(True, True)
+    plain = [replace(ev, v2=None, i2=None) for ev in events]  # held: the model caches by id
+    for ns in ("off", "auto"):
+        model = dynamic_model(name, f_hz=60.0, window_s=window, negative_sequence=ns)
+        mean, cov, _, _ = model.default_prior(events).scale_free()
+        rng = np.random.default_rng(5)
+        checked = moved = 0
+        for _ in range(12):
+            theta = rng.multivariate_normal(mean, 0.1 * cov)
+            for ev, ev_plain in zip(events, plain, strict=True):
+                ch = model.channels(ev, theta)
+                got = model.event_sums(ev, theta)
+                if ch is None or got is None:
+                    assert ch is None and got is None
+                    continue
+                want = GroupSums.from_arrays([z for z, _ in ch], [y for _, y in ch])
+                for a, b in zip((want.ztz, want.zty, want.yty, want.n), got, strict=True):
+                    assert np.allclose(a, b, rtol=1e-9, atol=1e-9)
+                bal = model.event_sums(ev_plain, theta)
+                if bal is not None:
+                    moved += not np.allclose(bal[0][:2], got[0][:2], rtol=1e-6, atol=0)
+                checked += 1
+        assert checked >= 20 and moved >= checked // 2, (checked, moved)

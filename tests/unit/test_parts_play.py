@@ -6,7 +6,8 @@ by draw, then the stall and the trip read as ``fit/composite/predict.py`` read t
 before). On random draws around the models' priors (``slm`` and ``cmld-lite``) and
 faults built here (a shallow sag, a deep one that stalls motor D and trips the
 electronics, one with a phase jump and a recovery ramp, a profile without an angle,
-window means), every draw's P, Q at the recorded bus, the load bus's |V_L|, the sweeps
+window means, two with a negative sequence that brakes the motors), every draw's P, Q
+at the recorded bus, the load bus's |V_L|, the sweeps
 the loop took, whether it converged, whether motor D stalled (its trajectory against one
 that never stalls) and the share of the electronics tripped must agree with the
 reference, P, Q and |V_L| to 1e-8 p.u. Deterministic (fixed seeds); each case also
@@ -27,8 +28,10 @@ from loadbayes.models.parts_predict import play_reference
 P0, Q0 = 0.9, 0.3
 
 
-def _fault(depth, *, angle_deg=0.0, recovery=0.0, rate=120.0, end=0.8, with_angle=True):
-    # A sag at 0.1 s for 0.1 s, written here (not predict_scope.sag_profile).
+def _fault(depth, *, angle_deg=0.0, recovery=0.0, rate=120.0, end=0.8, with_angle=True,
+           v2=0.0):  # fmt: skip
+    # A sag at 0.1 s for 0.1 s, written here (not predict_scope.sag_profile); v2: |V2|
+    # during it (a phase-to-ground fault's negative sequence), None outside.
     t = np.arange(0.0, end, 1.0 / rate)
     share = np.where((t >= 0.1) & (t < 0.2), 1.0, 0.0)
     if recovery > 0:
@@ -36,7 +39,8 @@ def _fault(depth, *, angle_deg=0.0, recovery=0.0, rate=120.0, end=0.8, with_angl
         share[ramp] = 1.0 - (t[ramp] - 0.2) / recovery
     zeros = np.zeros(t.size)
     delta = np.radians(angle_deg) * share if with_angle else None
-    return EventRecord(t, 1.0 - depth * share, zeros, zeros, delta, f"sag {depth}")
+    neg = v2 * np.exp(2.5j) * share if v2 else None
+    return EventRecord(t, 1.0 - depth * share, zeros, zeros, delta, f"sag {depth}", v2=neg)
 
 
 def _draws(model, n, seed):
@@ -62,6 +66,8 @@ CASES = [  # model, window, fault, draws, seed
     ("cmld-lite", 0.0, dict(depth=0.4), 16, 5),
     ("cmld-lite", 0.0, dict(depth=0.4, angle_deg=20.0, recovery=0.1), 16, 6),
     ("cmld-lite", 1 / 60, dict(depth=0.3, with_angle=False), 12, 7),
+    ("slm", 0.0, dict(depth=0.2, v2=0.15, recovery=0.1), 12, 9),
+    ("cmld-lite", 1 / 60, dict(depth=0.3, v2=0.2, with_angle=False), 12, 10),
 ]
 
 
@@ -89,6 +95,10 @@ def test_the_compiled_play_is_predict_parts(name, window, fault, n, seed):
         assert seen["tripped"] >= 1, seen
     if model.motor_d and fault["depth"] < 0.2:  # shallow: above every stall voltage drawn
         assert seen["stalled"] == 0, seen
+    if fault.get("v2"):  # the braking is played: the same draws without V2 draw more P
+        bal = play_draws(model, _fault(**{**fault, "v2": 0.0}), theta, P0, Q0, q_sh, th)
+        both = ref.ok & bal.ok
+        assert np.max(np.abs(bal.p[both] - got.p[both])) > 1e-3
 
 
 def test_the_answer_does_not_depend_on_the_threads():

@@ -40,7 +40,8 @@ def _depths(text: str) -> list[float]:
 @click.option("--angle", type=float, default=0.0, show_default=True,
               help="Phase jump with the fault (degrees).")  # fmt: skip
 @click.option("--voltage", type=click.Path(exists=True, dir_okay=False),
-              help="A voltage profile CSV: t_s, v (p.u.), optionally angle_rad.")  # fmt: skip
+              help="A voltage profile CSV: t_s, v (p.u.), optionally angle_rad and "
+                   "v2_re, v2_im (the negative sequence: it brakes the motors).")  # fmt: skip
 @click.option("--sweep", "sweep_spec", help="Depths START:STOP:STEP (with --duration): the "
               "same answers per depth, one figure of the stall probability.")  # fmt: skip
 @click.option("--draws", type=click.IntRange(20, 20000), default=300, show_default=True,

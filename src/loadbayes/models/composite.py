@@ -85,6 +85,7 @@ def motor_response(
     h_max: float = H_MAX_S,
     window_s: float = 0.0,
     real: NDArray[np.int64] | None = None,
+    v2: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """The motor's own-base P, Q at the samples for log-parameters ``theta``.
 
@@ -102,6 +103,9 @@ def motor_response(
     real : ndarray of int, optional
         Only the samples ``real`` (the others knots of the input); default all
         (``motor_kernel.integrate``).
+    v2 : ndarray, optional
+        ``|V2|`` at the samples: the negative sequence's braking torque
+        (``motor_kernel.brake_torque``); None: none.
 
     Returns
     -------
@@ -127,6 +131,7 @@ def motor_response(
         h_max=h_max,
         window_s=window_s,
         real=real,
+        v2=v2,
     )
     return None if out is None else (out[0], out[1])
 

@@ -9,10 +9,13 @@ each channel's design and target in NumPy (the NLS start and the tests read thos
 the sampler needs only their sums ``Z'Z, Z'y, y'y`` per channel, at every proposal.
 :func:`event_sums` computes them in one ``numba`` function: the load bus through the
 recorded current (``parts.load_bus``), every motor (``motor_kernel``'s integrators, at
-the samples or as window means), motor D (``parts._motor_d``), the electronics, the
+the samples or as window means, braked by the load bus's ``|V2 - Z I2|`` where the event
+has V2 rows, ``parts.brake_drive``), motor D (``parts._motor_d``), the electronics, the
 static part, and the negative-sequence rows; the same arithmetic as ``channels``, which
 ``tests/unit/test_parts_kernel.py`` checks to 1e-9 on random draws. About a tenth of the
-NumPy path's cost (measured on ``cmld-lite`` with two 0.6 s events at 60/s).
+NumPy path's cost (measured on ``cmld-lite`` with two 0.6 s events at 60/s). The motor
+loop (:func:`motor_drive`, :func:`motor_into`) is the one ``parts_play`` runs in each of
+a prediction's sweeps.
 
 **The shares' basis.** Given everything but the shares, each part's response is fixed
 (the load bus comes from the recorded current), and every channel's design is linear
@@ -37,17 +40,66 @@ import numpy as np
 from loadbayes.models.motor_kernel import (
     H_MAX_S,
     TP_STEPS,
-    integrate_into,
-    integrate_window_into,
+    integrate_v2_into,
+    integrate_window_v2_into,
 )
 from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 
-__all__ = ["event_basis", "event_sums", "knots_of", "model_basis", "model_sums"]
+__all__ = [
+    "event_basis",
+    "event_sums",
+    "knots_of",
+    "model_basis",
+    "model_sums",
+    "motor_drive",
+    "motor_into",
+]
 
 
 @numba.njit(cache=True, nogil=True)
-def _parts_of(t, v, delta, has_angle, p, q, gap, steps, r, x, motors, window_s, d_on,
+def motor_drive(t, vm, dl, u2, gap, steps, window_s):  # pragma: no cover - compiled
+    """The motors' input: ``(ta, va, da, ua, real)``, the knots across gaps (:func:`knots_of`).
+
+    ``u2``: the braking drive ``|V2_L|`` at the samples (``parts.brake_drive``; empty:
+    none), stepped across the gaps as V is.
+    """
+    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)
+    ua = u2
+    if u2.size > 0 and window_s > 0.0:
+        ua = knots_of(t, u2, dl, gap, steps, window_s)[1]
+    return ta, va, da, ua, real
+
+
+@numba.njit(cache=True, nogil=True)
+def motor_into(m, t, vm, dl, u2, drive, window_s, pm, qm, states):  # pragma: no cover
+    """One motor (``m``: its 11 constants, :func:`event_sums`) through the load bus.
+
+    The one motor loop of the likelihood's sums and of a prediction's sweeps
+    (``parts_play``): window means over ``drive`` (:func:`motor_drive`) or the values
+    at the samples ``(t, vm, dl)``, the braking torque driven by ``u2`` (at the samples)
+    or ``drive[3]`` (at the knots). Writes ``pm``, ``qm``; False where it has no steady
+    state or leaves the finite numbers.
+    """
+    # Without a drive the integrators get None: the braking compiled out (motor_kernel).
+    if window_s > 0.0:
+        ta, va, da, ua, real = drive
+        if ua.size == 0:
+            return integrate_window_v2_into(ta, va, da, None, real, window_s, m[0], m[1], m[2],
+                                            m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
+                                            qm)  # fmt: skip
+        return integrate_window_v2_into(ta, va, da, ua, real, window_s, m[0], m[1], m[2], m[3],
+                                        m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
+                                        qm)  # fmt: skip
+    if u2.size == 0:
+        return integrate_v2_into(t, vm, dl, None, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
+                                 m[8], m[9], m[10], pm, qm, states)  # fmt: skip
+    return integrate_v2_into(t, vm, dl, u2, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
+                             m[8], m[9], m[10], pm, qm, states)  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2, i2, r, x, motors, window_s, d_on,
               d_params, el_on, vd1, vd2, frcel):  # pragma: no cover - compiled  # fmt: skip
     """Every part's own response at the load bus, for one event: no share enters here.
 
@@ -56,10 +108,20 @@ def _parts_of(t, v, delta, has_angle, p, q, gap, steps, r, x, motors, window_s, 
     part's P and Q (rows: the motors, motor D, the electronics' connected share with Q
     0); each motor's negative-sequence admittance at slip ``2 - s`` with its capacitor,
     per unit of its first P (``parts.motor_y2``). ``ok`` is False where a motor has no
-    steady state.
+    steady state. The motors brake with ``|V2 - Z I2|`` at the rows ``|V2| >=
+    NEG_SEQ_MIN`` (``parts.brake_drive``; none: the balanced arithmetic).
     """
     n = t.size
     zc = complex(r, x)
+    n_b = 0
+    for k in range(n):
+        if abs(v2[k]) >= NEG_SEQ_MIN:
+            n_b += 1
+    u2 = np.zeros(n if n_b > 0 else 0)
+    if n_b > 0:
+        for k in range(n):
+            if abs(v2[k]) >= NEG_SEQ_MIN:
+                u2[k] = abs(v2[k] - zc * i2[k])
     vm = np.empty(n)
     dl = np.zeros(n)
     pl = np.empty(n)
@@ -86,18 +148,12 @@ def _parts_of(t, v, delta, has_angle, p, q, gap, steps, r, x, motors, window_s, 
     yraw = np.zeros(n_dyn, dtype=np.complex128)
     states = np.empty((3, n))
     # Window means across a gap (rows left out): the voltage steps at its middle.
-    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)
+    drive = motor_drive(t, vm, dl, u2, gap, steps, window_s)
     for j in range(n_m):
         m = motors[j]
         pm = pr[j]
         qm = qr[j]
-        if window_s > 0.0:
-            ok = integrate_window_into(ta, va, da, real, window_s, m[0], m[1], m[2], m[3],
-                                       m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
-                                       qm)  # fmt: skip
-        else:
-            ok = integrate_into(t, vm, dl, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
-                                m[8], m[9], m[10], pm, qm, states)  # fmt: skip
+        ok = motor_into(m, t, vm, dl, u2, drive, window_s, pm, qm, states)
         if not ok or not (pm[0] != 0.0):
             return False, vm, xl, pl, ql, pr, qr, yraw
         # The negative-sequence admittance at slip 2 - s (parts.motor_y2) and the capacitor.
@@ -135,11 +191,13 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
     ``motors`` (k, 11): ``rs, xp, dx, tp, h, wb, t0, a, b, c, h_step`` each; ``shares``
     the parts' shares of P (motors, then motor D, then electronics, the static part
     last); ``a_p`` the static P's Z, I, P split; ``d_params`` motor D's 17 constants in
-    ``parts.MOTOR_D_DEFAULTS``' order.
+    ``parts.MOTOR_D_DEFAULTS``' order; ``v2, i2`` the event's (zeros without), which
+    brake the motors (:func:`_parts_of`) whatever ``ns_on``; ``i2_rows`` the I2
+    channel's rows (none where it is off).
     """
     ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
-                                                 r, x, motors, window_s, d_on, d_params,
-                                                 el_on, vd1, vd2, frcel)  # fmt: skip
+                                                 v2, i2, r, x, motors, window_s, d_on,
+                                                 d_params, el_on, vd1, vd2, frcel)  # fmt: skip
     if not ok:
         return False
     n = t.size
@@ -216,8 +274,8 @@ def event_basis(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x,
     below it every share vector is feasible, above it some are not).
     """
     ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
-                                                 r, x, motors, window_s, d_on, d_params,
-                                                 el_on, vd1, vd2, frcel)  # fmt: skip
+                                                 v2, i2, r, x, motors, window_s, d_on,
+                                                 d_params, el_on, vd1, vd2, frcel)  # fmt: skip
     if not ok:
         return False
     n = t.size
@@ -437,14 +495,19 @@ def _fixed_of(model, event) -> tuple:
             event = event.take(keep)
         n = event.n
         ns = model.negative_sequence != "off" and model.uses_negative_sequence(event)
-        v2 = np.zeros(n, complex) if not ns else np.asarray(event.v2, dtype=complex)
-        i2 = np.zeros(n, complex) if not ns else np.asarray(event.i2, dtype=complex)
+        # V2 and I2 wherever the event has them (the motors brake with them, parts.brake_drive,
+        # I2 channel or not: without I2 the feeder's drop of V2 is unknown, left out).
+        has_v2 = getattr(event, "v2", None) is not None
+        v2 = np.asarray(event.v2, dtype=complex) if has_v2 else np.zeros(n, complex)
+        i2 = (np.asarray(event.i2, dtype=complex) if has_v2 and event.i2 is not None
+              else np.zeros(n, complex))  # fmt: skip
         rows = (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
         delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
         model._fixed[key] = (
             np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
             np.ascontiguousarray(delta), event.delta is not None,
             np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
-            gaps_of(event.t, steps), np.ascontiguousarray(steps, float), v2, i2, rows,
+            gaps_of(event.t, steps), np.ascontiguousarray(steps, float),
+            np.ascontiguousarray(v2), np.ascontiguousarray(i2), rows,
         )  # fmt: skip
     return model._fixed[key]

@@ -46,7 +46,9 @@ phasors ``v2, i2`` (``EventRecord``) and is unbalanced (some ``|V2|`` above
 ``I2 = V2_L (p0 Y_p - j q0 / V_L(0)^2)`` with each part's negative-sequence admittance (the
 motors at slip ``2 - s`` with their capacitors, the static part and motor D as the
 constant impedances of their operating points, the electronics none), behind the same
-series impedance, with its own noise precision.
+series impedance, with its own noise precision. Whatever that option, the motors brake
+with the load bus's ``|V2_L|`` at those rows (``motor_kernel.brake_torque``,
+``parts.brake_drive``): the negative sequence is their physics as well as data.
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ from loadbayes.models.part_priors import (
 from loadbayes.models.parts import (
     MOTOR_D_DEFAULTS,
     NEG_SEQ_MIN,
+    brake_drive,
     electronics_fraction,
     gaps_of,
     load_bus,
@@ -262,7 +265,8 @@ class PartsModel:
         x_fd = self.feeder_x(event.p[0], event.q[0], c)
         lb = load_bus(event, self.rx * x_fd, x_fd)
         ev = lb.event
-        cols = self.load_columns(ev, c, steps)
+        v2 = getattr(event, "v2", None)  # without I2 the feeder's drop of V2 is unknown
+        cols = self.load_columns(ev, c, steps, brake_drive(v2, v2 if lb.v2 is None else lb.v2))
         if cols is None:
             return None
         col_p, col_qp, y2p = cols
@@ -364,10 +368,13 @@ class PartsModel:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""
         return float(c["x_fd"]) / float(np.hypot(p0, q0)) if self.feeder else 0.0
 
-    def load_columns(self, ev: EventRecord, c: dict[str, Any], steps: NDArray | None = None):
+    def load_columns(self, ev: EventRecord, c: dict[str, Any], steps: NDArray | None = None,
+                     v2: NDArray | None = None):  # fmt: skip
         """At the load bus (``ev``): P's column on ``p0``, Q's on ``p0`` and ``Y2`` per ``p0``.
 
         ``c`` is :meth:`_split` of one ``theta``; None where a motor has no steady state.
+        ``v2``: the motors' braking drive at ``ev``'s rows (``parts.brake_drive``), None
+        for none.
         """
         xl = ev.v / ev.v[0]
         f = c["f"]
@@ -376,16 +383,18 @@ class PartsModel:
         col_qp = np.zeros(ev.n)
         v0 = ev.v[0]
         y2p = f[-1] / v0**2 + 0j
-        drive, real = ev, None
+        drive, real, u2 = ev, None, v2
         if self.window_s > 0:  # window means: across a gap the voltage steps (parts.step_knots)
             gap = gaps_of(ev.t, steps)
             if gap.any():
-                t2, v2, d2, real = step_knots(ev.t, ev.v, ev.delta, gap, steps)
-                drive = EventRecord(t2, v2, np.zeros(t2.size), np.zeros(t2.size), d2)
+                t2, vk, d2, real = step_knots(ev.t, ev.v, ev.delta, gap, steps)
+                drive = EventRecord(t2, vk, np.zeros(t2.size), np.zeros(t2.size), d2)
+                if v2 is not None:  # |V2| steps with V
+                    u2 = step_knots(ev.t, v2, None, gap, steps)[1]
         for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
             resp = motor_response(drive, logs, f_hz=self.f_hz, real=real,
                                   torque=MOTOR_CLASSES[m]["torque"],
-                                  window_s=self.window_s)  # fmt: skip
+                                  window_s=self.window_s, v2=u2)  # fmt: skip
             if resp is None:
                 return None
             pm, qm = resp

@@ -6,8 +6,9 @@ sweep driving the parts through ``PartsModel.load_columns``. A prediction plays 
 thousand draws, and each takes tens of sweeps: in NumPy the Python around the compiled
 motor integrators cost as much as the integrators. :func:`play_draws` does the same
 arithmetic (the same sweeps, the same stopping rule, the same damped second try) in one
-``numba`` function per draw: the motors through ``motor_kernel``'s integrators (at the
-samples or as window means, across gaps as ``parts_kernel`` does), motor D through
+``numba`` function per draw: the motors through ``parts_kernel.motor_into`` (the
+likelihood's own motor loop: at the samples or as window means, across gaps, braked by
+the fault's negative sequence where it has one, ``parts_predict.brake_of``), motor D through
 ``parts._motor_d``, the electronics, the static part; then what a prediction reads off
 the converged load bus: whether motor D stalled (its trajectory against one that never
 stalls, as ``fit/composite/predict.py`` decided it) and the electronics' share tripped.
@@ -36,15 +37,10 @@ from numpy.typing import NDArray
 
 from loadbayes.core.parallel import num_threads, run_threads
 from loadbayes.measurements.record import EventRecord
-from loadbayes.models.motor_kernel import (
-    H_MAX_S,
-    TP_STEPS,
-    integrate_into,
-    integrate_window_into,
-)
+from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS, steady_state
 from loadbayes.models.part_priors import MOTOR_CLASSES
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
-from loadbayes.models.parts_kernel import knots_of
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
+from loadbayes.models.parts_kernel import motor_drive, motor_into
 
 __all__ = ["Played", "play_draws"]
 
@@ -87,10 +83,11 @@ def _cdiv(a, b):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on, vd1, vd2,
-             frcel, col_p, col_qp, pm, qm, states):  # pragma: no cover - compiled  # fmt: skip
+def _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on, vd1,
+             vd2, frcel, col_p, col_qp, pm, qm, states):  # pragma: no cover - compiled  # fmt: skip
     # PartsModel.load_columns at the load bus (vm, dl: |V_L| and its angle from the first
-    # sample): P's column on p0 and Q's; False where a motor has no steady state.
+    # sample; u2 the motors' braking drive, empty for none): P's column on p0 and Q's;
+    # False where a motor has no steady state.
     n = t.size
     v0 = vm[0]
     f_s = shares[shares.size - 1]
@@ -98,17 +95,9 @@ def _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_
         xl = vm[k] / v0
         col_p[k] = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
         col_qp[k] = 0.0
-    ta, va, da, real = knots_of(t, vm, dl, gap, steps, window_s)  # parts.step_knots
+    drive = motor_drive(t, vm, dl, u2, gap, steps, window_s)  # parts.step_knots
     for j in range(motors.shape[0]):
-        m = motors[j]
-        if window_s > 0.0:
-            ok = integrate_window_into(ta, va, da, real, window_s, m[0], m[1], m[2], m[3],
-                                       m[4], m[5], m[6], m[7], m[8], m[9], m[10], pm,
-                                       qm)  # fmt: skip
-        else:
-            ok = integrate_into(t, vm, dl, m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7],
-                                m[8], m[9], m[10], pm, qm, states)  # fmt: skip
-        if not ok:
+        if not motor_into(motors[j], t, vm, dl, u2, drive, window_s, pm, qm, states):
             return False
         fj = shares[j]
         for k in range(n):
@@ -137,8 +126,46 @@ def _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_
 
 
 @numba.njit(cache=True, nogil=True)
+def _brake_of(v, v2, z, s0, motors, shares, d_on):  # pragma: no cover - compiled
+    # parts_predict.brake_of: |V2_L| = |V2 / (1 + Z Y2)| at the rows |V2| >= NEG_SEQ_MIN,
+    # Y2 the load's negative-sequence admittance at its operating point (as the I2
+    # channel's); empty without V2, NaNs where a motor has no steady state.
+    n_b = 0
+    for k in range(v2.size):
+        if abs(v2[k]) >= NEG_SEQ_MIN:
+            n_b += 1
+    if n_b == 0:
+        return np.zeros(0)
+    i0 = _cdiv(s0, v[0]).conjugate()
+    s_l0 = s0 - z * abs(i0) ** 2
+    v0 = abs(v[0] - z * i0)
+    y2p = complex(shares[shares.size - 1] / (v0 * v0), 0.0)
+    for j in range(motors.shape[0]):
+        m = motors[j]
+        pm0, qm0 = steady_state(m[0], m[1], m[2], m[3], m[5], v0, m[6], m[7], m[8], m[9])[3:]
+        if not math.isfinite(pm0):  # no steady state: the draw fails
+            return np.full(v2.size, math.nan)
+        xo = m[1] + m[2]
+        xmag = math.sqrt(xo * m[2])
+        xs = xo - xmag
+        rotor = complex(xo / (m[5] * m[3]) / 2.0, xs)
+        z2 = complex(m[0], xs) + _cdiv(1j * xmag * rotor, rotor + 1j * xmag)
+        y2p += shares[j] / pm0 * (_cdiv(1.0 + 0j, z2) + 1j * qm0 / (v0 * v0))
+    if d_on:
+        y2p += shares[motors.shape[0]] / (v0 * v0)
+    y2 = s_l0.real * y2p - 1j * s_l0.imag / (v0 * v0)
+    den = 1.0 + z * y2
+    u2 = np.zeros(v2.size)
+    for k in range(v2.size):
+        if abs(v2[k]) >= NEG_SEQ_MIN:
+            u2[k] = abs(_cdiv(v2[k], den))
+    return u2
+
+
+@numba.njit(cache=True, nogil=True)
 def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
-           dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo):  # pragma: no cover  # fmt: skip
+           dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo,
+           u2):  # pragma: no cover - compiled  # fmt: skip
     # One try of parts_predict.predict_parts' loop: the sweeps it took, -1 where a motor
     # has no steady state or the loop leaves the finite numbers, 0 where it does not settle.
     n = t.size
@@ -160,8 +187,8 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
             first = math.atan2(vl[0].imag, vl[0].real)
             for k in range(n):
                 dl[k] = math.atan2(vl[k].imag, vl[k].real) - first
-        if not _columns(t, vm, dl, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on,
-                        vd1, vd2, frcel, col_p, col_qp, pm, qm, states):  # fmt: skip
+        if not _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp,
+                        el_on, vd1, vd2, frcel, col_p, col_qp, pm, qm, states):  # fmt: skip
             return -1
         moved = 0.0
         bad = False
@@ -190,7 +217,7 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 @numba.njit(cache=True, nogil=True)
 def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
-                its):  # pragma: no cover - compiled  # fmt: skip
+                its, v2):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
     # for up to 200 where they do not settle), then its stall and the electronics' trip
     # read off |V_L| at every sample, as fit/composite/predict.py read them.
@@ -198,13 +225,16 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
     never = dp[0].copy()
     vl = np.empty(n)
     for i in range(first, shares.shape[0], every):
-        got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
-                     shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
-                     0.0, p[i], q[i])  # fmt: skip
+        u2 = _brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
+        got = -1
+        if np.all(np.isfinite(u2)):
+            got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
+                         shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
+                         0.0, p[i], q[i], u2)  # fmt: skip
         if got == 0:
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol,
-                         200, 0.5, p[i], q[i])  # fmt: skip
+                         200, 0.5, p[i], q[i], u2)  # fmt: skip
         its[i] = got
         if got <= 0:
             ok[i] = False
@@ -307,6 +337,7 @@ def play_draws(
     v = ev.v * np.exp(1j * (0 if ev.delta is None else ev.delta - ev.delta[0]))
     gap = gaps_of(ev.t, steps)
     p, q, vl = np.empty((n, ev.n)), np.empty((n, ev.n)), np.empty((n, ev.n))
+    v2 = np.zeros(0, complex) if ev.v2 is None else np.ascontiguousarray(ev.v2, dtype=complex)
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
     args = (np.ascontiguousarray(ev.t, dtype=float), np.ascontiguousarray(v),
@@ -315,7 +346,7 @@ def play_draws(
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
-            stalled, tripped, its)  # fmt: skip
+            stalled, tripped, its, v2)  # fmt: skip
     k = max(1, min(threads or num_threads(), n))
     run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
     tripped[~ok] = np.nan

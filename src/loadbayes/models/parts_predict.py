@@ -13,6 +13,12 @@ recorded bus: ``S = V conj(I) = S_L + Z |I|^2``.
 The operating point is the event's own (its pre-fault P, Q at the recorded bus), as in
 ``fit/composite/validate.py``: what carries over from a fit is the load's make-up.
 
+Where the fault has a negative sequence (``EventRecord.v2``, a profile's ``v2_re,
+v2_im``), the motors brake (``motor_kernel.brake_torque``) with the load bus's ``|V2_L|``
+(:func:`brake_of`): ``V2_L = V2 / (1 + Z Y2)`` with ``Y2`` the load's negative-sequence
+admittance at its operating point, the one the I2 channel of a fit reads
+(``PartsModel.channels``), at the rows ``|V2| >= NEG_SEQ_MIN`` (``parts.brake_drive``).
+
 :func:`play_reference` plays many draws one by one through :func:`predict_parts` and reads
 motor D's stall and the electronics' trip off each converged load bus, as a prediction
 did before ``models/parts_play.play_draws`` did the same in compiled calls: the reference
@@ -31,9 +37,45 @@ from numpy.typing import NDArray
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.motor_kernel import steady_state
 from loadbayes.models.part_priors import MOTOR_CLASSES
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, electronics_fraction, motor_d
+from loadbayes.models.parts import (
+    MOTOR_D_DEFAULTS,
+    brake_drive,
+    electronics_fraction,
+    motor_d,
+    motor_y2,
+)
 
-__all__ = ["motor_ratings", "play_reference", "predict_parts"]
+__all__ = ["brake_of", "motor_ratings", "play_reference", "predict_parts"]
+
+
+def brake_of(model, c, v: NDArray, v2: NDArray | None, z: complex, s0: complex):
+    """The motors' braking drive through a feeder ``z`` with no recorded I2 (or None).
+
+    ``v``, ``v2``: the recorded bus's voltage and negative sequence; ``s0`` its S before
+    the event; ``c``: ``model._split`` of one draw. The load's ``Y2 = P_L(0) Y2_p - j
+    Q_L(0) / V_L(0)^2`` (``PartsModel.load_columns``' ``Y2`` per ``p0``, the motors' from
+    their steady state at ``V_L(0)``), then ``V2_L = V2 / (1 + Z Y2)``.
+    """
+    if v2 is None or brake_drive(v2, v2) is None:
+        return None
+    i0 = np.conj(s0 / v[0])
+    s_l0 = s0 - z * abs(i0) ** 2
+    v0 = abs(v[0] - z * i0)
+    f = c["f"]
+    y2p = f[-1] / v0**2 + 0j
+    wb = 2 * math.pi * model.f_hz
+    for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
+        rs, xp, dx, tp, _, t0 = np.exp(logs)
+        a, b, cc = MOTOR_CLASSES[m]["torque"]
+        pm0, qm0 = steady_state(rs, xp, dx, tp, wb, v0, t0, a, b, cc)[3:]
+        if not math.isfinite(pm0):  # no steady state: the draw fails
+            return np.full(len(v2), np.nan)
+        y2p += f[j] / pm0 * (motor_y2(rs, xp, dx, tp, model.f_hz) + 1j * qm0 / v0**2)
+    if model.motor_d:
+        y2p += f[len(model.motors)] / v0**2
+    y2 = s_l0.real * y2p - 1j * s_l0.imag / v0**2
+    v2 = np.asarray(v2, dtype=complex)
+    return brake_drive(v2, v2 / (1.0 + z * y2))
 
 
 def predict_parts(
@@ -85,9 +127,12 @@ def predict_parts(
     vl0 = v[0] - z * i0
     s_l0 = complex(p0, q0) - z * abs(i0) ** 2  # the load bus's S before the event
     vl = v - z * i0
+    u2 = brake_of(model, c, v, event.v2, z, complex(p0, q0))
+    if u2 is not None and not np.isfinite(u2).all():
+        return None  # a motor with no steady state
     for it in range(1, max_iterations + 1):
         ev = replace(event, v=np.abs(vl), delta=None if event.delta is None else np.angle(vl))
-        cols = model.load_columns(ev, c, steps)
+        cols = model.load_columns(ev, c, steps, u2)
         if cols is None:
             return None
         col_p, col_qp, _ = cols

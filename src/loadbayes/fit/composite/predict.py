@@ -196,7 +196,8 @@ def predict(
         The fault as a sag: depth (share of the pre-fault voltage), seconds at the bottom,
         seconds of a linear recovery, the phase jump in degrees. Or ``voltage``:
     voltage : path or EventRecord
-        A recorded profile (CSV of ``t_s, v``, optionally ``angle_rad``).
+        A recorded profile (CSV of ``t_s, v``, optionally ``angle_rad`` and ``v2_re,
+        v2_im``: the negative sequence, which brakes the motors of a model of parts).
     draws : int
         Posterior draws played (each with its own thresholds).
     prior : sequence of ``"name=centre,spread"`` or mapping, optional
@@ -232,6 +233,8 @@ def predict(
     fault = {"kind": kind, "name": event.name, "n": event.n, "t_end_s": float(event.t[-1]),
              **ext} | ({"sag": sag, "duration": duration, "recovery": recovery,
                         "angle_deg": angle} if kind == "sag" else {})  # fmt: skip
+    if event.v2 is not None:  # the motors of a model of parts brake with it (parts_play)
+        fault["v2_max"] = float(np.max(np.abs(event.v2)))
     cover = covered(events)
     if model is None:  # a zip+motor fit: no feeder, no motor D, no thresholds
         from loadbayes.fit.composite.predict_zm import play_zip_motor

@@ -2,10 +2,12 @@
 
 :func:`sag_profile` builds a voltage sag at the recorded bus (depth, duration, a linear
 recovery, a phase jump); :func:`read_profile` reads one from a CSV (``t_s, v`` and
-optionally ``angle_rad``). :func:`sag_extent` measures any voltage the same way, fitted
-or asked: its depth below the pre-fault voltage (the first sample) and its duration,
-the time the voltage stays below half that depth (a rectangular sag's own duration; a
-sag with a ramp's duration to the ramp's middle). :func:`covered` is the range the
+optionally ``angle_rad`` and the negative sequence ``v2_re, v2_im``, which brakes the
+motors of a model of parts, ``models/motor_kernel.brake_torque``). :func:`sag_extent`
+measures any voltage the same way, fitted or asked: its depth below the pre-fault
+voltage (the first sample) and its duration, the time the voltage stays below half that
+depth (a rectangular sag's own duration; a sag with a ramp's duration to the ramp's
+middle). :func:`covered` is the range the
 fitted events span (read from the recordings a fit keeps, ``predictive.events_of``), and
 :func:`recovery_time` the time after the fault's clearing (the last sample below half
 the depth) from which P or Q stays within 10 % of its pre-fault value.
@@ -104,19 +106,28 @@ def sag_profile(depth: float, duration: float, *, recovery: float = 0.0,
 
 
 def read_profile(path: str | Path) -> EventRecord:
-    """A voltage profile from a CSV: ``t_s``, ``v`` (p.u.), optionally ``angle_rad``."""
+    """A voltage profile from a CSV: ``t_s``, ``v`` (p.u.), optionally ``angle_rad``.
+
+    And optionally ``v2_re, v2_im`` (both or neither): the negative-sequence voltage per
+    unit as ``v`` (docs/formats.md), the event's ``v2`` (its ``i2`` None).
+    """
     name = str(path)
     try:
         frame = pd.read_csv(path)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise DataError(f"not a CSV of t_s, v ({str(exc).splitlines()[0]})", name) from None
     cols = {}
-    for col in ("t_s", "v", "angle_rad"):
+    v2_cols = [c for c in ("v2_re", "v2_im") if c in frame.columns]
+    if len(v2_cols) == 1:
+        other = ({"v2_re", "v2_im"} - set(v2_cols)).pop()
+        raise DataError(f"{v2_cols[0]!r} without {other!r} (the negative sequence needs "
+                        "both)", name)  # fmt: skip
+    for col in ("t_s", "v", "angle_rad", *v2_cols):
         if col not in frame.columns:
             if col == "angle_rad":
                 continue
             raise DataError(f"no column {col!r} (a profile holds t_s, v and optionally "
-                            "angle_rad)", name)  # fmt: skip
+                            "angle_rad, v2_re, v2_im)", name)  # fmt: skip
         x = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
@@ -134,7 +145,8 @@ def read_profile(path: str | Path) -> EventRecord:
         raise DataError(f"{v[low[0]]:g} p.u.: a voltage per unit in (0, 2]", name, "v",
                         int(low[0]) + 2)  # fmt: skip
     zeros = np.zeros(t.size)
-    return EventRecord(t - t[0], v, zeros, zeros, cols.get("angle_rad"), Path(name).name)
+    v2 = cols["v2_re"] + 1j * cols["v2_im"] if v2_cols else None
+    return EventRecord(t - t[0], v, zeros, zeros, cols.get("angle_rad"), Path(name).name, v2=v2)
 
 
 def sag_extent(t: np.ndarray, v: np.ndarray) -> dict[str, float]:
