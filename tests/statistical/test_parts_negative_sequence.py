@@ -56,9 +56,11 @@ the same, B fixed: the motors brake (this test)        [0.495, 1.064] (1.69)  [0
 ====================================================== ====================== ======================
 
 (The share steps: ``fit/composite/shares.py``.) With the braking torque the interval
-without I2 misses the truth again at this seed, by 0.004, and the strict xfail that
-said it covered was removed (:func:`test_the_rating_is_missed_without_the_negative_sequence`
-now passes). The claim is not settled: every run is unconverged. At sampler seeds 1 and
+without I2 misses the truth at this seed by 0.004, but a miss by 0.004 at one seed of
+unconverged chains, which the other seeds and the long run below cover, is no evidence
+that the positive sequence alone misses the rating: that claim (the issue's "and is not
+without it") is not asserted, here or as an xfail; finding C says why it cannot be
+expected to hold. Every run is unconverged. At sampler seeds 1 and
 2 (braking) with I2 [0.463, 0.756] (R-hat 1.58, missed) and [0.510, 0.967] (1.21),
 without [0.307, 0.848] (1.17, covered) and [0.210, 0.691] (1.33, missed); before the
 braking seeds 1 and 2 gave [0.315, 0.932] and [0.486, 1.144] with, [0.276, 0.880] and
@@ -67,9 +69,9 @@ the braking [0.400, 1.115] with I2 and [0.259, 0.867] without (R-hat 1.14 both),
 covering; before it [0.242, 1.161] with I2 (R-hat 1.27) and [0.269, 0.940] without
 (1.07).
 
-With A fixed the rating is covered with I2 and (at this seed and these draws) missed
-without it (the prior of T0, median 0.75 where the truth is 0.35, decides it then), as
-the issue asks; it is not narrower with I2 (0.57 wide against 0.50). ``f_motors``
+With A fixed the rating is covered with I2 (asserted, at this seed) and, without it,
+missed or covered by seed (the prior of T0, median 0.75 where the truth is 0.35,
+decides it then); it is not narrower with I2 (0.57 wide against 0.50). ``f_motors``
 (0.455) was read high with I2 before B was fixed ([0.546, 0.760]; [0.489, 0.711] and
 [0.543, 0.695] at seeds 1, 2), which the missing braking was thought to cause: with the
 braking it is [0.492, 0.723] at this seed, still high, [0.491, 0.664] and [0.363, 0.533]
@@ -82,9 +84,9 @@ the unbalanced fault by up to 3.0e-3 with the braking (1.4e-2 without), against 
 on the balanced sag, not traced further either.
 
 False-alarm rates: the residual checks are deterministic (fixed noise seed;
-thresholds of 15 to 25 times the noise of P); the rating test's coverage part, with
-calibrated intervals, fails 5% of the time, and its other part (missed without I2) is
-a claim of power on this record (lightly loaded motors), not of calibration.
+thresholds of 15 to 25 times the noise of P); the rating test, with
+calibrated intervals, fails 5% of the time (its chains are not converged: the table).
+The fits without I2 in the table were measured, not run by the suite.
 """
 
 from __future__ import annotations
@@ -255,16 +257,13 @@ def test_the_negative_sequence_is_blind_to_the_coordinate_of_the_rating(tmp_path
 
 @pytest.fixture(scope="module")
 def ratings(tmp_path_factory):
-    """The total rating's 95% interval with I2 ("auto") and without ("off"), and the truth."""
+    """The total rating's 95% interval with I2 ("auto"), and the truth."""
     ev, truth, _ = _read(tmp_path_factory.mktemp("ratings"))
     assert ev.unbalanced and _model("auto").uses_negative_sequence(ev)
     sampler = SamplerSettings(draws=DRAWS, burn=BURN, chains=CHAINS, seed=SEED)
-    got = {}
-    for mode in ("auto", "off"):
-        d = fit_composite(_model(mode), [ev], sampler=sampler).posterior.draws
-        total = np.asarray(d["mva_a"]) + np.asarray(d["mva_b"])
-        got[mode] = tuple(np.quantile(total, [0.025, 0.975]))
-    return got, truth["motor_rating_total"]
+    d = fit_composite(_model("auto"), [ev], sampler=sampler).posterior.draws
+    total = np.asarray(d["mva_a"]) + np.asarray(d["mva_b"])
+    return tuple(np.quantile(total, [0.025, 0.975])), truth["motor_rating_total"]
 
 
 def test_the_rating_is_covered_with_the_negative_sequence(ratings):
@@ -274,16 +273,5 @@ def test_the_rating_is_covered_with_the_negative_sequence(ratings):
     # asserted: a narrower interval with I2; by C the negative sequence measures S / X',
     # which the positive sequence sees through X' T0 too, so what it adds is a second,
     # sharper look at that one combination.
-    got, true = ratings
-    lo, hi = got["auto"]
-    assert lo <= true <= hi, got
-
-
-def test_the_rating_is_missed_without_the_negative_sequence(ratings):
-    # Measured with the braking torque: [0.299, 0.796] for 0.8 (R-hat 1.13), missed by
-    # 0.004. A strict xfail before it ([0.230, 0.885], R-hat 1.22). Not settled (the
-    # module docstring): at seed 1 it covers ([0.307, 0.848]), and so does a run of 4
-    # chains of 12000 ([0.259, 0.867]); a claim of power at this seed and these draws.
-    got, true = ratings
-    lo_off, hi_off = got["off"]
-    assert not lo_off <= true <= hi_off, got
+    (lo, hi), true = ratings
+    assert lo <= true <= hi, (lo, hi)
