@@ -25,26 +25,35 @@ harmonics present, can it be fitted there without a large cost: a ramp over one 
 almost in the span of the harmonics' sines (its Fourier series), so decay columns in the
 window multiply the phasor's noise by 10-30 (measured: 1% white noise, 5% third and 3%
 fifth harmonic). The estimator therefore tests each channel's window for a decaying
-offset (an F-test of an offset ramp and curvature, false-alarm rate :data:`DECAY_ALPHA`)
-and, where one is found, takes the phasor of the *mimic-filtered* window instead
-(``y[n] = (1 + k) x[n] - k x[n-1]``, ``k = tau / dt``, tau one cycle by default; the
-filter's gain at the fundamental divided out). The filter removes an offset of time
-constant tau exactly and others mostly, and keeps the DFT's exact rejection of
-harmonics. Measured (64 samples per cycle, an 80% offset, 1% noise, with and without
-harmonics, window centred 1.5 cycles after the step): phasor error 0.004-0.006 for time
-constants of 20, 50 and 200 ms, against 0.016-0.042 for the plain DFT; in steady state
-the filter doubles the phasor's noise (0.0035 against 0.0018), which is why it is used
-only where the test finds an offset. The State Grid record's transformer currents are
-quantised to about 3% of their peak: the test leaves their steady-state windows to the
-DFT, and finds the offset after each fault.
+offset over the window's cycle and the next (an F-test of an offset ramp and curvature,
+false-alarm rate :data:`DECAY_ALPHA`; :func:`_decay_test`) and, where one is found,
+fits the offset over those two cycles: in a three-phase set's space vector, a
+non-rotating exponential ``D exp(-t / tau)`` (``tau`` the best of
+:data:`OFFSET_CYCLES`) beside a positive-sequence phasor that moves (a quadratic in
+``t``), a constant negative sequence and the harmonics. Over two cycles the harmonics
+repeat and the offset does not, and the phasor turns while the offset stands still, so
+the three are told apart at little cost (the offset's share of the phasor adds about 7%
+to its variance). The offset is taken out of the window's samples and the row is the
+plain fit of what is left: a moving phasor stays its one-cycle window mean. The offset
+found right after a step is followed into the next windows while a test of the same
+model (without the fast exponentials of the detection's null) still finds it.
+
+Before, a found offset sent the window through a *mimic filter* (``y = x + tau
+dx/dt``), which ``--dc on`` still applies to every window. On a moving phasor ``X(t)``
+the filter returns ``X + tau X' / (1 + j w tau)``, about ``X' / (j w)`` off: after a
+sag a motor's current recovers (``T' X' / X``, tens of ms) and the filter turned that
+into P errors of 9-26 noise sd in the three rows after each step of issue 35's
+recorder chain (tests/integration/test_recorder_chain.py), and the fitted motor's
+``T'`` to a quarter of the truth. Measured there now: those rows within 3 noise sd.
 
 Windows advance by ``T / per_cycle``: with ``per_cycle > 1`` neighbouring estimates share
 samples, so their noise is correlated (two windows overlapping by a fraction ``r`` of a
 cycle have noise correlation about ``r`` for white noise), which a likelihood that
 treats them as independent must allow for.
 
-One idea needs these 483 lines: the sliding least-squares phasor derived above, with its
-decaying-offset test, its half-cycle step test and mimic filter.
+One idea needs these 550 lines: the sliding least-squares phasor derived above, with its
+decaying-offset test and estimate over two cycles, its half-cycle step test and the mimic
+filter of ``--dc on``.
 A window that straddles a step fits badly: its residual (RMS of the misfit over the RMS
 of the signal, the worst voltage channel) is returned, so that such samples can be left
 out or flagged.
@@ -65,7 +74,7 @@ HARMONICS = 7
 #: False-alarm rate of the test that adds the decay columns to a channel's window.
 DECAY_ALPHA = 1e-3
 #: Smallest RMS share of a window's signal that the decay columns must explain before
-#: the mimic filter is used (a smaller offset moves the phasor by less than this).
+#: the offset is taken out right after a step (a smaller one moves the phasor by less).
 DECAY_MIN_SHARE = 0.005
 #: Relative misfit of a voltage channel's plain fit above which a window straddles a step.
 STEP_LIMIT = 0.02
@@ -81,6 +90,8 @@ HALF_STEP_LIMIT = 0.03
 #: Time constants (in cycles) of the fast changes of a phasor the three-phase decay test
 #: allows for (a motor's flux after a step: ``T' X' / X``, a few milliseconds).
 FAST_FLUX_CYCLES = (0.125, 0.25, 0.5)
+#: Time constants (in cycles) of the decaying offset whose best fit is taken out.
+OFFSET_CYCLES = (0.5, 1.0, 2.0, 4.0, 8.0)
 #: Fewest residual degrees of freedom for the decay test to be made at all.
 MIN_DOF = 8
 _A = np.exp(2j * np.pi / 3)
@@ -101,7 +112,8 @@ class PhasorFit:
     f_hz : float
         The frequency the fundamental was fitted at.
     decay : numpy.ndarray
-        Where a decaying offset was found and the mimic filter used, shape (channels, m).
+        Where a decaying offset was found and taken out (``dc="auto"``) or the mimic
+        filter used (``dc="on"``), shape (channels, m).
     share : numpy.ndarray
         The fundamental's share of the window's mean square, shape (channels, m): about 1
         for a waveform, about 0 for samples that are not one (magnitudes).
@@ -175,7 +187,7 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
     decay = np.zeros((k, centres.size), dtype=bool)
     halves = np.zeros(centres.size, dtype=bool)
     dt = np.median(np.diff(t))
-    if dc != "off":
+    if dc == "on":
         y, gain = _mimic(t, x, tau, w)
     los = np.searchsorted(t, centres - 0.5 * period - 1e-6 * dt)
     his = np.searchsorted(t, centres + 0.5 * period - 1e-6 * dt)
@@ -188,6 +200,14 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         u = t[los[j] : his2[j]] - centres[j]
         key = (int(his[j] - los[j]), np.round(u / dt, 6).tobytes())
         groups.setdefault(key, []).append(j)
+    if dc == "auto":  # filled per window, resolved in time order after the loop
+        clean = np.zeros_like(out)
+        first = np.zeros_like(decay)
+        then = np.zeros_like(decay)
+        rss_off = np.zeros_like(res)
+        stepped = np.zeros_like(halves)
+    mean_sq = np.empty_like(res)
+    sum_sq = np.empty_like(res)
     for js in groups.values():
         js = np.asarray(js)
         if progress is not None:
@@ -202,7 +222,8 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         a = np.column_stack(cols)
         xx = x[:, idx]  # (k, g, m)
         ssq = np.sum(xx * xx, axis=2)
-        coef = np.einsum("pm,kgm->kgp", np.linalg.pinv(a), xx)
+        pinv = np.linalg.pinv(a)
+        coef = np.einsum("pm,kgm->kgp", pinv, xx)
         rss = np.sum((xx - np.einsum("kgp,mp->kgm", coef, a)) ** 2, axis=2)
         turn = np.exp(-1j * w0 * centres[js])
         phasor = (coef[..., 0] - 1j * coef[..., 1]) / np.sqrt(2.0) * turn
@@ -210,48 +231,78 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
             halves[js] = _half_step(u, xx[:steps], w, np.abs(phasor[:steps]))
         if dc != "off":
             # A window across a step of the voltage (its plain fit poor) is no place for
-            # the mimic filter: the decay columns would "explain" the step, and the
-            # filtered window is worse than the plain one. Voltages carry no decaying
-            # offset to speak of, so their misfit tells a step from a current's offset.
+            # an offset: the decay columns would "explain" the step. Voltages carry no
+            # decaying offset to speak of, so their misfit tells a step from a current's
+            # offset.
             across = (
                 np.any(rss[:steps] > STEP_LIMIT**2 * ssq[:steps], axis=0)
                 if steps > 0
                 else np.zeros(js.size, dtype=bool)
             )
             ok = (lo > 0) & ~across & ~halves[js]
-            if dc == "on":
-                use = np.ones_like(rss, dtype=bool)
-            else:
-                m2 = int(his2[js[0]] - lo[0])
-                idx2 = lo[:, None] + np.arange(m2)
-                use, across2 = _decay_test(
-                    t[idx2[0]] - centres[js[0]], x[:, idx2], period, w, steps, sets
-                )
-                ok &= ~across2
-            use &= ok[None, :]
+            r = u / period
+            # The offset's ramp and curvature over the window's own cycle (its residual).
+            _, rss_b = _lstsq(np.column_stack([a, r, r * r]), xx)
+        if dc == "on":
+            use = np.ones_like(rss, dtype=bool) & ok[None, :]
             if use.any():
                 # The window's first filtered sample is made with the sample before
                 # the window, which may lie across a step: it is left out.
                 yy = y[:, idx[:, 1:]]
                 coef_m = np.einsum("pm,kgm->kgp", np.linalg.pinv(a[1:]), yy)
                 mimic = (coef_m[..., 0] - 1j * coef_m[..., 1]) / np.sqrt(2.0) / gain * turn
-                for chans in sets if dc == "auto" else ():
-                    idx_s = list(chans)
-                    moved = np.abs(mimic[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
-                        phasor[idx_s]
-                    )
-                    use[idx_s] &= moved.any(axis=0)[None, :]
                 phasor = np.where(use, mimic, phasor)
-                # A filtered window's residual allows the offset: with its ramp and
-                # curvature over the window's own cycle.
-                r = u / period
-                _, rss_b = _lstsq(np.column_stack([a, r, r * r]), xx)
                 rss = np.where(use, np.minimum(rss, rss_b), rss)
             decay[:, js] = use
-        with np.errstate(invalid="ignore", divide="ignore"):
-            res[:, js] = np.sqrt(rss / ssq)
-            share[:, js] = np.abs(phasor) ** 2 / (ssq / m)
+        elif dc == "auto":
+            m2 = int(his2[js[0]] - lo[0])
+            idx2 = lo[:, None] + np.arange(m2)
+            # The offset fitted over two cycles, taken out of the window's samples: the
+            # phasor of the cleaned samples is the plain one less the offset's share.
+            use, follow, across2, off = _decay_test(
+                t[idx2[0]] - centres[js[0]], x[:, idx2], period, w, steps, sets,
+                (pinv[0] - 1j * pinv[1]) / np.sqrt(2.0),
+            )  # fmt: skip
+            ok &= ~across2
+            cleaned = phasor - off * turn
+            matters = np.ones_like(use)
+            for chans in sets:
+                idx_s = list(chans)
+                moved = np.abs(cleaned[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
+                    phasor[idx_s]
+                )
+                matters[idx_s] = moved.any(axis=0)[None, :]
+            first[:, js] = use & ok & matters
+            then[:, js] = follow & ok
+            stepped[js] = across | halves[js]
+            clean[:, js] = cleaned
+            rss_off[:, js] = rss_b
+        res[:, js] = rss
+        sum_sq[:, js] = ssq
+        mean_sq[:, js] = ssq / m
         out[:, js] = phasor
+    if dc == "auto":
+        # An offset found right after a step (where the test allows for a fast-moving
+        # phasor) is followed while it lasts: each next window where the plainer test
+        # (a slowly moving phasor) still finds it is cleaned too.
+        # The offset is fitted over two cycles: none may hold a step. A step on the
+        # cycles' boundary at a voltage zero crossing misfits neither cycle's window nor
+        # (by much) the two cycles' fit, but moves the voltage's phasor between them.
+        hop = round(period / (centres[1] - centres[0])) if centres.size > 1 else 1
+        for j in range(centres.size):
+            nxt = min(j + hop, centres.size - 1)
+            if steps > 0:
+                v0, v1 = out[:steps, j], out[:steps, nxt]
+                if stepped[j : nxt + 1].any() or np.any(
+                    np.abs(v1 - v0) > HALF_STEP_LIMIT * np.abs(v0)
+                ):
+                    continue
+            decay[:, j] = first[:, j] | (then[:, j] & (decay[:, j - 1] if j else False))
+        out = np.where(decay, clean, out)
+        res = np.where(decay, np.minimum(res, rss_off), res)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        res = np.sqrt(res / sum_sq)
+        share = np.abs(out) ** 2 / mean_sq
     if skew is not None:
         out *= np.exp(-1j * w0 * np.asarray(skew, dtype=float))[:, None]
     return out, np.nan_to_num(res, nan=0.0), decay, np.nan_to_num(share, nan=0.0), halves
@@ -294,8 +345,8 @@ def _lstsq(
 
 
 def _decay_test(
-    u: np.ndarray, xx: np.ndarray, period: float, w: float, steps: int, sets=()
-) -> tuple[np.ndarray, np.ndarray]:
+    u: np.ndarray, xx: np.ndarray, period: float, w: float, steps: int, sets=(), proj=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Where a channel's window holds a decaying offset: read over it and the next cycle.
 
     Within one cycle a decaying offset cannot be told from a fundamental whose amplitude
@@ -322,21 +373,32 @@ def _decay_test(
     The null (the moving fundamental, the harmonics 2..H of both sequences, a constant)
     against it plus an offset ramp and curvature: an F-test at :data:`DECAY_ALPHA`. The
     offset must also matter (on a near-noiseless record any model slip is
-    "significant", and the filter costs more than it saves there): a single channel's
-    must explain at least :data:`DECAY_MIN_SHARE` of its signal; a set, filtered as one
-    (all three channels or none), must have one of its phasors moved by the filter by at
-    least :data:`DECAY_MIN_SHARE` (judged by :func:`_one_pass`: the set's null takes up
-    much of an offset's ramp, so the share of the residual does not measure its size).
+    "significant"): a single channel's must explain at least :data:`DECAY_MIN_SHARE` of
+    its signal; a set, cleaned as one (all three channels or none), must have one of its
+    phasors moved by the offset by at least :data:`DECAY_MIN_SHARE` (judged by
+    :func:`_one_pass`: the set's null takes up much of an offset's ramp, so the share of
+    the residual does not measure its size).
 
-    Returns the test per channel and window, shape (k, g), and where a voltage channel
-    (the first ``steps``) straddles a step in the two cycles (no test there; shape (g,)).
-    Windows with less than two cycles of samples (a segment's end) are not tested.
+    The offset itself is estimated without the fast exponentials (they lie almost in the
+    span of the quadratic phasor and the offset: with them its estimate's variance is
+    600 times larger): for a set, the exponential of :data:`OFFSET_CYCLES` that fits the
+    space vector best; for a single channel, the ramp and curvature of its test. The
+    follow-up test (``follow``) is that fit's F-test against the same columns without
+    the offset, at :data:`DECAY_ALPHA` (for a single channel: its own test).
+
+    Returns the test and the follow-up test per channel and window, shape (k, g); where a
+    voltage channel (the first ``steps``) straddles a step in the two cycles (no test
+    there; shape (g,)); and the offset's share of each window's phasor (``proj``: the
+    one-cycle fit's row for the phasor, over the window's samples), shape (k, g), before
+    the window's turn. Windows with less than two cycles of samples (a segment's end)
+    are not tested.
     """
     k, g, m2 = xx.shape
     use = np.zeros((k, g), dtype=bool)
     across = np.zeros(g, dtype=bool)
+    off = np.zeros((k, g), dtype=complex)
     if m2 < 4 or u[-1] - u[0] < 1.5 * period:
-        return use, across
+        return use, use.copy(), across, off
     r = u / period
     harmonics = range(2, max_harmonic(m2 // 2) + 1)
     offset = [r, r * r]
@@ -358,7 +420,8 @@ def _decay_test(
     dof = m2 - a.shape[1] - 2
     on = np.isin(fitted, single)
     if dof >= MIN_DOF and on.any():
-        _, rss_b = _lstsq(np.column_stack([a, *offset]), xx[fitted[on]])
+        coef_b, rss_b = _lstsq(np.column_stack([a, *offset]), xx[fitted[on]])
+        off[fitted[on]] = coef_b[..., -2:] @ (np.column_stack(offset)[: proj.size].T @ proj)
         with np.errstate(invalid="ignore", divide="ignore"):
             f_stat = 0.5 * (rss[on] - rss_b) / (rss_b / dof)
         big = rss[on] - rss_b > DECAY_MIN_SHARE**2 * ssq[on]
@@ -373,21 +436,46 @@ def _decay_test(
     a = np.column_stack(cols)
     b = np.column_stack([a, *offset])
     dof = 2 * (m2 - a.shape[1] - 2)
+    follow = use.copy()
     if not sets or dof < MIN_DOF:
-        return use, across
+        return use, follow, across, off
     pinv_a, pinv_b = np.linalg.pinv(a), np.linalg.pinv(b)
+    # The offset's estimate, and the test that follows it: the same columns without
+    # the fast exponentials, which lie almost in the span of the phasor's quadratic and
+    # the offset (with them, the offset's estimate has 600 times the variance).
+    slow = np.r_[0:5, 5 + len(FAST_FLUX_CYCLES) : a.shape[1]]
+    e0 = a[:, slow]
+    pinv_e0 = np.linalg.pinv(e0)
+    dof_d = 2 * (m2 - e0.shape[1] - 1)
+    decays = [np.exp(-(r - r[0]) / c) for c in OFFSET_CYCLES]
+    pinv_d = [np.linalg.pinv(np.column_stack([e0, d])) for d in decays]
     for chans in sets:
         ia, ib, ic = chans
         z = (2.0 / 3.0) * (xx[ia] + _A * xx[ib] + _A * _A * xx[ic])
         _, rss_z = _lstsq(a, z, pinv_a)
         _, rss_zb = _lstsq(b, z, pinv_b)
+        _, rss_e0 = _lstsq(e0, z, pinv_e0)
+        # The offset, an exponential of the time constant that fits best: its space
+        # vector D e(t) is phase n's Re(D conj(a)^n) e(t), whose phasor is taken out.
+        fits = [
+            _lstsq(np.column_stack([e0, d]), z, pd) for d, pd in zip(decays, pinv_d, strict=True)
+        ]
+        best = np.argmin(np.array([f[1] for f in fits]), axis=0)
+        size = np.array([f[0][..., -1] for f in fits])[best, np.arange(g)]
+        share = np.array([d[: proj.size] @ proj for d in decays])[best]
+        for n, c in enumerate(chans):
+            off[c] = (size * np.conj(_A) ** n).real * share
         with np.errstate(invalid="ignore", divide="ignore"):
             f_stat = 0.25 * (rss_z - rss_zb) / (rss_zb / dof)
         # How much an offset matters is judged on the phasors (by the caller): here the
         # null takes up much of an offset's ramp, so its share of the residual is no
         # measure of its size.
         use[list(chans)] = (f_stat > _f_critical(dof, 4))[None, :]
-    return use, across
+        rss_d = np.array([f[1] for f in fits])[best, np.arange(g)]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f_stat = 0.5 * (rss_e0 - rss_d) / (rss_d / dof_d)
+        follow[list(chans)] = (f_stat > _f_critical(dof_d, 2))[None, :]
+    return use, follow, across, off
 
 
 def fit_phasors(
@@ -417,20 +505,23 @@ def fit_phasors(
     per_cycle : int, default 1
         Estimates per nominal cycle (windows advance by ``1 / (f0 per_cycle)``).
     dc : {"auto", "on", "off"}
-        The mimic filter against a decaying offset: where an F-test finds one (false-alarm
-        rate :data:`DECAY_ALPHA` per channel and window), in every window but a segment's
-        first, or never (a constant offset is always fitted: being orthogonal to the
+        A decaying offset: fitted over two cycles and taken out where an F-test finds
+        one (false-alarm rate :data:`DECAY_ALPHA` per channel and window), and in the
+        windows that follow while it lasts; ``"on"``: the mimic filter in every window
+        but a segment's first (off by about ``X' / (j w)`` where the phasor moves);
+        ``"off"``: never (a constant offset is always fitted: being orthogonal to the
         fundamental over a whole cycle, it costs nothing).
     skew_s : numpy.ndarray, optional
         Per-channel time skews (s): channel k was sampled ``skew_s[k]`` after the stamp.
     reference : int, default 0
         Channel whose phasor's turn gives the segment's frequency.
     mimic_tau_s : float, optional
-        Time constant of the mimic filter (s); one nominal cycle by default.
+        Time constant of the mimic filter of ``dc="on"`` (s); one nominal cycle by
+        default.
     step_channels : int, default 0
         The first ``step_channels`` channels are voltages: a window where one of them
         misfits by more than :data:`STEP_LIMIT` straddles a step, and keeps its plain
-        phasors (no mimic filter in any channel).
+        phasors (no offset taken out in any channel).
     phase_sets : sequence of (int, int, int), optional
         Channel triples that are the phases a, b, c of one three-phase quantity: their
         decay test is made on the space vector, which tells an offset from a phasor that
