@@ -46,7 +46,9 @@ moves T'. What still does is the frequency path, which is the generator's: its m
 does not see the 59.98 Hz nor the dip that the waveforms (and the rows' ``angle_rad``,
 with which ``fit composite`` drives its motor) carry (tests/recorder_chain.py). At
 60.00 Hz without the dip (harmonics, angle jump and offset kept): T' 0.393 [0.234,
-0.577] s, f_m 0.421 [0.382, 0.470], both covered; with ``angle_rad`` and ``f`` dropped
+0.577] s, f_m 0.421 [0.382, 0.470], both covered (0.383 [0.259, 0.573] without the
+offset); the dip alone (at 60.00 Hz) leaves T' 0.240 [0.172, 0.306], the 59.98 Hz alone
+0.333 [0.227, 0.452]; with ``angle_rad`` and ``f`` dropped
 from the whole chain's event (the angle jump lost with them): T' 0.238 [0.204, 0.283].
 The fit test stays a strict xfail until the generator's motor sees the frequency.
 
