@@ -225,8 +225,9 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
             )
             ok = (lo > 0) & ~across & ~halves[js]
             r = u / period
-            # The offset's ramp and curvature over the window's own cycle (its residual).
-            _, rss_b = lstsq(np.column_stack([a, r, r * r]), xx)
+            # A window with an offset has the residual of its ramp and curvature over the
+            # window's own cycle (where they are needed: they cost a fit).
+            ramp = np.column_stack([a, r, r * r])
         if dc == "on":
             use = np.ones_like(rss, dtype=bool) & ok[None, :]
             if use.any():
@@ -236,7 +237,7 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
                 coef_m = np.einsum("pm,kgm->kgp", np.linalg.pinv(a[1:]), yy)
                 mimic = (coef_m[..., 0] - 1j * coef_m[..., 1]) / np.sqrt(2.0) / gain * turn
                 phasor = np.where(use, mimic, phasor)
-                rss = np.where(use, np.minimum(rss, rss_b), rss)
+                rss = np.where(use, np.minimum(rss, lstsq(ramp, xx)[1]), rss)
             decay[:, js] = use
         elif dc == "auto":
             m2 = int(his2[js[0]] - lo[0])
@@ -260,7 +261,9 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
             then[:, js] = follow & ok
             stepped[js] = across | halves[js]
             clean[:, js] = cleaned
-            rss_off[:, js] = rss_b
+            need = np.flatnonzero((first[:, js] | then[:, js]).any(axis=0))
+            if need.size:
+                rss_off[:, js[need]] = lstsq(ramp, xx[:, need])[1]
         res[:, js] = rss
         sum_sq[:, js] = ssq
         mean_sq[:, js] = ssq / m

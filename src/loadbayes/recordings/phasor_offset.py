@@ -159,22 +159,24 @@ def offset_test(
     e0 = a[:, slow]
     pinv_e0 = np.linalg.pinv(e0)
     dof_d = 2 * (m2 - e0.shape[1] - 1)
-    decays = [np.exp(-(r - r[0]) / c) for c in OFFSET_CYCLES]
-    pinv_d = [np.linalg.pinv(np.column_stack([e0, d])) for d in decays]
+    # Each exponential beside e0 (Frisch-Waugh): its part orthogonal to e0's span, whose
+    # inner product with e0's residual gives its coefficient and the drop in misfit.
+    decays = np.column_stack([np.exp(-(r - r[0]) / c) for c in OFFSET_CYCLES])
+    perp = decays - e0 @ (pinv_e0 @ decays)
+    norm = np.sum(np.abs(perp) ** 2, axis=0)
     for chans in sets:
         ia, ib, ic = chans
         z = (2.0 / 3.0) * (xx[ia] + _A * xx[ib] + _A * _A * xx[ic])
         _, rss_z = lstsq(a, z, pinv_a)
         _, rss_zb = lstsq(b, z, pinv_b)
-        _, rss_e0 = lstsq(e0, z, pinv_e0)
+        coef_e0, rss_e0 = lstsq(e0, z, pinv_e0)
+        inner = (z - coef_e0 @ e0.T) @ np.conj(perp)  # (g, len(OFFSET_CYCLES))
         # The offset, an exponential of the time constant that fits best: its space
         # vector D e(t) is phase n's Re(D conj(a)^n) e(t), whose phasor is taken out.
-        fits = [
-            lstsq(np.column_stack([e0, d]), z, pd) for d, pd in zip(decays, pinv_d, strict=True)
-        ]
-        best = np.argmin(np.array([f[1] for f in fits]), axis=0)
-        size = np.array([f[0][..., -1] for f in fits])[best, np.arange(g)]
-        share = np.array([d[: proj.size] @ proj for d in decays])[best]
+        drop = np.abs(inner) ** 2 / norm
+        best = np.argmax(drop, axis=1)
+        size = inner[np.arange(g), best] / norm[best]
+        share = (decays[: proj.size].T @ proj)[best]
         for n, c in enumerate(chans):
             off[c] = (size * np.conj(_A) ** n).real * share
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -183,7 +185,7 @@ def offset_test(
         # null takes up much of an offset's ramp, so its share of the residual is no
         # measure of its size.
         use[list(chans)] = (f_stat > f_critical(dof, 4))[None, :]
-        rss_d = np.array([f[1] for f in fits])[best, np.arange(g)]
+        rss_d = rss_e0 - drop[np.arange(g), best]
         with np.errstate(invalid="ignore", divide="ignore"):
             f_stat = 0.5 * (rss_e0 - rss_d) / (rss_d / dof_d)
         follow[list(chans)] = (f_stat > f_critical(dof_d, 2))[None, :]
