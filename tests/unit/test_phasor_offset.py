@@ -19,6 +19,7 @@ row is the plain fit of the cleaned window: at most 4.5 sd off in the five windo
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from loadbayes.recordings.phasor_fit import fit_phasors
 
@@ -37,19 +38,20 @@ def _current(t):
     return mag * np.exp(1j * ang)
 
 
-def _signal(seed, dc=0.5):
+def _signal(seed, dc=0.5, f_hz=F0):
+    """Phase voltages and currents (rows 0-2, 3-5) of a system at ``f_hz``."""
     t = np.arange(0.0, 1.0, 1.0 / RATE)
-    rot = np.exp(1j * (2.0 * np.pi * F0 * t[None, :] + SHIFT))
+    rot = np.exp(1j * (2.0 * np.pi * f_hz * t[None, :] + SHIFT))
     v_ph = np.where(t >= T_STEP, 0.7 * np.exp(-1j * np.radians(6.0)), 1.0)
     v = np.sqrt(2.0) * np.real(v_ph * rot)
     i = np.sqrt(2.0) * np.real(_current(t) * rot)
-    theta = 2.0 * np.pi * F0 * t[None, :]
+    theta = 2.0 * np.pi * f_hz * t[None, :]
     for x, share in ((v, 0.01), (i, 0.03)):
         x += (
             share * np.sqrt(2.0) * (np.cos(3 * (theta + SHIFT) + 0.3) + np.cos(5 * (theta - SHIFT)))
         )
     after = t >= T_STEP
-    jump = dc * np.cos(2.0 * np.pi * F0 * T_STEP + SHIFT[:, 0] + 0.3)
+    jump = dc * np.cos(2.0 * np.pi * f_hz * T_STEP + SHIFT[:, 0] + 0.3)
     i[:, after] += jump[:, None] * np.exp(-(t[after] - T_STEP) / T_DC)
     rng = np.random.default_rng(seed)
     x = np.vstack([v, i]) + 0.003 * rng.standard_normal((6, t.size))
@@ -69,11 +71,16 @@ def _positive(x):
     return (x[0] + a * x[1] + a * a * x[2]) / 3.0
 
 
-def test_rows_after_a_step_with_an_offset_are_the_moving_phasors_window_means():
-    t, x = _signal(seed=5)
+@pytest.mark.parametrize("f_hz", [F0, 59.5], ids=["60 Hz", "59.5 Hz"])
+def test_rows_after_a_step_with_an_offset_are_the_moving_phasors_window_means(f_hz):
+    # At 59.5 Hz the phasors turn by 5% a cycle in the nominal frame: the check that the
+    # two cycles hold no step (the voltage's phasor moving by 3% between them) must not
+    # take that turn for a step.
+    t, x = _signal(seed=5, f_hz=f_hz)
     fit = fit_phasors(t, x, f0=F0, step_channels=3, phase_sets=SETS)
     plain = fit_phasors(t, x, f0=F0, step_channels=3, phase_sets=SETS, dc="off")
-    err = _positive(fit.x[3:]) - _window_means(fit.t_s)
+    system = np.exp(-2j * np.pi * (f_hz - F0) * fit.t_s)  # the nominal frame's turn
+    err = _positive(fit.x[3:]) * system - _window_means(fit.t_s)
     # The rows' noise: the error of the windows more than 0.1 s from the step.
     far = np.abs(fit.t_s - T_STEP) > 0.1
     sd = np.std(np.concatenate([err[far].real, err[far].imag]))
@@ -86,7 +93,7 @@ def test_rows_after_a_step_with_an_offset_are_the_moving_phasors_window_means():
     worst = np.max(np.abs(np.concatenate([err[after].real, err[after].imag])) / sd)
     assert worst < 6.0, worst
     # The plain fit reads the offset into the phasor.
-    err_plain = _positive(plain.x[3:, after]) - _window_means(fit.t_s[after])
+    err_plain = _positive(plain.x[3:, after]) * system[after] - _window_means(fit.t_s[after])
     assert np.max(np.abs(err_plain)) / sd > 20.0
     # Where no offset was found the rows are the plain fit's, to the last bit.
     quiet = ~fit.decay.any(axis=0)

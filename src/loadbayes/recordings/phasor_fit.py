@@ -279,7 +279,9 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         for j in range(centres.size):
             nxt = min(j + hop, centres.size - 1)
             if steps > 0:
-                v0, v1 = out[:steps, j], out[:steps, nxt]
+                # (the nominal frame's turn at the segment's frequency taken out first)
+                v0 = out[:steps, j]
+                v1 = out[:steps, nxt] * np.exp(-1j * (w - w0) * (centres[nxt] - centres[j]))
                 if stepped[j : nxt + 1].any() or np.any(
                     np.abs(v1 - v0) > HALF_STEP_LIMIT * np.abs(v0)
                 ):
