@@ -67,6 +67,7 @@ import numpy as np
 from loadbayes.recordings.phasor_offset import (
     DECAY_ALPHA,
     DECAY_MIN_SHARE,
+    OFFSET_CYCLES,
     STEP_LIMIT,
     lstsq,
     max_harmonic,
@@ -185,9 +186,12 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         key = (int(his[j] - los[j]), np.round(u / dt, 6).tobytes())
         groups.setdefault(key, []).append(j)
     if dc == "auto":  # filled per window, resolved in time order after the loop
-        clean = np.zeros_like(out)
+        taus = len(OFFSET_CYCLES)
+        clean = np.zeros((*out.shape, taus), dtype=complex)
         first = np.zeros_like(decay)
-        then = np.zeros_like(decay)
+        then = np.zeros((*decay.shape, taus), dtype=bool)
+        choice = np.zeros(decay.shape, dtype=int)
+        scores = np.zeros(then.shape)
         rss_off = np.zeros_like(res)
         stepped = np.zeros_like(halves)
     mean_sq = np.empty_like(res)
@@ -244,24 +248,27 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
             idx2 = lo[:, None] + np.arange(m2)
             # The offset fitted over two cycles, taken out of the window's samples: the
             # phasor of the cleaned samples is the plain one less the offset's share.
-            use, follow, across2, off = offset_test(
+            use, follow, best, score, across2, off = offset_test(
                 t[idx2[0]] - centres[js[0]], x[:, idx2], period, w, steps, sets,
                 (pinv[0] - 1j * pinv[1]) / np.sqrt(2.0),
             )  # fmt: skip
             ok &= ~across2
-            cleaned = phasor - off * turn
+            cleaned = phasor[..., None] - off * turn[:, None]  # (k, g, time constants)
+            at_best = np.take_along_axis(cleaned, best[..., None], axis=2)[..., 0]
             matters = np.ones_like(use)
             for chans in sets:
                 idx_s = list(chans)
-                moved = np.abs(cleaned[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
+                moved = np.abs(at_best[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
                     phasor[idx_s]
                 )
                 matters[idx_s] = moved.any(axis=0)[None, :]
             first[:, js] = use & ok & matters
-            then[:, js] = follow & ok
+            then[:, js] = follow & ok[None, :, None]
+            choice[:, js] = best
+            scores[:, js] = score
             stepped[js] = across | halves[js]
             clean[:, js] = cleaned
-            need = np.flatnonzero((first[:, js] | then[:, js]).any(axis=0))
+            need = np.flatnonzero((first[:, js] | then[:, js].any(axis=2)).any(axis=0))
             if need.size:
                 rss_off[:, js[need]] = lstsq(ramp, xx[:, need])[1]
         res[:, js] = rss
@@ -286,8 +293,19 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
                     np.abs(v1 - v0) > HALF_STEP_LIMIT * np.abs(v0)
                 ):
                     continue
-            decay[:, j] = first[:, j] | (then[:, j] & (decay[:, j - 1] if j else False))
-        out = np.where(decay, clean, out)
+            own = then[np.arange(k), j, choice[:, j]]
+            decay[:, j] = first[:, j] | (own & (decay[:, j - 1] if j else False))
+        # One offset, one time constant: the one that explains the most over the run of
+        # windows it was found in (chosen in each window alone, where the offset is
+        # small, noise turned rows 8 sd off). Only where voltage channels tell the steps:
+        # without them a run can start in windows whose two cycles hold the step, which
+        # a short time constant fits best and would outweigh the rest.
+        for c in range(k if steps > 0 else 0):
+            runs = np.flatnonzero(np.diff(np.r_[0, decay[c].astype(int), 0]))
+            for a, b in zip(runs[::2], runs[1::2], strict=True):
+                choice[c, a:b] = np.argmax(scores[c, a:b].sum(axis=0))
+        picked = np.take_along_axis(clean, choice[..., None], axis=2)[..., 0]
+        out = np.where(decay, picked, out)
         res = np.where(decay, np.minimum(res, rss_off), res)
     with np.errstate(invalid="ignore", divide="ignore"):
         res = np.sqrt(res / sum_sq)

@@ -58,7 +58,7 @@ def lstsq(
 
 def offset_test(
     u: np.ndarray, xx: np.ndarray, period: float, w: float, steps: int, sets=(), proj=None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, ...]:
     """Where a channel's window holds a decaying offset: read over it and the next cycle.
 
     Within one cycle a decaying offset cannot be told from a fundamental whose amplitude
@@ -108,9 +108,12 @@ def offset_test(
     k, g, m2 = xx.shape
     use = np.zeros((k, g), dtype=bool)
     across = np.zeros(g, dtype=bool)
-    off = np.zeros((k, g), dtype=complex)
+    off = np.zeros((k, g, len(OFFSET_CYCLES)), dtype=complex)
+    follow = np.zeros(off.shape, dtype=bool)
+    best = np.zeros((k, g), dtype=int)
+    score = np.zeros(off.shape)
     if m2 < 4 or u[-1] - u[0] < 1.5 * period:
-        return use, use.copy(), across, off
+        return use, follow, best, score, across, off
     r = u / period
     harmonics = range(2, max_harmonic(m2 // 2) + 1)
     offset = [r, r * r]
@@ -133,11 +136,13 @@ def offset_test(
     on = np.isin(fitted, single)
     if dof >= MIN_DOF and on.any():
         coef_b, rss_b = lstsq(np.column_stack([a, *offset]), xx[fitted[on]])
-        off[fitted[on]] = coef_b[..., -2:] @ (np.column_stack(offset)[: proj.size].T @ proj)
+        poly = coef_b[..., -2:] @ (np.column_stack(offset)[: proj.size].T @ proj)
+        off[fitted[on]] = poly[..., None]
         with np.errstate(invalid="ignore", divide="ignore"):
             f_stat = 0.5 * (rss[on] - rss_b) / (rss_b / dof)
         big = rss[on] - rss_b > DECAY_MIN_SHARE**2 * ssq[on]
         use[fitted[on]] = (f_stat > f_critical(dof)) & big
+        follow[fitted[on]] = use[fitted[on], :, None]
     # A three-phase set: its space vector.
     turn = np.exp(1j * w * u)
     cols = [np.ones(m2, dtype=complex), np.conj(turn)]
@@ -148,9 +153,8 @@ def offset_test(
     a = np.column_stack(cols)
     b = np.column_stack([a, *offset])
     dof = 2 * (m2 - a.shape[1] - 2)
-    follow = use.copy()
     if not sets or dof < MIN_DOF:
-        return use, follow, across, off
+        return use, follow, best, score, across, off
     pinv_a, pinv_b = np.linalg.pinv(a), np.linalg.pinv(b)
     # The offset's estimate, and the test that follows it: the same columns without
     # the fast exponentials, which lie almost in the span of the phasor's quadratic and
@@ -171,22 +175,24 @@ def offset_test(
         _, rss_zb = lstsq(b, z, pinv_b)
         coef_e0, rss_e0 = lstsq(e0, z, pinv_e0)
         inner = (z - coef_e0 @ e0.T) @ np.conj(perp)  # (g, len(OFFSET_CYCLES))
-        # The offset, an exponential of the time constant that fits best: its space
-        # vector D e(t) is phase n's Re(D conj(a)^n) e(t), whose phasor is taken out.
+        # The offset, an exponential of each time constant: its space vector D e(t) is
+        # phase n's Re(D conj(a)^n) e(t), whose phasor is taken out.
         drop = np.abs(inner) ** 2 / norm
-        best = np.argmax(drop, axis=1)
-        size = inner[np.arange(g), best] / norm[best]
-        share = (decays[: proj.size].T @ proj)[best]
+        size = inner / norm
+        share = decays[: proj.size].T @ proj
         for n, c in enumerate(chans):
             off[c] = (size * np.conj(_A) ** n).real * share
+        best[list(chans)] = np.argmax(drop, axis=1)[None, :]
         with np.errstate(invalid="ignore", divide="ignore"):
             f_stat = 0.25 * (rss_z - rss_zb) / (rss_zb / dof)
         # How much an offset matters is judged on the phasors (by the caller): here the
         # null takes up much of an offset's ramp, so its share of the residual is no
         # measure of its size.
         use[list(chans)] = (f_stat > f_critical(dof, 4))[None, :]
-        rss_d = rss_e0 - drop[np.arange(g), best]
+        rss_d = rss_e0[:, None] - drop
         with np.errstate(invalid="ignore", divide="ignore"):
-            f_stat = 0.5 * (rss_e0 - rss_d) / (rss_d / dof_d)
-        follow[list(chans)] = (f_stat > f_critical(dof_d, 2))[None, :]
-    return use, follow, across, off
+            f_stat = 0.5 * drop / (rss_d / dof_d)
+        follow[list(chans)] = (f_stat > f_critical(dof_d, 2))[None, ...]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            score[list(chans)] = np.nan_to_num(drop / rss_e0[:, None])[None, ...]
+    return use, follow, best, score, across, off
