@@ -31,22 +31,22 @@ a small T' explains.
 Now (``recordings/phasor_fit.py``): the offset is fitted over two cycles as a
 non-rotating exponential in the current's space vector, beside a moving phasor and the
 harmonics, and taken out of the samples; the row is the plain fit of what is left.
-Measured on this event: the rows after the sag within 2.3 noise sd (P -0.6, -1.0, +1.5,
--0.7; Q -1.9, -2.3, +0.2, -0.8 sd), after the recovery within 2.8 (P +1.4, +0.8,
-+1.6, +0.7, +2.8; Q +1.2, +1.8, +0.9, +0.2, +0.8); the worst kept row 2.5, 2.8, 3.6
+Measured on this event: the rows after the sag within 1.9 noise sd (P -0.6, +0.6, -0.7,
++0.2; Q -1.9, -1.2, -0.9, -0.3 sd), after the recovery within 2.4 (P +1.4, +0.8,
++1.6, +0.7, +2.4; Q +1.2, +1.8, +0.9, +0.2, +0.5); the worst kept row 2.5, 2.7, 3.6
 sd in V, P, Q (before: 2.5, 24.8, 10.3). Over 20 seeds the cleaned rows' mean errors are
-within 1.2 sd and their sd 0.7-1.9 times the rows' far from the steps (the mimic
-filter's: means -16 to +22 sd, sd 1.3-6.8 times). The fourth row after the sag, whose
-next cycle crosses the recovery, keeps its plain phasor (its two-cycle fit would hold
-a step): Q -2.8 sd on average, the offset's remainder.
+within 1.3 sd and their sd 0.6-1.2 times the rows' far from the steps, as without the
+offset (0.5-1.1; the mimic filter's: means -16 to +22 sd, sd 1.3-6.8 times). The
+fourth row after the sag, whose next cycle crosses the recovery, keeps its plain phasor
+(its two-cycle fit would hold a step): Q -2.8 sd on average, the offset's remainder.
 
-Through the fit (2 x 6,000 draws, seed 0): f_m 0.454 [0.417, 0.495] (covered), T' 0.219
-[0.161, 0.279] s, as without the offset (0.207 [0.155, 0.272]): the offset no longer
+Through the fit (2 x 6,000 draws, seed 0): f_m 0.455 [0.417, 0.491] (covered), T' 0.217
+[0.160, 0.272] s, as without the offset (0.207 [0.155, 0.272]): the offset no longer
 moves T'. What still does is the frequency path, which is the generator's: its motor
 does not see the 59.98 Hz nor the dip that the waveforms (and the rows' ``angle_rad``,
 with which ``fit composite`` drives its motor) carry (tests/recorder_chain.py). At
-60.00 Hz without the dip (harmonics, angle jump and offset kept): T' 0.393 [0.234,
-0.577] s, f_m 0.421 [0.382, 0.470], both covered (0.383 [0.259, 0.573] without the
+60.00 Hz without the dip (harmonics, angle jump and offset kept): T' 0.396 [0.258,
+0.559] s, f_m 0.422 [0.379, 0.469], both covered (0.383 [0.259, 0.573] without the
 offset); the dip alone (at 60.00 Hz) leaves T' 0.240 [0.172, 0.306], the 59.98 Hz alone
 0.333 [0.227, 0.452]; with ``angle_rad`` and ``f`` dropped
 from the whole chain's event (the angle jump lost with them): T' 0.238 [0.204, 0.283].
@@ -131,9 +131,9 @@ def test_rows_after_the_steps_hold_the_window_means_with_the_offset(chain):
 
 @pytest.mark.xfail(
     strict=True,
-    reason="T' 0.219 [0.161, 0.279] s for 0.488 through read -> events -> fit (2 x 6,000 "
-    "draws, seed 0; f_m 0.454 [0.417, 0.495] covered; measured): the generator's motor does "
-    "not see the 59.98 Hz and the dip the rows' angle carries (0.393 [0.234, 0.577] at 60 Hz)",
+    reason="T' 0.217 [0.160, 0.272] s for 0.488 through read -> events -> fit (2 x 6,000 "
+    "draws, seed 0; f_m 0.455 [0.417, 0.491] covered; measured): the generator's motor does "
+    "not see the 59.98 Hz and the dip the rows' angle carries (0.396 [0.258, 0.559] at 60 Hz)",
 )
 def test_fit_composite_covers_t_prime_through_the_chain(chain, tmp_path):
     csv, truth, _ = chain["whole"]
