@@ -25,26 +25,34 @@ harmonics present, can it be fitted there without a large cost: a ramp over one 
 almost in the span of the harmonics' sines (its Fourier series), so decay columns in the
 window multiply the phasor's noise by 10-30 (measured: 1% white noise, 5% third and 3%
 fifth harmonic). The estimator therefore tests each channel's window for a decaying
-offset (an F-test of an offset ramp and curvature, false-alarm rate :data:`DECAY_ALPHA`)
-and, where one is found, takes the phasor of the *mimic-filtered* window instead
-(``y[n] = (1 + k) x[n] - k x[n-1]``, ``k = tau / dt``, tau one cycle by default; the
-filter's gain at the fundamental divided out). The filter removes an offset of time
-constant tau exactly and others mostly, and keeps the DFT's exact rejection of
-harmonics. Measured (64 samples per cycle, an 80% offset, 1% noise, with and without
-harmonics, window centred 1.5 cycles after the step): phasor error 0.004-0.006 for time
-constants of 20, 50 and 200 ms, against 0.016-0.042 for the plain DFT; in steady state
-the filter doubles the phasor's noise (0.0035 against 0.0018), which is why it is used
-only where the test finds an offset. The State Grid record's transformer currents are
-quantised to about 3% of their peak: the test leaves their steady-state windows to the
-DFT, and finds the offset after each fault.
+offset over the window's cycle and the next (an F-test of an offset ramp and curvature,
+false-alarm rate :data:`DECAY_ALPHA`: :mod:`~loadbayes.recordings.phasor_offset`) and,
+where one is found, fits the offset over those two cycles: in a three-phase set's space
+vector, a non-rotating exponential ``D exp(-t / tau)`` (``tau`` the best of 0.5, 1, 2,
+4 and 8 cycles) beside a positive-sequence phasor that moves (a quadratic in
+``t``), a constant negative sequence and the harmonics. Over two cycles the harmonics
+repeat and the offset does not, and the phasor turns while the offset stands still, so
+the three are told apart at little cost (measured: the cleaned rows' noise is the plain
+rows'). The time constant is the one that explains the most over the run of windows
+the offset is found in. The offset is taken out of the window's samples and the row is the
+plain fit of what is left: a moving phasor stays its one-cycle window mean. The offset
+found right after a step is followed into the next windows while a test of the same
+model (without the fast exponentials of the detection's null) still finds it.
+
+Before, a found offset sent the window through a *mimic filter* (``y = x + tau
+dx/dt``), which ``--dc on`` still applies to every window. On a moving phasor ``X(t)``
+the filter returns ``X + tau X' / (1 + j w tau)``, about ``X' / (j w)`` off: after a
+sag a motor's current recovers (``T' X' / X``, tens of ms) and the filter turned that
+into P errors of 9-26 noise sd in the three rows after each step of issue 35's
+recorder chain (tests/integration/test_recorder_chain.py), and the fitted motor's
+``T'`` to a quarter of the truth. Measured there now: those rows within 3 noise sd.
 
 Windows advance by ``T / per_cycle``: with ``per_cycle > 1`` neighbouring estimates share
 samples, so their noise is correlated (two windows overlapping by a fraction ``r`` of a
 cycle have noise correlation about ``r`` for white noise), which a likelihood that
 treats them as independent must allow for.
 
-One idea needs these 483 lines: the sliding least-squares phasor derived above, with its
-decaying-offset test, its half-cycle step test and mimic filter.
+The offset's test and estimate are in :mod:`~loadbayes.recordings.phasor_offset`.
 A window that straddles a step fits badly: its residual (RMS of the misfit over the RMS
 of the signal, the worst voltage channel) is returned, so that such samples can be left
 out or flagged.
@@ -56,19 +64,19 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import f as f_dist
 
-__all__ = ["PhasorFit", "fit_phasors", "max_harmonic"]
+from loadbayes.recordings.phasor_offset import (
+    DECAY_ALPHA,
+    DECAY_MIN_SHARE,
+    OFFSET_CYCLES,
+    STEP_LIMIT,
+    lstsq,
+    max_harmonic,
+    offset_test,
+)
 
-#: Highest harmonic modelled in a window (fewer when the window holds few samples).
-HARMONICS = 7
-#: False-alarm rate of the test that adds the decay columns to a channel's window.
-DECAY_ALPHA = 1e-3
-#: Smallest RMS share of a window's signal that the decay columns must explain before
-#: the mimic filter is used (a smaller offset moves the phasor by less than this).
-DECAY_MIN_SHARE = 0.005
-#: Relative misfit of a voltage channel's plain fit above which a window straddles a step.
-STEP_LIMIT = 0.02
+__all__ = ["DECAY_ALPHA", "PhasorFit", "fit_phasors", "max_harmonic"]
+
 #: Change of a voltage channel's phasor between its window's two half cycles, relative to
 #: the window's phasor, above which the window straddles a step. A fault's inception near
 #: a voltage zero crossing steps the amplitude where the waveform itself is continuous:
@@ -78,12 +86,6 @@ STEP_LIMIT = 0.02
 #: the two half-cycle phasors equal; a steady voltage's even harmonics (about 1%) and a
 #: 0.5% noise keep the change well under this limit (the step to be caught is ~0.4).
 HALF_STEP_LIMIT = 0.03
-#: Time constants (in cycles) of the fast changes of a phasor the three-phase decay test
-#: allows for (a motor's flux after a step: ``T' X' / X``, a few milliseconds).
-FAST_FLUX_CYCLES = (0.125, 0.25, 0.5)
-#: Fewest residual degrees of freedom for the decay test to be made at all.
-MIN_DOF = 8
-_A = np.exp(2j * np.pi / 3)
 
 
 @dataclass(frozen=True)
@@ -101,7 +103,8 @@ class PhasorFit:
     f_hz : float
         The frequency the fundamental was fitted at.
     decay : numpy.ndarray
-        Where a decaying offset was found and the mimic filter used, shape (channels, m).
+        Where a decaying offset was found and taken out (``dc="auto"``) or the mimic
+        filter used (``dc="on"``), shape (channels, m).
     share : numpy.ndarray
         The fundamental's share of the window's mean square, shape (channels, m): about 1
         for a waveform, about 0 for samples that are not one (magnitudes).
@@ -118,11 +121,6 @@ class PhasorFit:
     decay: np.ndarray
     share: np.ndarray
     half_step: np.ndarray | None = None
-
-
-def max_harmonic(samples: int) -> int:
-    """Highest harmonic a window of ``samples`` points can carry beside 5 other columns."""
-    return max(1, min(HARMONICS, (samples - 8) // 2 + 1))
 
 
 def _centres(t: np.ndarray, period: float, per_cycle: int) -> np.ndarray:
@@ -175,7 +173,7 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
     decay = np.zeros((k, centres.size), dtype=bool)
     halves = np.zeros(centres.size, dtype=bool)
     dt = np.median(np.diff(t))
-    if dc != "off":
+    if dc == "on":
         y, gain = _mimic(t, x, tau, w)
     los = np.searchsorted(t, centres - 0.5 * period - 1e-6 * dt)
     his = np.searchsorted(t, centres + 0.5 * period - 1e-6 * dt)
@@ -188,6 +186,17 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         u = t[los[j] : his2[j]] - centres[j]
         key = (int(his[j] - los[j]), np.round(u / dt, 6).tobytes())
         groups.setdefault(key, []).append(j)
+    if dc == "auto":  # filled per window, resolved in time order after the loop
+        taus = len(OFFSET_CYCLES)
+        clean = np.zeros((*out.shape, taus), dtype=complex)
+        first = np.zeros_like(decay)
+        then = np.zeros((*decay.shape, taus), dtype=bool)
+        choice = np.zeros(decay.shape, dtype=int)
+        scores = np.zeros(then.shape)
+        rss_off = np.zeros_like(res)
+        stepped = np.zeros_like(halves)
+    mean_sq = np.empty_like(res)
+    sum_sq = np.empty_like(res)
     for js in groups.values():
         js = np.asarray(js)
         if progress is not None:
@@ -202,7 +211,8 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
         a = np.column_stack(cols)
         xx = x[:, idx]  # (k, g, m)
         ssq = np.sum(xx * xx, axis=2)
-        coef = np.einsum("pm,kgm->kgp", np.linalg.pinv(a), xx)
+        pinv = np.linalg.pinv(a)
+        coef = np.einsum("pm,kgm->kgp", pinv, xx)
         rss = np.sum((xx - np.einsum("kgp,mp->kgm", coef, a)) ** 2, axis=2)
         turn = np.exp(-1j * w0 * centres[js])
         phasor = (coef[..., 0] - 1j * coef[..., 1]) / np.sqrt(2.0) * turn
@@ -210,48 +220,97 @@ def _one_pass(t, x, centres, period, w, w0, dc, skew, tau, steps=0, sets=(), pro
             halves[js] = _half_step(u, xx[:steps], w, np.abs(phasor[:steps]))
         if dc != "off":
             # A window across a step of the voltage (its plain fit poor) is no place for
-            # the mimic filter: the decay columns would "explain" the step, and the
-            # filtered window is worse than the plain one. Voltages carry no decaying
-            # offset to speak of, so their misfit tells a step from a current's offset.
+            # an offset: the decay columns would "explain" the step. Voltages carry no
+            # decaying offset to speak of, so their misfit tells a step from a current's
+            # offset.
             across = (
                 np.any(rss[:steps] > STEP_LIMIT**2 * ssq[:steps], axis=0)
                 if steps > 0
                 else np.zeros(js.size, dtype=bool)
             )
             ok = (lo > 0) & ~across & ~halves[js]
-            if dc == "on":
-                use = np.ones_like(rss, dtype=bool)
-            else:
-                m2 = int(his2[js[0]] - lo[0])
-                idx2 = lo[:, None] + np.arange(m2)
-                use, across2 = _decay_test(
-                    t[idx2[0]] - centres[js[0]], x[:, idx2], period, w, steps, sets
-                )
-                ok &= ~across2
-            use &= ok[None, :]
+            r = u / period
+            # A window with an offset has the residual of its ramp and curvature over the
+            # window's own cycle (where they are needed: they cost a fit).
+            ramp = np.column_stack([a, r, r * r])
+        if dc == "on":
+            use = np.ones_like(rss, dtype=bool) & ok[None, :]
             if use.any():
                 # The window's first filtered sample is made with the sample before
                 # the window, which may lie across a step: it is left out.
                 yy = y[:, idx[:, 1:]]
                 coef_m = np.einsum("pm,kgm->kgp", np.linalg.pinv(a[1:]), yy)
                 mimic = (coef_m[..., 0] - 1j * coef_m[..., 1]) / np.sqrt(2.0) / gain * turn
-                for chans in sets if dc == "auto" else ():
-                    idx_s = list(chans)
-                    moved = np.abs(mimic[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
-                        phasor[idx_s]
-                    )
-                    use[idx_s] &= moved.any(axis=0)[None, :]
                 phasor = np.where(use, mimic, phasor)
-                # A filtered window's residual allows the offset: with its ramp and
-                # curvature over the window's own cycle.
-                r = u / period
-                _, rss_b = _lstsq(np.column_stack([a, r, r * r]), xx)
-                rss = np.where(use, np.minimum(rss, rss_b), rss)
+                rss = np.where(use, np.minimum(rss, lstsq(ramp, xx)[1]), rss)
             decay[:, js] = use
-        with np.errstate(invalid="ignore", divide="ignore"):
-            res[:, js] = np.sqrt(rss / ssq)
-            share[:, js] = np.abs(phasor) ** 2 / (ssq / m)
+        elif dc == "auto":
+            m2 = int(his2[js[0]] - lo[0])
+            idx2 = lo[:, None] + np.arange(m2)
+            # The offset fitted over two cycles, taken out of the window's samples: the
+            # phasor of the cleaned samples is the plain one less the offset's share.
+            use, follow, best, score, across2, off = offset_test(
+                t[idx2[0]] - centres[js[0]], x[:, idx2], period, w, steps, sets,
+                (pinv[0] - 1j * pinv[1]) / np.sqrt(2.0),
+            )  # fmt: skip
+            ok &= ~across2
+            cleaned = phasor[..., None] - off * turn[:, None]  # (k, g, time constants)
+            at_best = np.take_along_axis(cleaned, best[..., None], axis=2)[..., 0]
+            matters = np.ones_like(use)
+            for chans in sets:
+                idx_s = list(chans)
+                moved = np.abs(at_best[idx_s] - phasor[idx_s]) > DECAY_MIN_SHARE * np.abs(
+                    phasor[idx_s]
+                )
+                matters[idx_s] = moved.any(axis=0)[None, :]
+            first[:, js] = use & ok & matters
+            then[:, js] = follow & ok[None, :, None]
+            choice[:, js] = best
+            scores[:, js] = score
+            stepped[js] = across | halves[js]
+            clean[:, js] = cleaned
+            need = np.flatnonzero((first[:, js] | then[:, js].any(axis=2)).any(axis=0))
+            if need.size:
+                rss_off[:, js[need]] = lstsq(ramp, xx[:, need])[1]
+        res[:, js] = rss
+        sum_sq[:, js] = ssq
+        mean_sq[:, js] = ssq / m
         out[:, js] = phasor
+    if dc == "auto":
+        # An offset found right after a step (where the test allows for a fast-moving
+        # phasor) is followed while it lasts: each next window where the plainer test
+        # (a slowly moving phasor) still finds it is cleaned too.
+        # The offset is fitted over two cycles: none may hold a step. A step on the
+        # cycles' boundary at a voltage zero crossing misfits neither cycle's window nor
+        # (by much) the two cycles' fit, but moves the voltage's phasor between them.
+        hop = round(period / (centres[1] - centres[0])) if centres.size > 1 else 1
+        for j in range(centres.size):
+            nxt = min(j + hop, centres.size - 1)
+            if steps > 0:
+                # (the nominal frame's turn at the segment's frequency taken out first)
+                v0 = out[:steps, j]
+                v1 = out[:steps, nxt] * np.exp(-1j * (w - w0) * (centres[nxt] - centres[j]))
+                if stepped[j : nxt + 1].any() or np.any(
+                    np.abs(v1 - v0) > HALF_STEP_LIMIT * np.abs(v0)
+                ):
+                    continue
+            own = then[np.arange(k), j, choice[:, j]]
+            decay[:, j] = first[:, j] | (own & (decay[:, j - 1] if j else False))
+        # One offset, one time constant: the one that explains the most over the run of
+        # windows it was found in (chosen in each window alone, where the offset is
+        # small, noise turned rows 8 sd off). Only where voltage channels tell the steps:
+        # without them a run can start in windows whose two cycles hold the step, which
+        # a short time constant fits best and would outweigh the rest.
+        for c in range(k if steps > 0 else 0):
+            runs = np.flatnonzero(np.diff(np.r_[0, decay[c].astype(int), 0]))
+            for a, b in zip(runs[::2], runs[1::2], strict=True):
+                choice[c, a:b] = np.argmax(scores[c, a:b].sum(axis=0))
+        picked = np.take_along_axis(clean, choice[..., None], axis=2)[..., 0]
+        out = np.where(decay, picked, out)
+        res = np.where(decay, np.minimum(res, rss_off), res)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        res = np.sqrt(res / sum_sq)
+        share = np.abs(out) ** 2 / mean_sq
     if skew is not None:
         out *= np.exp(-1j * w0 * np.asarray(skew, dtype=float))[:, None]
     return out, np.nan_to_num(res, nan=0.0), decay, np.nan_to_num(share, nan=0.0), halves
@@ -270,124 +329,11 @@ def _half_step(u: np.ndarray, xx: np.ndarray, w: float, size: np.ndarray) -> np.
     for half in (first, ~first):
         uh = u[half]
         a = np.column_stack([np.ones(uh.size), np.cos(w * uh), np.sin(w * uh)])
-        coef, _ = _lstsq(a, xx[..., half])
+        coef, _ = lstsq(a, xx[..., half])
         ph.append(coef[..., 1] - 1j * coef[..., 2])
     with np.errstate(invalid="ignore", divide="ignore"):
         change = np.abs(ph[1] - ph[0]) / np.sqrt(2.0) / size
     return np.any(np.nan_to_num(change, nan=0.0) > HALF_STEP_LIMIT, axis=0)
-
-
-def _f_critical(dof: int, num: int = 2) -> float:
-    """The F(num, dof) value exceeded with probability DECAY_ALPHA."""
-    return float(f_dist.isf(DECAY_ALPHA, num, dof))
-
-
-def _lstsq(
-    a: np.ndarray, xx: np.ndarray, pinv: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients and residual sum of squares of each window of ``xx`` (..., m) on ``a``.
-
-    ``pinv`` is ``a``'s pseudo-inverse when the caller has it already.
-    """
-    coef = np.einsum("pm,...m->...p", np.linalg.pinv(a) if pinv is None else pinv, xx)
-    return coef, np.sum(np.abs(xx - np.einsum("...p,mp->...m", coef, a)) ** 2, axis=-1)
-
-
-def _decay_test(
-    u: np.ndarray, xx: np.ndarray, period: float, w: float, steps: int, sets=()
-) -> tuple[np.ndarray, np.ndarray]:
-    """Where a channel's window holds a decaying offset: read over it and the next cycle.
-
-    Within one cycle a decaying offset cannot be told from a fundamental whose amplitude
-    or phase moves (a motor's current after a voltage step changes with its flux within
-    a cycle): with the harmonics' columns present, an offset's ramp and a moving phasor
-    each lie almost in the span of the others, and a test of the one fires on the other.
-    Two things part them:
-
-    - **two cycles** (``u``: the window's cycle and the next, times from its centre):
-      the harmonics repeat each cycle, an offset's ramp does not;
-    - **a three-phase set** (``sets``: channel triples a, b, c): in the space vector
-      ``(2/3)(x_a + a x_b + a^2 x_c)`` the positive-sequence fundamental turns at
-      ``+w``, an offset stands still. A positive-sequence phasor that moves, however
-      fast (the columns hold a quadratic and three decaying exponentials, of an eighth,
-      a quarter and half a cycle, at ``+w``), stays at its frequency. The negative
-      sequence is held constant over the two cycles: a moving one at ``-w`` and an
-      offset are again nearly confounded (measured on a 20 ms offset: F 794 with the
-      negative sequence constant, 165 with it linear, 31 quadratic), so an unbalanced
-      fault's first cycles can still fire the test. Without the set, a single
-      channel's fast-moving phasor is as well explained by an offset as the offset
-      itself (measured: a 5 ms flux decay of a motor after a step), so outside a set
-      the null holds only the quadratic phasor.
-
-    The null (the moving fundamental, the harmonics 2..H of both sequences, a constant)
-    against it plus an offset ramp and curvature: an F-test at :data:`DECAY_ALPHA`. The
-    offset must also matter (on a near-noiseless record any model slip is
-    "significant", and the filter costs more than it saves there): a single channel's
-    must explain at least :data:`DECAY_MIN_SHARE` of its signal; a set, filtered as one
-    (all three channels or none), must have one of its phasors moved by the filter by at
-    least :data:`DECAY_MIN_SHARE` (judged by :func:`_one_pass`: the set's null takes up
-    much of an offset's ramp, so the share of the residual does not measure its size).
-
-    Returns the test per channel and window, shape (k, g), and where a voltage channel
-    (the first ``steps``) straddles a step in the two cycles (no test there; shape (g,)).
-    Windows with less than two cycles of samples (a segment's end) are not tested.
-    """
-    k, g, m2 = xx.shape
-    use = np.zeros((k, g), dtype=bool)
-    across = np.zeros(g, dtype=bool)
-    if m2 < 4 or u[-1] - u[0] < 1.5 * period:
-        return use, across
-    r = u / period
-    harmonics = range(2, max_harmonic(m2 // 2) + 1)
-    offset = [r, r * r]
-    # One channel at a time: a quadratic phasor, the harmonics, a constant; fitted to
-    # the voltages (the step check) and to the channels outside the sets (their test).
-    single = np.array([c for c in range(k) if not any(c in s for s in sets)], dtype=int)
-    fitted = np.union1d(np.arange(min(steps, k)), single)
-    cols = [np.ones(m2)]
-    for p in range(3):
-        cols += [r**p * np.cos(w * u), r**p * np.sin(w * u)]
-    for h in harmonics:
-        cols += [np.cos(h * w * u), np.sin(h * w * u)]
-    a = np.column_stack(cols)
-    ssq = np.sum(xx[fitted] ** 2, axis=2)
-    _, rss = _lstsq(a, xx[fitted])
-    if steps > 0:
-        v = fitted < steps
-        across = np.any(rss[v] > STEP_LIMIT**2 * ssq[v], axis=0)
-    dof = m2 - a.shape[1] - 2
-    on = np.isin(fitted, single)
-    if dof >= MIN_DOF and on.any():
-        _, rss_b = _lstsq(np.column_stack([a, *offset]), xx[fitted[on]])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            f_stat = 0.5 * (rss[on] - rss_b) / (rss_b / dof)
-        big = rss[on] - rss_b > DECAY_MIN_SHARE**2 * ssq[on]
-        use[fitted[on]] = (f_stat > _f_critical(dof)) & big
-    # A three-phase set: its space vector.
-    turn = np.exp(1j * w * u)
-    cols = [np.ones(m2, dtype=complex), np.conj(turn)]
-    cols += [turn * r**p for p in range(3)]
-    cols += [turn * np.exp(-(r - r[0]) / f) for f in FAST_FLUX_CYCLES]
-    for h in harmonics:
-        cols += [turn**h, np.conj(turn) ** h]
-    a = np.column_stack(cols)
-    b = np.column_stack([a, *offset])
-    dof = 2 * (m2 - a.shape[1] - 2)
-    if not sets or dof < MIN_DOF:
-        return use, across
-    pinv_a, pinv_b = np.linalg.pinv(a), np.linalg.pinv(b)
-    for chans in sets:
-        ia, ib, ic = chans
-        z = (2.0 / 3.0) * (xx[ia] + _A * xx[ib] + _A * _A * xx[ic])
-        _, rss_z = _lstsq(a, z, pinv_a)
-        _, rss_zb = _lstsq(b, z, pinv_b)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            f_stat = 0.25 * (rss_z - rss_zb) / (rss_zb / dof)
-        # How much an offset matters is judged on the phasors (by the caller): here the
-        # null takes up much of an offset's ramp, so its share of the residual is no
-        # measure of its size.
-        use[list(chans)] = (f_stat > _f_critical(dof, 4))[None, :]
-    return use, across
 
 
 def fit_phasors(
@@ -417,24 +363,29 @@ def fit_phasors(
     per_cycle : int, default 1
         Estimates per nominal cycle (windows advance by ``1 / (f0 per_cycle)``).
     dc : {"auto", "on", "off"}
-        The mimic filter against a decaying offset: where an F-test finds one (false-alarm
-        rate :data:`DECAY_ALPHA` per channel and window), in every window but a segment's
-        first, or never (a constant offset is always fitted: being orthogonal to the
+        A decaying offset: fitted over two cycles and taken out where an F-test finds
+        one (false-alarm rate :data:`DECAY_ALPHA` per channel and window), and in the
+        windows that follow while it lasts; ``"on"``: the mimic filter in every window
+        but a segment's first (off by about ``X' / (j w)`` where the phasor moves);
+        ``"off"``: never (a constant offset is always fitted: being orthogonal to the
         fundamental over a whole cycle, it costs nothing).
     skew_s : numpy.ndarray, optional
         Per-channel time skews (s): channel k was sampled ``skew_s[k]`` after the stamp.
     reference : int, default 0
         Channel whose phasor's turn gives the segment's frequency.
     mimic_tau_s : float, optional
-        Time constant of the mimic filter (s); one nominal cycle by default.
+        Time constant of the mimic filter of ``dc="on"`` (s); one nominal cycle by
+        default.
     step_channels : int, default 0
         The first ``step_channels`` channels are voltages: a window where one of them
         misfits by more than :data:`STEP_LIMIT` straddles a step, and keeps its plain
-        phasors (no mimic filter in any channel).
+        phasors (no offset taken out in any channel).
     phase_sets : sequence of (int, int, int), optional
         Channel triples that are the phases a, b, c of one three-phase quantity: their
         decay test is made on the space vector, which tells an offset from a phasor that
-        moves within the window (see :func:`_decay_test`); each set is filtered as one.
+        moves within the window (see
+        :func:`~loadbayes.recordings.phasor_offset.offset_test`); each set is cleaned as
+        one.
     progress : callable, optional
         Called with the number of windows fitted, as they are (twice per window: a first
         pass at ``f0``, a second at the segment's frequency).

@@ -127,9 +127,10 @@ def _waveform_rows(
     _, i1, i2 = sequences(iph)
     # The phasors V2, I2 without the mirror of a moving V1, I1 (recordings/sequences.py);
     # the ratios v2, i2 stay the plain one-cycle ones (the `unbalanced` flag's, as before).
-    # Not through a step, nor where the mimic filter read a phase (it turns the mirror).
+    # Not through a step, nor where the mimic filter (--dc on) read a phase (it turns the
+    # mirror); a window with its offset taken out (--dc auto) is a plain fit, mirror and all.
     step = (fit.residual[:3].max(axis=0) > STRADDLE_LIMIT) | np.asarray(fit.half_step, bool)
-    decay = np.asarray(fit.decay, dtype=bool)
+    decay = np.asarray(fit.decay, dtype=bool) & (dc == "on")
     dt = float(np.median(np.diff(w.t_s[sl])))
     v2_ph = demirror(v2, v1, fit.t_s, w.f_nominal, step | decay[:3].any(axis=0), dt)
     i2_ph = demirror(i2, i1, fit.t_s, w.f_nominal, step | decay[3:].any(axis=0), dt)
@@ -155,20 +156,22 @@ def _waveform_rows(
 
 
 def _dc_note(table: dict[str, np.ndarray]) -> str:
-    """Plain words on where the decaying-offset filter read windows, and how to compare.
+    """Plain words on where a decaying offset was taken out, and how to compare.
 
-    A fault's current can carry a decaying offset, and --dc auto reads the windows where
-    a test finds one through the mimic filter. The test reads each three-phase set's
-    space vector over two cycles, which tells an offset from a load's own current
-    transient (a motor's flux after a step, a few ms; before, a one-cycle test took it
-    for an offset and put P 2-6% of the load off: docs/composite.md, "A recorder's
-    waveforms"). What it still cannot tell apart: a negative sequence that moves within
-    the two cycles (an unbalanced fault's first cycles). Right after a step is where the
-    filter moves P and Q most, so those rows are counted, with the way to compare.
-    Inside an unbalanced fault the filter is not ruled out, but measured
-    (tests/unit/test_record_fault_rows.py): on a static load and a phase-to-ground fault
-    it does not fire without an offset, and with one it brings P from 1.5-2% of P0 off
-    to under 0.6%; what can still fool it is a load whose negative sequence moves.
+    A fault's current can carry a decaying offset, and --dc auto takes it out of the
+    windows where a test finds one (fitted over two cycles beside the moving phasor:
+    recordings/phasor_fit.py) and of those that follow while it lasts. The test reads
+    each three-phase set's space vector over two cycles, which tells an offset from a
+    load's own current transient (a motor's flux after a step, a few ms; before, a
+    one-cycle test took it for an offset and put P 2-6% of the load off:
+    docs/composite.md, "A recorder's waveforms"). What it still cannot tell apart: a
+    negative sequence that moves within the two cycles (an unbalanced fault's first
+    cycles). Right after a step is where taking the offset out moves P and Q most, so
+    those rows are counted, with the way to compare. Inside an unbalanced fault it is not
+    ruled out, but measured (tests/unit/test_record_fault_rows.py): on a static load and
+    a phase-to-ground fault the test does not fire without an offset, and with one the
+    reading brings P from 1.5-2% of P0 off to under 0.6%; what can still fool it is a
+    load whose negative sequence moves.
     """
     dc = np.asarray(table["dc_filtered"], dtype=bool)
     if not dc.any():
@@ -180,15 +183,15 @@ def _dc_note(table: dict[str, np.ndarray]) -> str:
     after = int(np.sum(dc & near))
     unbalanced = int(np.sum(dc & np.asarray(table["unbalanced"], dtype=bool)))
     words = (
-        f"{int(dc.sum())} phasor rows were read through the decaying-offset (mimic) filter "
-        "(column 'dc_filtered'; --dc auto), where its test found an offset in the currents"
+        f"{int(dc.sum())} phasor rows had a decaying offset taken out (column "
+        "'dc_filtered'; --dc auto), where its test found one in the currents"
     )
     if after or unbalanced:
         where = [f"{after} right after a voltage step"] if after else []
         where += [f"{unbalanced} in an unbalanced window"] if unbalanced else []
         words += (
-            f" ({', '.join(where)}: there the filter moves P and Q by up to several per "
-            "cent; an unbalanced fault's moving negative sequence can pass for an offset)"
+            f" ({', '.join(where)}: there it moves P and Q by up to several per cent; an "
+            "unbalanced fault's moving negative sequence can pass for an offset)"
             ": to see what it changed, compare a reading with --dc off"
         )
     return words

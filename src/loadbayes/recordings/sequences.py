@@ -23,10 +23,11 @@ current while its flux decays after a fault's step, ``dI1/dt`` of 10-20 p.u./s) 
 of a fault's I2 on the tests' generated record (``tests/sequence_generator.py``), where
 the fault's own I2 is what is measured. The derivatives are known from the neighbouring
 windows, so the mirror is taken out (:func:`demirror`; on that record it leaves about
-1e-4 p.u. of the 0.02). Not in a window the decaying-offset (mimic) filter read: the
+1e-4 p.u. of the 0.02). Not in a window the mimic filter of ``--dc on`` read: the
 filter's gain at ``-w`` is the conjugate of the one divided out at ``+w``, which turns
-the mirror nearly over, and adds ``tau X1'`` to the window's ``X1``; there (column
-``dc_filtered``) the mirror is left in, and no derivative is taken through it. The
+the mirror nearly over, and adds ``tau X1'`` to the window's ``X1``; there the mirror is
+left in, and no derivative is taken through it (a window whose decaying offset
+``--dc auto`` took out is a plain fit of the cleaned samples: its mirror is taken out). The
 positive sequence's own mirror of a moving X2 (a few times smaller, and in ``v, p, q``,
 whose values are kept as they were) is left too.
 """
