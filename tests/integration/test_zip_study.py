@@ -151,14 +151,14 @@ def test_reproduce_all_quick_through_the_cli(tmp_path):
     # (when the shared record is beside the checkout), and GridDyn's deep fault is either
     # checked against the simulator or said not to run, with the reason.
     assert '<section id="planning">' in report
-    planning = report[report.index('<section id="planning">'):]
+    planning = report[report.index('<section id="planning">') :]
     planning = planning[: planning.index("</section>")]
     if "the shared real record was not found" not in planning:
         assert "deeper than any fitted event (the deepest 1" in planning
         assert "decided by the priors of vstall" in planning
     assert "Against the simulator" in planning or "GridDyn" in planning
     # The archive section: a year of 3 stations against the truth, the broken files listed.
-    archive = report[report.index('<section id="archive">'):]
+    archive = report[report.index('<section id="archive">') :]
     archive = archive[: archive.index("</section>")]
     assert "station-months" in archive and "no_data.cfg" in archive
     assert "broken_counts.cfg" in archive

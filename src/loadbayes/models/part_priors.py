@@ -259,8 +259,12 @@ THRESHOLD_COORDS: Mapping[str, str] = MappingProxyType(
 #: Hard limits of each sampled coordinate: voltages in p.u. a part can have, a stall time
 #: from a millisecond to two seconds (its log).
 THRESHOLD_RANGES: Mapping[str, tuple[float, float]] = MappingProxyType(
-    {"vstall": (0.05, 1.0), "tstall": (math.log(1e-3), math.log(2.0)), "vd1": (0.06, 1.2),
-     "vd2": (0.0, 1.15)}  # fmt: skip
+    {
+        "vstall": (0.05, 1.0),
+        "tstall": (math.log(1e-3), math.log(2.0)),
+        "vd1": (0.06, 1.2),
+        "vd2": (0.0, 1.15),
+    }  # fmt: skip
 )
 #: The electronics' Vd2 at least this far below Vd1 (p.u.).
 VD_GAP = 0.05

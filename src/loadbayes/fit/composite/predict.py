@@ -93,8 +93,10 @@ class Prediction:
     def summary_lines(self) -> list[str]:
         """What ``loadbayes predict`` prints: fault, stall, trip, thresholds, recovery, words."""
         f = self.fault
-        out = [f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} below "
-               f"{f['v_pre']:.3g}) for {f['duration_s']:.3g} s; {self.draws['used']} draws"]
+        out = [
+            f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} below "
+            f"{f['v_pre']:.3g}) for {f['duration_s']:.3g} s; {self.draws['used']} draws"
+        ]
         if self.stall is not None:
             lo, hi = self.stall["interval"]
             out.append(f"{self.stall.get('part', 'motor D')} stalls with probability "
