@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 456 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 462 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -49,6 +49,11 @@ ONE_EVALUATION_MOVES = ("am", "shear")
 #: random walk alone crossed the narrow lower tail of T' in issue 21's 120/s event so
 #: slowly that a chain sat there for thousands of iterations (docs/composite.md, "Jumps").
 JUMP_SHARE = 0.35
+#: The zip+motor's jumps propose from a mixture of this many t's over regions of the pooled
+#: burn-in (inference.moves.mixture): one t accepted 2.3% of its jumps on the real
+#: record's first fault, whose T' has a long one-sided tail; the mixture 22-31%
+#: (docs/composite.md, "Jumps from regions"). A model of parts keeps one t.
+JUMP_COMPONENTS = 10
 
 
 @dataclass
@@ -480,8 +485,9 @@ def sample(
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
         late = np.array([u for g, _ in state for u in g.late_burn])
+        regions = JUMP_COMPONENTS if isinstance(problem, CompositeProblem) else 1
         for g, _ in state:
-            g.am.fit_jumps(late)
+            g.am.fit_jumps(late, components=regions)
             g.late_burn = []
         out = run_chains(rest, generators, workers=workers, stop=stop)
     while extend is not None and not any(r.cut for r in out):
