@@ -38,7 +38,10 @@ A continuous, piecewise-linear ``V(t)`` and ``delta(t)`` (:class:`Sag`): each sa
 ``v0`` at ``start_s`` (anywhere, not on a sample instant), reaches ``v0 (1 - depth)``
 after ``ramp_in_s`` (0: an exact step), holds, and leaves that level at
 ``start_s + duration_s`` to be back at ``v0`` after ``ramp_out_s``; the angle moves by
-``angle_rad`` with the same shape. Several sags follow each other.
+``angle_rad`` with the same shape. Several sags follow each other. Optionally
+(:func:`simulate`'s ``angle_extra``) the system's own phase against the ``f_hz`` frame is
+added to ``delta(t)`` (an off-nominal frequency, a frequency dip): the motor sees it, and
+it starts in the steady state of the frequency at the start.
 
 Sampling (the window model)
 ---------------------------
