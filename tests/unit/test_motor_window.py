@@ -43,11 +43,13 @@ def _turning_start(m, t, v, delta, t0):
     """The state at ``t[0]``: steady with the voltage turning as the angle starts to.
 
     The kernel's rule (``motor_kernel.start_speed``): the angle's least-squares slope over
-    the first 0.2 s before V leaves ``V_0`` by 0.005. Reached here independently, by
-    running the SciPy model 30 s on that rotation from the nominal steady state.
+    the first 0.2 s before V leaves ``V_0`` by 0.005, none below 1 mHz. Reached here
+    independently, by running the SciPy model 30 s on that rotation from the nominal
+    steady state.
     """
     keep = np.cumprod((t - t[0] <= 0.2) & (np.abs(v - v[0]) <= 0.005)).astype(bool)
     slope = np.polyfit(t[keep] - t[0], delta[keep] - delta[0], 1)[0]
+    slope = 0.0 if abs(slope) < 2 * np.pi * 1e-3 else slope
     v0 = float(v[0])
 
     def rhs(tt, y):

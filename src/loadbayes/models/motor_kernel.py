@@ -42,7 +42,7 @@ Against the tests' SciPy generator (``tests/sequence_generator.py``) at the true
 parameters of a phase-to-ground fault, the model's P during the fault moved from 0.012 p.u.
 (1.8 % of P0) low to 3.9e-4, the balanced sag's residual.
 
-One idea needs these 729 lines: the motor integrated through a sampled voltage, at the
+One idea needs these 735 lines: the motor integrated through a sampled voltage, at the
 samples and as window means, in compiled loops that share the steady state and the RK4
 step (the braking torque's drive carried beside the voltage).
 """
@@ -100,6 +100,11 @@ START_SPAN_S = 0.2
 #: of a 0.013 slip), a start-up transient of 0.004 p.u. in P over 0.15 s at the truth
 #: (tests/integration/test_recorder_chain.py).
 START_DV = 0.005
+#: A slope below this (Hz) is the angle's noise, and the start is at the nominal speed:
+#: 0.27 mHz on the recorder chain at 60.00 Hz, 0.02 mHz on tests/sequence_generator.py's
+#: record (the nominal frequency, read back), where the start transient of 1 mHz would be
+#: about 2e-4 p.u. in P. Such records start as before, to the bit.
+START_DF_HZ = 1e-3
 #: After a step of the input (more than ``STEP_JUMP`` p.u. or rad within one interval),
 #: the flux's fast mode, of time constant ``T' X' / X``, rings: for ``FAST_SPAN`` of
 #: those time constants the sub-step is at most ``1 / FAST_STEPS`` of it. Without this a
@@ -188,7 +193,8 @@ def start_speed(t, v, delta, wb):  # pragma: no cover - compiled
     ``1 + slope / wb``, the slope (rad/s) of the angle fitted by least squares over the
     first samples: those within :data:`START_SPAN_S` of ``t[0]`` before V first leaves
     ``V_0`` by :data:`START_DV` (the record's steady part). Exactly 1.0 without an angle,
-    with a constant angle there, or with fewer than three such samples.
+    with a constant angle there, with fewer than three such samples, or with a slope
+    below :data:`START_DF_HZ` (noise).
     """
     n = 0
     st, sd, stt, std = 0.0, 0.0, 0.0, 0.0
@@ -204,10 +210,10 @@ def start_speed(t, v, delta, wb):  # pragma: no cover - compiled
     den = n * stt - st * st
     if n < 3 or not den > 0.0:
         return 1.0
-    num = n * std - st * sd
-    if num == 0.0:
+    slope = (n * std - st * sd) / den
+    if abs(slope) < 2.0 * math.pi * START_DF_HZ:
         return 1.0
-    return 1.0 + num / den / wb
+    return 1.0 + slope / wb
 
 
 @numba.njit(cache=True, nogil=True)
