@@ -38,7 +38,10 @@ A continuous, piecewise-linear ``V(t)`` and ``delta(t)`` (:class:`Sag`): each sa
 ``v0`` at ``start_s`` (anywhere, not on a sample instant), reaches ``v0 (1 - depth)``
 after ``ramp_in_s`` (0: an exact step), holds, and leaves that level at
 ``start_s + duration_s`` to be back at ``v0`` after ``ramp_out_s``; the angle moves by
-``angle_rad`` with the same shape. Several sags follow each other.
+``angle_rad`` with the same shape. Several sags follow each other. Optionally
+(:func:`simulate`'s ``angle_extra``) the system's own phase against the ``f_hz`` frame is
+added to ``delta(t)`` (an off-nominal frequency, a frequency dip): the motor sees it, and
+it starts in the steady state of the frequency at the start.
 
 Sampling (the window model)
 ---------------------------
@@ -63,7 +66,7 @@ the fit's and not the closure's).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -204,33 +207,41 @@ def _flux_at_slip(m: Motor, f_hz: float, v: float, s: float) -> complex:
     return complex(e[0], e[1])
 
 
-def _torque_gap(m: Motor, f_hz: float, v: float, t0: float, s: float) -> float:
+def _torque_gap(m: Motor, f_hz: float, v: float, t0: float, s: float, w_sync: float = 1.0) -> float:
     e = _flux_at_slip(m, f_hz, v, s)
     i = _current(m, complex(v, 0.0), e)
-    w = 1.0 - s
+    w = w_sync - s
     return (e.real * i.real + e.imag * i.imag) - t0 * (m.a * w * w + m.b * w + m.c)
 
 
-def steady_state(m: Motor, t0: float, *, v: float = 1.0, f_hz: float = 60.0) -> np.ndarray:
+def steady_state(
+    m: Motor, t0: float, *, v: float = 1.0, f_hz: float = 60.0, w_sync: float = 1.0
+) -> np.ndarray:
     """The steady state ``(Ed', Eq', w)`` at terminal voltage ``v`` (angle 0), stable branch.
 
     The slip is the first zero of electrical minus load torque scanning up from
     ``s = 0`` (where the electrical torque is zero and the load's is ``T0 (A + B + C)``);
     a root past the breakdown slip (the peak of the electrical torque) is a stall.
+
+    ``w_sync``: the voltage's speed in units of ``wb`` (1: nominal). Off nominal, the
+    flux is that of the slip ``s = w_sync - w`` in a frame turning with the voltage (the
+    slip terms see ``w - w_sync``), and the load torque that of the rotor's ``w``; the
+    flux returned is in that frame, the voltage on its d axis.
     """
     grid = np.concatenate([np.geomspace(1e-6, 0.05, 400), np.linspace(0.05, 1.0, 400)[1:]])
-    g = np.array([_torque_gap(m, f_hz, v, t0, s) for s in grid])
+    g = np.array([_torque_gap(m, f_hz, v, t0, s, w_sync) for s in grid])
     up = np.nonzero((g[:-1] < 0.0) & (g[1:] >= 0.0))[0]
     k = up[0] if up.size else 0
 
-    te = g + np.array([t0 * (m.a * w * w + m.b * w + m.c) for w in 1.0 - grid])
+    te = g + np.array([t0 * (m.a * w * w + m.b * w + m.c) for w in w_sync - grid])
     if up.size == 0 or grid[k] > grid[np.argmax(te)]:
         raise ValueError(f"motor {m.name!r} stalls at V={v} with T0={t0}: no steady state")
     s = brentq(
-        lambda s: _torque_gap(m, f_hz, v, t0, s), grid[k], grid[k + 1], xtol=1e-15, rtol=1e-14
-    )
+        lambda s: _torque_gap(m, f_hz, v, t0, s, w_sync),
+        grid[k], grid[k + 1], xtol=1e-15, rtol=1e-14,
+    )  # fmt: skip
     e = _flux_at_slip(m, f_hz, v, s)
-    return np.array([e.real, e.imag, 1.0 - s])
+    return np.array([e.real, e.imag, w_sync - s])
 
 
 @dataclass
@@ -250,6 +261,15 @@ class Trajectory:
     q0: float
     f_m: float
     shares: tuple[float, float, float, float, float, float]
+    #: The system's phase on top of the knots' angle (rad, a function of t), or None.
+    angle_extra: Callable[[float], float] | None = None
+
+    def voltage(self, i: int, t: float) -> tuple[float, float]:
+        """``V, delta`` at ``t`` inside segment ``i``: the knots' plus ``angle_extra``."""
+        v, d = _voltage(self.kn, i, t)
+        if self.angle_extra is not None:
+            d += self.angle_extra(t)
+        return v, d
 
     def _segment(self, t: float) -> int:
         # Right-continuous: at a step instant, the segment after the step.
@@ -267,7 +287,7 @@ class Trajectory:
     def point(self, t: float) -> tuple[float, float, float, float]:
         """Instantaneous ``V, delta, P, Q`` at ``t``."""
         i = self._segment(t)
-        v, d = _voltage(self.kn, i, t)
+        v, d = self.voltage(i, t)
         y = self.sols[i](t)
         return (v, d, *self._pq(v, d, y))
 
@@ -284,7 +304,7 @@ class Trajectory:
     def motor_power(self, t: float) -> tuple[float, float, float, float]:
         """Motor's ``p_m, q_m`` (own rating), electrical torque and load torque at ``t``."""
         i_seg = self._segment(t)
-        v, d = _voltage(self.kn, i_seg, t)
+        v, d = self.voltage(i_seg, t)
         y = self.sols[i_seg](t)
         u = v * complex(math.cos(d), math.sin(d))
         e = complex(y[0], y[1])
@@ -308,19 +328,39 @@ def simulate(
     t_start_s: float = -0.1,
     t_end_s: float = 3.0,
     f_hz: float = 60.0,
+    angle_extra: Callable[[float], float] | None = None,
 ) -> Trajectory:
-    """Integrate the motor through the sags (noise-free); see the module's docstring."""
+    """Integrate the motor through the sags (noise-free); see the module's docstring.
+
+    ``angle_extra``: the system's phase relative to the ``f_hz`` frame (rad, a function
+    of t), added to the knots' angle wherever the voltage is used (the motor's terminal
+    voltage, the point and window outputs, :meth:`Trajectory.motor_power`): an
+    off-nominal frequency ``f_sys`` is ``2 pi (f_sys - f_hz) t``, a frequency dip its
+    integral. Its slope at ``t_start_s`` (where it must be linear: a steady frequency)
+    sets the initial steady state (:func:`steady_state`'s ``w_sync``), so the record
+    starts without a transient. None (default): the nominal frequency, as before.
+    """
     m = MOTORS[motor] if isinstance(motor, str) else motor
     if not 0.0 < f_m < 1.0:
         raise ValueError("f_m must lie in (0, 1)")
     if len(shares) != 6 or abs(sum(shares[:3]) - 1) > 1e-12 or abs(sum(shares[3:]) - 1) > 1e-12:
         raise ValueError("shares a1..a6 with a1 + a2 + a3 = 1 and a4 + a5 + a6 = 1")
     kn = knots(v0, sags, t_start_s, t_end_s)
-    y0m = steady_state(m, t0, v=v0, f_hz=f_hz)
+    if angle_extra is None:
+        y0m = steady_state(m, t0, v=v0, f_hz=f_hz)
+    else:
+        h = 1e-3  # the slope of a linear phase, to rounding
+        rate = (angle_extra(t_start_s + h) - angle_extra(t_start_s - h)) / (2.0 * h)
+        y0m = steady_state(m, t0, v=v0, f_hz=f_hz, w_sync=1.0 + rate / (2.0 * math.pi * f_hz))
     i0 = _current(m, complex(v0, 0.0), complex(y0m[0], y0m[1]))
     s0 = v0 * i0.conjugate()
     pm0, qm0 = s0.real, s0.imag
-    traj = Trajectory(m, f_hz, t0, kn, [], f_m * p0 / pm0, pm0, qm0, v0, p0, q0, f_m, tuple(shares))
+    traj = Trajectory(m, f_hz, t0, kn, [], f_m * p0 / pm0, pm0, qm0, v0, p0, q0, f_m, tuple(shares),
+                      angle_extra)  # fmt: skip
+    if angle_extra is not None:  # the steady flux turned to the voltage's angle at the start
+        d0 = angle_extra(t_start_s)
+        e0 = complex(y0m[0], y0m[1]) * complex(math.cos(d0), math.sin(d0))
+        y0m = np.array([e0.real, e0.imag, y0m[2]])
 
     y = np.concatenate([y0m, np.zeros(4)])
     for i in range(len(kn) - 1):
@@ -330,7 +370,7 @@ def simulate(
             continue
 
         def rhs(t: float, z: np.ndarray, i: int = i) -> np.ndarray:
-            v, d = _voltage(kn, i, t)
+            v, d = traj.voltage(i, t)
             u = v * complex(math.cos(d), math.sin(d))
             p, q = traj._pq(v, d, z)
             return np.concatenate([_rhs_motor(m, f_hz, t0, u, z), [v, p, q, d]])

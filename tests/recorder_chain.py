@@ -4,21 +4,21 @@ On top of :mod:`waveform_composite` (the SciPy trajectory of :mod:`independent_c
 turned into three-phase waveforms and written as C37.111-1999), what a recorder on a
 13.8 kV feeder sees and that module leaves out; each is a switch, to bisect:
 
-- ``f_sys_hz``: the system runs off nominal (59.98 Hz). The waveforms' phase advances at
-  ``2 pi f_sys`` while the motor and the ``.cfg``'s line frequency stay at 60 Hz (the
-  motor's ``T'`` is in seconds: 0.02 Hz moves nothing that matters);
-- ``angle_deg``: the bus angle jumps with the sag (``Sag.angle_rad``: the motor sees it);
+- ``f_sys_hz``: the system runs off nominal (59.98 Hz) while the ``.cfg``'s line
+  frequency stays at 60 Hz;
+- ``angle_deg``: the bus angle jumps with the sag (``Sag.angle_rad``);
 - ``dip_hz``: a frequency dip after the sag, ``df(t) = -dip (1 - e^{-u/0.1}) e^{-u/0.8}``
-  scaled to reach ``-dip`` at its deepest (``u`` the time since the sag started), added to
-  the phase of voltages and currents alike. The trajectory does not see it (``P, Q, V``
-  do not depend on a common phase): it tests the reader's frequency tracking alone.
-  Nor does the motor see the off-nominal frequency. The reader's ``angle_rad`` column
-  carries both, and ``fit composite`` drives its motor with that angle, so with either
-  switch on the fit's motor sees a frequency the generator's did not (measured, 2 x 6,000
-  draws: T' 0.278 [0.168, 0.411] s at 59.98 Hz and 0.258 [0.145, 0.389] s with the dip,
-  against 0.369 [0.192, 0.594] s without either; with the ``angle_rad`` and ``f`` columns
-  dropped, 0.300 [0.169, 0.474] and 0.425 [0.198, 0.738]): a test of the frequency path
-  should drop those columns or make the motor see the frequency;
+  scaled to reach ``-dip`` at its deepest (``u`` the time since the sag started).
+
+  The motor sees all three, as a real one sees the system's frequency: the system's
+  phase relative to the 60 Hz frame (:func:`system_phase`, in closed form) is the
+  trajectory's ``angle_extra`` (:func:`independent_composite.simulate`), so it is in the
+  motor's terminal voltage, in the waveforms' phase and in the currents alike, and the
+  trajectory starts in its steady state at 59.98 Hz (no start-up transient: P and Q
+  before the sag flat to 1e-8). Before, the phase was added to the waveforms after a
+  60 Hz simulation: the reader's ``angle_rad`` carried a frequency the generator's motor
+  had not seen, and ``fit composite``, whose motor is driven by that angle, missed T'
+  (0.217 [0.160, 0.272] s for 0.488; 0.396 [0.258, 0.559] at 60.00 Hz without the dip);
 - ``harmonics``: 3rd and 5th harmonics, a share of the fundamental's nominal peak, on
   voltages (``(0.02, 0.015)`` by default) and currents (``(0.04, 0.03)``): the 3rd in
   zero sequence, the 5th in negative sequence, as a balanced distortion is;
@@ -43,7 +43,7 @@ import numpy as np
 from independent_composite import Sag, _motor_for_tp, simulate, truth
 from waveform_composite import trajectory_samples, waveforms, write_comtrade_1999
 
-__all__ = ["MOTOR", "SAG", "write_chain_event"]
+__all__ = ["MOTOR", "SAG", "chain_trajectory", "system_phase", "write_chain_event"]
 
 #: The issue's motor: T' 0.488 s, in the paper's third-order model.
 MOTOR = _motor_for_tp(0.488, rs=0.02, xs=0.12, xm=3.0, h_s=0.8, name="feeder 0.488 s")
@@ -52,13 +52,33 @@ MOTOR = _motor_for_tp(0.488, rs=0.02, xs=0.12, xm=3.0, h_s=0.8, name="feeder 0.4
 SAG = Sag(1.0123, 0.33, 0.1, 0.0, 0.0, math.radians(-6.0))
 
 
-def _dip(t: np.ndarray, t_s: float, dip_hz: float) -> np.ndarray:
-    """Frequency deviation (Hz) of the dip: 0 before ``t_s``, deepest ``-dip_hz``."""
-    u = np.maximum(t - t_s, 0.0)
-    shape = (1.0 - np.exp(-u / 0.1)) * np.exp(-u / 0.8)
-    grid = np.linspace(0.0, 5.0, 50001)
-    peak = np.max((1.0 - np.exp(-grid / 0.1)) * np.exp(-grid / 0.8))
-    return -dip_hz * shape / peak
+#: The dip's rise and decay time constants (s).
+DIP_RISE_S, DIP_DECAY_S = 0.1, 0.8
+
+
+def _dip_peak() -> float:
+    # The shape's largest value, at u* = ln(1 + tau_d / tau_r) / (1 / tau_r).
+    a, b = 1.0 / DIP_DECAY_S, 1.0 / DIP_RISE_S + 1.0 / DIP_DECAY_S
+    u = math.log(b / a) / (b - a)
+    return math.exp(-a * u) - math.exp(-b * u)
+
+
+def system_phase(f_sys_hz: float, t_s: float, dip_hz: float, f0: float = 60.0):
+    """The system's phase relative to the ``f0`` frame (rad), as a function of t (s).
+
+    ``2 pi`` times the integral of the frequency deviation: ``(f_sys - f0) t`` plus the
+    dip's (0 before ``t_s``, deepest ``-dip_hz``), in closed form: the dip's shape is
+    ``e^{-a u} - e^{-b u}``, ``a = 1 / tau_d``, ``b = 1 / tau_r + 1 / tau_d``.
+    """
+    a, b = 1.0 / DIP_DECAY_S, 1.0 / DIP_RISE_S + 1.0 / DIP_DECAY_S
+    scale = -dip_hz / _dip_peak()
+
+    def phase(t: float) -> float:
+        u = max(t - t_s, 0.0)
+        dip = (1.0 - math.exp(-a * u)) / a - (1.0 - math.exp(-b * u)) / b
+        return 2.0 * math.pi * ((f_sys_hz - f0) * t + scale * dip)
+
+    return phase
 
 
 def _motor_current(traj, t: float, v_base_kv: float, s_base_mva: float) -> complex:
@@ -67,6 +87,29 @@ def _motor_current(traj, t: float, v_base_kv: float, s_base_mva: float) -> compl
     pm, qm, _, _ = traj.motor_power(t)
     vph = v * v_base_kv * 1e3 / math.sqrt(3.0) * complex(math.cos(d), math.sin(d))
     return (complex(pm, qm) * traj.s_m * s_base_mva * 1e6 / (3.0 * vph)).conjugate()
+
+
+def chain_trajectory(
+    *,
+    f_sys_hz: float = 59.98,
+    dip_hz: float = 0.06,
+    f_m: float = 0.42,
+    sag: Sag = SAG,
+    t_end_s: float = 4.05,
+    f0: float = 60.0,
+):
+    """The event's noise-free trajectory (from -0.1 s), and the system's phase it sees.
+
+    The motor sees the system's frequency and the dip: the phase is the trajectory's
+    angle (:func:`simulate`'s ``angle_extra``), from the off-nominal steady state at the
+    start, so the record holds no start-up transient.
+    """
+    phase = system_phase(f_sys_hz, sag.start_s, dip_hz, f0)
+    traj = simulate(
+        motor=MOTOR, t0=0.7, f_m=f_m, p0=0.8, q0=0.25, sags=(sag,),
+        t_start_s=-0.1, t_end_s=t_end_s, f_hz=f0, angle_extra=phase,
+    )  # fmt: skip
+    return traj, phase
 
 
 def write_chain_event(
@@ -98,17 +141,12 @@ def write_chain_event(
     rate = 64.0 * f0
     s = Sag(sag.start_s, sag.depth, sag.duration_s, sag.ramp_in_s, sag.ramp_out_s,
             math.radians(angle_deg))  # fmt: skip
-    traj = simulate(
-        motor=MOTOR, t0=0.7, f_m=f_m, p0=0.8, q0=0.25, sags=(s,),
-        t_start_s=-0.1, t_end_s=t_end_s + 0.05, f_hz=f0,
-    )  # fmt: skip
+    traj, phase = chain_trajectory(f_sys_hz=f_sys_hz, dip_hz=dip_hz, f_m=f_m, sag=s,
+                                   t_end_s=t_end_s + 0.05)  # fmt: skip
     n = int(math.floor(t_end_s * rate + 1e-9))
     t = np.arange(n) / rate
-    # The phase of the system's rotation relative to the nominal frame: off-nominal + dip.
-    df = (f_sys_hz - f0) + _dip(t, s.start_s, dip_hz)
-    extra = 2.0 * math.pi * np.concatenate([[0.0], np.cumsum(0.5 * (df[1:] + df[:-1]) / rate)])
+    extra = np.array([phase(float(x)) for x in t])
     vdpq = trajectory_samples(traj, t)
-    vdpq[1] += extra
     v, i = waveforms(vdpq, t, f_hz=f0, v_base_kv=v_base_kv, s_base_mva=s_base_mva)
     v_peak = math.sqrt(2.0) * v_base_kv * 1e3 / math.sqrt(3.0)
     i_peak = math.sqrt(2.0) * s_base_mva * 1e6 / (math.sqrt(3.0) * v_base_kv * 1e3)
@@ -124,7 +162,8 @@ def write_chain_event(
         for t_step in (s.start_s, s.start_s + s.duration_s):
             before = _motor_current(traj, t_step - 1e-9, v_base_kv, s_base_mva)
             after = _motor_current(traj, t_step, v_base_kv, s_base_mva)
-            ph = 2.0 * math.pi * f0 * t_step + np.interp(t_step, t, extra) + shifts[:, 0]
+            # The current phasors carry the system's phase already (the trajectory's angle).
+            ph = 2.0 * math.pi * f0 * t_step + shifts[:, 0]
             jump = math.sqrt(2.0) * (np.abs(after) * np.cos(ph + np.angle(after))
                                      - np.abs(before) * np.cos(ph + np.angle(before)))  # fmt: skip
             late = t >= t_step

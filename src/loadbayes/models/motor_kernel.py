@@ -12,7 +12,10 @@ in time, ``Ud + j Uq = V e^{j delta}``, and the state is advanced by classical R
 ``ceil((t_{k+1} - t_k) / h_max)`` equal sub-steps. The initial state is the steady state
 at ``(V_0, delta_0 = 0)``, solved in closed form for the flux given the slip and by
 bisection on the torque balance for the slip (the stable branch: the first slip at which
-the electrical torque reaches the load torque).
+the electrical torque reaches the load torque), with the voltage turning at the speed the
+angle turns at over the record's steady start (:func:`start_speed`; the nominal speed
+without an angle): off the nominal frequency the angle turns, and a steady state at the
+nominal speed would start a transient the data do not hold.
 
 Accuracy (``tests/unit/test_motor_kernel.py``): against ``scipy.integrate.solve_ivp``
 (DOP853, ``rtol=1e-10``) driven by the same piecewise-linear voltage, on every motor of
@@ -39,7 +42,7 @@ Against the tests' SciPy generator (``tests/sequence_generator.py``) at the true
 parameters of a phase-to-ground fault, the model's P during the fault moved from 0.012 p.u.
 (1.8 % of P0) low to 3.9e-4, the balanced sag's residual.
 
-One idea needs these 677 lines: the motor integrated through a sampled voltage, at the
+One idea needs these 735 lines: the motor integrated through a sampled voltage, at the
 samples and as window means, in compiled loops that share the steady state and the RK4
 step (the braking torque's drive carried beside the voltage).
 """
@@ -64,6 +67,7 @@ __all__ = [
     "integrate_v2_into",
     "integrate_window_into",
     "integrate_window_v2_into",
+    "start_speed",
     "steady_slip",
     "steady_state",
     "step_size",
@@ -88,6 +92,19 @@ LINEAR_TOL = 1e-7
 #: Largest change of V (p.u.) or angle (rad) per RK4 sub-step. Without it a 60% sag
 #: edge inside one sample at 960/s puts krause_3hp 1.3e-4 off DOP853 (7.7e-6 with it).
 DV_STEP = 0.1
+#: The start's steady part, over which the angle's slope gives the voltage's speed that
+#: the initial steady state is taken at (:func:`start_speed`): at most this long (s)...
+START_SPAN_S = 0.2
+#: ...and before V first leaves V_0 by this much (p.u.). A recorder's angle turns at
+#: 2 pi (f - f_nominal): at 59.98 Hz a steady state at 60 Hz was 3.3e-4 off in slip (2.5%
+#: of a 0.013 slip), a start-up transient of 0.004 p.u. in P over 0.15 s at the truth
+#: (tests/integration/test_recorder_chain.py).
+START_DV = 0.005
+#: A slope below this (Hz) is the angle's noise, and the start is at the nominal speed:
+#: 0.27 mHz on the recorder chain at 60.00 Hz, 0.02 mHz on tests/sequence_generator.py's
+#: record (the nominal frequency, read back), where the start transient of 1 mHz would be
+#: about 2e-4 p.u. in P. Such records start as before, to the bit.
+START_DF_HZ = 1e-3
 #: After a step of the input (more than ``STEP_JUMP`` p.u. or rad within one interval),
 #: the flux's fast mode, of time constant ``T' X' / X``, rings: for ``FAST_SPAN`` of
 #: those time constants the sub-step is at most ``1 / FAST_STEPS`` of it. Without this a
@@ -117,21 +134,26 @@ def _te_pq(rs, xp, dx, tp, wb, v, s):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def steady_slip(rs, xp, dx, tp, wb, v, t0, a, b, c):  # pragma: no cover - compiled
-    """Slip of the stable steady state, or -1.0 if the load exceeds the breakdown torque."""
-    # f(s) = Te(s) - T0 (A w^2 + B w + C), w = 1 - s; f(0) = -T0 < 0. The stable point is
-    # the first zero crossing going up (d(Te - Tm)/ds > 0 there, so dw/dt restores w).
+def steady_slip(rs, xp, dx, tp, wb, v, t0, a, b, c, w_sync=1.0):  # pragma: no cover
+    """Slip of the stable steady state, or -1.0 if the load exceeds the breakdown torque.
+
+    ``w_sync``: the voltage's speed (units of ``wb``; 1 at the nominal frequency). The
+    slip is the rotor's behind the voltage, ``s = w_sync - w`` (the flux sees it), the
+    load torque the rotor's speed ``w``'s.
+    """
+    # f(s) = Te(s) - T0 (A w^2 + B w + C), w = w_sync - s; f(0) = -T0 < 0. The stable point
+    # is the first zero crossing going up (d(Te - Tm)/ds > 0 there, so dw/dt restores w).
     s_prev = 0.0
     s = 1e-7
     ratio = 1.1
     while s <= 1.0:
-        w = 1.0 - s
+        w = w_sync - s
         f = _te_pq(rs, xp, dx, tp, wb, v, s)[0] - t0 * (a * w * w + b * w + c)
         if f > 0.0:
             lo, hi = s_prev, s
             for _ in range(80):
                 mid = 0.5 * (lo + hi)
-                wm = 1.0 - mid
+                wm = w_sync - mid
                 fm = _te_pq(rs, xp, dx, tp, wb, v, mid)[0] - t0 * (a * wm * wm + b * wm + c)
                 if fm > 0.0:
                     hi = mid
@@ -151,13 +173,47 @@ def steady_slip(rs, xp, dx, tp, wb, v, t0, a, b, c):  # pragma: no cover - compi
 
 
 @numba.njit(cache=True, nogil=True)
-def steady_state(rs, xp, dx, tp, wb, v, t0, a, b, c):  # pragma: no cover - compiled
-    """Steady ``(Ed', Eq', w, P, Q)`` at voltage ``v`` on the d axis; NaNs if none exists."""
-    s = steady_slip(rs, xp, dx, tp, wb, v, t0, a, b, c)
+def steady_state(rs, xp, dx, tp, wb, v, t0, a, b, c, w_sync=1.0):  # pragma: no cover
+    """Steady ``(Ed', Eq', w, P, Q)`` at voltage ``v`` on the d axis; NaNs if none exists.
+
+    ``w_sync``: the voltage's speed (:func:`steady_slip`); the flux is in the frame
+    turning with the voltage, which is the nominal frame at the instant the angle is 0.
+    """
+    s = steady_slip(rs, xp, dx, tp, wb, v, t0, a, b, c, w_sync)
     if s <= 0.0:
         return math.nan, math.nan, math.nan, math.nan, math.nan
     te, p, q, e = _te_pq(rs, xp, dx, tp, wb, v, s)
-    return e.real, e.imag, 1.0 - s, p, q
+    return e.real, e.imag, w_sync - s, p, q
+
+
+@numba.njit(cache=True, nogil=True)
+def start_speed(t, v, delta, wb):  # pragma: no cover - compiled
+    """The voltage's speed at the start (units of ``wb``): where the steady state is taken.
+
+    ``1 + slope / wb``, the slope (rad/s) of the angle fitted by least squares over the
+    first samples: those within :data:`START_SPAN_S` of ``t[0]`` before V first leaves
+    ``V_0`` by :data:`START_DV` (the record's steady part). Exactly 1.0 without an angle,
+    with a constant angle there, with fewer than three such samples, or with a slope
+    below :data:`START_DF_HZ` (noise).
+    """
+    n = 0
+    st, sd, stt, std = 0.0, 0.0, 0.0, 0.0
+    for k in range(t.size):
+        if t[k] - t[0] > START_SPAN_S or abs(v[k] - v[0]) > START_DV:
+            break
+        x, y = t[k] - t[0], delta[k] - delta[0]
+        n += 1
+        st += x
+        sd += y
+        stt += x * x
+        std += x * y
+    den = n * stt - st * st
+    if n < 3 or not den > 0.0:
+        return 1.0
+    slope = (n * std - st * sd) / den
+    if abs(slope) < 2.0 * math.pi * START_DF_HZ:
+        return 1.0
+    return 1.0 + slope / wb
 
 
 @numba.njit(cache=True, nogil=True)
@@ -342,7 +398,8 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
     sample is the balanced one (a row below ``parts.NEG_SEQ_MIN`` brakes with 0).
     """  # pragma: no cover - compiled
     n = t.size
-    ed, eq, w, p0, q0 = steady_state(rs, xp, dx, tp, wb, v[0], t0, a, b, c)
+    ed, eq, w, p0, q0 = steady_state(rs, xp, dx, tp, wb, v[0], t0, a, b, c,
+                                     start_speed(t, v, delta, wb))  # fmt: skip
     if not math.isfinite(ed):
         return False
     den = rs * rs + xp * xp
@@ -532,7 +589,8 @@ def integrate_window_v2_into(
     n = _merge_bounds(t, v, delta, real, window, tm, vm, dm, lo_pos, hi_pos)
     bm = _merged_v2(t, v2, real, window, n_m)  # |V2| at the same merged knots
     nb = _circuit_if(v2, xp, dx, tp, wb)
-    ed, eq, w, p_ss, q_ss = steady_state(rs, xp, dx, tp, wb, vm[0], t0, a, b, c)
+    ed, eq, w, p_ss, q_ss = steady_state(rs, xp, dx, tp, wb, vm[0], t0, a, b, c,
+                                         start_speed(t, v, delta, wb))  # fmt: skip
     if not math.isfinite(ed):
         return False
     den = rs * rs + xp * xp
