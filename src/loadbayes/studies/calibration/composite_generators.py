@@ -145,10 +145,11 @@ def _griddyn(case: dict[str, Any]) -> tuple[Any, dict[str, float]]:
     # f_a of the .raw's P, but its one-pass start leaves the static part's P off its
     # share (the static ZIP's reference is not the load end's V: f_a 0.558 drew 0.5569
     # of 0.9843). The motor's P is read from the same case with a constant-P static
-    # part, whose P is exactly its share (tested: f_a 0 gives 1 - 3e-10).
+    # part, whose P is exactly its share (tested: f_a 0 gives 1 - 3e-10), before a
+    # shallow fault (the state before the fault does not depend on it; a constant-P
+    # load through a deep one can stop GridDyn's solver).
     flat = dataclasses.replace(cmld, p1c=0.0, p2c=0.0)
-    _, flat_info = run_case(flat, case["depth"], rate_hz=RATE_HZ, window_s=window,
-                            t_fault_s=case["start_s"], duration_s=case["duration_s"])  # fmt: skip
+    _, flat_info = run_case(flat, 0.10, rate_hz=RATE_HZ, window_s=0.0)
     p_raw = cmld.load_mw / S_BASE_MVA
     p_motor = flat_info["event"]["p0"] - (1.0 - case["f_m"]) * p_raw
     f_m = p_motor / ev["p0"]
