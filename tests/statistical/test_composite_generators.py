@@ -9,8 +9,8 @@ event is fitted as ``loadbayes fit composite`` fits a plain table at its default
 ``make test`` fits event 0 of each of ANDES Motor3, ANDES Motor5 and GridDyn (the
 independent generator's events run in test_composite_independent.py): three fits of
 8-9 s of CPU each (measured in the study's log), two side by side, plus the simulations
-(ANDES's runs are cached on disk, GridDyn's by its harness). Measured from empty caches
-on 2 cores under a load average of 18: 211 s of wall. ``make validate``
+(ANDES's runs are cached on disk, GridDyn's by its harness). Measured on 2 cores under a
+load average of 15-18: 211 s of wall from empty caches, 92 s with them warm. ``make validate``
 (LOADBAYES_VALIDATE=1) fits 20 events of each of the four.
 
 False-alarm rates (fixed seeds make the outcome deterministic: this is the chance such
