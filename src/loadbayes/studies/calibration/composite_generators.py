@@ -173,8 +173,15 @@ def simulate_generator(case: dict[str, Any]) -> tuple[Any, dict[str, float]]:
 
 
 def fit_generator_case(case: dict[str, Any], seed: int) -> dict[str, Any]:
-    """Simulate one case and fit it as ``fit composite`` does at its defaults."""
-    df, truth = simulate_generator(case)
+    """Simulate one case and fit it as ``fit composite`` does at its defaults.
+
+    A case its simulator cannot run (GridDyn's solver fails to re-initialise for narrow
+    bands of fault impedance, even nudged) is no event: ``{"failed": why}``, counted apart.
+    """
+    try:
+        df, truth = simulate_generator(case)
+    except RuntimeError as exc:
+        return {"failed": str(exc)}
     out = fit_records(event_records(df, f"{case['generator']}.csv"), truth, seed, "data")
     out["depth"] = float(truth.get("depth", case["depth"]))
     return out
@@ -212,11 +219,13 @@ def run_generators(
     out: dict[str, Any] = {}
     for g in counts:
         rows = [(c, r) for (c, _), r in zip(jobs, per, strict=True) if c["generator"] == g]
+        ran = [(c, r) for c, r in rows if "failed" not in r]
         out[g] = {
-            "events": len(rows),
-            "hits": {k: sum(r["hits"][k] for _, r in rows) for k in CHECKED},
-            "per_event": [r for _, r in rows],
-            "cases": [c for c, _ in rows],
+            "events": len(ran),
+            "hits": {k: sum(r["hits"][k] for _, r in ran) for k in CHECKED},
+            "per_event": [r for _, r in ran],
+            "cases": [c for c, _ in ran],
+            "failed": [{"case": c, "why": r["failed"]} for c, r in rows if "failed" in r],
         }
     return out
 
@@ -257,6 +266,9 @@ def main(argv: list[str] | None = None) -> int:
     with open(args.output, "w") as fh:
         json.dump(res, fh, indent=1)
     print(table(res))
+    for g, r in res.items():
+        for f in r["failed"]:
+            print(f"{g}: not run (depth {f['case']['depth']:.3f}): {f['why']}")
     return 0
 
 
