@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -42,6 +42,7 @@ __all__ = [
     "default_step",
     "event_from_run",
     "fault_reactance_guess",
+    "second_cage",
     "simulate",
 ]
 
@@ -102,6 +103,26 @@ def default_step(motor: MotorParams) -> float:
     """
     fastest = motor.tp_s * motor.xp / motor.x
     return 1.0 / (600.0 * math.ceil((1.0 / 600.0) / (fastest / 16.0)))
+
+
+def second_cage(motor: MotorParams, cage2: tuple[float, float]) -> dict[str, float]:
+    """ANDES ``Motor5``'s second cage on ``motor``: X'', T''0 (s) and a step for it.
+
+    ANDES 2.0 (``motor5.py``): ``x'' = xs + xr1 xr2 xm / (xr1 xr2 + xr1 xm + xr2 xm)`` and
+    ``T''0 = (xr2 + xr1 xm / (xr1 + xm)) / (wb rr2)``. Its first cage keeps Motor3's
+    ``x' `` and ``T'0 = (xr1 + xm) / (wb rr1)``; as ``T''0`` goes to 0 the second cage's
+    EMF follows ``E' - j (x' - x'') I`` and the model is Motor3's. The step: ``1/(600 k)``
+    s, at most a sixth of the short-circuit mode ``T''0 x'' / x'`` (a mode shorter than
+    the samples' interval, whose error no sample at 60/s resolves).
+    """
+    rr2, xr2 = cage2
+    xs, xm, xr1 = motor.xs, motor.xm, motor.xr
+    wb = 2.0 * math.pi * motor.f_hz
+    x2 = xs + xr1 * xr2 * xm / (xr1 * xr2 + xr1 * xm + xr2 * xm)
+    t20 = (xr2 + xr1 * xm / (xr1 + xm)) / (wb * rr2)
+    fastest = t20 * x2 / motor.xp
+    step = 1.0 / (600.0 * math.ceil((1.0 / 600.0) / (fastest / 6.0)))
+    return {"x_second": x2, "t_second_s": t20, "step_s": step}
 
 
 def fault_reactance_guess(depth: float, case: CompositeCase, fault_s: float) -> float:
@@ -191,6 +212,7 @@ def simulate(
     base_mva: float = 100.0,
     depth_tol: float = 0.01,
     max_runs: int = 4,
+    cage2: tuple[float, float] | None = None,
 ) -> AndesEvent:
     """Simulate a composite load (ZIP + ``Motor3``) through a fault in ANDES.
 
@@ -225,6 +247,10 @@ def simulate(
         Tolerance on the achieved sag depth.
     max_runs : int
         Most ANDES runs to reach the depth (secant steps on ``log xf``).
+    cage2 : tuple of float, optional
+        ``(rr2, xr2)`` (motor base): the motor is ANDES's fifth-order ``Motor5``, whose
+        first cage is ``motor``'s rotor (:func:`second_cage`); the default step then
+        resolves the second cage's short-circuit mode.
 
     Returns
     -------
@@ -256,6 +282,10 @@ def simulate(
         "q_c": q_c,
     }
     case = CompositeCase.from_values(values, with_motor=True, base_mva=base_mva, z_src=z_src)
+    if cage2 is not None:
+        case = replace(case, cage2=(float(cage2[0]), float(cage2[1])))
+        if step_s is None:
+            step_s = min(default_step(params), second_cage(params, cage2)["step_s"])
     spec = {
         "case": case,
         "name": params.name,
@@ -332,6 +362,9 @@ def event_from_run(raw, spec, xf, target, t_end_s) -> AndesEvent:
         "t_prime_s": params.tp_s,
         "f_hz": params.f_hz,
     }
+    if case.cage2 is not None:
+        cage = second_cage(params, case.cage2)
+        truth.update(x_second=cage["x_second"], t_second_s=cage["t_second_s"])
     depth = achieved_depth(raw, spec)
     settings = {
         "simulator": f"ANDES {andes.__version__}",
@@ -351,6 +384,8 @@ def event_from_run(raw, spec, xf, target, t_end_s) -> AndesEvent:
         "t_end_s": t_end_s,
         "integrator": "ANDES TDS, implicit trapezoid, fixed step",
         "motor3": case.motor3(),
+        "motor_model": "Motor3" if case.cage2 is None else "Motor5",
+        "cage2": None if case.cage2 is None else list(case.cage2),
     }
     record.attrs.update({"truth": truth, "settings": settings})
     return AndesEvent(record=record, truth=truth, settings=settings, motor=params)

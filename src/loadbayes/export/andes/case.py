@@ -70,6 +70,9 @@ class CompositeCase:
     base_mva: float
     z_src: complex
     vn_kv: float = VN_KV
+    #: A second rotor cage ``(rr2, xr2)`` (motor base): the motor is then ANDES's
+    #: fifth-order ``Motor5`` (its first cage the motor's ``rr, xr``), not ``Motor3``.
+    cage2: tuple[float, float] | None = None
 
     @classmethod
     def from_values(
@@ -281,6 +284,9 @@ def _add_load(
         system.add("Shunt", shunt)
         ids["shunt"] = idx["shunt"]
     if case.motor is not None:
-        system.add("Motor3", {"idx": idx["motor"], "bus": bus_load, **case.motor3()})
+        kind, fields = "Motor3", case.motor3()
+        if case.cage2 is not None:
+            kind, fields = "Motor5", {**fields, "rr2": case.cage2[0], "xr2": case.cage2[1]}
+        system.add(kind, {"idx": idx["motor"], "bus": bus_load, **fields})
         ids["motor"] = idx["motor"]
     return ids

@@ -177,14 +177,15 @@ def zip_fields(a_p: tuple[float, float, float], a_q: tuple[float, float, float])
     }
 
 
-def seed_motor3(system: Any) -> None:
+def seed_motor3(system: Any, kind: str = "Motor3") -> None:
     """Put every online ``Motor3`` at loadbayes's steady state before ANDES's Newton steps.
 
     Call after ``PFlow.init()`` (which sets ANDES's start-up guess ``slip = 1``). The guess
     uses each motor's bus ``v0``/``a0`` parameters; Newton then polishes it to the solved
-    bus voltage in a few iterations.
+    bus voltage in a few iterations. ``kind="Motor5"`` seeds the fifth-order motors from
+    their first cage's third-order steady state, the second cage's EMF at the first's.
     """
-    m = system.Motor3
+    m = getattr(system, kind)
     base = float(system.config.mva)
     bus_uid = system.Bus.idx2uid(list(m.bus.v))
     for k in range(m.n):
@@ -214,6 +215,8 @@ def seed_motor3(system: Any) -> None:
             "te": op.te * mva_m,
             "tm": op.te * mva_m,
         }
+        if kind == "Motor5":
+            values.update(e2d=e.real, e2q=e.imag)
         for name, value in values.items():
             getattr(m, name).v[k] = value
 
@@ -244,8 +247,9 @@ def solve_power_flow(system: Any) -> None:
 
     def init() -> Any:
         out = original()
-        if "Motor3" in system.models and system.Motor3.n:
-            seed_motor3(system)
+        for kind in ("Motor3", "Motor5"):
+            if kind in system.models and getattr(system, kind).n:
+                seed_motor3(system, kind)
         return out
 
     pflow.init = init

@@ -79,7 +79,8 @@ def run_tds(
 
     load = system.Bus.idx2uid(load_bus)
     v_load = col(system.Bus.v, load) * np.exp(1j * col(system.Bus.a, load))
-    m = system.Motor3
+    # The load's motor: its Motor3, or (a case with none) its fifth-order Motor5.
+    m = system.Motor5 if not system.Motor3.n and "Motor5" in system.models else system.Motor3
     km = 0 if motor_idx is None else m.idx2uid(motor_idx)
     if net_bus is not None:
         lines = system.Line

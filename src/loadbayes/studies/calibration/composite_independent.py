@@ -45,6 +45,7 @@ __all__ = [
     "ISSUE_CASE",
     "event_records",
     "fit_case",
+    "fit_records",
     "independent_cases",
     "run_independent",
     "table",
@@ -166,24 +167,40 @@ def fit_case(case: dict[str, Any], seed: int, generator: str | None = None) -> d
 
     A module-level function (not a closure) so that a process pool can run it.
     """
-    import arviz as az
-
-    from loadbayes import CompositeModel, fit_composite
-    from loadbayes.fit.composite import COMPOSITE_DEFAULTS
-
     df, truth = simulate_case(case, generator=generator)
-    wall, cpu = time.perf_counter(), time.process_time()
     # Point samples are said to be point samples (--window-s 0); phasor samples are read
     # at the default, one-cycle window means (the generator stamps them at the window's
     # end, the model at its centre: only the fitted step instants move, by half a cycle).
     window = 0.0 if case["sampling"] == "point" else None
+    return fit_records(event_records(df, "independent.csv"), truth, seed, window)
+
+
+def fit_records(events: list, truth: dict, seed: int, window: float | str | None) -> dict:
+    """Fit ``events`` at the defaults; the 95% intervals of :data:`CHECKED` against ``truth``.
+
+    ``window``: the model's ``window_s`` (None: one cycle), or ``"data"`` for the reading
+    ``loadbayes fit composite`` chooses for a plain table (points or one-cycle means,
+    :func:`loadbayes.fit.composite.reading.reading_model`; kept under ``read_as``).
+    """
+    import arviz as az
+
+    from loadbayes import CompositeModel, fit_composite
+    from loadbayes.fit.composite import COMPOSITE_DEFAULTS
+    from loadbayes.fit.composite.reading import reading_model
+
+    wall, cpu = time.perf_counter(), time.process_time()
+    model, read_as = CompositeModel(window_s=None if window == "data" else window), None
+    if window == "data":
+        model, reading = reading_model(model, events, chosen=False)
+        read_as = reading.as_dict()
     # The defaults, run on until converged, one thread (the pool runs the cases).
     sampler = COMPOSITE_DEFAULTS.with_(seed=seed, threads=1, until_converged=True)
-    fit = fit_composite(CompositeModel(window_s=window), event_records(df, "independent.csv"),
-                        sampler=sampler)  # fmt: skip
+    fit = fit_composite(model, events, sampler=sampler)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     draws = fit.posterior.draws
     out: dict[str, Any] = {"hits": {}, "bias": {}, "interval": {}}
+    if read_as is not None:
+        out["read_as"] = read_as
     for k in CHECKED:
         d = np.asarray(draws[k], dtype=float)
         lo, hi = np.percentile(d, [2.5, 97.5])

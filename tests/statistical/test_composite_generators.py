@@ -1,0 +1,132 @@
+"""The default composite fit's coverage on events from independent generators (issue 35).
+
+The generators and the truth in the fit's definitions (f_m the motor's share of P0, T'
+its transient open-circuit time constant in s) are in
+:mod:`loadbayes.studies.calibration.composite_generators`: tests/independent_composite.py
+(SciPy), ANDES 2.0's Motor3 and Motor5, GridDyn 0.13.0's CMLDBLU1 with one motor. Each
+event is fitted as ``loadbayes fit composite`` fits a plain table at its defaults.
+
+``make test`` fits event 0 of each of ANDES Motor3, ANDES Motor5 and GridDyn (the
+independent generator's events run in test_composite_independent.py): three fits of
+8-9 s of CPU each (measured in the study's log), two side by side, plus the simulations
+(ANDES's runs are cached on disk, GridDyn's by its harness). Measured on 2 cores under a
+load average of 15-18: 211 s of wall from empty caches, 92 s with them warm. ``make validate``
+(LOADBAYES_VALIDATE=1) fits 20 events of each of the four.
+
+False-alarm rates (fixed seeds make the outcome deterministic: this is the chance such
+seeds fail when every 95% interval has exactly 95% coverage, independently):
+
+- ``make test``: over the Motor3 and Motor5 events (n 2 per quantity), fewer than 1 hit
+  (both missed): 0.25% per quantity, 0.5% for the two.
+- ``make validate``: per generator and quantity, fewer than 16 of 20 (0.26% each,
+  binomial_floor(20, alpha=0.01); of fewer when a simulator cannot run a case, as GridDyn
+  could not its 13th); at most 1.3% over the 5 asserted (the other 3 are
+  strict xfails).
+
+A generator the fit does not cover at its defaults is a strict xfail with its measured
+numbers (its own test below), not a looser floor.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from loadbayes.cases.griddyn.cases import S_BASE_MVA, Cmld, run_case, skip_reason
+from loadbayes.studies.calibration.composite_generators import (
+    NEGLIGIBLE_FEEDER,
+    run_generators,
+    table,
+)
+from loadbayes.studies.calibration.composite_independent import binomial_floor
+
+pytestmark = pytest.mark.statistical
+
+FULL = os.environ.get("LOADBAYES_VALIDATE") == "1"
+N_FULL = 20
+QUANTITIES = ("f_m", "t_prime_s")
+
+
+@pytest.fixture(scope="module")
+def results():
+    pytest.importorskip("andes", reason="ANDES is in the optional 'andes' extra")
+    counts = {"andes_motor3": 1, "andes_motor5": 1}
+    if FULL:
+        counts = {"independent": N_FULL, "andes_motor3": N_FULL, "andes_motor5": N_FULL}
+    if skip_reason() is None:
+        counts["griddyn"] = N_FULL if FULL else 1
+    return run_generators(counts, seed=0, workers=2)
+
+
+def test_griddyn_truth_is_the_motors_share():
+    # The truth's f_m reads the motor's P from the case with a constant-P static part,
+    # whose P must then be exactly its share of the .raw's P (GridDyn's one-pass start
+    # leaves a ZIP static part's P off it: the reason for the second run).
+    reason = skip_reason()
+    if reason:
+        pytest.skip(reason)
+    cmld = Cmld(f_a=0.0, f_b=0.0, f_d=0.0, f_el=0.0, p1c=0.0, p2c=0.0, **NEGLIGIBLE_FEEDER)
+    _, info = run_case(cmld, 0.2, window_s=0.0)
+    assert info["event"]["p0"] == pytest.approx(cmld.load_mw / S_BASE_MVA, abs=1e-6)
+
+
+@pytest.mark.skipif(FULL, reason="the full counts run below")
+def test_andes_motor3_and_motor5_events_are_covered(results):
+    for k in QUANTITIES:
+        hits = sum(results[g]["hits"][k] for g in ("andes_motor3", "andes_motor5"))
+        assert hits >= binomial_floor(2, alpha=0.01), (k, "\n" + table(results))
+
+
+@pytest.mark.skipif(FULL, reason="the full counts run below")
+@pytest.mark.xfail(
+    strict=True,
+    reason="GridDyn's one-cycle phasor windows of its single-cage WECC motor (T'o 0.2 s, "
+    "H 0.5 s) are read as points by the default (the data's choice, +100.7): event 0 (41% "
+    "sag) f_m [0.565, 0.621] for 0.566, T' [0.083, 0.184] s for 0.2 (the same run written "
+    "as points: [0.545, 0.617], [0.082, 0.240]); docs/composite.md, 'Four generators at "
+    "the defaults'",
+)
+def test_griddyn_single_motor_event_is_covered(results):
+    if "griddyn" not in results:
+        pytest.skip(skip_reason())
+    assert all(results["griddyn"]["hits"][k] == 1 for k in QUANTITIES), table(results)
+
+
+#: Strict xfails of the full count, with what was measured (docs/composite.md, "Four
+#: generators at the defaults").
+FULL_XFAIL = {
+    ("andes_motor5", "f_m"): (
+        "Motor5 (T''0 4 ms): f_m 10 of the first 13 (misses both ways: [0.676, 0.974] "
+        "for 0.562, [0.294, 0.361] for 0.376, [0.385, 0.426] for 0.426); T' 13 of 13"
+    ),
+    ("griddyn", "f_m"): (
+        "GridDyn's one-cycle windows read as points: f_m 9 of the first 12, all high "
+        "([0.516, 0.600] for 0.490, [0.514, 0.619] for 0.513, [0.326, 0.356] for 0.324)"
+    ),
+    ("griddyn", "t_prime_s"): (
+        "GridDyn's one-cycle windows read as points: T' 9 of the first 12, low on the "
+        "deep sags ([0.083, 0.184], [0.071, 0.172], [0.070, 0.174] s for 0.2); noise-free, "
+        "its point samples give T' 0.198-0.205 back"
+    ),
+}
+GENERATORS = ("independent", "andes_motor3", "andes_motor5", "griddyn")
+
+
+@pytest.mark.skipif(not FULL, reason="make validate (LOADBAYES_VALIDATE=1)")
+@pytest.mark.parametrize(
+    ("generator", "quantity"),
+    [
+        pytest.param(g, k, marks=pytest.mark.xfail(strict=True, reason=FULL_XFAIL[g, k]))
+        if (g, k) in FULL_XFAIL
+        else (g, k)
+        for g in GENERATORS
+        for k in QUANTITIES
+    ],
+)
+def test_each_generator_covers_at_the_binomial_floor(results, generator, quantity):
+    if generator not in results:
+        pytest.skip(skip_reason())
+    res = results[generator]
+    floor = binomial_floor(res["events"], alpha=0.01)
+    assert res["hits"][quantity] >= floor, (generator, quantity, floor, "\n" + table(results))
