@@ -6,11 +6,12 @@ its transient open-circuit time constant in s) are in
 (SciPy), ANDES 2.0's Motor3 and Motor5, GridDyn 0.13.0's CMLDBLU1 with one motor. Each
 event is fitted as ``loadbayes fit composite`` fits a plain table at its defaults.
 
-``make test`` fits event 0 of each of ANDES Motor3, ANDES Motor5 and GridDyn (the
-independent generator's events run in test_composite_independent.py): three fits of
-8-9 s of CPU each (measured in the study's log), two side by side, plus the simulations
-(ANDES's runs are cached on disk, GridDyn's by its harness). Measured on 2 cores under a
-load average of 15-18: 211 s of wall from empty caches, 92 s with them warm. ``make validate``
+``make test`` fits event 0 of each of ANDES Motor3 and ANDES Motor5 (the independent
+generator's events run in test_composite_independent.py): two fits of 8-9 s of CPU each
+(measured in the study's log), side by side, plus the simulations (ANDES's runs are
+cached on disk) and one GridDyn run for its truth's check. GridDyn's single-motor event,
+whose miss is known (below), is fitted by ``make validate`` only: a fit that only
+confirms a known miss was not worth its place in the 12-minute suite. ``make validate``
 (LOADBAYES_VALIDATE=1) fits 20 events of each of the four.
 
 False-alarm rates (fixed seeds make the outcome deterministic: this is the chance such
@@ -24,7 +25,9 @@ seeds fail when every 95% interval has exactly 95% coverage, independently):
   strict xfails).
 
 A generator the fit does not cover at its defaults is a strict xfail with its measured
-numbers (its own test below), not a looser floor.
+numbers (:data:`FULL_XFAIL`), not a looser floor. GridDyn's event 0 (a 41% sag), fitted
+alone before the sampler's jumps from regions: f_m [0.565, 0.621] for 0.566, T' [0.083,
+0.184] s for 0.2, read as points by the data's choice (+100.7).
 """
 
 from __future__ import annotations
@@ -54,8 +57,8 @@ def results():
     counts = {"andes_motor3": 1, "andes_motor5": 1}
     if FULL:
         counts = {"independent": N_FULL, "andes_motor3": N_FULL, "andes_motor5": N_FULL}
-    if skip_reason() is None:
-        counts["griddyn"] = N_FULL if FULL else 1
+    if FULL and skip_reason() is None:
+        counts["griddyn"] = N_FULL
     return run_generators(counts, seed=0, workers=2)
 
 
@@ -76,21 +79,6 @@ def test_andes_motor3_and_motor5_events_are_covered(results):
     for k in QUANTITIES:
         hits = sum(results[g]["hits"][k] for g in ("andes_motor3", "andes_motor5"))
         assert hits >= binomial_floor(2, alpha=0.01), (k, "\n" + table(results))
-
-
-@pytest.mark.skipif(FULL, reason="the full counts run below")
-@pytest.mark.xfail(
-    strict=True,
-    reason="GridDyn's one-cycle phasor windows of its single-cage WECC motor (T'o 0.2 s, "
-    "H 0.5 s) are read as points by the default (the data's choice, +100.7): event 0 (41% "
-    "sag) f_m [0.565, 0.621] for 0.566, T' [0.083, 0.184] s for 0.2 (the same run written "
-    "as points: [0.545, 0.617], [0.082, 0.240]); docs/composite.md, 'Four generators at "
-    "the defaults'",
-)
-def test_griddyn_single_motor_event_is_covered(results):
-    if "griddyn" not in results:
-        pytest.skip(skip_reason())
-    assert all(results["griddyn"]["hits"][k] == 1 for k in QUANTITIES), table(results)
 
 
 #: Strict xfails of the full count, with what was measured (docs/composite.md, "Four

@@ -36,7 +36,7 @@ N_EVENTS = 150
 DETERMINED = ("p0", "q0", "a1", "a2", "a3", "a4", "a5", "a6", "f_m")
 
 
-def test_200_events_cover_at_the_nominal_rate():
+def test_150_events_cover_at_the_nominal_rate():
     # One test, not a module fixture shared by several: under pytest-xdist each worker
     # would fit the 200 events again.
     rec = run_recovery(N_EVENTS, seed=2026, workers=2, **CI_SETTINGS)
