@@ -10,6 +10,7 @@ from loadbayes.models.motor import currents, derivatives, power, steady_state
 from loadbayes.models.motor_kernel import integrate
 from loadbayes.models.motor_kernel import steady_state as kernel_steady_state
 from loadbayes.models.motor_library import MOTORS
+from turning_start import turning_start
 
 #: The stated accuracy of the kernel (docs/composite.md): P, Q on the motor's base.
 TOL_PU = 1e-4
@@ -40,29 +41,6 @@ def test_no_steady_state_beyond_breakdown():
     assert out is None
 
 
-def _turning_start(m, t, v, delta, t0):
-    """The state at ``t[0]``: steady with the voltage turning as the angle starts to.
-
-    The kernel's rule (``motor_kernel.start_speed``): the angle's least-squares slope over
-    the first 0.2 s before V leaves ``V_0`` by 0.005, none below 1 mHz. Reached here
-    independently, by running the SciPy model 30 s on that rotation from the nominal
-    steady state.
-    """
-    keep = np.cumprod((t - t[0] <= 0.2) & (np.abs(v - v[0]) <= 0.005)).astype(bool)
-    slope = np.polyfit(t[keep] - t[0], delta[keep] - delta[0], 1)[0]
-    slope = 0.0 if abs(slope) < 2 * np.pi * 1e-3 else slope
-    v0 = float(v[0])
-
-    def rhs(tt, y):
-        dd = delta[0] + slope * tt
-        return derivatives(y, v0 * np.cos(dd), v0 * np.sin(dd), m, t0=t0)
-
-    op = steady_state(m, v_pu=v0, t0=t0)
-    sol = solve_ivp(rhs, (-30.0, 0.0), op.state, method="DOP853", rtol=1e-11, atol=1e-13)
-    assert sol.success
-    return sol.y[:, -1]
-
-
 def _reference(m, t, v, delta, t0, torque):
     m = m.__class__(**{**m.to_dict(), "a": torque[0], "b": torque[1], "c": torque[2]})
 
@@ -73,7 +51,7 @@ def _reference(m, t, v, delta, t0, torque):
     sol = solve_ivp(
         rhs,
         (t[0], t[-1]),
-        _turning_start(m, t, v, delta, t0),
+        turning_start(m, t, v, delta, t0),
         method="DOP853",
         t_eval=t,
         rtol=1e-10,

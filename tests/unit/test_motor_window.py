@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from loadbayes.models.motor import currents, derivatives, power, steady_state
+from loadbayes.models.motor import currents, derivatives, power
 from loadbayes.models.motor_kernel import integrate
 from loadbayes.models.motor_library import MOTORS
+from turning_start import turning_start
 
 #: Stated accuracy of the window means (docs/composite.md): p.u. on the motor's base.
 TOL_PU = 1e-4
@@ -39,29 +40,6 @@ def _input():
     return ta, va, 0.05 * np.sin(2 * np.pi * 0.8 * ta), real
 
 
-def _turning_start(m, t, v, delta, t0):
-    """The state at ``t[0]``: steady with the voltage turning as the angle starts to.
-
-    The kernel's rule (``motor_kernel.start_speed``): the angle's least-squares slope over
-    the first 0.2 s before V leaves ``V_0`` by 0.005, none below 1 mHz. Reached here
-    independently, by running the SciPy model 30 s on that rotation from the nominal
-    steady state.
-    """
-    keep = np.cumprod((t - t[0] <= 0.2) & (np.abs(v - v[0]) <= 0.005)).astype(bool)
-    slope = np.polyfit(t[keep] - t[0], delta[keep] - delta[0], 1)[0]
-    slope = 0.0 if abs(slope) < 2 * np.pi * 1e-3 else slope
-    v0 = float(v[0])
-
-    def rhs(tt, y):
-        dd = delta[0] + slope * tt
-        return derivatives(y, v0 * np.cos(dd), v0 * np.sin(dd), m, t0=t0)
-
-    op = steady_state(m, v_pu=v0, t0=t0)
-    sol = solve_ivp(rhs, (-30.0, 0.0), op.state, method="DOP853", rtol=1e-11, atol=1e-13)
-    assert sol.success
-    return sol.y[:, -1]
-
-
 def _reference(m, t, v, delta, t0, real):
     def u(tt):
         vv, dd = np.interp(tt, t, v), np.interp(tt, t, delta)
@@ -70,7 +48,7 @@ def _reference(m, t, v, delta, t0, real):
     def rhs(tt, y):
         return derivatives(y, *u(tt), m, t0=t0)
 
-    y0 = _turning_start(m, t, v, delta, t0)
+    y0 = turning_start(m, t, v, delta, t0)
     sol = solve_ivp(rhs, (t[0], t[-1] + W), y0, method="DOP853", dense_output=True,
                     rtol=1e-11, atol=1e-13, max_step=1e-3)  # fmt: skip
     assert sol.success
