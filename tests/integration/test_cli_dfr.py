@@ -371,14 +371,20 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
             steps[-1][1].append(line[4:])
     assert [cmd.split()[1] for cmd, _ in steps] == ["fit", "validate"]
     assert "--fixed-draws" in steps[0][0].split()
-    number = re.compile(r"-?\d+\.\d+")
+    # A number's sign goes with it: the static shares the fit warns of lie on a line the
+    # sag does not determine (the warning says so), where the last digits of another
+    # machine's, or another process's, arithmetic move a1..a6 far, signs included.
+    number = re.compile(r"[-+]?\d+\.\d+")
     for cmd, expected in steps:
         res = CliRunner().invoke(main, cmd.split()[1:])
         assert res.exit_code == 0, res.output
         got = res.output.splitlines()
         assert [number.sub("#", g) for g in got] == [number.sub("#", e) for e in expected]
         for g, e in zip(got, expected, strict=True):
-            for a, b in zip(number.findall(g), number.findall(e), strict=True):
+            pairs = list(zip(number.findall(g), number.findall(e), strict=True))
+            if "not a physical ZIP load" in e:  # a1..a6 lie on that line: f_m alone is fixed
+                pairs = pairs[-1:]
+            for a, b in pairs:
                 assert float(a) == pytest.approx(float(b), abs=0.01), (cmd, g)
     report = json.loads(Path("val.json").read_text())["events"][0]
     # 11 straddling rows: the reader flags each fault's inception row too.
