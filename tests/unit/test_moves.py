@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from jump_chains import run_jumping
 from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.inference.moves import MOVES, BlockMove, BlockState
 
@@ -219,24 +220,6 @@ def _two_modes(v):
     return float(np.logaddexp(a, b)), None
 
 
-def _run_jumping(name, logp, x0, pooled, *, burn, draws, seed):
-    def chain(i, rng):
-        move = MOVES[name](0.25 * np.eye(2), adapt_until=burn, independence=0.35)
-        x = np.array(x0[i], dtype=float)
-        lp = logp(x)[0]
-        out = []
-        for it in range(draws):
-            if it == burn and pooled is not None:
-                move.fit_jumps(pooled)
-            (x, lp, _), _ = move.step(BlockState(x, lp), logp, rng, it)
-            if it >= burn:
-                out.append(x)
-        return np.array(out), move
-
-    res = run_chains(chain, chain_generators(seed, 2), workers=1)
-    return np.stack([r[0] for r in res]), [r[1] for r in res]
-
-
 @pytest.mark.parametrize("name", ["am", "shear"])
 def test_jumps_weigh_two_separated_modes_right(name):
     """The jumps' Hastings ratio is what weighs the modes: a wrong one (a random walk's
@@ -249,7 +232,7 @@ def test_jumps_weigh_two_separated_modes_right(name):
     rng = np.random.default_rng(0)
     pooled = np.vstack([rng.normal([-3.0, 0.0], 0.5, (1000, 2)),
                         rng.normal([3.0, 0.0], 0.5, (1000, 2))])  # fmt: skip
-    x, moves = _run_jumping(name, _two_modes, [[-3.0, 0.0], [3.0, 0.0]], pooled,
+    x, moves = run_jumping(name, _two_modes, [[-3.0, 0.0], [3.0, 0.0]], pooled,
                             burn=2000, draws=22000, seed=11)  # fmt: skip
     flat = x.reshape(-1, 2)
     left = flat[:, 0] < 0

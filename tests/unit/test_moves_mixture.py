@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from loadbayes.core.parallel import chain_generators, run_chains
-from loadbayes.inference.moves import MOVES, BlockState
+from jump_chains import run_jumping
 from loadbayes.inference.moves.mixture import StudentTMixture
 
 
@@ -41,24 +40,6 @@ def test_the_mixture_density_is_normalised_across_its_components(broad):
     assert mix.weights.sum() == pytest.approx(1.0)
 
 
-def _run(name, logp, x0, pooled, *, burn, draws, seed, components):
-    def chain(i, rng):
-        move = MOVES[name](0.25 * np.eye(2), adapt_until=burn, independence=0.35)
-        x = np.array(x0[i], dtype=float)
-        lp = logp(x)[0]
-        out = []
-        for it in range(draws):
-            if it == burn:
-                move.fit_jumps(pooled, components=components)
-            (x, lp, _), _ = move.step(BlockState(x, lp), logp, rng, it)
-            if it >= burn:
-                out.append(x)
-        return np.array(out), move
-
-    res = run_chains(chain, chain_generators(seed, 2), workers=1)
-    return np.stack([r[0] for r in res]), [r[1] for r in res]
-
-
 W_LEFT, SD_LEFT, SD_RIGHT = 0.3, 0.3, 0.8
 
 
@@ -81,7 +62,7 @@ def test_mixture_jumps_weigh_modes_of_unequal_widths_right(name):
     rng = np.random.default_rng(1)
     pooled = np.vstack([rng.normal([-3.0, 0.0], SD_LEFT, (1000, 2)),
                         rng.normal([3.0, 0.0], SD_RIGHT, (1000, 2))])  # fmt: skip
-    x, moves = _run(name, _unequal_modes, [[-3.0, 0.0], [3.0, 0.0]], pooled, burn=2000,
+    x, moves = run_jumping(name, _unequal_modes, [[-3.0, 0.0], [3.0, 0.0]], pooled, burn=2000,
                     draws=22000, seed=12, components=2)  # fmt: skip
     flat = x.reshape(-1, 2)
     left = flat[:, 0] < 0
@@ -116,7 +97,7 @@ def test_mixture_jumps_keep_a_skewed_target_and_are_accepted_more_than_one_t():
     rng = np.random.default_rng(2)
     g = GAMMA.rvs(size=4000, random_state=rng)
     pooled = np.stack([g, g + 0.2 * rng.standard_normal(4000)], axis=1)
-    runs = {k: _run("shear", _skewed, [[1.5, 1.5], [1.0, 1.0]], pooled, burn=4000,
+    runs = {k: run_jumping("shear", _skewed, [[1.5, 1.5], [1.0, 1.0]], pooled, burn=4000,
                     draws=24000, seed=3, components=k) for k in (1, 10)}  # fmt: skip
     x, moves = runs[10]
     flat = x.reshape(-1, 2)
