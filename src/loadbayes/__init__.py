@@ -9,7 +9,11 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from loadbayes._numba_cache import purge_stale
 from loadbayes._version import __version__
+
+# Before any compiled module loads: numba's cache does not see a callee's file change.
+purge_stale()
 
 __all__ = [
     "__version__",
