@@ -42,7 +42,19 @@ from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 from loadbayes.models.parts_kernel import motor_drive, motor_into
 
-__all__ = ["Played", "play_draws"]
+__all__ = ["NOT_FINITE", "NOT_SETTLED", "NO_OPERATING_POINT", "PLAYS", "Played", "play_draws"]
+
+#: ``Played.why``: the loop converged (the draw plays through the fault); ...
+PLAYS = 0
+#: ... its sweeps stayed finite and did not settle, plain nor damped (what the load draws
+#: through the feeder never agrees with the voltage that drives it: the loop has no
+#: stable solution, the model's collapse); ...
+NOT_SETTLED = 1
+#: ... the numbers left the finite range (a motor's integrator, or the loop's current):
+#: a numerical failure; ...
+NOT_FINITE = 2
+#: ... a motor has no steady state at the operating point (before the fault).
+NO_OPERATING_POINT = 3
 
 _D_KEYS = tuple(MOTOR_D_DEFAULTS)
 _VSTALL, _TSTALL = _D_KEYS.index("vstall"), _D_KEYS.index("tstall")
@@ -55,7 +67,10 @@ class Played:
     ``p, q``: the recorded bus's P, Q; ``vl``: the load bus's ``|V_L|``; ``ok``: the loop
     converged (False where a motor has no steady state or the sweeps do not settle);
     ``stalled``: motor D stalled; ``tripped``: the electronics' share tripped at the
-    end; ``iterations``: the sweeps of the try that converged.
+    end; ``iterations``: the sweeps of the try that converged; ``why``: :data:`PLAYS`,
+    :data:`NOT_SETTLED`, :data:`NOT_FINITE` or :data:`NO_OPERATING_POINT` (where a motor
+    has no steady state at the operating point the loop's first sweep is ``NOT_FINITE``
+    too: ``fit/composite/predict.py`` tells the two apart by a fault-free record).
     """
 
     p: NDArray[np.float64]
@@ -65,6 +80,7 @@ class Played:
     stalled: NDArray[np.bool_]
     tripped: NDArray[np.float64]
     iterations: NDArray[np.int64]
+    why: NDArray[np.int64]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -217,24 +233,27 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 @numba.njit(cache=True, nogil=True)
 def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
-                its, v2):  # pragma: no cover - compiled  # fmt: skip
+                its, v2, why):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
-    # for up to 200 where they do not settle), then its stall and the electronics' trip
-    # read off |V_L| at every sample, as fit/composite/predict.py read them.
+    # for up to 200 where they do not settle or leave the finite numbers), ``why`` its
+    # outcome (PLAYS, NOT_SETTLED, NOT_FINITE, NO_OPERATING_POINT), then its stall and the
+    # electronics' trip read off |V_L| at every sample, as fit/composite/predict.py read them.
     n = t.size
     never = dp[0].copy()
     vl = np.empty(n)
     for i in range(first, shares.shape[0], every):
         u2 = _brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
         got = -1
+        why[i] = NO_OPERATING_POINT
         if np.all(np.isfinite(u2)):
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
                          0.0, p[i], q[i], u2)  # fmt: skip
-        if got == 0:
-            got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
-                         shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol,
-                         200, 0.5, p[i], q[i], u2)  # fmt: skip
+            if got <= 0:  # damped, where the plain sweeps bounce or leave the finite numbers
+                got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                             motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
+                             frcel, tol, 200, 0.5, p[i], q[i], u2)  # fmt: skip
+            why[i] = PLAYS if got > 0 else (NOT_SETTLED if got == 0 else NOT_FINITE)
         its[i] = got
         if got <= 0:
             ok[i] = False
@@ -340,16 +359,17 @@ def play_draws(
     v2 = np.zeros(0, complex) if ev.v2 is None else np.ascontiguousarray(ev.v2, dtype=complex)
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
+    why = np.zeros(n, np.int64)
     args = (np.ascontiguousarray(ev.t, dtype=float), np.ascontiguousarray(v),
             ev.delta is not None, gap, np.ascontiguousarray(steps, dtype=float),
             float(model.window_s), np.ascontiguousarray(z, dtype=complex), complex(p0, q0),
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
-            stalled, tripped, its, v2)  # fmt: skip
+            stalled, tripped, its, v2, why)  # fmt: skip
     k = max(1, min(threads or num_threads(), n))
     run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
     tripped[~ok] = np.nan
     if not model.electronics:
         tripped[:] = np.nan
-    return Played(p, q, vl, ok, stalled, tripped, its)
+    return Played(p, q, vl, ok, stalled, tripped, its, why)

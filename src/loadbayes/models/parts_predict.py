@@ -89,6 +89,7 @@ def predict_parts(
     tol: float = 1e-7,
     max_iterations: int = 60,
     damping: float | None = None,
+    why: list | None = None,
 ) -> tuple[NDArray, NDArray, int] | None:
     """P, Q at the recorded bus of one draw, and the iterations the loop took.
 
@@ -105,9 +106,14 @@ def predict_parts(
         The static Q's split among ``x^2, x, 1`` (``cq / sum(cq)`` of the fit).
     damping : float, optional
         Under-relaxation ``V_L += w (new - V_L)``. None: plain sweeps, then, where they do
-        not settle (a part that switches, motor D stalling or a motor slowing, can make
-        the sweeps bounce between two trajectories), again at ``w = 0.5`` for up to 200
-        sweeps, which settles them at the same fixed point.
+        not settle or leave the finite numbers (a part that switches, motor D stalling or
+        a motor slowing, can make the sweeps bounce between two trajectories), again at
+        ``w = 0.5`` for up to 200 sweeps, which settles them at the same fixed point.
+    why : list, optional
+        Where the draw fails, gets why: ``"no operating point"`` (a motor with no steady
+        state before the fault, read off the negative sequence's admittance), ``"not
+        settled"`` (the damped sweeps stayed finite and did not settle) or ``"not
+        finite"`` (``parts_play``'s ``NO_OPERATING_POINT``, ``NOT_SETTLED``, ``NOT_FINITE``).
 
     Returns
     -------
@@ -129,12 +135,12 @@ def predict_parts(
     vl = v - z * i0
     u2 = brake_of(model, c, v, event.v2, z, complex(p0, q0))
     if u2 is not None and not np.isfinite(u2).all():
-        return None  # a motor with no steady state
+        return _failed(why, "no operating point")  # a motor with no steady state
     for it in range(1, max_iterations + 1):
         ev = replace(event, v=np.abs(vl), delta=None if event.delta is None else np.angle(vl))
         cols = model.load_columns(ev, c, steps, u2)
         if cols is None:
-            return None
+            break  # a motor with no steady state or its numbers not finite
         col_p, col_qp, _ = cols
         xl = np.abs(vl) / abs(vl0)
         p_l = s_l0.real * col_p
@@ -148,10 +154,19 @@ def predict_parts(
             return s.real, s.imag, it
         vl = new if damping is None else vl + damping * (new - vl)
         if not np.isfinite(moved):
-            return None
-    if damping is None:
+            break
+    else:
+        if damping is not None:
+            return _failed(why, "not settled")
+    if damping is None:  # the plain sweeps bounced or left the finite numbers: damped
         return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
-                             max_iterations=200, damping=0.5)  # fmt: skip
+                             max_iterations=200, damping=0.5, why=why)  # fmt: skip
+    return _failed(why, "not finite")
+
+
+def _failed(why: list | None, reason: str) -> None:
+    if why is not None:
+        why.append(reason)
     return None
 
 
@@ -170,14 +185,17 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
     v = ev.v * np.exp(1j * (np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]))
     out = [np.full((n, ev.n), np.nan) for _ in range(3)]
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
-    tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
+    tripped, its, whys = np.full(n, np.nan), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    codes = {"no operating point": 3, "not settled": 1, "not finite": 2}  # parts_play's
     for j in range(n):
         params = {**model.motor_d_params}
         params |= {k: float(given[k][j]) for k in ("vstall", "tstall") if k in given}
         mj = replace(model, motor_d_params=params, vd1=float(given.get("vd1", [model.vd1] * n)[j]),
                      vd2=float(given.get("vd2", [model.vd2] * n)[j]))  # fmt: skip
-        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j])  # damped where it must
+        why: list[str] = []
+        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j], why=why)  # damped if must
         if got is None:
+            whys[j] = codes[why[-1]]
             continue
         mp, mq, its[j] = got
         ok[j] = True
@@ -192,7 +210,7 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
             stalled[j] = bool(np.any(np.abs(motor_d(ev.t, vl, **kw)[0] - run) > 1e-9))
         if model.electronics:
             tripped[j] = 1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1])
-    return Played(*out, ok, stalled, tripped, its)
+    return Played(*out, ok, stalled, tripped, its, whys)
 
 
 def motor_ratings(model, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:
