@@ -42,19 +42,30 @@ from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 from loadbayes.models.parts_kernel import motor_drive, motor_into
 
-__all__ = ["NOT_FINITE", "NOT_SETTLED", "NO_OPERATING_POINT", "PLAYS", "Played", "play_draws"]
+__all__ = [
+    "COLLAPSES",
+    "COLLAPSE_RATIO",
+    "FAILS",
+    "NO_OPERATING_POINT",
+    "PLAYS",
+    "Played",
+    "play_draws",
+]
 
 #: ``Played.why``: the loop converged (the draw plays through the fault); ...
 PLAYS = 0
-#: ... its sweeps stayed finite and did not settle, plain nor damped (what the load draws
-#: through the feeder never agrees with the voltage that drives it: the loop has no
-#: stable solution, the model's collapse); ...
-NOT_SETTLED = 1
-#: ... the numbers left the finite range (a motor's integrator, or the loop's current):
-#: a numerical failure; ...
-NOT_FINITE = 2
-#: ... a motor has no steady state at the operating point (before the fault).
+#: ... it did not (its sweeps did not settle, plain nor damped, or left the finite
+#: numbers) after a sweep drove the load bus below :data:`COLLAPSE_RATIO` of the recorded
+#: bus's voltage: what the load draws through the feeder has no voltage to settle at,
+#: the model's voltage collapse (``Played.low``); ...
+COLLAPSES = 1
+#: ... it did not, the load bus held above that: a numerical failure, not a collapse; ...
+FAILS = 2
 NO_OPERATING_POINT = 3
+#: The load bus's voltage, as a share of the recorded bus's at the same sample, below
+#: which a failed loop is a collapse: the feeder then drops four fifths of the voltage,
+#: a current no running load draws (a stalled motor draws 5-7 times its rating).
+COLLAPSE_RATIO = 0.2
 
 _D_KEYS = tuple(MOTOR_D_DEFAULTS)
 _VSTALL, _TSTALL = _D_KEYS.index("vstall"), _D_KEYS.index("tstall")
@@ -68,9 +79,10 @@ class Played:
     converged (False where a motor has no steady state or the sweeps do not settle);
     ``stalled``: motor D stalled; ``tripped``: the electronics' share tripped at the
     end; ``iterations``: the sweeps of the try that converged; ``why``: :data:`PLAYS`,
-    :data:`NOT_SETTLED`, :data:`NOT_FINITE` or :data:`NO_OPERATING_POINT` (where a motor
-    has no steady state at the operating point the loop's first sweep is ``NOT_FINITE``
-    too: ``fit/composite/predict.py`` tells the two apart by a fault-free record).
+    :data:`COLLAPSES`, :data:`FAILS` or :data:`NO_OPERATING_POINT` (where a motor has no
+    steady state at the operating point the loop's first sweep fails too:
+    ``fit/composite/predict_outcome.py`` tells them apart by a fault-free record);
+    ``low``: the lowest ``|V_L| / |V|`` any sweep drove the parts with.
     """
 
     p: NDArray[np.float64]
@@ -81,6 +93,7 @@ class Played:
     tripped: NDArray[np.float64]
     iterations: NDArray[np.int64]
     why: NDArray[np.int64]
+    low: NDArray[np.float64]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -181,7 +194,7 @@ def _brake_of(v, v2, z, s0, motors, shares, d_on):  # pragma: no cover - compile
 @numba.njit(cache=True, nogil=True)
 def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
            dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo,
-           u2):  # pragma: no cover - compiled  # fmt: skip
+           u2, low):  # pragma: no cover - compiled  # fmt: skip
     # One try of parts_predict.predict_parts' loop: the sweeps it took, -1 where a motor
     # has no steady state or the loop leaves the finite numbers, 0 where it does not settle.
     n = t.size
@@ -199,6 +212,8 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
     for it in range(1, max_it + 1):
         for k in range(n):
             vm[k] = abs(vl[k])
+            if abs(v[k]) > 0.0:  # the lowest |V_L| / |V| a sweep drove the parts with
+                low[0] = min(low[0], vm[k] / abs(v[k]))
         if has_angle:
             first = math.atan2(vl[0].imag, vl[0].real)
             for k in range(n):
@@ -233,10 +248,10 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 @numba.njit(cache=True, nogil=True)
 def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
-                its, v2, why):  # pragma: no cover - compiled  # fmt: skip
+                its, v2, why, low):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
     # for up to 200 where they do not settle or leave the finite numbers), ``why`` its
-    # outcome (PLAYS, NOT_SETTLED, NOT_FINITE, NO_OPERATING_POINT), then its stall and the
+    # outcome (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT), then its stall and the
     # electronics' trip read off |V_L| at every sample, as fit/composite/predict.py read them.
     n = t.size
     never = dp[0].copy()
@@ -248,12 +263,12 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
         if np.all(np.isfinite(u2)):
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
-                         0.0, p[i], q[i], u2)  # fmt: skip
+                         0.0, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
             if got <= 0:  # damped, where the plain sweeps bounce or leave the finite numbers
                 got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
                              motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
-                             frcel, tol, 200, 0.5, p[i], q[i], u2)  # fmt: skip
-            why[i] = PLAYS if got > 0 else (NOT_SETTLED if got == 0 else NOT_FINITE)
+                             frcel, tol, 200, 0.5, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
+            why[i] = PLAYS if got > 0 else (COLLAPSES if low[i] < COLLAPSE_RATIO else FAILS)
         its[i] = got
         if got <= 0:
             ok[i] = False
@@ -276,12 +291,12 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                     stalled[i] = True
                     break
         if el_on:
-            low = 1.0
+            least = 1.0
             ramp = 1.0
             for k in range(n):
                 ramp = min(max((vl[k] - vd2[i]) / (vd1[i] - vd2[i]), 0.0), 1.0)
-                low = min(low, ramp)
-            tripped[i] = 1.0 - (low + frcel * (ramp - low))
+                least = min(least, ramp)
+            tripped[i] = 1.0 - (least + frcel * (ramp - least))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -359,17 +374,17 @@ def play_draws(
     v2 = np.zeros(0, complex) if ev.v2 is None else np.ascontiguousarray(ev.v2, dtype=complex)
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
-    why = np.zeros(n, np.int64)
+    why, low = np.zeros(n, np.int64), np.full(n, np.inf)
     args = (np.ascontiguousarray(ev.t, dtype=float), np.ascontiguousarray(v),
             ev.delta is not None, gap, np.ascontiguousarray(steps, dtype=float),
             float(model.window_s), np.ascontiguousarray(z, dtype=complex), complex(p0, q0),
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
-            stalled, tripped, its, v2, why)  # fmt: skip
+            stalled, tripped, its, v2, why, low)  # fmt: skip
     k = max(1, min(threads or num_threads(), n))
     run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
     tripped[~ok] = np.nan
     if not model.electronics:
         tripped[:] = np.nan
-    return Played(p, q, vl, ok, stalled, tripped, its, why)
+    return Played(p, q, vl, ok, stalled, tripped, its, why, low)

@@ -90,6 +90,7 @@ def predict_parts(
     max_iterations: int = 60,
     damping: float | None = None,
     why: list | None = None,
+    low: list | None = None,
 ) -> tuple[NDArray, NDArray, int] | None:
     """P, Q at the recorded bus of one draw, and the iterations the loop took.
 
@@ -111,9 +112,11 @@ def predict_parts(
         ``w = 0.5`` for up to 200 sweeps, which settles them at the same fixed point.
     why : list, optional
         Where the draw fails, gets why: ``"no operating point"`` (a motor with no steady
-        state before the fault, read off the negative sequence's admittance), ``"not
-        settled"`` (the damped sweeps stayed finite and did not settle) or ``"not
-        finite"`` (``parts_play``'s ``NO_OPERATING_POINT``, ``NOT_SETTLED``, ``NOT_FINITE``).
+        state before the fault, read off the negative sequence's admittance) or
+        ``"failed"`` (the damped sweeps did not settle, or left the finite numbers).
+    low : list, optional
+        ``[x]``: lowered to the lowest ``|V_L| / |V|`` a sweep drove the parts with
+        (``parts_play.Played.low``: a failed loop is a collapse below ``COLLAPSE_RATIO``).
 
     Returns
     -------
@@ -137,6 +140,8 @@ def predict_parts(
     if u2 is not None and not np.isfinite(u2).all():
         return _failed(why, "no operating point")  # a motor with no steady state
     for it in range(1, max_iterations + 1):
+        if low is not None:  # the lowest |V_L| / |V| a sweep drives the parts with
+            low[0] = min(low[0], float(np.min(np.abs(vl) / np.abs(v))))
         ev = replace(event, v=np.abs(vl), delta=None if event.delta is None else np.angle(vl))
         cols = model.load_columns(ev, c, steps, u2)
         if cols is None:
@@ -155,13 +160,10 @@ def predict_parts(
         vl = new if damping is None else vl + damping * (new - vl)
         if not np.isfinite(moved):
             break
-    else:
-        if damping is not None:
-            return _failed(why, "not settled")
     if damping is None:  # the plain sweeps bounced or left the finite numbers: damped
         return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
-                             max_iterations=200, damping=0.5, why=why)  # fmt: skip
-    return _failed(why, "not finite")
+                             max_iterations=200, damping=0.5, why=why, low=low)  # fmt: skip
+    return _failed(why, "failed")
 
 
 def _failed(why: list | None, reason: str) -> None:
@@ -173,7 +175,13 @@ def _failed(why: list | None, reason: str) -> None:
 def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: float,
                    q_shares: NDArray, thresholds: Mapping[str, NDArray] | None = None):  # fmt: skip
     """``parts_play.play_draws``' answer, draw by draw in NumPy (the readable reference)."""
-    from loadbayes.models.parts_play import Played
+    from loadbayes.models.parts_play import (
+        COLLAPSE_RATIO,
+        COLLAPSES,
+        FAILS,
+        NO_OPERATING_POINT,
+        Played,
+    )
 
     th = np.atleast_2d(np.asarray(thetas, dtype=float))
     n = th.shape[0]
@@ -186,16 +194,19 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
     out = [np.full((n, ev.n), np.nan) for _ in range(3)]
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its, whys = np.full(n, np.nan), np.zeros(n, np.int64), np.zeros(n, np.int64)
-    codes = {"no operating point": 3, "not settled": 1, "not finite": 2}  # parts_play's
+    lows = np.full(n, np.inf)
     for j in range(n):
         params = {**model.motor_d_params}
         params |= {k: float(given[k][j]) for k in ("vstall", "tstall") if k in given}
         mj = replace(model, motor_d_params=params, vd1=float(given.get("vd1", [model.vd1] * n)[j]),
                      vd2=float(given.get("vd2", [model.vd2] * n)[j]))  # fmt: skip
         why: list[str] = []
-        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j], why=why)  # damped if must
-        if got is None:
-            whys[j] = codes[why[-1]]
+        low = [np.inf]
+        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j], why=why, low=low)
+        lows[j] = low[0]
+        if got is None:  # parts_play's codes: no operating point, a collapse or a failure
+            whys[j] = (NO_OPERATING_POINT if why[-1] == "no operating point" else
+                       COLLAPSES if low[0] < COLLAPSE_RATIO else FAILS)  # fmt: skip
             continue
         mp, mq, its[j] = got
         ok[j] = True
@@ -210,7 +221,7 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
             stalled[j] = bool(np.any(np.abs(motor_d(ev.t, vl, **kw)[0] - run) > 1e-9))
         if model.electronics:
             tripped[j] = 1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1])
-    return Played(*out, ok, stalled, tripped, its, whys)
+    return Played(*out, ok, stalled, tripped, its, whys, lows)
 
 
 def motor_ratings(model, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:

@@ -54,13 +54,7 @@ from loadbayes.fit.composite.predictive import events_of
 from loadbayes.fit.composite.validate import noise_precision, operating_point
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
-from loadbayes.models.parts_play import (
-    NO_OPERATING_POINT,
-    NOT_FINITE,
-    NOT_SETTLED,
-    PLAYS,
-    play_draws,
-)
+from loadbayes.models.parts_play import COLLAPSES, FAILS, NO_OPERATING_POINT, PLAYS, play_draws
 from loadbayes.posterior import Posterior
 
 __all__ = ["PRIOR_SOURCE", "Prediction", "load_result", "parse_priors", "predict", "sweep"]
@@ -96,7 +90,10 @@ class Prediction:
     #: ``band`` holds the fault's ``t_s`` and ``v`` alone.
     outcome: dict[str, Any] | None = None
     #: Per draw played and kept: ``index`` (of the pooled draws), the planning outcome
-    #: (``predict_scope.OUTCOME``), ``stalled``, and for a fit of parts its thresholds.
+    #: (``predict_scope.OUTCOME``), ``stalled``, and for a fit of parts its thresholds;
+    #: per draw picked: ``picked`` (its index), ``why`` (``predict_outcome``: 0 plays, 1
+    #: collapses, 2 fails, 3 no operating point), for a fit of parts ``low`` (the lowest
+    #: |V_L| / |V| its sweeps reached) and ``picked_thresholds``.
     outcomes: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     def to_dict(self, *, band: bool = True) -> dict[str, Any]:
@@ -321,7 +318,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         if model.electronics:
             tripped.append(float(played.tripped[j]))
     used = len(ps)
-    codes = (PLAYS, NOT_SETTLED, NOT_FINITE, NO_OPERATING_POINT)
+    codes = (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT)
     counts = {k: int(np.sum(why == c)) for k, c in zip(KINDS, codes, strict=True)}
     if counts["no_operating_point"] == pick.size:
         raise ValueError(f"no posterior draw has a steady state at the operating point "
@@ -381,7 +378,8 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         outcomes={"index": pick[kept], "q_excess_pu_s": np.array(excess),
                   "stalled": np.array(stalled if model.motor_d else [False] * used),
                   **{k: np.asarray(v)[kept] for k, v in th.items()},
-                  "picked": pick, "why": why},
+                  "picked": pick, "why": why, "low": played.low,
+                  "picked_thresholds": th},
     )  # fmt: skip
 
 

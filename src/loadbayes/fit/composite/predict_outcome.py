@@ -7,18 +7,23 @@ back there is an answer, not an error. Each draw played through a fault
 - **plays**: the fault is played to the record's end (a model of parts: its feeder loop
   converged, ``models/parts_play.PLAYS``); its P, Q and current enter the bands, its
   stall (motor D's, or the induction motor's by its torque curve) the stall probability;
-- **collapses**: a model of parts whose feeder loop has no settled solution in the fault
-  (``parts_play.NOT_SETTLED``): the sweeps stay finite and do not settle, plain nor damped
-  (at 0.5, up to 200 sweeps), while the same draw settles with no fault. What the load
-  draws through the feeder at the sag's bottom never agrees with the voltage that drives
-  it: the model's voltage collapse, its motors stalled for good (on the tests' stalling
-  load at a 44 % sag, the load bus ran away at the sag's bottom under damping 0.5, 0.25
-  and 0.1 alike while the record's end settled with motor D stalled). A collapse counts
-  as a stall in the stall probability (the load does not come back);
-- **fails numerically**: the numbers left the finite range (a motor's integrator, the
-  loop's current; ``parts_play.NOT_FINITE``, a ``zip+motor`` motor's integration) though
-  the draw has an operating point. Not a collapse: it says nothing about the load, and
-  is left out of every share but its own;
+- **collapses**: a model of parts whose feeder loop does not settle in the fault (plain
+  sweeps, then damped at 0.5 for up to 200; or they leave the finite numbers) after a
+  sweep drove its load bus below ``parts_play.COLLAPSE_RATIO`` (0.2) of the recorded
+  bus's voltage, while the same draw settles with no fault: what the load draws through
+  the feeder has no voltage to settle at, the model's voltage collapse
+  (``parts_play.COLLAPSES``). Measured on the tests' stalling load at a 44 % sag (a
+  draw traced), the load bus ran away at the sag's bottom (to 0.07 p.u. under a
+  recorded 0.56) under damping 0.5, 0.25 and 0.1 alike, the record's end settled with
+  motor D stalled;
+  with the cmld-lite fit of ``tests/feeder_generator.py``'s 15 % sag at a 50 % sag, the
+  draws given six times the feeder all collapse and the others all play. A collapse
+  counts as a stall in the stall probability (the load does not come back);
+- **fails numerically**: a loop that does not settle (or leaves the finite numbers) with
+  its load bus held above that share (``parts_play.FAILS``: sweeps bouncing between two
+  trajectories, say), or a ``zip+motor`` motor's integration that fails, though the draw
+  has an operating point. Not a collapse: it says nothing about the load, and is left
+  out of every share but its own;
 - **no operating point**: a motor of the draw has no steady state at the fit's operating
   point with no fault at all (found by playing the same draw through a fault-free
   record, :func:`fault_free`): a defect of the draw, not an answer about the fault. When
@@ -44,8 +49,8 @@ __all__ = ["KINDS", "fault_free", "no_band", "outcome", "parts_why"]
 #: The outcomes in ``outcome``'s order: the JSON's keys and their words.
 KINDS = {
     "plays": "play through",
-    "collapses": "collapse (the feeder loop has no settled solution: the load does not "
-                 "come back)",
+    "collapses": "collapse (the feeder loop has no voltage to settle at: the load does "
+                  "not come back)",
     "fails_numerically": "fail numerically (not a collapse: left out)",
     "no_operating_point": "have no steady state at the operating point (a defect of the "
                           "draw, left out)",
