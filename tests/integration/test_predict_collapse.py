@@ -24,6 +24,7 @@ import pytest
 from click.testing import CliRunner
 
 from loadbayes.cli import main
+from loadbayes.export.planning import select
 from loadbayes.fit.composite.predict import _model_of, predict
 from loadbayes.fit.composite.predict_outcome import fault_free
 from loadbayes.fit.composite.predict_scope import covered, sag_profile, static_q_terms
@@ -106,6 +107,8 @@ def test_a_depth_where_every_draw_collapses_is_said_and_the_sweep_goes_on(cmld_l
     assert set(deep.to_dict()["band"]) == {"t_s", "v"} and deep.draws["used"] == 0
     assert deep.stall["probability"] == 1.0  # the load does not come back
     plot_prediction(deep)  # the words where the band would be
+    with pytest.raises(ValueError, match="no draw plays through this fault"):
+        select(deep.outcomes, [0.5], outcome="q_excess_pu_s")  # export --planning's pick
     # The command's sweep: past the depth where all collapse it goes on.
     nc = tmp_path / "big.nc"
     post.to_netcdf(nc)
