@@ -19,22 +19,34 @@ shares are of its load bus's P, the bus behind its series impedance, i.e. the sa
 (0.25) and ``f_s`` with ``fractions['static']`` (0.45), as they are. (On the measured
 bus's P the motors' share would be 0.25 x 0.955 / 0.990 = 0.241.)
 
-**Measured** (this seed, with the sampler's share-only steps, ``fit/composite/shares.py``:
-R-hat 1.47 for ``f_motors``, 1.15 for ``f_s``, 1.02 for ``f_el``; the motors' and the
-feeder's parameters are at R-hat 2-3, so the chains have not converged at these draws,
-and the fit says so in its warnings):
+**Measured** (this seed, with the sampler's share-only steps, ``fit/composite/shares.py``,
+and each motor's X' held in 0.04-0.65 on its own base, ``part_priors.X_PRIME_RANGE``;
+re-measured on the commit that re-applied the limits, main having moved since they were
+first measured (the motor's turning start among other changes): R-hat 1.82 for
+``f_motors``, 1.35 for ``f_s``, 1.06 for ``f_el``, 1.83 for ``f_m_b``; the motors' X'
+and the feeder's at R-hat 2.0-2.1, so the chains have not converged at these draws, and
+the fit says so in its warnings):
 
 ========== ======= ================ ===================================
 quantity   truth   95% interval     result
 ========== ======= ================ ===================================
-f_motors   0.25    [0.214, 0.276]   covered (asserted)
-f_s        0.45    [0.233, 0.619]   covered (asserted)
-f_m_a      0.15    [0.089, 0.203]   covered (not asserted)
-f_m_b      0.10    [0.028, 0.153]   covered (not asserted)
-f_d        0.15    [0.079, 0.386]   covered (not asserted)
-f_el       0.15    [0.002, 0.381]   covered (not asserted)
-x_fd       0.101   [0.078, 0.167]   covered (load base; not asserted)
+f_motors   0.25    [0.214, 0.293]   covered (asserted)
+f_s        0.45    [0.223, 0.615]   covered (asserted)
+f_m_a      0.15    [0.131, 0.205]   covered (not asserted)
+f_m_b      0.10    [0.026, 0.126]   covered (not asserted)
+f_d        0.15    [0.097, 0.439]   covered (not asserted)
+f_el       0.15    [0.001, 0.364]   covered (not asserted)
+x_fd       0.101   [0.054, 0.172]   covered (load base; not asserted)
 ========== ======= ================ ===================================
+
+Without the X' limits (the same seed and commit otherwise): ``f_motors`` [0.214, 0.267]
+(R-hat 1.39), ``f_s`` [0.253, 0.621] (1.01), ``f_m_a`` [0.132, 0.206], ``f_m_b`` [0.026,
+0.093] (missed), ``f_d`` [0.080, 0.306], ``f_el`` [0.001, 0.380], ``x_fd`` [0.103, 0.172]
+(missed, by 0.002), motor A's X' [0.036, 0.129] (below the limit) at R-hat 2.57. (At
+the commit that first applied the limits it was the other way: ``x_fd`` [0.078, 0.167]
+covered without them, [0.066, 0.074] missed with them.) The missing tap (below) makes
+the fit's ``x_fd`` no reading of the true impedance either way (docs/composite.md, "X'
+held in its published range").
 
 Without the share-only steps (``share_steps=0``, the draws of before, measured on the
 same commit) ``f_s`` was [0.267, 0.426], missed (the assertion was a strict xfail), at

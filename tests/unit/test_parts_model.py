@@ -10,15 +10,18 @@ and the electronics against the WECC specification's rules written out here.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from feeder_generator import simulate
+from loadbayes.cases.griddyn.cmld import Cmld
+from loadbayes.fit.composite.describe_parts import describe_parts
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import DynamicLoadModel, ModelOptionError
 from loadbayes.models.dynamic import DYNAMIC_MODELS, dynamic_model
-from loadbayes.models.part_priors import MOTOR_CLASSES, prior_ranges
+from loadbayes.models.part_priors import MOTOR_CLASSES, X_PRIME_RANGE, prior_ranges
 from loadbayes.models.parts import electronics_fraction, load_bus, motor_d, motor_y2
 from sequence_generator import Motor
 
@@ -49,6 +52,66 @@ def test_each_motor_class_prior_lies_in_the_published_ranges(cls):
     assert 0.07 <= r["x_prime"][0] and r["x_prime"][1] <= 0.35
     assert 0.03 <= r["h_s"][0] and r["h_s"][1] <= 1.6
     assert 0.3 <= r["t0"][0] and r["t0"][1] <= 1.3
+    # The hard limits of X' (from published locked-rotor currents, X_PRIME_RANGE) lie a
+    # factor of 1.5 beyond the prior's 95 %: they refuse the unphysical, not the typical.
+    assert 1.5 * X_PRIME_RANGE[0] <= r["x_prime"][0] and r["x_prime"][1] * 1.5 <= X_PRIME_RANGE[1]
+
+
+def test_the_x_prime_limits_hold_the_published_locked_rotor_currents():
+    # Locked-rotor current about 1 / X' times rated: NEMA MG 1 / MG 10's 6-7 times (Designs
+    # B-D), 8-10 (Design E), code letters from A's 1.6 kVA/hp; WECC's typical motor A and B
+    # (GridDyn's CMLD record, Lp 0.12 and 0.19) inside; the region the real record's chains
+    # found (X' 0.017, a locked-rotor current near 60 times rated) outside.
+    lo, hi = X_PRIME_RANGE
+    for lrc in (1.6, 4.0, 6.0, 7.0, 10.0):
+        assert lo < 1 / lrc < hi
+    assert lo < Cmld().motor_a.lp < hi and lo < Cmld().motor_b.lp < hi
+    assert not lo <= 0.017 <= hi
+
+
+@pytest.mark.parametrize("name", ["slm", "cmld-lite"])
+def test_the_prior_refuses_an_x_prime_outside_its_limits_and_project_moves_it_inside(name):
+    model = dynamic_model(name, f_hz=50.0)
+    t = np.linspace(0, 0.3, 16)
+    ev = EventRecord(t, 1 - 0.2 * (t > 0.1), np.ones(16), 0.3 * np.ones(16), 0 * t, "e")
+    prior = model.default_prior([ev])
+    u = prior.project(prior.scale_free()[0][: len(model.theta_names)].copy())
+    assert prior.inside(u) and len(prior.limits) == len(model.motors)
+    for i, *_ in prior.limits:  # log(X' T0) at i + 1, log T0 at i + 5: X' = exp(difference)
+        for x in (0.017, 0.9):
+            bad = u.copy()
+            bad[i + 1] = math.log(x) + bad[i + 5]
+            assert not prior.inside(bad) and prior.log_u(bad) == -math.inf
+            moved = prior.project(bad)
+            assert prior.inside(moved)
+            assert X_PRIME_RANGE[0] < math.exp(moved[i + 1] - moved[i + 5]) < X_PRIME_RANGE[1]
+            others = np.delete(np.arange(u.size), i + 1)
+            assert np.array_equal(moved[others], bad[others])  # only X' moved
+    assert prior.to_dict()["limits"][0]["x_prime_min"] == X_PRIME_RANGE[0]
+    free = dynamic_model(name, f_hz=50.0, physical_region=False).default_prior([ev])
+    assert free.limits == ()
+    with pytest.raises(ModelOptionError, match="x_prime_min"):
+        dynamic_model(name, x_prime_min=0.5, x_prime_max=0.2)
+
+
+def test_a_posterior_piled_at_the_x_prime_limit_is_said_to_be_there():
+    model = dynamic_model("slm", f_hz=50.0)
+    rng = np.random.default_rng(0)
+    draws = {"rs": rng.uniform(0.02, 0.05, 400), "h_s": rng.uniform(0.2, 0.4, 400),
+             "x_prime": rng.uniform(0.12, 0.2, 400)}  # fmt: skip
+    post = SimpleNamespace(warnings=[], extra_json={})
+    describe_parts(post, draws, model, [])
+    assert post.extra_json["parts"]["at_physical_limit"] == []
+    draws["x_prime"] = X_PRIME_RANGE[0] * rng.uniform(1.0, 1.5, 400)
+    post = SimpleNamespace(warnings=[], extra_json={})
+    describe_parts(post, draws, model, [])
+    (said,) = post.extra_json["parts"]["at_physical_limit"]
+    assert said.startswith("x_prime [") and said.endswith(f"against {X_PRIME_RANGE[0]:g}")
+    assert any("at the physical region's limit" in w for w in post.warnings)
+    draws["x_prime"] = np.full(400, 0.017)  # a fit without the limits: outside, said so
+    post = SimpleNamespace(warnings=[], extra_json={})
+    describe_parts(post, draws, dynamic_model("slm", physical_region=False), [])
+    assert post.extra_json["parts"]["unphysical"] == ["x_prime 0.017 (median)"]
 
 
 @pytest.mark.parametrize("s", [0.0, 0.015, 0.05])

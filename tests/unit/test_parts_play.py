@@ -82,6 +82,7 @@ def test_the_compiled_play_is_predict_parts(name, window, fault, n, seed):
     got = play_draws(model, event, theta, P0, Q0, q_sh, th)
     ref = play_reference(model, event, theta, P0, Q0, q_sh, th)
     np.testing.assert_array_equal(got.ok, ref.ok)
+    np.testing.assert_array_equal(got.why, ref.why)  # plays, not settled, not finite, ...
     np.testing.assert_array_equal(got.iterations[ref.ok], ref.iterations[ref.ok])
     for a, b in ((got.p, ref.p), (got.q, ref.q), (got.vl, ref.vl), (got.tripped, ref.tripped)):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-8)  # NaN where failed, in both
@@ -107,7 +108,8 @@ def test_the_answer_does_not_depend_on_the_threads():
     theta, q_sh, th = _draws(model, 9, 8)
     one = play_draws(model, event, theta, P0, Q0, q_sh, th, threads=1)
     three = play_draws(model, event, theta, P0, Q0, q_sh, th, threads=3)
-    for a, b in zip((one.p, one.q, one.vl, one.ok, one.stalled, one.tripped, one.iterations),
+    for a, b in zip((one.p, one.q, one.vl, one.ok, one.stalled, one.tripped, one.iterations,
+                     one.why),
                     (three.p, three.q, three.vl, three.ok, three.stalled, three.tripped,
-                     three.iterations), strict=True):  # fmt: skip
+                     three.iterations, three.why), strict=True):  # fmt: skip
         np.testing.assert_array_equal(a, b)

@@ -94,13 +94,7 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
             "sweep": [
                 {"depth": d, **p.to_dict(band=False)} for d, p in zip(depths, preds, strict=True)
             ],
-            "stall_depth": stall_depth(
-                depths,
-                [p.stall and p.stall["probability"] for p in preds],
-                prob=prob,
-                duration=duration,
-                part=(preds[0].stall or {}).get("part", "motor D"),
-            ),
+            "stall_depth": _stall_depth(stall_depth, depths, preds, prob, duration),
         }
     else:
         pred = predict(result, sag=sag, duration=duration, recovery=recovery, angle=angle,
@@ -125,13 +119,37 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
     if not quiet:
         if sweep_spec:
             for d, p in zip(depths, preds, strict=True):
-                st = "" if p.stall is None else (f"stall {p.stall['probability']:.2f} "
+                st = "" if p.stall is None or p.stall["probability"] is None else (
+                    f"stall {p.stall['probability']:.2f} "
                                                  f"[{p.stall['interval'][0]:.2f}, "
                                                  f"{p.stall['interval'][1]:.2f}]")  # fmt: skip
                 flag = " extrapolated" if p.extrapolation["extrapolated"] else ""
+                if p.outcome is not None:  # some draws did not play: their shares, in words
+                    flag += "; " + p.outcome["message"]
                 click.echo(f"depth {d:.3g}: {st}{flag}")
             click.echo(doc["stall_depth"]["message"])
             click.echo(preds[-1].extrapolation["message"])
         else:
             for line in pred.summary_lines():
                 click.echo(line)
+
+
+def _stall_depth(stall_depth, depths, preds, prob, duration):
+    """The sweep's stall depth over the depths that have a stall probability.
+
+    A depth where every draw fails numerically has none: it is left out, and said.
+    """
+    part = (preds[0].stall or {}).get("part", "motor D")
+    probs = [p.stall and p.stall["probability"] for p in preds]
+    if preds[0].stall is None:
+        return stall_depth(depths, probs, prob=prob, duration=duration, part=part)
+    keep = [i for i, x in enumerate(probs) if x is not None]
+    if not keep:
+        words = "no depth has a draw that plays or collapses: no stall curve"
+        return {"depth": None, "interval": [None, None], "levels": None, "message": words}
+    out = stall_depth([depths[i] for i in keep], [probs[i] for i in keep], prob=prob,
+                      duration=duration, part=part)  # fmt: skip
+    if len(keep) < len(depths):
+        gone = ", ".join(f"{depths[i]:.3g}" for i in range(len(depths)) if i not in keep)
+        out["message"] += f" (left out: {gone}, where every draw failed numerically)"
+    return out

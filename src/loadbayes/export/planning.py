@@ -80,7 +80,10 @@ def select(outcomes: Mapping[str, np.ndarray], quantiles: Sequence[float], *,
     each draw played with. Among draws of equal outcome the first played is taken.
     """
     x = np.asarray(outcomes[outcome], dtype=float)
-    if x.size == 0 or not np.all(np.isfinite(x)):
+    if x.size == 0:  # predict_outcome.py: every draw collapsed or failed at this fault
+        raise ValueError("no draw plays through this fault (see predict's outcome): no "
+                         "played draw to pick a planning ensemble from")  # fmt: skip
+    if not np.all(np.isfinite(x)):
         raise ValueError(f"the prediction's {outcome} is not finite for every draw played")
     stalled = outcomes.get("stalled")
     picks = []

@@ -11,6 +11,10 @@ to 0.1, X' 0.08 to 0.3, H 0.05 to 1.5 s) and narrow enough that a 0.4 s window d
 let them run outside: the prior's 2.5 % and 97.5 % quantiles are printed by
 :func:`prior_ranges` and tested to lie inside those ranges. The ``slm`` motor (the
 synthesis load model of Chinese practice, one lumped motor) takes the union of A and B.
+Beside the log-normal priors, each motor is held in its physical region by hard limits
+(Rs <= 0.1, H >= 0.05 s and :data:`X_PRIME_RANGE` on its own base), the ``slm`` motor
+too: motors in parallel, each in that region on its own base, make one whose X' on the
+sum of their ratings is a rating-weighted harmonic mean of theirs, in the same region.
 
 The feeder (the substation transformer and the feeder as one series impedance): X on
 the load's own base (``|S|`` at the event's first sample), median 0.10 (WECC's default
@@ -41,6 +45,7 @@ __all__ = [
     "THRESHOLD_PRIORS",
     "THRESHOLD_RANGES",
     "VD_GAP",
+    "X_PRIME_RANGE",
     "PartsPrior",
     "draw_thresholds",
     "parts_prior",
@@ -93,6 +98,26 @@ MOTOR_CLASSES: Mapping[str, Mapping] = MappingProxyType(
     }
 )
 
+#: A three-phase motor's transient reactance X' on its own base, as hard limits of its
+#: physical region (``PartsModel.x_prime_min, x_prime_max``). Its locked-rotor current is
+#: about ``1 / |Rs + Rr + jX'|`` times rated, and published locked-rotor currents bound
+#: it: NEMA MG 1 (12.35, the maxima for Designs B, C, D; MG 10 Table 2-1 as the EASA
+#: handbook gives it) 6 to 7 times rated for Designs B to D and 8 to 10 for Design E; the
+#: code letters' locked-rotor kVA per hp (about the multiple of rated current) run from A
+#: (below 3.15, mid-range 1.6) to N (12.5) in use, G to M for standard motors; the
+#: locked-rotor power factor is about 0.2 (IEEE Std 141), at most about 0.5 for small
+#: motors, so X' carries most of that impedance. The WECC composite load model's motor
+#: defaults (WECC MVWG, "WECC Composite Load Model Specifications", 2015; the default
+#: CMLDBLU2 records of PNNL's load-model data tool, LMDT) put motor A's Lp at 0.12 and
+#: B's at 0.19, at 5 to 8 times rated, inside the classes' published X' of 0.08 to 0.3
+#: (the module docstring). Both limits lie a factor of two beyond those ranges, so
+#: that no motor a source describes is refused: X' >= 0.04 is a locked-rotor current of
+#: at most 20 times rated at a power factor up to 0.5 (0.05 * sqrt(1 - 0.5^2) = 0.043),
+#: X' <= 0.65 one of at least about 1.5 times (below code A's mid-range 1.6). They hold
+#: the motor classes' priors' 2.5 % and 97.5 % quantiles with room
+#: (``tests/unit/test_parts_model.py``).
+X_PRIME_RANGE = (0.04, 0.65)
+
 #: The feeder's X on the load's base: (median, sd_log).
 FEEDER_X = (0.10, 0.5)
 
@@ -126,10 +151,12 @@ class PartsPrior:
     tau_shape: float = 1e-3
     tau_rate: float = 1e-9
     positive: int | None = 0
-    #: Each motor's physical region as hard limits: ``(i, rs_max, h_min)`` with ``i`` the
-    #: index of its first coordinate (``log(Rs T0)``; ``log(H / T0)`` at ``i + 4``,
-    #: ``log T0`` at ``i + 5``). Empty: no limits (the log-normal priors alone).
-    limits: tuple[tuple[int, float, float], ...] = ()
+    #: Each motor's physical region as hard limits: ``(i, rs_max, h_min, x_min, x_max)``
+    #: with ``i`` the index of its first coordinate (``log(Rs T0)``; ``log(X' T0)`` at
+    #: ``i + 1``, ``log(H / T0)`` at ``i + 4``, ``log T0`` at ``i + 5``): Rs <= rs_max,
+    #: H >= h_min, x_min <= X' <= x_max on the motor's own base (:data:`X_PRIME_RANGE`
+    #: says where X's come from). Empty: no limits (the log-normal priors alone).
+    limits: tuple[tuple[int, float, float, float, float], ...] = ()
     #: Coordinates held in ``[lo, hi]``: ``(i, lo, hi)`` (the thresholds' physical ranges).
     ranges: tuple[tuple[int, float, float], ...] = ()
     #: ``(i, j, gap)``: ``u[j] <= u[i] - gap`` (the electronics' Vd2 below Vd1).
@@ -167,8 +194,10 @@ class PartsPrior:
 
     def inside(self, u: np.ndarray) -> bool:
         """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold."""
-        for i, rs_max, h_min in self.limits:
+        for i, rs_max, h_min, x_min, x_max in self.limits:
             if u[i] - u[i + 5] > math.log(rs_max) or u[i + 4] + u[i + 5] < math.log(h_min):
+                return False
+            if not math.log(x_min) <= u[i + 1] - u[i + 5] <= math.log(x_max):
                 return False
         for i, lo, hi in self.ranges:
             if not lo <= u[i] <= hi:
@@ -178,9 +207,11 @@ class PartsPrior:
     def project(self, u: np.ndarray, margin: float = 0.05) -> np.ndarray:
         """``u`` moved just inside each motor's physical region (a start for the sampler)."""
         u = np.array(u, dtype=float)
-        for i, rs_max, h_min in self.limits:
+        for i, rs_max, h_min, x_min, x_max in self.limits:
             u[i] = min(u[i], math.log(rs_max) - margin + u[i + 5])
             u[i + 4] = max(u[i + 4], math.log(h_min) + margin - u[i + 5])
+            lo, hi = math.log(x_min) + margin + u[i + 5], math.log(x_max) - margin + u[i + 5]
+            u[i + 1] = min(max(u[i + 1], lo), hi)
         for i, lo, hi in self.ranges:
             u[i] = min(max(u[i], lo + 1e-3 * (hi - lo)), hi - 1e-3 * (hi - lo))
         for i, j, gap in self.order:
@@ -190,7 +221,10 @@ class PartsPrior:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (for the output's settings)."""
         return {
-            "limits": [{"coordinate": i, "rs_max": r, "h_min": h} for i, r, h in self.limits],
+            "limits": [
+                {"coordinate": i, "rs_max": r, "h_min": h, "x_prime_min": xl, "x_prime_max": xh}
+                for i, r, h, xl, xh in self.limits
+            ],
             "ranges": [{"coordinate": i, "low": lo, "high": hi} for i, lo, hi in self.ranges],
             "order": [{"above": i, "below": j, "gap": g} for i, j, g in self.order],
             "gaussian": {"mean": self.mean.tolist(), "sd": np.sqrt(np.diag(self.cov)).tolist()},
@@ -277,7 +311,8 @@ def parts_prior(model, events) -> PartsPrior:
     groups = ((n, n + k), (n + k, n + k + 2))
     s = max(float(np.max(np.hypot(e.p, e.q))) for e in events)
     first = 1 if model.feeder else 0
-    limits = tuple((first + 6 * j, model.rs_max, model.h_min) for j in range(len(model.motors)))
+    region = (model.rs_max, model.h_min, model.x_prime_min, model.x_prime_max)
+    limits = tuple((first + 6 * j, *region) for j in range(len(model.motors)))
     ranges = tuple((index[k], *THRESHOLD_RANGES[k]) for k in model.thresholds)
     order = ((index["vd1"], index["vd2"], VD_GAP),) if "vd1" in index else ()
     return PartsPrior(np.concatenate(means) if means else np.zeros(0), cov, groups,

@@ -70,6 +70,7 @@ from loadbayes.models.part_priors import (
     MOTOR_KEYS,
     THRESHOLD_COORDS,
     THRESHOLD_PRIORS,
+    X_PRIME_RANGE,
     PartsPrior,
     parts_prior,
 )
@@ -123,11 +124,14 @@ class PartsModel:
     #: (0: point samples, as simulators write them).
     window_s: float = 0.0
     #: Hold each motor in the physical region a planner can use (Rs <= ``rs_max``, H >=
-    #: ``h_min`` on its own base) as hard limits of its prior; False: the log-normal
-    #: priors alone, and a fit outside the region is only said.
+    #: ``h_min``, ``x_prime_min`` <= X' <= ``x_prime_max`` on its own base; X' from
+    #: published locked-rotor currents, ``part_priors.X_PRIME_RANGE``) as hard limits of
+    #: its prior; False: the log-normal priors alone, and a fit outside is only said.
     physical_region: bool = True
     rs_max: float = 0.1
     h_min: float = 0.05
+    x_prime_min: float = X_PRIME_RANGE[0]
+    x_prime_max: float = X_PRIME_RANGE[1]
     vd1: float = 0.70
     vd2: float = 0.50
     frcel: float = 0.0
@@ -166,6 +170,8 @@ class PartsModel:
             raise ModelOptionError(f"{{share_steps}} {self.share_steps!r}: 0 to 10000 rounds")
         if not (math.isfinite(self.window_s) and 0 <= self.window_s <= 1):
             raise ModelOptionError(f"{{window_s}} {self.window_s!r}: 0 to 1 s")
+        if not 0 < self.x_prime_min < self.x_prime_max:
+            raise ModelOptionError("{x_prime_min} and {x_prime_max}: 0 < x_prime_min < x_prime_max")
         if not 0 <= self.vd2 < self.vd1 <= 1.2:
             raise ModelOptionError("{vd1} and {vd2}: 0 <= vd2 < vd1")
         unknown = set(self.motor_d_params) - set(MOTOR_D_DEFAULTS)
@@ -438,6 +444,7 @@ class PartsModel:
             "f_hz": self.f_hz, "rx": self.rx, "negative_sequence": self.negative_sequence,
             "window_s": self.window_s, "physical_region": self.physical_region,
             "rs_max": self.rs_max, "h_min": self.h_min,
+            "x_prime_min": self.x_prime_min, "x_prime_max": self.x_prime_max,
             "vd1": self.vd1, "vd2": self.vd2, "frcel": self.frcel,
             "fit_thresholds": self.fit_thresholds,
             "motor_d_params": {**MOTOR_D_DEFAULTS, **self.motor_d_params},

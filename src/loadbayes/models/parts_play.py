@@ -42,7 +42,32 @@ from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
 from loadbayes.models.parts_kernel import motor_drive, motor_into
 
-__all__ = ["Played", "play_draws"]
+__all__ = [
+    "COLLAPSES",
+    "COLLAPSE_RATIO",
+    "FAILS",
+    "NO_OPERATING_POINT",
+    "PLAYS",
+    "Played",
+    "play_draws",
+]
+
+#: ``Played.why``: the loop converged (the draw plays through the fault); ...
+PLAYS = 0
+#: ... it did not (its sweeps did not settle, plain nor damped, or left the finite
+#: numbers) after a sweep drove the load bus below :data:`COLLAPSE_RATIO` of the recorded
+#: bus's voltage: what the load draws through the feeder has no voltage to settle at,
+#: the model's voltage collapse (``Played.low``); ...
+COLLAPSES = 1
+#: ... it did not, the load bus held above that: a numerical failure, not a collapse; ...
+FAILS = 2
+NO_OPERATING_POINT = 3
+#: The load bus's voltage, as a share of the recorded bus's at the same sample, below
+#: which a failed loop is a collapse: the feeder then drops four fifths of the voltage,
+#: a current no running load draws (a stalled motor draws 5-7 times its rating).
+#: Measured (``tests/integration/test_predict_collapse.py``): draws that collapse reach
+#: 0.001-0.024, draws that play stay above 0.82.
+COLLAPSE_RATIO = 0.2
 
 _D_KEYS = tuple(MOTOR_D_DEFAULTS)
 _VSTALL, _TSTALL = _D_KEYS.index("vstall"), _D_KEYS.index("tstall")
@@ -55,7 +80,11 @@ class Played:
     ``p, q``: the recorded bus's P, Q; ``vl``: the load bus's ``|V_L|``; ``ok``: the loop
     converged (False where a motor has no steady state or the sweeps do not settle);
     ``stalled``: motor D stalled; ``tripped``: the electronics' share tripped at the
-    end; ``iterations``: the sweeps of the try that converged.
+    end; ``iterations``: the sweeps of the try that converged; ``why``: :data:`PLAYS`,
+    :data:`COLLAPSES`, :data:`FAILS` or :data:`NO_OPERATING_POINT` (where a motor has no
+    steady state at the operating point the loop's first sweep fails too:
+    ``fit/composite/predict_outcome.py`` tells them apart by a fault-free record);
+    ``low``: the lowest ``|V_L| / |V|`` any sweep drove the parts with.
     """
 
     p: NDArray[np.float64]
@@ -65,6 +94,8 @@ class Played:
     stalled: NDArray[np.bool_]
     tripped: NDArray[np.float64]
     iterations: NDArray[np.int64]
+    why: NDArray[np.int64]
+    low: NDArray[np.float64]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -165,7 +196,7 @@ def _brake_of(v, v2, z, s0, motors, shares, d_on):  # pragma: no cover - compile
 @numba.njit(cache=True, nogil=True)
 def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
            dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo,
-           u2):  # pragma: no cover - compiled  # fmt: skip
+           u2, low):  # pragma: no cover - compiled  # fmt: skip
     # One try of parts_predict.predict_parts' loop: the sweeps it took, -1 where a motor
     # has no steady state or the loop leaves the finite numbers, 0 where it does not settle.
     n = t.size
@@ -183,6 +214,8 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
     for it in range(1, max_it + 1):
         for k in range(n):
             vm[k] = abs(vl[k])
+            if abs(v[k]) > 0.0:  # the lowest |V_L| / |V| a sweep drove the parts with
+                low[0] = min(low[0], vm[k] / abs(v[k]))
         if has_angle:
             first = math.atan2(vl[0].imag, vl[0].real)
             for k in range(n):
@@ -217,24 +250,27 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 @numba.njit(cache=True, nogil=True)
 def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
-                its, v2):  # pragma: no cover - compiled  # fmt: skip
+                its, v2, why, low):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
-    # for up to 200 where they do not settle), then its stall and the electronics' trip
-    # read off |V_L| at every sample, as fit/composite/predict.py read them.
+    # for up to 200 where they do not settle or leave the finite numbers), ``why`` its
+    # outcome (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT), then its stall and the
+    # electronics' trip read off |V_L| at every sample, as fit/composite/predict.py read them.
     n = t.size
     never = dp[0].copy()
     vl = np.empty(n)
     for i in range(first, shares.shape[0], every):
         u2 = _brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
         got = -1
+        why[i] = NO_OPERATING_POINT
         if np.all(np.isfinite(u2)):
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
-                         0.0, p[i], q[i], u2)  # fmt: skip
-        if got == 0:
-            got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
-                         shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol,
-                         200, 0.5, p[i], q[i], u2)  # fmt: skip
+                         0.0, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
+            if got <= 0:  # damped, where the plain sweeps bounce or leave the finite numbers
+                got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                             motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
+                             frcel, tol, 200, 0.5, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
+            why[i] = PLAYS if got > 0 else (COLLAPSES if low[i] < COLLAPSE_RATIO else FAILS)
         its[i] = got
         if got <= 0:
             ok[i] = False
@@ -257,12 +293,12 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                     stalled[i] = True
                     break
         if el_on:
-            low = 1.0
+            least = 1.0
             ramp = 1.0
             for k in range(n):
                 ramp = min(max((vl[k] - vd2[i]) / (vd1[i] - vd2[i]), 0.0), 1.0)
-                low = min(low, ramp)
-            tripped[i] = 1.0 - (low + frcel * (ramp - low))
+                least = min(least, ramp)
+            tripped[i] = 1.0 - (least + frcel * (ramp - least))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -340,16 +376,17 @@ def play_draws(
     v2 = np.zeros(0, complex) if ev.v2 is None else np.ascontiguousarray(ev.v2, dtype=complex)
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
     tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
+    why, low = np.zeros(n, np.int64), np.full(n, np.inf)
     args = (np.ascontiguousarray(ev.t, dtype=float), np.ascontiguousarray(v),
             ev.delta is not None, gap, np.ascontiguousarray(steps, dtype=float),
             float(model.window_s), np.ascontiguousarray(z, dtype=complex), complex(p0, q0),
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
-            stalled, tripped, its, v2)  # fmt: skip
+            stalled, tripped, its, v2, why, low)  # fmt: skip
     k = max(1, min(threads or num_threads(), n))
     run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
     tripped[~ok] = np.nan
     if not model.electronics:
         tripped[:] = np.nan
-    return Played(p, q, vl, ok, stalled, tripped, its)
+    return Played(p, q, vl, ok, stalled, tripped, its, why, low)

@@ -89,6 +89,8 @@ def predict_parts(
     tol: float = 1e-7,
     max_iterations: int = 60,
     damping: float | None = None,
+    why: list | None = None,
+    low: list | None = None,
 ) -> tuple[NDArray, NDArray, int] | None:
     """P, Q at the recorded bus of one draw, and the iterations the loop took.
 
@@ -105,9 +107,16 @@ def predict_parts(
         The static Q's split among ``x^2, x, 1`` (``cq / sum(cq)`` of the fit).
     damping : float, optional
         Under-relaxation ``V_L += w (new - V_L)``. None: plain sweeps, then, where they do
-        not settle (a part that switches, motor D stalling or a motor slowing, can make
-        the sweeps bounce between two trajectories), again at ``w = 0.5`` for up to 200
-        sweeps, which settles them at the same fixed point.
+        not settle or leave the finite numbers (a part that switches, motor D stalling or
+        a motor slowing, can make the sweeps bounce between two trajectories), again at
+        ``w = 0.5`` for up to 200 sweeps, which settles them at the same fixed point.
+    why : list, optional
+        Where the draw fails, gets why: ``"no operating point"`` (a motor with no steady
+        state before the fault, read off the negative sequence's admittance) or
+        ``"failed"`` (the damped sweeps did not settle, or left the finite numbers).
+    low : list, optional
+        ``[x]``: lowered to the lowest ``|V_L| / |V|`` a sweep drove the parts with
+        (``parts_play.Played.low``: a failed loop is a collapse below ``COLLAPSE_RATIO``).
 
     Returns
     -------
@@ -129,12 +138,14 @@ def predict_parts(
     vl = v - z * i0
     u2 = brake_of(model, c, v, event.v2, z, complex(p0, q0))
     if u2 is not None and not np.isfinite(u2).all():
-        return None  # a motor with no steady state
+        return _failed(why, "no operating point")  # a motor with no steady state
     for it in range(1, max_iterations + 1):
+        if low is not None:  # the lowest |V_L| / |V| a sweep drives the parts with
+            low[0] = min(low[0], float(np.min(np.abs(vl) / np.abs(v))))
         ev = replace(event, v=np.abs(vl), delta=None if event.delta is None else np.angle(vl))
         cols = model.load_columns(ev, c, steps, u2)
         if cols is None:
-            return None
+            break  # a motor with no steady state or its numbers not finite
         col_p, col_qp, _ = cols
         xl = np.abs(vl) / abs(vl0)
         p_l = s_l0.real * col_p
@@ -148,17 +159,29 @@ def predict_parts(
             return s.real, s.imag, it
         vl = new if damping is None else vl + damping * (new - vl)
         if not np.isfinite(moved):
-            return None
-    if damping is None:
+            break
+    if damping is None:  # the plain sweeps bounced or left the finite numbers: damped
         return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
-                             max_iterations=200, damping=0.5)  # fmt: skip
+                             max_iterations=200, damping=0.5, why=why, low=low)  # fmt: skip
+    return _failed(why, "failed")
+
+
+def _failed(why: list | None, reason: str) -> None:
+    if why is not None:
+        why.append(reason)
     return None
 
 
 def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: float,
                    q_shares: NDArray, thresholds: Mapping[str, NDArray] | None = None):  # fmt: skip
     """``parts_play.play_draws``' answer, draw by draw in NumPy (the readable reference)."""
-    from loadbayes.models.parts_play import Played
+    from loadbayes.models.parts_play import (
+        COLLAPSE_RATIO,
+        COLLAPSES,
+        FAILS,
+        NO_OPERATING_POINT,
+        Played,
+    )
 
     th = np.atleast_2d(np.asarray(thetas, dtype=float))
     n = th.shape[0]
@@ -170,14 +193,20 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
     v = ev.v * np.exp(1j * (np.zeros(ev.n) if ev.delta is None else ev.delta - ev.delta[0]))
     out = [np.full((n, ev.n), np.nan) for _ in range(3)]
     ok, stalled = np.zeros(n, bool), np.zeros(n, bool)
-    tripped, its = np.full(n, np.nan), np.zeros(n, np.int64)
+    tripped, its, whys = np.full(n, np.nan), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    lows = np.full(n, np.inf)
     for j in range(n):
         params = {**model.motor_d_params}
         params |= {k: float(given[k][j]) for k in ("vstall", "tstall") if k in given}
         mj = replace(model, motor_d_params=params, vd1=float(given.get("vd1", [model.vd1] * n)[j]),
                      vd2=float(given.get("vd2", [model.vd2] * n)[j]))  # fmt: skip
-        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j])  # damped where it must
-        if got is None:
+        why: list[str] = []
+        low = [np.inf]
+        got = predict_parts(mj, event, th[j], p0, q0, q_shares[j], why=why, low=low)
+        lows[j] = low[0]
+        if got is None:  # parts_play's codes: no operating point, a collapse or a failure
+            whys[j] = (NO_OPERATING_POINT if why[-1] == "no operating point" else
+                       COLLAPSES if low[0] < COLLAPSE_RATIO else FAILS)  # fmt: skip
             continue
         mp, mq, its[j] = got
         ok[j] = True
@@ -192,7 +221,7 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
             stalled[j] = bool(np.any(np.abs(motor_d(ev.t, vl, **kw)[0] - run) > 1e-9))
         if model.electronics:
             tripped[j] = 1.0 - float(electronics_fraction(vl, mj.vd1, mj.vd2, mj.frcel)[-1])
-    return Played(*out, ok, stalled, tripped, its)
+    return Played(*out, ok, stalled, tripped, its, whys, lows)
 
 
 def motor_ratings(model, event: EventRecord, theta: NDArray, p0: NDArray) -> dict[str, NDArray]:

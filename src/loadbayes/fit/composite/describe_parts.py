@@ -4,7 +4,7 @@ For a :class:`~loadbayes.models.parts_model.PartsModel` fit (``slm``, ``cmld-lit
 
 - **physical**: the shares are on their simplex by construction; each motor's Rs and H
   on its own base are checked against the physical region a planner can use (Rs <= 0.1,
-  H >= 0.05 s, :data:`PHYSICAL`), on the posterior's median and interval;
+  H >= 0.05 s, X' 0.04 to 0.65, :data:`PHYSICAL`), on the posterior's median and interval;
 - **left to the prior**: a motor, feeder or threshold parameter whose posterior spread
   (of the log, where its prior is log-normal) is more than :data:`PRIOR_DRIVEN` of the
   prior's was not determined by the events, and is said to be the prior's (its
@@ -21,13 +21,19 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.models.part_priors import FEEDER_X, MOTOR_CLASSES, THRESHOLD_PRIORS
+from loadbayes.models.part_priors import (
+    FEEDER_X,
+    MOTOR_CLASSES,
+    THRESHOLD_PRIORS,
+    X_PRIME_RANGE,
+)
 from loadbayes.models.parts_model import NEG_SEQ_MIN
 
 __all__ = ["PHYSICAL", "PRIOR_DRIVEN", "describe_parts", "parts_residuals", "prior_driven"]
 
-#: The physical region of a motor on its own base: Rs at most 0.1, H at least 0.05 s.
-PHYSICAL = {"rs": (None, 0.1), "h_s": (0.05, None)}
+#: The physical region of a motor on its own base: Rs at most 0.1, H at least 0.05 s,
+#: X' in the range published locked-rotor currents allow (``part_priors.X_PRIME_RANGE``).
+PHYSICAL = {"rs": (None, 0.1), "h_s": (0.05, None), "x_prime": X_PRIME_RANGE}
 #: Posterior sd of a log-parameter over the prior's above which it is the prior's.
 PRIOR_DRIVEN = 0.7
 
@@ -149,17 +155,20 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
               prior_driven(model, draws, hdi_prob)]  # fmt: skip
     unphysical = []
     at_limit = []
+    # The model's own limits (a user may move them), each side checked where it has one.
+    region = {"rs": (None, model.rs_max), "h_s": (model.h_min, None),
+              "x_prime": (model.x_prime_min, model.x_prime_max)}  # fmt: skip
     for t in model._tags:
         for key, (low, high) in PHYSICAL.items():
             x = np.asarray(draws[key + t], dtype=float).ravel()
             med = float(np.median(x))
             if (low is not None and med < low) or (high is not None and med > high):
                 unphysical.append(f"{key + t} {med:.3g} (median)")
-            limit = model.rs_max if key == "rs" else model.h_min
             lo, hi = _interval(x, hdi_prob)
-            near = hi > 0.97 * limit if key == "rs" else lo < 1.03 * limit
-            if model.physical_region and near:
-                at_limit.append(f"{key + t} [{lo:.3g}, {hi:.3g}] against {limit:g}")
+            for limit, near in ((region[key][1], hi > 0.97 * (region[key][1] or 0)),
+                                (region[key][0], lo < 1.03 * (region[key][0] or 0))):  # fmt: skip
+                if model.physical_region and limit is not None and near:
+                    at_limit.append(f"{key + t} [{lo:.3g}, {hi:.3g}] against {limit:g}")
     words["prior_driven"] = driven
     words["at_physical_limit"] = at_limit
     if at_limit:
@@ -175,8 +184,8 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
         )
     if unphysical:
         post.warnings.append(
-            "outside the physical region of a motor (Rs <= 0.1, H >= 0.05 s on its base): "
-            + ", ".join(unphysical)
+            "outside the physical region of a motor (Rs <= 0.1, H >= 0.05 s, X' "
+            f"{X_PRIME_RANGE[0]:g} to {X_PRIME_RANGE[1]:g} on its base): " + ", ".join(unphysical)
         )
     used = []
     for k, ev in enumerate(events):

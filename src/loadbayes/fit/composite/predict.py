@@ -16,6 +16,13 @@ the share of the electronics tripped, the time for P and Q to come back within 1
 their pre-fault values, and, in words, where the fault lies beyond what the fitted
 events covered (``predict_scope.covered``) and which priors then decide. :func:`sweep`
 repeats it over sag depths.
+
+A draw that does not play through the fault is an answer too
+(``predict_outcome.py``): the shares of the draws that play, that collapse (the feeder
+loop has no settled solution: counted as stalled) and that fail numerically (left out),
+each with its interval, and in words where no draw plays ("every draw collapses at this
+depth: no band"). Only a fit none of whose draws has a steady state at the operating
+point, with no fault at all, is refused: the question is wrong there, not the load.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.fit.composite.predict_outcome import KINDS, outcome, parts_why
 from loadbayes.fit.composite.predict_scope import (
     MEANING,
     bands,
@@ -46,7 +54,7 @@ from loadbayes.fit.composite.predictive import events_of
 from loadbayes.fit.composite.validate import noise_precision, operating_point
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.part_priors import THRESHOLD_PRIORS, draw_thresholds
-from loadbayes.models.parts_play import play_draws
+from loadbayes.models.parts_play import COLLAPSES, FAILS, NO_OPERATING_POINT, PLAYS, play_draws
 from loadbayes.posterior import Posterior
 
 __all__ = ["PRIOR_SOURCE", "Prediction", "load_result", "parse_priors", "predict", "sweep"]
@@ -77,8 +85,15 @@ class Prediction:
     band: dict[str, np.ndarray]
     prob: float
     warnings: list[str] = field(default_factory=list)
+    #: Where some draw did not play: each outcome's share (``predict_outcome.outcome``);
+    #: None where every draw plays (the JSON then has no ``outcome``). Where none plays,
+    #: ``band`` holds the fault's ``t_s`` and ``v`` alone.
+    outcome: dict[str, Any] | None = None
     #: Per draw played and kept: ``index`` (of the pooled draws), the planning outcome
-    #: (``predict_scope.OUTCOME``), ``stalled``, and for a fit of parts its thresholds.
+    #: (``predict_scope.OUTCOME``), ``stalled``, and for a fit of parts its thresholds;
+    #: per draw picked: ``picked`` (its index), ``why`` (``predict_outcome``: 0 plays, 1
+    #: collapses, 2 fails, 3 no operating point), for a fit of parts ``low`` (the lowest
+    #: |V_L| / |V| its sweeps reached) and ``picked_thresholds``.
     outcomes: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
     def to_dict(self, *, band: bool = True) -> dict[str, Any]:
@@ -86,9 +101,11 @@ class Prediction:
         out = {k: getattr(self, k) for k in ("fault", "operating_point", "draws", "prob",
                "thresholds", "stall", "electronics_tripped", "recovery", "coverage",
                "extrapolation", "warnings")}  # fmt: skip
+        if self.outcome is not None:
+            out["outcome"] = self.outcome
         if band:
             out["band"] = {k: [round(float(x), 7) for x in v] for k, v in self.band.items()}
-        return out
+        return out  # fmt: skip
 
     def summary_lines(self) -> list[str]:
         """What ``loadbayes predict`` prints: fault, stall, trip, thresholds, recovery, words."""
@@ -97,12 +114,16 @@ class Prediction:
             f"fault: {f['name']}, down to {f['v_min']:.3g} p.u. ({f['depth']:.0%} below "
             f"{f['v_pre']:.3g}) for {f['duration_s']:.3g} s; {self.draws['used']} draws"
         ]
+        if self.outcome is not None:
+            out.append(self.outcome["message"])
         if self.stall is not None:
             lo, hi = self.stall["interval"]
-            out.append(f"{self.stall.get('part', 'motor D')} stalls with probability "
-                       f"{self.stall['probability']:.2f} [{lo:.2f}, {hi:.2f}]")  # fmt: skip
-        if self.electronics_tripped is not None:
-            e = self.electronics_tripped
+            if self.stall["probability"] is not None:
+                c = " (a collapse counted as a stall)" if self.stall.get("n_collapsed") else ""
+                out.append(f"{self.stall.get('part', 'motor D')} stalls with probability "
+                           f"{self.stall['probability']:.2f} [{lo:.2f}, {hi:.2f}]{c}")  # fmt: skip
+        e = self.electronics_tripped
+        if e is not None and e["median"] is not None:
             out.append(f"electronics tripped: median {e['median']:.2f} "
                        f"[{e['interval'][0]:.2f}, {e['interval'][1]:.2f}]")  # fmt: skip
         for name, th in self.thresholds.items():
@@ -111,7 +132,7 @@ class Prediction:
                 how = "fitted" if th.get("fitted") else "from its prior"
                 out.append(f"{name} played: median {th['played']['median']:.3g} "
                            f"[{lo:.3g}, {hi:.3g}] ({how})")  # fmt: skip
-        for ch in ("p", "q"):
+        for ch in ("p", "q") if self.draws["used"] else ():
             r = self.recovery[ch]
             med = "never" if r["median"] is None else f"median {r['median']:.3g} s"
             out.append(f"{ch.upper()} back within 10%: {med}; not within the window in "
@@ -275,6 +296,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     shares = np.array([cq[i] / cq[i].sum() if abs(cq[i].sum()) > 1e-9 else [0.0, 0.0, 1.0]
                        for i in pick])  # fmt: skip
     played = play_draws(model, event, theta[pick], p0, q0, shares, th)
+    why = parts_why(model, event, theta[pick], p0, q0, shares, th, played)
     for j, i in enumerate(pick):
         if not played.ok[j]:
             failed += 1
@@ -296,32 +318,41 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         if model.electronics:
             tripped.append(float(played.tripped[j]))
     used = len(ps)
-    if not used:
+    codes = (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT)
+    counts = {k: int(np.sum(why == c)) for k, c in zip(KINDS, codes, strict=True)}
+    if counts["no_operating_point"] == pick.size:
         raise ValueError(f"no posterior draw has a steady state at the operating point "
-                         f"(P {p0:.4g}, Q {q0:.4g} at {v0:.4g} p.u.)")  # fmt: skip
+                         f"(P {p0:.4g}, Q {q0:.4g} at {v0:.4g} p.u.), even with no fault: "
+                         "a defect of the fit, not an answer about this fault")  # fmt: skip
+    out = outcome(counts, prob)
     lo, hi = 50 * (1 - prob), 50 * (1 + prob)
-    band = bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
-    warnings = list(notes)
-    if failed:
-        warnings.append(f"{failed} of {pick.size} draws have no steady state or no converged "
-                        "feeder loop in this fault and are left out (a motor that cannot "
-                        "run at the voltage: the band is of the rest)")  # fmt: skip
+    band = (bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
+            if used else {"t_s": t, "v": event.v})  # fmt: skip
+    warnings = list(notes)  # what did not play is said in ``outcome`` (its message)
     stall = None
-    if model.motor_d:
-        k = int(np.sum(stalled))
-        stall = {"probability": k / used, "interval": _jeffreys(k, used, prob),
-                 "n_stalled": k, "n": used,
+    if model.motor_d:  # a collapse is a stall for good; a numerical failure is left out
+        n_c = counts["collapses"]
+        k, n = int(np.sum(stalled)) + n_c, used + n_c
+        stall = {"probability": k / n if n else None,
+                 "interval": _jeffreys(k, n, prob) if n else [0.0, 1.0],
+                 "n_stalled": k, "n": n,
                  "interval_is": "Jeffreys interval of the share of draws that stall"}  # fmt: skip
+        if n_c:
+            stall["n_collapsed"] = n_c
+            stall["collapse"] = "counted as stalled: the load does not come back"
     el = None
     if model.electronics:
         x = np.array(tripped)
-        el = {"median": float(np.median(x)),
-              "interval": [float(v) for v in np.percentile(x, [lo, hi])]}  # fmt: skip
+        el = ({"median": float(np.median(x)),
+               "interval": [float(v) for v in np.percentile(x, [lo, hi])]} if used
+              else {"median": None, "interval": None, "note": "no draw plays"})  # fmt: skip
     recovery = {"p": _spread(np.array(rec_p), prob), "q": _spread(np.array(rec_q), prob),
                 "rule": "seconds after the clearing (the last sample below half the sag's "
                         "depth) from which the model's P (Q) stays within 10% of its "
                         "pre-fault value; not_within_window: share of draws still outside "
                         f"at the record's end ({fault['t_end_s']:.3g} s)"}  # fmt: skip
+    if not used:
+        recovery["note"] = "no draw plays: nothing recovers"
     thresholds = {}
     for name, (kind, c, s) in priors.items():
         user = (kind, c, s) != THRESHOLD_PRIORS[name]
@@ -343,10 +374,12 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
         thresholds=thresholds, stall=stall, electronics_tripped=el, recovery=recovery,
         coverage=cover, extrapolation=extrapolation(model, fault, cover, priors,
                                     left_to_prior(model, post.draws)), band=band,
-        prob=prob, warnings=warnings,
+        prob=prob, warnings=warnings, outcome=out,
         outcomes={"index": pick[kept], "q_excess_pu_s": np.array(excess),
                   "stalled": np.array(stalled if model.motor_d else [False] * used),
-                  **{k: np.asarray(v)[kept] for k, v in th.items()}},
+                  **{k: np.asarray(v)[kept] for k, v in th.items()},
+                  "picked": pick, "why": why, "low": played.low,
+                  "picked_thresholds": th},
     )  # fmt: skip
 
 

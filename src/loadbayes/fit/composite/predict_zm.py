@@ -18,6 +18,10 @@ still slowing down when the record ended). The
 probability is the share of draws that stall, with its Jeffreys interval. The
 thresholds of a fit of parts (motor D's stall voltage and time, the electronics' trip
 voltages) have no place here: they are listed with ``"used": false``.
+
+A draw whose motor's integration fails in the fault fails numerically, or has no
+operating point where it fails with no fault too (``predict_outcome.py``); with no
+feeder, nothing here collapses: a motor that does not come back is a stall.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.fit.composite.predict_outcome import outcome
 from loadbayes.fit.composite.predict_scope import (
     MEANING,
     bands,
@@ -143,12 +148,15 @@ def play_zip_motor(post, event, fault, cover, priors, p0, q0, v0, n_draws, prob,
     ps, qs, cur, noisy_p, noisy_q = [], [], [], [], []
     stalled, rec_p, rec_q, kept, excess, slip_end = [], [], [], [], [], []
     failed = 0
-    for i in pick:
+    why = np.zeros(pick.size, dtype=int)  # 0 plays, 2 fails numerically, 3 no operating point
+    for j, i in enumerate(pick):
         rs, xp, dx, tp, h, t0 = np.exp(theta[i])
-        out = integrate(t, event.v, delta, rs=rs, xp=xp, dx=dx, tp_s=tp, h_s=h, t0=t0,
-                        f_hz=f_hz, torque=tuple(abc[i]))  # fmt: skip
+        kw = dict(rs=rs, xp=xp, dx=dx, tp_s=tp, h_s=h, t0=t0, f_hz=f_hz, torque=tuple(abc[i]))
+        out = integrate(t, event.v, delta, **kw)
         if out is None or not (np.all(np.isfinite(out[0])) and abs(out[0][0]) > 0):
             failed += 1
+            flat = integrate(t, np.full(t.size, event.v[0]), None, **kw)  # with no fault
+            why[j] = 3 if flat is None or not np.all(np.isfinite(flat[0])) else 2
             continue
         pm, qm, states = out
         zp, zq = design(event, pm, qm)
@@ -169,20 +177,22 @@ def play_zip_motor(post, event, fault, cover, priors, p0, q0, v0, n_draws, prob,
         kept.append(int(i))
         excess.append(q_excess(t, mq, t_clear))
     used = len(ps)
-    if not used:
+    counts = {"plays": used, "collapses": 0, "fails_numerically": int(np.sum(why == 2)),
+              "no_operating_point": int(np.sum(why == 3))}  # fmt: skip
+    if counts["no_operating_point"] == pick.size:
         raise ValueError(f"no posterior draw's motor has a steady state at the operating "
-                         f"point ({v0:.4g} p.u.)")  # fmt: skip
-    band = bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
-    warnings = []
-    if failed:
-        warnings.append(f"{failed} of {pick.size} draws' motors have no steady state at the "
-                        "operating point and are left out (the band is of the rest)")  # fmt: skip
+                         f"point ({v0:.4g} p.u.), even with no fault: a defect of the fit, "
+                         "not an answer about this fault")  # fmt: skip
+    band = (bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
+            if used else {"t_s": t, "v": event.v})  # fmt: skip
+    warnings = []  # what did not play is said in ``outcome`` (predict_outcome.py)
     user = [n for n, v in priors.items() if v != THRESHOLD_PRIORS[n]]
     if user:
         warnings.append(f"--prior {', '.join(user)}: not used, a zip+motor fit has no motor D "
                         "and no electronics")  # fmt: skip
     k = int(np.sum(stalled))
-    stall = {"probability": k / used, "interval": jeffreys(k, used, prob), "n_stalled": k,
+    stall = {"probability": k / used if used else None,
+             "interval": jeffreys(k, used, prob) if used else [0.0, 1.0], "n_stalled": k,
              "n": used, "part": "the induction motor", "rule": STALL_RULE,
              "interval_is": "Jeffreys interval of the share of draws that stall"}  # fmt: skip
     recovery = {"p": spread(np.array(rec_p), prob), "q": spread(np.array(rec_q), prob),
@@ -216,10 +226,13 @@ def play_zip_motor(post, event, fault, cover, priors, p0, q0, v0, n_draws, prob,
         "band": band,
         "prob": prob,
         "warnings": warnings,
+        "outcome": outcome(counts, prob),
         "outcomes": {
             "index": np.array(kept, dtype=int),
             "q_excess_pu_s": np.array(excess),
             "stalled": np.array(stalled),
             "slip_end": np.array(slip_end),
+            "picked": pick,
+            "why": why,
         },
     }
