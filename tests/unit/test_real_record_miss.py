@@ -75,6 +75,16 @@ def test_reclose_miss_splits_the_error_in_time():
     assert m["later_p"] == pytest.approx(-2.0)
     assert m["later_q"] == pytest.approx(4.0)
     assert m["later_cover_q"] == 0.0
+    assert m["beyond_rows"] == 0 and np.isnan(m["beyond_q"])
+    # the fitted event's record ran 0.1 s past its clearing: the rows after that apart
+    rq = np.where(t > t_clear + 0.1, 6.0, rq)
+    m = reclose_miss(_validation(t, rp, rq), t_fault, t_clear, F, reach=0.1)
+    assert m["beyond_rows"] == int(np.sum(t > t_clear + 0.1))
+    assert m["beyond_q"] == pytest.approx(6.0)
+    assert m["within_q"] == pytest.approx(4.0)
+    assert m["later_q"] == pytest.approx(np.mean(rq[later]))
+    assert any("a stretch no fit of the first fault saw" in w
+               for w in _miss_words({"slm": m}, {}, {}, []))  # fmt: skip
 
 
 def _event(t, v, p, q):
@@ -104,7 +114,7 @@ def test_faults_apart_reads_the_records_alone():
 
 
 def test_miss_words_say_an_inrush_only_where_the_harmonic_rose():
-    m = {"slm": {"later_p": 0.2, "later_q": 5.0}}
+    m = {"slm": {"later_p": 0.2, "later_q": 5.0, "beyond_rows": 0}}
     own = {"slm": {"later_p": 0.1, "later_q": 3.0}}
     apart = {"rows": 14, "rms_p": 0.4, "mean_p": 0.1, "rms_q": 0.9, "mean_q": 0.8,
              "rms_v": 0.3, "steady_p": 0.2}  # fmt: skip
