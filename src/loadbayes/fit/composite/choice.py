@@ -55,8 +55,8 @@ class ModelChoice:
         return {"table": self.table, "best": self.best, "words": self.words}
 
 
-def _worst_rhat(fits) -> float:
-    """The largest R-hat over the scalar draws of a model's fits (NaN with one chain)."""
+def _worst_rhat(fits) -> float | None:
+    """The largest R-hat over the scalar draws of a model's fits (None with one chain)."""
     from loadbayes.core.convergence import summarize
 
     worst = []
@@ -65,7 +65,7 @@ def _worst_rhat(fits) -> float:
         x = [v for v in x if v.ndim == 2 and v.shape[0] >= 2 and np.ptp(v) > 0]
         if x:
             worst.append(np.nanmax(summarize(np.stack(x), tail=False)["r_hat"]))
-    return float(np.nanmax(worst)) if worst and not np.all(np.isnan(worst)) else float("nan")
+    return float(np.nanmax(worst)) if worst and not np.all(np.isnan(worst)) else None
 
 
 def _held_out(model, post, event, mask, seed):
@@ -81,7 +81,7 @@ def _words(rows: list[dict[str, Any]]) -> str:
     if len(rows) > 1:
         second = rows[1]
         gap, se = -second["d_elpd"], second["se_d_elpd"]
-        slow = [r for r in rows[:2] if r["r_hat"] >= RHAT_MAX]  # NaN (one chain): unjudged
+        slow = [r for r in rows[:2] if (r.get("r_hat") or 0.0) >= RHAT_MAX]  # None: unjudged
         if slow:
             worst = max(r["r_hat"] for r in slow)
             names = " and ".join(r["model"] for r in slow)
