@@ -33,7 +33,15 @@ import pandas as pd
 
 from loadbayes.studies.real_record import BAYS, SOURCE, events_of, find_record
 
-__all__ = ["PhysicalStudy", "html_section", "run", "text_table"]
+__all__ = [
+    "PhysicalStudy",
+    "faults_apart",
+    "html_section",
+    "reclose_miss",
+    "run",
+    "second_harmonic",
+    "text_table",
+]
 
 #: Iterations (burn-in) per chain, quick and full.
 QUICK, FULL = (4000, 2000), (24000, 6000)
