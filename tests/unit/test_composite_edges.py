@@ -172,8 +172,8 @@ def test_a_step_into_a_moving_level_read_through_windows_stays_the_windows_smear
     # a fault: the network answers the motor's current). The window spreads each step
     # over the two intervals beside the sample whose window holds it; the level's first
     # intervals after it joined the edge by the window's 2% growth, and the edge was read
-    # as a ramp the phasors resolve through them (GridDyn, 41% sag: T' 0.85 s for 0.2,
-    # NLS noise-free). They are the level's: the edge is the smear's two intervals. (A
+    # as a ramp the phasors resolve through them (GridDyn, 41% sag: T' 0.85-1.67 s for
+    # 0.2, NLS noise-free). They are the level's: the edge is the smear's two intervals. (A
     # level moving by less than the noise floor outside the edge is left in it: at 0.05%
     # noise here the record's noise estimate, inflated by the level's own drift, is.)
     t = np.arange(61) / F_HZ
