@@ -152,11 +152,17 @@ def simulate_case(case: dict[str, Any], *, generator: str | None = None) -> tupl
     )
 
 
-def event_records(df: Any, label: str) -> list:
-    """The package's EventRecord(s) of a generated ``t_s, v, p, q`` DataFrame (checked)."""
+def event_records(df: Any, label: str, *, angle: bool = False) -> list:
+    """The package's EventRecord(s) of a generated ``t_s, v, p, q`` DataFrame (checked).
+
+    ``angle``: read its ``angle_rad`` column too, as ``loadbayes fit composite`` reads a
+    table that has one (without it the motor sees no phase jump at the fault's edges).
+    """
     from loadbayes.measurements.events import events_from_arrays
 
     cols = {k: df[c].to_numpy(float) for k, c in (("t", "t_s"), ("v", "v"), ("p", "p"), ("q", "q"))}
+    if angle and "angle_rad" in df:
+        cols["angle"] = df["angle_rad"].to_numpy(float)
     names = {"t": "t_s", "v": "v", "p": "p", "q": "q", "f": "f", "angle": "angle_rad"}
     names["event"] = "event"
     return events_from_arrays(cols, np.arange(2, len(df) + 2), path=label, names=names)
