@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 522 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 520 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -38,7 +38,7 @@ from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
 from loadbayes.inference.moves import MOVES, BlockState
-from loadbayes.inference.moves.refresh import CoordinateRefresh
+from loadbayes.inference.moves.refresh import UniformRefresh
 
 __all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "REFRESH_SHARE",
            "ChainResult", "sample"]  # fmt: skip
@@ -58,11 +58,11 @@ JUMP_SHARE = 0.35
 #: record's first fault, whose T' has a long one-sided tail; the mixture 22-31%
 #: (docs/composite.md, "Jumps from regions"). A model of parts keeps one t.
 JUMP_COMPONENTS = 10
-#: Share of the iterations that also refresh one step's fraction across [0, 1]
-#: (inference.moves.refresh; half uniform, half a normal fitted to the pooled late
-#: burn-in): an edge's instant can have a minor mode the burn-in missed, which the jumps
-#: cannot leave; the real record's reclose, seed 4, ran 100,000 iterations per chain for
-#: a median of 24,000 (docs/composite.md, "A minor mode of an edge's instant").
+#: Share of the iterations that also refresh one step's fraction uniformly across
+#: [0, 1] (inference.moves.refresh): an edge's instant can have a minor mode the burn-in
+#: missed, which the jumps cannot leave; the real record's reclose, seed 4, ran 100,000
+#: iterations per chain for a median of 24,000 (docs/composite.md, "A minor mode of an
+#: edge's instant").
 REFRESH_SHARE = 0.1
 
 
@@ -232,7 +232,7 @@ class _Gibbs:
         self.own_moves = None if own is None else own()
         # The steps' fractions, refreshed now and then across [0, 1] (REFRESH_SHARE).
         nm, ns = problem.n_free, problem.n_steps
-        self.refresh = (CoordinateRefresh(range(nm, nm + ns), share=REFRESH_SHARE)
+        self.refresh = (UniformRefresh(range(nm, nm + ns), share=REFRESH_SHARE)
                         if ns and isinstance(problem, CompositeProblem) else None)  # fmt: skip
         # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
         self.late_burn: list[np.ndarray] | None = [] if jumps else None
@@ -504,8 +504,6 @@ def sample(
         regions = JUMP_COMPONENTS if isinstance(problem, CompositeProblem) else 1
         for g, _ in state:
             g.am.fit_jumps(late, components=regions)
-            if g.refresh is not None:  # the steps' refresh: its normals from the same draws
-                g.refresh.fit(late)
             g.late_burn = []
         out = run_chains(rest, generators, workers=workers, stop=stop)
     while extend is not None and not any(r.cut for r in out):
