@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 462 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 520 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -10,9 +10,11 @@ Student-t noise, the weights); ``log T0`` from its prior conditional. The moves 
 physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-moves
 :func:`sample` offers); the Metropolis moves also jump, after burn-in, from a t fitted to
 every chain's late burn-in pooled (:data:`JUMP_SHARE`); docs/composite.md, "The sampler"
-and "Jumps". A ``deadline`` (the time budget) holds from the first iteration: past it the
-chains end their burn-in and stop with what they drew (:class:`~loadbayes.inference.chain.
-Chain`), all cut to the same length (:attr:`ChainResult.cut` says how many iterations the
+and "Jumps". The steps' fractions are also refreshed across [0, 1] now and then
+(:data:`REFRESH_SHARE`): an edge's instant can have a minor mode the jumps cannot leave.
+A ``deadline`` (the time budget) holds from the first iteration: past it the chains end
+their burn-in and stop with what they drew (:class:`~loadbayes.inference.chain.Chain`),
+all cut to the same length (:attr:`ChainResult.cut` says how many iterations the
 deadline took); a run it never binds keeps its draws.
 """
 
@@ -36,8 +38,10 @@ from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
 from loadbayes.inference.moves import MOVES, BlockState
+from loadbayes.inference.moves.refresh import UniformRefresh
 
-__all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "ChainResult", "sample"]
+__all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "REFRESH_SHARE",
+           "ChainResult", "sample"]  # fmt: skip
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "shear"
@@ -54,6 +58,12 @@ JUMP_SHARE = 0.35
 #: record's first fault, whose T' has a long one-sided tail; the mixture 22-31%
 #: (docs/composite.md, "Jumps from regions"). A model of parts keeps one t.
 JUMP_COMPONENTS = 10
+#: Share of the iterations that also refresh one step's fraction uniformly across
+#: [0, 1] (inference.moves.refresh): an edge's instant can have a minor mode the burn-in
+#: missed, which the jumps cannot leave; the real record's reclose, seed 4, ran 100,000
+#: iterations per chain for a median of 24,000 (docs/composite.md, "A minor mode of an
+#: edge's instant").
+REFRESH_SHARE = 0.1
 
 
 @dataclass
@@ -220,6 +230,10 @@ class _Gibbs:
         # A model's own steps after the block move (a model of parts' thresholds).
         own = getattr(problem, "conditional_moves", None)
         self.own_moves = None if own is None else own()
+        # The steps' fractions, refreshed now and then across [0, 1] (REFRESH_SHARE).
+        nm, ns = problem.n_free, problem.n_steps
+        self.refresh = (UniformRefresh(range(nm, nm + ns), share=REFRESH_SHARE)
+                        if ns and isinstance(problem, CompositeProblem) else None)  # fmt: skip
         # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
         self.late_burn: list[np.ndarray] | None = [] if jumps else None
         # What a kept iteration stores, by name (ChainResult's fields).
@@ -251,6 +265,8 @@ class _Gibbs:
                 u, lp, sums = self.own_moves(u, lp, sums, logp, rng, rho=rho,
                                              tau=tau if wt is None else None,
                                              adapting=it < self.burn)  # fmt: skip
+            if self.refresh is not None:
+                u, lp, sums = self.refresh.step(BlockState(u, lp, sums), logp, rng)
             if problem.n_share_coords:
                 u = self._share_steps(u, lp, sums, tau, it)
 

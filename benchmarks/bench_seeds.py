@@ -1,0 +1,95 @@
+"""Seed to seed: how long the default composite fit of one event runs, per seed.
+
+Usage::
+
+    python benchmarks/bench_seeds.py events/event_001.csv --seeds 0-7
+    python benchmarks/bench_seeds.py events/event_001.csv --seeds 0-7 -- --draws 6000 \
+        --burn 2000 --until-converged
+
+Each seed runs ``loadbayes fit composite EVENT --seed S`` (plus anything after ``--``) in
+a fresh process; the table gives its iterations per chain and rounds (the run until
+converged), the CPU seconds of the whole process (imports and NLS included; measured
+with ``resource.getrusage`` of the children, so a shared machine's load does not count),
+the min bulk ESS and max R-hat over every reported quantity, and ``f_m`` and T' with
+their intervals; then the median iterations and the slowest seed's multiple of it (issue
+35: every seed under 3x the median). Wall times are not shown: on a shared machine they
+measure the other users. Not part of ``run_all.py`` (it needs an event file: the real
+record's, cut by ``loadbayes events``, docs/formats.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def _seeds(text: str) -> list[int]:
+    lo, _, hi = text.partition("-")
+    return list(range(int(lo), int(hi or lo) + 1))
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def run(event: str, seed: int, extra: list[str], out: Path) -> dict:
+    """One fit in a fresh process: its JSON's numbers and the process's CPU seconds."""
+    before = _cpu()
+    cmd = [sys.executable, "-m", "loadbayes", "fit", "composite", event, "--seed", str(seed),
+           "--json", str(out), "--quiet", "--force", *extra]  # fmt: skip
+    subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
+    cpu = _cpu() - before
+    fit = json.loads(out.read_text())
+    par = fit["parameters"]
+    judged = [v for v in par.values() if v.get("r_hat") is not None]
+    until = fit["settings"].get("until_converged") or {}
+    return {
+        "seed": seed,
+        "iterations": until.get("iterations_per_chain", fit["draws"]),
+        "rounds": len(until.get("rounds", [])) or 1,
+        "cpu_s": cpu,
+        "ess_min": min(v["ess_bulk"] for v in judged),
+        "r_hat_max": max(v["r_hat"] for v in judged),
+        **{
+            f"{k}_{s}": par[k][s]
+            for k in ("f_m", "t_prime_s")
+            for s in ("mean", "hdi_low", "hdi_high")
+        },
+    }
+
+
+def main() -> None:
+    argv = sys.argv[1:]
+    extra = argv[argv.index("--") + 1 :] if "--" in argv else []
+    argv = argv[: argv.index("--")] if "--" in argv else argv
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("event")
+    ap.add_argument("--seeds", default="0-7", help="a range, e.g. 0-7")
+    args = ap.parse_args(argv)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in _seeds(args.seeds):
+            r = run(args.event, seed, extra, Path(tmp) / f"fit_{seed}.json")
+            rows.append(r)
+            print(f"seed {seed}: {r['iterations']:>8,} iterations per chain "
+                  f"({r['rounds']} rounds), CPU {r['cpu_s']:6.1f} s, "
+                  f"min ESS {r['ess_min']:6.0f}, R-hat {r['r_hat_max']:.4f}; "
+                  f"f_m {r['f_m_mean']:.3f} [{r['f_m_hdi_low']:.3f}, {r['f_m_hdi_high']:.3f}], "
+                  f"T' {r['t_prime_s_mean']:.4f} [{r['t_prime_s_hdi_low']:.4f}, "
+                  f"{r['t_prime_s_hdi_high']:.4f}] s", flush=True)  # fmt: skip
+    its = np.array([r["iterations"] for r in rows], dtype=float)
+    med = float(np.median(its))
+    print(f"median {med:,.0f} iterations per chain; slowest {its.max() / med:.1f} x the median; "
+          f"median CPU {np.median([r['cpu_s'] for r in rows]):.1f} s")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
