@@ -14,6 +14,13 @@ sweep's trajectory decided) held as a constant impedance at that sample, so the 
 only carry the dynamic parts' lag. Where that equation has no root near the sweep's
 voltage the load's P-V nose lies below what the feeder can carry at that sample: a
 collapse, not a numerical failure (``parts_play.COLLAPSES``).
+
+What is left failing (the shallow fit at a 44 % sag: 15 of 100, traced on 4): the solved
+sweeps do settle, at trajectories that :func:`continues` rejects, the load bus jumping
+between two operating points of the draw's static Q from one sample to the next. A
+solve step by step in time (each sample from the last, the motors integrated with it, as
+a simulator does) would pick one; whole-waveform sweeps started from the previous
+sample's root settled fewer (see :func:`pv_root`).
 """
 
 from __future__ import annotations
