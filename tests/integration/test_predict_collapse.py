@@ -140,3 +140,18 @@ def test_no_steady_state_before_the_fault_is_refused_in_one_line(cmld_lite_nc, t
     assert r.exit_code == 2, r.output
     assert "Traceback" not in r.output and len(r.output.strip().splitlines()) == 1, r.output
     assert "no posterior draw has a steady state at the operating point" in r.output
+
+
+def test_the_fits_own_draws_do_not_fail_numerically_at_deep_sags(cmld_lite_nc):
+    # The fit as it is (no feeder made big): at 70 % and 80 % sags of 0.1 s, 100 draws,
+    # seed 0, measured 95 and 87 play, 5 and 13 collapse, none fails numerically, the
+    # same before each sample's load bus was solved on its P-V curve
+    # (models/parts_loop.py: it runs only where the sweeps alone fail). At most one of
+    # 200 may fail: these draws' loops settle, and a failure here is the solver's.
+    post = Posterior.from_netcdf(cmld_lite_nc)
+    fails = 0
+    for sag in (0.7, 0.8):
+        out = predict(post, sag=sag, duration=DURATION, draws=100, seed=0).outcome
+        assert out is not None and out["collapses"]["n"] >= 1, out  # deep enough to matter
+        fails += out["fails_numerically"]["n"]
+    assert fails <= 1, fails

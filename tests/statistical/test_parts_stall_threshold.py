@@ -73,9 +73,16 @@ outcomes (measured once, 42 s at a load average near 6): the draws that fail
 numerically (their loop does not settle with the load bus held up: the wild static Q,
 not a collapse) rise from 1 of 100 at 20 % to 51 at 44 %, those that collapse from 0 to
 4; the stall probability (a collapse counted as a stall) reaches 0.53 at 44 %, the stall
-depth 0.432 [0.219, not crossed]. (At 6000 draws, 13 depths x 400 draws:
-vstall [0.499, 0.673], sd 0.92 of the prior's; with the stall [0.583, 0.670], 0.44 of
-the prior's width, R-hat 1.018, ESS 269, the stall depth 0.328 [0.287, 0.375].)
+depth 0.432 [0.219, not crossed]. Since the loop solves each sample's load bus on
+its P-V curve where the sweeps alone do not settle (``models/parts_loop.py``; the draws
+at 1500 x 2, 100 a depth, 0.15 s sags; fails / collapses / plays): 20 % 1/0/99 ->
+0/0/100, 28 % 6/0/94 -> 3/0/97, 36 % 23/2/75 -> 7/4/89, 40 % 43/1/56 -> 14/15/71,
+44 % 51/4/45 -> 15/39/46: most of the draws that failed at 44 % have no root of their
+load bus's P-V equation at some sample (their extrapolated static Q's nose below the
+feeder's), a collapse; :data:`SHALLOW_FAILS_AT_36` bounds the 36 % sag's. (At 6000
+draws, 13 depths x 400 draws: vstall [0.499, 0.673], sd 0.92 of the prior's; with the
+stall [0.583, 0.670], 0.44 of the prior's width, R-hat 1.018, ESS 269, the stall depth
+0.328 [0.287, 0.375].)
 
 False-alarm rate: the coverage of the truth by a calibrated 95 % interval fails 5 % of
 the time (with the X' limits the stalled fit's interval holds the truth by 0.0004 at
@@ -236,3 +243,20 @@ SHALLOW_FAILS = (
 def test_the_sweep_without_a_stall_rises_to_one(swept_shallow):
     probs, _ = swept_shallow
     assert probs[0] == 0.0 and probs[-1] == 1.0, probs
+
+
+#: The shallow fit at a 36 % sag of 0.15 s, 100 draws, seed 0: its draws' feeder loops
+#: that fail numerically. Measured: 23 before each sample's load bus was solved with the
+#: static part (``models/parts_loop.py``), 7 after (4 collapse, 89 play). The bound
+#: leaves room for 3 more and catches the old loop's 23; deterministic (fixed seeds).
+SHALLOW_FAILS_AT_36 = 10
+
+
+def test_the_shallow_fits_deep_draws_rarely_fail_numerically(shallow):
+    from loadbayes.fit.composite.predict import predict
+
+    pred = predict(shallow[0], sag=0.36, duration=DUR, draws=100, seed=0)
+    out = pred.outcome
+    assert out is not None, "some draw collapses or fails at 36 % (measured 4 and 7)"
+    assert out["fails_numerically"]["n"] <= SHALLOW_FAILS_AT_36, out["message"]
+    assert out["plays"]["n"] >= 85, out["message"]  # 89 measured, 75 before

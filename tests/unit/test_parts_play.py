@@ -17,13 +17,16 @@ a vacuous pass fails.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.dynamic import dynamic_model
-from loadbayes.models.parts_play import play_draws
-from loadbayes.models.parts_predict import play_reference
+from loadbayes.models.parts_loop import pv_root
+from loadbayes.models.parts_play import COLLAPSES, play_draws
+from loadbayes.models.parts_predict import _pv_root, play_reference
 
 P0, Q0 = 0.9, 0.3
 
@@ -113,3 +116,70 @@ def test_the_answer_does_not_depend_on_the_threads():
                     (three.p, three.q, three.vl, three.ok, three.stalled, three.tripped,
                      three.iterations, three.why), strict=True):  # fmt: skip
         np.testing.assert_array_equal(a, b)
+
+
+#: A static Q extrapolated as the stalling load's shallow fit extrapolates it
+#: (``tests/statistical/test_parts_stall_threshold.py``: shares of ``x^2, x, 1`` like
+#: these, their sum one): +1 at the operating point, -160 times it at 0.56 p.u.
+WILD_Q = np.array([-1349.5, 2483.9, -1133.4])
+
+
+def test_where_the_static_q_swings_both_paths_tell_the_same():
+    # Draws 1, 3, 5, 7 get 20 % to 50 % of WILD_Q: the plain and the damped sweeps do not
+    # settle them; the tries that solve each sample's load bus tell each one as the
+    # reference does: its load bus's P-V equation has no root (a collapse), or the loop
+    # does not settle on one operating point (measured: 2 collapse, 2 fail). Draws that
+    # settle are checked against the feeder's loop, S_L recomputed from the parts.
+    model = dynamic_model("cmld-lite", f_hz=60.0)
+    event = _fault(0.3)
+    theta, q_sh, th = _draws(model, 8, 11)
+    w = np.linspace(0.2, 0.5, 4)[:, None]
+    q_sh[1::2] = w * WILD_Q + (1 - w) * np.array([0.0, 0.0, 1.0])
+    got = play_draws(model, event, theta, P0, Q0, q_sh, th)
+    ref = play_reference(model, event, theta, P0, Q0, q_sh, th)
+    np.testing.assert_array_equal(got.why, ref.why)
+    np.testing.assert_array_equal(got.iterations[ref.ok], ref.iterations[ref.ok])
+    for a, b in ((got.p, ref.p), (got.q, ref.q), (got.vl, ref.vl)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-8)
+    assert np.sum(got.iterations[1::2] == -2) >= 1, got.iterations  # no root: a collapse
+    assert np.all(got.why[got.iterations == -2] == COLLAPSES)
+    th_all = model.with_thresholds(theta, th)
+    for j in np.flatnonzero(got.ok):
+        mj = replace(model, motor_d_params={**model.motor_d_params,
+                                            **{k: float(th[k][j]) for k in ("vstall", "tstall")}},
+                     vd1=float(th["vd1"][j]), vd2=float(th["vd2"][j]))  # fmt: skip
+        # The loop stops where V_L moves by under 1e-7; the check recomputes S_L one step
+        # on, at V - Z I, which a swinging static Q moves by |Z dI/dV_L| times as much.
+        assert _loop_residual(mj, event, th_all[j], got.p[j], got.q[j], q_sh[j]) < 1e-5
+
+
+@pytest.mark.parametrize("p", [0.5, 1.2, 2.4, 2.6])
+def test_the_sample_solve_is_the_p_v_curve(p):
+    # A constant-P load behind a reactance X = 0.2 from |V| = 1 (no dynamic part):
+    # |V_L|^4 - |V_L|^2 + X^2 P^2 = 0, the upper root sqrt((1 + sqrt(1 - 4 X^2 P^2)) / 2)
+    # for P up to the nose 1 / (2 X) = 2.5, none past it: NaN, the collapse.
+    x = 0.2
+    got = pv_root(1.0, 1.0, 1.0, complex(0.0, -x), 0j, 0.0, 0.0, p, 0.0, 0.0, 0.0, 1.0)
+    ref = _pv_root(1.0, 1.0 + 0j, 1.0 + 0j, complex(0.0, x), complex(p, 0.0), [0.0, 0.0, p],
+                   [0.0, 0.0, 0.0], 1.0)  # fmt: skip
+    if p < 1 / (2 * x):
+        exact = np.sqrt((1 + np.sqrt(1 - 4 * x * x * p * p)) / 2)
+        assert abs(got - exact) < 1e-12 and abs(ref[1] - exact) < 1e-12, (got, exact)
+    else:
+        assert np.isnan(got) and ref is None
+
+
+def _loop_residual(model, event, theta, p, q, q_sh):
+    # |V - Z conj(S_L(V_L) / V_L) - V_L| at its largest: S_L from the parts at V_L.
+    c = model._split(theta)
+    v = event.v * np.exp(1j * event.delta)
+    z = complex(model.rx, 1.0) * model.feeder_x(P0, Q0, c)
+    vl = v - z * np.conj((p + 1j * q) / v)
+    i0 = np.conj(complex(P0, Q0) / v[0])
+    s_l0 = complex(P0, Q0) - z * abs(i0) ** 2
+    ev = replace(event, v=np.abs(vl), delta=np.angle(vl))
+    col_p, col_qp, _ = model.load_columns(ev, c, model.drive_of(event)[1], None)
+    xl = np.abs(vl) / abs(v[0] - z * i0)
+    q_s = s_l0.imag * (q_sh[0] * xl**2 + q_sh[1] * xl + q_sh[2])
+    s_l = s_l0.real * col_p + 1j * (s_l0.real * col_qp + q_s)
+    return float(np.max(np.abs(v - z * np.conj(s_l / vl) - vl)))

@@ -18,6 +18,16 @@ rule, as its ``divide`` loop), so the sweeps see the reference's numbers to roun
 ``tests/unit/test_parts_play.py`` checks every field against
 ``parts_predict.play_reference`` (``predict_parts`` draw by draw) to 1e-8.
 
+Where the plain and the damped sweeps do not settle, two more tries (plain, then damped
+at 0.5; ``parts_loop.SOLVE_SWEEPS`` each) solve every sample's load bus jointly with the
+static part's draw (``parts_loop.pv_root``: the P-V equation of that sample, the rest of
+the load held as a constant impedance there), so the sweeps carry only the dynamic
+parts' lag; a settled loop must then be the one a simulator's step reaches from the
+previous sample (``parts_loop.continues``), not one jumping between two operating points. Their
+last sweep finding no root at some sample is a collapse (the load's P-V nose below the
+feeder's). Draws that settled before keep their numbers byte for byte: the new tries run
+only where both old ones failed.
+
 The cost is now the motor integrators' (``benchmarks/bench_predict.py``: about 2.5 ms of
 CPU a draw of ``cmld-lite`` through a 1 s record at 240/s, some 28 sweeps of two motors;
 the NumPy loop took twice that). Fewer sweeps (an accelerated or a sample-by-sample
@@ -37,10 +47,11 @@ from numpy.typing import NDArray
 
 from loadbayes.core.parallel import num_threads, run_threads
 from loadbayes.measurements.record import EventRecord
-from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS, steady_state
+from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
 from loadbayes.models.part_priors import MOTOR_CLASSES
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
+from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
 from loadbayes.models.parts_kernel import motor_drive, motor_into
+from loadbayes.models.parts_loop import SOLVE_SWEEPS, brake_of, cdiv, continues, pv_root
 
 __all__ = [
     "COLLAPSES",
@@ -54,10 +65,11 @@ __all__ = [
 
 #: ``Played.why``: the loop converged (the draw plays through the fault); ...
 PLAYS = 0
-#: ... it did not (its sweeps did not settle, plain nor damped, or left the finite
-#: numbers) after a sweep drove the load bus below :data:`COLLAPSE_RATIO` of the recorded
-#: bus's voltage: what the load draws through the feeder has no voltage to settle at,
-#: the model's voltage collapse (``Played.low``); ...
+#: ... it did not (its sweeps did not settle, in none of the four tries, or left the
+#: finite numbers) after a sweep drove the load bus below :data:`COLLAPSE_RATIO` of the
+#: recorded bus's voltage, or the last try's last sweep found no root of some sample's
+#: P-V equation (``parts_loop.pv_root``): what the load draws through the feeder has no
+#: voltage to settle at, the model's voltage collapse (``Played.low``); ...
 COLLAPSES = 1
 #: ... it did not, the load bus held above that: a numerical failure, not a collapse; ...
 FAILS = 2
@@ -96,21 +108,6 @@ class Played:
     iterations: NDArray[np.int64]
     why: NDArray[np.int64]
     low: NDArray[np.float64]
-
-
-@numba.njit(cache=True, nogil=True)
-def _cdiv(a, b):  # pragma: no cover - compiled
-    # NumPy's complex division (its divide loop, Smith's rule): the reference's rounding.
-    br, bi = b.real, b.imag
-    if abs(br) >= abs(bi):
-        if br == 0.0 and bi == 0.0:
-            return complex(a.real / abs(br), a.imag / abs(br))
-        rat = bi / br
-        scl = 1.0 / (br + bi * rat)
-        return complex((a.real + a.imag * rat) * scl, (a.imag - a.real * rat) * scl)
-    rat = br / bi
-    scl = 1.0 / (bi + br * rat)
-    return complex((a.real * rat + a.imag) * scl, (a.imag * rat - a.real) * scl)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -157,50 +154,15 @@ def _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp,
 
 
 @numba.njit(cache=True, nogil=True)
-def _brake_of(v, v2, z, s0, motors, shares, d_on):  # pragma: no cover - compiled
-    # parts_predict.brake_of: |V2_L| = |V2 / (1 + Z Y2)| at the rows |V2| >= NEG_SEQ_MIN,
-    # Y2 the load's negative-sequence admittance at its operating point (as the I2
-    # channel's); empty without V2, NaNs where a motor has no steady state.
-    n_b = 0
-    for k in range(v2.size):
-        if abs(v2[k]) >= NEG_SEQ_MIN:
-            n_b += 1
-    if n_b == 0:
-        return np.zeros(0)
-    i0 = _cdiv(s0, v[0]).conjugate()
-    s_l0 = s0 - z * abs(i0) ** 2
-    v0 = abs(v[0] - z * i0)
-    y2p = complex(shares[shares.size - 1] / (v0 * v0), 0.0)
-    for j in range(motors.shape[0]):
-        m = motors[j]
-        pm0, qm0 = steady_state(m[0], m[1], m[2], m[3], m[5], v0, m[6], m[7], m[8], m[9])[3:]
-        if not math.isfinite(pm0):  # no steady state: the draw fails
-            return np.full(v2.size, math.nan)
-        xo = m[1] + m[2]
-        xmag = math.sqrt(xo * m[2])
-        xs = xo - xmag
-        rotor = complex(xo / (m[5] * m[3]) / 2.0, xs)
-        z2 = complex(m[0], xs) + _cdiv(1j * xmag * rotor, rotor + 1j * xmag)
-        y2p += shares[j] / pm0 * (_cdiv(1.0 + 0j, z2) + 1j * qm0 / (v0 * v0))
-    if d_on:
-        y2p += shares[motors.shape[0]] / (v0 * v0)
-    y2 = s_l0.real * y2p - 1j * s_l0.imag / (v0 * v0)
-    den = 1.0 + z * y2
-    u2 = np.zeros(v2.size)
-    for k in range(v2.size):
-        if abs(v2[k]) >= NEG_SEQ_MIN:
-            u2[k] = abs(_cdiv(v2[k], den))
-    return u2
-
-
-@numba.njit(cache=True, nogil=True)
 def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
-           dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo,
-           u2, low):  # pragma: no cover - compiled  # fmt: skip
+           dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo, u2, low,
+           solve):  # pragma: no cover - compiled  # fmt: skip
     # One try of parts_predict.predict_parts' loop: the sweeps it took, -1 where a motor
-    # has no steady state or the loop leaves the finite numbers, 0 where it does not settle.
+    # has no steady state or the loop leaves the finite numbers, 0 where it does not settle,
+    # -2 where (solve: each sample's V_L by parts_loop.pv_root) its last sweep found no
+    # root at some sample: the load's P-V nose below the feeder's, a collapse.
     n = t.size
-    i0 = _cdiv(s0, v[0]).conjugate()
+    i0 = cdiv(s0, v[0]).conjugate()
     vl0 = v[0] - z * i0
     s_l0 = s0 - z * abs(i0) ** 2  # the load bus's S before the event
     vl = np.empty(n, dtype=np.complex128)
@@ -210,7 +172,11 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
     vm, dl = np.empty(n), np.zeros(n)
     col_p, col_qp, pm, qm = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     states = np.empty((3, n))
+    ddv, root = np.zeros(n, dtype=np.complex128), np.full(n, math.nan)
     m_vl0 = abs(vl0)
+    f_s = shares[shares.size - 1]  # the static part's P and Q as polynomials of |V_L|
+    ap0, ap1, ap2 = s_l0.real * f_s * a_p[0], s_l0.real * f_s * a_p[1], s_l0.real * f_s * a_p[2]
+    aq0, aq1, aq2 = s_l0.imag * q_sh[0], s_l0.imag * q_sh[1], s_l0.imag * q_sh[2]
     for it in range(1, max_it + 1):
         for k in range(n):
             vm[k] = abs(vl[k])
@@ -225,26 +191,47 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
             return -1
         moved = 0.0
         bad = False
+        nose = False
         for k in range(n):
             xl = vm[k] / m_vl0
             p_l = s_l0.real * col_p[k]
             q_l = s_l0.real * col_qp[k] + s_l0.imag * (q_sh[0] * xl * xl + q_sh[1] * xl + q_sh[2])
-            cur[k] = _cdiv(complex(p_l, q_l), vl[k]).conjugate()
+            cur[k] = cdiv(complex(p_l, q_l), vl[k]).conjugate()
             new = v[k] - z * cur[k]
+            if solve and vm[k] > 0.0 and abs(v[k]) > 0.0:  # the sample's loop, solved
+                # settled where both the solve and the plain step stay (the loop's own
+                # residual below tol too)
+                moved = max(moved, abs(new - vl[k]))
+                dd = complex(p_l - (ap0 * xl * xl + ap1 * xl + ap2),
+                             q_l - (aq0 * xl * xl + aq1 * xl + aq2))  # fmt: skip
+                mk = pv_root(vm[k], vm[k], abs(v[k]), z.conjugate(), dd,
+                             ap0, ap1, ap2, aq0, aq1, aq2, m_vl0)  # fmt: skip
+                ddv[k], root[k] = dd, mk
+                if math.isfinite(mk):
+                    x = mk / m_vl0
+                    s_k = dd * (mk * mk / (vm[k] * vm[k])) + complex(
+                        ap0 * x * x + ap1 * x + ap2, aq0 * x * x + aq1 * x + aq2)  # fmt: skip
+                    new = cdiv(mk * mk + z.conjugate() * s_k, v[k].conjugate())
+                else:  # no root from here: held, and the sweep does not settle
+                    new = vl[k]
+                    nose = True
             d = abs(new - vl[k])
             if not math.isfinite(d):
                 bad = True
             elif d > moved:
                 moved = d
             vl[k] = new if damp <= 0.0 else vl[k] + damp * (new - vl[k])
-        if not bad and moved < tol:  # the fixed point: what the load draws drove it
+        if not bad and not nose and moved < tol:  # the fixed point: what the load draws drove it
+            if solve and not continues(v, vm, ddv, root, z, ap0, ap1, ap2, aq0, aq1, aq2,
+                                       m_vl0):  # fmt: skip
+                return 0  # it jumps between two operating points: not settled
             for k in range(n):
                 s = v[k] * cur[k].conjugate()
                 po[k], qo[k] = s.real, s.imag
             return it
         if bad:
             return -1
-    return 0
+    return -2 if nose else 0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -252,25 +239,38 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
                 its, v2, why, low):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
-    # for up to 200 where they do not settle or leave the finite numbers), ``why`` its
+    # for up to 200 where they do not settle or leave the finite numbers, then each
+    # sample solved, plain and damped), ``why`` its
     # outcome (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT), then its stall and the
     # electronics' trip read off |V_L| at every sample, as fit/composite/predict.py read them.
     n = t.size
     never = dp[0].copy()
     vl = np.empty(n)
     for i in range(first, shares.shape[0], every):
-        u2 = _brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
+        u2 = brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
         got = -1
         why[i] = NO_OPERATING_POINT
         if np.all(np.isfinite(u2)):
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
-                         0.0, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
+                         0.0, p[i], q[i], u2, low[i : i + 1], False)  # fmt: skip
             if got <= 0:  # damped, where the plain sweeps bounce or leave the finite numbers
                 got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
                              motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
-                             frcel, tol, 200, 0.5, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
-            why[i] = PLAYS if got > 0 else (COLLAPSES if low[i] < COLLAPSE_RATIO else FAILS)
+                             frcel, tol, 200, 0.5, p[i], q[i], u2, low[i : i + 1],
+                             False)  # fmt: skip
+            if got <= 0:  # neither settled: each sample's load bus solved with its load
+                got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                             motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
+                             frcel, tol, SOLVE_SWEEPS, 0.0, p[i], q[i], u2, low[i : i + 1],
+                             True)  # fmt: skip
+            if got <= 0:  # and damped at 0.5, where those bounce
+                got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                             motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
+                             frcel, tol, SOLVE_SWEEPS, 0.5, p[i], q[i], u2, low[i : i + 1],
+                             True)  # fmt: skip
+            why[i] = PLAYS if got > 0 else (COLLAPSES if got == -2 or low[i] < COLLAPSE_RATIO
+                                            else FAILS)  # fmt: skip
         its[i] = got
         if got <= 0:
             ok[i] = False
@@ -280,7 +280,7 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
             continue
         ok[i] = True
         for k in range(n):
-            cur = _cdiv(complex(p[i, k], q[i, k]), v[k]).conjugate()
+            cur = cdiv(complex(p[i, k], q[i, k]), v[k]).conjugate()
             vl[k] = abs(v[k] - z[i] * cur)
             vl_out[i, k] = vl[k]
         if d_on:

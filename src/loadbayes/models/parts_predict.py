@@ -44,6 +44,15 @@ from loadbayes.models.parts import (
     motor_d,
     motor_y2,
 )
+from loadbayes.models.parts_loop import (
+    CONTINUES,
+    PV_STEPS,
+    PV_TOL,
+    RAMP_STEPS,
+    SCAN,
+    SCAN_TOP,
+    SOLVE_SWEEPS,
+)
 
 __all__ = ["brake_of", "motor_ratings", "play_reference", "predict_parts"]
 
@@ -91,6 +100,8 @@ def predict_parts(
     damping: float | None = None,
     why: list | None = None,
     low: list | None = None,
+    solve: bool = False,
+    retry: bool = True,
 ) -> tuple[NDArray, NDArray, int] | None:
     """P, Q at the recorded bus of one draw, and the iterations the loop took.
 
@@ -109,14 +120,26 @@ def predict_parts(
         Under-relaxation ``V_L += w (new - V_L)``. None: plain sweeps, then, where they do
         not settle or leave the finite numbers (a part that switches, motor D stalling or
         a motor slowing, can make the sweeps bounce between two trajectories), again at
-        ``w = 0.5`` for up to 200 sweeps, which settles them at the same fixed point.
+        ``w = 0.5`` for up to 200 sweeps, which settles them at the same fixed point;
+        where neither settles, a third try (``solve``).
     why : list, optional
         Where the draw fails, gets why: ``"no operating point"`` (a motor with no steady
-        state before the fault, read off the negative sequence's admittance) or
-        ``"failed"`` (the damped sweeps did not settle, or left the finite numbers).
+        state before the fault, read off the negative sequence's admittance),
+        ``"no root"`` (the last try's last sweep found no load-bus voltage at some
+        sample: the load's P-V nose below the feeder's) or ``"failed"`` (no try settled,
+        or they left the finite numbers).
     low : list, optional
         ``[x]``: lowered to the lowest ``|V_L| / |V|`` a sweep drove the parts with
         (``parts_play.Played.low``: a failed loop is a collapse below ``COLLAPSE_RATIO``).
+    solve : bool
+        Each sweep solves every sample's load bus jointly with the static part's draw
+        (:func:`_pv_root`, ``parts_loop.pv_root``'s NumPy twin): the rest of the load held
+        as a constant impedance at the sample, so the sweeps carry only the dynamic
+        parts' lag (up to ``parts_loop.SOLVE_SWEEPS``). The third try, where the plain
+        and the damped sweeps both fail, then a fourth damped at 0.5: draws that settle
+        before keep their numbers.
+    retry : bool
+        False: the one try asked for, no later one (a test shows what a try alone does).
 
     Returns
     -------
@@ -139,6 +162,7 @@ def predict_parts(
     u2 = brake_of(model, c, v, event.v2, z, complex(p0, q0))
     if u2 is not None and not np.isfinite(u2).all():
         return _failed(why, "no operating point")  # a motor with no steady state
+    nose = False  # the last sweep found no root at some sample (solve)
     for it in range(1, max_iterations + 1):
         if low is not None:  # the lowest |V_L| / |V| a sweep drives the parts with
             low[0] = min(low[0], float(np.min(np.abs(vl) / np.abs(v))))
@@ -153,17 +177,133 @@ def predict_parts(
                                                 + q_shares[2])  # fmt: skip
         current = np.conj((p_l + 1j * q_l) / vl)
         new = v - z * current
+        nose = False
+        plain = float(np.max(np.abs(new - vl)))  # the loop's own residual
+        if solve:  # each sample's loop solved with the static part's voltage dependence
+            ap = s_l0.real * c["f"][-1] * np.asarray(c["a_p"], dtype=float)
+            aq = s_l0.imag * np.asarray(q_shares, dtype=float)
+            roots = np.full(len(v), np.nan)
+            for k in range(len(v)):
+                if abs(vl[k]) > 0 and abs(v[k]) > 0:
+                    got = _pv_root(abs(vl[k]), vl[k], v[k], z, p_l[k] + 1j * q_l[k], ap, aq,
+                                   abs(vl0))  # fmt: skip
+                    nose |= got is None
+                    new[k] = vl[k] if got is None else got[0]  # no root: held, not settled
+                    roots[k] = np.nan if got is None else got[1]
         moved = float(np.max(np.abs(new - vl)))
-        if moved < tol:  # the fixed point: what the load draws is what it was driven by
+        if solve:  # settled where both the solve and the plain step stay
+            moved = max(moved, plain)
+        if moved < tol and not nose:  # the fixed point: the load's draw is what drove it
+            if solve and not _continues(vl, v, z, p_l + 1j * q_l, ap, aq, abs(vl0), roots):
+                break  # it jumps between two operating points: not settled
             s = v * np.conj(current)
             return s.real, s.imag, it
         vl = new if damping is None else vl + damping * (new - vl)
         if not np.isfinite(moved):
+            nose = False  # left the finite numbers: a failure, as parts_play's -1
             break
-    if damping is None:  # the plain sweeps bounced or left the finite numbers: damped
+    if not retry:
+        return _failed(why, "no root" if nose else "failed")
+    if damping is None and not solve:  # the plain sweeps bounced or left the finite numbers
         return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
                              max_iterations=200, damping=0.5, why=why, low=low)  # fmt: skip
-    return _failed(why, "failed")
+    if not solve:  # the damped ones too: each sample solved
+        return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
+                             max_iterations=SOLVE_SWEEPS, why=why, low=low, solve=True)  # fmt: skip
+    if damping is None:  # and again damped at 0.5, where those bounce
+        return predict_parts(model, event, theta, p0, q0, q_shares, tol=tol,
+                             max_iterations=SOLVE_SWEEPS, damping=0.5, why=why, low=low,
+                             solve=True)  # fmt: skip
+    return _failed(why, "no root" if nose else "failed")
+
+
+def _pv_root(m: float, vl: complex, v: complex, z: complex, s: complex, ap, aq, m0: float):
+    """``V_L`` and ``|V_L|`` at one sample, Newton from ``m``; None where none is found.
+
+    ``parts_loop.pv_root``'s equation: ``h(m) = |m^2 + conj(Z) S(m)| - m |V|``, ``S(m) =
+    dd (m / m_k)^2 + P_s(m / m0) + j Q_s(m / m0)``, ``dd`` the load's S at the sweep's
+    ``m_k = |V_L|`` less the static part's there; Newton from ``m`` (``m_k``), else the
+    grid's sign change nearest ``m`` bisected (:func:`_scan`).
+    """
+    mk = abs(vl)
+    x = mk / m0
+    dd = s - complex(ap[0] * x * x + ap[1] * x + ap[2], aq[0] * x * x + aq[1] * x + aq[2])
+    zc, vabs, start = np.conj(z), abs(v), m
+
+    def s_of(m):
+        x = m / m0
+        return dd * (m * m / (mk * mk)) + complex(ap[0] * x * x + ap[1] * x + ap[2],
+                                                  aq[0] * x * x + aq[1] * x + aq[2])  # fmt: skip
+
+    root = None
+    for _ in range(PV_STEPS):
+        x = m / m0
+        ds = dd * (2.0 * m / (mk * mk)) + complex((2.0 * ap[0] * x + ap[1]) / m0,
+                                                  (2.0 * aq[0] * x + aq[1]) / m0)  # fmt: skip
+        w, dw = m * m + zc * s_of(m), 2.0 * m + zc * ds
+        aw = abs(w)
+        if aw == 0.0:
+            break
+        dh = (w.real * dw.real + w.imag * dw.imag) / aw - vabs
+        if dh == 0.0:  # the nose itself
+            break
+        step = (aw - m * vabs) / dh
+        if not math.isfinite(step):
+            break
+        new = m - step if m - step > 0.0 else 0.5 * m
+        if abs(new - m) <= PV_TOL * m:
+            root = new
+            break
+        m = new
+    if root is None:
+        root = _scan(start, vabs, zc, s_of)
+    if root is None:
+        return None
+    return np.complex128(root * root + zc * s_of(root)) / np.conj(np.complex128(v)), root
+
+
+def _continues(vl, v, z, s, ap, aq, m0, roots) -> bool:
+    # parts_loop.continues: each sample's root the one Newton reaches from the last's.
+    for k in range(1, len(v)):
+        if np.isfinite(roots[k]) and np.isfinite(roots[k - 1]):
+            r, a, b = roots[k - 1], abs(v[k - 1]), abs(v[k])
+            for i in range(1, RAMP_STEPS + 1):  # along a ramp of |V| across a step
+                got = _pv_root(r, vl[k], a + (b - a) * i / RAMP_STEPS, z, s[k], ap, aq, m0)
+                r = math.nan if got is None else got[1]
+                if got is None:
+                    break
+            if not abs(r - roots[k]) <= CONTINUES * roots[k]:
+                return False
+    return True
+
+
+def _scan(mk, vabs, zc, s_of):
+    # parts_loop._scan: h's sign change nearest mk (Newton's start), bisected; None: none.
+    def h(m):
+        return abs(m * m + zc * s_of(m)) - m * vabs
+
+    top = SCAN_TOP * max(vabs, mk, 1.0)
+    best, lo, hi = math.inf, None, None
+    prev = h(top / SCAN)
+    for j in range(2, SCAN + 1):
+        a, b = top * (j - 1) / SCAN, top * j / SCAN
+        hb = h(b)
+        if (prev <= 0.0) != (hb <= 0.0) and abs(0.5 * (a + b) - mk) < best:
+            best, lo, hi = abs(0.5 * (a + b) - mk), a, b
+        prev = hb
+    if lo is None:
+        return None
+    h_lo = h(lo)
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if hi - lo <= PV_TOL * mid:
+            break
+        h_mid = h(mid)
+        if (h_mid <= 0.0) == (h_lo <= 0.0):
+            lo, h_lo = mid, h_mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def _failed(why: list | None, reason: str) -> None:
@@ -206,7 +346,8 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
         lows[j] = low[0]
         if got is None:  # parts_play's codes: no operating point, a collapse or a failure
             whys[j] = (NO_OPERATING_POINT if why[-1] == "no operating point" else
-                       COLLAPSES if low[0] < COLLAPSE_RATIO else FAILS)  # fmt: skip
+                       COLLAPSES if why[-1] == "no root" or low[0] < COLLAPSE_RATIO else
+                       FAILS)  # fmt: skip
             continue
         mp, mq, its[j] = got
         ok[j] = True

@@ -8,10 +8,12 @@ back there is an answer, not an error. Each draw played through a fault
   converged, ``models/parts_play.PLAYS``); its P, Q and current enter the bands, its
   stall (motor D's, or the induction motor's by its torque curve) the stall probability;
 - **collapses**: a model of parts whose feeder loop does not settle in the fault (plain
-  sweeps, then damped at 0.5 for up to 200; or they leave the finite numbers) after a
-  sweep drove its load bus below ``parts_play.COLLAPSE_RATIO`` (0.2) of the recorded
-  bus's voltage, while the same draw settles with no fault: what the load draws through
-  the feeder has no voltage to settle at, the model's voltage collapse
+  sweeps, then damped at 0.5 for up to 200, then each sample's load bus solved on its
+  P-V curve, plain and damped; or they leave the finite numbers) after a sweep drove its
+  load bus below ``parts_play.COLLAPSE_RATIO`` (0.2) of the recorded bus's voltage, or
+  with some sample's P-V equation left without a root (``parts_loop.pv_root``: the
+  load's nose below the feeder's), while the same draw settles with no fault: what the
+  load draws through the feeder has no voltage to settle at, the model's voltage collapse
   (``parts_play.COLLAPSES``). Measured on the tests' stalling load at a 44 % sag (a
   draw traced), the load bus ran away at the sag's bottom (to 0.07 p.u. under a
   recorded 0.56) under damping 0.5, 0.25 and 0.1 alike, the record's end settled with
