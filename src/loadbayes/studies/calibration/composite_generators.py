@@ -26,7 +26,9 @@ Each event varies the sag depth (10-45% at the load bus), the motor's share f_m 
 the fault's instant inside a sample interval and the noise seed (0.5% of |S0| on P and
 Q). Every fit is ``loadbayes fit composite`` at its defaults for a plain table: the
 sample reading chosen by the data, the torque ~ speed squared, run on until converged
-(:func:`~loadbayes.studies.calibration.composite_independent.fit_records`). Run::
+(:func:`~loadbayes.studies.calibration.composite_independent.fit_records`), and the
+record's bus angle read as a table's ``angle_rad`` column is (ANDES's and GridDyn's:
+:data:`READS_ANGLE`). Run::
 
     python -m loadbayes.studies.calibration.composite_generators --events 20
         --output results/validation/composite_generators.json
@@ -73,9 +75,9 @@ RATE_HZ = 60.0
 #: The generators whose fits read the record's angle column, as ``fit composite`` reads a
 #: table's ``angle_rad``. GridDyn's: without it (as before 2026-11-29) the motor saw no
 #: phase jump at the edges, and noise-free point samples read as points gave T' 0.076 s
-#: for 0.2 (0.204 with it). ANDES's records carry an angle too, but their fits do not read
-#: it yet: their numbers (docs/composite.md) were measured without it.
-READS_ANGLE: tuple[str, ...] = ("griddyn", "griddyn_points")
+#: for 0.2 (0.204 with it). ANDES's records carry the bus angle too (0.012-0.037 rad of
+#: swing): without it, noise-free, Motor3's and Motor5's f_m read 0.025-0.053 low.
+READS_ANGLE: tuple[str, ...] = ("andes_motor3", "andes_motor5", "griddyn", "griddyn_points")
 
 
 def generator_cases(generator: str, n: int, *, seed: int = 0) -> list[dict[str, Any]]:
