@@ -7,8 +7,10 @@ line that exits with a code other than 0 fails the test, named with its stderr.
 
 The fast test runs every line but those of :data:`SLOW` (the composite fit and the
 exports that read it, the motor fit, the ANDES simulation, the example archive's scan,
-fit, pool and report), which the statistical tier
-runs after the ``loadbayes example`` lines that write their inputs; a static check sees
+fit, pool and report), which ``make validate`` runs after the ``loadbayes example`` lines
+that write their inputs (51 s on a fresh clone beside the other test worker, moved out of
+``make test`` on 29 Nov 2026 for its 12 minutes: each of those commands has its own CLI
+tests there, the README's spelling of them is what only this test checks); a static check sees
 that no two lines write the same file (which would stop a run of the whole block in one
 folder). Measured on the shared 2-core machine at a load average of 6 to 11: 200 s for
 the whole block line by line, 100-120 s of it in the fast lines.
@@ -94,6 +96,7 @@ def test_readme_usage_runs_fast_lines(tmp_path):
 
 
 @pytest.mark.statistical
+@pytest.mark.skipif(os.environ.get("LOADBAYES_VALIDATE") != "1", reason="make validate's")
 def test_readme_usage_runs_slow_lines(tmp_path):
     # The slow lines, in order, after the example lines that write their inputs (the
     # fast test runs the rest; together they run every line).
