@@ -117,3 +117,17 @@ def test_without_limits_the_sampled_vector_is_theta_itself():
     _, prior = _prior(physical_region=False)
     u = prior.scale_free()[0] + 0.3
     assert prior.maps == () and prior.to_theta(u) is u
+
+
+def test_one_vector_takes_the_same_arithmetic_as_many():
+    # The sampler's path (one vector, floats) against the vectorised one (the draws').
+    _, prior = _prior()
+    mean, cov = prior.scale_free()[:2]
+    u = np.random.default_rng(2).multivariate_normal(mean, 4 * cov, size=200)
+    for m in prior.maps:
+        u[0, m.index] = u[0, m.index + 1] + math.log(0.1 / 0.04) + 1.0  # an empty range
+        one_t = np.array([m.log_t0(x) for x in u])
+        one_mass = np.array([m.log_mass(x) for x in u])
+        assert np.allclose(one_t, m.log_t0(u), rtol=0, atol=1e-12, equal_nan=True)
+        assert np.allclose(one_mass, m.log_mass(u), rtol=0, atol=1e-12)
+        assert np.isnan(one_t[0]) and one_mass[0] == -math.inf

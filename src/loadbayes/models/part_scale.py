@@ -51,6 +51,18 @@ def log_mass(a, b):
     return np.where((a < b) & np.isfinite(out), out, -np.inf)
 
 
+def _log_mass_one(a: float, b: float) -> float:
+    # log_mass of two floats (the sampler's one vector), the same arithmetic.
+    if not a < b:
+        return -math.inf
+    lo, hi = (-b, -a) if a > 0 else (a, b)
+    top, bottom = float(log_ndtr(hi)), float(log_ndtr(lo))
+    if bottom >= top:
+        return -math.inf
+    out = top + math.log1p(-math.exp(bottom - top))
+    return out if math.isfinite(out) else -math.inf
+
+
 @dataclass(frozen=True)
 class ScaleMap:
     """One motor's ``z <-> log T0`` (module docstring).
@@ -71,12 +83,22 @@ class ScaleMap:
     def __post_init__(self) -> None:
         s_oo, s_ot = self.cov[:5, :5], self.cov[:5, 5]
         coef = np.linalg.solve(s_oo, s_ot)
-        object.__setattr__(self, "_coef", coef)
-        object.__setattr__(self, "_sd", math.sqrt(float(self.cov[5, 5] - coef @ s_ot)))
+        set_ = object.__setattr__
+        set_(self, "_coef", coef)
+        set_(self, "_m0", float(self.mean[5] - self.mean[:5] @ coef))
+        set_(self, "_sd", math.sqrt(float(self.cov[5, 5] - coef @ s_ot)))
+        for name in ("rs_max", "h_min", "x_min", "x_max"):
+            set_(self, f"_log_{name}", math.log(getattr(self, name)))
 
     def _ab(self, u):
         # The conditional's mean and the standardised bounds of log T0, given o.
         i = self.index
+        if np.ndim(u) == 1:  # one vector (the sampler's): floats, no array overhead
+            o = u[i : i + 5]
+            m = self._m0 + float(o @ self._coef)
+            lo = max(o[0] - self._log_rs_max, self._log_h_min - o[4], o[1] - self._log_x_max)
+            hi = o[1] - self._log_x_min
+            return m, (float(lo) - m) / self._sd, (float(hi) - m) / self._sd
         o = np.asarray(u, dtype=float)[..., i : i + 5]
         m = self.mean[5] + (o - self.mean[:5]) @ self._coef
         lo = np.maximum.reduce([o[..., 0] - math.log(self.rs_max),
@@ -88,11 +110,22 @@ class ScaleMap:
     def log_mass(self, u):
         """``log(Phi(b) - Phi(a))``: the prior mass of ``log T0`` the limits leave at ``o``."""
         _, a, b = self._ab(u)
+        if np.ndim(u) == 1:
+            return _log_mass_one(a, b)
         return log_mass(a, b)
 
     def log_t0(self, u):
         """``log T0`` of the sampled vector(s) ``u`` (NaN where the interval is empty)."""
         m, a, b = self._ab(u)
+        if np.ndim(u) == 1:
+            if not a < b:
+                return math.nan
+            z = float(u[self.index + 5])
+            if a > 0:
+                x = -float(ndtri(ndtr(-a) * ndtr(-z) + ndtr(z) * ndtr(-b)))
+            else:
+                x = float(ndtri(ndtr(a) * ndtr(-z) + ndtr(z) * ndtr(b)))
+            return m + self._sd * min(max(x, a), b)
         z = np.asarray(u, dtype=float)[..., self.index + 5]
         flip = a > 0
         with np.errstate(invalid="ignore"):
