@@ -113,6 +113,14 @@ class PartsModel:
     """A load of parts behind a feeder (see the module docstring)."""
 
     name: ClassVar[str] = "parts"
+    #: The sampler's jumps after burn-in propose from a mixture of t's over this many
+    #: regions of the pooled burn-in (``fit/composite/sampler.JUMP_COMPONENTS``, as
+    #: ``zip+motor``'s): chains that found different modes then jump between them
+    #: (docs/composite.md, "Two modes of cmld-lite").
+    jump_regions: ClassVar[int] = 10
+    #: Chains whose burn-in ended in a mode far lower in density than the best chain's
+    #: go on from the best chain's state, and the fit says so (``fit/composite/restart.py``).
+    restart_modes: ClassVar[bool] = True
     motors: tuple[str, ...] = ("slm",)
     feeder: bool = True
     motor_d: bool = False
