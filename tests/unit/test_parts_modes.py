@@ -5,8 +5,9 @@
   and by how much; chains within the gap are left alone;
 - on a two-mode target written here (two Gaussians, 40 log-units apart in height), the
   restart takes the chains out of the lower mode: every kept draw is the higher mode's;
-- a model of parts asks the sampler for jumps from regions (a mixture), zip+motor's
-  path is untouched (its problem has no model to ask).
+- a model of parts asks the sampler to restart lagging chains and says how many regions
+  its jumps take (one by default); zip+motor's path is untouched (its problem has no
+  model to ask).
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ def test_the_restart_takes_chains_out_of_a_lower_mode_of_a_two_mode_target():
         assert np.all(c.draws()["x"] > 0)
 
 
-def test_a_model_of_parts_asks_for_jumps_from_regions_and_restarts():
+def test_a_model_of_parts_restarts_lagging_chains_and_keeps_one_t_for_its_jumps():
     for name in ("slm", "cmld-lite"):
         model = dynamic_model(name)
-        assert model.jump_regions == 10 and model.restart_modes
+        assert model.jump_regions == 1 and model.restart_modes

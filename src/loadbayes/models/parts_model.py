@@ -114,10 +114,11 @@ class PartsModel:
 
     name: ClassVar[str] = "parts"
     #: The sampler's jumps after burn-in propose from a mixture of t's over this many
-    #: regions of the pooled burn-in (``fit/composite/sampler.JUMP_COMPONENTS``, as
-    #: ``zip+motor``'s): chains that found different modes then jump between them
-    #: (docs/composite.md, "Two modes of cmld-lite").
-    jump_regions: ClassVar[int] = 10
+    #: regions of the pooled burn-in (as ``zip+motor``'s 10, ``fit/composite/sampler``);
+    #: 1: one t. Ten let chains that found different modes jump between them, but moved
+    #: the GridDyn check's motor share off its truth (docs/composite.md, "Two modes of
+    #: cmld-lite"), so a model of parts keeps one t by default.
+    jump_regions: ClassVar[int] = 1
     #: Chains whose burn-in ended in a mode far lower in density than the best chain's
     #: go on from the best chain's state, and the fit says so (``fit/composite/restart.py``).
     restart_modes: ClassVar[bool] = True
