@@ -21,10 +21,10 @@ demo: $(STAMP) griddyn-env
 test: $(STAMP) griddyn-env
 	command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } || echo "chromium missing: the browser test will skip"
 	$(VENV)/bin/ruff check src tests benchmarks
-	$(PY) -m pytest -n 2 -q tests
+	$(PY) -m pytest -n 2 --dist worksteal -q tests
 
 test-fast: $(STAMP)
-	$(PY) -m pytest -n 2 -q tests -m "not statistical and not integration"
+	$(PY) -m pytest -n 2 --dist worksteal -q tests -m "not statistical and not integration"
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks

@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_powerflow.py            # 2,000 flows per configuration
-    python benchmarks/bench_powerflow.py --quick    # 100 flows
+    python benchmarks/bench_powerflow.py --quick    # 30 flows
 
 Prints a table and writes ``benchmarks/results/powerflow.json``. Each configuration
 solves the same load factors (the paper's U[0.1, 4.5]); timing covers ``run_many``,
@@ -80,12 +80,12 @@ def machine() -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="100 flows instead of 2,000")
+    parser.add_argument("--quick", action="store_true", help="30 flows (a smoke test)")
     parser.add_argument("--n", type=int, default=None, help="flows per configuration")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--output", type=Path, default=OUT)
     args = parser.parse_args(argv)
-    n = args.n or (100 if args.quick else 2000)
+    n = args.n or (30 if args.quick else 2000)
     factors = draw_factors(n, seed=args.seed)
 
     info = {

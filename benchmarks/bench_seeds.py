@@ -40,11 +40,12 @@ def _cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def run(event: str, seed: int, extra: list[str], out: Path) -> dict:
+def run(event: str, seed: int, extra: list[str], out: Path, netcdf: bool = False) -> dict:
     """One fit in a fresh process: its JSON's numbers and the process's CPU seconds."""
     before = _cpu()
+    keep = ["--netcdf", str(out.with_suffix(".nc"))] if netcdf else []
     cmd = [sys.executable, "-m", "loadbayes", "fit", "composite", event, "--seed", str(seed),
-           "--json", str(out), "--quiet", "--force", *extra]  # fmt: skip
+           "--json", str(out), "--quiet", "--force", *keep, *extra]  # fmt: skip
     subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
     cpu = _cpu() - before
     fit = json.loads(out.read_text())
@@ -73,11 +74,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("event")
     ap.add_argument("--seeds", default="0-7", help="a range, e.g. 0-7")
+    ap.add_argument("--keep", metavar="DIR", help="keep each seed's JSON and NetCDF here")
     args = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(args.keep or tmp)
+        folder.mkdir(parents=True, exist_ok=True)
         for seed in _seeds(args.seeds):
-            r = run(args.event, seed, extra, Path(tmp) / f"fit_{seed}.json")
+            r = run(args.event, seed, extra, folder / f"fit_{seed}.json", bool(args.keep))
             rows.append(r)
             print(f"seed {seed}: {r['iterations']:>8,} iterations per chain "
                   f"({r['rounds']} rounds), CPU {r['cpu_s']:6.1f} s, "

@@ -28,6 +28,24 @@ def pytest_collection_modifyitems(items):  # noqa: D103
     items.sort(key=_rank)
 
 
+def pytest_sessionstart(session):
+    """With workers (``-n 2``, as ``make test``): the numba kernels compiled once, first.
+
+    Runs before pytest-xdist starts its workers (its hook is ``trylast``); on a fresh
+    clone the two workers otherwise compiled the same kernels side by side (about 50 CPU
+    s each). ``tests/warm_kernels.py`` says why and what; a warm cache skips it.
+    """
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    from warm_kernels import warm
+
+    line = warm()
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line(line)
+
+
 @pytest.fixture
 def no_cost_probe(monkeypatch):
     """Skip the composite fit's announced-cost probe (a throw-away timed run).

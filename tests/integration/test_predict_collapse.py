@@ -123,6 +123,7 @@ def test_a_depth_where_every_draw_collapses_is_said_and_the_sweep_goes_on(cmld_l
     lines = [line for line in r.output.splitlines() if line.startswith("depth ")]
     assert len(lines) == 2, r.output
     assert "every draw collapses at this depth: no band" in lines[0], r.output
+    assert lines[0].startswith("depth 0.5: stall or collapse 1.00"), r.output  # not "stall"
     doc = json.loads(out.read_text())
     assert [s["depth"] for s in doc["sweep"]] == [0.5, 0.6]
     assert doc["sweep"][0]["outcome"]["collapses"]["share"] == 1.0

@@ -119,10 +119,11 @@ def predict_cmd(result, sag, duration, recovery, angle, voltage, sweep_spec, dra
     if not quiet:
         if sweep_spec:
             for d, p in zip(depths, preds, strict=True):
+                # A collapse is counted as a stall (the summary's words): the line says so.
+                kind = "stall or collapse" if p.stall and p.stall.get("n_collapsed") else "stall"
                 st = "" if p.stall is None or p.stall["probability"] is None else (
-                    f"stall {p.stall['probability']:.2f} "
-                                                 f"[{p.stall['interval'][0]:.2f}, "
-                                                 f"{p.stall['interval'][1]:.2f}]")  # fmt: skip
+                    f"{kind} {p.stall['probability']:.2f} [{p.stall['interval'][0]:.2f}, "
+                    f"{p.stall['interval'][1]:.2f}]")  # fmt: skip
                 flag = " extrapolated" if p.extrapolation["extrapolated"] else ""
                 if p.outcome is not None:  # some draws did not play: their shares, in words
                     flag += "; " + p.outcome["message"]
