@@ -32,8 +32,42 @@ beside it. A data set where no draw plays the deep fault (no band) would be repo
 left out of the pairs.
 
 Full counts (K = 20 of each kind) run in ``make validate`` (LOADBAYES_VALIDATE=1); a data
-set costs about 15-20 CPU s (two fits and two predictions), so nothing of it fits in
-``make test``'s few seconds: there the one data set of ``test_predict.py`` stands.
+set costs 12-20 CPU s (two fits and two predictions; median 14), so nothing of it fits in
+``make test``'s few seconds: there the one data set of ``test_predict.py`` stands. Each
+data set runs in a child process with a CPU limit (:data:`CPU_LIMIT_S`): two of them hang.
+
+**Measured (2026-11-29; the averaged claim is false here too: both kinds are strict
+xfails).** Mean width of the band over the deep fault, shallow alone against both:
+
+====== ====== ================= ================= ============= ============= ===========
+kind   played P wider (Wilc. p) Q wider (Wilc. p) mean P width  mean Q width  mean cov. Q
+====== ====== ================= ================= ============= ============= ===========
+noise  18     6/18 (0.827)      8/18 (0.633)      1.120 / 1.188 1.377 / 1.396 0.93 / 0.99
+truth  16     4/16 (0.986)      8/16 (0.647)      1.169 / 1.338 1.499 / 1.578 0.95 / 0.69
+====== ====== ================= ================= ============= ============= ===========
+
+(Wilcoxon p: one-sided, "shallow alone wider"; the other side, "narrower", 0.19 (P) and
+0.38 (Q) for the noise kind and 0.017 (P), 0.37 (Q) for the drawn truths.) So the band
+from the shallow fault alone is, if anything, narrower on average. What the law of total variance
+needs does not hold: ``cmld-lite`` is not GridDyn's model (no tap, a different motor D),
+the truths are not drawn from the fit's prior (uniform shares), and a 95 % band's width is
+not a variance. The picture of ``test_predict.py`` repeats: from the shallow fault alone
+motor D stalls in fewer draws (stall probability 0.47-0.95 against 0.93-1.00 from both),
+and the width during the stall goes with that.
+
+Coverage of the deep fault (the share of its samples inside the band): from both faults
+P 0.91-1.00 in every data set; Q 0.93-1.00 on the default load, but on the drawn truths
+0.14-0.99 (mean 0.69; below 0.8 in 9 of 16: seeds 105 0.14, 109 0.26, 114 0.40, 112
+0.45, ...), so there the Q band from shallow + medium misses most of the deep fault. From
+the shallow fault alone P and Q 0.92-1.00, except noise seed 16: a narrow band (P 0.45,
+against 0.83 from both; stall probability 0.47) holding 9 % of P's samples and 8 % of
+Q's. Every prediction, from either fit, is flagged as extrapolation.
+
+Not played: ``predict`` from the shallow fit does not return on noise seeds 4 and 13
+(killed at 240 CPU s, where the others take 0.3-4 s): the threads sit in
+``models/parts_play._play_block`` (``motor_kernel._rk4``); a strict xfail below. GridDyn
+itself fails at the medium (25 %) fault on 4 of the 20 drawn loads (seeds 104, 106, 111,
+118; f_d 0.16-0.18, "GridDyn failed four times around Y"): left out and reported.
 """
 
 from __future__ import annotations
@@ -175,7 +209,10 @@ def _in_child(kind: str, index: int, folder: Path) -> dict:
     if done.returncode == 0:
         return json.loads(done.stdout.strip().splitlines()[-1])
     seed, _ = _truths(kind, K)[index]
-    last = (done.stderr.strip().splitlines() or [f"killed (signal {-done.returncode})"])[-1]
+    if done.returncode < 0:  # RLIMIT_CPU: SIGXCPU, then SIGKILL
+        last = f"killed by signal {-done.returncode} (at most {CPU_LIMIT_S} CPU s a data set)"
+    else:
+        last = (done.stderr.strip().splitlines() or ["no message"])[-1]
     if "GridDyn" in last:  # GridDyn could not run this drawn load: not the package's
         return {"seed_noise": seed, "griddyn_failed": last}
     return {"seed_noise": seed, "failed": last, "returncode": done.returncode}
@@ -192,7 +229,12 @@ def _rows(kind: str, folder: Path) -> list[dict]:
 
 @pytest.mark.skipif(_REASON is not None, reason=str(_REASON))
 @pytest.mark.skipif(not FULL, reason="2 x 20 data sets, 4 fits each: make validate")
-@pytest.mark.parametrize("kind", ["noise", "truth"])
+@pytest.mark.parametrize("kind", [
+    pytest.param("noise", marks=pytest.mark.xfail(strict=True, reason="measured: shallow "
+                 "alone wider in 6/18 (P), 8/18 (Q); one-sided Wilcoxon p 0.827, 0.633")),
+    pytest.param("truth", marks=pytest.mark.xfail(strict=True, reason="measured: shallow "
+                 "alone wider in 4/16 (P), 8/16 (Q); one-sided Wilcoxon p 0.986, 0.647")),
+])  # fmt: skip
 def test_the_band_from_the_shallow_fault_alone_is_wider_on_average(kind, tmp_path):
     rows = [r for r in _rows(kind, tmp_path) if "both" in r]
     tests = {ch: _paired(rows, ch) for ch in "pq"}
@@ -202,7 +244,11 @@ def test_the_band_from_the_shallow_fault_alone_is_wider_on_average(kind, tmp_pat
 
 @pytest.mark.skipif(_REASON is not None, reason=str(_REASON))
 @pytest.mark.skipif(not FULL, reason="2 x 20 data sets, 4 fits each: make validate")
-@pytest.mark.parametrize("kind", ["noise", "truth"])
+@pytest.mark.parametrize("kind", [
+    pytest.param("noise", marks=pytest.mark.xfail(strict=True, reason="measured: predict from "
+                 "the shallow fit does not return on noise seeds 4 and 13 (240 CPU s)")),
+    "truth",
+])  # fmt: skip
 def test_every_data_set_is_played(kind, tmp_path):
     rows = _rows(kind, tmp_path)
     skipped = [r for r in rows if "griddyn_failed" in r]
