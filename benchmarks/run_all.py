@@ -285,7 +285,64 @@ def _generic_section(info: dict) -> list[str]:
     return _table(["quantity", "value"], out) if out else ["(no results)"]
 
 
-SECTIONS = {"zip": _zip_section, "stream": _stream_section}
+def _composite_section(info: dict) -> list[str]:
+    """Issue 35's table: per event, loadbayes' wall over seeds and each peer's ESS/s."""
+    if not info.get("events"):
+        return _generic_section(info)
+    header = [
+        "event", "n", "loadbayes defaults wall s: median / max (CPU median)", "converged",
+        "loadbayes ESS/s (R-hat)", "emcee ESS/s", "ratio", "NUTS ESS/s: kept (with warm-up)",
+        "NUTS R-hat", "ratio",
+    ]  # fmt: skip
+
+    def num(x) -> str:
+        return _num(x) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
+
+    rows = []
+    for e in info["events"]:
+        if "skipped" in e:
+            rows.append([e["event"], f"skipped: {e['skipped']}"] + [""] * (len(header) - 2))
+            continue
+        rows.append(
+            [
+                e["event"],
+                _num(e["n"]),
+                f"{_num(e['defaults_wall_median_s'])} / {_num(e['defaults_wall_max_s'])} "
+                f"({_num(e['defaults_cpu_median_s'])})",
+                f"{e['defaults_converged']} of {e['seeds']}",
+                f"{_num(e['same_posterior_ess_per_s'])} ({e['same_posterior_r_hat']:.3f})",
+                num(e["emcee_ess_per_s"]),
+                _ratio(e["ratio_emcee"]) if math.isfinite(e["ratio_emcee"]) else "-",
+                f"{num(e['nuts_ess_per_s_sampling'])} ({num(e['nuts_ess_per_s'])})",
+                num(e["nuts_r_hat"]),
+                _ratio(e["ratio_nuts"]) if math.isfinite(e["ratio_nuts"]) else "-",
+            ]
+        )
+    runs = [
+        [
+            r.get("event", ""), r["sampler"], _num(r.get("seed")), r.get("settings", ""),
+            _num(r.get("wall_s")), _num(r.get("cpu_s")), _num(r.get("min_ess_bulk")),
+            r.get("worst", ""), _num(r.get("max_r_hat")), _num(r.get("ess_per_s")),
+        ]
+        if "skipped" not in r
+        else [r.get("event", ""), r["sampler"], "", f"skipped: {r['skipped']}"] + [""] * 6
+        for r in info["results"]
+    ]  # fmt: skip
+    m = info.get("machine", {})
+    end = m.get("load_average_at_end")
+    lines = _table(header, rows)
+    if end:
+        lines += ["", f"Load average at the end: {', '.join(f'{x:.1f}' for x in end)}; "
+                  f"the whole run took {_num(m.get('run_s'))} s."]  # fmt: skip
+    lines += ["", "Every run:", ""]
+    lines += _table(
+        ["event", "sampler", "seed", "settings", "wall s", "CPU s", "min ESS", "worst",
+         "R-hat", "ESS/s"], runs,
+    )  # fmt: skip
+    return lines
+
+
+SECTIONS = {"zip": _zip_section, "stream": _stream_section, "composite": _composite_section}
 
 
 def _machine_line(info: dict) -> str:
