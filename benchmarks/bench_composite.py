@@ -600,6 +600,33 @@ NOTES = [
 ]
 
 
+def merge(paths: list[str], output: str) -> None:
+    """One table from runs of ``--only`` events made side by side: each event's rows and
+    targets as its run wrote them, the run's machine and load kept beside the event."""
+    runs = [json.loads(Path(q).read_text()) for q in paths]
+    out = {k: v for k, v in runs[0].items() if k not in ("events", "results", "targets")}
+    out["runs"] = []
+    out["events"], out["results"], out["targets"] = [], [], []
+    seen: set[str] = set()
+    for i, run in enumerate(runs):
+        m = run["machine"]
+        out["runs"].append({"date": run["date"], "machine": m})
+        names = [e["event"] for e in run["events"] if e["event"] not in seen]
+        for e in run["events"]:
+            if e["event"] in names:
+                load = (m["load_average_at_start"][0], m["load_average_at_end"][0])
+                out["events"].append({**e, "run": i, "load_1min_start_end": list(load)})
+        out["results"] += [r for r in run["results"] if r.get("event") in names]
+        out["targets"] += [t for t in run["targets"] if t["target"].split(":")[0] in names]
+        seen |= set(names)
+    out["notes"] = list(runs[0]["notes"]) + [
+        f"Merged from {len(runs)} runs made at the same time on the same machine (each "
+        "event's samplers in one of them, back to back): every event's ratios are within "
+        "its run; its run's 1-minute load average at start and end is beside it."
+    ]
+    Path(output).write_text(json.dumps(out, indent=2) + "\n")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="Smoke sizes (seconds).")
@@ -614,7 +641,17 @@ def main(argv=None) -> int:
     ap.add_argument("--only", nargs="*", default=None,
                     help="Events whose name contains one of these words (independent, 120, "
                     "real, griddyn).")  # fmt: skip
+    ap.add_argument(
+        "--merge",
+        nargs="+",
+        default=None,
+        metavar="JSON",
+        help="Run nothing: merge these results (of --only runs) into --output.",
+    )
     args = ap.parse_args(argv)
+    if args.merge:
+        merge(args.merge, args.output)
+        return 0
     # NUTS's two chains in parallel, one JAX CPU device each (set before JAX is imported).
     flag = "--xla_force_host_platform_device_count=2"
     if flag not in os.environ.get("XLA_FLAGS", ""):

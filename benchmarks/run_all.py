@@ -290,7 +290,8 @@ def _composite_section(info: dict) -> list[str]:
     if not info.get("events"):
         return _generic_section(info)
     header = [
-        "event", "n", "loadbayes defaults wall s: median / max (CPU median)", "converged",
+        "event", "n", "load (1 min, its run's start / end)",
+        "loadbayes defaults wall s: median / max (CPU median)", "converged",
         "loadbayes ESS/s (R-hat)", "emcee ESS/s", "ratio", "NUTS ESS/s: kept (with warm-up)",
         "NUTS R-hat", "ratio",
     ]  # fmt: skip
@@ -298,8 +299,12 @@ def _composite_section(info: dict) -> list[str]:
     def num(x) -> str:
         return _num(x) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
 
+    m = info.get("machine", {})
+    run_load = [m.get("load_average_at_start", [math.nan])[0],
+                m.get("load_average_at_end", [math.nan])[0]]  # fmt: skip
     rows = []
     for e in info["events"]:
+        load = e.get("load_1min_start_end", run_load)
         if "skipped" in e:
             rows.append([e["event"], f"skipped: {e['skipped']}"] + [""] * (len(header) - 2))
             continue
@@ -307,6 +312,7 @@ def _composite_section(info: dict) -> list[str]:
             [
                 e["event"],
                 _num(e["n"]),
+                f"{load[0]:.1f} / {load[1]:.1f}",
                 f"{_num(e['defaults_wall_median_s'])} / {_num(e['defaults_wall_max_s'])} "
                 f"({_num(e['defaults_cpu_median_s'])})",
                 f"{e['defaults_converged']} of {e['seeds']}",
@@ -328,7 +334,6 @@ def _composite_section(info: dict) -> list[str]:
         else [r.get("event", ""), r["sampler"], "", f"skipped: {r['skipped']}"] + [""] * 6
         for r in info["results"]
     ]  # fmt: skip
-    m = info.get("machine", {})
     end = m.get("load_average_at_end")
     lines = _table(header, rows)
     if end:
