@@ -343,8 +343,12 @@ def _why(lr: dict, peer: dict, ratio: float, goal: float) -> str:
     )
 
 
-def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, int]):
-    """Every sampler on one event: rows, and the two targets' lines."""
+def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, int],
+              keep=None):  # fmt: skip
+    """Every sampler on one event: rows, and the two targets' lines.
+
+    ``keep(rows)``, when given, is called with the event's rows after each run.
+    """
     from loadbayes.models.zip_motor import CompositeModel
 
     ev, f_hz, truth = spec["event"], spec["f_hz"], spec["truth"]
@@ -356,6 +360,8 @@ def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, i
         r["part"] = "events"
         rows.append(r)
         print(_line(r), flush=True)
+        if keep is not None:
+            keep(rows)
         return r
 
     # Quick runs (the smoke test): a few hundred iterations instead of the defaults.
@@ -460,7 +466,13 @@ def run_events_part(args, save) -> tuple[list[dict], list[dict], list[dict]]:
             print(f"{name}: skipped, {why}", flush=True)
             summaries.append({"event": name, "skipped": why})
             continue
-        r, s, t = run_event(name, spec, args.quick, seeds, nuts)
+
+        def keep(done, name=name, rows=rows, summaries=summaries, targets=targets):
+            # A stopped run keeps the samplers this event finished, said to be unfinished.
+            stop = {"event": name, "skipped": "unfinished: stopped before every sampler ran"}
+            save(rows + done, summaries + [stop], targets)
+
+        r, s, t = run_event(name, spec, args.quick, seeds, nuts, keep)
         rows, targets = rows + r, targets + t
         summaries.append(s)
         save(rows, summaries, targets)
