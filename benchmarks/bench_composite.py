@@ -344,7 +344,7 @@ def _why(lr: dict, peer: dict, ratio: float, goal: float) -> str:
 
 
 def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, int],
-              keep=None):  # fmt: skip
+              keep=None, skip_nuts=None):  # fmt: skip
     """Every sampler on one event: rows, and the two targets' lines.
 
     ``keep(rows)``, when given, is called with the event's rows after each run.
@@ -367,12 +367,12 @@ def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, i
     # Quick runs (the smoke test): a few hundred iterations instead of the defaults.
     draws, burn = (300, 150) if quick else (None, None)
     default = CompositeModel(f_hz=f_hz, window_s=spec["window_s"])
-    walls = [add(run_loadbayes(f_hz, 0, draws, burn, seed=s, event=(ev, truth), model=default))
-             for s in range(seeds)]  # fmt: skip
+    for s in range(seeds):
+        add(run_loadbayes(f_hz, 0, draws, burn, seed=s, event=(ev, truth), model=default))
     same = CompositeModel(f_hz=f_hz, steps=False, window_s=0)
-    lr = add(run_loadbayes(f_hz, 0, draws, burn, event=(bare, truth), model=same))
+    add(run_loadbayes(f_hz, 0, draws, burn, event=(bare, truth), model=same))
     emcee_s, long_steps = (2.0, 40) if quick else (60.0, 2000)
-    skip_em, skip_nu = _missing("emcee"), _missing("jax", "numpyro", "diffrax")
+    skip_em, skip_nu = _missing("emcee"), skip_nuts or _missing("jax", "numpyro", "diffrax")
     if skip_em:
         em = ek = add({"sampler": "emcee", "n": bare.n, "skipped": skip_em})
     else:
@@ -381,15 +381,31 @@ def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, i
                            event=(bare, truth), f_hz=f_hz))  # fmt: skip
         _stationary_rate(em, ek)
     if skip_nu:
-        nu = add({"sampler": "numpyro-nuts-diffrax", "n": bare.n, "skipped": skip_nu})
+        add({"sampler": "numpyro-nuts-diffrax", "n": bare.n, "skipped": skip_nu})
     else:
-        nu = add(run_nuts(bare, f_hz, *nuts))
+        add(run_nuts(bare, f_hz, *nuts))
+    return rows, *summarise(name, rows)
+
+
+def summarise(name: str, rows: list[dict]) -> tuple[dict, list[dict]]:
+    """One event's line of the table and its two targets, from its runs' rows.
+
+    Rates by wall time (the target's) and by CPU seconds (this process's, all threads;
+    on a machine whose load changes between the runs, the fairer of the two).
+    """
+    by = {r["sampler"]: r for r in rows}
+    walls = [r for r in rows if r["sampler"] == "loadbayes-defaults"] or [rows[0]]
+    lr = next(r for r in rows if r["sampler"].endswith("-ramp"))
+    em = by.get("emcee-solve_ivp") or by.get("emcee", {})
+    ek = by.get("emcee-kernel", em)
+    nu = by["numpyro-nuts-diffrax"]
     w = np.array([r["wall_s"] for r in walls])
     c = np.array([r["cpu_s"] for r in walls])
+    nan = math.nan
     summary = {
         "event": name,
-        "n": ev.n,
-        "seeds": seeds,
+        "n": lr["n"],
+        "seeds": len(walls),
         "defaults_wall_median_s": float(np.median(w)),
         "defaults_wall_max_s": float(np.max(w)),
         "defaults_cpu_median_s": float(np.median(c)),
@@ -398,18 +414,23 @@ def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, i
         ),  # fmt: skip
         "defaults_ess_per_s_median": float(np.median([r["ess_per_s"] for r in walls])),
         "same_posterior_ess_per_s": lr["ess_per_s"],
+        "same_posterior_ess_per_cpu_s": lr["min_ess_bulk"] / lr["cpu_s"],
         "same_posterior_r_hat": lr["max_r_hat"],
-        "emcee_ess_per_s": em.get("ess_per_s_from_long_tau", math.nan),
-        "emcee_tau": ek.get("autocorr_time_max", math.nan),
-        "nuts_ess_per_s": nu.get("ess_per_s", math.nan),
-        "nuts_ess_per_s_sampling": nu.get("ess_per_s_sampling", math.nan),
-        "nuts_r_hat": nu.get("max_r_hat", math.nan),
+        "emcee_ess_per_s": em.get("ess_per_s_from_long_tau", nan),
+        "emcee_tau": ek.get("autocorr_time_max", nan),
+        "nuts_ess_per_s": nu.get("ess_per_s", nan),
+        "nuts_r_hat": nu.get("max_r_hat", nan),
     }
-    summary["ratio_emcee"] = lr["ess_per_s"] / summary["emcee_ess_per_s"]
-    # Judged on NUTS's kept draws alone (its 1,000 warm-up iterations not charged, while
-    # loadbayes' NLS and burn-in are): the kinder of the two rates to NUTS.
-    summary["ratio_nuts"] = lr["ess_per_s"] / summary["nuts_ess_per_s_sampling"]
-    summary["ratio_nuts_with_warmup"] = lr["ess_per_s"] / summary["nuts_ess_per_s"]
+    tau = summary["emcee_tau"]
+    summary["emcee_ess_per_cpu_s"] = (
+        32.0 / (tau * em["cpu_s"] / em["steps_done"]) if "cpu_s" in em else nan
+    )
+    summary["nuts_ess_per_cpu_s"] = nu["min_ess_bulk"] / nu["cpu_s"] if "cpu_s" in nu else nan
+    for peer, key in (("emcee", "ratio_emcee"), ("nuts", "ratio_nuts")):
+        summary[key] = summary["same_posterior_ess_per_s"] / summary[f"{peer}_ess_per_s"]
+        summary[key + "_cpu"] = (
+            summary["same_posterior_ess_per_cpu_s"] / summary[f"{peer}_ess_per_cpu_s"]
+        )
     targets = []
     for peer, key, goal, row in (("NUTS + diffrax", "ratio_nuts", 100, nu),
                                  ("emcee + solve_ivp", "ratio_emcee", 300, em)):  # fmt: skip
@@ -418,16 +439,18 @@ def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, i
             measured = f"not measured: {row['skipped']}"
         elif row is nu:
             measured = (
-                f"{_ratio(ratio)} ({lr['ess_per_s']:.3g} vs {nu['ess_per_s_sampling']:.3g} "
-                f"ESS/s on its kept draws, {nu['ess_per_s']:.3g} with its warm-up; NUTS R-hat "
-                f"{nu['max_r_hat']:.3f}, ESS {nu['min_ess_bulk']:.0f}, "
-                f"{nu['grads_per_iteration']:.0f} gradients per iteration, "
-                f"{nu['divergences']} divergences)"
+                f"{_ratio(ratio)} by wall, {_ratio(summary[key + '_cpu'])} by CPU seconds "
+                f"({lr['ess_per_s']:.3g} vs {nu['ess_per_s']:.3g} ESS/s, warm-up charged as "
+                f"loadbayes' burn-in is; NUTS R-hat {nu['max_r_hat']:.3f}, ESS "
+                f"{nu['min_ess_bulk']:.0f} ({nu['worst']}), {nu['grads_per_iteration']:.0f} "
+                f"gradients per iteration, {nu['divergences']} divergences, acceptance "
+                f"{nu['accept_prob']:.2f})"
             )
         else:
             measured = (
-                f"{_ratio(ratio)} ({lr['ess_per_s']:.3g} vs {em['ess_per_s_from_long_tau']:.3g} "
-                f"ESS/s: tau {ek['autocorr_time_max']:.0f} steps x "
+                f"{_ratio(ratio)} by wall, {_ratio(summary[key + '_cpu'])} by CPU seconds "
+                f"({lr['ess_per_s']:.3g} vs {em['ess_per_s_from_long_tau']:.3g} ESS/s: tau "
+                f"{ek['autocorr_time_max']:.0f} steps x "
                 f"{em['wall_s'] / max(em['steps_done'], 1):.2f} s per step)"
             )
         why = "" if "skipped" in row else _why(lr, row, ratio, goal)
@@ -437,7 +460,7 @@ def run_event(name: str, spec: dict, quick: bool, seeds: int, nuts: tuple[int, i
             "met": bool(ratio >= goal),
         })  # fmt: skip
     summary["met"] = all(t["met"] for t in targets)
-    return rows, summary, targets
+    return summary, targets
 
 
 def _ratio(x: float) -> str:
@@ -472,7 +495,7 @@ def run_events_part(args, save) -> tuple[list[dict], list[dict], list[dict]]:
             stop = {"event": name, "skipped": "unfinished: stopped before every sampler ran"}
             save(rows + done, summaries + [stop], targets)
 
-        r, s, t = run_event(name, spec, args.quick, seeds, nuts, keep)
+        r, s, t = run_event(name, spec, args.quick, seeds, nuts, keep, args.skip_nuts)
         rows, targets = rows + r, targets + t
         summaries.append(s)
         save(rows, summaries, targets)
@@ -602,9 +625,13 @@ NOTES = [
     "(1,000 warm-up + the kept draws), in parallel on two JAX CPU devices; the ODE by "
     "diffrax Tsit5 (PID rtol 1e-6, atol 1e-9, a step on every sample, float64), its "
     "gradient by forward mode (5 tangents; reverse mode cost 4x more). Times exclude "
-    "JAX's compilation (compile_s). The NUTS ratio is judged on its kept draws' wall time "
-    "alone (ess_per_s_sampling: the warm-up not charged, the kinder rate); the rate with "
-    "the warm-up charged is given beside it.",
+    "JAX's compilation (compile_s, measured by a one-iteration run). Its ESS/s charges "
+    "its warm-up, as loadbayes' charges its NLS and burn-in. (warmup_wall_s and "
+    "sampling_wall_s split it; in runs before the warm-up was waited for, JAX's "
+    "asynchronous dispatch put nearly all of it in sampling_wall_s.)",
+    "Ratios by wall time (the target's) and by CPU seconds (this process's, all threads: "
+    "loadbayes' 4 chains, NUTS's 2 devices, emcee's one thread); the load moved between "
+    "the runs of one event, so the CPU ratio is the steadier.",
     "ESS: ArviZ bulk ESS, the minimum over every reported parameter (constants left out); "
     "R-hat: ArviZ's rank-normalised split R-hat, the maximum.",
     "The machine is shared (2 cores, other agents' work running): the load average is "
@@ -624,12 +651,19 @@ def merge(paths: list[str], output: str) -> None:
         m = run["machine"]
         out["runs"].append({"date": run["date"], "machine": m})
         names = [e["event"] for e in run["events"] if e["event"] not in seen]
+        load = [m["load_average_at_start"][0], m["load_average_at_end"][0]]
         for e in run["events"]:
-            if e["event"] in names:
-                load = (m["load_average_at_start"][0], m["load_average_at_end"][0])
-                out["events"].append({**e, "run": i, "load_1min_start_end": list(load)})
-        out["results"] += [r for r in run["results"] if r.get("event") in names]
-        out["targets"] += [t for t in run["targets"] if t["target"].split(":")[0] in names]
+            if e["event"] not in names:
+                continue
+            rows = [r for r in run["results"] if r.get("event") == e["event"]]
+            out["results"] += rows
+            if "skipped" in e:
+                out["events"].append(e)
+                continue
+            # The line and targets recomputed from the rows (the CPU rates included).
+            summary, targets = summarise(e["event"], rows)
+            out["events"].append({**summary, "run": i, "load_1min_start_end": load})
+            out["targets"] += targets
         seen |= set(names)
     out["notes"] = list(runs[0]["notes"]) + [
         f"Merged from {len(runs)} runs made at the same time on the same machine (each "
@@ -653,6 +687,12 @@ def main(argv=None) -> int:
     ap.add_argument("--only", nargs="*", default=None,
                     help="Events whose name contains one of these words (independent, 120, "
                     "real, griddyn).")  # fmt: skip
+    ap.add_argument(
+        "--skip-nuts",
+        default=None,
+        metavar="REASON",
+        help="Do not run NUTS; its row says REASON (e.g. what a timebox left undone).",
+    )
     ap.add_argument(
         "--merge",
         nargs="+",

@@ -321,6 +321,7 @@ def nuts_diffrax(
         # Warm-up and sampling timed apart (wall and this process's CPU seconds).
         t, c = time.perf_counter(), time.process_time()
         m.warmup(key, init_params=z0, extra_fields=fields)
+        jax.block_until_ready(m.post_warmup_state)  # JAX returns before it has computed
         t1, c1 = time.perf_counter(), time.process_time()
         m.run(m.post_warmup_state.rng_key, extra_fields=fields)
         t2, c2 = time.perf_counter(), time.process_time()

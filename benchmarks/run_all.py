@@ -292,12 +292,18 @@ def _composite_section(info: dict) -> list[str]:
     header = [
         "event", "n", "load (1 min, its run's start / end)",
         "loadbayes defaults wall s: median / max (CPU median)", "converged",
-        "loadbayes ESS/s (R-hat)", "emcee ESS/s", "ratio", "NUTS ESS/s: kept (with warm-up)",
-        "NUTS R-hat", "ratio",
+        "loadbayes ESS/s (R-hat)", "emcee ESS/s", "ratio: wall (CPU s)", "NUTS ESS/s",
+        "NUTS R-hat", "ratio: wall (CPU s)",
     ]  # fmt: skip
 
     def num(x) -> str:
         return _num(x) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
+
+    def both(e: dict, key: str) -> str:
+        def one(x):
+            return _ratio(x) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
+
+        return f"{one(e.get(key))} ({one(e.get(key + '_cpu'))})"
 
     m = info.get("machine", {})
     run_load = [m.get("load_average_at_start", [math.nan])[0],
@@ -318,10 +324,10 @@ def _composite_section(info: dict) -> list[str]:
                 f"{e['defaults_converged']} of {e['seeds']}",
                 f"{_num(e['same_posterior_ess_per_s'])} ({e['same_posterior_r_hat']:.3f})",
                 num(e["emcee_ess_per_s"]),
-                _ratio(e["ratio_emcee"]) if math.isfinite(e["ratio_emcee"]) else "-",
-                f"{num(e['nuts_ess_per_s_sampling'])} ({num(e['nuts_ess_per_s'])})",
+                both(e, "ratio_emcee"),
+                num(e["nuts_ess_per_s"]),
                 num(e["nuts_r_hat"]),
-                _ratio(e["ratio_nuts"]) if math.isfinite(e["ratio_nuts"]) else "-",
+                both(e, "ratio_nuts"),
             ]
         )
     runs = [
