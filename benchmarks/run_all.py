@@ -342,7 +342,12 @@ def _composite_section(info: dict) -> list[str]:
     ]  # fmt: skip
     end = m.get("load_average_at_end")
     lines = _table(header, rows)
-    if end:
+    if info.get("runs"):  # merged from runs made side by side: each its own load
+        lines += ["", "Runs: " + "; ".join(
+            f"{i}: {r['date']}, load {r['machine']['load_average_at_start'][0]:.1f} at start, "
+            f"{r['machine']['load_average_at_end'][0]:.1f} at end, {_num(r['machine']['run_s'])} s"
+            for i, r in enumerate(info["runs"])) + "."]  # fmt: skip
+    elif end:
         lines += ["", f"Load average at the end: {', '.join(f'{x:.1f}' for x in end)}; "
                   f"the whole run took {_num(m.get('run_s'))} s."]  # fmt: skip
     lines += ["", "Every run:", ""]
