@@ -463,11 +463,16 @@ def summarise(name: str, rows: list[dict]) -> tuple[dict, list[dict]]:
                 f"{ek['autocorr_time_max']:.0f} steps x "
                 f"{em['wall_s'] / max(em['steps_done'], 1):.2f} s per step)"
             )
-        why = "" if "skipped" in row else _why(lr, row, ratio, goal, walls, tau)
+        # Met only where both measures meet it: on a shared machine whose load moves
+        # between the runs, wall time can favour either side (CPU seconds, the fairer
+        # there, count every thread).
+        worst = min(ratio, summary[key + "_cpu"])
+        why = "" if "skipped" in row else _why(lr, row, worst, goal, walls, tau)
         targets.append({
-            "target": f"{name}: ESS/s >= {goal}x {peer} on the same posterior",
+            "target": f"{name}: ESS/s >= {goal}x {peer} on the same posterior (by wall "
+                      "and by CPU seconds)",
             "measured": measured + (f"; missed: {why}" if why else ""),
-            "met": bool(ratio >= goal),
+            "met": bool(worst >= goal),
         })  # fmt: skip
     summary["met"] = all(t["met"] for t in targets)
     return summary, targets
