@@ -7,7 +7,10 @@
   restart takes the chains out of the lower mode: every kept draw is the higher mode's;
 - a model of parts asks the sampler to restart lagging chains and says how many regions
   its jumps take (one by default); zip+motor's path is untouched (its problem has no
-  model to ask).
+  model to ask);
+- a gap over NEAR_GAP but under RESTART_GAP is named, its chain not moved;
+- only a model of parts whose events give a third channel gets a second least-squares
+  start (the fit of P and Q alone) for half its chains.
 """
 
 from __future__ import annotations
@@ -16,7 +19,14 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from loadbayes.fit.composite.restart import RESTART_GAP, restart_lagging, words
+from loadbayes.fit.composite.nls import _has_third_channel
+from loadbayes.fit.composite.restart import (
+    NEAR_GAP,
+    RESTART_GAP,
+    late_gaps,
+    restart_lagging,
+    words,
+)
 from loadbayes.inference.chain import Chain
 from loadbayes.models.dynamic import dynamic_model
 
@@ -71,3 +81,35 @@ def test_a_model_of_parts_restarts_lagging_chains_and_keeps_one_t_for_its_jumps(
     for name in ("slm", "cmld-lite"):
         model = dynamic_model(name)
         assert model.jump_regions == 1 and model.restart_modes
+
+
+def test_a_smaller_gap_is_named_without_moving_a_chain():
+    # Gaps 0, 7, 12, 3: the chain 12 below is moved and said; the one 7 below (over
+    # NEAR_GAP, under RESTART_GAP) is said, not moved; 3 is within one mode: silent.
+    lp = [np.full(9, 100.0), np.full(9, 93.0), np.full(9, 88.0), np.full(9, 97.0)]
+    gaps = late_gaps(lp)
+    assert gaps == [0.0, 7.0, 12.0, 3.0]
+    chains = [SimpleNamespace(state={"u": np.full(2, float(k))}) for k in range(4)]
+    moved = restart_lagging(chains, lp)
+    assert [k for k, _, _ in moved] == [2]
+    text = words(moved, 4, gaps)
+    assert "1 of 4 chains ended their burn-in in a mode" in text and "by 12" in text
+    assert "1 of 4 chains ended their burn-in with a log density" in text and "by 7" in text
+    assert np.array_equal(chains[1].state["u"], np.full(2, 1.0))  # named, not moved
+    assert words([], 4, [0.0, NEAR_GAP - 1, 2.0, 0.5]) is None
+    assert "by 6" in words([], 2, [0.0, NEAR_GAP + 1])
+
+
+def test_only_a_model_of_parts_with_a_third_channel_gets_a_second_least_squares_start():
+    # nls: the fit of P and Q alone is a second start only for a model that restarts
+    # chains and whose events give the negative-sequence channel rows; zip+motor's
+    # problem (no model) and a model of parts on balanced events get none.
+    def problem(rows, restart=True):
+        model = SimpleNamespace(restart_modes=restart)
+        return SimpleNamespace(model=model, channel_rows=lambda: np.array(rows, float))
+
+    assert _has_third_channel(problem([60, 60, 8]))
+    assert not _has_third_channel(problem([60, 60, 0]))
+    assert not _has_third_channel(problem([60, 60]))
+    assert not _has_third_channel(problem([60, 60, 8], restart=False))
+    assert not _has_third_channel(SimpleNamespace())

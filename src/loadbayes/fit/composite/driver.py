@@ -310,6 +310,9 @@ def fit_composite(
     project = getattr(prior, "project", None)
     if project is not None and not prior.inside(start.u):  # hard limits: start inside them
         start = replace(start, u=project(start.u))
+    if project is not None and start.others:  # and any other optimum chains start about
+        start = replace(start, others=tuple(x if prior.inside(x) else project(x)
+                                            for x in start.others))  # fmt: skip
     t1 = time.perf_counter()
     sampled, sample_start = problem, start
     if bounded:

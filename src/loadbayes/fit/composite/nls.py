@@ -37,6 +37,9 @@ class NLSResult:
     cost: float
     seconds: float
     nfev: int
+    #: Further least-squares optima some chains start from (a model of parts whose
+    #: likelihood has a channel beyond P and Q: the fit with that channel left out).
+    others: tuple[np.ndarray, ...] = ()
 
 
 def _project(problem: CompositeProblem, u: np.ndarray, w: np.ndarray):
@@ -136,10 +139,37 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     sol = run(w, x_best)
     nfev += sol.nfev
     u = sol.x
+    others = ()
+    if _has_third_channel(problem):
+        # The same fit with the channels beyond P and Q (the negative sequence) given no
+        # weight: where the record's P and Q alone lead. A model of parts can have one
+        # mode that fits that channel and one that leaves it to its noise (restart.py);
+        # some chains start here so that both can be reached.
+        w_pq = w.copy()
+        w_pq[2:] = 0.0
+        alt = run(w_pq, x_best)
+        nfev += alt.nfev
+        if np.max(np.abs(alt.x - u) / sd_u) > DISTINCT_SD:
+            others = (alt.x,)
     _, betas = _projected(problem, u, w)
     sig = _sigmas(problem, u, betas)
     cov = _gauss_newton_cov(problem, u, betas, 1.0 / sig, np.linalg.inv(cov_u))
-    return NLSResult(u, betas, sig, cov, float(sol.cost), time.perf_counter() - t_start, int(nfev))
+    return NLSResult(u, betas, sig, cov, float(sol.cost), time.perf_counter() - t_start,
+                     int(nfev), others)  # fmt: skip
+
+
+#: Two least-squares optima are distinct where some coordinate differs by more than this
+#: many prior sds (the P-and-Q-only optimum of a model of parts, :func:`nls`).
+DISTINCT_SD = 0.5
+
+
+def _has_third_channel(problem) -> bool:
+    # A model of parts that restarts chains in a lower mode, with rows in a third channel.
+    model = getattr(problem, "model", None)
+    rows = getattr(problem, "channel_rows", None)
+    if not getattr(model, "restart_modes", False) or rows is None:
+        return False
+    return bool(np.sum(rows()[2:]) > 0)
 
 
 #: Sample rate (per s) above which the NLS's multi-start search runs on thinned events.

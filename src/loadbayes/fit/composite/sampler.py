@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 546 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 556 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -37,7 +37,7 @@ from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.checks import MIN_KEPT
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
-from loadbayes.fit.composite.restart import restart_lagging
+from loadbayes.fit.composite.restart import late_gaps, restart_lagging
 from loadbayes.fit.composite.restart import words as restart_words
 from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
@@ -201,7 +201,8 @@ class _Gibbs:
     """
 
     def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
-                 dispersion, student_t, factor=None, ar=False, jumps=False):  # fmt: skip
+                 dispersion, student_t, factor=None, ar=False, jumps=False,
+                 u0=None):  # fmt: skip
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot = n_tot
         dim = problem.dim
@@ -210,15 +211,18 @@ class _Gibbs:
         self.am = MOVES[move](
             lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
         )
-        u, sums = start.u, None
+        # The least-squares optimum this chain starts about (start.u but where a model
+        # of parts' NLS found another: NLSResult.others).
+        u0 = start.u if u0 is None else u0
+        u, sums = u0, None
         for _ in range(100):
-            cand = start.u + dispersion * root @ rng.standard_normal(dim)
+            cand = u0 + dispersion * root @ rng.standard_normal(dim)
             sums = problem.sums(cand)
             if sums is not None:
                 u = cand
                 break
         if sums is None:
-            u, sums = start.u, problem.sums(start.u)
+            u, sums = u0, problem.sums(u0)
         tau = tau0.copy()
         # AR(1) noise: rho starts at 0 (white), the sums carry the motor's response.
         rho = np.zeros(2) if ar else None
@@ -498,10 +502,15 @@ def sample(
     # at the end of burn-in, and go on with the jumps fitted.
     pool = move in ONE_EVALUATION_MOVES
 
+    # Chain k starts about the k-th least-squares optimum, in turn (one for zip+motor;
+    # a model of parts may have two: restart.py then keeps the higher mode's).
+    optima = [start.u, *getattr(start, "others", ())]
+
     def first(index: int, rng: np.random.Generator) -> ChainResult:
+        u0 = optima[index % len(optima)]
         g = _Gibbs(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
                    move=move, dispersion=dispersion, student_t=student_t, factor=factor,
-                   ar=ar, jumps=pool)  # fmt: skip
+                   ar=ar, jumps=pool, u0=u0)  # fmt: skip
         c = Chain(g.step, g.start, rng, fields=g.fields, record=g.record, burn=burn,
                   thin=thin, stats=g.stats, stop=stop, progress=progress, deadline=deadline,
                   min_kept=MIN_KEPT)  # fmt: skip
@@ -518,11 +527,12 @@ def sample(
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
         if state[0][0].late_lp is not None:  # chains left in a lower mode (restart.py)
+            gaps = late_gaps([g.late_lp for g, _ in state])
             moved = restart_lagging([c for _, c in state], [g.late_lp for g, _ in state])
             for k, best, _ in moved:
                 state[k][0].am = copy.deepcopy(state[best][0].am)
             for g, _ in state:
-                g.restart_note = restart_words(moved, chains)
+                g.restart_note = restart_words(moved, chains, gaps)
             for k, _, _ in moved:  # the jumps fitted to the higher mode's burn-in alone
                 state[k][0].late_burn = []
         late = np.array([u for g, _ in state for u in g.late_burn])
