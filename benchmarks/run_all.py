@@ -285,7 +285,80 @@ def _generic_section(info: dict) -> list[str]:
     return _table(["quantity", "value"], out) if out else ["(no results)"]
 
 
-SECTIONS = {"zip": _zip_section, "stream": _stream_section}
+def _composite_section(info: dict) -> list[str]:
+    """Issue 35's table: per event, loadbayes' wall over seeds and each peer's ESS/s."""
+    if not info.get("events"):
+        return _generic_section(info)
+    header = [
+        "event", "n", "load (1 min, its run's start / end)",
+        "loadbayes defaults wall s: median / max (CPU median)", "converged",
+        "loadbayes ESS/s (R-hat)", "emcee ESS/s", "ratio: wall (CPU s)", "NUTS ESS/s",
+        "NUTS R-hat", "ratio: wall (CPU s)",
+    ]  # fmt: skip
+
+    def num(x) -> str:
+        return _num(x) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
+
+    def both(e: dict, key: str) -> str:
+        def one(x):
+            return _ratio(x) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
+
+        return f"{one(e.get(key))} ({one(e.get(key + '_cpu'))})"
+
+    m = info.get("machine", {})
+    run_load = [m.get("load_average_at_start", [math.nan])[0],
+                m.get("load_average_at_end", [math.nan])[0]]  # fmt: skip
+    rows = []
+    for e in info["events"]:
+        load = e.get("load_1min_start_end", run_load)
+        if "skipped" in e:
+            rows.append([e["event"], f"skipped: {e['skipped']}"] + [""] * (len(header) - 2))
+            continue
+        rows.append(
+            [
+                e["event"],
+                _num(e["n"]),
+                f"{load[0]:.1f} / {load[1]:.1f}",
+                f"{_num(e['defaults_wall_median_s'])} / {_num(e['defaults_wall_max_s'])} "
+                f"({_num(e['defaults_cpu_median_s'])})",
+                f"{e['defaults_converged']} of {e['seeds']}",
+                f"{_num(e['same_posterior_ess_per_s'])} ({e['same_posterior_r_hat']:.3f})",
+                num(e["emcee_ess_per_s"]),
+                both(e, "ratio_emcee"),
+                num(e["nuts_ess_per_s"]),
+                num(e["nuts_r_hat"]),
+                both(e, "ratio_nuts"),
+            ]
+        )
+    runs = [
+        [
+            r.get("event", ""), r["sampler"], _num(r.get("seed")), r.get("settings", ""),
+            _num(r.get("wall_s")), _num(r.get("cpu_s")), _num(r.get("min_ess_bulk")),
+            r.get("worst", ""), _num(r.get("max_r_hat")), _num(r.get("ess_per_s")),
+        ]
+        if "skipped" not in r
+        else [r.get("event", ""), r["sampler"], "", f"skipped: {r['skipped']}"] + [""] * 6
+        for r in info["results"]
+    ]  # fmt: skip
+    end = m.get("load_average_at_end")
+    lines = _table(header, rows)
+    if info.get("runs"):  # merged from runs made side by side: each its own load
+        lines += ["", "Runs: " + "; ".join(
+            f"{i}: {r['date']}, load {r['machine']['load_average_at_start'][0]:.1f} at start, "
+            f"{r['machine']['load_average_at_end'][0]:.1f} at end, {_num(r['machine']['run_s'])} s"
+            for i, r in enumerate(info["runs"])) + "."]  # fmt: skip
+    elif end:
+        lines += ["", f"Load average at the end: {', '.join(f'{x:.1f}' for x in end)}; "
+                  f"the whole run took {_num(m.get('run_s'))} s."]  # fmt: skip
+    lines += ["", "Every run:", ""]
+    lines += _table(
+        ["event", "sampler", "seed", "settings", "wall s", "CPU s", "min ESS", "worst",
+         "R-hat", "ESS/s"], runs,
+    )  # fmt: skip
+    return lines
+
+
+SECTIONS = {"zip": _zip_section, "stream": _stream_section, "composite": _composite_section}
 
 
 def _machine_line(info: dict) -> str:

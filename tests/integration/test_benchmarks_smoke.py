@@ -18,7 +18,7 @@ pytestmark = pytest.mark.integration
 BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
 SCRIPTS = [
     "bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py", "bench_cli.py",
-    "bench_drift.py", "bench_fleet.py", "bench_archive_pool.py",
+    "bench_drift.py", "bench_fleet.py", "bench_archive_pool.py", "bench_composite.py",
 ]  # fmt: skip
 
 
@@ -61,6 +61,17 @@ def test_script_runs_quick(script, tmp_path):
                 assert "not installed" in rows[name]["skipped"]
             else:
                 assert rows[name]["check"] in ("ok", "low ESS"), rows[name]
+    if script == "bench_composite.py":
+        rows = {r["sampler"]: r for r in info["results"]}
+        # The move is the package's default, whatever it is: named in the row.
+        fits = [k for k in rows if k.startswith("loadbayes-")]
+        assert sum(k.endswith("-ramp") for k in fits) == 1 and len(fits) == 2, fits
+        for name, module in (("emcee", "emcee"), ("numpyro-nuts-diffrax", "numpyro")):
+            if importlib.util.find_spec(module) is None:
+                assert "not installed" in rows[name]["skipped"]
+        (event,) = info["events"]
+        assert event["seeds"] == 1 and event["defaults_wall_max_s"] > 0
+        assert len(info["targets"]) == 2  # NUTS and emcee, each met, missed or not measured
     if script == "bench_stream.py":
         assert info["bit_identical"]
     if script == "bench_fleet.py":

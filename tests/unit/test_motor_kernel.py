@@ -121,3 +121,30 @@ def test_kernel_matches_solve_ivp_at_960_samples_per_second(name):
     assert np.max(np.abs(q - q_ref)) < TOL_PU
     p_bad, _, _ = integrate(t, v, None, h_s=1.05 * m.h_s, **kw)
     assert np.max(np.abs(p_bad - p_ref)) > TOL_PU
+
+
+@pytest.mark.parametrize("window_s", [0.0, 1 / 60])
+def test_an_input_no_load_sees_is_refused_not_integrated_for_ever(window_s):
+    # A feeder loop's sweep that runs off drives a motor with |V| of 1e9 between two
+    # samples: 1e10 sub-steps of DV_STEP. Before MAX_SUBSTEPS predict spun on such a draw
+    # for minutes; now the call says it has no result, as for non-finite states.
+    import time
+
+    from loadbayes.models.motor_kernel import DV_STEP, MAX_SUBSTEPS
+
+    m = MOTORS["krause_3hp"]
+    t = np.arange(0.0, 0.5, 1 / 60)
+    kw = dict(rs=m.rs, xp=m.xp, dx=m.x - m.xp, tp_s=m.tp_s, h_s=m.h_s, t0=0.6,
+              window_s=window_s)  # fmt: skip
+    v = np.ones_like(t)
+    assert integrate(t, v, None, **kw) is not None  # warm (compiled), and a plain input plays
+    v[10:] = 1e9
+    c0 = time.process_time()
+    assert integrate(t, v, None, **kw) is None
+    # A termination check, not a speed one: 1e10 RK4 steps are hours of CPU, the refusal
+    # well under a second; a minute of CPU cannot be reached by load or a slow machine.
+    assert time.process_time() - c0 < 60.0
+    # The bound is far above what any voltage asks: a 2 p.u. jump is 20 sub-steps.
+    assert 2.0 / DV_STEP < MAX_SUBSTEPS / 1000
+    v[10:] = 2.5  # a large but physical swell still integrates
+    assert integrate(t, v, None, **kw) is not None

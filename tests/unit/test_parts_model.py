@@ -77,16 +77,21 @@ def test_the_prior_refuses_an_x_prime_outside_its_limits_and_project_moves_it_in
     prior = model.default_prior([ev])
     u = prior.project(prior.scale_free()[0][: len(model.theta_names)].copy())
     assert prior.inside(u) and len(prior.limits) == len(model.motors)
-    for i, *_ in prior.limits:  # log(X' T0) at i + 1, log T0 at i + 5: X' = exp(difference)
-        for x in (0.017, 0.9):
-            bad = u.copy()
-            bad[i + 1] = math.log(x) + bad[i + 5]
-            assert not prior.inside(bad) and prior.log_u(bad) == -math.inf
-            moved = prior.project(bad)
-            assert prior.inside(moved)
-            assert X_PRIME_RANGE[0] < math.exp(moved[i + 1] - moved[i + 5]) < X_PRIME_RANGE[1]
-            others = np.delete(np.arange(u.size), i + 1)
-            assert np.array_equal(moved[others], bad[others])  # only X' moved
+    # The sampled vector holds log T0 as its place inside the limits (models/part_scale.py):
+    # theta's log(X' T0) at i + 1, log T0 at i + 5, X' = exp(difference).
+    for i, *_ in prior.limits:
+        theta = prior.to_theta(u)
+        assert X_PRIME_RANGE[0] < math.exp(theta[i + 1] - theta[i + 5]) < X_PRIME_RANGE[1]
+        # X' T0 below Rs T0 x_min / rs_max: no T0 holds X' >= x_min with Rs <= rs_max.
+        bad = u.copy()
+        bad[i + 1] = bad[i] + math.log(X_PRIME_RANGE[0] / 0.1) - 0.2
+        assert not prior.inside(bad) and prior.log_u(bad) == -math.inf
+        moved = prior.project(bad)
+        assert prior.inside(moved)
+        theta = prior.to_theta(moved)
+        assert X_PRIME_RANGE[0] < math.exp(theta[i + 1] - theta[i + 5]) < X_PRIME_RANGE[1]
+        others = np.delete(np.arange(u.size), np.arange(i, i + 6))
+        assert np.array_equal(moved[others], bad[others])  # only this motor moved
     assert prior.to_dict()["limits"][0]["x_prime_min"] == X_PRIME_RANGE[0]
     free = dynamic_model(name, f_hz=50.0, physical_region=False).default_prior([ev])
     assert free.limits == ()

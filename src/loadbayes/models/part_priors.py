@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.models.part_scale import ScaleMap
+
 __all__ = [
     "FEEDER_X",
     "MOTOR_CLASSES",
@@ -164,13 +166,23 @@ class PartsPrior:
 
     def __post_init__(self) -> None:
         n = self.mean.size + sum(b - a for a, b in self.groups)
+        # With limits, each motor's log T0 is sampled as z (models/part_scale.py): the
+        # Gaussian block is the others' marginal, z a standard normal beside it.
+        maps = tuple(ScaleMap(i, self.mean[i : i + 6], self.cov[i : i + 6, i : i + 6], *r)
+                     for i, *r in self.limits)  # fmt: skip
+        zs = [m.index + 5 for m in maps]
+        mean, cov = self.mean.copy(), self.cov.copy()
+        mean[zs], cov[zs, :], cov[:, zs] = 0.0, 0.0, 0.0
+        cov[zs, zs] = 1.0
         full_mean = np.zeros(n)
-        full_mean[: self.mean.size] = self.mean
+        full_mean[: self.mean.size] = mean
         full = np.zeros((n, n))
-        full[: self.mean.size, : self.mean.size] = self.cov
+        full[: self.mean.size, : self.mean.size] = cov
         for a, b in self.groups:
             full[a:b, a:b] = _ALR_COV
             full[range(a, b), range(a, b)] = _ALR_VAR
+        object.__setattr__(self, "maps", maps)
+        object.__setattr__(self, "_gauss", (mean, np.linalg.inv(cov)))
         object.__setattr__(self, "_full", (full_mean, full))
         object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
 
@@ -184,8 +196,11 @@ class PartsPrior:
         u = np.asarray(u, dtype=float)
         if not self.inside(u):
             return -math.inf
-        d = u[: self.mean.size] - self.mean
-        out = -0.5 * float(d @ self._prec @ d)
+        mean, prec = self._gauss
+        d = u[: self.mean.size] - mean
+        out = -0.5 * float(d @ prec @ d)
+        for m in self.maps:  # the limits' mass of each motor's log T0 (part_scale.py)
+            out += float(m.log_mass(u))
         for a, b in self.groups:
             # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
             z = np.append(u[a:b], 0.0)
@@ -193,25 +208,63 @@ class PartsPrior:
         return out
 
     def inside(self, u: np.ndarray) -> bool:
-        """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold."""
-        for i, rs_max, h_min, x_min, x_max in self.limits:
-            if u[i] - u[i + 5] > math.log(rs_max) or u[i + 4] + u[i + 5] < math.log(h_min):
-                return False
-            if not math.log(x_min) <= u[i + 1] - u[i + 5] <= math.log(x_max):
+        """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold.
+
+        ``u`` is the sampled vector: each motor's ``z`` (:meth:`to_theta`) puts its
+        ``log T0`` inside the limits, so they hold wherever they leave ``log T0`` some
+        prior mass.
+        """
+        for m in self.maps:
+            if not math.isfinite(float(m.log_mass(u))):
                 return False
         for i, lo, hi in self.ranges:
             if not lo <= u[i] <= hi:
                 return False
         return all(u[j] <= u[i] - gap for i, j, gap in self.order)
 
+    def to_theta(self, u: np.ndarray) -> np.ndarray:
+        """The model's ``theta`` of sampled vector(s) ``u``: each motor's ``z`` made its ``log T0``.
+
+        The identity without limits. ``u`` (..., n) with any leading axes.
+        """
+        if not self.maps:
+            return u
+        theta = np.array(u, dtype=float)
+        for m in self.maps:
+            theta[..., m.index + 5] = m.log_t0(u)
+        return theta
+
+    def from_theta(self, theta: np.ndarray) -> np.ndarray:
+        """The sampled vector of a ``theta`` inside the limits (:meth:`to_theta`'s inverse)."""
+        u = np.array(theta, dtype=float)
+        for m in self.maps:
+            u[..., m.index + 5] = m.z(theta)
+        return u
+
     def project(self, u: np.ndarray, margin: float = 0.05) -> np.ndarray:
-        """``u`` moved just inside each motor's physical region (a start for the sampler)."""
+        """``u`` moved just inside each motor's physical region (a start for the sampler).
+
+        ``u`` is the sampled vector. A motor whose limits leave its ``log T0`` no room is
+        given the ``log T0`` its unlimited prior conditional puts at its ``z`` (``m + s
+        z``), moved inside as ``theta`` (the coordinates' wedge) and mapped back; the
+        other motors stay as they are.
+        """
+        if not self.maps:
+            return self._project(u, margin)
         u = np.array(u, dtype=float)
-        for i, rs_max, h_min, x_min, x_max in self.limits:
-            u[i] = min(u[i], math.log(rs_max) - margin + u[i + 5])
-            u[i + 4] = max(u[i + 4], math.log(h_min) + margin - u[i + 5])
-            lo, hi = math.log(x_min) + margin + u[i + 5], math.log(x_max) - margin + u[i + 5]
-            u[i + 1] = min(max(u[i + 1], lo), hi)
+        for m, limit in zip(self.maps, self.limits, strict=True):
+            if math.isfinite(float(m.log_mass(u))):
+                continue
+            theta = u.copy()
+            theta[m.index + 5] = m._ab(u)[0] + m._sd * u[m.index + 5]
+            theta = _project_motor(theta, *limit, margin)
+            u[m.index : m.index + 6] = m.project_back(theta)[m.index : m.index + 6]
+        return self._project(u, margin, motors=False)
+
+    def _project(self, u: np.ndarray, margin: float, motors: bool = True) -> np.ndarray:
+        u = np.array(u, dtype=float)
+        for limit in self.limits if motors else ():
+            u = _project_motor(u, *limit, margin)
         for i, lo, hi in self.ranges:
             u[i] = min(max(u[i], lo + 1e-3 * (hi - lo)), hi - 1e-3 * (hi - lo))
         for i, j, gap in self.order:
@@ -232,6 +285,16 @@ class PartsPrior:
             "beta_sd": self.beta_sd.tolist(),
             "tau": {"shape": self.tau_shape, "rate": self.tau_rate},
         }
+
+
+def _project_motor(u, i, rs_max, h_min, x_min, x_max, margin):
+    # One motor's theta (log T0 at i + 5) moved just inside its limits.
+    u = np.array(u, dtype=float)
+    u[i] = min(u[i], math.log(rs_max) - margin + u[i + 5])
+    u[i + 4] = max(u[i + 4], math.log(h_min) + margin - u[i + 5])
+    lo, hi = math.log(x_min) + margin + u[i + 5], math.log(x_max) - margin + u[i + 5]
+    u[i + 1] = min(max(u[i + 1], lo), hi)
+    return u
 
 
 #: Priors of motor D's stall voltage and time and the electronics' trip voltages: a fit

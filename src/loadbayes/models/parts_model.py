@@ -113,6 +113,15 @@ class PartsModel:
     """A load of parts behind a feeder (see the module docstring)."""
 
     name: ClassVar[str] = "parts"
+    #: The sampler's jumps after burn-in propose from a mixture of t's over this many
+    #: regions of the pooled burn-in (as ``zip+motor``'s 10, ``fit/composite/sampler``);
+    #: 1: one t. Ten let chains that found different modes jump between them, but moved
+    #: the GridDyn check's motor share off its truth (docs/composite.md, "Two modes of
+    #: cmld-lite"), so a model of parts keeps one t by default.
+    jump_regions: ClassVar[int] = 1
+    #: Chains whose burn-in ended in a mode far lower in density than the best chain's
+    #: go on from the best chain's state, and the fit says so (``fit/composite/restart.py``).
+    restart_modes: ClassVar[bool] = True
     motors: tuple[str, ...] = ("slm",)
     feeder: bool = True
     motor_d: bool = False

@@ -89,8 +89,14 @@ class DesignProblem:
         return None
 
     def theta(self, u: np.ndarray, scale: Any = None) -> np.ndarray:
-        """``theta`` of free coordinates ``u`` (..., n_free); a scale, if any, at 0."""
-        return np.asarray(u, dtype=float)[..., : self.n_free] @ self._to_theta
+        """``theta`` of free coordinates ``u`` (..., n_free); a scale, if any, at 0.
+
+        A prior with its own map of the sampled coordinates (``to_theta``: a model of
+        parts' motors' ``log T0``, ``models/part_scale.py``) applies it after.
+        """
+        theta = np.asarray(u, dtype=float)[..., : self.n_free] @ self._to_theta
+        to_theta = getattr(self.prior, "to_theta", None)
+        return theta if to_theta is None else to_theta(theta)
 
     def phi(self, u: np.ndarray) -> np.ndarray:
         """No steps: an empty vector of step fractions."""

@@ -399,6 +399,8 @@ def fit_composite(
         describe_fit(post, draws_named, model, problem, blocks, run, watch)
     else:
         post.warnings.extend(convergence_warnings(draws_named, watch, run.chains))
+        if res and res[0].restart_note:  # chains moved out of a lower mode (restart.py)
+            post.warnings.append(res[0].restart_note)
         if hasattr(model, "parts"):  # a model of parts: physical, prior's, negative sequence
             describe_parts(post, draws_named, model, events, run.hdi_prob,
                            residuals=parts_residuals(problem, blocks))  # fmt: skip

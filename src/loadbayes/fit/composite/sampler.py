@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 520 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 546 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -12,6 +12,8 @@ physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-mo
 every chain's late burn-in pooled (:data:`JUMP_SHARE`); docs/composite.md, "The sampler"
 and "Jumps". The steps' fractions are also refreshed across [0, 1] now and then
 (:data:`REFRESH_SHARE`): an edge's instant can have a minor mode the jumps cannot leave.
+A model of parts may ask for its chains that ended their burn-in in a far lower mode to
+go on from the best chain's state (``restart.py``), said in words.
 A ``deadline`` (the time budget) holds from the first iteration: past it the chains end
 their burn-in and stop with what they drew (:class:`~loadbayes.inference.chain.Chain`),
 all cut to the same length (:attr:`ChainResult.cut` says how many iterations the
@@ -20,6 +22,7 @@ deadline took); a run it never binds keeps its draws.
 
 from __future__ import annotations
 
+import copy
 import math
 import threading
 from collections.abc import Callable
@@ -35,6 +38,8 @@ from loadbayes.fit.composite.bounded_kernel import share_steps
 from loadbayes.fit.composite.checks import MIN_KEPT
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
+from loadbayes.fit.composite.restart import restart_lagging
+from loadbayes.fit.composite.restart import words as restart_words
 from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
@@ -57,7 +62,8 @@ JUMP_SHARE = 0.35
 #: The zip+motor's jumps propose from a mixture of this many t's over regions of the pooled
 #: burn-in (inference.moves.mixture): one t accepted 2.3% of its jumps on the real
 #: record's first fault, whose T' has a long one-sided tail; the mixture 22-31%
-#: (docs/composite.md, "Jumps from regions"). A model of parts keeps one t.
+#: (docs/composite.md, "Jumps from regions"). A model of parts asks for its own
+#: (``jump_regions``: ``cmld-lite``'s chains find two modes, which the regions join).
 JUMP_COMPONENTS = 10
 #: Share of the iterations that also refresh one step's fraction uniformly across
 #: [0, 1] (inference.moves.refresh): an edge's instant can have a minor mode the burn-in
@@ -88,6 +94,8 @@ class ChainResult:
     rho: np.ndarray | None = None
     # Iterations the deadline (time budget) cut from this chain: 0 when it never bound.
     cut: int = 0
+    # Chains restarted at the end of burn-in from a lower mode (restart.py), in words.
+    restart_note: str | None = None
 
 
 #: ChainResult's fields that hold one row per kept draw (cut to a common length).
@@ -237,6 +245,11 @@ class _Gibbs:
                         if ns and isinstance(problem, CompositeProblem) else None)  # fmt: skip
         # The second half of the burn-in's u (with jumps): the pooled t is fitted to them.
         self.late_burn: list[np.ndarray] | None = [] if jumps else None
+        # And their joint log densities, where the model asks for chains in a lower mode
+        # to be restarted (a model of parts: restart.py); None: not kept.
+        modes = bool(getattr(getattr(problem, "model", None), "restart_modes", False))
+        self.late_lp: list[float] | None = [] if jumps and modes and student_t is None else None
+        self.restart_note: str | None = None
         # What a kept iteration stores, by name (ChainResult's fields).
         self.fields = {
             "theta": (problem.n_theta,),
@@ -277,6 +290,9 @@ class _Gibbs:
         burn = self.burn
         if self.late_burn is not None and burn // 2 <= it < burn:
             self.late_burn.append(np.array(u, dtype=float))
+            if self.late_lp is not None:  # the state's density with tau's prior
+                a, b, t = problem.prior.tau_shape, problem.prior.tau_rate, tau[tau > 0]
+                self.late_lp.append(lp + float(np.sum((a - 1) * np.log(t) - b * t)))
         if rho is not None:  # rho | u, beta, tau; then the sums whitened for it
             stats = problem.ar_statistics(sums, betas)
             top = getattr(problem, "rho_max", RHO_MAX)  # a model of parts' own bound
@@ -370,6 +386,7 @@ def _result(gibbs: _Gibbs, chain: Chain) -> ChainResult:
         u_extra=d["u_extra"] if p.dim > gibbs.n_base else None,
         rho=d.get("rho"),
         cut=chain.cut,
+        restart_note=gibbs.restart_note,
         **chain.sample_stats(),
         **robust,
     )
@@ -504,8 +521,17 @@ def sample(
     generators = chain_generators(seed, chains)
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
+        if state[0][0].late_lp is not None:  # chains left in a lower mode (restart.py)
+            moved = restart_lagging([c for _, c in state], [g.late_lp for g, _ in state])
+            for k, best, _ in moved:
+                state[k][0].am = copy.deepcopy(state[best][0].am)
+            for g, _ in state:
+                g.restart_note = restart_words(moved, chains)
+            for k, _, _ in moved:  # the jumps fitted to the higher mode's burn-in alone
+                state[k][0].late_burn = []
         late = np.array([u for g, _ in state for u in g.late_burn])
-        regions = JUMP_COMPONENTS if isinstance(problem, CompositeProblem) else 1
+        own = int(getattr(getattr(problem, "model", None), "jump_regions", 1))  # parts'
+        regions = JUMP_COMPONENTS if isinstance(problem, CompositeProblem) else own
         for g, _ in state:
             g.am.fit_jumps(late, components=regions)
             g.late_burn = []
