@@ -133,6 +133,10 @@ def after_stall(extrapolation: dict[str, Any], model, stall: dict | None) -> dic
     on GridDyn 0.13.0's CMLD at a 46 % sag, motor D stays stalled at Vstall 0.58 and 0.60
     and comes back within 0.15 s at 0.545, 0.62 and 0.684 (f_d 0.15), and the band from a
     13 % and a 25 % fit, its draws stalled to the end, held 14-45 % of such a fault's Q.
+    The restart constants decide it, not the draws: on GridDyn's drawn load 105 (f_d 0.243,
+    Vstall 0.684) Q's coverage stays 0.14 with Frst = 1 (the stalled units' current
+    through the fitted feeder holds the load bus below Vrst 0.95: none restarts), is 0.82
+    with Vrst 0.7 and 0.95 with Vrst 0.7 and Trst 0.05 s as well; no source gives those.
     Unchanged where no draw stalls (or the model has no motor D).
     """
     if not model.motor_d or not stall or not stall.get("probability"):
