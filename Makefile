@@ -73,7 +73,8 @@ validate: $(STAMP)
 		tests/statistical/test_drift_fleet_coverage.py tests/statistical/test_drift_year.py \
 		tests/statistical/test_archive_end_to_end.py tests/statistical/test_fleet_heterogeneous.py \
 		tests/statistical/test_composite_fan.py tests/statistical/test_composite_generators.py \
-		tests/statistical/test_predict_band_average.py tests/integration/test_readme.py
+		tests/statistical/test_predict_band_average.py tests/integration/test_readme.py \
+		tests/integration/test_zip_study.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(GRIDDYN_VENV) results .pytest_cache .ruff_cache

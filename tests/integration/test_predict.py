@@ -225,6 +225,10 @@ def test_griddyn_deep_fault_predicted_from_shallow_and_medium(griddyn):
     assert pred.extrapolation["extrapolated"]  # 46 % against the deepest fitted 25 %
     assert pred.stall["probability"] > 0.5
     assert inside["p"] >= 0.8 and inside["q"] >= 0.8, inside
+    # After the stall the answer rests on motor D's restart constants, not the data.
+    assert pred.extrapolation["after_stall"]["assumed"] == {"frst": 0.2, "vrst": 0.95,
+                                                            "trst": 0.3}  # fmt: skip
+    assert "rest on an assumption" in pred.extrapolation["message"]
 
 
 @pytest.mark.statistical

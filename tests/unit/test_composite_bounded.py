@@ -170,3 +170,100 @@ def test_a_prior_on_the_motor_share_with_free_shares_pulls_it(inadmissible_event
         "shares": "free",
         "normal": {"f_m": [plain - 0.15, 0.005]},
     }
+
+
+def _reference_term(z, ztz, zty, yty, n, tau, p0_gamma, share_prior):
+    # One event's share terms as the Python code wrote them before they were compiled.
+    from loadbayes.fit.composite.bounded import log_evidence, log_prior_shares
+
+    a = shares_of(z)
+    out = log_prior_shares(z)
+    for i, mean, sd in share_prior:
+        out -= 0.5 * ((a[i] - mean) / sd) ** 2
+    return out + log_evidence(ztz, zty, yty, n, tau, a, p0_gamma)
+
+
+def _event_sums(rng, n=60):
+    # A ZIP + motor design of both channels (x^2, x, 1 per channel; the motor's column),
+    # and a response made from shares inside the simplex with noise.
+    x = 1.0 - 0.3 * rng.uniform(size=n)
+    m = 0.5 + 0.3 * rng.standard_normal(n)
+    zs, ys = [], []
+    for c in range(2):
+        z = np.zeros((n, 7))
+        z[:, 3 * c : 3 * c + 3] = np.stack([x**2, x, np.ones(n)], 1)
+        z[:, 6] = m
+        y = z @ np.array([0.2, 0.3, 0.5, 0.3, 0.3, 0.4, 0.4]) + 0.01 * rng.standard_normal(n)
+        zs.append(z)
+        ys.append(y)
+    zty = np.stack([z.T @ y for z, y in zip(zs, ys, strict=True)])
+    return (np.stack([z.T @ z for z in zs]), zty, np.array([y @ y for y in ys]),
+            np.array([float(n), float(n)]))  # fmt: skip
+
+
+def test_compiled_owens_t_is_scipys():
+    """The kernels call SciPy's own compiled Owen's T: the same numbers, bit for bit."""
+    from scipy import special
+
+    from loadbayes.fit.composite.bounded_kernel import owens_t
+
+    rng = np.random.default_rng(3)
+    h = np.concatenate([rng.normal(0, 3, 500), [0.0, 1e-12, -40.0, 40.0]])
+    a = np.concatenate([rng.normal(0, 5, 500), [1.0, 1e6, -1e-9, 0.5]])
+    assert [owens_t(x, y) for x, y in zip(h, a, strict=True)] == list(special.owens_t(h, a))
+
+
+def test_compiled_share_terms_match_the_python_ones():
+    """``bounded_terms`` (and the quadrant, its tail branch included) against the Python
+    code it replaced, to rounding (the order of the 3 x 3 sums differs)."""
+    from loadbayes.fit.composite.bounded_kernel import _log_quadrant as compiled_quadrant
+    from loadbayes.fit.composite.bounded_kernel import bounded_terms, stacked
+    from loadbayes.inference.condlinear import GroupSums
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        b = rng.normal(size=(3, 3))
+        cov = b @ b.T + 0.1 * np.eye(3)
+        mu = 4.0 * rng.normal(size=3)
+        assert math.isclose(compiled_quadrant(mu, cov), _log_quadrant(mu, cov), rel_tol=1e-12,
+                            abs_tol=1e-12)  # fmt: skip
+    groups = [GroupSums(*_event_sums(rng)) for _ in range(3)]
+    tau, p0 = np.array([2e3, 3e3]), np.array([0.01, 0.02, 0.01])
+    prior = ((0, 0.3, 0.1), (4, 0.2, 0.05))
+    args = (*stacked(groups), tau, p0, np.array([0, 4]), np.array([0.3, 0.2]),
+            np.array([0.1, 0.05]))  # fmt: skip
+    for _ in range(50):
+        z = rng.normal(0, 2, (3, 4))
+        ref = sum(_reference_term(z[e], g.ztz, g.zty, g.yty, g.n, tau, p0, prior)
+                  for e, g in enumerate(groups))  # fmt: skip
+        assert math.isclose(bounded_terms(z, *args), ref, rel_tol=1e-9)
+
+
+def test_compiled_share_steps_take_the_python_loops_path():
+    """Given the same normal and uniform draws, the compiled steps accept and reject as
+    the Python loop over the reference terms does, and adapt the scale the same way."""
+    from loadbayes.fit.composite.bounded_kernel import share_steps, stacked
+    from loadbayes.inference.condlinear import GroupSums
+
+    rng = np.random.default_rng(5)
+    groups = [GroupSums(*_event_sums(rng)) for _ in range(2)]
+    tau, p0 = np.array([2e3, 3e3]), np.array([0.01, 0.02, 0.01])
+    steps = 40
+    normal, uniform = rng.standard_normal((steps, 2, 4)), rng.uniform(size=(steps, 2))
+    z0 = np.zeros((2, 4))
+    z, scale = z0.copy(), np.full(2, 0.3)
+    share_steps(z, *stacked(groups), tau, p0, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
+                normal, uniform, scale, True)  # fmt: skip
+    ref_z, ref_scale, accepted = z0.copy(), np.full(2, 0.3), 0
+    for s in range(steps):
+        for e, g in enumerate(groups):
+            cur = _reference_term(ref_z[e], g.ztz, g.zty, g.yty, g.n, tau, p0, ())
+            cand = ref_z[e] + ref_scale[e] * normal[s, e]
+            lc = _reference_term(cand, g.ztz, g.zty, g.yty, g.n, tau, p0, ())
+            ok = math.log(uniform[s, e]) < lc - cur
+            if ok:
+                ref_z[e], accepted = cand, accepted + 1
+            ref_scale[e] *= math.exp(0.02 * (float(ok) - 0.3))
+    assert 0 < accepted < 2 * steps  # both kinds of decision were taken
+    np.testing.assert_allclose(z, ref_z, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(scale, ref_scale, rtol=1e-14)

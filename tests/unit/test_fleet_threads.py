@@ -96,3 +96,27 @@ def test_summary_batches_in_threads_change_nothing(monkeypatch):
     many = H.summarize_chains(data, chains, SAMPLER, batch=7)
     assert len(one) == 3 * 10 + 30 * 12  # classes: 6 shares, 4 spreads
     pd.testing.assert_frame_equal(one, many, check_exact=True)
+
+
+def test_one_blas_thread_caps_the_pools_during_the_call_only():
+    """The composite fit's small least squares run on one BLAS thread, then the pools are
+    as they were (threadpoolctl; a 2,402 x 7 lstsq cost 160 times the CPU on two)."""
+    from threadpoolctl import threadpool_info
+
+    from loadbayes.core.parallel import one_blas_thread
+    from loadbayes.fit.composite import driver, reading
+
+    def counts():
+        return [p["num_threads"] for p in threadpool_info()]
+
+    before = counts()
+    inside = one_blas_thread(counts)()
+    assert inside and all(n == 1 for n in inside)
+    assert counts() == before
+    # Where the fit spends its BLAS: the reading's two NLS fits, and NLS + chains.
+    for f in (reading.choose_reading, driver.fit_composite):
+        names = [f.__code__.co_name]
+        while hasattr(f, "__wrapped__"):
+            f = f.__wrapped__
+            names.append(f.__code__.co_name)
+        assert "capped" in names

@@ -34,6 +34,7 @@ __all__ = [
     "draw_betas",
     "draw_tau",
     "log_marginal",
+    "moments_arrays",
     "posterior_moments",
     "residual_ss",
 ]
@@ -79,6 +80,11 @@ def _moments(ztz, zty, tau, m0, p0):  # pragma: no cover - compiled
     for i in range(k):
         logdet += 2.0 * np.log(chol[i, i])
     return mu, cov, h, logdet
+
+
+#: :func:`posterior_moments` on raw arrays ``(ztz, zty, tau, m0, p0)``, compiled: for
+#: other kernels to call (fit/composite/bounded_kernel.py).
+moments_arrays = _moments
 
 
 def posterior_moments(

@@ -36,6 +36,7 @@ import math
 import numpy as np
 from scipy import special
 
+from loadbayes.fit.composite.bounded_kernel import gamma_moments
 from loadbayes.inference.condlinear import log_marginal_arrays, posterior_moments
 
 __all__ = [
@@ -128,9 +129,9 @@ def posterior_moments_3(zz, zy, tau, p0_gamma):
 def draw_gamma(ztz, zty, tau, a, p0_gamma, rng: np.random.Generator, size: int = 1):
     """``size`` exact draws of one event's ``beta`` (size, 7) under the bounded model."""
     t = transform(a)
-    zz = np.einsum("ji,gjk,kl->gil", t, ztz, t)
-    zy = np.einsum("ji,gj->gi", t, zty)
-    mu, cov, _, _ = posterior_moments_3(zz, zy, np.asarray(tau, float), p0_gamma)
+    mu, cov, _, _ = gamma_moments(np.asarray(a, dtype=float), np.asarray(ztz, dtype=float),
+                                  np.asarray(zty, dtype=float), np.asarray(tau, dtype=float),
+                                  np.asarray(p0_gamma, dtype=float))  # fmt: skip
     sm = math.sqrt(cov[_P_M0, _P_M0])
     # P_zip0 | P_m0: its conditional mean moves with P_m0, its sd does not.
     slope = cov[_P_ZIP, _P_M0] / cov[_P_M0, _P_M0]

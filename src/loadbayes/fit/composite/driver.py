@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.parallel import one_blas_thread
 from loadbayes.core.settings import SamplerSettings, new_spelling
 from loadbayes.fit.composite.bounded import share_start
 from loadbayes.fit.composite.checks import (
@@ -206,6 +207,7 @@ def _student_t(likelihood: str, nu: float | str) -> StudentT | None:
 
 
 @new_spelling(data=DATA_KEYWORDS, more=MOVED)
+@one_blas_thread  # small least squares; the chains are the threads (core/parallel.py)
 def fit_composite(
     model: DynamicLoadModel,
     events: Sequence[EventRecord],

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.fit.composite.predict_outcome import KINDS, outcome, parts_why
+from loadbayes.fit.composite.predict_outcome import KINDS, after_stall, outcome, parts_why
 from loadbayes.fit.composite.predict_scope import (
     MEANING,
     bands,
@@ -372,8 +372,9 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
                          "from": "event 0's pre-fault P, Q at the recorded bus"},  # fmt: skip
         draws={"asked": int(n_draws), "played": int(pick.size), "used": used, "failed": failed},
         thresholds=thresholds, stall=stall, electronics_tripped=el, recovery=recovery,
-        coverage=cover, extrapolation=extrapolation(model, fault, cover, priors,
-                                    left_to_prior(model, post.draws)), band=band,
+        coverage=cover, band=band,
+        extrapolation=after_stall(extrapolation(model, fault, cover, priors,
+                                                left_to_prior(model, post.draws)), model, stall),
         prob=prob, warnings=warnings, outcome=out,
         outcomes={"index": pick[kept], "q_excess_pu_s": np.array(excess),
                   "stalled": np.array(stalled if model.motor_d else [False] * used),

@@ -46,7 +46,7 @@ from loadbayes.fit.composite.predict_scope import jeffreys
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.parts_play import NO_OPERATING_POINT, PLAYS, play_draws
 
-__all__ = ["KINDS", "fault_free", "no_band", "outcome", "parts_why"]
+__all__ = ["KINDS", "after_stall", "fault_free", "no_band", "outcome", "parts_why"]
 
 #: The outcomes in ``outcome``'s order: the JSON's keys and their words.
 KINDS = {
@@ -120,3 +120,40 @@ def parts_why(model, event, theta, p0, q0, shares, th, played) -> np.ndarray:
                           {k: np.asarray(v)[bad] for k, v in th.items()})  # fmt: skip
         why[bad[~flat.ok]] = NO_OPERATING_POINT
     return why
+
+
+def after_stall(extrapolation: dict[str, Any], model, stall: dict | None) -> dict[str, Any]:
+    """``extrapolation`` with, where some draw stalls, what then decides P and Q: an assumption.
+
+    Once motor D stalls, its P and Q after the clearing are set by its restart constants
+    (``frst, vrst, trst``: models/parts.MOTOR_D_DEFAULTS, the WECC composite load model's
+    typical data, or the model's ``motor_d_params``), which no fit estimates; the units
+    that do not restart stay stalled to the record's end (no thermal trip). A load or a
+    simulator whose stalled units come back at the clearing draws far less there: measured
+    on GridDyn 0.13.0's CMLD at a 46 % sag, motor D stays stalled at Vstall 0.58 and 0.60
+    and comes back within 0.15 s at 0.545, 0.62 and 0.684 (f_d 0.15), and the band from a
+    13 % and a 25 % fit, its draws stalled to the end, held 14-45 % of such a fault's Q.
+    The restart constants decide it, not the draws: on GridDyn's drawn load 105 (f_d 0.243,
+    Vstall 0.684) Q's coverage stays 0.14 with Frst = 1 (the stalled units' current
+    through the fitted feeder holds the load bus below Vrst 0.95: none restarts), is 0.82
+    with Vrst 0.7 and 0.95 with Vrst 0.7 and Trst 0.05 s as well; no source gives those.
+    Unchanged where no draw stalls (or the model has no motor D).
+    """
+    if not model.motor_d or not stall or not stall.get("probability"):
+        return extrapolation
+    from loadbayes.models.parts import MOTOR_D_DEFAULTS
+
+    kw = {**MOTOR_D_DEFAULTS, **getattr(model, "motor_d_params", {})}
+    assumed = {k: float(kw[k]) for k in ("frst", "vrst", "trst")}
+    words = (f"After a stall, P and Q once the fault clears rest on an assumption, not on "
+             f"the data: a share frst {assumed['frst']:.2g} of the stalled air conditioners "
+             f"restarts after trst {assumed['trst']:.2g} s above vrst {assumed['vrst']:.2g} "
+             "p.u. and the rest stay stalled to the record's end (the WECC composite load "
+             "model's typical data; no fit estimates them, no thermal trip is modelled); "
+             "where they come back at the clearing the load draws far less P and Q than "
+             "this band after it.")  # fmt: skip
+    return extrapolation | {
+        "after_stall": {"assumed": assumed, "source": "WECC composite load model, "
+                        "typical data (models/parts.MOTOR_D_DEFAULTS)", "message": words},
+        "message": f"{extrapolation['message']} {words}",
+    }  # fmt: skip

@@ -28,10 +28,9 @@ import numpy as np
 from loadbayes.fit.composite.bounded import (
     SHARE_COORDS,
     draw_gamma,
-    log_evidence,
-    log_prior_shares,
     shares_of,
 )
+from loadbayes.fit.composite.bounded_kernel import bounded_terms, stacked
 from loadbayes.fit.composite.sums import (
     ar_residual_sums,
     ar_sums_into,
@@ -265,17 +264,21 @@ class CompositeProblem:
         i = N_FREE + self.grid.n_steps
         return np.asarray(u, dtype=float)[i : i + self.n_share_coords].reshape(-1, SHARE_COORDS)
 
+    def share_arguments(self, tau, groups) -> tuple:
+        """The compiled share terms' arguments after ``z`` (``bounded_kernel.py``)."""
+        sp = self.share_prior
+        return (*stacked(groups), np.asarray(tau, dtype=float),
+                np.asarray(self.p0, dtype=float)[[0, 3, 6]],
+                np.array([i for i, _, _ in sp], dtype=np.int64),
+                np.array([m for _, m, _ in sp], dtype=float),
+                np.array([d for _, _, d in sp], dtype=float))  # fmt: skip
+
     def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
-        # The collapsed density of the bounded model (fit/composite/bounded.py).
-        out = self.prior.log_u(u[:N_FREE])
-        gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
-        for z, g in zip(self.share_z(u), groups, strict=True):
-            a = shares_of(z)
-            out += log_prior_shares(z)
-            for i, mean, sd in self.share_prior:
-                out -= 0.5 * ((a[i] - mean) / sd) ** 2
-            out += log_evidence(g.ztz, g.zty, g.yty, g.n, np.asarray(tau, float), a, gamma_p0)
-        return float(out)
+        # The collapsed density of the bounded model (fit/composite/bounded.py), its
+        # share terms compiled (fit/composite/bounded_kernel.py).
+        z = np.ascontiguousarray(self.share_z(u))
+        terms = bounded_terms(z, *self.share_arguments(tau, groups))
+        return float(self.prior.log_u(u[:N_FREE]) + terms)
 
     def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:
         """Every event's ``beta | u, tau`` (exact; bounded shares: fit/composite/bounded.py)."""

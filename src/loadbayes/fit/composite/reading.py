@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.parallel import one_blas_thread
 from loadbayes.fit.composite.nls import nls
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.measurements.record import EventRecord
@@ -75,6 +76,7 @@ def _residuals(model: Any, events: list[EventRecord], prior: Any, window_s: floa
     return est, problem.fit_samples.keep, res
 
 
+@one_blas_thread  # two NLS fits of small least squares (core/parallel.py)
 def choose_reading(model: Any, events: list[EventRecord]) -> SampleReading:
     """Point samples or one-cycle window means for a ``zip+motor`` fit, by the evidence.
 

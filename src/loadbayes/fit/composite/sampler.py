@@ -34,6 +34,7 @@ import numpy as np
 from loadbayes.core.parallel import chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
+from loadbayes.fit.composite.bounded_kernel import share_steps
 from loadbayes.fit.composite.checks import MIN_KEPT
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
@@ -337,21 +338,24 @@ class _Gibbs:
         # the shares), so the shares settle given the motor at a tenth of the cost of a
         # joint step; each step leaves the posterior invariant. The scale adapts toward
         # SHARE_ACCEPT during burn-in, then stays.
+        # The steps run compiled (fit/composite/bounded_kernel.share_steps) on the draws
+        # taken here, in the order the Python loop took them: a normal step, then a
+        # uniform, for each step and event.
         p, rng = self.problem, self.rng
-        i0 = self.n_base
+        i0, n_ev = self.n_base, len(p.events)
         if self.share_scale is None:
-            self.share_scale = np.full(len(p.events), 0.3)
-        for _ in range(SHARE_STEPS):
-            for e in range(len(p.events)):
-                cand = u.copy()
-                sl = slice(i0 + SHARE_COORDS * e, i0 + SHARE_COORDS * (e + 1))
-                cand[sl] += self.share_scale[e] * rng.standard_normal(SHARE_COORDS)
-                lc = p.log_collapsed(sums, cand, tau)
-                ok = math.log(rng.uniform()) < lc - lp
-                if ok:
-                    u, lp = cand, lc
-                if it < self.burn:
-                    self.share_scale[e] *= math.exp(0.02 * (float(ok) - SHARE_ACCEPT))
+            self.share_scale = np.full(n_ev, 0.3)
+        normal, uniform = np.empty((SHARE_STEPS, n_ev, SHARE_COORDS)), np.empty((SHARE_STEPS, n_ev))
+        for s in range(SHARE_STEPS):
+            for e in range(n_ev):
+                normal[s, e] = rng.standard_normal(SHARE_COORDS)
+                uniform[s, e] = rng.uniform()
+        sl = slice(i0, i0 + SHARE_COORDS * n_ev)
+        z = np.array(u[sl], dtype=float).reshape(n_ev, SHARE_COORDS)
+        share_steps(z, *p.share_arguments(tau, sums), normal, uniform, self.share_scale,
+                    it < self.burn)  # fmt: skip
+        u = np.array(u, dtype=float)
+        u[sl] = z.ravel()
         return u
 
     def _tilted_step(self, u, lp, logp, sums, tau, it, betas):
