@@ -14,7 +14,7 @@ from loadbayes.inference.moves import MOVES, BlockState
 __all__ = ["run_jumping"]
 
 
-def run_jumping(name, logp, x0, pooled, *, burn, draws, seed, components=1):
+def run_jumping(name, logp, x0, pooled, *, burn, draws, seed, components=1, wide=0.0):
     """``(draws (2, kept, d), moves)``: chain ``i`` from ``x0[i]``; no jumps without ``pooled``."""
 
     def chain(i, rng):
@@ -24,7 +24,7 @@ def run_jumping(name, logp, x0, pooled, *, burn, draws, seed, components=1):
         out = []
         for it in range(draws):
             if it == burn and pooled is not None:
-                move.fit_jumps(pooled, components=components)
+                move.fit_jumps(pooled, components=components, wide=wide)
             (x, lp, _), _ = move.step(BlockState(x, lp), logp, rng, it)
             if it >= burn:
                 out.append(x)

@@ -48,6 +48,8 @@ __all__ = [
     "JUMP_MIN_DRAWS",
     "JUMP_POWER",
     "JUMP_REGION_INFLATION",
+    "JUMP_WIDE_DOF",
+    "JUMP_WIDE_INFLATION",
     "AdaptiveMetropolis",
     "StudentTProposal",
 ]
@@ -69,6 +71,12 @@ JUMP_POWER = 0.5
 #: would accept its way in and seldom out; issue 21's 120/s event, seed 0: min ESS 45
 #: without it, 1,057 with it (docs/composite.md, "Jumps from regions").
 JUMP_BROAD = 0.15
+#: A wide t's (``fit_jumps(wide=...)``) covariance is the draws' times this (three times
+#: their sd) ...
+JUMP_WIDE_INFLATION = 9.0
+#: ... and its degrees of freedom (tails far heavier than the regions'): it reaches a
+#: tail that no chain's burn-in did (docs/composite.md, "A tail the burn-in missed").
+JUMP_WIDE_DOF = 3.0
 
 
 class StudentTProposal:
@@ -171,13 +179,18 @@ class AdaptiveMetropolis(BlockMove):
             self._adapt(w, alpha, iteration)
         return state, bool(accept)
 
-    def fit_jumps(self, draws: np.ndarray, components: int = 1) -> None:
+    def fit_jumps(
+        self, draws: np.ndarray, components: int = 1, wide: float = 0.0, wide_axis: bool = False
+    ) -> None:
         """Fit the jumps' t to ``draws`` of the block (e.g. several chains' burn-in).
 
         Call after burn-in (the walk's coordinates are fixed then); without it the t is
         fitted to the draws this move learned from, at the first step after burn-in.
         Fewer than :data:`JUMP_MIN_DRAWS` draws: no jumps. ``components > 1``: a mixture
-        of t's over that many k-means regions of the draws instead of one t.
+        of t's over that many k-means regions of the draws instead of one t, and with
+        ``wide > 0`` one more t of that weight, :data:`JUMP_WIDE_INFLATION` times wider
+        with :data:`JUMP_WIDE_DOF` degrees of freedom (a tail no burn-in reached; with
+        ``wide_axis`` wider along the draws' principal direction alone).
         """
         w = np.array([self._walk(np.asarray(x, dtype=float)) for x in draws])
         self._jump_ready = True
@@ -187,6 +200,8 @@ class AdaptiveMetropolis(BlockMove):
             self._jump = StudentTMixture(
                 w, components=components, inflation=JUMP_REGION_INFLATION, dof=JUMP_DOF,
                 power=JUMP_POWER, broad=JUMP_BROAD, broad_inflation=JUMP_INFLATION,
+                wide=wide, wide_inflation=JUMP_WIDE_INFLATION, wide_dof=JUMP_WIDE_DOF,
+                wide_axis=wide_axis,
             )  # fmt: skip
         elif len(w) >= JUMP_MIN_DRAWS:
             cov = np.cov(w, rowvar=False) + 1e-10 * np.eye(self.d)

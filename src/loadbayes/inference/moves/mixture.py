@@ -14,9 +14,17 @@ each region (its mean, its covariance times ``inflation``), and weighs region ``
 than their share of the draws: the Hastings ratio corrects for it, and a tail the
 burn-in visited rarely is where the walk is slowest). The same jumps accepted 22-31%.
 
+A **wide** t (``wide > 0``) is one more component over all the draws with a scale
+``wide_inflation`` times their covariance and ``wide_dof`` degrees of freedom (heavier
+tails than the rest): it proposes a tail that no chain's burn-in reached, which the
+regions and the broad t (both fitted to where the burn-in was) propose too seldom for
+R-hat to notice that every chain missed it (docs/composite.md, "A tail the burn-in
+missed").
+
 Its :meth:`~StudentTMixture.log_density` is normalised across components (each t's
-``log det`` enters), as the Hastings ratio of a mixture needs; the constant common to
-all (the t's gamma functions, ``pi``) is left out.
+``log det`` enters, and with a wide t of other degrees of freedom each t's gamma
+functions), as the Hastings ratio of a mixture needs; the constant common to all is
+left out.
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ import warnings
 
 import numpy as np
 from scipy.cluster.vq import kmeans2
+from scipy.special import gammaln
 
 __all__ = ["StudentTMixture"]
 
@@ -51,6 +60,13 @@ class StudentTMixture:
         ``broad_inflation``): proposes what the regions' draws missed (0: none).
     broad_inflation : float
         Its covariance's factor.
+    wide : float
+        The weight of a wide t over all the draws (the module's notes; 0: none).
+    wide_inflation, wide_dof : float
+        Its covariance's factor and its degrees of freedom.
+    wide_axis : bool
+        Widen it along the draws' principal direction alone (the covariance plus
+        ``(wide_inflation - 1) lambda_1 v_1 v_1^T``), not in every direction.
     seed : int
         The k-means seed (the mixture is a function of ``draws``).
 
@@ -70,6 +86,10 @@ class StudentTMixture:
         power: float = 1.0,
         broad: float = 0.0,
         broad_inflation: float = 2.0,
+        wide: float = 0.0,
+        wide_inflation: float = 9.0,
+        wide_dof: float = 3.0,
+        wide_axis: bool = False,
         seed: int = 0,
     ) -> None:
         draws = np.asarray(draws, dtype=float)
@@ -102,12 +122,31 @@ class StudentTMixture:
             roots.append(np.linalg.cholesky((cov + cov.T) / 2))
             self.counts = np.append(self.counts, n)
             w = np.append((1 - broad) * w, broad)
+        dofs = [self.dof] * len(w)
+        if wide > 0:
+            cov = np.cov(draws, rowvar=False).reshape(d, d)
+            if wide_axis:  # wider along the draws' principal direction alone
+                lam, vec = np.linalg.eigh(cov)
+                cov = cov + (wide_inflation - 1) * lam[-1] * np.outer(vec[:, -1], vec[:, -1])
+            else:
+                cov = wide_inflation * cov
+            cov = cov + 1e-10 * np.eye(d)
+            means.append(draws.mean(axis=0))
+            roots.append(np.linalg.cholesky((cov + cov.T) / 2))
+            self.counts = np.append(self.counts, n)
+            w = np.append((1 - wide) * w, wide)
+            dofs.append(float(wide_dof))
         self.weights = w
+        self._dofs = np.array(dofs)
         self.means = np.array(means)
         self._roots = np.array(roots)
         self._inverse_roots = np.array([np.linalg.inv(r) for r in roots])
         log_det = np.array([np.sum(np.log(np.diag(r))) for r in roots])
         self._const = np.log(self.weights) - log_det
+        if wide > 0:  # the t's normalising constants, relative to the first's
+            nu = self._dofs
+            c = gammaln((nu + d) / 2) - gammaln(nu / 2) - 0.5 * d * np.log(nu)
+            self._const = self._const + (c - c[0])
 
     @property
     def components(self) -> int:
@@ -118,11 +157,13 @@ class StudentTMixture:
         """One draw."""
         k = int(rng.choice(self.components, p=self.weights)) if self.components > 1 else 0
         z = rng.standard_normal(self.d)
-        return self.means[k] + math.sqrt(self.dof / rng.chisquare(self.dof)) * (self._roots[k] @ z)
+        nu = float(self._dofs[k])
+        return self.means[k] + math.sqrt(nu / rng.chisquare(nu)) * (self._roots[k] @ z)
 
     def log_density(self, x: np.ndarray) -> float:
         """``log q(x)`` up to a constant common to every ``x``."""
         z = np.einsum("kij,kj->ki", self._inverse_roots, np.asarray(x, dtype=float) - self.means)
         q = np.einsum("ki,ki->k", z, z)
-        v = self._const - 0.5 * (self.dof + self.d) * np.log1p(q / self.dof)
+        nu = self._dofs
+        v = self._const - 0.5 * (nu + self.d) * np.log1p(q / nu)
         return float(np.logaddexp.reduce(v))
