@@ -36,7 +36,7 @@ def _event(sag: float = 0.2):
 
 
 def part_a() -> None:
-    """ZIP (one level and drifting), Student-t, zip+motor (point and window readings)."""
+    """ZIP (one level, drifting), zip+motor (point and window readings), fleets, tracker."""
     import tempfile
     from importlib.resources import files
 
@@ -53,6 +53,7 @@ def part_a() -> None:
     for window in (0.0, None):
         fit = lb.fit_composite(lb.CompositeModel(f_hz=50.0, window_s=window), [ev], sampler=s)
     lb.predict(fit.posterior, sag=0.4, duration=0.1, draws=20)
+    _fleet_and_track()
 
 
 def part_b() -> None:
@@ -67,6 +68,37 @@ def part_b() -> None:
     for name in ("slm", "cmld-lite"):
         fit = fit_composite(dynamic_model(name, f_hz=50.0), [ev], sampler=s)
         predict(fit.posterior, sag=0.45, duration=0.1, draws=20)
+
+
+def _fleet_and_track() -> None:
+    # A fleet pooled by class (the hierarchical kernels) and the online tracker.
+    import tempfile
+
+    import numpy as np
+    import pandas as pd
+
+    from loadbayes.core.settings import SamplerSettings
+    from loadbayes.fit.track import track_zip
+    from loadbayes.fleet.generate import fleet_truth, write_fleet
+    from loadbayes.fleet.partitions import ReadSpec
+    from loadbayes.fleet.run import run_fleet
+
+    with tempfile.TemporaryDirectory() as tmp:
+        write_fleet(fleet_truth(12, seed=4, rows=(10, 100)), Path(tmp), layout="table")
+        run_fleet(
+            str(Path(tmp) / "fleet.parquet"),
+            ReadSpec(class_col="customer_class"),
+            pool="class",
+            sampler=SamplerSettings(chains=2, draws=60, burn=20, seed=1),
+        )
+        rng = np.random.default_rng(0)
+        v = 1 + 0.05 * np.sin(np.linspace(0, 12, 300)) + rng.normal(0, 0.002, 300)
+        shape = 0.4 * v**2 + 0.3 * v + 0.3
+        bus = Path(tmp) / "bus.csv"
+        pd.DataFrame({"t": np.arange(300) * 0.1, "v": v, "p": 2 * shape,
+                      "q": 0.5 * shape}).to_csv(bus, index=False)  # fmt: skip
+        for _ in track_zip(str(bus), forgetting=0.999):
+            pass
 
 
 def _cache_is_warm() -> bool:
