@@ -124,6 +124,16 @@ MAX_SUBSTEPS = 100_000
 
 
 @numba.njit(cache=True, nogil=True)
+def _substeps(span, h_k, jump):  # pragma: no cover - compiled
+    # One interval's RK4 sub-steps, for both integrators: ceil(span / h_k), more for a fast
+    # input (DV_STEP a sub-step); 0 where it asks for more than MAX_SUBSTEPS (an input no
+    # load sees: the caller returns False; NaN fails too).
+    if not (span / h_k < MAX_SUBSTEPS and jump / DV_STEP < MAX_SUBSTEPS):
+        return 0
+    return max(1, int(math.ceil(span / h_k - 1e-9)), int(math.ceil(jump / DV_STEP)))
+
+
+@numba.njit(cache=True, nogil=True)
 def step_size(tp_s, h_max):  # pragma: no cover - compiled
     """The largest RK4 sub-step (s) for a motor of transient time constant ``tp_s``."""
     return min(h_max, tp_s / TP_STEPS)
@@ -457,9 +467,9 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
             # error follows the input's change per step as well as h / T'.
             jump = max(abs(v[j] - v[k]), abs(delta[j] - delta[k]))
             h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
-            if not (span / h_k < MAX_SUBSTEPS and jump / DV_STEP < MAX_SUBSTEPS):
-                return False  # no input a load sees (NaN fails too)
-            m = max(1, int(math.ceil(span / h_k - 1e-9)), int(math.ceil(jump / DV_STEP)))
+            m = _substeps(span, h_k, jump)
+            if m == 0:
+                return False
             if jump > STEP_JUMP:
                 fine_until = t[j] + FAST_SPAN * tau_fast
             hs = span / m
@@ -620,9 +630,9 @@ def integrate_window_v2_into(
         span = tm[j] - tm[k]
         jump = max(abs(vm[j] - vm[k]), abs(dm[j] - dm[k]))
         h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
-        if not (span / h_k < MAX_SUBSTEPS and jump / DV_STEP < MAX_SUBSTEPS):
-            return False  # no input a load sees (NaN fails too): MAX_SUBSTEPS
-        m = max(1, int(math.ceil(span / h_k - 1e-9)), int(math.ceil(jump / DV_STEP)))
+        m = _substeps(span, h_k, jump)
+        if m == 0:
+            return False
         if jump > STEP_JUMP:
             fine_until = tm[j] + FAST_SPAN * tau_fast
         hs = span / m
