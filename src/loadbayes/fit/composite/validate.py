@@ -56,7 +56,9 @@ class EventValidation:
     the scored samples, per unit of the fitted P0 (event 0's posterior mean ``p0``);
     ``coverage_p``, ``coverage_q`` the fraction of scored samples inside the ``prob``
     band (model plus the fit's noise). ``band`` holds ``p_lo, p_mid, p_hi, q_lo, q_mid,
-    q_hi`` (with noise) and ``p_mean, q_mean`` (the model alone) at every sample.
+    q_hi`` (with noise: a new observation's band), ``p_mean, q_mean`` (the model alone) and
+    ``p_spread, q_spread`` (the draws' standard deviation of the model alone) at every
+    sample.
     """
 
     file: str
