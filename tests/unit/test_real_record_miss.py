@@ -126,3 +126,22 @@ def test_miss_words_say_an_inrush_only_where_the_harmonic_rose():
                         [(0.008, 0.011), (0.008, 0.015)])  # fmt: skip
     assert not any("inrush" in w for w in quiet)
     assert not any("misses the reclose" in w for w in quiet)  # its own miss has the other sign
+
+
+def test_form_words_only_where_most_of_the_miss_was_never_shown():
+    from loadbayes.fit.composite.model_error import Discrepancy
+    from loadbayes.studies.reclose_form import form_rows, form_words
+
+    d = Discrepancy(sd_d=0.013, rho=0.64, sd_e=0.0006, n=66)
+    split = {"mse": 1e-3, "noise": 0.0004, "parameters": 0.02, "form_seen": 0.14,
+             "beyond": 0.84, "form": 0.98}  # fmt: skip
+    easy = dict(split, form_seen=1.6, beyond=-0.7)
+    form = {"slm": {"p": {"disc": d, "coverage": 0.96, "split": easy},
+                    "q": {"disc": d, "coverage": 0.63, "split": split}}}  # fmt: skip
+    words = form_words(form)
+    assert len(words) == 1 and words[0].startswith("slm: 84% of the mean square")
+    assert "reclose's Q" in words[0] and "covers 63%" in words[0]
+    rows = form_rows("slm", form["slm"], scale=0.97)
+    assert rows["slm: reclose in the 95% band with that model error (P, Q)"] == "96%, 63%"
+    first = rows["slm: first fault's model error: AR(1) sd (% of P0), rho, share of its error"]
+    assert first.startswith("P 1.34, 0.64, 100%")

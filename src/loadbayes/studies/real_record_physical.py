@@ -19,7 +19,9 @@ section shows, per transformer:
   cycles after clearing, the level after them), and two things no load model fitted on
   the first fault can know, measured on the record itself: how far the two faults'
   own responses differ (:func:`faults_apart`) and the even harmonic of the current that
-  a transformer's magnetising inrush draws after a fault (:func:`second_harmonic`).
+  a transformer's magnetising inrush draws after a fault (:func:`second_harmonic`);
+- how much of the reclose's miss is model form (``fit/composite/model_error.py``, worded
+  by ``studies/reclose_form.py``).
 """
 
 from __future__ import annotations
@@ -31,7 +33,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from loadbayes.fit.composite.model_error import held_out_error
 from loadbayes.studies.real_record import BAYS, SOURCE, events_of, find_record
+from loadbayes.studies.reclose_form import form_rows, form_words
 
 __all__ = [
     "PhysicalStudy",
@@ -295,7 +299,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Phys
                 words[f"{short} {name}"] = list(post.warnings)
             col[f"{name}: reclose RMS P, Q (% of P0)"] = (
                 f"{100 * pred.rms_p:.1f}, {100 * pred.rms_q:.1f}")  # fmt: skip
-            col[f"{name}: reclose in the 95% band (P, Q)"] = (
+            col[f"{name}: reclose in the 95% band of a new observation (P, Q)"] = (
                 f"{pred.coverage_p:.0%}, {pred.coverage_q:.0%}")  # fmt: skip
         choice[short] = ch.to_dict()
         # What the negative sequence adds: the physical model's motors' total rating with it
@@ -315,9 +319,12 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Phys
         reach = float(events[0].t[-1]) - _steps(straddle[0], events[0].t)[1]
         best_first = [r["model"] for r in ch.table]
         miss = {n: reclose_miss(ch.held_out[n][1], t_fault, t_clear, f, reach) for n in best_first}
-        own = {n: reclose_miss(_replay(models, n, ch.fits[n][1].posterior, events[0],
-                                       straddle[0], seed), *_steps(straddle[0], events[0].t), f)
-               for n in ch.held_out}  # fmt: skip
+        replays = {n: _replay(models, n, ch.fits[n][1].posterior, events[0], straddle[0], seed)
+                   for n in ch.held_out}  # fmt: skip
+        own = {n: reclose_miss(r, *_steps(straddle[0], events[0].t), f)
+               for n, r in replays.items()}  # fmt: skip
+        form = {n: held_out_error(r, ch.held_out[n][1], _steps(straddle[0], events[0].t)[0])
+                for n, r in replays.items()}  # fmt: skip
         for n, m in miss.items():
             col[f"{n}: reclose miss (% of P0)"] = (
                 f"before the fault P {m['before_p']:.1f}; first {FIRST_CYCLES} cycles after "
@@ -328,6 +335,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Phys
                 col[f"{n}: reclose later, within the first fault's reach and past it, mean Q"] = (
                     f"{m['within_q']:+.1f}; {m['beyond_q']:+.1f} ({m['beyond_rows']} rows past "
                     f"{reach:.2f} s)")  # fmt: skip
+            col.update(form_rows(n, form[n], ch.held_out[n][1].scale))
             o = own[n]
             col[f"{n}: first fault, its own fit: later, mean P, Q (% of P0)"] = (
                 f"{o['later_p']:+.1f}, {o['later_q']:+.1f}")  # fmt: skip
@@ -338,7 +346,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Phys
         h2 = _harmonics(cfg, bay, f)
         col["current's 2nd harmonic before, after (first fault; reclose)"] = "; ".join(
             f"{b:.1%}, {a:.1%}" for b, a in h2[:2])  # fmt: skip
-        words[f"{short} reclose"] = _miss_words(miss, own, apart, h2)
+        words[f"{short} reclose"] = _miss_words(miss, own, apart, h2) + form_words(form)
         seconds[short] = time.perf_counter() - t0
         cols[short] = col
     table = pd.DataFrame(cols)
@@ -381,7 +389,9 @@ def html_section(study: PhysicalStudy) -> str:
         "fit. Measured on the record with no model: the two faults' own responses, each "
         "from its pre-fault level and aligned at the clearing, and the currents' 2nd "
         "harmonic before and after each fault, which a transformer's magnetising inrush "
-        "raises. What these say is listed below.</p>",
+        "raises. The model error: AR(1) beside the recorder's white noise, fitted on the "
+        "first fault; the reclose's band with it and its mean square split. What these say "
+        "is listed below.</p>",
     ]
     for short, ch in study.choice.items():
         out.append(f"<p><b>Transformer {escape(short)}</b>: {escape(ch['words'])}.</p>")

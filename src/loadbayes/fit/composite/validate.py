@@ -56,7 +56,9 @@ class EventValidation:
     the scored samples, per unit of the fitted P0 (event 0's posterior mean ``p0``);
     ``coverage_p``, ``coverage_q`` the fraction of scored samples inside the ``prob``
     band (model plus the fit's noise). ``band`` holds ``p_lo, p_mid, p_hi, q_lo, q_mid,
-    q_hi`` (with noise) and ``p_mean, q_mean`` (the model alone) at every sample.
+    q_hi`` (with noise: a new observation's band), ``p_mean, q_mean`` (the model alone) and
+    ``p_spread, q_spread`` (the draws' standard deviation of the model alone) at every
+    sample.
     """
 
     file: str
@@ -243,7 +245,8 @@ def band_scores(event: EventRecord, scored: np.ndarray, noisy, means, scale: flo
     """The band of P and Q over the draws (with noise) and the event's scores against it.
 
     ``noisy``, ``means``: each channel's per-draw predictions with and without the fit's
-    noise. Returns the band (``p_lo, p_mid, p_hi, p_mean``, the same for ``q``) and the
+    noise. Returns the band (``p_lo, p_mid, p_hi, p_mean, p_spread``, the same for ``q``:
+    ``p_spread`` the draws' standard deviation of the response alone) and the
     RMS (per unit of ``scale``) and coverage of the scored samples.
     """
     lo, hi = 50 * (1 - prob), 50 * (1 + prob)
@@ -253,6 +256,8 @@ def band_scores(event: EventRecord, scored: np.ndarray, noisy, means, scale: flo
             np.array(noisy_ch), [lo, 50, hi], axis=0
         )
         band[f"{ch}_mean"] = np.mean(np.array(mean), axis=0)
+        # The draws' spread of the response alone (fit/composite/model_error.py reads it).
+        band[f"{ch}_spread"] = np.std(np.array(mean), axis=0)
     out = {}
     for ch in ("p", "q"):
         x = getattr(event, ch)[scored]
