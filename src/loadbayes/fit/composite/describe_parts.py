@@ -112,8 +112,9 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
     words: dict[str, Any] = {"model": model.name, "parts": list(model.parts) + ["static"]}
     if residuals:
         # Residuals that run in stretches are model form, not noise: a white residual has
-        # lag-1 autocorrelation about 0; one part white noise and one part a smooth misfit
-        # (lag-1 about 1) has about the smooth part's share of the variance.
+        # lag-1 autocorrelation about 0; one part white noise and one part a misfit whose
+        # own lag-1 is rho has lag-1 = (the misfit's share) x rho, so with rho <= 1 the
+        # lag-1 is a lower bound of the misfit's share (equal for a smooth misfit).
         share = {k: max(v, 0.0) for k, v in residuals.items()}
         words["residuals"] = {**residuals, "model_form_share_p": share["lag1_p"],
                               "model_form_share_q": share["lag1_q"]}  # fmt: skip
@@ -147,7 +148,7 @@ def describe_parts(post: Any, draws: dict[str, np.ndarray], model: Any, events: 
         elif max(share.values()) > 0.3:
             post.warnings.append(
                 f"the residuals run in stretches (lag-1 autocorrelation {residuals['lag1_p']:.2f} "
-                f"for P, {residuals['lag1_q']:.2f} for Q): about {share['lag1_p']:.0%} and "
+                f"for P, {residuals['lag1_q']:.2f} for Q): at least {share['lag1_p']:.0%} and "
                 f"{share['lag1_q']:.0%} of the error is the model's form, not noise, and the "
                 "white-noise likelihood does not widen the intervals for it"
             )
