@@ -179,24 +179,39 @@ def andes_motor5_event(folder: Path) -> tuple[list[Path], dict]:
     return [path], {**ev.truth, "depth": ev.settings["sag_depth"]}
 
 
+def reading_of(fit_json: dict) -> dict:
+    """How the run read the samples, and what chose it (the data, or the record's window)."""
+    chosen = fit_json["settings"].get("sample_reading")
+    if chosen:
+        return chosen
+    samples = fit_json["settings"].get("samples") or {}
+    window = samples.get("window_s", 0.0)
+    return {"read_as": "window means" if window else "points", "window_s": window,
+            "chosen_by": "the record (events.csv names its phasor window)",
+            "loglik_points_minus_window": None, "why": samples.get("read_as", "")}  # fmt: skip
+
+
 def row(case: str, quantity: str, truth: float, run: dict) -> dict:
     par = run["json"]["parameters"][quantity]
-    reading = run["json"]["settings"].get("sample_reading") or {}
+    reading = reading_of(run["json"])
     lo, hi = par["hdi_low"], par["hdi_high"]
     return {
         "case": case, "quantity": quantity, "truth": truth,
         "before": BEFORE.get((case, quantity)), "now": [lo, hi], "mean": par["mean"],
         "covered": bool(lo <= truth <= hi), "r_hat": par.get("r_hat"),
         "wall_s": run["wall_s"], "cpu_s": run["cpu_s"],
-        "read_as": reading.get("read_as", "?"), "chosen_by": reading.get("chosen_by", ""),
+        "read_as": reading["read_as"], "chosen_by": reading["chosen_by"],
         "loglik_points_minus_window": reading.get("loglik_points_minus_window"),
     }  # fmt: skip
 
 
-def reading_line(output: str) -> str:
-    """The run's own sentence on its reading (the line that names it)."""
-    lines = [ln.strip() for ln in output.splitlines() if "read as" in ln]
-    return lines[0] if lines else ""
+def reading_line(run: dict) -> str:
+    """The run's own sentence on its reading, or, where it printed none, its JSON's."""
+    lines = [ln.strip() for ln in run["output"].splitlines() if "read as" in ln]
+    if lines:
+        return lines[0]
+    why = reading_of(run["json"])
+    return f"(no line printed; JSON: {why['why']}, chosen by {why['chosen_by']})"
 
 
 # -- the real record --------------------------------------------------------------------
@@ -221,7 +236,8 @@ def ks_compare(nc_a: Path, nc_b: Path, names) -> dict:
             continue
         xa, xb = a[k].values.ravel(), b[k].values.ravel()
         d = stats.ks_2samp(xa, xb).statistic
-        ea, eb = float(az.ess(a[k]).values), float(az.ess(b[k]).values)
+        ea = float(az.ess(a, var_names=[k])[k].values)
+        eb = float(az.ess(b, var_names=[k])[k].values)
         en = ea * eb / (ea + eb)
         mc = math.hypot(xa.std() / math.sqrt(ea), xb.std() / math.sqrt(eb))
         out[k] = {"ks_d": float(d), "ks_p": float(stats.kstwobign.sf(d * math.sqrt(en))),
@@ -248,7 +264,7 @@ def real_record(cfg: Path, folder: Path, iterations: int) -> dict:
             "default_output": default["output"], "default_wall_s": default["wall_s"],
             "default_cpu_s": default["cpu_s"], "reference_wall_s": ref["wall_s"],
             "reference_cpu_s": ref["cpu_s"], "reference_iterations": iterations,
-            "rows": rows, "ks_other": {k: v for k, v in ks.items()}}  # fmt: skip
+            "rows": rows}  # fmt: skip
 
 
 # -- the tables -------------------------------------------------------------------------
@@ -302,7 +318,7 @@ def main() -> None:
     load = os.getloadavg()
     started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
     cases = ["fan"] if args.quick else args.cases.split(",")
-    rows, notes, real = [], {}, None
+    rows, notes, outputs, real = [], {}, {}, None
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
@@ -324,8 +340,9 @@ def main() -> None:
             pinned = ("--chains", 2, "--draws", 1500, "--burn", 500, "--fixed-draws")
             extra = pinned if args.quick else ()
             run = fit(files, folder / f"{case}.json", *extra)
-            notes[case] = reading_line(run["output"])
+            notes[case] = reading_line(run)
             print(f"{case}: {notes[case]}", flush=True)
+            outputs[case] = run["output"]
             for k in SHOWN.get(case, QUANTITIES):
                 rows.append(row(case, k, float(truth[k]), run))
         if "real" in cases:
@@ -335,7 +352,10 @@ def main() -> None:
             if cfg is None:
                 notes["real"] = "the real record was not found ($LOADBAYES_REAL_RECORD)"
             else:
-                real = real_record(Path(cfg), folder, args.reference_iterations)
+                try:
+                    real = real_record(Path(cfg), folder, args.reference_iterations)
+                except (RuntimeError, OSError, KeyError, ValueError) as exc:
+                    notes["real"] = f"failed: {exc}"
     print_cases(rows)
     for case, words in notes.items():
         print(f"- {case}: {words}")
@@ -343,7 +363,7 @@ def main() -> None:
         print_real(real)
     result = {"started": started, "load_average_at_start": load,
               "load_average_at_end": os.getloadavg(), "quick": args.quick,
-              "cpu_count": os.cpu_count(), "rows": rows, "readings": notes,
+              "cpu_count": os.cpu_count(), "rows": rows, "readings": notes, "outputs": outputs,
               "real": real}  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=1, default=float) + "\n")
