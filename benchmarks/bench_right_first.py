@@ -366,7 +366,16 @@ def main() -> None:
               "cpu_count": os.cpu_count(), "rows": rows, "readings": notes, "outputs": outputs,
               "real": real}  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=1, default=float) + "\n")
+    text = json.dumps(result, indent=1, default=float)
+    # The printed outputs name the files: not this machine's folders.
+    for path, name in (
+        (folder, "<events>"),
+        (args.fan_dir, "<fan-dir>"),
+        (args.record, "<record>"),
+    ):
+        if path:
+            text = text.replace(str(Path(path).parent if name == "<record>" else path), name)
+    args.output.write_text(text + "\n")
     print(f"\nwritten {args.output}", flush=True)
 
 
