@@ -3,11 +3,13 @@
 :func:`fmt` is the one number format of the terminal table, the notebook view and the
 HTML report (3 significant digits, no exponent between 0.001 and 100,000; thousands
 grouped); :func:`fmt_like` prints a mean and its interval to the precision of its sd
-(two digits of the sd); :func:`summary_rows` formats a fit's summary, row by row, and
-:func:`summary_html` is a :class:`~loadbayes.posterior.Posterior`'s view in a notebook.
-They sit below ``posterior.py`` (which shows itself with them) and ``report/`` (whose
-table, :func:`loadbayes.report.text.summary_table`, and pages print with them); a fit is
-taken as any object with ``summary()``, ``settings``, ``warnings`` and the chain counts.
+(two digits of the sd; :func:`precision_sd` takes the interval's width instead where a
+heavy tail makes the sd far wider than the interval); :func:`summary_rows` formats a
+fit's summary, row by row, and :func:`summary_html` is a
+:class:`~loadbayes.posterior.Posterior`'s view in a notebook. They sit below
+``posterior.py`` (which shows itself with them) and ``report/`` (whose table,
+:func:`loadbayes.report.text.summary_table`, and pages print with them); a fit is taken
+as any object with ``summary()``, ``settings``, ``warnings`` and the chain counts.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ __all__ = [
     "DESCRIPTIONS",
     "fmt",
     "fmt_like",
+    "precision_sd",
     "headline",
     "summary_html",
     "summary_rows",
@@ -119,6 +122,28 @@ def fmt_like(x: Any, sd: Any) -> str:
     return f"{round(x, decimals):,.0f}"
 
 
+def precision_sd(sd: Any, low: Any, high: Any) -> Any:
+    """The spread that sets a row's printed digits: its sd, or the interval's width / 3.92.
+
+    The width is taken where a heavy tail makes the sd more than twice what its 95%
+    interval implies (a few far draws on a ridge), so that the mean and the interval's
+    ends are not rounded away (an sd of 41,000 beside an interval of -593 to 560 printed
+    ``-0`` and ``-1,000 to 1,000``).
+
+    Examples
+    --------
+    >>> precision_sd(0.05, 0.4, 0.6), round(precision_sd(41_000.0, -593.0, 560.0), 1)
+    (0.05, 294.1)
+    """
+    try:
+        s, w = float(sd), (float(high) - float(low)) / 3.92
+    except (TypeError, ValueError):
+        return sd
+    if math.isfinite(s) and math.isfinite(w) and w > 0 and s > 2 * w:
+        return w
+    return sd
+
+
 def summary_rows(
     post: Any,
     *,
@@ -137,13 +162,14 @@ def summary_rows(
     for name, r in s.iterrows():
         ess = r.get("ess_bulk", float("nan"))
         rhat = r.get("r_hat", float("nan"))
+        digits = precision_sd(r["sd"], r["hdi_low"], r["hdi_high"])
         rows.append(
             {
                 "name": str(name),
-                "mean": fmt_like(r["mean"], r["sd"]),
+                "mean": fmt_like(r["mean"], digits),
                 "sd": fmt(r["sd"], 2),
-                "low": fmt_like(r["hdi_low"], r["sd"]),
-                "high": fmt_like(r["hdi_high"], r["sd"]),
+                "low": fmt_like(r["hdi_low"], digits),
+                "high": fmt_like(r["hdi_high"], digits),
                 "ess": f"{ess:,.0f}" if np.isfinite(ess) else "–",
                 "r_hat": f"{rhat:.3f}" if np.isfinite(rhat) else "–",
                 "what": what(str(name)),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from loadbayes.core.display import fmt_like
+from loadbayes.core.display import fmt_like, precision_sd
 from loadbayes.fit.composite.naming import event_suffix
 from loadbayes.report.composite_names import TABLE_NAMES, describe
 from loadbayes.report.text import summary_table
@@ -108,7 +108,8 @@ def static_lines(static: dict[str, Any], *, hdi_prob: float = 0.95) -> list[str]
                 f"not determined{corr}; the event fixes ({pct} interval):"
             )
             for c in part["combinations"]:
-                mid, lo, hi = (fmt_like(c[key], c["sd"]) for key in ("mean", "low", "high"))
+                digits = precision_sd(c["sd"], c["low"], c["high"])
+                mid, lo, hi = (fmt_like(c[key], digits) for key in ("mean", "low", "high"))
                 lines.append(f"  {c['name']} = {mid} ({lo} to {hi}): {c['meaning']}")
     return lines
 

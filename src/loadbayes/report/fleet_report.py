@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from loadbayes.core.display import DESCRIPTIONS, fmt, fmt_like
+from loadbayes.core.display import DESCRIPTIONS, fmt, fmt_like, precision_sd
 from loadbayes.report.fleet_table import (
     ESS_LIMIT,
     RHAT_LIMIT,
@@ -41,7 +41,8 @@ NOT_IN_FILE = "not in this file"
 def _interval(r: pd.Series) -> str:
     if not np.isfinite(r["hdi_low"]):
         return "–"
-    return f"{fmt_like(r['hdi_low'], r['sd'])} to {fmt_like(r['hdi_high'], r['sd'])}"
+    digits = precision_sd(r["sd"], r["hdi_low"], r["hdi_high"])
+    return f"{fmt_like(r['hdi_low'], digits)} to {fmt_like(r['hdi_high'], digits)}"
 
 
 def _class_table(ft: FleetTable, pct: str) -> tuple[list[str], list[list[str]], list[bool]]:

@@ -11,7 +11,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from loadbayes.core.display import DESCRIPTIONS, fmt, fmt_like, headline, summary_rows
+from loadbayes.core.display import (
+    DESCRIPTIONS,
+    fmt,
+    fmt_like,
+    headline,
+    precision_sd,
+    summary_rows,
+)
 
 __all__ = ["derived_lines", "summary_table"]
 
@@ -99,13 +106,14 @@ def _derived_rows(post: Any, hdi_prob: float) -> list[dict]:
     rows = []
     for name, r in post.derived_summary(hdi_prob=hdi_prob).items():
         sd = r["sd"] if r["sd"] is not None else float("nan")
+        digits = precision_sd(sd, r["hdi_low"], r["hdi_high"])
         rows.append(
             {
                 "name": name,
-                "mean": fmt_like(r["mean"], sd),
+                "mean": fmt_like(r["mean"], digits),
                 "sd": fmt(sd, 2),
-                "low": fmt_like(r["hdi_low"], sd),
-                "high": fmt_like(r["hdi_high"], sd),
+                "low": fmt_like(r["hdi_low"], digits),
+                "high": fmt_like(r["hdi_high"], digits),
                 "ess": f"{r['ess_bulk']:,.0f}" if r["ess_bulk"] is not None else "–",
                 "r_hat": f"{r['r_hat']:.3f}" if r["r_hat"] is not None else "–",
                 "what": DESCRIPTIONS.get(name, ""),
