@@ -44,6 +44,9 @@ def test_fit_composite_takes_the_frequency_from_events_csv(events50, tmp_path):
               "--chains", "1", "--fixed-draws", "--json", tmp_path / "f.json")  # fmt: skip
     assert res.exit_code == 0, res.output
     assert "loadbayes: note: frequency from events.csv: 50 Hz" in res.output
+    # The reading is the record's, and the run says so (it printed nothing on it before).
+    assert "samples read as one-cycle window means (0.02 s): " in res.output
+    assert "events.csv says they are the record's phasors" in res.output
     settings = json.dumps(json.loads((tmp_path / "f.json").read_text()))
     assert '"f_hz": 50.0' in settings
 
