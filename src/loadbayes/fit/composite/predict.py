@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.fit.composite.predict_chains import judge
 from loadbayes.fit.composite.predict_outcome import KINDS, after_stall, outcome, parts_why
 from loadbayes.fit.composite.predict_scope import (
     MEANING,
@@ -95,6 +96,10 @@ class Prediction:
     #: collapses, 2 fails, 3 no operating point), for a fit of parts ``low`` (the lowest
     #: |V_L| / |V| its sweeps reached) and ``picked_thresholds``.
     outcomes: dict[str, np.ndarray] | None = field(default=None, repr=False)
+    #: Where the fit's chains have not converged or disagree about this fault
+    #: (``predict_chains.judge``): each chain's outcomes, the R-hat, in words (also a
+    #: warning); None otherwise (the JSON then has no ``chains``).
+    chains: dict[str, Any] | None = None
 
     def to_dict(self, *, band: bool = True) -> dict[str, Any]:
         """JSON-ready numbers (``band=False``: the summary without the time series)."""
@@ -103,6 +108,8 @@ class Prediction:
                "extrapolation", "warnings")}  # fmt: skip
         if self.outcome is not None:
             out["outcome"] = self.outcome
+        if self.chains is not None:
+            out["chains"] = self.chains
         if band:
             out["band"] = {k: [round(float(x), 7) for x in v] for k, v in self.band.items()}
         return out  # fmt: skip
@@ -329,6 +336,9 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
     band = (bands(t, event.v, {"p": ps, "q": qs, "i": cur}, {"p": noisy_p, "q": noisy_q}, prob)
             if used else {"t_s": t, "v": event.v})  # fmt: skip
     warnings = list(notes)  # what did not play is said in ``outcome`` (its message)
+    chains = judge(post, model, pick, why, played.ok & played.stalled, prob)  # chains agree?
+    if chains is not None:
+        warnings.append(chains["message"])
     stall = None
     if model.motor_d:  # a collapse is a stall for good; a numerical failure is left out
         n_c = counts["collapses"]
@@ -381,6 +391,7 @@ def _play(post, model, event, fault, cover, priors, p0, q0, v0, n_draws, prob, s
                   **{k: np.asarray(v)[kept] for k, v in th.items()},
                   "picked": pick, "why": why, "low": played.low,
                   "picked_thresholds": th},
+        chains=chains,
     )  # fmt: skip
 
 
