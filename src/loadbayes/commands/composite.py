@@ -254,7 +254,7 @@ def fit_composite_cmd(
     from loadbayes.fit.composite.checks import check_run
     from loadbayes.fit.composite.choice import choose_model
     from loadbayes.fit.composite.driver import fit_composite
-    from loadbayes.fit.composite.reading import reading_model
+    from loadbayes.fit.composite.reading import reading_model, reading_note
     from loadbayes.measurements.events import index_bases, index_f_hz, read_events
     from loadbayes.measurements.record import check_units
 
@@ -331,7 +331,7 @@ def fit_composite_cmd(
     if not quiet:
         if bases_note:
             click.echo(f"loadbayes: note: {bases_note}", err=True)
-        for note in (f_note, _reading_note(reading, window_s, f_found, f_hz)):
+        for note in (f_note, reading_note(reading, window_s, f_found, f_hz)):
             if note:
                 click.echo(f"loadbayes: note: {note}", err=True)
         n = sum(e.n for e in events)
@@ -448,19 +448,3 @@ def _quiet_arviz():
         yield
     finally:
         logging.disable(previous)
-
-
-def _reading_note(reading, window_s, f_found, f_hz: float) -> str | None:
-    """How the samples are read, and who said so: the data, the flag or the record."""
-    if reading is not None:
-        return f"samples {reading.words}"
-    if window_s is not None:
-        if window_s == 0:
-            return "point samples (--window-s 0): the motor's P and Q at the sample instants"
-        return f"samples read as {window_s:g}-s window means (--window-s)"
-    if f_found:
-        return (
-            f"samples read as one-cycle window means ({1.0 / f_hz:.6g} s): {f_found[1]} says "
-            "they are the record's phasors, estimated over one cycle"
-        )
-    return None

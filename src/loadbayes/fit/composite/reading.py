@@ -139,3 +139,23 @@ def reading_model(model: Any, events: list[EventRecord], *, chosen: bool) -> tup
         return model, None
     reading = choose_reading(model, events)
     return replace(model, window_s=reading.window_s), reading
+
+
+def reading_note(reading: SampleReading | None, window_s: float | None, f_found: Any,
+                 f_hz: float) -> str | None:  # fmt: skip
+    """How the samples are read, and who said so: the data, ``--window-s`` or the record.
+
+    ``f_found``: the record's index and frequency when the events came from one.
+    """
+    if reading is not None:
+        return f"samples {reading.words}"
+    if window_s is not None:
+        if window_s == 0:
+            return "point samples (--window-s 0): the motor's P and Q at the sample instants"
+        return f"samples read as {window_s:g}-s window means (--window-s)"
+    if f_found:
+        return (
+            f"samples read as one-cycle window means ({1.0 / f_hz:.6g} s): {f_found[1]} says "
+            "they are the record's phasors, estimated over one cycle"
+        )
+    return None
