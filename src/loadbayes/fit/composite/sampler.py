@@ -40,6 +40,7 @@ from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.restart import late_gaps, restart_lagging
 from loadbayes.fit.composite.restart import words as restart_words
+from loadbayes.fit.composite.ridge import ridge_points
 from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
@@ -79,6 +80,11 @@ REFRESH_SHARE = 0.1
 #: from 8,182 to 11,204 (14,550) iterations (docs/composite.md, "A tail the burn-in
 #: missed").
 JUMP_WIDE = 0.0
+#: The total weight of t's placed along the posterior's ridge in ``log T'`` among the
+#: zip+motor's jumps (``ridge.py``: profile points of the NLS, each with its Laplace
+#: covariance; 0: none, the draws as before). docs/composite.md, "Jumps placed from the
+#: data".
+JUMP_RIDGE = 0.0
 
 
 @dataclass
@@ -551,8 +557,12 @@ def sample(
         own = int(getattr(getattr(problem, "model", None), "jump_regions", 1))  # parts'
         regions = JUMP_COMPONENTS if isinstance(problem, CompositeProblem) else own
         wide = JUMP_WIDE if isinstance(problem, CompositeProblem) else 0.0
+        # The ridge's points: a plain zip+motor (no share or torque coordinates).
+        plain = type(problem) is CompositeProblem and not problem.bounded
+        ridge = ridge_points(problem, start) if plain and JUMP_RIDGE > 0 else None
         for g, _ in state:
-            g.am.fit_jumps(late, components=regions, wide=wide)
+            g.am.fit_jumps(late, components=regions, wide=wide, anchors=ridge,
+                           anchor=JUMP_RIDGE if ridge is not None else 0.0)  # fmt: skip
             g.late_burn = []
         out = run_chains(rest, generators, workers=workers, stop=stop)
     while extend is not None and not any(r.cut for r in out):
