@@ -149,7 +149,7 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     "plain table, points or one-cycle means, whichever fits better (the run says which).",
 )
 @sampler_settings(
-    draws=16_000,
+    draws=6_000,  # COMPOSITE_DEFAULTS (not imported here: the command starts light)
     burn=4_000,
     init=False,
     draws_min=2,
