@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 556 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 583 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -9,8 +9,10 @@ integrated out; each event's coefficients exactly; the noise precisions (and, wi
 Student-t noise, the weights); ``log T0`` from its prior conditional. The moves are
 physics-free (:mod:`loadbayes.inference.moves`, whose :data:`MOVES` are the u-moves
 :func:`sample` offers); the Metropolis moves also jump, after burn-in, from a t fitted to
-every chain's late burn-in pooled (:data:`JUMP_SHARE`); docs/composite.md, "The sampler"
-and "Jumps". The steps' fractions are also refreshed across [0, 1] now and then
+every chain's late burn-in pooled (:data:`JUMP_SHARE`), and for a plain zip+motor from
+t's along the posterior's ridge in ``log T'`` that the NLS's profile finds
+(:data:`JUMP_RIDGE`, ``ridge.py``); docs/composite.md, "The sampler", "Jumps" and "Jumps
+placed from the data". The steps' fractions are also refreshed across [0, 1] now and then
 (:data:`REFRESH_SHARE`): an edge's instant can have a minor mode the jumps cannot leave.
 A model of parts may ask for its chains that ended their burn-in in a far lower mode to
 go on from the best chain's state (``restart.py``), said in words.
