@@ -73,3 +73,33 @@ def test_each_ridge_point_is_the_profile_optimum_within_the_drop(fitted):
                 if i >= problem.n_free and not 0 <= v[i] <= 1:
                     continue  # a step's fraction stays in [0, 1]
                 assert _cost(problem, start, v) >= c - 1e-6
+
+
+def test_the_short_first_round_is_zip_motors_alone(monkeypatch, tmp_path):
+    """The ridge's t's are the plain model's: ``fit composite`` left at its default runs a
+    first round of 6,000 for ``zip+motor`` and 16,000 for a model of parts; a given
+    --draws is taken as it is (and run exactly)."""
+    from click.testing import CliRunner
+
+    import loadbayes.fit.composite.driver as drv
+    from loadbayes.cli import main
+    from loadbayes.fit.composite import COMPOSITE_DEFAULTS
+
+    got = []
+
+    def fake(model, events, *, sampler=None, **kw):
+        got.append((model.name, sampler.draws, sampler.burn, sampler.until_converged))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(drv, "fit_composite", fake)
+    df, _ = simulate_event(motor="large_slow", f_m=0.4, sags=(Sag(1.0123, 0.3, 0.2, 0.02, 0.02),),
+                           rate_hz=60.0, t_end_s=3.0, seed=0)  # fmt: skip
+    ev = tmp_path / "ev.csv"
+    df.to_csv(ev, index=False)
+    for extra in (["--window-s", "0"], ["--model", "slm"], ["--model", "slm", "--draws", "6000"]):
+        res = CliRunner().invoke(main, ["fit", "composite", str(ev), "--json",
+                                        str(tmp_path / "a.json"), "--quiet", *extra])  # fmt: skip
+        assert "interrupted" in res.output, res.output  # at the fit, not before
+    assert got == [("zip+motor", 6000, 4000, True), ("slm", 16000, 4000, True),
+                   ("slm", 6000, 4000, False)]  # fmt: skip
+    assert (COMPOSITE_DEFAULTS.draws, drv.PARTS_DEFAULTS.draws) == (6000, 16000)
