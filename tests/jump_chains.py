@@ -14,7 +14,8 @@ from loadbayes.inference.moves import MOVES, BlockState
 __all__ = ["run_jumping"]
 
 
-def run_jumping(name, logp, x0, pooled, *, burn, draws, seed, components=1, wide=0.0):
+def run_jumping(name, logp, x0, pooled, *, burn, draws, seed, components=1, wide=0.0,
+                anchors=None, anchor=0.0):  # fmt: skip
     """``(draws (2, kept, d), moves)``: chain ``i`` from ``x0[i]``; no jumps without ``pooled``."""
 
     def chain(i, rng):
@@ -24,7 +25,8 @@ def run_jumping(name, logp, x0, pooled, *, burn, draws, seed, components=1, wide
         out = []
         for it in range(draws):
             if it == burn and pooled is not None:
-                move.fit_jumps(pooled, components=components, wide=wide)
+                move.fit_jumps(pooled, components=components, wide=wide, anchors=anchors,
+                               anchor=anchor)  # fmt: skip
             (x, lp, _), _ = move.step(BlockState(x, lp), logp, rng, it)
             if it >= burn:
                 out.append(x)

@@ -149,12 +149,14 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     "plain table, points or one-cycle means, whichever fits better (the run says which).",
 )
 @sampler_settings(
-    draws=16_000,
+    draws=6_000,  # COMPOSITE_DEFAULTS (not imported here: the command starts light)
+    # (a model of parts: PARTS_DEFAULTS' 16,000, set in the command)
     burn=4_000,
     init=False,
     draws_min=2,
     burn_min=1,
-    draws_help="Iterations per chain, burn-in included. Left at its default, the chains "
+    draws_help="Iterations per chain, burn-in included (default 16,000 for a model of "
+    "parts). Left at its default, the chains "
     "then run on until every reported quantity has R-hat < 1.01 and bulk ESS >= 400 "
     "(or --max-seconds runs out); given, exactly that many.",
     burn_help="Burn-in (the proposal adapts during it, then freezes).",
@@ -253,7 +255,7 @@ def fit_composite_cmd(
     from loadbayes.fit.composite import predictive_band
     from loadbayes.fit.composite.checks import check_run
     from loadbayes.fit.composite.choice import choose_model
-    from loadbayes.fit.composite.driver import fit_composite
+    from loadbayes.fit.composite.driver import PARTS_DEFAULTS, fit_composite
     from loadbayes.fit.composite.reading import reading_model, reading_note
     from loadbayes.measurements.events import index_bases, index_f_hz, read_events
     from loadbayes.measurements.record import check_units
@@ -278,9 +280,11 @@ def fit_composite_cmd(
                         steps=steps, window_s=window_s, shares=shares, noise=noise,
                         rho_max=rho_max,
                         likelihood=likelihood, nu=parse_nu(nu))  # fmt: skip
+    source = click.get_current_context().get_parameter_source("draws")
     if until_converged is None:
-        source = click.get_current_context().get_parameter_source("draws")
         until_converged = source in (None, click.core.ParameterSource.DEFAULT)
+    if parts and source in (None, click.core.ParameterSource.DEFAULT):
+        sampler = sampler.with_(draws=PARTS_DEFAULTS.draws)  # a model of parts: 16,000
     sampler = sampler.with_(until_converged=until_converged, max_seconds=max_seconds)
     events = read_events(
         list(files),

@@ -10,13 +10,35 @@ overrides of it (:mod:`loadbayes.fit.sampler`). ``track_zip`` follows the ZIP
 coefficients sample by sample instead (online Bayes, :mod:`loadbayes.fit.track`).
 """
 
-from loadbayes.fit.core import accumulate, fit_gram, prior_settings
-from loadbayes.fit.exp import fit_exp
-from loadbayes.fit.motor import fit_im, fit_im_file, im_priors
-from loadbayes.fit.robust import fit_robust
-from loadbayes.fit.steps import fit_steps
-from loadbayes.fit.track import track_zip
-from loadbayes.fit.zip import fit_zip, fit_zip_file, zip_priors
+from importlib import import_module
+from typing import Any
+
+# Each name's module, imported on first use (PEP 562): ``fit composite`` imports
+# ``loadbayes.fit.composite`` through this package and needs none of them.
+_WHERE = {
+    "accumulate": "core",
+    "fit_gram": "core",
+    "prior_settings": "core",
+    "fit_exp": "exp",
+    "fit_im": "motor",
+    "fit_im_file": "motor",
+    "im_priors": "motor",
+    "fit_robust": "robust",
+    "fit_steps": "steps",
+    "track_zip": "track",
+    "fit_zip": "zip",
+    "fit_zip_file": "zip",
+    "zip_priors": "zip",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        value = getattr(import_module(f"loadbayes.fit.{_WHERE[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'loadbayes.fit' has no attribute {name!r}")
+
 
 __all__ = [
     "accumulate",

@@ -129,8 +129,9 @@ def fit_composite(
         frequency ``f`` in Hz or an angle ``angle_rad`` in rad, and an ``event`` column:
         one event per distinct value), or events already read.
     sampler : SamplerSettings, optional
-        Default :data:`~loadbayes.fit.composite.driver.COMPOSITE_DEFAULTS` (run on until
-        converged); settings given run exactly their draws unless ``until_converged``.
+        Default :data:`~loadbayes.fit.composite.driver.COMPOSITE_DEFAULTS` (a model of
+        parts: ``PARTS_DEFAULTS``; run on until converged); settings given run exactly
+        their draws unless ``until_converged``.
     progress : SamplingProgress, optional
         Told the cost before sampling and the iterations as they are done.
     spec : DataSpec, optional

@@ -23,7 +23,7 @@ from loadbayes.inference.condlinear import (
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.composite_prior import STEP_PRIOR_SD
 
-__all__ = ["COARSE_FS", "NLSResult", "nls"]
+__all__ = ["COARSE_FS", "NLSResult", "nls", "penalty"]
 
 
 @dataclass
@@ -79,21 +79,9 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     """
     t_start = time.perf_counter()
     nf = problem.n_free
-    mean_m, cov_m, _, _ = problem.prior.scale_free()
-    # The steps' fractions join the motor's coordinates, bounded to [0, 1] (their
-    # uniform prior) and started mid-interval; a Tikhonov row of sd 10 (a negligible
-    # pull) keeps the whitening square.
-    k = problem.n_steps
-    mean_s = np.full(k, 0.5)
-    mean_u = np.concatenate([mean_m, mean_s])
-    cov_u = np.zeros((problem.dim, problem.dim))
-    cov_u[:nf, :nf] = cov_m
-    cov_u[nf:, nf:] = np.eye(k) * STEP_PRIOR_SD**2
-    sd_u = np.sqrt(np.diag(cov_u))
-    white = np.linalg.inv(np.linalg.cholesky(cov_u))
-    lo, hi = mean_u - 6 * sd_u, mean_u + 6 * sd_u
-    lo[nf:], hi[nf:] = 0.0, 1.0
-    sd_u[nf:] = 0.2
+    mean_m, _, _, _ = problem.prior.scale_free()
+    mean_s = np.full(problem.n_steps, 0.5)
+    mean_u, cov_u, white, (lo, hi), sd_u = penalty(problem)
     starts = list(starts) if starts is not None else [mean_m, *problem.start_points()]
     starts = [np.concatenate([np.asarray(x0)[:nf], mean_s]) for x0 in starts]
     nfev = 0
@@ -156,6 +144,28 @@ def nls(problem: CompositeProblem, *, starts: Sequence[np.ndarray] | None = None
     cov = _gauss_newton_cov(problem, u, betas, 1.0 / sig, np.linalg.inv(cov_u))
     return NLSResult(u, betas, sig, cov, float(sol.cost), time.perf_counter() - t_start,
                      int(nfev), others)  # fmt: skip
+
+
+def penalty(problem: CompositeProblem):
+    """The prior of ``u`` as the NLS's Tikhonov rows: ``(mean, cov, whitening, bounds, scale)``.
+
+    The steps' fractions join the motor's coordinates, bounded to [0, 1] (their uniform
+    prior) and centred mid-interval; a row of sd ``STEP_PRIOR_SD`` (a negligible pull)
+    keeps the whitening square. ``bounds`` are six prior sds about the mean (the
+    fractions' [0, 1]); ``scale`` is ``least_squares``'s ``x_scale``.
+    """
+    nf, k = problem.n_free, problem.n_steps
+    mean_m, cov_m, _, _ = problem.prior.scale_free()
+    mean_u = np.concatenate([mean_m, np.full(k, 0.5)])
+    cov_u = np.zeros((problem.dim, problem.dim))
+    cov_u[:nf, :nf] = cov_m
+    cov_u[nf:, nf:] = np.eye(k) * STEP_PRIOR_SD**2
+    sd_u = np.sqrt(np.diag(cov_u))
+    white = np.linalg.inv(np.linalg.cholesky(cov_u))
+    lo, hi = mean_u - 6 * sd_u, mean_u + 6 * sd_u
+    lo[nf:], hi[nf:] = 0.0, 1.0
+    sd_u[nf:] = 0.2
+    return mean_u, cov_u, white, (lo, hi), sd_u
 
 
 #: Two least-squares optima are distinct where some coordinate differs by more than this

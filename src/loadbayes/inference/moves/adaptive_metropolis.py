@@ -180,7 +180,13 @@ class AdaptiveMetropolis(BlockMove):
         return state, bool(accept)
 
     def fit_jumps(
-        self, draws: np.ndarray, components: int = 1, wide: float = 0.0, wide_axis: bool = False
+        self,
+        draws: np.ndarray,
+        components: int = 1,
+        wide: float = 0.0,
+        wide_axis: bool = False,
+        anchors: tuple[np.ndarray, np.ndarray] | None = None,
+        anchor: float = 0.0,
     ) -> None:
         """Fit the jumps' t to ``draws`` of the block (e.g. several chains' burn-in).
 
@@ -190,9 +196,14 @@ class AdaptiveMetropolis(BlockMove):
         of t's over that many k-means regions of the draws instead of one t, and with
         ``wide > 0`` one more t of that weight, :data:`JUMP_WIDE_INFLATION` times wider
         with :data:`JUMP_WIDE_DOF` degrees of freedom (a tail no burn-in reached; with
-        ``wide_axis`` wider along the draws' principal direction alone).
+        ``wide_axis`` wider along the draws' principal direction alone), and with
+        ``anchor > 0`` t's of that total weight at ``anchors`` (centres and covariances in
+        the block's coordinates, carried into the walk's by its Jacobian there).
         """
         w = np.array([self._walk(np.asarray(x, dtype=float)) for x in draws])
+        placed = None
+        if anchor > 0 and anchors is not None and len(anchors[0]):
+            placed = self._walked(*anchors)
         self._jump_ready = True
         self._jump = None
         self._q_current = None
@@ -201,11 +212,28 @@ class AdaptiveMetropolis(BlockMove):
                 w, components=components, inflation=JUMP_REGION_INFLATION, dof=JUMP_DOF,
                 power=JUMP_POWER, broad=JUMP_BROAD, broad_inflation=JUMP_INFLATION,
                 wide=wide, wide_inflation=JUMP_WIDE_INFLATION, wide_dof=JUMP_WIDE_DOF,
-                wide_axis=wide_axis,
+                wide_axis=wide_axis, anchors=placed, anchor=anchor if placed else 0.0,
             )  # fmt: skip
         elif len(w) >= JUMP_MIN_DRAWS:
             cov = np.cov(w, rowvar=False) + 1e-10 * np.eye(self.d)
             self._jump = StudentTProposal(w.mean(axis=0), JUMP_INFLATION * cov, JUMP_DOF)
+
+    def _walked(self, centres, covs) -> tuple[np.ndarray, np.ndarray]:
+        # Points and covariances of the block in the walk's coordinates: the centre
+        # mapped, the covariance through the map's Jacobian there (central differences).
+        out_c, out_v = [], []
+        for c, cov in zip(np.asarray(centres, dtype=float), np.asarray(covs, dtype=float),
+                          strict=True):  # fmt: skip
+            jac = np.empty((self.d, self.d))
+            for i in range(self.d):
+                h = 1e-6 * max(1.0, abs(c[i]))
+                up, um = c.copy(), c.copy()
+                up[i] += h
+                um[i] -= h
+                jac[:, i] = (self._walk(up) - self._walk(um)) / (2 * h)
+            out_c.append(self._walk(c))
+            out_v.append(jac @ cov @ jac.T)
+        return np.array(out_c), np.array(out_v)
 
     def _jump_proposal(self) -> StudentTProposal | None:
         # Fitted once, at the first step after burn-in, from what the move learned.

@@ -21,6 +21,13 @@ regions and the broad t (both fitted to where the burn-in was) propose too seldo
 R-hat to notice that every chain missed it (docs/composite.md, "A tail the burn-in
 missed").
 
+**Anchored** t's (``anchors``, weight ``anchor``) are placed from outside the draws: a
+caller's points and covariances (the composite's: points along the posterior's ridge in
+``log T'`` found by least squares, each with its Laplace covariance, docs/composite.md,
+"Jumps placed from the data"). They propose a stretch the burn-in may not have drawn,
+where the data say the posterior runs; as more fixed components of the independence
+proposal they keep the kernel exact.
+
 Its :meth:`~StudentTMixture.log_density` is normalised across components (each t's
 ``log det`` enters, and with a wide t of other degrees of freedom each t's gamma
 functions), as the Hastings ratio of a mixture needs; the constant common to all is
@@ -67,6 +74,11 @@ class StudentTMixture:
     wide_axis : bool
         Widen it along the draws' principal direction alone (the covariance plus
         ``(wide_inflation - 1) lambda_1 v_1 v_1^T``), not in every direction.
+    anchors : (ndarray (m, d), ndarray (m, d, d)), optional
+        Centres and covariances of ``m`` more t's (``dof`` degrees of freedom), placed
+        by the caller, not fitted to ``draws``.
+    anchor : float
+        Their total weight, shared equally (0: none).
     seed : int
         The k-means seed (the mixture is a function of ``draws``).
 
@@ -90,6 +102,8 @@ class StudentTMixture:
         wide_inflation: float = 9.0,
         wide_dof: float = 3.0,
         wide_axis: bool = False,
+        anchors: tuple[np.ndarray, np.ndarray] | None = None,
+        anchor: float = 0.0,
         seed: int = 0,
     ) -> None:
         draws = np.asarray(draws, dtype=float)
@@ -136,6 +150,16 @@ class StudentTMixture:
             self.counts = np.append(self.counts, n)
             w = np.append((1 - wide) * w, wide)
             dofs.append(float(wide_dof))
+        if anchor > 0 and anchors is not None and len(anchors[0]):
+            centres, covs = np.asarray(anchors[0], dtype=float), np.asarray(anchors[1], dtype=float)
+            m = len(centres)
+            for c, cov in zip(centres, covs, strict=True):
+                cov = cov.reshape(d, d) + 1e-10 * np.eye(d)
+                means.append(c)
+                roots.append(np.linalg.cholesky((cov + cov.T) / 2))
+            self.counts = np.append(self.counts, np.zeros(m, dtype=int))
+            w = np.append((1 - anchor) * w, np.full(m, anchor / m))
+            dofs += [self.dof] * m
         self.weights = w
         self._dofs = np.array(dofs)
         self.means = np.array(means)
