@@ -149,16 +149,14 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     "plain table, points or one-cycle means, whichever fits better (the run says which).",
 )
 @sampler_settings(
-    draws=6_000,  # COMPOSITE_DEFAULTS (not imported here: the command starts light)
-    # (a model of parts: PARTS_DEFAULTS' 16,000, set in the command)
+    draws=6_000,  # COMPOSITE_DEFAULTS, not imported: the command starts light (parts: 16,000)
     burn=4_000,
     init=False,
     draws_min=2,
     burn_min=1,
-    draws_help="Iterations per chain, burn-in included (default 16,000 for a model of "
-    "parts). Left at its default, the chains "
-    "then run on until every reported quantity has R-hat < 1.01 and bulk ESS >= 400 "
-    "(or --max-seconds runs out); given, exactly that many.",
+    draws_help="Iterations per chain, burn-in included (16,000 for a model of parts). "
+    "Left at its default, the chains then run on until every reported quantity has R-hat "
+    "< 1.01 and bulk ESS >= 400 (or --max-seconds runs out); given, exactly that many.",
     burn_help="Burn-in (the proposal adapts during it, then freezes).",
 )
 @click.option(
@@ -400,8 +398,7 @@ def fit_composite_cmd(
             )
             stop_if_signalled()
         if netcdf_out:
-            # Straight into the transaction's temporary (Posterior.to_netcdf would make a
-            # temporary of it, which a signal could leave behind).
+            # Into the transaction's temporary (to_netcdf's own one a signal could leave).
             from loadbayes.io.atomic import write_netcdf
 
             write_netcdf(post.to_arviz(), out.temp("--netcdf"))
@@ -442,8 +439,7 @@ def fit_composite_cmd(
 
 @contextlib.contextmanager
 def _quiet_arviz():
-    # ArviZ logs "arviz - WARNING" lines of its own (R-hat of one chain, few draws); the
-    # fit says what matters in its own warnings instead.
+    # ArviZ's own "arviz - WARNING" lines (one chain's R-hat...): the fit's warnings say it.
     import logging
 
     previous = logging.root.manager.disable
