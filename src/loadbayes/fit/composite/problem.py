@@ -30,7 +30,7 @@ from loadbayes.fit.composite.bounded import (
     draw_gamma,
     shares_of,
 )
-from loadbayes.fit.composite.bounded_kernel import bounded_terms, stacked
+from loadbayes.fit.composite.bounded_kernel import bounded_terms, draw_gamma_one, stacked
 from loadbayes.fit.composite.sums import (
     ar_residual_sums,
     ar_sums_into,
@@ -284,9 +284,11 @@ class CompositeProblem:
         """Every event's ``beta | u, tau`` (exact; bounded shares: fit/composite/bounded.py)."""
         if not self.bounded:
             return [draw_beta(s, tau, self.m0, self.p0, rng, positive=POSITIVE_BETA) for s in sums]
+        # Compiled (bounded_kernel.draw_gamma_one): draw_gamma's arithmetic and draws.
         gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
+        tau = np.asarray(tau, dtype=float)
         return [
-            draw_gamma(g.ztz, g.zty, tau, shares_of(z), gamma_p0, rng)[0]
+            draw_gamma_one(shares_of(z), g.ztz, g.zty, tau, gamma_p0, rng)
             for z, g in zip(self.share_z(u), sums, strict=True)
         ]
 

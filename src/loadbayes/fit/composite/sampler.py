@@ -346,21 +346,16 @@ class _Gibbs:
         # the shares), so the shares settle given the motor at a tenth of the cost of a
         # joint step; each step leaves the posterior invariant. The scale adapts toward
         # SHARE_ACCEPT during burn-in, then stays.
-        # The steps run compiled (fit/composite/bounded_kernel.share_steps) on the draws
-        # taken here, in the order the Python loop took them: a normal step, then a
+        # The steps run compiled (fit/composite/bounded_kernel.share_steps), drawing from
+        # the chain's generator in the Python loop's order: a normal step, then a
         # uniform, for each step and event.
         p, rng = self.problem, self.rng
         i0, n_ev = self.n_base, len(p.events)
         if self.share_scale is None:
             self.share_scale = np.full(n_ev, 0.3)
-        normal, uniform = np.empty((SHARE_STEPS, n_ev, SHARE_COORDS)), np.empty((SHARE_STEPS, n_ev))
-        for s in range(SHARE_STEPS):
-            for e in range(n_ev):
-                normal[s, e] = rng.standard_normal(SHARE_COORDS)
-                uniform[s, e] = rng.uniform()
         sl = slice(i0, i0 + SHARE_COORDS * n_ev)
         z = np.array(u[sl], dtype=float).reshape(n_ev, SHARE_COORDS)
-        share_steps(z, *p.share_arguments(tau, sums), normal, uniform, self.share_scale,
+        share_steps(z, *p.share_arguments(tau, sums), SHARE_STEPS, rng, self.share_scale,
                     it < self.burn)  # fmt: skip
         u = np.array(u, dtype=float)
         u[sl] = z.ravel()
