@@ -266,12 +266,16 @@ class CompositeProblem:
 
     def share_arguments(self, tau, groups) -> tuple:
         """The compiled share terms' arguments after ``z`` (``bounded_kernel.py``)."""
-        sp = self.share_prior
-        return (*stacked(groups), np.asarray(tau, dtype=float),
+        fixed = self.__dict__.get("_share_fixed")
+        if fixed is None:  # gamma's prior precisions and the share priors, made once
+            sp = self.share_prior
+            fixed = self.__dict__["_share_fixed"] = (
                 np.asarray(self.p0, dtype=float)[[0, 3, 6]],
                 np.array([i for i, _, _ in sp], dtype=np.int64),
                 np.array([m for _, m, _ in sp], dtype=float),
-                np.array([d for _, _, d in sp], dtype=float))  # fmt: skip
+                np.array([d for _, _, d in sp], dtype=float),
+            )
+        return (*stacked(groups), np.asarray(tau, dtype=float), *fixed)
 
     def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
         # The collapsed density of the bounded model (fit/composite/bounded.py), its
