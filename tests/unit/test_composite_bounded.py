@@ -289,3 +289,33 @@ def test_compiled_coefficient_draw_is_draw_gamma_bit_for_bit():
         want = draw_gamma(ztz, zty, tau, a, p0, ref)[0]
         assert np.array_equal(draw_gamma_one(a, ztz, zty, tau, p0, gen), want)
         assert gen.random() == ref.random()
+
+
+@pytest.mark.parametrize("shares", ["free", "bounded"])
+def test_jumps_are_refitted_between_rounds_with_bounded_shares_only(inadmissible_event, shares):
+    """A round added by ``extend`` continues the run draw for draw with free shares; with
+    bounded shares the jumps are refitted to the kept draws first (``REFIT_THIN``), so
+    the first round is the same and the added one is not."""
+    from loadbayes.fit.composite.bounded import share_start
+    from loadbayes.fit.composite.driver import _append_start
+    from loadbayes.fit.composite.nls import nls
+    from loadbayes.fit.composite.problem import CompositeProblem
+    from loadbayes.fit.composite.sampler import REFIT_THIN, sample
+
+    ev, _ = inadmissible_event
+    model = CompositeModel(window_s=0)
+    kw = dict(f_hz=model.f_hz, torque=model.fixed_torque, h_max=model.h_max,
+              steps=model.steps, window_s=model.window_s)  # fmt: skip
+    problem = CompositeProblem([ev], model.default_prior([ev]), **kw)
+    start = nls(problem)
+    if shares == "bounded":
+        problem = CompositeProblem([ev], problem.prior, bounded=True, **kw)
+        start = _append_start(start, share_start(start.betas), sd=0.5)
+    burn, kept = 600, 260 * REFIT_THIN  # 2 chains x 260 kept u: past JUMP_MIN_DRAWS (500)
+    rounds = iter([50, 0])
+    run = dict(start=start, burn=burn, chains=2, seed=11, workers=1)
+    whole = sample(problem, draws=burn + kept + 50, **run)
+    split = sample(problem, draws=burn + kept, extend=lambda _: next(rounds), **run)
+    for a, b in zip(whole, split, strict=True):
+        assert np.array_equal(a.theta[:kept], b.theta[:kept])
+        assert np.array_equal(a.theta, b.theta) == (shares == "free")
