@@ -240,8 +240,10 @@ def test_compiled_share_terms_match_the_python_ones():
 
 
 def test_compiled_share_steps_take_the_python_loops_path():
-    """Given the same normal and uniform draws, the compiled steps accept and reject as
-    the Python loop over the reference terms does, and adapt the scale the same way."""
+    """Drawing from the same generator, the compiled steps take the Python loop's draws
+    (four normals, then a uniform, per step and event), accept and reject as the loop
+    over the reference terms does, adapt the scale the same way, and leave the generator
+    where the loop leaves it."""
     from loadbayes.fit.composite.bounded_kernel import share_steps, stacked
     from loadbayes.inference.condlinear import GroupSums
 
@@ -249,21 +251,71 @@ def test_compiled_share_steps_take_the_python_loops_path():
     groups = [GroupSums(*_event_sums(rng)) for _ in range(2)]
     tau, p0 = np.array([2e3, 3e3]), np.array([0.01, 0.02, 0.01])
     steps = 40
-    normal, uniform = rng.standard_normal((steps, 2, 4)), rng.uniform(size=(steps, 2))
     z0 = np.zeros((2, 4))
-    z, scale = z0.copy(), np.full(2, 0.3)
+    z, scale, gen = z0.copy(), np.full(2, 0.3), np.random.default_rng(6)
     share_steps(z, *stacked(groups), tau, p0, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
-                normal, uniform, scale, True)  # fmt: skip
-    ref_z, ref_scale, accepted = z0.copy(), np.full(2, 0.3), 0
-    for s in range(steps):
+                steps, gen, scale, True)  # fmt: skip
+    ref_z, ref_scale, accepted, ref_gen = z0.copy(), np.full(2, 0.3), 0, np.random.default_rng(6)
+    for _ in range(steps):
         for e, g in enumerate(groups):
+            normal, uniform = ref_gen.standard_normal(4), ref_gen.uniform()
             cur = _reference_term(ref_z[e], g.ztz, g.zty, g.yty, g.n, tau, p0, ())
-            cand = ref_z[e] + ref_scale[e] * normal[s, e]
+            cand = ref_z[e] + ref_scale[e] * normal
             lc = _reference_term(cand, g.ztz, g.zty, g.yty, g.n, tau, p0, ())
-            ok = math.log(uniform[s, e]) < lc - cur
+            ok = math.log(uniform) < lc - cur
             if ok:
                 ref_z[e], accepted = cand, accepted + 1
             ref_scale[e] *= math.exp(0.02 * (float(ok) - 0.3))
     assert 0 < accepted < 2 * steps  # both kinds of decision were taken
     np.testing.assert_allclose(z, ref_z, rtol=0, atol=1e-12)
     np.testing.assert_allclose(scale, ref_scale, rtol=1e-14)
+    assert gen.random() == ref_gen.random()
+
+
+def test_compiled_coefficient_draw_is_draw_gamma_bit_for_bit():
+    """``draw_gamma_one`` gives ``draw_gamma``'s single draw to the bit and leaves the
+    generator where it does, also far in a tail where the rejection takes many tries
+    (the motor's coefficient's conditional mean well below zero)."""
+    from loadbayes.fit.composite.bounded_kernel import draw_gamma_one
+
+    rng = np.random.default_rng(7)
+    for k in range(120):
+        ztz, zty, _, _ = _event_sums(rng)
+        zty = zty * (-3.0 if k % 3 == 0 else 1.0)  # a third in the tail
+        tau = 10 ** rng.uniform(1, 4, 2)
+        a = shares_of(rng.normal(0, 2, 4))
+        p0 = np.array([0.01, 0.02, 0.01]) * 10 ** rng.uniform(-2, 2)
+        ref, gen = np.random.default_rng(k), np.random.default_rng(k)
+        want = draw_gamma(ztz, zty, tau, a, p0, ref)[0]
+        assert np.array_equal(draw_gamma_one(a, ztz, zty, tau, p0, gen), want)
+        assert gen.random() == ref.random()
+
+
+@pytest.mark.parametrize("shares", ["free", "bounded"])
+def test_jumps_are_refitted_between_rounds_with_bounded_shares_only(inadmissible_event, shares):
+    """A round added by ``extend`` continues the run draw for draw with free shares; with
+    bounded shares the jumps are refitted to the kept draws first (``REFIT_THIN``), so
+    the first round is the same and the added one is not."""
+    from loadbayes.fit.composite.bounded import share_start
+    from loadbayes.fit.composite.driver import _append_start
+    from loadbayes.fit.composite.nls import nls
+    from loadbayes.fit.composite.problem import CompositeProblem
+    from loadbayes.fit.composite.sampler import REFIT_THIN, sample
+
+    ev, _ = inadmissible_event
+    model = CompositeModel(window_s=0)
+    kw = dict(f_hz=model.f_hz, torque=model.fixed_torque, h_max=model.h_max,
+              steps=model.steps, window_s=model.window_s)  # fmt: skip
+    problem = CompositeProblem([ev], model.default_prior([ev]), **kw)
+    start = nls(problem)
+    if shares == "bounded":
+        problem = CompositeProblem([ev], problem.prior, bounded=True, **kw)
+        start = _append_start(start, share_start(start.betas), sd=0.5)
+    burn, kept = 600, 260 * REFIT_THIN  # 2 chains x 260 kept u: past JUMP_MIN_DRAWS (500)
+    rounds = iter([50, 0])
+    run = dict(start=start, burn=burn, chains=2, seed=11, workers=1)
+    whole = sample(problem, draws=burn + kept + 50, **run)
+    split = sample(problem, draws=burn + kept, extend=lambda _: next(rounds), **run)
+    for a, b in zip(whole, split, strict=True):
+        assert np.array_equal(a.theta[:kept], b.theta[:kept])
+        assert np.array_equal(a.theta, b.theta) == (shares == "free")

@@ -10,12 +10,15 @@ call per iteration:
   coordinates and any normal prior on a share) plus its evidence with ``gamma``
   integrated out over the positive quadrant (``bounded.log_evidence``), through the
   same compiled moments as the free shares (``inference/condlinear.moments_arrays``);
-- Owen's T, ``ndtr`` and ``log_ndtr`` are SciPy's own compiled functions
+- Owen's T, ``ndtr``, ``log_ndtr`` and ``ndtri`` are SciPy's own compiled functions
   (``scipy.special.cython_special``), called through their C addresses;
-- :func:`share_steps`: the random-walk steps, given the normal and uniform draws the
-  sampler took from its generator in the order the Python loop took them, so the
-  stream of random numbers is unchanged; a step moves one event, so its ratio is that
-  event's term alone (the motor's prior and the other events cancel).
+- :func:`share_steps`: the random-walk steps, drawing from the chain's generator in
+  the order the Python loop drew (numba's ``Generator`` methods are NumPy's, on the same
+  bit generator), so the stream of random numbers is unchanged; a step moves one event,
+  so its ratio is that event's term alone (the motor's prior and the other events
+  cancel);
+- :func:`draw_gamma_one`: the sampler's exact draw of an event's coefficients
+  (``bounded.draw_gamma`` with one draw), the same arithmetic and draws, bit for bit.
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from numba.extending import get_cython_function_address
 
 from loadbayes.inference.condlinear import moments_arrays
 
-__all__ = ["bounded_terms", "event_term", "gamma_moments", "owens_t", "share_steps", "stacked"]
+__all__ = ["bounded_terms", "draw_gamma_one", "event_term", "gamma_moments", "owens_t",
+           "share_steps", "stacked"]  # fmt: skip
 
 _LOG_2PI = math.log(2.0 * math.pi)
 _P_ZIP, _Q0, _P_M0 = 0, 1, 2
@@ -49,6 +53,9 @@ def _special(name: str, n_args: int):
 _owens_t = _special("owens_t", 2)
 _ndtr = _special("__pyx_fuse_1ndtr", 1)  # the double version (fuse 0 is complex)
 _log_ndtr = _special("__pyx_fuse_1log_ndtr", 1)
+_ndtri = _special("ndtri", 1)
+#: Rejection tries of the single coefficient draw (bounded._MAX_TRIES).
+_MAX_TRIES = 10_000
 
 
 @numba.njit(cache=True, nogil=True)
@@ -133,14 +140,16 @@ def bounded_terms(z, ztz, zty, yty, n, tau, p0_gamma, sp_i, sp_mean, sp_sd):  # 
 
 
 @numba.njit(cache=True, nogil=True)
-def share_steps(z, ztz, zty, yty, n, tau, p0_gamma, sp_i, sp_mean, sp_sd, normal, uniform,
+def share_steps(z, ztz, zty, yty, n, tau, p0_gamma, sp_i, sp_mean, sp_sd, steps, rng,
                 scale, adapting):  # pragma: no cover - compiled  # fmt: skip
-    """Random-walk steps of each event's share log-ratios ``z`` (E, 4), in place.
+    """``steps`` random-walk steps of each event's share log-ratios ``z`` (E, 4), in place.
 
-    ``normal`` (S, E, 4) and ``uniform`` (S, E): step s of event e proposes
-    ``z[e] + scale[e] normal[s, e]`` and accepts when ``log uniform[s, e]`` is below the
-    change of the event's term. ``scale`` (E,) adapts toward 30 % acceptance while
-    ``adapting`` (the burn-in), in place.
+    Step s of event e proposes ``z[e] + scale[e] * normal(4)`` and accepts when ``log
+    uniform`` is below the change of the event's term; the four normals, then the
+    uniform, come from ``rng`` (the chain's generator: numba draws from its bit
+    generator as NumPy does, so the stream is the Python loop's ``rng.standard_normal(4)``
+    then ``rng.uniform()``, step by step and event by event). ``scale`` (E,) adapts
+    toward 30 % acceptance while ``adapting`` (the burn-in), in place.
     """
     n_ev = z.shape[0]
     cur = np.empty(n_ev)
@@ -148,19 +157,61 @@ def share_steps(z, ztz, zty, yty, n, tau, p0_gamma, sp_i, sp_mean, sp_sd, normal
         cur[e] = event_term(z[e], ztz[e], zty[e], yty[e], n[e], tau, p0_gamma, sp_i, sp_mean,
                             sp_sd)  # fmt: skip
     cand = np.empty(4)
-    for s in range(normal.shape[0]):
+    for _ in range(steps):
         for e in range(n_ev):
             for j in range(4):
-                cand[j] = z[e, j] + scale[e] * normal[s, e, j]
+                cand[j] = z[e, j] + scale[e] * rng.standard_normal()
+            uniform = rng.uniform(0.0, 1.0)
             lc = event_term(cand, ztz[e], zty[e], yty[e], n[e], tau, p0_gamma, sp_i, sp_mean,
                             sp_sd)  # fmt: skip
-            ok = math.log(uniform[s, e]) < lc - cur[e]
+            ok = math.log(uniform) < lc - cur[e]
             if ok:
                 z[e, :] = cand
                 cur[e] = lc
             if adapting:
                 scale[e] *= math.exp(0.02 * ((1.0 if ok else 0.0) - _SHARE_ACCEPT))
     return z
+
+
+@numba.njit(cache=True, nogil=True)
+def draw_gamma_one(a, ztz, zty, tau, p0_gamma, rng):  # pragma: no cover - compiled
+    """One exact draw of an event's ``beta`` (7,): ``bounded.draw_gamma`` with size 1.
+
+    The same arithmetic and the same draws from ``rng`` in the same order: each
+    rejection try a uniform on ``[lo, 1)`` then one on ``[0, 1)`` (the last try stands
+    when none is accepted, far in a tail), then ``P_zip0``'s uniform and ``q0``'s normal.
+    """
+    mu, cov, _, _ = gamma_moments(a, ztz, zty, tau, p0_gamma)
+    m = mu[_P_M0]
+    sm = math.sqrt(cov[_P_M0, _P_M0])
+    slope = cov[_P_ZIP, _P_M0] / cov[_P_M0, _P_M0]
+    sz = math.sqrt(max(cov[_P_ZIP, _P_ZIP] - slope * cov[_P_ZIP, _P_M0], 1e-300))
+    lo = _ndtr(-m / sm, 0)
+    pm = m
+    for _ in range(_MAX_TRIES):
+        w = lo + (1.0 - lo) * rng.random()
+        pm = m + sm * _ndtri(min(max(w, 1e-300), 1 - 1e-16), 0)
+        mz = mu[_P_ZIP] + slope * (pm - m)
+        if rng.random() < _ndtr(mz / sz, 0):
+            break
+    mz = mu[_P_ZIP] + slope * (pm - m)
+    upper = _ndtr(mz / sz, 0)
+    pz = mz + sz * -_ndtri(max(rng.uniform(0.0, 1.0) * upper, 1e-300), 0)
+    # q0 given (P_zip0, P_m0): the 2 x 2 solve of draw_gamma.
+    pair = np.empty((2, 2))
+    pair[0, 0], pair[0, 1] = cov[_P_ZIP, _P_ZIP], cov[_P_ZIP, _P_M0]
+    pair[1, 0], pair[1, 1] = cov[_P_M0, _P_ZIP], cov[_P_M0, _P_M0]
+    c_q = np.array([cov[_Q0, _P_ZIP], cov[_Q0, _P_M0]])
+    wq = np.linalg.solve(pair, c_q)
+    mq = mu[_Q0] + ((pz - mu[_P_ZIP]) * wq[0] + (pm - m) * wq[1])
+    vq = max(cov[_Q0, _Q0] - (wq[0] * c_q[0] + wq[1] * c_q[1]), 1e-300)
+    q0 = mq + math.sqrt(vq) * rng.standard_normal()
+    out = np.empty(7)
+    for i in range(3):
+        out[i] = pz * a[i]
+        out[3 + i] = q0 * a[3 + i]
+    out[6] = pm
+    return out
 
 
 def stacked(groups) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

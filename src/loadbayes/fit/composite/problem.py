@@ -30,7 +30,7 @@ from loadbayes.fit.composite.bounded import (
     draw_gamma,
     shares_of,
 )
-from loadbayes.fit.composite.bounded_kernel import bounded_terms, stacked
+from loadbayes.fit.composite.bounded_kernel import bounded_terms, draw_gamma_one, stacked
 from loadbayes.fit.composite.sums import (
     ar_residual_sums,
     ar_sums_into,
@@ -266,12 +266,16 @@ class CompositeProblem:
 
     def share_arguments(self, tau, groups) -> tuple:
         """The compiled share terms' arguments after ``z`` (``bounded_kernel.py``)."""
-        sp = self.share_prior
-        return (*stacked(groups), np.asarray(tau, dtype=float),
+        fixed = self.__dict__.get("_share_fixed")
+        if fixed is None:  # gamma's prior precisions and the share priors, made once
+            sp = self.share_prior
+            fixed = self.__dict__["_share_fixed"] = (
                 np.asarray(self.p0, dtype=float)[[0, 3, 6]],
                 np.array([i for i, _, _ in sp], dtype=np.int64),
                 np.array([m for _, m, _ in sp], dtype=float),
-                np.array([d for _, _, d in sp], dtype=float))  # fmt: skip
+                np.array([d for _, _, d in sp], dtype=float),
+            )
+        return (*stacked(groups), np.asarray(tau, dtype=float), *fixed)
 
     def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
         # The collapsed density of the bounded model (fit/composite/bounded.py), its
@@ -284,9 +288,11 @@ class CompositeProblem:
         """Every event's ``beta | u, tau`` (exact; bounded shares: fit/composite/bounded.py)."""
         if not self.bounded:
             return [draw_beta(s, tau, self.m0, self.p0, rng, positive=POSITIVE_BETA) for s in sums]
+        # Compiled (bounded_kernel.draw_gamma_one): draw_gamma's arithmetic and draws.
         gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
+        tau = np.asarray(tau, dtype=float)
         return [
-            draw_gamma(g.ztz, g.zty, tau, shares_of(z), gamma_p0, rng)[0]
+            draw_gamma_one(shares_of(z), g.ztz, g.zty, tau, gamma_p0, rng)
             for z, g in zip(self.share_z(u), sums, strict=True)
         ]
 
