@@ -150,6 +150,8 @@ def test_the_truth_predicts_an_independent_event_to_the_noise(held_out, tmp_path
     # between samples on the scored rows. With the motor's share wrong, far more.
     assert ev["rms_p"] < 1.3 * NOISE / 0.9 and ev["rms_q"] < 1.3 * NOISE / 0.9
     assert ev["coverage_p"] > 0.85 and ev["coverage_q"] > 0.85
+    # A posterior without its events' recordings: the band is the fit's noise, said.
+    assert "keeps no recordings" in res.output and "band_p" not in ev
     assert ev["p0"] == pytest.approx(0.8, abs=3 * NOISE)
     static = _truth_posterior(tmp_path / "static.nc", f_m=0.02)
     res = _run(static, folder / "held_out.csv", "--json", tmp_path / "s.json", "--quiet")
@@ -199,6 +201,16 @@ def test_fit_composite_then_validate_round_trips(held_out, tmp_path):
     for ev in (held, own):
         assert ev["rms_p"] < 2 * NOISE / 0.9 and ev["rms_q"] < 2 * NOISE / 0.9
         assert ev["coverage_p"] > 0.8 and ev["coverage_q"] > 0.8
+    # The band says which it is and what the fitted event's own playback missed it by: the
+    # model true and point samples, no more than the fit's noise, so the fit-noise band
+    # (the same coverage under both names).
+    for ev in (held, own):
+        assert ev["band_p"] == ev["band_q"] == "fit noise"
+        assert ev["coverage_fit_noise_p"] == ev["coverage_p"]
+        assert ev["coverage_fit_noise_q"] == ev["coverage_q"]
+        for ch in "pq":
+            pb = ev["fitted_playback"][ch]
+            assert pb["band"] == "fit noise" and pb["rms"] < 1.5 * pb["fit_noise_sd"]
 
 
 # ------------------------------------------------------------------ bad input: exit 2

@@ -101,7 +101,12 @@ def _check_same_fit(doc: dict, result: str, post, path: str) -> str | None:
 
 
 def _scores(post, recs, masks, **kw):
-    """Each event scored: a model of parts through its own prediction (its feeder solved)."""
+    """Each event scored: a model of parts through its own prediction (its feeder solved).
+
+    Then each channel's band widened by the model error the fitted events' own playback
+    shows, where it shows more than the fit's noise (``fit/composite/validate_band.py``).
+    Returns the scores and a note (None, or why the band is the fit's noise alone).
+    """
     from loadbayes.export.partsload import rebuild_model
     from loadbayes.fit.composite.validate import validate_events
 
@@ -110,15 +115,41 @@ def _scores(post, recs, masks, **kw):
     except ValueError as exc:
         raise UserError(str(exc)) from None
     if model is None:
-        return validate_events(post, recs, exclude=masks, **kw)
+        held = validate_events(post, recs, exclude=masks, **kw)
+        return _honest(post, model, held, lambda e, m: validate_events(post, e, exclude=m, **kw),
+                       kw["prob"])  # fmt: skip
     from loadbayes.fit.composite.validate_parts import validate_parts_event
 
     kw.pop("f_hz")  # the model's own
-    try:
+
+    def play(evs, ms):
         return [validate_parts_event(post, model, e, exclude=m, **kw)
-                for e, m in zip(recs, masks, strict=True)]  # fmt: skip
+                for e, m in zip(evs, ms, strict=True)]  # fmt: skip
+
+    try:
+        held = play(recs, masks)
     except ValueError as exc:
         raise UserError(str(exc)) from None
+    return _honest(post, model, held, play, kw["prob"])
+
+
+def _honest(post, model, held, play, prob):
+    """``held`` with the fitted events' playback error in its bands (see :func:`_scores`)."""
+    from loadbayes.fit.composite.predictive import events_of, window_of
+    from loadbayes.fit.composite.validate_band import fitted_masks, honest_bands
+
+    fitted = events_of(post)
+    if not fitted:
+        return held, ("the fit keeps no recordings of its events (written before they were "
+                      "kept): the band is the fit's noise alone, which a model error does "
+                      "not widen")  # fmt: skip
+    window = model.window_s if model is not None else window_of(post.settings)
+    try:
+        own = play(fitted, fitted_masks(fitted, window))
+    except ValueError as exc:
+        return held, (f"the fitted events could not be played back through their fit "
+                      f"({exc}): the band is the fit's noise alone")  # fmt: skip
+    return honest_bands(post, held, own, prob), None
 
 
 @click.command("validate", cls=OneLineCommand)
@@ -227,8 +258,9 @@ def validate_cmd(
         check_units(evs, columns={"v": v_col, "p": p_col, "q": q_col}, overridable=False)
         recs += evs
         masks.append(read_exclusions(path, straddle_col, evs[0].n))
-    scores = _scores(post, recs, masks, f_hz=f_hz, n_draws=n_draws, prob=prob, seed=seed)
-    notes = [unchecked] if unchecked else []
+    scores, band_note = _scores(post, recs, masks, f_hz=f_hz, n_draws=n_draws, prob=prob,
+                                seed=seed)  # fmt: skip
+    notes = [n for n in (unchecked, band_note) if n]
     total = post.n_chains * post.n_draws
     if n_draws > total:  # the scores use every draw there is: said, not silently
         notes.append(f"only {total} draws exist in {netcdf_in or result}: all {total} used "
@@ -239,7 +271,11 @@ def validate_cmd(
         "prob": prob,
         "p0_fitted": float(post.draws["p0"].mean()),
         "units": "rms_p, rms_q per unit of the fitted P0 (p0_fitted); coverage: share of "
-        "scored samples inside the posterior-predictive band (model + the fit's noise)",
+        "scored samples inside the posterior-predictive band of a new observation: "
+        "band_p, band_q say which (the fit's noise, or the model error fitted on the "
+        "fitted events' playback where it shows more error than that noise; "
+        "fitted_playback: that error per unit of P0); coverage_fit_noise_p, _q: the "
+        "band of model + the fit's noise alone",
         "events": [s.to_dict() for s in scores],
     }
     text = json.dumps(doc, indent=2, allow_nan=False)
@@ -266,11 +302,23 @@ def validate_cmd(
         echo(f"{what} fit {result} on {len(scores)} held-out event(s), {prob:.0%} band")
         echo(
             f"{'event':<40} {'n':>5} {'excl':>5} {'rms_p':>7} {'rms_q':>7} "
-            f"{'cov_p':>6} {'cov_q':>6}"
+            f"{'cov_p':>6} {'cov_q':>6} {'fn_p':>6} {'fn_q':>6}"
         )
         for s in scores:
+            fn = [getattr(s, f"coverage_fit_noise_{c}") for c in "pq"]
+            fn = [getattr(s, f"coverage_{c}") if x is None else x
+                  for c, x in zip("pq", fn, strict=True)]  # fmt: skip
             echo(
                 f"{s.file[-40:]:<40} {s.n:>5} {s.n_excluded:>5} {s.rms_p:>7.4f} "
-                f"{s.rms_q:>7.4f} {s.coverage_p:>6.2f} {s.coverage_q:>6.2f}"
+                f"{s.rms_q:>7.4f} {s.coverage_p:>6.2f} {s.coverage_q:>6.2f} "
+                f"{fn[0]:>6.2f} {fn[1]:>6.2f}"
             )
-        echo("rms per unit of the fitted P0; cov: share of scored samples in the band")
+        echo("rms per unit of the fitted P0; cov: share of scored samples in the band; fn: "
+             "in the band of the fit's noise alone")  # fmt: skip
+        pb = scores[0].playback
+        for c in "pq" if pb else ():
+            x = pb[c]
+            echo(f"band of {c.upper()}: {x['band']} (the fitted events played back: RMS "
+                 f"{x['rms']:.4f}; model error sd {x['model_error_sd']:.4f}, rho "
+                 f"{x['model_error_rho']:.2f}; recorder noise sd {x['noise_sd']:.4f}; the "
+                 f"fit's noise sd {x['fit_noise_sd']:.4f})")  # fmt: skip

@@ -78,6 +78,14 @@ class EventValidation:
     #: Log pointwise predictive density of each scored sample (P and Q together): the
     #: log of the mean over draws of its Gaussian likelihood; its sum is the event's elpd.
     lpd: np.ndarray | None = field(default=None, repr=False)
+    #: With the fitted events' playback error (``validate_band.honest_band``): the
+    #: fit-noise band's coverage, the band each channel's ``coverage`` is of, and the
+    #: playback's error per channel (per unit of the fitted P0).
+    coverage_fit_noise_p: float | None = None
+    coverage_fit_noise_q: float | None = None
+    band_p: str | None = None
+    band_q: str | None = None
+    playback: dict[str, Any] | None = field(default=None, repr=False)
 
     @property
     def elpd(self) -> float:
@@ -97,8 +105,18 @@ class EventValidation:
             "p0": self.p0,
             "q0": self.q0,
             "draws_used": self.draws_used,
+            **self.band_record(),
             "iec_windows": self.window_errors(),
         }
+
+    def band_record(self) -> dict[str, Any]:
+        """Which band ``coverage_*`` is of, the fit-noise band's, and the playback error."""
+        if self.playback is None:
+            return {}
+        return {"band_p": self.band_p, "band_q": self.band_q,
+                "coverage_fit_noise_p": self.coverage_fit_noise_p,
+                "coverage_fit_noise_q": self.coverage_fit_noise_q,
+                "fitted_playback": self.playback}  # fmt: skip
 
     def window_errors(self) -> dict[str, Any]:
         """ME, MAE, MXE of the posterior-mean P, Q in the dip's windows (``windows.py``)."""
