@@ -103,3 +103,22 @@ def test_the_short_first_round_is_zip_motors_alone(monkeypatch, tmp_path):
     assert got == [("zip+motor", 6000, 4000, True), ("slm", 16000, 4000, True),
                    ("slm", 6000, 4000, False)]  # fmt: skip
     assert (COMPOSITE_DEFAULTS.draws, drv.PARTS_DEFAULTS.draws) == (6000, 16000)
+
+
+def test_the_ridge_is_profiled_once_per_problem(fitted, monkeypatch):
+    """The cost probe samples the problem twice before the run does: each call of the
+    sampler profiled the ridge anew (6 CPU s a time on an ANDES Motor5 event, most of
+    its 27 s, and the probe read that as a start-up of every round of chains: "about 29
+    min" for a run of 42 s)."""
+    import loadbayes.fit.composite.ridge as ridge
+    from loadbayes.fit.composite.sampler import sample
+
+    problem, start, (points, _) = fitted
+    calls = []
+    real = ridge.ridge_points
+    monkeypatch.setattr(ridge, "ridge_points", lambda p, s: calls.append(1) or real(p, s))
+    problem.__dict__.pop("_ridge_cache", None)
+    for draws in (40, 60):
+        sample(problem, start=start, draws=draws, burn=20, chains=1, seed=0, workers=1)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(ridge.cached_ridge_points(problem, start)[0], points)

@@ -42,7 +42,7 @@ from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.restart import late_gaps, restart_lagging
 from loadbayes.fit.composite.restart import words as restart_words
-from loadbayes.fit.composite.ridge import ridge_points
+from loadbayes.fit.composite.ridge import cached_ridge_points
 from loadbayes.inference.ar1 import RHO_MAX, draw_rho
 from loadbayes.inference.chain import Chain, is_kept
 from loadbayes.inference.condlinear import draw_tau, residual_ss
@@ -574,7 +574,7 @@ def sample(
         wide = JUMP_WIDE if isinstance(problem, CompositeProblem) else 0.0
         # The ridge's points: a plain zip+motor (no share or torque coordinates).
         plain = type(problem) is CompositeProblem and not problem.bounded
-        ridge = ridge_points(problem, start) if plain and JUMP_RIDGE > 0 else None
+        ridge = cached_ridge_points(problem, start) if plain and JUMP_RIDGE > 0 else None
         for g, _ in state:
             g.am.fit_jumps(late, components=regions, wide=wide, anchors=ridge,
                            anchor=JUMP_RIDGE if ridge is not None else 0.0)  # fmt: skip
