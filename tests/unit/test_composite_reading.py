@@ -59,12 +59,13 @@ def test_the_command_says_which_reading_and_keeps_a_given_window(tmp_path):
     settings = json.loads((tmp_path / "a.json").read_text())["settings"]
     assert settings["sample_reading"]["read_as"] == "points"
     assert settings["samples"]["window_s"] == 0.0
-    # --window-s given: that reading, nothing chosen (the run as before).
+    # --window-s given: that reading, nothing chosen, and the run says whose reading it is.
     res = CliRunner().invoke(main, ["fit", "composite", str(ev), "--json", str(tmp_path / "b.json"),
                                     "--window-s", "0.0166667", *quick],
                              catch_exceptions=False)  # fmt: skip
     assert res.exit_code == 0, res.output
-    assert "samples read as" not in res.output
+    assert "loadbayes: note: samples read as 0.0166667-s window means (--window-s)" in res.output
+    assert "fit better" not in res.output
     settings = json.loads((tmp_path / "b.json").read_text())["settings"]
     assert "sample_reading" not in settings and settings["samples"]["window_s"] > 0
 
