@@ -111,14 +111,20 @@ def test_the_ridge_is_profiled_once_per_problem(fitted, monkeypatch):
     its 27 s, and the probe read that as a start-up of every round of chains: "about 29
     min" for a run of 42 s)."""
     import loadbayes.fit.composite.ridge as ridge
-    from loadbayes.fit.composite.sampler import sample
+    import loadbayes.fit.composite.sampler as sampler
 
     problem, start, (points, _) = fitted
     calls = []
     real = ridge.ridge_points
     monkeypatch.setattr(ridge, "ridge_points", lambda p, s: calls.append(1) or real(p, s))
     problem.__dict__.pop("_ridge_cache", None)
+    # A short burn-in places no ridge (RIDGE_MIN_BURN: the profile would cost as much as
+    # the run), so no profile at all ...
+    sampler.sample(problem, start=start, draws=40, burn=20, chains=1, seed=0, workers=1)
+    assert calls == []
+    # ... and a long one profiles it once, however often the problem is sampled.
+    monkeypatch.setattr(sampler, "RIDGE_MIN_BURN", 20)
     for draws in (40, 60):
-        sample(problem, start=start, draws=draws, burn=20, chains=1, seed=0, workers=1)
+        sampler.sample(problem, start=start, draws=draws, burn=20, chains=1, seed=0, workers=1)
     assert len(calls) == 1
     np.testing.assert_array_equal(ridge.cached_ridge_points(problem, start)[0], points)

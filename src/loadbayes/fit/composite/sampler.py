@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 599 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 604 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -90,6 +90,10 @@ JUMP_WIDE = 0.0
 #: reference's 3.7%), where without it seed 7 stopped "converged" with none
 #: (docs/composite.md, "Jumps placed from the data").
 JUMP_RIDGE = 0.2
+#: ... placed only after a burn-in of at least this many iterations: the profile costs
+#: 0.1-1 CPU s, as much as a whole short run (the calibration's 600-iteration burn-ins),
+#: and serves the long runs whose chains could otherwise all miss the ridge's far end.
+RIDGE_MIN_BURN = 2_000
 
 
 @dataclass
@@ -574,7 +578,8 @@ def sample(
         wide = JUMP_WIDE if isinstance(problem, CompositeProblem) else 0.0
         # The ridge's points: a plain zip+motor (no share or torque coordinates).
         plain = type(problem) is CompositeProblem and not problem.bounded
-        ridge = cached_ridge_points(problem, start) if plain and JUMP_RIDGE > 0 else None
+        placed = plain and JUMP_RIDGE > 0 and burn >= RIDGE_MIN_BURN
+        ridge = cached_ridge_points(problem, start) if placed else None
         for g, _ in state:
             g.am.fit_jumps(late, components=regions, wide=wide, anchors=ridge,
                            anchor=JUMP_RIDGE if ridge is not None else 0.0)  # fmt: skip
