@@ -1,6 +1,6 @@
 """``loadbayes validate``: a composite posterior played through held-out events, and bad input.
 
-The events come from this file's own generator: a ZIP part and a third-order induction
+The events come from ``tests/sag_generator.py``: a ZIP part and a third-order induction
 motor (not one of the package's library motors) integrated by SciPy's ``solve_ivp`` from
 the equations of docs/composite.md, with its own steady state (a root of the torque
 balance), driven by a voltage with 5 ms ramps that fall between samples, as a fault
@@ -10,93 +10,24 @@ recorder's phasors see a fault: nothing of the package's motor code is used to m
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pandas as pd
 import pytest
 from click.testing import CliRunner
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 from loadbayes.cli import main
 from loadbayes.posterior import Posterior
+from sag_generator import F_HZ, F_M, MOTOR, NOISE, ZIP, sag, straddles
 
 pytestmark = pytest.mark.integration
 
-F_HZ = 50.0
-WB = 2 * math.pi * F_HZ
-#: The motor (per unit on its own base, seconds) and its loading T0 (torque T0 w^2).
-MOTOR = {"rs": 0.03, "xp": 0.16, "dx": 2.6, "tp": 0.12, "h": 0.4, "t0": 0.7}
-ZIP = (0.5, 0.2, 0.3, 0.6, 0.1, 0.3)  # a1..a6
-F_M = 0.45
-NOISE = 0.005
 
-
-def _steady(u0):
-    """The motor's steady state at the terminal voltage u0 (real): E', slip, I."""
-    m = MOTOR
-    zs = m["rs"] + 1j * m["xp"]
-
-    def state(s):
-        k = 1 / m["tp"] + 1j * WB * s + 1j * m["dx"] / (m["tp"] * zs)
-        e = 1j * m["dx"] * u0 / (m["tp"] * zs) / k
-        i = (u0 - e) / zs
-        return e, i
-
-    def balance(s):
-        e, i = state(s)
-        return (e * np.conj(i)).real - m["t0"] * (1 - s) ** 2
-
-    grid = np.geomspace(1e-7, 0.5, 4000)
-    vals = np.array([balance(s) for s in grid])
-    k = int(np.flatnonzero((vals[:-1] < 0) & (vals[1:] >= 0))[0])
-    s = brentq(balance, grid[k], grid[k + 1], xtol=1e-14)
-    return state(s)[0], 1 - s
-
-
-def _event(*, depth, jump, t_fault, hold, p0, q0, v0=1.0, span=0.4, rate=200.0, seed=0):
+def _event(*, t_fault, hold, **sag_kw):
     """Sampled t, V, angle, P, Q (with noise) and the straddle flags of one sag."""
-    ramp = 0.005
-    knots_t = [0, t_fault, t_fault + ramp, t_fault + hold, t_fault + hold + ramp, 10]
-    knots_v = [v0, v0, v0 * (1 - depth), v0 * (1 - depth), v0, v0]
-    knots_a = [0, 0, -jump, -jump, 0, 0]
-
-    def u(t):
-        return np.interp(t, knots_t, knots_v) * np.exp(1j * np.interp(t, knots_t, knots_a))
-
-    m = MOTOR
-    zs = m["rs"] + 1j * m["xp"]
-    e0, w0 = _steady(v0)
-
-    def rhs(t, y):
-        e = y[0] + 1j * y[1]
-        i = (u(t) - e) / zs
-        de = -(e - 1j * m["dx"] * i) / m["tp"] + 1j * WB * (y[2] - 1) * e
-        dw = ((e * np.conj(i)).real - m["t0"] * y[2] ** 2) / (2 * m["h"])
-        return [de.real, de.imag, dw]
-
-    t = np.round(np.arange(0, span + 1e-9, 1 / rate), 12)
-    t = t[t <= span]
-    sol = solve_ivp(rhs, (0, span), [e0.real, e0.imag, w0], t_eval=t, method="DOP853",
-                    rtol=1e-9, atol=1e-11, max_step=5e-4)  # fmt: skip
-    assert sol.success
-    e = sol.y[0] + 1j * sol.y[1]
-    s_m = u(t) * np.conj((u(t) - e) / zs)
-    pm, qm = s_m.real, s_m.imag
-    x = np.abs(u(t)) / v0
-    size = F_M * p0 / pm[0]
-    a1, a2, a3, a4, a5, a6 = ZIP
-    p = p0 * (1 - F_M) * (a1 * x**2 + a2 * x + a3) + size * pm
-    q = q0 * (a4 * x**2 + a5 * x + a6) + size * (qm - qm[0] * x**2)
-    rng = np.random.default_rng(seed)
-    p = p + NOISE * rng.standard_normal(t.size)
-    q = q + NOISE * rng.standard_normal(t.size)
-    # A one-cycle phasor window (20 ms) ending at the sample straddles a ramp.
-    edges = np.array([t_fault, t_fault + hold])
-    straddle = np.array([np.any((edges > tk - 0.02) & (edges < tk + ramp)) for tk in t])
-    return pd.DataFrame({"t_s": t, "v": np.abs(u(t)), "angle_rad": np.angle(u(t)), "p": p,
-                         "q": q, "straddle": straddle})  # fmt: skip
+    c = sag(t_fault=t_fault, hold=hold, **sag_kw)
+    return pd.DataFrame({"t_s": c["t"], "v": c["v"], "angle_rad": c["angle"], "p": c["p"],
+                         "q": c["q"], "straddle": straddles(c["t"], t_fault, hold)})  # fmt: skip
 
 
 def _truth_posterior(path, *, f_m=F_M, model="composite", chains=2, draws=60):

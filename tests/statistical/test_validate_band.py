@@ -1,6 +1,6 @@
 """``loadbayes validate``'s band: the fitted events' playback error widens it, or not.
 
-The events come from this file's own generator: a ZIP part and a third-order induction
+The events come from ``tests/sag_generator.py``: a ZIP part and a third-order induction
 motor integrated by SciPy's ``solve_ivp`` (the equations of docs/composite.md, its own
 steady state by ``brentq``), driven by a sag with 5 ms ramps between samples; nothing of
 the package's motor code makes them. One event is fitted (``fit_composite``, 2 chains x
@@ -30,12 +30,8 @@ or fails the same way every run; the false-alarm rates below are those of a fres
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite.driver import fit_composite
@@ -43,89 +39,17 @@ from loadbayes.fit.composite.validate import validate_events
 from loadbayes.fit.composite.validate_band import BAND_FIT_NOISE, fitted_masks, honest_bands
 from loadbayes.measurements.events import events_from_arrays
 from loadbayes.models.zip_motor import CompositeModel
+from sag_generator import F_HZ, sag
 
 pytestmark = pytest.mark.statistical
 
-F_HZ = 50.0
-WB = 2 * math.pi * F_HZ
-MOTOR = {"rs": 0.03, "xp": 0.16, "dx": 2.6, "tp": 0.12, "h": 0.4, "t0": 0.7}
-ZIP = (0.5, 0.2, 0.3, 0.6, 0.1, 0.3)
-F_M = 0.45
-NOISE = 0.005
 NAMES = {k: k for k in ("t", "v", "p", "q", "f", "angle", "event")}
-#: The slow reactive part the model lacks: gain (per unit of P0 per unit of the voltage's
-#: fall) and time constant (s).
-SLOW = (0.10, 0.25)
 
 
-def _steady(u0):
-    m = MOTOR
-    zs = m["rs"] + 1j * m["xp"]
-
-    def state(s):
-        k = 1 / m["tp"] + 1j * WB * s + 1j * m["dx"] / (m["tp"] * zs)
-        e = 1j * m["dx"] * u0 / (m["tp"] * zs) / k
-        return e, (u0 - e) / zs
-
-    def balance(s):
-        e, i = state(s)
-        return (e * np.conj(i)).real - m["t0"] * (1 - s) ** 2
-
-    grid = np.geomspace(1e-7, 0.5, 4000)
-    vals = np.array([balance(s) for s in grid])
-    k = int(np.flatnonzero((vals[:-1] < 0) & (vals[1:] >= 0))[0])
-    s = brentq(balance, grid[k], grid[k + 1], xtol=1e-14)
-    return state(s)[0], 1 - s
-
-
-def _event(*, depth, jump, t_fault, hold, p0, q0, v0=1.0, slow=False, seed=0, span=0.4,
-           rate=200.0, window=0.0):  # fmt: skip
-    """One sag's EventRecord (point samples), noise sd NOISE on P and Q."""
-    ramp = 0.005
-    kt = [0, t_fault, t_fault + ramp, t_fault + hold, t_fault + hold + ramp, 10]
-    kv = [v0, v0, v0 * (1 - depth), v0 * (1 - depth), v0, v0]
-    ka = [0, 0, -jump, -jump, 0, 0]
-
-    def u(t):
-        return np.interp(t, kt, kv) * np.exp(1j * np.interp(t, kt, ka))
-
-    m = MOTOR
-    zs = m["rs"] + 1j * m["xp"]
-    e0, w0 = _steady(v0)
-    gain, tau = SLOW if slow else (0.0, 1.0)
-
-    def rhs(t, y):
-        e = y[0] + 1j * y[1]
-        i = (u(t) - e) / zs
-        de = -(e - 1j * m["dx"] * i) / m["tp"] + 1j * WB * (y[2] - 1) * e
-        dw = ((e * np.conj(i)).real - m["t0"] * y[2] ** 2) / (2 * m["h"])
-        ds = (gain * (1 - abs(u(t)) / v0) - y[3]) / tau
-        return [de.real, de.imag, dw, ds]
-
-    t = np.round(np.arange(0, span + 1e-9, 1 / rate), 12)
-    # A phasor window's mean centred on each stamp (window > 0): the response on a fine grid.
-    fine = np.round(np.arange(-window, span + window + 1e-9, 1e-4), 12) if window else t
-    sol = solve_ivp(rhs, (fine[0], fine[-1]), [e0.real, e0.imag, w0, 0.0], t_eval=fine,
-                    method="DOP853", rtol=1e-9, atol=1e-11, max_step=5e-4)  # fmt: skip
-    assert sol.success
-    e = sol.y[0] + 1j * sol.y[1]
-    uf = u(fine)
-    s_m = uf * np.conj((uf - e) / zs)
-    x = np.abs(uf) / v0
-    size = F_M * p0 / s_m.real[0]
-    a1, a2, a3, a4, a5, a6 = ZIP
-    p = p0 * (1 - F_M) * (a1 * x**2 + a2 * x + a3) + size * s_m.real
-    q = q0 * (a4 * x**2 + a5 * x + a6) + size * (s_m.imag - s_m.imag[0] * x**2)
-    q = q + p0 * sol.y[3]
-    series = {"v": np.abs(uf), "angle": np.unwrap(np.angle(uf)), "p": p, "q": q}
-    if window:
-        mean = [np.abs(fine - tk) <= window / 2 for tk in t]
-        series = {k: np.array([a[m].mean() for m in mean]) for k, a in series.items()}
-    rng = np.random.default_rng(seed)
-    cols = {"t": t, "v": series["v"], "angle": series["angle"],
-            "p": series["p"] + NOISE * rng.standard_normal(t.size),
-            "q": series["q"] + NOISE * rng.standard_normal(t.size)}  # fmt: skip
-    (ev,) = events_from_arrays(cols, np.arange(1, t.size + 1), path=f"sag {seed}",
+def _event(*, seed=0, **sag_kw):
+    """One sag's EventRecord (tests/sag_generator.py), noise sd NOISE on P and Q."""
+    cols = sag(seed=seed, **sag_kw)
+    (ev,) = events_from_arrays(cols, np.arange(1, cols["t"].size + 1), path=f"sag {seed}",
                                names=NAMES, f_hz=F_HZ)  # fmt: skip
     return ev
 
