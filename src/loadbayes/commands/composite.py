@@ -1,7 +1,8 @@
 """``loadbayes fit composite FILES...``: ZIP + induction motor from terminal recordings.
 
 A standalone click command (it does not import :mod:`loadbayes.cli`); ``cli.py``
-registers it under ``fit``. Heavy imports stay inside the function.
+registers it under ``fit``. Heavy imports stay inside the function. One idea needs these
+453 lines: the command's flags, checks, fit, summaries and outputs, in one function.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from loadbayes.commands.output import (
     check_address_space,
     check_cost,
     check_outputs,
+    end_without_teardown,
     output_transaction,
     stop_if_signalled,
     user_errors,
@@ -413,6 +415,7 @@ def fit_composite_cmd(
             fig = plot_composite_fit(post, events, bands, faults, baseline=fit.baseline,
                                      notes=notes)  # fmt: skip
             save_figure(fig, out.temp("--plot"), force=True)
+    end_without_teardown()  # every output is written and closed: no teardown at the exit
     if json_out == "-":
         click.echo(text)
     for w in post.warnings:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.core.parallel import one_blas_thread
+from loadbayes.core.parallel import one_blas_thread, run_threads
 from loadbayes.fit.composite.nls import nls
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.measurements.record import EventRecord
@@ -95,8 +95,15 @@ def choose_reading(model: Any, events: list[EventRecord]) -> SampleReading:
     """
     cycle = 1.0 / model.f_hz
     prior = model.default_prior(events)
-    point = _residuals(model, events, prior, 0.0)
-    window = _residuals(model, events, prior, cycle)
+    fits: list[Any] = [None, None]
+
+    def fit(k: int, window_s: float) -> None:
+        fits[k] = _residuals(model, events, prior, window_s)
+
+    # The two fits side by side: each is the same whichever thread runs it, and most of
+    # each (the motor's compiled integration, LAPACK's least squares) releases the GIL.
+    run_threads([lambda: fit(0, 0.0), lambda: fit(1, cycle)])
+    point, window = fits
     if point is None or window is None:  # no feasible motor under one reading: the other
         w = cycle if point is None else 0.0
         return SampleReading(w, 0.0, 0, "only one reading had a feasible motor")
