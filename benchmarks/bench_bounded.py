@@ -14,7 +14,9 @@ fit of each first, so numba's compilation is not counted), and prints the CPU se
 each ``fit_composite`` call (``time.process_time``: every chain's thread, not the
 machine's other users), the iterations per chain, the smallest bulk ESS over the reported
 quantities (and which), and the variant / plain ratio, then the ratios' median and range
-and the load average (``os.getloadavg``; the machine may be shared). The tables in
+and the load average (``os.getloadavg``; the machine may be shared). ``--fixed-draws``
+runs the first round alone (CPU per iteration, where a model does not converge: the real
+record's ``cmld-lite``, whose motors' regions do not join, docs/composite.md). The tables in
 docs/composite.md ("Bounded shares and AR(1) noise: where the cost goes") are its output
 on the real record's first fault. Not part of ``run_all.py`` (it needs an event file: the
 real record's, cut by ``loadbayes events``, docs/formats.md).
@@ -55,8 +57,8 @@ def build(name: str, f_hz: float, variant: str):
 
 
 def run(model, events, seed: int, first: SamplerSettings) -> tuple[float, int, float, str]:
-    """CPU seconds, iterations per chain, min bulk ESS and its quantity, until converged."""
-    settings = first.with_(seed=seed, until_converged=True, max_seconds=1e5)
+    """CPU seconds, iterations per chain, min bulk ESS and its quantity of one fit."""
+    settings = first.with_(seed=seed, max_seconds=1e5)
     c0 = time.process_time()
     fit = fit_composite(model, events, sampler=settings)
     cpu = time.process_time() - c0
@@ -64,7 +66,9 @@ def run(model, events, seed: int, first: SamplerSettings) -> tuple[float, int, f
     ess = {k: float(az.ess(np.asarray(v))) for k, v in post.draws.items()
            if np.ndim(v) == 2 and np.std(v) > 0}  # fmt: skip
     worst = min(ess, key=ess.get)
-    return cpu, int(post.settings["until_converged"]["iterations_per_chain"]), ess[worst], worst
+    rounds = post.settings.get("until_converged")
+    its = int(rounds["iterations_per_chain"]) if rounds else settings.draws
+    return cpu, its, ess[worst], worst
 
 
 def main() -> None:
@@ -74,9 +78,12 @@ def main() -> None:
     ap.add_argument("--seeds", default="0-4", help="a range, e.g. 0-4")
     ap.add_argument("--against", choices=("bounded", "ar1"), default="bounded")
     ap.add_argument("--model", default="zip+motor", help="zip+motor, slm or cmld-lite")
+    ap.add_argument("--fixed-draws", action="store_true",
+                    help="the first round only: CPU per iteration, converged or not")  # fmt: skip
     args = ap.parse_args()
     events = read([args.event], f_hz=args.f_hz)
     first = COMPOSITE_DEFAULTS if args.model == "zip+motor" else PARTS_DEFAULTS
+    first = first.with_(until_converged=not args.fixed_draws)
     models = {v: build(args.model, args.f_hz, v) for v in (args.against, "plain")}
     warm = SamplerSettings(draws=120, burn=60, chains=2, seed=99, until_converged=False)
     for m in models.values():
