@@ -275,7 +275,8 @@ class CompositeProblem:
                 np.array([m for _, m, _ in sp], dtype=float),
                 np.array([d for _, _, d in sp], dtype=float),
             )
-        return (*stacked(groups), np.asarray(tau, dtype=float), *fixed)
+        arrays = groups.arrays if isinstance(groups, _Stacked) else stacked(groups)
+        return (*arrays, np.asarray(tau, dtype=float), *fixed)
 
     def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
         # The collapsed density of the bounded model (fit/composite/bounded.py), its
@@ -389,9 +390,14 @@ class CompositeProblem:
 
     def group_sums(self, k: KernelResult) -> list[GroupSums]:
         """The events' :class:`GroupSums` of one kernel call."""
-        return [
+        out = [
             GroupSums(k.ztz[e], k.zty[e], k.yty[e], self.samples.n[e]) for e in range(len(k.ztz))
         ]
+        if not self.bounded:
+            return out
+        # Bounded shares: the kernel's arrays kept whole for the share terms, which read
+        # them three times an iteration (bounded_kernel.stacked rebuilt them each time).
+        return _Stacked(out, (k.ztz, k.zty, k.yty, np.asarray(self.samples.n, dtype=float)))
 
     def collapsed(
         self,
@@ -524,6 +530,14 @@ class ResponseSums:
 
     def __getitem__(self, event: int) -> GroupSums:
         return self.groups[event]
+
+
+class _Stacked(list):
+    """The events' :class:`GroupSums` and the same sums as the kernel's arrays (E, G, ...)."""
+
+    def __init__(self, groups, arrays) -> None:
+        super().__init__(groups)
+        self.arrays = arrays
 
 
 #: The rho argument of the white-noise kernel call (not read).
