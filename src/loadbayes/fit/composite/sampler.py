@@ -100,9 +100,9 @@ RIDGE_MIN_BURN = 2_000
 
 #: A model of parts' own block steps per iteration (``PartsModel.block_steps``) only in a
 #: run whose burn-in is at least this: the defaults' (4,000) and longer. They pay where the
-#: walk must cross a long ridge (``cmld-lite`` on the real record: min ESS per CPU s 0.10-
-#: 0.20 -> 0.84-3.98); a short run (a test's, a quick study's) keeps one step, its cost
-#: and its draws.
+#: walk must cross a long ridge (``cmld-lite`` on the real record, seeds 0-4: min ESS per
+#: CPU s 0.10-0.20 -> 0.09-4.27, 12 times summed; docs/composite.md); a short run (a
+#: test's, a quick study's) keeps one step, its cost and its draws.
 BLOCK_STEPS_MIN_BURN = 4_000
 
 
