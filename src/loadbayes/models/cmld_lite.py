@@ -26,6 +26,12 @@ class CmldLite(PartsModel):
     """Feeder, motors A and B, motor D, electronics, static part: the ``cmld-lite`` model."""
 
     name: ClassVar[str] = "cmld-lite"
+    #: Six block steps per iteration in a run whose burn-in is 4,000 or more (the
+    #: defaults' and longer; ``sampler.BLOCK_STEPS_MIN_BURN``): the chains' slowest
+    #: coordinates (the motors' Rs, H and shares) diffuse along one flat, connected
+    #: ridge, and a block step (about 0.2 ms) is what moves them (docs/composite.md, "Why
+    #: cmld-lite's chains do not mix: one ridge, not modes").
+    block_steps: ClassVar[int] = 6
     motors: tuple[str, ...] = ("a", "b")
     feeder: bool = True
     motor_d: bool = True

@@ -122,6 +122,11 @@ class PartsModel:
     #: Chains whose burn-in ended in a mode far lower in density than the best chain's
     #: go on from the best chain's state, and the fit says so (``fit/composite/restart.py``).
     restart_modes: ClassVar[bool] = True
+    #: Steps of the sampler's block move (every sampled coordinate at once) per iteration,
+    #: before the thresholds' and shares' own steps (``fit/composite/sampler.py``). Each
+    #: step leaves the posterior invariant, so any number does; a model whose motors'
+    #: block diffuses slowly along a flat ridge asks for more (``cmld-lite``).
+    block_steps: ClassVar[int] = 1
     motors: tuple[str, ...] = ("slm",)
     feeder: bool = True
     motor_d: bool = False

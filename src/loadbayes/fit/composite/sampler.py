@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 604 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 637 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -15,7 +15,9 @@ t's along the posterior's ridge in ``log T'`` that the NLS's profile finds
 placed from the data". The steps' fractions are also refreshed across [0, 1] now and then
 (:data:`REFRESH_SHARE`): an edge's instant can have a minor mode the jumps cannot leave.
 A model of parts may ask for its chains that ended their burn-in in a far lower mode to
-go on from the best chain's state (``restart.py``), said in words.
+go on from the best chain's state (``restart.py``), said in words, and may ask for several
+steps of the block move per iteration in a long run (:func:`block_steps`,
+:data:`BLOCK_STEPS_MIN_BURN`; ``cmld-lite``: 6).
 A ``deadline`` (the time budget) holds from the first iteration: past it the chains end
 their burn-in and stop with what they drew (:class:`~loadbayes.inference.chain.Chain`),
 all cut to the same length (:attr:`ChainResult.cut` says how many iterations the
@@ -50,8 +52,9 @@ from loadbayes.inference.moves import MOVES, BlockState
 from loadbayes.inference.moves.adaptive_metropolis import JUMP_MIN_DRAWS
 from loadbayes.inference.moves.refresh import UniformRefresh
 
-__all__ = ["DEFAULT_MOVE", "JUMP_SHARE", "MOVES", "ONE_EVALUATION_MOVES", "REFRESH_SHARE",
-           "ChainResult", "sample"]  # fmt: skip
+__all__ = ["BLOCK_STEPS_MIN_BURN", "DEFAULT_MOVE", "JUMP_SHARE", "MOVES",
+           "ONE_EVALUATION_MOVES", "REFRESH_SHARE", "ChainResult", "block_steps", "sample",
+           "steps_per_iteration"]  # fmt: skip
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "shear"
@@ -94,6 +97,31 @@ JUMP_RIDGE = 0.2
 #: 0.1-1 CPU s, as much as a whole short run (the calibration's 600-iteration burn-ins),
 #: and serves the long runs whose chains could otherwise all miss the ridge's far end.
 RIDGE_MIN_BURN = 2_000
+
+#: A model of parts' own block steps per iteration (``PartsModel.block_steps``) only in a
+#: run whose burn-in is at least this: the defaults' (4,000) and longer. They pay where the
+#: walk must cross a long ridge (``cmld-lite`` on the real record, seeds 0-4: min ESS per
+#: CPU s 0.10-0.20 -> 0.09-4.27, 12 times summed; docs/composite.md); a short run (a
+#: test's, a quick study's) keeps one step, its cost and its draws.
+BLOCK_STEPS_MIN_BURN = 4_000
+
+
+def steps_per_iteration(problem, burn: int) -> int:
+    """The block move's steps per iteration: the model's own in a long run, else 1."""
+    asked = int(getattr(getattr(problem, "model", None), "block_steps", 1))
+    return asked if burn >= BLOCK_STEPS_MIN_BURN else 1
+
+
+def block_steps(move, state: BlockState, logp, rng: np.random.Generator, iteration: int,
+                steps: int) -> BlockState:  # fmt: skip
+    """``steps`` steps of the block move in turn, each from where the last one left.
+
+    Each step leaves the density invariant, so their composition does; one step is the
+    move's own, draw for draw (a model of parts may ask for more: ``block_steps``).
+    """
+    for _ in range(steps):
+        state, _ = move.step(state, logp, rng, iteration)
+    return state
 
 
 @dataclass
@@ -289,6 +317,10 @@ class _Gibbs:
         modes = bool(getattr(getattr(problem, "model", None), "restart_modes", False))
         self.late_lp: list[float] | None = [] if jumps and modes and student_t is None else None
         self.restart_note: str | None = None
+        # Steps of the block move per iteration: a model of parts may ask for more
+        # (PartsModel.block_steps, its notes) in a long run (BLOCK_STEPS_MIN_BURN); 1 for
+        # any other problem and run.
+        self.block_steps = steps_per_iteration(problem, burn)
         # What a kept iteration stores, by name (ChainResult's fields).
         self.fields = {
             "theta": (problem.n_theta,),
@@ -313,7 +345,8 @@ class _Gibbs:
         else:
             lp, logp = wt.current(u, tau), wt.logp(tau)
         if self.tilted is None:
-            (u, lp, sums), _ = self.am.step(BlockState(u, lp, sums), logp, rng, it)
+            u, lp, sums = block_steps(self.am, BlockState(u, lp, sums), logp, rng, it,
+                                      self.block_steps)  # fmt: skip
             if self.own_moves is not None:
                 u, lp, sums = self.own_moves(u, lp, sums, logp, rng, rho=rho,
                                              tau=tau if wt is None else None,
