@@ -322,7 +322,7 @@ def run_nuts(ev, f_hz, warmup, draws, seed=0):
         "worst": worst,
         "max_r_hat": rhat,
         "ess_per_s": ess / r["wall_s"],
-        "ess_per_s_sampling": ess / r["sampling_wall_s"],
+        "ess_per_s_sampling": ess / r["sampling_wall_s"] if r["sampling_wall_s"] else math.nan,
     }
 
 
