@@ -49,7 +49,12 @@ from loadbayes.fit.composite.provenance import (
     sampler_record,
 )
 from loadbayes.fit.composite.robust import StudentT, robust_outputs
-from loadbayes.fit.composite.sampler import DEFAULT_MOVE, ONE_EVALUATION_MOVES, sample
+from loadbayes.fit.composite.sampler import (
+    DEFAULT_MOVE,
+    ONE_EVALUATION_MOVES,
+    chain_threads,
+    sample,
+)
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
 from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
 from loadbayes.io.errors import OptionError
@@ -175,7 +180,7 @@ def _estimate_seconds(
     from loadbayes.core.parallel import num_threads
     from loadbayes.fit.composite.until import estimate_seconds
 
-    lanes = max(1, min(run.threads or num_threads(), run.chains))
+    lanes = max(1, min(run.threads or chain_threads(sampled) or num_threads(), run.chains))
 
     def probe(n: int, extend=None) -> None:
         sample(sampled, start=start, draws=n, burn=n // 2, chains=lanes, seed=run.seed,

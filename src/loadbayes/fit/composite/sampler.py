@@ -1,6 +1,6 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 637 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 658 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
 and the chains' result.
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -53,8 +54,8 @@ from loadbayes.inference.moves.adaptive_metropolis import JUMP_MIN_DRAWS
 from loadbayes.inference.moves.refresh import UniformRefresh
 
 __all__ = ["BLOCK_STEPS_MIN_BURN", "DEFAULT_MOVE", "JUMP_SHARE", "MOVES",
-           "ONE_EVALUATION_MOVES", "REFRESH_SHARE", "ChainResult", "block_steps", "sample",
-           "steps_per_iteration"]  # fmt: skip
+           "ONE_EVALUATION_MOVES", "ONE_THREAD_SAMPLES", "REFRESH_SHARE", "ChainResult",
+           "block_steps", "chain_threads", "sample", "steps_per_iteration"]  # fmt: skip
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "shear"
@@ -122,6 +123,25 @@ def block_steps(move, state: BlockState, logp, rng: np.random.Generator, iterati
     for _ in range(steps):
         state, _ = move.step(state, logp, rng, iteration)
     return state
+
+
+#: Below this many samples (all events together) a plain ``zip+motor`` fit runs its chains
+#: in one thread unless threads are asked for (``workers``, ``SamplerSettings.threads``,
+#: ``LOADBAYES_NUM_THREADS``): an iteration's compiled integration then lasts about as
+#: long as its Python, which holds the GIL, and two threads spend their time handing it
+#: back and forth. Sampler wall s on 2 idle cores, one thread against two: the real first
+#: fault (76 samples) 2.7-3.2 against 4.3-4.6; a 3 s event at 60/s (181) 3.6 against 3.9;
+#: a 10 s event (601) 5.7 against 3.9; a 20 s event (1,201) 7.9-9.2 against 4.4-5.2
+#: (docs/composite.md, "One thread for short events"). The draws do not depend on it.
+ONE_THREAD_SAMPLES = 300
+
+
+def chain_threads(problem) -> int | None:
+    """1 for a short plain ``zip+motor`` problem when no thread count is asked; else None."""
+    if os.environ.get("LOADBAYES_NUM_THREADS", "").strip():
+        return None
+    short = sum(e.n for e in problem.events) < ONE_THREAD_SAMPLES
+    return 1 if type(problem) is CompositeProblem and short else None
 
 
 @dataclass
@@ -500,7 +520,8 @@ def sample(
     seed : int
         Root seed (chain ``i`` uses child ``i`` of ``SeedSequence(seed)``).
     workers : int, optional
-        Threads for the chains.
+        Threads for the chains; by default one for a short plain ``zip+motor`` problem
+        (:func:`chain_threads`), else one per CPU.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
     move : {"shear", "am", "slice"}
@@ -594,6 +615,7 @@ def sample(
         return _result(g, c)
 
     generators = chain_generators(seed, chains)
+    workers = workers or chain_threads(problem)
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
         if state[0][0].late_lp is not None:  # chains left in a lower mode (restart.py)
