@@ -59,6 +59,10 @@ def test_a_swallowed_signal_is_silent_and_still_stops_the_run(capsys):
         # A SIGTERM during an import, inside a class's creation (found by the signal test
         # of tests/integration/test_cli_exit_clean.py in a fresh clone: xarray's import).
         lambda: RuntimeError("Error calling __set_name__ on 'Field' instance"),
+        # A SIGINT during a compiled module's import, now that each command imports its
+        # libraries as it runs (a fresh clone's test_ctrl_c_during_a_long_run: SciPy's
+        # HiGHS, "ImportError: initialization failed", exit 1 with a traceback).
+        lambda: ImportError("initialization failed"),
     ],
 )
 def test_a_signal_wrapped_in_another_exception_is_one_line(wrapper):

@@ -106,10 +106,16 @@ def user_errors(func):
                             _speak(line)
         except MemoryError:
             raise UserError(memory_line()) from None
-        except ImportError as exc:  # a library that cannot be mapped under ulimit -v
-            if "failed to map segment" not in str(exc):
+        except ImportError as exc:
+            if "failed to map segment" in str(exc):  # a library unmapped under ulimit -v
+                raise UserError(memory_line()) from None
+            # A signal during a compiled module's import (the commands import their
+            # libraries as they run: SciPy's HiGHS) comes out as "ImportError:
+            # initialization failed" caused by the KeyboardInterrupt: the signal still.
+            if _STOP["signal"] is None or not _caused_by_interrupt(exc):
                 raise
-            raise UserError(memory_line()) from None
+            del exc
+            _say_interrupted()
         except DataError as exc:
             raise UserError(str(exc)) from None
         except (FileExistsError, ValueError) as exc:
