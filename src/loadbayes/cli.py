@@ -74,8 +74,10 @@ class LoadbayesGroup(click.Group):
         try:
             return super().invoke(ctx)
         finally:
+            from loadbayes.commands.output import NO_TEARDOWN
+
             _LATE["finished"] = True
-            _LATE["no_teardown"] = bool(ctx.meta.get(_NO_TEARDOWN))
+            _LATE["no_teardown"] = bool(ctx.meta.get(NO_TEARDOWN))
 
     def main(self, args=None, *rest, **kwargs):  # noqa: D102
         if args is not None:
@@ -145,10 +147,6 @@ class LoadbayesGroup(click.Group):
 
 
 EXIT_DATA = 2
-
-#: Set in ``ctx.meta`` by a command whose every output is written and closed when it
-#: returns (:func:`loadbayes.commands.output.end_without_teardown`).
-_NO_TEARDOWN = "loadbayes.end_without_teardown"
 
 
 def _end_without_teardown() -> None:

@@ -239,13 +239,17 @@ COMPOSITE_ADDRESS_SPACE = 3 * 2**30
 ZIP_ADDRESS_SPACE = 2**30
 
 
+#: Set in ``ctx.meta`` by :func:`end_without_teardown`; read by ``cli.py`` at the exit.
+NO_TEARDOWN = "loadbayes.end_without_teardown"
+
+
 def end_without_teardown() -> None:
     """Ask ``loadbayes`` to end, after this command succeeds, without the teardown.
 
     For a command whose outputs are all written and closed when it returns: the
     interpreter's teardown of the modules a fit loaded costs 0.3-0.4 CPU s (``cli.py``).
     """
-    click.get_current_context().meta["loadbayes.end_without_teardown"] = True
+    click.get_current_context().meta[NO_TEARDOWN] = True
 
 
 def check_address_space(need: int, what: str) -> None:

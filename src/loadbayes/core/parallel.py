@@ -34,6 +34,7 @@ T = TypeVar("T")
 
 __all__ = [
     "ChainsStopped",
+    "asked_threads",
     "chain_generators",
     "chain_seeds",
     "check_stop",
@@ -86,14 +87,22 @@ def check_stop(stop: threading.Event | None = None) -> None:
         raise ChainsStopped()
 
 
+def asked_threads() -> int | None:
+    """The threads ``LOADBAYES_NUM_THREADS`` asks for, or None when it is not set."""
+    env = os.environ.get("LOADBAYES_NUM_THREADS", "").strip()
+    if not env:
+        return None
+    try:
+        return max(int(env), 1)
+    except ValueError:
+        raise ValueError(f"LOADBAYES_NUM_THREADS must be an integer, got {env!r}") from None
+
+
 def num_threads() -> int:
     """Threads to use: ``LOADBAYES_NUM_THREADS`` or the CPUs available to this process."""
-    env = os.environ.get("LOADBAYES_NUM_THREADS", "").strip()
-    if env:
-        try:
-            return max(int(env), 1)
-        except ValueError:
-            raise ValueError(f"LOADBAYES_NUM_THREADS must be an integer, got {env!r}") from None
+    asked = asked_threads()
+    if asked is not None:
+        return asked
     try:
         return max(len(os.sched_getaffinity(0)), 1)
     except AttributeError:  # pragma: no cover - not on Linux

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from loadbayes.core.parallel import chain_generators, run_chains
+from loadbayes.core.parallel import asked_threads, chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.bounded_kernel import share_steps
@@ -138,7 +137,7 @@ ONE_THREAD_SAMPLES = 300
 
 def chain_threads(problem) -> int | None:
     """1 for a short plain ``zip+motor`` problem when no thread count is asked; else None."""
-    if os.environ.get("LOADBAYES_NUM_THREADS", "").strip():
+    if asked_threads() is not None:
         return None
     short = sum(e.n for e in problem.events) < ONE_THREAD_SAMPLES
     return 1 if type(problem) is CompositeProblem and short else None
