@@ -55,3 +55,16 @@ def test_a_budget_that_does_not_bind_keeps_the_draws(event):
             np.testing.assert_array_equal(long.draws[name][:, :n], plain.draws[name])
     assert "cut_iterations_per_chain" not in long.settings["until_converged"]
     assert not any("shorter than asked" in w for w in long.warnings)
+
+
+def test_the_rule_watches_every_varying_reported_quantity(event):
+    # The noise precisions and the steps' instants included: the JSON reports each with
+    # its R-hat and ESS, and the predictive band draws from the precisions (the rule
+    # left them out before: a run could stop with them short of the mark).
+    run = SamplerSettings(draws=300, burn=150, chains=2, seed=2, until_converged=True,
+                          max_seconds=1e6)  # fmt: skip
+    post = fit_composite(CompositeModel(window_s=0), [event], sampler=run).posterior
+    watched = set(post.settings["until_converged"]["watched"])
+    varying = {n for n, x in post.draws.items() if np.ptp(x) > 0}
+    assert {"tau_p", "tau_q", "f_m", "log_t_prime"} <= watched
+    assert varying <= watched, sorted(varying - watched)

@@ -350,8 +350,10 @@ def fit_composite(
 
         def quantities(results) -> dict[str, np.ndarray]:
             named = ChainDraws.stack(results, steps=bool(problem.n_steps), torque=estimate)
-            named = named.named(problem)
-            out = {n: named[n] for n in (*free_names(problem), *coefficient_names(named))}
+            # Every reported quantity, the noise precisions and sampled torque shares
+            # included (a constant one is skipped by the rule): the JSON gives each its
+            # R-hat and ESS, and the predictive band draws from the precisions.
+            out = named.named(problem)
             if noise == "ar1":
                 rho = np.stack([r.rho for r in results])
                 out["rho_p"], out["rho_q"] = rho[..., 0], rho[..., 1]

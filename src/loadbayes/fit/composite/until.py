@@ -137,6 +137,8 @@ class UntilConverged:
     #: and the iterations per chain asked (the first round's and every extension's).
     cut_iterations: int = 0
     asked_iterations: int = 0
+    #: The names the last check read: every varying reported quantity.
+    watched: list[str] = field(default_factory=list)
 
     def start(self, first_iterations: int) -> None:
         """Start the clock at the first round of ``first_iterations`` per chain."""
@@ -160,6 +162,7 @@ class UntilConverged:
 
         named = self.quantities(results)
         names = [n for n, x in named.items() if np.all(np.isfinite(x)) and np.ptp(x) > 0]
+        self.watched = names
         if not names:
             return 1.0, math.inf, ""
         s = summarize(np.stack([named[n] for n in names]), tail=False)
@@ -241,6 +244,8 @@ class UntilConverged:
             "max_seconds": self.max_seconds,
             "rounds": self.rounds,
             "stopped_by_budget": self.stopped_by_budget,
+            # The quantities the rule read (a constant one, as fixed torque shares, is not).
+            "watched": list(self.watched),
             # Only when the budget cut a round (a run it never binds keeps its JSON).
             **(
                 {
