@@ -112,3 +112,24 @@ def test_ar1_fit_recovers_rho_and_widens_what_white_noise_overstates():
     )
     assert fit.posterior.settings["noise"] == "ar1"
     assert not any("run in stretches" in w for w in fit.posterior.warnings)
+
+
+def test_an_ar1_error_slower_than_the_motor_is_said():
+    from loadbayes.fit.composite.residuals import ar1_memory_warning
+
+    rng = np.random.default_rng(0)
+
+    def around(x, n=400):
+        return x * (1 + 0.01 * rng.standard_normal((2, n)))
+
+    # The real record's first fault with --noise ar1: rho 0.97 per 5 ms sample, a memory
+    # of 0.164 s, and T' 0.026 s.
+    slow = {"rho_p": around(0.97), "rho_q": around(0.5), "t_prime_s": around(0.026)}
+    said = ar1_memory_warning(slow, 0.005)
+    assert said is not None and "P rho 0.970" in said and "0.16" in said
+    assert "Q rho" not in said  # Q's memory, 7 ms, is shorter than T'
+    # A white-ish error, or a motor slower than the error's memory: nothing to say.
+    assert ar1_memory_warning({**slow, "rho_p": around(0.5)}, 0.005) is None
+    two = {"rho_p": around(0.97), "t_prime_s_a": around(0.02), "t_prime_s_b": around(0.5)}
+    assert ar1_memory_warning(two, 0.005) is None
+    assert ar1_memory_warning({"t_prime_s": around(0.026)}, 0.005) is None

@@ -8,6 +8,9 @@ the posterior: draws named by :mod:`~loadbayes.fit.composite.naming`, provenance
 :mod:`~loadbayes.fit.composite.provenance`, the plain-words identifiability section by
 :mod:`~loadbayes.fit.composite.identifiability` and the warnings of
 :mod:`~loadbayes.fit.composite.checks`.
+
+One idea needs these 459 lines: one fit's pipeline, events in and a Posterior out, each
+stage in its own module and only their order and hand-overs here.
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ from loadbayes.fit.composite.provenance import (
     problem_settings,
     sampler_record,
 )
+from loadbayes.fit.composite.residuals import ar1_memory_warning
 from loadbayes.fit.composite.robust import StudentT, robust_outputs
 from loadbayes.fit.composite.sampler import (
     DEFAULT_MOVE,
@@ -421,6 +425,11 @@ def fit_composite(
         if hasattr(model, "parts"):  # a model of parts: physical, prior's, negative sequence
             describe_parts(post, draws_named, model, events, run.hdi_prob,
                            residuals=parts_residuals(problem, blocks))  # fmt: skip
+    if noise == "ar1":  # an error slower than the motors can stand in for them
+        dt = float(np.median(np.concatenate([np.diff(e.t) for e in events])))
+        slow = ar1_memory_warning(draws_named, dt)
+        if slow:
+            post.warnings.append(slow)
     if until is not None:
         post.settings["until_converged"] = {
             **until.record(),
