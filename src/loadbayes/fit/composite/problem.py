@@ -43,7 +43,6 @@ from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
     draw_betas,
-    log_marginal,
     log_marginal_arrays,
 )
 from loadbayes.measurements.record import EventRecord
@@ -73,13 +72,16 @@ _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
 #: The model's sizes: the scale-free motor coordinates sampled, each event's coefficients.
 N_FREE, N_BETA = len(SCALE_FREE_NAMES), len(BETA_NAMES)
 _T_INV_U = np.ascontiguousarray(_T_INV[:, :N_FREE].T)
+_T_INV_T0 = np.ascontiguousarray(_T_INV[:, N_FREE])
 
 
 def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
     """``THETA_NAMES`` values from the scale-free ``u`` (..., 5) and ``log T0`` (...)."""
     u = np.asarray(u, dtype=float)
     # theta = T^-1 (u, log T0): the first five columns act on u, the last on log T0.
-    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV[:, N_FREE])
+    if type(log_t0) is float:  # one draw's (each kept iteration): the same products
+        return u @ _T_INV_U + log_t0 * _T_INV_T0
+    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV_T0)
 
 
 @dataclass(frozen=True)
@@ -196,6 +198,13 @@ class CompositeProblem:
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
         # The design's voltage-only sums do not depend on the motor: once per problem.
         self._xsums = np.stack([x_sums(e.x, e.p, e.q) for e in ev])
+        # What every kernel call passes unchanged (kernel runs each iteration): once.
+        d, g, self._n_steps = self.samples, self.grid, self.grid.n_steps
+        self._kernel_data = (g.v, g.delta, g.starts, self._real, d.x, d.p, d.q, d.starts, d.n,
+                             self._mean_u, self._prec_u, self.m0, self.p0, POSITIVE_BETA,
+                             2.0 * math.pi * self.f_hz)  # fmt: skip
+        self._torque = tuple(float(x) for x in self.torque)
+        self._n_rows = list(d.n)  # each event's (n, n), as GroupSums takes it
 
     @property
     def n_steps(self) -> int:
@@ -315,14 +324,14 @@ class CompositeProblem:
 
         A motor-only vector (five entries) puts every step mid-interval.
         """
-        u = np.asarray(u, dtype=float)
-        if u.shape[-1] == N_FREE and self.n_steps:
-            return np.full(u.shape[:-1] + (self.n_steps,), 0.5)
-        if u.shape[-1] < N_FREE + self.n_steps:
+        u, ns = np.asarray(u, dtype=float), self._n_steps
+        if u.shape[-1] == N_FREE and ns:
+            return np.full(u.shape[:-1] + (ns,), 0.5)
+        if u.shape[-1] < N_FREE + ns:
             raise ValueError(
-                f"expected at least {N_FREE + self.n_steps} sampled coordinates, got {u.shape[-1]}"
+                f"expected at least {N_FREE + ns} sampled coordinates, got {u.shape[-1]}"
             )
-        return u[..., N_FREE : N_FREE + self.n_steps]
+        return u[..., N_FREE : N_FREE + ns]
 
     def in_support(self, u: np.ndarray) -> bool:
         """Whether every step's fraction lies in [0, 1] (the prior is uniform there).
@@ -332,11 +341,20 @@ class CompositeProblem:
         a step at an interval's very edge (a fault at a sample instant, as simulators
         put it) reachable, where a logit would send it to infinity.
         """
-        if not self.n_steps:
+        if not self._n_steps:
             return True
         # Plain floats: a handful of fractions, checked every iteration (twice).
-        phi = np.asarray(u, dtype=float)[N_FREE : N_FREE + self.n_steps].tolist()
+        phi = np.asarray(u, dtype=float)[N_FREE : N_FREE + self._n_steps].tolist()
         return all(0.0 <= f <= 1.0 for f in phi)
+
+    def _admissible(self, u: np.ndarray) -> bool:
+        # Finite and in_support, from one list of plain floats (every evaluation's check):
+        # a finite sum has no inf or nan among its terms; else each term is looked at.
+        vals = u.tolist()
+        if not math.isfinite(sum(vals)) and not all(map(math.isfinite, vals)):
+            return False
+        phi = vals[N_FREE : N_FREE + self._n_steps]
+        return not phi or (min(phi) >= 0.0 and max(phi) <= 1.0)
 
     def kernel(
         self,
@@ -358,26 +376,26 @@ class CompositeProblem:
         """
         self.evaluations += 1
         u = np.asarray(u, dtype=float)
-        if not np.isfinite(u).all() or not self.in_support(u):
+        if not self._admissible(u):
             return None
-        n_ev = len(self.events)
+        n_ev, size = len(self.events), self.samples.size
+        # Every entry is written by the compiled call (or the result is not returned).
         ztz, zty, yty = (
-            np.zeros((n_ev, 2, N_BETA, N_BETA)),
-            np.zeros((n_ev, 2, N_BETA)),
-            np.zeros((n_ev, 2)),
+            np.empty((n_ev, 2, N_BETA, N_BETA)),
+            np.empty((n_ev, 2, N_BETA)),
+            np.empty((n_ev, 2)),
         )
-        d = self.samples
-        pm, qm = np.empty(d.size), np.empty(d.size)
-        a, b, c = self.torque if torque is None else torque
+        pm, qm = np.empty(size), np.empty(size)
+        a, b, c = self._torque if torque is None else (float(x) for x in torque)
         weighted = weights is not None
-        g = self.grid
+        ns = self._n_steps
+        phi = u[N_FREE : N_FREE + ns] if u.size >= N_FREE + ns else self.phi(u)
+        u5 = u[:N_FREE]
         try:
+            # exp(theta_of(u5, 0.0)): log T0 = 0 adds nothing the exponential can see.
             lp = _collapsed(
-                u[:N_FREE], np.exp(theta_of(u[:N_FREE], 0.0)), np.asarray(tau, dtype=float),
-                g.times(self.phi(u)), g.v, g.delta, g.starts, self._real, d.x, d.p, d.q,
-                d.starts, d.n, self._mean_u, self._prec_u, self.m0, self.p0,
-                POSITIVE_BETA, 2.0 * math.pi * self.f_hz, float(a), float(b), float(c),
-                float(self.h_max), self._xsums, weighted,
+                u5, np.exp(u5 @ _T_INV_U), np.asarray(tau, dtype=float), self.grid.times(phi),
+                *self._kernel_data, a, b, c, float(self.h_max), self._xsums, weighted,
                 weights if weighted else _NO_WEIGHTS, pm, qm, ztz, zty, yty,
                 rho is not None, _NO_RHO if rho is None else np.asarray(rho, dtype=float),
                 self.seg, self.window,
@@ -390,9 +408,7 @@ class CompositeProblem:
 
     def group_sums(self, k: KernelResult) -> list[GroupSums]:
         """The events' :class:`GroupSums` of one kernel call."""
-        out = [
-            GroupSums(k.ztz[e], k.zty[e], k.yty[e], self.samples.n[e]) for e in range(len(k.ztz))
-        ]
+        out = [GroupSums(k.ztz[e], k.zty[e], k.yty[e], n) for e, n in enumerate(self._n_rows)]
         if not self.bounded:
             return out
         # Bounded shares: the kernel's arrays kept whole for the share terms, which read
@@ -487,15 +503,18 @@ class CompositeProblem:
 
     def log_collapsed(self, sums: list[GroupSums] | None, u, tau) -> float:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
-        if sums is None or not np.isfinite(u).all():
-            return -math.inf
-        if u.size > N_FREE and not self.in_support(u):
+        if sums is None or not self._admissible(np.asarray(u, dtype=float)):
             return -math.inf
         if self.bounded:
             return self._bounded_lp(u, tau, sums)
         out = self.prior.log_u(u[:N_FREE])
-        for s in sums:
-            out += log_marginal(s, tau, self.m0, self.p0, positive=POSITIVE_BETA)
+        tau, m0, p0 = np.asarray(tau, dtype=float), self.m0, self.p0
+        for s in sums:  # log_marginal's, its wrapper's conversions done once
+            try:
+                out += float(log_marginal_arrays(s.ztz, s.zty, s.yty, s.n, tau, m0, p0,
+                                                 POSITIVE_BETA))  # fmt: skip
+            except np.linalg.LinAlgError:
+                out += -math.inf
         return out
 
 

@@ -159,14 +159,15 @@ class AdaptiveMetropolis(BlockMove):
         """
         if self.independence and iteration >= self.adapt_until:
             jump = self._jump_proposal()
-            if jump is not None and rng.uniform() < self.independence:
+            if jump is not None and rng.random() < self.independence:
                 return self._jump_step(jump, state, logp, rng)
         w = self._walk(state.x)
         z = rng.standard_normal(self.d)
         w_prop = w + math.exp(0.5 * self.log_scale) * (self._root @ z)
         prop = self._block(w_prop)
         lp_prop, aux_prop = logp(prop)
-        log_u = math.log(rng.uniform())
+        # rng.random() is rng.uniform()'s number (0 + 1 * d) at a third of its call's cost.
+        log_u = math.log(rng.random())
         logp_x = state.logp
         alpha = min(1.0, math.exp(min(0.0, lp_prop - logp_x))) if math.isfinite(lp_prop) else 0.0
         accept = log_u < lp_prop - logp_x if math.isfinite(lp_prop) else False
@@ -254,7 +255,7 @@ class AdaptiveMetropolis(BlockMove):
         self.steps += 1
         self.evaluations += 1
         self.jumps += 1
-        log_u = math.log(rng.uniform())
+        log_u = math.log(rng.random())
         if not math.isfinite(lp_prop):
             return state, False
         q_prop = jump.log_density(w_prop)
