@@ -61,8 +61,8 @@ def test_draw_tau_float_groups_as_broadcast():
         ssr = rng.random(2) * 10.0 ** rng.integers(-8, 4)
         r1, r2 = np.random.default_rng(7), np.random.default_rng(7)
         nb, sb = np.broadcast_arrays(n, ssr)  # the general path, as it was
-        want = np.array([r1.gamma(1e-3 + 0.5 * a, 1.0 / (1e-9 + 0.5 * s))
-                         for a, s in zip(nb.ravel().tolist(), sb.ravel().tolist(), strict=True)])  # fmt: skip
+        pairs = zip(nb.ravel().tolist(), sb.ravel().tolist(), strict=True)
+        want = np.array([r1.gamma(1e-3 + 0.5 * a, 1.0 / (1e-9 + 0.5 * s)) for a, s in pairs])
         assert _same(draw_tau(ssr, n, 1e-3, 1e-9, r2), want)
         assert r1.random() == r2.random()
 
@@ -142,3 +142,71 @@ def test_prior_kept_scale_free_is_the_cached_one():
     mean, cov, _, _ = first
     d = u - mean
     assert prior.log_u(u) == -0.5 * float(d @ np.linalg.inv(cov) @ d)
+
+
+@pytest.fixture(scope="module")
+def stepped_problem():
+    from loadbayes.cases.composite_sim import simulate_event
+    from loadbayes.fit.composite.problem import CompositeProblem
+    from loadbayes.models.zip_motor import CompositeModel
+
+    ev, _ = simulate_event(t_end_s=1.0, fs=60, seed=3)
+    model = CompositeModel(window_s=0)
+    problem = CompositeProblem([ev], model.default_prior([ev]), f_hz=model.f_hz,
+                               torque=model.fixed_torque, h_max=model.h_max, steps=True,
+                               window_s=model.window_s)  # fmt: skip
+    assert problem.n_steps
+    return problem
+
+
+def test_admissible_is_finite_and_in_support(stepped_problem):
+    p, rng = stepped_problem, np.random.default_rng(4)
+    for _ in range(2000):
+        u = rng.standard_normal(p.dim) * 0.7 + 0.5
+        if rng.random() < 0.2:
+            u[rng.integers(p.dim)] = rng.choice([np.nan, np.inf, -np.inf, 1e308])
+        if rng.random() < 0.2:
+            u[:] = 1e308  # a sum that overflows with every term finite
+        want = bool(np.isfinite(u).all()) and p.in_support(u)
+        assert p._admissible(u) == want
+        assert p._admissible(u[:N_FREE]) == bool(np.isfinite(u[:N_FREE]).all())
+
+
+def test_kernel_as_before_and_log_collapsed_as_log_marginal(stepped_problem):
+    from loadbayes.fit.composite import problem as pm
+    from loadbayes.inference.condlinear import log_marginal
+    from loadbayes.models.composite_prior import POSITIVE_BETA
+
+    p, rng = stepped_problem, np.random.default_rng(6)
+    g, d = p.grid, p.samples
+    tau = np.array([4e4, 3e4])
+    u0 = np.concatenate([p.prior.scale_free()[0], np.full(p.n_steps, 0.5)])
+    checked = 0
+    for _ in range(40):
+        u = u0 + np.concatenate([rng.standard_normal(N_FREE) * 0.3,
+                                 rng.random(p.n_steps) - 0.5])  # fmt: skip
+        k = p.kernel(u, tau)
+        # The call as it was: the times filled outside, exp(theta_of(u, 0.0)), zeros.
+        n = len(p.events)
+        ztz, zty, yty = np.zeros((n, 2, 7, 7)), np.zeros((n, 2, 7)), np.zeros((n, 2))
+        pq = np.empty(d.size), np.empty(d.size)
+        lp = pm._collapsed(
+            u[:N_FREE], np.exp(theta_of(u[:N_FREE], 0.0)), tau, p.phi(u),
+            g.times(p.phi(u)), g.pos[:0], g.left[:0], g.width[:0], g.pos_b[:0], g.last[:0],
+            g.right[:0], g.v_a[:0], g.v_l[:0], g.v_b[:0], g.v, g.delta, g.starts, p._real,
+            d.x, d.p, d.q, d.starts, d.n, p._mean_u, p._prec_u, p.m0, p.p0, POSITIVE_BETA,
+            2.0 * np.pi * p.f_hz, *map(float, p.torque), float(p.h_max), p._xsums, False,
+            pm._NO_WEIGHTS, *pq, ztz, zty, yty, False, pm._NO_RHO, p.seg, p.window,
+        )  # fmt: skip
+        if k is None:
+            assert not np.isfinite(lp)
+            continue
+        checked += 1
+        assert k.lp == lp and _same(k.ztz, ztz) and _same(k.zty, zty) and _same(k.yty, yty)
+        sums = p.group_sums(k)
+        want = p.prior.log_u(u[:N_FREE])
+        for s in sums:
+            want += log_marginal(s, tau, p.m0, p.p0, positive=POSITIVE_BETA)
+        assert p.log_collapsed(sums, u, tau) == want
+        assert p.log_collapsed(sums, u, tau) == want  # the prior term kept for this u
+    assert checked > 20

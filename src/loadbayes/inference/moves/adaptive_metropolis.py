@@ -269,9 +269,12 @@ class AdaptiveMetropolis(BlockMove):
 
     def _q_of(self, jump, x: np.ndarray) -> float:
         # log q of the current state, kept from the jump that reached it or the last one
-        # from it (the same number recomputed: a mixture's density costs K solves).
-        if self._q_current is not None and np.array_equal(self._q_current[0], x):
-            return self._q_current[1]
+        # from it (the same number recomputed: a mixture's density costs K solves). Equal
+        # bytes: a block that compares equal with other bytes (0.0 and -0.0) maps to the
+        # same q anyway.
+        cur = self._q_current
+        if cur is not None and cur[0].tobytes() == np.asarray(x, dtype=float).tobytes():
+            return cur[1]
         q = jump.log_density(self._walk(x))
         self._q_current = (np.array(x, dtype=float), q)
         return q
