@@ -161,7 +161,7 @@ def _truncated_standard(a: float, rng: np.random.Generator) -> float:
     """One draw of ``Z ~ N(0, 1)`` given ``Z > a`` (inverse CDF on the upper tail)."""
     upper = float(special.ndtr(-a))
     if upper > 1e-300:
-        u = rng.uniform(0.0, upper)
+        u = upper * rng.random()  # rng.uniform(0.0, upper)'s number (0 + upper d), cheaper
         return float(-special.ndtri(max(u, 1e-300)))
     # Far in the tail: the exponential approximation of the truncated normal is exact
     # to O(1/a^2) there, and only reached when the data contradict positivity entirely.
@@ -178,7 +178,8 @@ def draw_beta(
     positive: int | None = None,
 ) -> np.ndarray:
     """One exact draw of ``beta | tau, y`` (truncated to ``beta_j > 0`` if ``positive``)."""
-    mu, cov, _, _ = posterior_moments(sums, np.asarray(tau, dtype=float), m0, p0)
+    mu, cov, _, _ = _moments(sums.ztz, sums.zty, np.asarray(tau, dtype=float),
+                             np.asarray(m0, float), np.asarray(p0, float))  # fmt: skip
     k = mu.size
     if positive is None:
         return mu + np.linalg.cholesky(cov) @ rng.standard_normal(k)
@@ -261,6 +262,11 @@ def draw_tau(
     """
     # One scalar call per group: the same stream as one call with arrays, at a fraction
     # of its cost for the two groups of a sampler's every iteration.
+    if (type(n) is np.ndarray and type(ssr) is np.ndarray and n.ndim == 1
+            and n.shape == ssr.shape and n.dtype == ssr.dtype == np.float64):  # fmt: skip
+        # The sampler's (two float groups): np.broadcast_arrays's work is nil there.
+        return np.array([rng.gamma(shape + 0.5 * ni, 1.0 / (rate + 0.5 * si))
+                         for ni, si in zip(n.tolist(), ssr.tolist(), strict=True)])  # fmt: skip
     nb, sb = np.broadcast_arrays(np.asarray(n, dtype=float), np.asarray(ssr, dtype=float))
     return np.array([
         rng.gamma(shape + 0.5 * ni, 1.0 / (rate + 0.5 * si))

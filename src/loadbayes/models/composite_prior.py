@@ -90,9 +90,14 @@ class CompositePrior:
             ``u ~ N(mean_u, cov_u)`` (the marginal of the theta prior through
             ``SCALE_FREE_MATRIX``); ``log T0 | u ~ N(m6 + gain @ (u - mean_u), sd_cond^2)``.
         """
+        # Read every iteration (log_u, draw_log_t0): the instance keeps what the cache gave.
+        mine = self.__dict__.get("_scale_free")
+        if mine is not None:
+            return mine
         key = (self.theta_mean.tobytes(), self.theta_sd.tobytes())
         hit = _SCALE_FREE_CACHE.get(key)
         if hit is not None:
+            object.__setattr__(self, "_scale_free", hit)
             return hit
         mean = _T @ self.theta_mean
         cov = _T @ np.diag(self.theta_sd**2) @ _T.T
@@ -101,15 +106,19 @@ class CompositePrior:
         var = cov[5, 5] - cov[5, :5] @ gain
         out = (mean[:5], cu, gain, float(np.sqrt(var)))
         _SCALE_FREE_CACHE[key] = out
+        object.__setattr__(self, "_scale_free", out)
         return out
 
     def log_u(self, u: np.ndarray) -> float:
         """Log prior density of the scale-free coordinates ``u`` up to a constant."""
         mean, cov, _, _ = self.scale_free()
-        key = ("prec", cov.tobytes())
-        prec = _SCALE_FREE_CACHE.get(key)
+        prec = self.__dict__.get("_prec_u")
         if prec is None:
-            prec = _SCALE_FREE_CACHE[key] = np.linalg.inv(cov)
+            key = ("prec", cov.tobytes())
+            prec = _SCALE_FREE_CACHE.get(key)
+            if prec is None:
+                prec = _SCALE_FREE_CACHE[key] = np.linalg.inv(cov)
+            object.__setattr__(self, "_prec_u", prec)
         d = u - mean
         return -0.5 * float(d @ prec @ d)
 

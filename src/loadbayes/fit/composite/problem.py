@@ -11,7 +11,7 @@ has its own seven linear coefficients (its own operating point, ZIP mix and moto
 rating). Event 0's quantities carry the plain names (``p0, f_m, a1, ...``), event ``k``'s
 the suffix ``_e{k}``. The prior is the model's (``models/composite_prior.py``).
 
-One idea needs these 568 lines: the collapsed log-density of the composite's events,
+One idea needs these 641 lines: the collapsed log-density of the composite's events,
 from the events' layout to the one compiled call that evaluates it, with the conditional
 draws of the coefficients the sampler takes from the same sums.
 """
@@ -43,7 +43,6 @@ from loadbayes.inference.condlinear import (
     GroupSums,
     draw_beta,
     draw_betas,
-    log_marginal,
     log_marginal_arrays,
 )
 from loadbayes.measurements.record import EventRecord
@@ -56,7 +55,7 @@ from loadbayes.models.composite import (
     motor_response,
 )
 from loadbayes.models.composite_prior import POSITIVE_BETA, CompositePrior
-from loadbayes.models.composite_steps import FitSamples, StepGrid
+from loadbayes.models.composite_steps import FitSamples, StepGrid, fill_times
 from loadbayes.models.motor_kernel import (
     H_MAX_S,
     integrate_into,
@@ -73,13 +72,16 @@ _T_INV = np.linalg.inv(SCALE_FREE_MATRIX)
 #: The model's sizes: the scale-free motor coordinates sampled, each event's coefficients.
 N_FREE, N_BETA = len(SCALE_FREE_NAMES), len(BETA_NAMES)
 _T_INV_U = np.ascontiguousarray(_T_INV[:, :N_FREE].T)
+_T_INV_T0 = np.ascontiguousarray(_T_INV[:, N_FREE])
 
 
 def theta_of(u: np.ndarray, log_t0: float | np.ndarray) -> np.ndarray:
     """``THETA_NAMES`` values from the scale-free ``u`` (..., 5) and ``log T0`` (...)."""
     u = np.asarray(u, dtype=float)
     # theta = T^-1 (u, log T0): the first five columns act on u, the last on log T0.
-    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV[:, N_FREE])
+    if type(log_t0) is float:  # one draw's (each kept iteration): the same products
+        return u @ _T_INV_U + log_t0 * _T_INV_T0
+    return u @ _T_INV_U + np.multiply.outer(np.asarray(log_t0, dtype=float), _T_INV_T0)
 
 
 @dataclass(frozen=True)
@@ -196,6 +198,15 @@ class CompositeProblem:
         self._mean_u, self._prec_u = mean_u, np.linalg.inv(cov_u)
         # The design's voltage-only sums do not depend on the motor: once per problem.
         self._xsums = np.stack([x_sums(e.x, e.p, e.q) for e in ev])
+        # What every kernel call passes unchanged (kernel runs each iteration): once.
+        d, g, self._n_steps = self.samples, self.grid, self.grid.n_steps
+        self._kernel_data = (g.t, g.pos, g.left, g.width, g.pos_b, g.last, g.right, g.v_a,
+                             g.v_l, g.v_b, g.v, g.delta, g.starts, self._real, d.x, d.p, d.q,
+                             d.starts, d.n, self._mean_u, self._prec_u, self.m0, self.p0,
+                             POSITIVE_BETA, 2.0 * math.pi * self.f_hz)  # fmt: skip
+        self._torque = tuple(float(x) for x in self.torque)
+        self._n_rows = list(d.n)  # each event's (n, n), as GroupSums takes it
+        self._log_u_last: tuple[bytes, float] | None = None
 
     @property
     def n_steps(self) -> int:
@@ -266,31 +277,46 @@ class CompositeProblem:
 
     def share_arguments(self, tau, groups) -> tuple:
         """The compiled share terms' arguments after ``z`` (``bounded_kernel.py``)."""
-        fixed = self.__dict__.get("_share_fixed")
-        if fixed is None:  # gamma's prior precisions and the share priors, made once
+        arrays = groups.arrays if isinstance(groups, _Stacked) else stacked(groups)
+        return (*arrays, np.asarray(tau, dtype=float), *self._share_fixed())
+
+    def _share_fixed(self) -> tuple:
+        # gamma's prior precisions p0[[0, 3, 6]] and the share priors, made once.
+        fixed = self.__dict__.get("_share_fixed_arrays")
+        if fixed is None:
             sp = self.share_prior
-            fixed = self.__dict__["_share_fixed"] = (
+            fixed = self.__dict__["_share_fixed_arrays"] = (
                 np.asarray(self.p0, dtype=float)[[0, 3, 6]],
                 np.array([i for i, _, _ in sp], dtype=np.int64),
                 np.array([m for _, m, _ in sp], dtype=float),
                 np.array([d for _, _, d in sp], dtype=float),
             )
-        arrays = groups.arrays if isinstance(groups, _Stacked) else stacked(groups)
-        return (*arrays, np.asarray(tau, dtype=float), *fixed)
+        return fixed
 
     def _bounded_lp(self, u: np.ndarray, tau, groups) -> float:
         # The collapsed density of the bounded model (fit/composite/bounded.py), its
         # share terms compiled (fit/composite/bounded_kernel.py).
         z = np.ascontiguousarray(self.share_z(u))
         terms = bounded_terms(z, *self.share_arguments(tau, groups))
-        return float(self.prior.log_u(u[:N_FREE]) + terms)
+        return float(self._log_u(u) + terms)
+
+    def _log_u(self, u: np.ndarray) -> float:
+        # The motor's prior term of the current state, asked each iteration with a new
+        # tau (log_collapsed): kept for the last u (its bytes; a rejected step keeps u).
+        u5 = np.asarray(u, dtype=float)[:N_FREE]
+        key, last = u5.tobytes(), self._log_u_last
+        if last is not None and last[0] == key:
+            return last[1]
+        out = self.prior.log_u(u5)
+        self._log_u_last = (key, out)
+        return out
 
     def draw_coefficients(self, sums, tau, u, rng: np.random.Generator) -> list[np.ndarray]:
         """Every event's ``beta | u, tau`` (exact; bounded shares: fit/composite/bounded.py)."""
         if not self.bounded:
             return [draw_beta(s, tau, self.m0, self.p0, rng, positive=POSITIVE_BETA) for s in sums]
         # Compiled (bounded_kernel.draw_gamma_one): draw_gamma's arithmetic and draws.
-        gamma_p0 = np.asarray(self.p0, dtype=float)[[0, 3, 6]]
+        gamma_p0 = self._share_fixed()[0]
         tau = np.asarray(tau, dtype=float)
         return [
             draw_gamma_one(shares_of(z), g.ztz, g.zty, tau, gamma_p0, rng)
@@ -315,14 +341,14 @@ class CompositeProblem:
 
         A motor-only vector (five entries) puts every step mid-interval.
         """
-        u = np.asarray(u, dtype=float)
-        if u.shape[-1] == N_FREE and self.n_steps:
-            return np.full(u.shape[:-1] + (self.n_steps,), 0.5)
-        if u.shape[-1] < N_FREE + self.n_steps:
+        u, ns = np.asarray(u, dtype=float), self._n_steps
+        if u.shape[-1] == N_FREE and ns:
+            return np.full(u.shape[:-1] + (ns,), 0.5)
+        if u.shape[-1] < N_FREE + ns:
             raise ValueError(
-                f"expected at least {N_FREE + self.n_steps} sampled coordinates, got {u.shape[-1]}"
+                f"expected at least {N_FREE + ns} sampled coordinates, got {u.shape[-1]}"
             )
-        return u[..., N_FREE : N_FREE + self.n_steps]
+        return u[..., N_FREE : N_FREE + ns]
 
     def in_support(self, u: np.ndarray) -> bool:
         """Whether every step's fraction lies in [0, 1] (the prior is uniform there).
@@ -332,11 +358,20 @@ class CompositeProblem:
         a step at an interval's very edge (a fault at a sample instant, as simulators
         put it) reachable, where a logit would send it to infinity.
         """
-        if not self.n_steps:
+        if not self._n_steps:
             return True
-        # Plain floats: a handful of fractions, checked every iteration (twice).
-        phi = np.asarray(u, dtype=float)[N_FREE : N_FREE + self.n_steps].tolist()
+        # Plain floats: a handful of fractions (the kernel checks them with _admissible).
+        phi = np.asarray(u, dtype=float)[N_FREE : N_FREE + self._n_steps].tolist()
         return all(0.0 <= f <= 1.0 for f in phi)
+
+    def _admissible(self, u: np.ndarray) -> bool:
+        # Finite and in_support, from one list of plain floats (every evaluation's check):
+        # a finite sum has no inf or nan among its terms; else each term is looked at.
+        vals = u.tolist()
+        if not math.isfinite(sum(vals)) and not all(map(math.isfinite, vals)):
+            return False
+        phi = vals[N_FREE : N_FREE + self._n_steps]
+        return not phi or (min(phi) >= 0.0 and max(phi) <= 1.0)
 
     def kernel(
         self,
@@ -358,26 +393,26 @@ class CompositeProblem:
         """
         self.evaluations += 1
         u = np.asarray(u, dtype=float)
-        if not np.isfinite(u).all() or not self.in_support(u):
+        if not self._admissible(u):
             return None
-        n_ev = len(self.events)
+        n_ev, size = len(self.events), self.samples.size
+        # Every entry is written by the compiled call (or the result is not returned).
         ztz, zty, yty = (
-            np.zeros((n_ev, 2, N_BETA, N_BETA)),
-            np.zeros((n_ev, 2, N_BETA)),
-            np.zeros((n_ev, 2)),
+            np.empty((n_ev, 2, N_BETA, N_BETA)),
+            np.empty((n_ev, 2, N_BETA)),
+            np.empty((n_ev, 2)),
         )
-        d = self.samples
-        pm, qm = np.empty(d.size), np.empty(d.size)
-        a, b, c = self.torque if torque is None else torque
+        pm, qm = np.empty(size), np.empty(size)
+        a, b, c = self._torque if torque is None else (float(x) for x in torque)
         weighted = weights is not None
-        g = self.grid
+        ns = self._n_steps
+        phi = u[N_FREE : N_FREE + ns] if u.size >= N_FREE + ns else self.phi(u)
+        u5 = u[:N_FREE]
         try:
+            # exp(theta_of(u5, 0.0)): log T0 = 0 adds nothing the exponential can see.
             lp = _collapsed(
-                u[:N_FREE], np.exp(theta_of(u[:N_FREE], 0.0)), np.asarray(tau, dtype=float),
-                g.times(self.phi(u)), g.v, g.delta, g.starts, self._real, d.x, d.p, d.q,
-                d.starts, d.n, self._mean_u, self._prec_u, self.m0, self.p0,
-                POSITIVE_BETA, 2.0 * math.pi * self.f_hz, float(a), float(b), float(c),
-                float(self.h_max), self._xsums, weighted,
+                u5, np.exp(u5 @ _T_INV_U), np.asarray(tau, dtype=float), phi,
+                *self._kernel_data, a, b, c, float(self.h_max), self._xsums, weighted,
                 weights if weighted else _NO_WEIGHTS, pm, qm, ztz, zty, yty,
                 rho is not None, _NO_RHO if rho is None else np.asarray(rho, dtype=float),
                 self.seg, self.window,
@@ -390,9 +425,7 @@ class CompositeProblem:
 
     def group_sums(self, k: KernelResult) -> list[GroupSums]:
         """The events' :class:`GroupSums` of one kernel call."""
-        out = [
-            GroupSums(k.ztz[e], k.zty[e], k.yty[e], self.samples.n[e]) for e in range(len(k.ztz))
-        ]
+        out = [GroupSums(k.ztz[e], k.zty[e], k.yty[e], n) for e, n in enumerate(self._n_rows)]
         if not self.bounded:
             return out
         # Bounded shares: the kernel's arrays kept whole for the share terms, which read
@@ -487,15 +520,18 @@ class CompositeProblem:
 
     def log_collapsed(self, sums: list[GroupSums] | None, u, tau) -> float:
         """``log p(u) + sum_e log p(y_e | u, tau)`` with beta integrated out."""
-        if sums is None or not np.isfinite(u).all():
-            return -math.inf
-        if u.size > N_FREE and not self.in_support(u):
+        if sums is None or not self._admissible(np.asarray(u, dtype=float)):
             return -math.inf
         if self.bounded:
             return self._bounded_lp(u, tau, sums)
-        out = self.prior.log_u(u[:N_FREE])
-        for s in sums:
-            out += log_marginal(s, tau, self.m0, self.p0, positive=POSITIVE_BETA)
+        out = self._log_u(u)
+        tau, m0, p0 = np.asarray(tau, dtype=float), self.m0, self.p0
+        for s in sums:  # log_marginal's, its wrapper's conversions done once
+            try:
+                out += float(log_marginal_arrays(s.ztz, s.zty, s.yty, s.n, tau, m0, p0,
+                                                 POSITIVE_BETA))  # fmt: skip
+            except np.linalg.LinAlgError:
+                out += -math.inf
         return out
 
 
@@ -548,7 +584,8 @@ _NO_WEIGHTS = np.ones((2, 0))
 
 @numba.njit(cache=True, nogil=True)
 def _collapsed(  # pragma: no cover - compiled
-    u, params, tau, t, v, delta, starts_aug, real, x, p, q, starts, n, mean_u, prec_u,
+    u, params, tau, phi, t_base, e_pos, e_left, e_width, e_pos_b, e_last, e_right, e_va, e_vl,
+    e_vb, v, delta, starts_aug, real, x, p, q, starts, n, mean_u, prec_u,
     m0, p0, pos, wb, a, b, c, h_max, xsums, weighted, lam, pm, qm, ztz, zty, yty,
     ar, rho, seg, window,
 ):  # fmt: skip
@@ -558,6 +595,9 @@ def _collapsed(  # pragma: no cover - compiled
     # Each event: integrate the augmented input (the steps' virtual knots), keep the real
     # samples' P, Q in pm, qm, and add the log evidence of the event's (weighted) sums;
     # with weights, also sum log lambda / 2 (the likelihood's log-determinant).
+    # The augmented times with the steps at fractions phi (StepGrid.times, its arrays e_*).
+    t = t_base.copy()
+    fill_times(t, e_pos, e_left, e_width, phi, e_pos_b, e_last, e_right, e_va, e_vl, e_vb)
     rs, xp, dx, tp, h, t0 = params[0], params[1], params[2], params[3], params[4], params[5]
     hm = step_size(tp, h_max)
     d = u - mean_u

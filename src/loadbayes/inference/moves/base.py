@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 
 __all__ = ["BlockMove", "BlockState", "LogDensity", "RunningCovariance", "scaled_eigenvectors"]
@@ -83,14 +84,27 @@ class RunningCovariance:
     def update(self, x: np.ndarray) -> bool:
         """Add a draw; True when the covariance was refreshed."""
         self._n += 1
-        delta = x - self._mean
-        self._mean += delta / self._n
-        self._m2 += np.outer(delta, x - self._mean)
+        _welford(self._mean, self._m2, np.asarray(x, dtype=float), float(self._n))
         if self._n >= self.adapt_start and self._n % 20 == 0:
             emp = self._m2 / (self._n - 1)
             self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
             return True
         return False
+
+
+@numba.njit(cache=True, nogil=True)
+def _welford(mean, m2, x, n):  # pragma: no cover - compiled
+    # Welford's step in place, NumPy's arithmetic one element at a time (the adaptive
+    # moves feed one draw each burn-in iteration): delta = x - mean; mean += delta / n;
+    # m2 += outer(delta, x - mean).
+    d = x.size
+    delta = np.empty(d)
+    for i in range(d):
+        delta[i] = x[i] - mean[i]
+        mean[i] += delta[i] / n
+    for i in range(d):
+        for j in range(d):
+            m2[i, j] += delta[i] * (x[j] - mean[j])
 
 
 class BlockMove:

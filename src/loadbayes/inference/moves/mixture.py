@@ -45,6 +45,9 @@ from scipy.special import gammaln
 
 __all__ = ["StudentTMixture"]
 
+#: How far the weights may sum from 1 (NumPy's ``choice``'s own check).
+_ATOL = float(np.sqrt(np.finfo(np.float64).eps))
+
 
 class StudentTMixture:
     """A mixture of multivariate t's over k-means regions of ``draws``.
@@ -179,10 +182,23 @@ class StudentTMixture:
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
         """One draw."""
-        k = int(rng.choice(self.components, p=self.weights)) if self.components > 1 else 0
+        k = self._component(rng) if self.components > 1 else 0
         z = rng.standard_normal(self.d)
         nu = float(self._dofs[k])
         return self.means[k] + math.sqrt(nu / rng.chisquare(nu)) * (self._roots[k] @ z)
+
+    def _component(self, rng: np.random.Generator) -> int:
+        # rng.choice(components, p=weights), its cumulative weights made once: NumPy's
+        # choice normalises p.cumsum() by its last entry and searches one rng.random().
+        cdf = self.__dict__.get("_cdf")
+        if cdf is None or cdf[0] is not self.weights:
+            p = np.ascontiguousarray(self.weights, dtype=float)
+            if p.ndim != 1 or not np.all(p >= 0) or not abs(p.sum() - 1.0) <= _ATOL:
+                raise ValueError(f"the mixture's weights are not probabilities: {p}")
+            c = p.cumsum()
+            c /= c[-1]
+            cdf = self._cdf = (self.weights, c)
+        return int(cdf[1].searchsorted(rng.random(), side="right"))
 
     def log_density(self, x: np.ndarray) -> float:
         """``log q(x)`` up to a constant common to every ``x``."""

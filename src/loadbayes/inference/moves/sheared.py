@@ -28,6 +28,7 @@ coordinates; with a burn-in too short to learn it from (fewer than
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
@@ -88,18 +89,54 @@ class Shear:
         self.c2 = float(np.mean(s**2))
 
     def _h(self, s: float) -> np.ndarray:
+        a, b = self._powers(s)
+        return a * self.coef[0] + b * self.coef[1]
+
+    def _powers(self, s: float) -> tuple[float, float]:
+        # H(s)'s factors of A's two rows: s^2 less its mean, s^3 (s clipped).
         s = min(max(s, self.s_lo), self.s_hi)
-        return (s * s - self.c2) * self.coef[0] + s**3 * self.coef[1]
+        return s * s - self.c2, s**3
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """``w`` of a block ``x``."""
         y = (x - self.m) / self.D
-        return y - self._h(float(y @ self.e))
+        c0, c1 = self._rows()
+        return _sheared(y, *self._powers(float(y @ self.e)), c0, c1)
 
     def inverse(self, w: np.ndarray) -> np.ndarray:
         """The block ``x`` of ``w``."""
-        y = w + self._h(float(w @ self.e))
-        return self.m + self.D * y
+        c0, c1 = self._rows()
+        return _unsheared(w, *self._powers(float(w @ self.e)), c0, c1, self.m, self.D)
+
+    def _rows(self) -> tuple[np.ndarray, np.ndarray]:
+        # A's rows as contiguous arrays for the compiled maps (made once: the step's).
+        rows = self.__dict__.get("_coef_rows")
+        if rows is None or rows[0] is not self.coef:
+            c = np.asarray(self.coef, dtype=float)
+            rows = self._coef_rows = (self.coef, np.ascontiguousarray(c[0]),
+                                      np.ascontiguousarray(c[1]))  # fmt: skip
+        return rows[1], rows[2]
+
+
+# The shear's elementwise arithmetic compiled (every step maps a point each way): NumPy's
+# own operations, one element at a time, in its order (no fused multiply-add), so the
+# same numbers; the dot product e . y stays NumPy's.
+@numba.njit(cache=True, nogil=True)
+def _sheared(y, a, b, c0, c1):  # pragma: no cover - compiled
+    # y - H: y - (a c0 + b c1)
+    out = np.empty(y.size)
+    for i in range(y.size):
+        out[i] = y[i] - (a * c0[i] + b * c1[i])
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _unsheared(w, a, b, c0, c1, m, d):  # pragma: no cover - compiled
+    # m + D (w + H): m + D (w + (a c0 + b c1))
+    out = np.empty(w.size)
+    for i in range(w.size):
+        out[i] = m[i] + d[i] * (w[i] + (a * c0[i] + b * c1[i]))
+    return out
 
 
 class ShearedAM(AdaptiveMetropolis):
@@ -137,6 +174,7 @@ class ShearedAM(AdaptiveMetropolis):
         self._switch = adapt_until // 2
         self._min_history = max(MIN_HISTORY, 10 * self.d)
         self._history: list[np.ndarray] = []
+        self._walk_last: tuple | None = None  # (shear, x's bytes, w): _walk's last
 
     def step(
         self, state: BlockState, logp: LogDensity, rng: np.random.Generator, iteration: int
@@ -155,7 +193,16 @@ class ShearedAM(AdaptiveMetropolis):
         return out
 
     def _walk(self, x: np.ndarray) -> np.ndarray:
-        return x if self.shear is None else self.shear.forward(x)
+        # The walk's coordinates of the current block, asked each step: kept while the
+        # block is the same to the bit (a rejected step leaves it), under the same shear.
+        if self.shear is None:
+            return x
+        key, last = x.tobytes(), self._walk_last
+        if last is not None and last[0] is self.shear and last[1] == key:
+            return last[2]
+        w = self.shear.forward(x)
+        self._walk_last = (self.shear, key, w)
+        return w
 
     def _block(self, w: np.ndarray) -> np.ndarray:
         return w if self.shear is None else self.shear.inverse(w)
