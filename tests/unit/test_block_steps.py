@@ -1,7 +1,7 @@
 """Several block steps per iteration (fit.composite.sampler.block_steps) on a known target.
 
 A model of parts may ask the composite sampler for several steps of its block move per
-iteration (``PartsModel.block_steps``: ``cmld-lite`` 6), taken in runs whose burn-in is
+iteration (``PartsModel.block_steps``: ``cmld-lite`` 12), taken in runs whose burn-in is
 ``BLOCK_STEPS_MIN_BURN`` or more. Each step is the move's own, so
 their composition leaves the density invariant; what can go wrong is the state carried
 from one step to the next. Seeds are fixed; the tolerances are what a correct sampler
@@ -18,7 +18,9 @@ from scipy import stats
 
 from loadbayes.fit.composite.sampler import (
     BLOCK_STEPS_MIN_BURN,
+    JUMP_SHARE,
     block_steps,
+    jump_share,
     steps_per_iteration,
 )
 from loadbayes.inference.moves import ShearedAM
@@ -80,14 +82,42 @@ def test_one_block_step_is_the_moves_own_draw_for_draw():
 
 
 def test_the_sampler_takes_the_models_block_steps_in_a_long_run_only():
-    """cmld-lite asks for 6 block steps, slm for 1; the sampler takes them where the
+    """cmld-lite asks for 12 block steps, slm for 1; the sampler takes them where the
     burn-in is BLOCK_STEPS_MIN_BURN or more (the defaults' 4,000), else one step (a short
     run keeps its cost and draws); a problem with no model (zip+motor) always 1."""
     cmld, slm = dynamic_model("cmld-lite"), dynamic_model("slm")
-    assert cmld.block_steps == 6 and slm.block_steps == 1
+    assert cmld.block_steps == 12 and slm.block_steps == 1
     assert cmld.share_steps == slm.share_steps == 20
     assert BLOCK_STEPS_MIN_BURN == 4_000
-    assert steps_per_iteration(SimpleNamespace(model=cmld), 4_000) == 6
+    assert steps_per_iteration(SimpleNamespace(model=cmld), 4_000) == 12
     assert steps_per_iteration(SimpleNamespace(model=cmld), 3_999) == 1
     assert steps_per_iteration(SimpleNamespace(model=slm), 40_000) == 1
     assert steps_per_iteration(SimpleNamespace(), 40_000) == 1
+
+
+def test_cmld_lite_jumps_once_per_iteration_and_the_others_keep_the_share():
+    """With its 12 block steps cmld-lite jumps in one step per iteration on average (a
+    share of 1/12, its jumps accepted about 1 in 400 times); one step per iteration (a
+    short run), slm and a problem with no model (zip+motor) keep JUMP_SHARE of every
+    step, so their draws are unchanged."""
+    cmld, slm = dynamic_model("cmld-lite"), dynamic_model("slm")
+    long_run = steps_per_iteration(SimpleNamespace(model=cmld), 4_000)
+    assert jump_share(SimpleNamespace(model=cmld), long_run) == 1.0 / 12
+    assert jump_share(SimpleNamespace(model=cmld), 1) == JUMP_SHARE
+    assert jump_share(SimpleNamespace(model=slm), 1) == JUMP_SHARE
+    assert jump_share(SimpleNamespace(model=slm), 12) == JUMP_SHARE  # slm asks for none
+    assert jump_share(SimpleNamespace(), 12) == JUMP_SHARE
+    few = SimpleNamespace(model=SimpleNamespace(jumps_per_iteration=10.0))
+    assert jump_share(few, 12) == JUMP_SHARE  # never more than the sampler's share
+
+
+def test_cmld_lite_runs_a_first_round_of_10000_and_slm_keeps_16000():
+    """The defaults of a model of parts (driver.parts_defaults): cmld-lite's first round
+    is 10,000 iterations (its 12 block steps mix more per iteration; the run goes on until
+    converged), slm's the 16,000 of PARTS_DEFAULTS; both 4,000 burn-in, four chains."""
+    from loadbayes.fit.composite.driver import PARTS_DEFAULTS, parts_defaults
+
+    cmld, slm = parts_defaults(dynamic_model("cmld-lite")), parts_defaults(dynamic_model("slm"))
+    assert (cmld.draws, cmld.burn, cmld.chains) == (10_000, 4_000, 4)
+    assert slm == PARTS_DEFAULTS and slm.draws == 16_000
+    assert cmld.burn >= BLOCK_STEPS_MIN_BURN  # the default run takes the block steps

@@ -156,7 +156,7 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     init=False,
     draws_min=2,
     burn_min=1,
-    draws_help="Iterations per chain, burn-in included (16,000 for a model of parts). "
+    draws_help="Iterations per chain, burn-in included (16,000 for slm, 10,000 for cmld-lite). "
     "Left at its default, the chains then run on until every reported quantity has R-hat "
     "< 1.01 and bulk ESS >= 400 (or --max-seconds runs out); given, exactly that many.",
     burn_help="Burn-in (the proposal adapts during it, then freezes).",
@@ -255,7 +255,7 @@ def fit_composite_cmd(
     from loadbayes.fit.composite import predictive_band
     from loadbayes.fit.composite.checks import check_run
     from loadbayes.fit.composite.choice import choose_model
-    from loadbayes.fit.composite.driver import PARTS_DEFAULTS, fit_composite
+    from loadbayes.fit.composite.driver import fit_composite, parts_defaults
     from loadbayes.fit.composite.reading import reading_model, reading_note
     from loadbayes.measurements.events import index_bases, index_f_hz, read_events
     from loadbayes.measurements.record import check_units
@@ -284,7 +284,8 @@ def fit_composite_cmd(
     if until_converged is None:
         until_converged = source in (None, click.core.ParameterSource.DEFAULT)
     if parts and source in (None, click.core.ParameterSource.DEFAULT):
-        sampler = sampler.with_(draws=PARTS_DEFAULTS.draws)  # a model of parts: 16,000
+        # A model of parts: 16,000 (cmld-lite 10,000: driver.parts_defaults)
+        sampler = sampler.with_(draws=parts_defaults(model).draws)
     sampler = sampler.with_(until_converged=until_converged, max_seconds=max_seconds)
     events = read_events(
         list(files),

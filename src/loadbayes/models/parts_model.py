@@ -127,6 +127,9 @@ class PartsModel:
     #: step leaves the posterior invariant, so any number does; a model whose motors'
     #: block diffuses slowly along a flat ridge asks for more (``cmld-lite``).
     block_steps: ClassVar[int] = 1
+    #: With several block steps per iteration, how many of them jump (on average) after
+    #: burn-in (``sampler.jump_share``); None: the sampler's share of every step.
+    jumps_per_iteration: ClassVar[float | None] = None
     motors: tuple[str, ...] = ("slm",)
     feeder: bool = True
     motor_d: bool = False

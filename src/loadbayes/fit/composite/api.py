@@ -130,7 +130,7 @@ def fit_composite(
         one event per distinct value), or events already read.
     sampler : SamplerSettings, optional
         Default :data:`~loadbayes.fit.composite.driver.COMPOSITE_DEFAULTS` (a model of
-        parts: ``PARTS_DEFAULTS``; run on until converged); settings given run exactly
+        parts: ``driver.parts_defaults``; run on until converged); settings given run exactly
         their draws unless ``until_converged``.
     progress : SamplingProgress, optional
         Told the cost before sampling and the iterations as they are done.

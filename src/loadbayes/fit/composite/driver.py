@@ -69,6 +69,7 @@ from loadbayes.models.zip_motor import CompositeModel
 from loadbayes.posterior import Posterior, gaussian_draws
 
 __all__ = ["COMPOSITE_DEFAULTS", "MOVED", "PARTS_DEFAULTS", "CompositeFit", "SamplingProgress",
+           "parts_defaults",
            "fit_composite"]  # fmt: skip
 
 #: The old signature's keywords that are neither SamplerSettings' nor DataSpec's fields,
@@ -95,6 +96,15 @@ COMPOSITE_DEFAULTS = SamplerSettings(draws=6_000, burn=4_000, chains=4)
 #: A model of parts' defaults: its first round stays 16,000 iterations (the shorter round
 #: was measured on ``zip+motor`` alone, and its ridge's t's are the plain model's).
 PARTS_DEFAULTS = COMPOSITE_DEFAULTS.with_(draws=16_000)
+
+
+def parts_defaults(model: Any) -> SamplerSettings:
+    """A model of parts' defaults: :data:`PARTS_DEFAULTS` with the model's own first round.
+
+    ``cmld-lite`` asks for 10,000 iterations (``CmldLite.first_round``): its 12 block
+    steps mix more per iteration, and the run goes on until converged anyway.
+    """
+    return PARTS_DEFAULTS.with_(draws=int(getattr(model, "first_round", PARTS_DEFAULTS.draws)))
 
 
 class _Plain:
@@ -284,7 +294,8 @@ def fit_composite(
     """
     until_converged = sampler is None if sampler is None else sampler.until_converged
     zip_motor = isinstance(model, CompositeModel)
-    run = sampler if sampler is not None else COMPOSITE_DEFAULTS if zip_motor else PARTS_DEFAULTS
+    run = (sampler if sampler is not None else COMPOSITE_DEFAULTS if zip_motor
+           else parts_defaults(model))  # fmt: skip
     move = run.move or DEFAULT_MOVE
     max_seconds = run.max_seconds if run.max_seconds is not None else DEFAULT_MAX_SECONDS
     events = list(events)

@@ -17,7 +17,8 @@ placed from the data". The steps' fractions are also refreshed across [0, 1] now
 A model of parts may ask for its chains that ended their burn-in in a far lower mode to
 go on from the best chain's state (``restart.py``), said in words, and may ask for several
 steps of the block move per iteration in a long run (:func:`block_steps`,
-:data:`BLOCK_STEPS_MIN_BURN`; ``cmld-lite``: 6).
+:data:`BLOCK_STEPS_MIN_BURN`; ``cmld-lite``: 12, one of them a jump on average,
+:func:`jump_share`).
 A ``deadline`` (the time budget) holds from the first iteration: past it the chains end
 their burn-in and stop with what they drew (:class:`~loadbayes.inference.chain.Chain`),
 all cut to the same length (:attr:`ChainResult.cut` says how many iterations the
@@ -54,7 +55,8 @@ from loadbayes.inference.moves.refresh import UniformRefresh
 
 __all__ = ["BLOCK_STEPS_MIN_BURN", "DEFAULT_MOVE", "JUMP_SHARE", "MOVES",
            "ONE_EVALUATION_MOVES", "ONE_THREAD_SAMPLES", "REFRESH_SHARE", "ChainResult",
-           "block_steps", "chain_threads", "sample", "steps_per_iteration"]  # fmt: skip
+           "block_steps", "chain_threads", "jump_share", "sample",
+           "steps_per_iteration"]  # fmt: skip
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
 DEFAULT_MOVE = "shear"
@@ -110,6 +112,18 @@ def steps_per_iteration(problem, burn: int) -> int:
     """The block move's steps per iteration: the model's own in a long run, else 1."""
     asked = int(getattr(getattr(problem, "model", None), "block_steps", 1))
     return asked if burn >= BLOCK_STEPS_MIN_BURN else 1
+
+
+def jump_share(problem, steps: int) -> float:
+    """The share of the block move's steps after burn-in that jump.
+
+    :data:`JUMP_SHARE`, but with several block steps per iteration a model of parts may
+    ask for a number of jumps per iteration instead (``PartsModel.jumps_per_iteration``):
+    ``cmld-lite``'s jumps are accepted about 1 in 400 times, and its walk steps are what
+    cross its ridge. One step per iteration: :data:`JUMP_SHARE`, draw for draw.
+    """
+    own = getattr(getattr(problem, "model", None), "jumps_per_iteration", None)
+    return JUMP_SHARE if own is None or steps <= 1 else min(JUMP_SHARE, float(own) / steps)
 
 
 def block_steps(move, state: BlockState, logp, rng: np.random.Generator, iteration: int,
@@ -287,7 +301,11 @@ class _Gibbs:
         self.n_tot = n_tot
         dim = problem.dim
         self.n_base = problem.n_free + problem.n_steps
-        share = {"independence": JUMP_SHARE} if jumps else {}
+        # Steps of the block move per iteration: a model of parts may ask for more
+        # (PartsModel.block_steps, its notes) in a long run (BLOCK_STEPS_MIN_BURN); 1 for
+        # any other problem and run. And the share of them that jump (jump_share).
+        self.block_steps = steps_per_iteration(problem, burn)
+        share = {"independence": jump_share(problem, self.block_steps)} if jumps else {}
         self.am = MOVES[move](
             lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
         )
@@ -336,10 +354,6 @@ class _Gibbs:
         modes = bool(getattr(getattr(problem, "model", None), "restart_modes", False))
         self.late_lp: list[float] | None = [] if jumps and modes and student_t is None else None
         self.restart_note: str | None = None
-        # Steps of the block move per iteration: a model of parts may ask for more
-        # (PartsModel.block_steps, its notes) in a long run (BLOCK_STEPS_MIN_BURN); 1 for
-        # any other problem and run.
-        self.block_steps = steps_per_iteration(problem, burn)
         # What a kept iteration stores, by name (ChainResult's fields).
         self.fields = {
             "theta": (problem.n_theta,),
