@@ -9,7 +9,7 @@ the posterior: draws named by :mod:`~loadbayes.fit.composite.naming`, provenance
 :mod:`~loadbayes.fit.composite.identifiability` and the warnings of
 :mod:`~loadbayes.fit.composite.checks`.
 
-One idea needs these 459 lines: one fit's pipeline, events in and a Posterior out, each
+One idea needs these 470 lines: one fit's pipeline, events in and a Posterior out, each
 stage in its own module and only their order and hand-overs here.
 """
 
