@@ -262,16 +262,15 @@ def draw_tau(
     """
     # One scalar call per group: the same stream as one call with arrays, at a fraction
     # of its cost for the two groups of a sampler's every iteration.
-    if (type(n) is np.ndarray and type(ssr) is np.ndarray and n.ndim == 1
+    # The sampler's two float groups of one shape need no np.broadcast_arrays (its cost,
+    # not its result, differs there).
+    if not (type(n) is np.ndarray and type(ssr) is np.ndarray and n.ndim == 1
             and n.shape == ssr.shape and n.dtype == ssr.dtype == np.float64):  # fmt: skip
-        # The sampler's (two float groups): np.broadcast_arrays's work is nil there.
-        return np.array([rng.gamma(shape + 0.5 * ni, 1.0 / (rate + 0.5 * si))
-                         for ni, si in zip(n.tolist(), ssr.tolist(), strict=True)])  # fmt: skip
-    nb, sb = np.broadcast_arrays(np.asarray(n, dtype=float), np.asarray(ssr, dtype=float))
+        n, ssr = np.broadcast_arrays(np.asarray(n, dtype=float), np.asarray(ssr, dtype=float))
     return np.array([
         rng.gamma(shape + 0.5 * ni, 1.0 / (rate + 0.5 * si))
-        for ni, si in zip(nb.ravel().tolist(), sb.ravel().tolist(), strict=True)
-    ]).reshape(nb.shape)  # fmt: skip
+        for ni, si in zip(n.ravel().tolist(), ssr.ravel().tolist(), strict=True)
+    ]).reshape(n.shape)  # fmt: skip
 
 
 def draw_betas(

@@ -11,7 +11,7 @@ has its own seven linear coefficients (its own operating point, ZIP mix and moto
 rating). Event 0's quantities carry the plain names (``p0, f_m, a1, ...``), event ``k``'s
 the suffix ``_e{k}``. The prior is the model's (``models/composite_prior.py``).
 
-One idea needs these 641 lines: the collapsed log-density of the composite's events,
+One idea needs these 644 lines: the collapsed log-density of the composite's events,
 from the events' layout to the one compiled call that evaluates it, with the conditional
 draws of the coefficients the sampler takes from the same sums.
 """
@@ -360,9 +360,8 @@ class CompositeProblem:
         """
         if not self._n_steps:
             return True
-        # Plain floats: a handful of fractions (the kernel checks them with _admissible).
-        phi = np.asarray(u, dtype=float)[N_FREE : N_FREE + self._n_steps].tolist()
-        return all(0.0 <= f <= 1.0 for f in phi)
+        # Plain floats: a handful of fractions, checked every iteration.
+        return _in_unit(np.asarray(u, dtype=float)[N_FREE : N_FREE + self._n_steps].tolist())
 
     def _admissible(self, u: np.ndarray) -> bool:
         # Finite and in_support, from one list of plain floats (every evaluation's check):
@@ -370,8 +369,7 @@ class CompositeProblem:
         vals = u.tolist()
         if not math.isfinite(sum(vals)) and not all(map(math.isfinite, vals)):
             return False
-        phi = vals[N_FREE : N_FREE + self._n_steps]
-        return not phi or (min(phi) >= 0.0 and max(phi) <= 1.0)
+        return _in_unit(vals[N_FREE : N_FREE + self._n_steps])
 
     def kernel(
         self,
@@ -574,6 +572,11 @@ class _Stacked(list):
     def __init__(self, groups, arrays) -> None:
         super().__init__(groups)
         self.arrays = arrays
+
+
+def _in_unit(phi: list[float]) -> bool:
+    """Whether every step's fraction (plain floats) lies in [0, 1]; NaN does not."""
+    return all(0.0 <= f <= 1.0 for f in phi)
 
 
 #: The rho argument of the white-noise kernel call (not read).
