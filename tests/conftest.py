@@ -64,27 +64,13 @@ def no_cost_probe(monkeypatch):
 
 
 @pytest.fixture(scope="session")
-def cmld_lite_nc(tmp_path_factory):
-    """A cmld-lite fit of one 15 % sag from the tests' SciPy feeder simulator, its NetCDF.
+def cmld_lite_nc():
+    """A cmld-lite posterior of one 15 % sag from the tests' SciPy feeder simulator.
 
-    Few draws (one chain of 300): what predict and export --planning do with a fit of
-    parts, not its numbers; fitted once for every test that plays it.
+    Frozen draws (``tests/data/cmld_lite_draws.nc``; ``tests/make_cmld_lite_draws.py``
+    made it and says why): what ``predict`` and ``export --planning`` do with a fit of
+    parts, the same draws on every machine.
     """
-    import numpy as np
+    from pathlib import Path
 
-    from feeder_generator import simulate
-    from loadbayes.core.settings import SamplerSettings
-    from loadbayes.fit.composite.driver import fit_composite
-    from loadbayes.measurements.record import EventRecord
-    from loadbayes.models.dynamic import dynamic_model
-
-    rng = np.random.default_rng(3)
-    t, v, d, p, q, _ = simulate(sag=0.15)
-    noise = 0.005 * np.hypot(p[0], q[0])
-    ev = EventRecord(t, v, p + rng.normal(0, noise, t.size), q + rng.normal(0, noise, t.size),
-                     d, "sag 0.15")  # fmt: skip
-    fit = fit_composite(dynamic_model("cmld-lite", f_hz=50.0), [ev],
-                        sampler=SamplerSettings(draws=300, burn=150, chains=1, seed=5))  # fmt: skip
-    path = tmp_path_factory.mktemp("cmld_lite") / "fit.nc"
-    fit.posterior.to_netcdf(path)
-    return path
+    return Path(__file__).resolve().parent / "data" / "cmld_lite_draws.nc"
