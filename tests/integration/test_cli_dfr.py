@@ -374,6 +374,13 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
     # A number's sign goes with it: the static shares the fit warns of lie on a line the
     # sag does not determine (the warning says so), where the last digits of another
     # machine's, or another process's, arithmetic move a1..a6 far, signs included.
+    # Two numbers are Monte Carlo estimates, each allowed its own error besides the
+    # printing's 0.01: the residuals' lag-1 autocorrelation, a mean over posterior draws
+    # (its standard error in the JSON; the doc's run and this one each have one:
+    # 3 sqrt(2) of them), and the coverages, counts of the n scored samples in a band
+    # whose ends are quantiles of 200 draws: the draws picked (validate's --seed 0-5 on
+    # one machine) moved fn_q over 0.83-0.86 and fn_p over 0.97-0.99, up to 3 samples of
+    # 89, so a coverage is allowed 4 samples.
     number = re.compile(r"[-+]?\d+\.\d+")
     for cmd, expected in steps:
         res = CliRunner().invoke(main, cmd.split()[1:])
@@ -382,10 +389,20 @@ def test_the_chain_in_docs_formats_runs_as_written(tmp_path, monkeypatch):
         assert [number.sub("#", g) for g in got] == [number.sub("#", e) for e in expected]
         for g, e in zip(got, expected, strict=True):
             pairs = list(zip(number.findall(g), number.findall(e), strict=True))
+            tols = [0.01] * len(pairs)
             if "not a physical ZIP load" in e:  # a1..a6 lie on that line: f_m alone is fixed
-                pairs = pairs[-1:]
-            for a, b in pairs:
-                assert float(a) == pytest.approx(float(b), abs=0.01), (cmd, g)
+                pairs, tols = pairs[-1:], tols[-1:]
+            if "run in stretches" in e:  # r, then the intervals' factor sqrt((1+r)/(1-r))
+                se = json.loads(Path("fit1.json").read_text())["settings"]["residuals"]
+                tol_r = 0.01 + 3 * math.sqrt(2) * max(se["lag1_mcse"].values())
+                r = float(pairs[-2][1])
+                slope = 1 / ((1 - r) ** 2 * math.sqrt((1 + r) / (1 - r)))
+                tols = [tol_r] * (len(pairs) - 1) + [0.05 + slope * tol_r]
+            if e.startswith("events/"):  # rms_p, rms_q, cov_p, cov_q, fn_p, fn_q
+                n = int(e.split()[1])
+                tols = tols[:2] + [0.01 + 4 / n] * 4
+            for (a, b), tol in zip(pairs, tols, strict=True):
+                assert float(a) == pytest.approx(float(b), abs=tol), (cmd, g)
     report = json.loads(Path("val.json").read_text())["events"][0]
     # 11 straddling rows: the reader flags each fault's inception row too.
     assert report["n_excluded"] == 11 and report["rms_p"] < 0.022  # README baseline 2.2%

@@ -24,7 +24,11 @@ from loadbayes.fit.composite.identifiability import (
 )
 from loadbayes.fit.composite.naming import ChainDraws
 from loadbayes.fit.composite.problem import CompositeProblem
-from loadbayes.fit.composite.residuals import residual_autocorrelation, residual_warning
+from loadbayes.fit.composite.residuals import (
+    N_DRAWS,
+    residual_autocorrelation,
+    residual_warning,
+)
 from loadbayes.posterior import Posterior
 
 __all__ = ["WATCH_TORQUE", "describe_fit", "shares_outside"]
@@ -84,14 +88,18 @@ def describe_fit(
     post.warnings.extend(sampling_warnings(events, draws["t_prime_s"], steps_modelled=model.steps))
     watch = watch + (WATCH_TORQUE if estimate else ())
     post.warnings.extend(convergence_warnings(draws, watch, run.chains))
+    lag1_mcse: dict[str, float] = {}
     lag1 = residual_autocorrelation(
-        problem, blocks.theta, blocks.phi, blocks.betas, seed=run.seed, abc=blocks.abc
-    )
+        problem, blocks.theta, blocks.phi, blocks.betas, seed=run.seed, abc=blocks.abc,
+        mcse=lag1_mcse,
+    )  # fmt: skip
     post.settings["noise"] = model.noise
     post.settings["residuals"] = {
         "lag1_autocorrelation": lag1,
-        "what": "lag-1 autocorrelation of each event's P and Q residuals, mean over 20 "
-        "posterior draws (white noise: within +-2/sqrt(n) of 0)",
+        "lag1_mcse": lag1_mcse,
+        "what": f"lag-1 autocorrelation of each event's P and Q residuals, mean over "
+        f"{N_DRAWS} posterior draws (white noise: within +-2/sqrt(n) of 0); lag1_mcse: "
+        "each mean's standard error over the draws picked",
     }
     lag_warning = residual_warning(lag1) if model.noise == "white" else None
     if lag_warning:
