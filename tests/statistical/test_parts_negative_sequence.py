@@ -85,13 +85,17 @@ on the balanced sag, not traced further either.
 
 False-alarm rates: the residual checks are deterministic (fixed noise seed;
 thresholds of 15 to 25 times the noise of P); the rating test, with
-calibrated intervals, fails 5% of the time (its chains are not converged: the table).
+calibrated intervals, fails 5% of the time, and runs under ``make validate`` only, at
+the long run's length: at 2 chains of 4000 its chains are not converged (the table) and
+another machine's arithmetic gave [0.34, 0.76] at seed 0, a miss, where this table's
+seed 0 covered.
 The fits without I2 in the table were measured, not run by the suite.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import replace
 
 import numpy as np
@@ -112,7 +116,12 @@ pytestmark = pytest.mark.statistical
 F_HZ, V_BASE, S_BASE = 50.0, 110.0, 40.0
 WB = 2 * math.pi * F_HZ
 FAULT_S = 0.1017
-DRAWS, BURN, CHAINS, SEED = 4000, 2000, 2, 0
+#: The rating's fit: 4 chains of 12000 (6000 burn-in) under ``make validate``, where the
+#: table's long run covered the truth at R-hat 1.14; the suite's 2 chains of 4000 were
+#: never converged (R-hat 1.2-1.7) and their coverage was a coin another machine's
+#: arithmetic turned ([0.34, 0.76] there, [0.495, 1.064] here): not run by ``make test``.
+FULL = os.environ.get("LOADBAYES_VALIDATE") == "1"
+DRAWS, BURN, CHAINS, SEED = (12000, 6000, 4, 0) if FULL else (4000, 2000, 2, 0)
 # Slips at which each motor carries T0 = 0.35 (found by the generator's steady state).
 MOTOR_A = Motor(rating=0.5, rs=0.04, xs=0.06, xm=1.8, xr=0.06, rr=1.86 / (WB * 0.10),
                 h_s=0.12, s0=0.02283, torque_exp=0)  # fmt: skip
@@ -266,6 +275,8 @@ def ratings(tmp_path_factory):
     return tuple(np.quantile(total, [0.025, 0.975])), truth["motor_rating_total"]
 
 
+@pytest.mark.skipif(not FULL, reason="unconverged at the suite's length: make validate "
+                    "(LOADBAYES_VALIDATE=1) runs the long fit")  # fmt: skip
 def test_the_rating_is_covered_with_the_negative_sequence(ratings):
     # With A and B fixed: [0.495, 1.064] for 0.8, R-hat 1.69 (before the braking, with
     # the shares' own steps [0.457, 1.040], R-hat 1.20; before them [0.476, 0.984],
