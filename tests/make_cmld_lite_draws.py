@@ -47,7 +47,7 @@ def main() -> None:
     post = fit_composite(dynamic_model("cmld-lite", f_hz=50.0), [ev], sampler=sampler).posterior
     for name, x in list(post.draws.items()):
         post.draws[name] = np.asarray(x)[:, ::THIN].copy()
-    post.to_netcdf(OUT)
+    post.to_netcdf(OUT, force=True)
     print(f"{OUT}: {np.asarray(post.draws['log_x_fd']).shape[1]} draws")
 
 
