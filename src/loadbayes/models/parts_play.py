@@ -52,6 +52,7 @@ from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
 from loadbayes.models.parts_kernel import motor_drive, motor_into
 from loadbayes.models.parts_loop import SOLVE_SWEEPS, brake_of, cdiv, continues, pv_root
+from loadbayes.models.parts_march import march
 
 __all__ = [
     "COLLAPSES",
@@ -237,7 +238,7 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 @numba.njit(cache=True, nogil=True)
 def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
-                its, v2, why, low):  # pragma: no cover - compiled  # fmt: skip
+                its, v2, why, low, only_march):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
     # for up to 200 where they do not settle or leave the finite numbers, then each
     # sample solved, plain and damped), ``why`` its
@@ -250,7 +251,7 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
         u2 = brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
         got = -1
         why[i] = NO_OPERATING_POINT
-        if np.all(np.isfinite(u2)):
+        if np.all(np.isfinite(u2)) and not only_march:
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
                          0.0, p[i], q[i], u2, low[i : i + 1], False)  # fmt: skip
@@ -269,6 +270,11 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                              motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
                              frcel, tol, SOLVE_SWEEPS, 0.5, p[i], q[i], u2, low[i : i + 1],
                              True)  # fmt: skip
+        if np.all(np.isfinite(u2)):
+            if got <= 0:  # none settled: marched in time, sample by sample
+                got = _marched(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                               motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i],
+                               vd2[i], frcel, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
             why[i] = PLAYS if got > 0 else (COLLAPSES if got == -2 or low[i] < COLLAPSE_RATIO
                                             else FAILS)  # fmt: skip
         its[i] = got
@@ -302,6 +308,35 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
 
 
 @numba.njit(cache=True, nogil=True)
+def _marched(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on, dp,
+             el_on, vd1, vd2, frcel, po, qo, u2, low):  # pragma: no cover - compiled  # fmt: skip
+    # The fifth try, parts_march.march; with a window, P and Q the window means of one pass
+    # of _columns through the marched load bus (parts_march's docstring).
+    n = t.size
+    vl = np.empty(n, dtype=np.complex128)
+    got = march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
+                dp, el_on, vd1, vd2, frcel, po, qo, vl, u2, low, COLLAPSE_RATIO)  # fmt: skip
+    if got <= 0 or window_s <= 0.0:
+        return got
+    vm, dl = np.abs(vl), np.zeros(n)
+    for k in range(n):
+        dl[k] = math.atan2(vl[k].imag, vl[k].real) - math.atan2(vl[0].imag, vl[0].real)
+    col_p, col_qp, pm, qm = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    if not _columns(t, vm, dl if has_angle else np.zeros(n), u2, gap, steps, window_s, motors,
+                    shares, a_p, d_on, dp, el_on, vd1, vd2, frcel, col_p, col_qp, pm, qm,
+                    np.empty((3, n))):  # fmt: skip
+        return -1
+    s_l0 = s0 - z * abs(cdiv(s0, v[0])) ** 2
+    for k in range(n):
+        xl = vm[k] / vm[0]
+        s = complex(s_l0.real * col_p[k], s_l0.real * col_qp[k] + s_l0.imag * (
+            q_sh[0] * xl * xl + q_sh[1] * xl + q_sh[2]))  # fmt: skip
+        rec = v[k] * cdiv(s, vl[k])
+        po[k], qo[k] = rec.real, rec.imag
+    return got
+
+
+@numba.njit(cache=True, nogil=True)
 def _motor_d_of(t, v, x):  # pragma: no cover - compiled
     # Motor D's P with its 17 constants in MOTOR_D_DEFAULTS' order.
     return _motor_d(t, v, x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10],
@@ -319,6 +354,7 @@ def play_draws(
     *,
     tol: float = 1e-7,
     threads: int | None = None,
+    only_march: bool = False,
 ) -> Played:
     """Each draw's P, Q at the recorded bus through ``event``'s voltage (see the docstring).
 
@@ -338,6 +374,9 @@ def play_draws(
         left out is the model's own value for every draw.
     threads : int, optional
         Threads to run the draws on (default ``core.parallel.num_threads()``).
+    only_march : bool
+        Skip the sweeps: every draw marched in time (``parts_march``; the tests compare
+        the two).
 
     Returns
     -------
@@ -383,7 +422,7 @@ def play_draws(
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
-            stalled, tripped, its, v2, why, low)  # fmt: skip
+            stalled, tripped, its, v2, why, low, bool(only_march))  # fmt: skip
     k = max(1, min(threads or num_threads(), n))
     run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
     tripped[~ok] = np.nan
