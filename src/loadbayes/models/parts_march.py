@@ -59,9 +59,9 @@ from loadbayes.models.motor_kernel import (
     start_speed,
     steady_state,
 )
-from loadbayes.models.parts_loop import cdiv
+from loadbayes.models.parts_loop import cdiv, columns
 
-__all__ = ["MIN_STEP", "NEWTON_STEPS", "NEWTON_TOL", "march"]
+__all__ = ["MIN_STEP", "NEWTON_STEPS", "NEWTON_TOL", "march", "marched"]
 
 #: Newton steps at one sample (from the last root it takes 2-4) and its stopping rule:
 #: the step below this share of ``|V_L|``.
@@ -89,12 +89,12 @@ def _d_step(dt, vk, st, dp, force):  # pragma: no cover - compiled
     if stalled == 0.0:
         below = below + dt if vk < vstall else 0.0
         jump = below >= tstall
-        if (jump if force < 0 else force == 1):
+        if jump if force < 0 else force == 1:
             stalled, running = 1.0, 0.0
     elif restarted == 0.0:
         above = above + dt if vk > vrst else 0.0
         jump = above >= trst
-        if (jump if force < 0 else force == 1):
+        if jump if force < 0 else force == 1:
             restarted, running = 1.0, frst
     if vk >= vbrk:
         pr = p0 + kp1 * (vk - vbrk) ** np1
@@ -181,8 +181,10 @@ def _load(xl, c, ms, trial, ds, dtrial, el, force):  # pragma: no cover - compil
         lo = min(el[0], ramp)
         dtrial[5] = lo
         col_p += shares[j] * (lo + frcel * (ramp - lo))
-    s = complex(s_l0.real * col_p,
-                s_l0.real * col_qp + s_l0.imag * (q_sh[0] * x * x + q_sh[1] * x + q_sh[2]))
+    s = complex(
+        s_l0.real * col_p,
+        s_l0.real * col_qp + s_l0.imag * (q_sh[0] * x * x + q_sh[1] * x + q_sh[2]),
+    )
     return s, math.isfinite(s.real) and math.isfinite(s.imag), jump
 
 
@@ -234,9 +236,8 @@ def march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_
     """One draw's loop marched in time (module docstring): the samples played, or -2, -1.
 
     The samples it played (> 0), -2 a collapse, -1 a numerical failure. Writes ``po, qo``
-    (the recorded bus's P, Q at point samples; the load's S at the load bus with a window,
-    for ``parts_play`` to read again) and ``vl`` (complex ``V_L``); ``low[0]`` lowers to
-    the least ``|V_L| / |V|``.
+    (the recorded bus's P, Q), ``vl`` (complex ``V_L``); ``low[0]`` lowers to the least
+    ``|V_L| / |V|``.
     """
     n = t.size
     i0 = cdiv(s0, v[0]).conjugate()
@@ -312,9 +313,38 @@ def march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_
         for i in range(5):
             ds[i] = dtrial[i]
         el[0] = dtrial[5]
-        if window_s > 0.0:
-            po[k], qo[k] = s_k.real, s_k.imag
-        else:
-            rec = v[k] * cdiv(s_k, x)
-            po[k], qo[k] = rec.real, rec.imag
+        rec = v[k] * cdiv(s_k, x)  # the recorded bus's S: V conj(I)
+        po[k], qo[k] = rec.real, rec.imag
     return n
+
+
+@numba.njit(cache=True, nogil=True)
+def marched(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on, dp,
+            el_on, vd1, vd2, frcel, po, qo, u2, low, ratio):  # pragma: no cover  # fmt: skip
+    """The fifth try of ``parts_play._play_block``: :func:`march`, P and Q at the samples.
+
+    With a window, the recorded bus's P and Q from the window means of one pass of
+    ``parts_loop.columns`` through the marched load bus (the module docstring).
+    """
+    n = t.size
+    vl = np.empty(n, dtype=np.complex128)
+    got = march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
+                dp, el_on, vd1, vd2, frcel, po, qo, vl, u2, low, ratio)  # fmt: skip
+    if got <= 0 or window_s <= 0.0:
+        return got
+    vm, dl = np.abs(vl), np.zeros(n)
+    for k in range(n):
+        dl[k] = math.atan2(vl[k].imag, vl[k].real) - math.atan2(vl[0].imag, vl[0].real)
+    col_p, col_qp, pm, qm = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    if not columns(t, vm, dl if has_angle else np.zeros(n), u2, gap, steps, window_s, motors,
+                    shares, a_p, d_on, dp, el_on, vd1, vd2, frcel, col_p, col_qp, pm, qm,
+                    np.empty((3, n))):  # fmt: skip
+        return -1
+    s_l0 = s0 - z * abs(cdiv(s0, v[0])) ** 2
+    for k in range(n):
+        xl = vm[k] / vm[0]
+        s = complex(s_l0.real * col_p[k], s_l0.real * col_qp[k] + s_l0.imag * (
+            q_sh[0] * xl * xl + q_sh[1] * xl + q_sh[2]))  # fmt: skip
+        rec = v[k] * cdiv(s, vl[k])
+        po[k], qo[k] = rec.real, rec.imag
+    return got

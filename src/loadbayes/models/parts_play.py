@@ -50,9 +50,15 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
 from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
-from loadbayes.models.parts_kernel import motor_drive, motor_into
-from loadbayes.models.parts_loop import SOLVE_SWEEPS, brake_of, cdiv, continues, pv_root
-from loadbayes.models.parts_march import march
+from loadbayes.models.parts_loop import (
+    SOLVE_SWEEPS,
+    brake_of,
+    cdiv,
+    columns,
+    continues,
+    pv_root,
+)
+from loadbayes.models.parts_march import marched
 
 __all__ = [
     "COLLAPSES",
@@ -112,49 +118,6 @@ class Played:
 
 
 @numba.njit(cache=True, nogil=True)
-def _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on, vd1,
-             vd2, frcel, col_p, col_qp, pm, qm, states):  # pragma: no cover - compiled  # fmt: skip
-    # PartsModel.load_columns at the load bus (vm, dl: |V_L| and its angle from the first
-    # sample; u2 the motors' braking drive, empty for none): P's column on p0 and Q's;
-    # False where a motor has no steady state.
-    n = t.size
-    v0 = vm[0]
-    f_s = shares[shares.size - 1]
-    for k in range(n):
-        xl = vm[k] / v0
-        col_p[k] = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
-        col_qp[k] = 0.0
-    drive = motor_drive(t, vm, dl, u2, gap, steps, window_s)  # parts.step_knots
-    for j in range(motors.shape[0]):
-        if not motor_into(motors[j], t, vm, dl, u2, drive, window_s, pm, qm, states):
-            return False
-        fj = shares[j]
-        for k in range(n):
-            xl = vm[k] / v0
-            col_p[k] += fj * pm[k] / pm[0]
-            col_qp[k] += fj * (qm[k] - qm[0] * xl * xl) / pm[0]
-    j = motors.shape[0]
-    if d_on:
-        pd, qd = _motor_d(t, vm, dp[0], dp[1], dp[2], dp[3], dp[4], dp[5], dp[6], dp[7],
-                          dp[8], dp[9], dp[10], dp[11], dp[12], dp[13], dp[14], dp[15],
-                          dp[16])  # fmt: skip
-        fj = shares[j]
-        for k in range(n):
-            xl = vm[k] / v0
-            col_p[k] += fj * pd[k] / pd[0]
-            col_qp[k] += fj * (qd[k] - qd[0] * xl * xl) / pd[0]
-        j += 1
-    if el_on:
-        fj = shares[j]
-        low = 1.0
-        for k in range(n):
-            ramp = min(max((vm[k] - vd2) / (vd1 - vd2), 0.0), 1.0)
-            low = min(low, ramp)
-            col_p[k] += fj * (low + frcel * (ramp - low))
-    return True
-
-
-@numba.njit(cache=True, nogil=True)
 def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
            dp, el_on, vd1, vd2, frcel, tol, max_it, damp, po, qo, u2, low,
            solve):  # pragma: no cover - compiled  # fmt: skip
@@ -187,7 +150,7 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
             first = math.atan2(vl[0].imag, vl[0].real)
             for k in range(n):
                 dl[k] = math.atan2(vl[k].imag, vl[k].real) - first
-        if not _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp,
+        if not columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp,
                         el_on, vd1, vd2, frcel, col_p, col_qp, pm, qm, states):  # fmt: skip
             return -1
         moved = 0.0
@@ -272,9 +235,9 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                              True)  # fmt: skip
         if np.all(np.isfinite(u2)):
             if got <= 0:  # none settled: marched in time, sample by sample
-                got = _marched(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
-                               motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i],
-                               vd2[i], frcel, p[i], q[i], u2, low[i : i + 1])  # fmt: skip
+                got = marched(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                              motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
+                              frcel, p[i], q[i], u2, low[i : i + 1], COLLAPSE_RATIO)  # fmt: skip
             why[i] = PLAYS if got > 0 else (COLLAPSES if got == -2 or low[i] < COLLAPSE_RATIO
                                             else FAILS)  # fmt: skip
         its[i] = got
@@ -305,35 +268,6 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                 ramp = min(max((vl[k] - vd2[i]) / (vd1[i] - vd2[i]), 0.0), 1.0)
                 least = min(least, ramp)
             tripped[i] = 1.0 - (least + frcel * (ramp - least))
-
-
-@numba.njit(cache=True, nogil=True)
-def _marched(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on, dp,
-             el_on, vd1, vd2, frcel, po, qo, u2, low):  # pragma: no cover - compiled  # fmt: skip
-    # The fifth try, parts_march.march; with a window, P and Q the window means of one pass
-    # of _columns through the marched load bus (parts_march's docstring).
-    n = t.size
-    vl = np.empty(n, dtype=np.complex128)
-    got = march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_p, d_on,
-                dp, el_on, vd1, vd2, frcel, po, qo, vl, u2, low, COLLAPSE_RATIO)  # fmt: skip
-    if got <= 0 or window_s <= 0.0:
-        return got
-    vm, dl = np.abs(vl), np.zeros(n)
-    for k in range(n):
-        dl[k] = math.atan2(vl[k].imag, vl[k].real) - math.atan2(vl[0].imag, vl[0].real)
-    col_p, col_qp, pm, qm = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    if not _columns(t, vm, dl if has_angle else np.zeros(n), u2, gap, steps, window_s, motors,
-                    shares, a_p, d_on, dp, el_on, vd1, vd2, frcel, col_p, col_qp, pm, qm,
-                    np.empty((3, n))):  # fmt: skip
-        return -1
-    s_l0 = s0 - z * abs(cdiv(s0, v[0])) ** 2
-    for k in range(n):
-        xl = vm[k] / vm[0]
-        s = complex(s_l0.real * col_p[k], s_l0.real * col_qp[k] + s_l0.imag * (
-            q_sh[0] * xl * xl + q_sh[1] * xl + q_sh[2]))  # fmt: skip
-        rec = v[k] * cdiv(s, vl[k])
-        po[k], qo[k] = rec.real, rec.imag
-    return got
 
 
 @numba.njit(cache=True, nogil=True)
