@@ -128,7 +128,10 @@ def test_where_the_static_q_swings_both_paths_tell_the_same():
     # Draws 1, 3, 5, 7 get 20 % to 50 % of WILD_Q: the plain and the damped sweeps do not
     # settle them; the tries that solve each sample's load bus tell each one as the
     # reference does: its load bus's P-V equation has no root (a collapse), or the loop
-    # does not settle on one operating point (measured: 2 collapse, 2 fail). Draws that
+    # does not settle on one operating point; then the march in time (parts_march) plays
+    # or collapses them (measured: 2 collapsed and 2 failed before the march; with it 3
+    # collapse, and draw 7, whose last sweep found no root, plays: its load bus rises to
+    # 1.03 as V falls to 0.7, the wild Q's capacitive share lifting it). Draws that
     # settle are checked against the feeder's loop, S_L recomputed from the parts.
     model = dynamic_model("cmld-lite", f_hz=60.0)
     event = _fault(0.3)

@@ -15,12 +15,17 @@ only carry the dynamic parts' lag. Where that equation has no root near the swee
 voltage the load's P-V nose lies below what the feeder can carry at that sample: a
 collapse, not a numerical failure (``parts_play.COLLAPSES``).
 
-What is left failing (the shallow fit at a 44 % sag: 15 of 100, traced on 4): the solved
+What was left failing (the shallow fit at a 44 % sag: 15 of 100, traced on 4; the tests'
+cmld-lite fit, ``cmld_lite_nc``: 3 of 150 draws at 70 % and 3 at 80 %): the solved
 sweeps do settle, at trajectories that :func:`continues` rejects, the load bus jumping
-between two operating points of the draw's static Q from one sample to the next. A
-solve step by step in time (each sample from the last, the motors integrated with it, as
-a simulator does) would pick one; whole-waveform sweeps started from the previous
-sample's root settled fewer (see :func:`pv_root`).
+between two operating points of the draw's static Q from one sample to the next. Ten
+times the sweeps did not help. ``parts_march`` now solves those draws step by step in
+time (each sample from the last, the motors integrated with it, as a simulator does),
+which picks one: on ``cmld_lite_nc`` the 6 play or collapse (5 play, 1 reaches the nose
+at 80 %), none fails; and one draw at 80 % that the sweeps had called a collapse (a
+sweep drove ``V_L`` to 0.036 of ``V``, none settled) plays when marched (its load bus
+never below 0.80 of ``V``). Whole-waveform sweeps started from the previous sample's
+root settled fewer (see :func:`pv_root`).
 """
 
 from __future__ import annotations

@@ -23,15 +23,28 @@ at 0.5; ``parts_loop.SOLVE_SWEEPS`` each) solve every sample's load bus jointly 
 static part's draw (``parts_loop.pv_root``: the P-V equation of that sample, the rest of
 the load held as a constant impedance there), so the sweeps carry only the dynamic
 parts' lag; a settled loop must then be the one a simulator's step reaches from the
-previous sample (``parts_loop.continues``), not one jumping between two operating points. Their
-last sweep finding no root at some sample is a collapse (the load's P-V nose below the
-feeder's). Draws that settled before keep their numbers byte for byte: the new tries run
-only where both old ones failed.
+previous sample (``parts_loop.continues``), not one jumping between two operating points.
+Where none of the four settles, a fifth try marches in time (``parts_march``: sample by
+sample from the last, the motors integrated with it, each sample's load bus by Newton
+from the previous one's), as a simulator does: it plays, or collapses where no root
+continues from the previous one (the load's P-V nose below the feeder's) or the root
+falls below :data:`COLLAPSE_RATIO`; it fails only where its numbers leave the finite
+ones. On the tests' cmld-lite fit (``cmld_lite_nc``, 150 draws) 3 draws failed
+numerically at 70 % and 3 at 80 % before the march; after it none (5 play, 1
+collapses), and where the sweeps settle the march gives their numbers to the sweeps'
+stopping rule (``tests/integration/test_predict_march.py``). Draws that settled before
+keep their numbers byte for byte: each new try runs only where the ones before failed
+(sha256 of every field of the 115 and 95 settled draws at 70 and 80 %, before and after).
 
-The cost is now the motor integrators' (``benchmarks/bench_predict.py``: about 2.5 ms of
+The cost is the motor integrators' (``benchmarks/bench_predict.py``: about 2.5 ms of
 CPU a draw of ``cmld-lite`` through a 1 s record at 240/s, some 28 sweeps of two motors;
-the NumPy loop took twice that). Fewer sweeps (an accelerated or a sample-by-sample
-solve of the loop) would move each answer by up to the loop's tolerance, 1e-7, and is
+the NumPy loop took twice that). A draw that no sweep settles pays for all four tries:
+on the fixture's 1.8 s record at 80 % (one thread, load 4.5-5) 146 ms of CPU a
+collapsing draw and 55 ms a marched one that plays, against 20 ms a settled one; the
+march alone takes 5-8 ms a draw, settled or not (``predict`` at 80 %, 150 draws: 9.1-9.8
+s of CPU before the march, 9.1-10.4 s after, within the machine's noise). Marching every
+draw first would be cheaper, but would move each settled answer by up to the sweeps'
+tolerance (1e-7 in ``V_L``; P and Q by a median 1e-7 to 3e-7 on the fixture), and is
 not done here: a prediction keeps the numbers it gave.
 """
 
@@ -72,13 +85,15 @@ __all__ = [
 
 #: ``Played.why``: the loop converged (the draw plays through the fault); ...
 PLAYS = 0
-#: ... it did not (its sweeps did not settle, in none of the four tries, or left the
-#: finite numbers) after a sweep drove the load bus below :data:`COLLAPSE_RATIO` of the
-#: recorded bus's voltage, or the last try's last sweep found no root of some sample's
-#: P-V equation (``parts_loop.pv_root``): what the load draws through the feeder has no
-#: voltage to settle at, the model's voltage collapse (``Played.low``); ...
+#: ... it did not (its sweeps did not settle, in none of the four tries, and the march
+#: in time did not reach the end) after a sweep or the march drove the load bus below
+#: :data:`COLLAPSE_RATIO` of the recorded bus's voltage, or the march found no root
+#: continuing from the previous sample's (``parts_march``): what the load draws through
+#: the feeder has no voltage to settle at, the model's voltage collapse (``Played.low``);
+#: ...
 COLLAPSES = 1
-#: ... it did not, the load bus held above that: a numerical failure, not a collapse; ...
+#: ... it did not, the load bus held above that: a numerical failure, not a collapse
+#: (the march's numbers left the finite ones); ...
 FAILS = 2
 NO_OPERATING_POINT = 3
 #: The load bus's voltage, as a share of the recorded bus's at the same sample, below
@@ -99,11 +114,11 @@ class Played:
     ``p, q``: the recorded bus's P, Q; ``vl``: the load bus's ``|V_L|``; ``ok``: the loop
     converged (False where a motor has no steady state or the sweeps do not settle);
     ``stalled``: motor D stalled; ``tripped``: the electronics' share tripped at the
-    end; ``iterations``: the sweeps of the try that converged; ``why``: :data:`PLAYS`,
-    :data:`COLLAPSES`, :data:`FAILS` or :data:`NO_OPERATING_POINT` (where a motor has no
-    steady state at the operating point the loop's first sweep fails too:
+    end; ``iterations``: the sweeps of the try that converged (marched: the samples);
+    ``why``: :data:`PLAYS`, :data:`COLLAPSES`, :data:`FAILS` or :data:`NO_OPERATING_POINT`
+    (where a motor has no steady state at the operating point the loop's first sweep fails too:
     ``fit/composite/predict_outcome.py`` tells them apart by a fault-free record);
-    ``low``: the lowest ``|V_L| / |V|`` any sweep drove the parts with.
+    ``low``: the lowest ``|V_L| / |V|`` any sweep (or the march) drove the parts with.
     """
 
     p: NDArray[np.float64]
@@ -204,7 +219,7 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                 its, v2, why, low, only_march):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
     # for up to 200 where they do not settle or leave the finite numbers, then each
-    # sample solved, plain and damped), ``why`` its
+    # sample solved, plain and damped, then marched in time; only_march: that alone), ``why`` its
     # outcome (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT), then its stall and the
     # electronics' trip read off |V_L| at every sample, as fit/composite/predict.py read them.
     n = t.size
