@@ -27,17 +27,25 @@ tried, where Newton fails, with the jump forced each way; a root whose ``|V_L|``
 with the way forced is kept (the one without the jump first).
 
 At point samples (``window_s`` 0) this solves the very equations the sweeps solve, in
-order (no sweep merges samples into one RK4 step where two samples are ``h_max`` or more
-apart, 200/s and below at the default 5 ms; above that they may): where a sweep settles,
-the two agree to the sweeps' stopping rule (``tests/unit/test_parts_march.py``). The
-motors' start speed is read off the recorded bus's angle (the sweeps read it off
-``V_L``'s, which in a steady start turns with it). With a phasor window
-(``window_s`` > 0) the loop is solved at the instants, the voltage stepping at each gap's
-step instant as ``parts_kernel.knots_of`` steps it; the P and Q reported are then one
-pass of ``parts_play._columns`` (window means of the motors) through the marched
-``V_L``: the loop the march solves is the instantaneous one, not the window means' (a
-non-causal one, the window reaching half a window ahead), so there the two agree only
-to the window's smoothing of ``V_L``.
+order (a sweep merges samples into one RK4 step only where two intervals fit in a
+motor's step, 400/s and more at the default 5 ms): where the sweeps settle at ``tol``
+1e-12 the two agree to 1e-11 on random draws (``tests/unit/test_parts_play.py``) and to
+2.3e-10 on the tests' fit at a 70 % sag (``tests/integration/test_predict_march.py``,
+which derives the 1e-9 it asserts from the sweeps' stopping rule). Against the same load
+solved as a DAE by SciPy the march's error is of second order in the sample interval
+(``V_L`` linear between samples): 1.1e-3 p.u. at 250/s, a quarter of it at 500/s
+(``tests/unit/test_parts_march.py``). The motors' start speed is read off the recorded
+bus's angle (the sweeps read it off ``V_L``'s, which in a steady start turns with it).
+
+With a phasor window (``window_s`` > 0) the loop is solved at the instants, the voltage
+stepping at each gap's step instant as ``parts_kernel.knots_of`` steps it; the P and Q
+reported are one pass of ``parts_loop.columns`` (the motors' window means) through the
+marched ``V_L`` (:func:`marched`). The loop the march solves is the instantaneous one,
+not the window means' that the sweeps solve (a non-causal one, each window reaching half
+a window ahead): where a sample's window holds no step the reported P is the window mean
+of the march's own P to ``W^2 / 24 P''``; within a window of a step the two loops differ
+(by up to 0.3 p.u. on the tests' fit read as one-cycle windows at a 50 % sag), and motor
+D, deciding its stall on ``|V_L|`` at the samples, may stall in one and not the other.
 """
 
 from __future__ import annotations
