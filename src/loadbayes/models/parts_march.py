@@ -309,7 +309,7 @@ def march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_
             if got == -1:
                 return -2 if abs(x) < ratio * abs(vk) else -1
             if got == 0:
-                if step > MIN_STEP:
+                if step > MIN_STEP and abs(dv) > 0.0:  # (V still: the same problem again)
                     step *= 0.5
                     continue
                 return -2  # no root continues from the previous one: the nose
