@@ -296,13 +296,17 @@ def march(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a_
         while lam < 1.0:
             target = min(1.0, lam + step)
             vk = v[k - 1] + target * dv if target < 1.0 else v[k]
-            root, s, got = _newton(x, vk, z, c, ms, trial, ds, dtrial, el, -1)
-            if got == 0 and d_on:  # motor D's jump forced each way, kept where it agrees
-                for force in (0, 1):
-                    r2, s2, g2 = _newton(x, vk, z, c, ms, trial, ds, dtrial, el, force)
-                    if g2 == 1 and _d_step(t[k] - t[k - 1], abs(r2), ds, dp, -1)[7] == (force == 1):
-                        root, s, got = r2, s2, 1
+            root, s, got = x, s_k, 0
+            for force in range(-1, 2 if d_on else 0):  # as it falls, then motor D's jump
+                r2, s2, g2 = _newton(x, vk, z, c, ms, trial, ds, dtrial, el, force)
+                if force < 0:
+                    root, s, got = r2, s2, g2
+                    if g2 != 0:
                         break
+                # forced each way: kept where the root agrees with the way forced
+                elif g2 == 1 and _d_step(t[k] - t[k - 1], abs(r2), ds, dp, -1)[7] == (force == 1):
+                    root, s, got = r2, s2, 1
+                    break
             if got == 1 and abs(root) < ratio * abs(vk):
                 low[0] = min(low[0], abs(root) / abs(vk))
                 return -2

@@ -42,7 +42,9 @@ the NumPy loop took twice that). A draw that no sweep settles pays for all four 
 on the fixture's 1.8 s record at 80 % (one thread, load 4.5-5) 146 ms of CPU a
 collapsing draw and 55 ms a marched one that plays, against 20 ms a settled one; the
 march alone takes 5-8 ms a draw, settled or not (``predict`` at 80 %, 150 draws: 9.1-9.8
-s of CPU before the march, 9.1-10.4 s after, within the machine's noise). Marching every
+s of CPU before the march, 9.1-10.4 s after, within the machine's noise); compiling it
+adds about 15 s to the first call with an empty numba cache (``predict`` at 80 %, 20
+draws: 48.5 s of CPU before, 63.3 s after). Marching every
 draw first would be cheaper, but would move each settled answer by up to the sweeps'
 tolerance (1e-7 in ``V_L``; P and Q by a median 1e-7 to 3e-7 on the fixture), and is
 not done here: a prediction keeps the numbers it gave.
