@@ -23,15 +23,30 @@ at 0.5; ``parts_loop.SOLVE_SWEEPS`` each) solve every sample's load bus jointly 
 static part's draw (``parts_loop.pv_root``: the P-V equation of that sample, the rest of
 the load held as a constant impedance there), so the sweeps carry only the dynamic
 parts' lag; a settled loop must then be the one a simulator's step reaches from the
-previous sample (``parts_loop.continues``), not one jumping between two operating points. Their
-last sweep finding no root at some sample is a collapse (the load's P-V nose below the
-feeder's). Draws that settled before keep their numbers byte for byte: the new tries run
-only where both old ones failed.
+previous sample (``parts_loop.continues``), not one jumping between two operating points.
+Where none of the four settles, a fifth try marches in time (``parts_march``: sample by
+sample from the last, the motors integrated with it, each sample's load bus by Newton
+from the previous one's), as a simulator does: it plays, or collapses where no root
+continues from the previous one (the load's P-V nose below the feeder's) or the root
+falls below :data:`COLLAPSE_RATIO`; it fails only where its numbers leave the finite
+ones. On the tests' cmld-lite fit (``cmld_lite_nc``, 150 draws) 3 draws failed
+numerically at 70 % and 3 at 80 % before the march; after it none (5 play, 1
+collapses), and where the sweeps settle the march gives their numbers to the sweeps'
+stopping rule (``tests/integration/test_predict_march.py``). Draws that settled before
+keep their numbers byte for byte: each new try runs only where the ones before failed
+(sha256 of every field of the 115 and 95 settled draws at 70 and 80 %, before and after).
 
-The cost is now the motor integrators' (``benchmarks/bench_predict.py``: about 2.5 ms of
+The cost is the motor integrators' (``benchmarks/bench_predict.py``: about 2.5 ms of
 CPU a draw of ``cmld-lite`` through a 1 s record at 240/s, some 28 sweeps of two motors;
-the NumPy loop took twice that). Fewer sweeps (an accelerated or a sample-by-sample
-solve of the loop) would move each answer by up to the loop's tolerance, 1e-7, and is
+the NumPy loop took twice that). A draw that no sweep settles pays for all four tries:
+on the fixture's 1.8 s record at 80 % (one thread, load 4.5-5) 146 ms of CPU a
+collapsing draw and 55 ms a marched one that plays, against 20 ms a settled one; the
+march alone takes 5-8 ms a draw, settled or not (``predict`` at 80 %, 150 draws: 9.1-9.8
+s of CPU before the march, 9.1-10.4 s after, within the machine's noise); compiling it
+adds about 15 s to the first call with an empty numba cache (``predict`` at 80 %, 20
+draws: 48.5 s of CPU before, 63.3 s after). Marching every
+draw first would be cheaper, but would move each settled answer by up to the sweeps'
+tolerance (1e-7 in ``V_L``; P and Q by a median 1e-7 to 3e-7 on the fixture), and is
 not done here: a prediction keeps the numbers it gave.
 """
 
@@ -50,8 +65,15 @@ from loadbayes.measurements.record import EventRecord
 from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
 from loadbayes.models.part_priors import MOTOR_CLASSES
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d, gaps_of
-from loadbayes.models.parts_kernel import motor_drive, motor_into
-from loadbayes.models.parts_loop import SOLVE_SWEEPS, brake_of, cdiv, continues, pv_root
+from loadbayes.models.parts_loop import (
+    SOLVE_SWEEPS,
+    brake_of,
+    cdiv,
+    columns,
+    continues,
+    pv_root,
+)
+from loadbayes.models.parts_march import marched
 
 __all__ = [
     "COLLAPSES",
@@ -65,13 +87,15 @@ __all__ = [
 
 #: ``Played.why``: the loop converged (the draw plays through the fault); ...
 PLAYS = 0
-#: ... it did not (its sweeps did not settle, in none of the four tries, or left the
-#: finite numbers) after a sweep drove the load bus below :data:`COLLAPSE_RATIO` of the
-#: recorded bus's voltage, or the last try's last sweep found no root of some sample's
-#: P-V equation (``parts_loop.pv_root``): what the load draws through the feeder has no
-#: voltage to settle at, the model's voltage collapse (``Played.low``); ...
+#: ... it did not (its sweeps did not settle, in none of the four tries, and the march
+#: in time did not reach the end) after a sweep or the march drove the load bus below
+#: :data:`COLLAPSE_RATIO` of the recorded bus's voltage, or the march found no root
+#: continuing from the previous sample's (``parts_march``): what the load draws through
+#: the feeder has no voltage to settle at, the model's voltage collapse (``Played.low``);
+#: ...
 COLLAPSES = 1
-#: ... it did not, the load bus held above that: a numerical failure, not a collapse; ...
+#: ... it did not, the load bus held above that: a numerical failure, not a collapse
+#: (the march's numbers left the finite ones); ...
 FAILS = 2
 NO_OPERATING_POINT = 3
 #: The load bus's voltage, as a share of the recorded bus's at the same sample, below
@@ -92,11 +116,11 @@ class Played:
     ``p, q``: the recorded bus's P, Q; ``vl``: the load bus's ``|V_L|``; ``ok``: the loop
     converged (False where a motor has no steady state or the sweeps do not settle);
     ``stalled``: motor D stalled; ``tripped``: the electronics' share tripped at the
-    end; ``iterations``: the sweeps of the try that converged; ``why``: :data:`PLAYS`,
-    :data:`COLLAPSES`, :data:`FAILS` or :data:`NO_OPERATING_POINT` (where a motor has no
-    steady state at the operating point the loop's first sweep fails too:
+    end; ``iterations``: the sweeps of the try that converged (marched: the samples);
+    ``why``: :data:`PLAYS`, :data:`COLLAPSES`, :data:`FAILS` or :data:`NO_OPERATING_POINT`
+    (where a motor has no steady state at the operating point the loop's first sweep fails too:
     ``fit/composite/predict_outcome.py`` tells them apart by a fault-free record);
-    ``low``: the lowest ``|V_L| / |V|`` any sweep drove the parts with.
+    ``low``: the lowest ``|V_L| / |V|`` any sweep (or the march) drove the parts with.
     """
 
     p: NDArray[np.float64]
@@ -108,49 +132,6 @@ class Played:
     iterations: NDArray[np.int64]
     why: NDArray[np.int64]
     low: NDArray[np.float64]
-
-
-@numba.njit(cache=True, nogil=True)
-def _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp, el_on, vd1,
-             vd2, frcel, col_p, col_qp, pm, qm, states):  # pragma: no cover - compiled  # fmt: skip
-    # PartsModel.load_columns at the load bus (vm, dl: |V_L| and its angle from the first
-    # sample; u2 the motors' braking drive, empty for none): P's column on p0 and Q's;
-    # False where a motor has no steady state.
-    n = t.size
-    v0 = vm[0]
-    f_s = shares[shares.size - 1]
-    for k in range(n):
-        xl = vm[k] / v0
-        col_p[k] = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
-        col_qp[k] = 0.0
-    drive = motor_drive(t, vm, dl, u2, gap, steps, window_s)  # parts.step_knots
-    for j in range(motors.shape[0]):
-        if not motor_into(motors[j], t, vm, dl, u2, drive, window_s, pm, qm, states):
-            return False
-        fj = shares[j]
-        for k in range(n):
-            xl = vm[k] / v0
-            col_p[k] += fj * pm[k] / pm[0]
-            col_qp[k] += fj * (qm[k] - qm[0] * xl * xl) / pm[0]
-    j = motors.shape[0]
-    if d_on:
-        pd, qd = _motor_d(t, vm, dp[0], dp[1], dp[2], dp[3], dp[4], dp[5], dp[6], dp[7],
-                          dp[8], dp[9], dp[10], dp[11], dp[12], dp[13], dp[14], dp[15],
-                          dp[16])  # fmt: skip
-        fj = shares[j]
-        for k in range(n):
-            xl = vm[k] / v0
-            col_p[k] += fj * pd[k] / pd[0]
-            col_qp[k] += fj * (qd[k] - qd[0] * xl * xl) / pd[0]
-        j += 1
-    if el_on:
-        fj = shares[j]
-        low = 1.0
-        for k in range(n):
-            ramp = min(max((vm[k] - vd2) / (vd1 - vd2), 0.0), 1.0)
-            low = min(low, ramp)
-            col_p[k] += fj * (low + frcel * (ramp - low))
-    return True
 
 
 @numba.njit(cache=True, nogil=True)
@@ -186,7 +167,7 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
             first = math.atan2(vl[0].imag, vl[0].real)
             for k in range(n):
                 dl[k] = math.atan2(vl[k].imag, vl[k].real) - first
-        if not _columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp,
+        if not columns(t, vm, dl, u2, gap, steps, window_s, motors, shares, a_p, d_on, dp,
                         el_on, vd1, vd2, frcel, col_p, col_qp, pm, qm, states):  # fmt: skip
             return -1
         moved = 0.0
@@ -237,10 +218,10 @@ def _relax(t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares, a
 @numba.njit(cache=True, nogil=True)
 def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh, motors, shares,
                 a_p, d_on, dp, el_on, vd1, vd2, frcel, tol, p, q, vl_out, ok, stalled, tripped,
-                its, v2, why, low):  # pragma: no cover - compiled  # fmt: skip
+                its, v2, why, low, only_march):  # pragma: no cover - compiled  # fmt: skip
     # Draws first, first + every, ...: each one's loop (plain sweeps, then damped at 0.5
     # for up to 200 where they do not settle or leave the finite numbers, then each
-    # sample solved, plain and damped), ``why`` its
+    # sample solved, plain and damped, then marched in time; only_march: that alone), ``why`` its
     # outcome (PLAYS, COLLAPSES, FAILS, NO_OPERATING_POINT), then its stall and the
     # electronics' trip read off |V_L| at every sample, as fit/composite/predict.py read them.
     n = t.size
@@ -250,7 +231,7 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
         u2 = brake_of(v, v2, z[i], s0, motors[i], shares[i], d_on)
         got = -1
         why[i] = NO_OPERATING_POINT
-        if np.all(np.isfinite(u2)):
+        if np.all(np.isfinite(u2)) and not only_march:
             got = _relax(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i], motors[i],
                          shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i], frcel, tol, 60,
                          0.0, p[i], q[i], u2, low[i : i + 1], False)  # fmt: skip
@@ -269,6 +250,11 @@ def _play_block(first, every, t, v, has_angle, gap, steps, window_s, z, s0, q_sh
                              motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
                              frcel, tol, SOLVE_SWEEPS, 0.5, p[i], q[i], u2, low[i : i + 1],
                              True)  # fmt: skip
+        if np.all(np.isfinite(u2)):
+            if got <= 0:  # none settled: marched in time, sample by sample
+                got = marched(t, v, has_angle, gap, steps, window_s, z[i], s0, q_sh[i],
+                              motors[i], shares[i], a_p[i], d_on, dp[i], el_on, vd1[i], vd2[i],
+                              frcel, p[i], q[i], u2, low[i : i + 1], COLLAPSE_RATIO)  # fmt: skip
             why[i] = PLAYS if got > 0 else (COLLAPSES if got == -2 or low[i] < COLLAPSE_RATIO
                                             else FAILS)  # fmt: skip
         its[i] = got
@@ -319,6 +305,7 @@ def play_draws(
     *,
     tol: float = 1e-7,
     threads: int | None = None,
+    only_march: bool = False,
 ) -> Played:
     """Each draw's P, Q at the recorded bus through ``event``'s voltage (see the docstring).
 
@@ -338,6 +325,9 @@ def play_draws(
         left out is the model's own value for every draw.
     threads : int, optional
         Threads to run the draws on (default ``core.parallel.num_threads()``).
+    only_march : bool
+        Skip the sweeps: every draw marched in time (``parts_march``; the tests compare
+        the two).
 
     Returns
     -------
@@ -383,7 +373,7 @@ def play_draws(
             np.ascontiguousarray(q_shares, dtype=float), motors,
             np.ascontiguousarray(c["f"]), np.ascontiguousarray(c["a_p"]), bool(model.motor_d),
             dp, bool(model.electronics), vd1, vd2, float(model.frcel), float(tol), p, q, vl, ok,
-            stalled, tripped, its, v2, why, low)  # fmt: skip
+            stalled, tripped, its, v2, why, low, bool(only_march))  # fmt: skip
     k = max(1, min(threads or num_threads(), n))
     run_threads([lambda i=i: _play_block(i, k, *args) for i in range(k)])
     tripped[~ok] = np.nan

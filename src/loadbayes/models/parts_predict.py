@@ -314,16 +314,21 @@ def _failed(why: list | None, reason: str) -> None:
 
 def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: float,
                    q_shares: NDArray, thresholds: Mapping[str, NDArray] | None = None):  # fmt: skip
-    """``parts_play.play_draws``' answer, draw by draw in NumPy (the readable reference)."""
+    """``parts_play.play_draws``' answer, draw by draw in NumPy (the readable reference).
+
+    Its four sweeping tries are NumPy's (``predict_parts``); a draw none settles is marched
+    in time by the compiled ``parts_march`` (``play_draws(..., only_march=True)``).
+    """
     from loadbayes.models.parts_play import (
         COLLAPSE_RATIO,
         COLLAPSES,
         FAILS,
         NO_OPERATING_POINT,
         Played,
+        play_draws,
     )
 
-    th = np.atleast_2d(np.asarray(thetas, dtype=float))
+    th = thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
     n = th.shape[0]
     given = {k: np.broadcast_to(np.asarray(x, dtype=float), (n,)) for k, x in
              (thresholds or {}).items()}  # fmt: skip
@@ -344,6 +349,17 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
         low = [np.inf]
         got = predict_parts(mj, event, th[j], p0, q0, q_shares[j], why=why, low=low)
         lows[j] = low[0]
+        if got is None and why[-1] != "no operating point":  # the fifth try: marched in
+            # time (parts_march, compiled: it has no NumPy twin; tests/unit/test_parts_march.py
+            # checks it against SciPy)
+            one = play_draws(model, event, thetas[j : j + 1], p0, q0, q_shares[j : j + 1],
+                             {k: x[j : j + 1] for k, x in given.items()},
+                             only_march=True)  # fmt: skip
+            lows[j] = low[0] = min(low[0], float(one.low[0]))
+            if one.ok[0]:
+                got = one.p[0], one.q[0], int(one.iterations[0])
+            elif one.why[0] == COLLAPSES:
+                why.append("no root")
         if got is None:  # parts_play's codes: no operating point, a collapse or a failure
             whys[j] = (NO_OPERATING_POINT if why[-1] == "no operating point" else
                        COLLAPSES if why[-1] == "no root" or low[0] < COLLAPSE_RATIO else
