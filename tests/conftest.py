@@ -74,3 +74,14 @@ def cmld_lite_nc():
     from pathlib import Path
 
     return Path(__file__).resolve().parent / "data" / "cmld_lite_draws.nc"
+
+
+@pytest.fixture(scope="session")
+def cmld_lite_short_nc():
+    """The same data's one chain of 300 (``tests/data/cmld_lite_short_draws.nc``).
+
+    Wild static Q, where the feeder loop's sweeps fail at deep sags: the march's tests.
+    """
+    from pathlib import Path
+
+    return Path(__file__).resolve().parent / "data" / "cmld_lite_short_draws.nc"

@@ -1,10 +1,11 @@
 """The feeder loop marched in time (``models/parts_march.py``) on a fit's own draws.
 
-The posterior is the tests' cmld-lite fit of one 15 % sag from the SciPy feeder simulator
-(``tests/conftest.py``'s ``cmld_lite_nc``). ``play_draws`` is called with the arguments
-``predict`` gives it (captured), three ways: as ``predict`` runs it (the four sweeping
-tries, the march where none settles), with the sweeps' tolerance at 1e-12, and marching
-every draw (``only_march``).
+The posterior is the tests' short cmld-lite fit of one 15 % sag from the SciPy feeder
+simulator (``tests/conftest.py``'s ``cmld_lite_short_nc``: one chain of 300, frozen,
+its static Q still wild, where the sweeps fail at deep sags). ``play_draws`` is called
+with the arguments ``predict`` gives it (captured), three ways: as ``predict`` runs it
+(the four sweeping tries, the march where none settles), with the sweeps' tolerance at
+1e-12, and marching every draw (``only_march``).
 
 **Where the sweeps settle, the march agrees.** At point samples and 240/s (below 1/h_max,
 so no sweep merges samples into one RK4 step) the two solve the same equations: the
@@ -59,8 +60,8 @@ def _captured(monkeypatch, post, sag, draws):
 
 
 @pytest.mark.parametrize("sag", [0.3, 0.5, 0.7])
-def test_where_the_sweeps_settle_the_march_agrees(cmld_lite_nc, monkeypatch, sag):
-    post = Posterior.from_netcdf(cmld_lite_nc)
+def test_where_the_sweeps_settle_the_march_agrees(cmld_lite_short_nc, monkeypatch, sag):
+    post = Posterior.from_netcdf(cmld_lite_short_nc)
     a, k, _ = _captured(monkeypatch, post, sag, 40)
     swept = play_draws(*a, **{**k, "tol": 1e-12})
     marched = play_draws(*a, **k, only_march=True)
@@ -72,8 +73,8 @@ def test_where_the_sweeps_settle_the_march_agrees(cmld_lite_nc, monkeypatch, sag
     assert np.median(d) < 1e-11, np.median(d)
 
 
-def test_the_draws_no_sweep_settles_are_marched(cmld_lite_nc, monkeypatch):
-    post = Posterior.from_netcdf(cmld_lite_nc)
+def test_the_draws_no_sweep_settles_are_marched(cmld_lite_short_nc, monkeypatch):
+    post = Posterior.from_netcdf(cmld_lite_short_nc)
     marched = 0
     for sag in (0.7, 0.8):
         a, k, played = _captured(monkeypatch, post, sag, 200)
@@ -88,10 +89,10 @@ def test_the_draws_no_sweep_settles_are_marched(cmld_lite_nc, monkeypatch):
     assert marched >= 4  # 3 at 70 % and 3 at 80 % when the march was added
 
 
-def test_a_feeder_too_big_collapses_in_the_march(cmld_lite_nc, monkeypatch):
+def test_a_feeder_too_big_collapses_in_the_march(cmld_lite_short_nc, monkeypatch):
     # Every draw's feeder six times the fit's (test_predict_collapse.py's big feeder): at a
     # 70 % sag the draws with an operating point have no root continuing through the sag.
-    post = Posterior.from_netcdf(cmld_lite_nc)
+    post = Posterior.from_netcdf(cmld_lite_short_nc)
     x = np.array(post.draws["log_x_fd"], dtype=float)
     post.draws["log_x_fd"] = x + 1.8
     a, k, _ = _captured(monkeypatch, post, 0.7, 20)
@@ -102,7 +103,7 @@ def test_a_feeder_too_big_collapses_in_the_march(cmld_lite_nc, monkeypatch):
     assert not alone.ok[started].any()
 
 
-def test_with_a_window_the_march_reports_its_trajectorys_window_means(cmld_lite_nc,
+def test_with_a_window_the_march_reports_its_trajectorys_window_means(cmld_lite_short_nc,
                                                                       monkeypatch):  # fmt: skip
     # A fit read as one-cycle phasor window means (window_s 0.02): the march solves the
     # loop at the instants (as without a window: the record has no gaps) and reports the
@@ -111,7 +112,7 @@ def test_with_a_window_the_march_reports_its_trajectorys_window_means(cmld_lite_
     # smooth curve over W): bounded here by the point trajectory's second differences
     # (and 1.5 for their own error). Near a step the two differ by the step's share of
     # the window: not checked.
-    post = Posterior.from_netcdf(cmld_lite_nc)
+    post = Posterior.from_netcdf(cmld_lite_short_nc)
     a, k, _ = _captured(monkeypatch, post, 0.5, 20)
     point = play_draws(*a, **k, only_march=True)
     w = 0.02
