@@ -259,8 +259,10 @@ def test_the_sweep_without_a_stall_rises_to_one(swept_shallow):
 
 #: The shallow fit at a 36 % sag of 0.15 s, 100 draws, seed 0: its draws' feeder loops
 #: that fail numerically. Measured: 23 before each sample's load bus was solved with the
-#: static part (``models/parts_loop.py``), 7 after (4 collapse, 89 play). The bound
-#: leaves room for 3 more and catches the old loop's 23; deterministic (fixed seeds).
+#: static part (``models/parts_loop.py``), 7 after (4 collapse, 89 play); on a machine
+#: without AVX-512, whose chains differ, 22 with the four sweeping tries and none with
+#: the march (``models/parts_march.py``: 97 play, 3 collapse). The bound catches the old
+#: loop's 23 and the march's absence; deterministic given the machine (fixed seeds).
 SHALLOW_FAILS_AT_36 = 10
 
 
@@ -271,4 +273,4 @@ def test_the_shallow_fits_deep_draws_rarely_fail_numerically(shallow):
     out = pred.outcome
     assert out is not None, "some draw collapses or fails at 36 % (measured 4 and 7)"
     assert out["fails_numerically"]["n"] <= SHALLOW_FAILS_AT_36, out["message"]
-    assert out["plays"]["n"] >= 85, out["message"]  # 89 measured, 75 before
+    assert out["plays"]["n"] >= 85, out["message"]  # 89 and 97 measured, 75 before
