@@ -23,7 +23,8 @@ from scipy.optimize import root
 
 from loadbayes.models.motor_kernel import steady_state
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, _motor_d
-from loadbayes.models.parts_march import _d_step, march
+from loadbayes.models.parts import d_step as _d_step
+from loadbayes.models.parts_march import march
 
 WB = 2.0 * math.pi * 60.0
 # The IEEE task force's small industrial motor in transient form (X' = Xs + Xm || Xr,

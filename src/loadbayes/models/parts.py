@@ -53,6 +53,7 @@ __all__ = [
     "electronics_fraction",
     "gaps_of",
     "load_bus",
+    "d_step",
     "motor_d",
     "motor_y2",
     "step_knots",
@@ -136,41 +137,58 @@ def load_bus(event: EventRecord, r: float, x: float) -> LoadBus:
 
 
 @numba.njit(cache=True, nogil=True)
-def _motor_d(t, v, vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2, vstall, tstall, rstall,
-             xstall, frst, vrst, trst, comp_pf):  # pragma: no cover - compiled  # fmt: skip
-    n = t.size
-    p = np.empty(n)
-    q = np.empty(n)
+def d_step(dt, vk, st, dp, force):  # pragma: no cover - compiled
+    """One sample of motor D (``_motor_d`` runs it sample by sample; so does the march).
+
+    Its P, Q on its own base at ``|V_L| = vk``, ``dt`` after the last sample, from
+    ``st = (running, below, above, stalled, restarted)``, ``dp`` the 17 constants in
+    :data:`MOTOR_D_DEFAULTS`' order. Returns ``(p, q, running, below, above, stalled,
+    restarted, jump)``: ``jump``, whether it stalls (or restarts) at this sample;
+    ``force`` 0 / 1 makes it not / so (-1: as it falls).
+    """
+    vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2 = dp[:9]
+    vstall, tstall, rstall, xstall, frst, vrst, trst, comp_pf = dp[9:]
     tan_phi = math.sqrt(1.0 - comp_pf * comp_pf) / comp_pf
-    # Run curves through (1, 1) and (1, tan_phi) on the unit's own base at V = 1.
     p0 = 1.0 - kp1 * (1.0 - vbrk) ** np1
     q0 = tan_phi - kq1 * (1.0 - vbrk) ** nq1
     zz = rstall * rstall + xstall * xstall
     gs, bs = rstall / zz, xstall / zz
-    running = 1.0  # the share of the units running (the rest stalled)
-    below = 0.0  # time spent below vstall
-    above = 0.0  # time spent above vrst after a stall
-    stalled = False
-    restarted = False
+    running, below, above, stalled, restarted = st[0], st[1], st[2], st[3], st[4]
+    jump = False
+    if stalled == 0.0:
+        below = below + dt if vk < vstall else 0.0
+        jump = below >= tstall
+        if jump if force < 0 else force == 1:
+            stalled, running = 1.0, 0.0
+    elif restarted == 0.0:
+        above = above + dt if vk > vrst else 0.0
+        jump = above >= trst
+        if jump if force < 0 else force == 1:
+            restarted, running = 1.0, frst
+    if vk >= vbrk:
+        pr = p0 + kp1 * (vk - vbrk) ** np1
+        qr = q0 + kq1 * (vk - vbrk) ** nq1
+    else:
+        pr = p0 + kp2 * (vbrk - vk) ** np2
+        qr = q0 + kq2 * (vbrk - vk) ** nq2
+    p = running * pr + (1.0 - running) * gs * vk * vk
+    q = running * qr + (1.0 - running) * bs * vk * vk
+    return p, q, running, below, above, stalled, restarted, jump
+
+
+@numba.njit(cache=True, nogil=True)
+def _motor_d(t, v, vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2, vstall, tstall, rstall,
+             xstall, frst, vrst, trst, comp_pf):  # pragma: no cover - compiled  # fmt: skip
+    # Sample by sample (d_step, the march's step too), from every unit running.
+    n = t.size
+    p = np.empty(n)
+    q = np.empty(n)
+    dp = np.array([vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2, vstall, tstall, rstall,
+                   xstall, frst, vrst, trst, comp_pf])  # fmt: skip
+    st = np.array([1.0, 0.0, 0.0, 0.0, 0.0])  # running, below, above, stalled, restarted
     for k in range(n):
         dt = 0.0 if k == 0 else t[k] - t[k - 1]
-        vk = v[k]
-        if not stalled:
-            below = below + dt if vk < vstall else 0.0
-            if below >= tstall:
-                stalled, running = True, 0.0
-        elif not restarted:
-            above = above + dt if vk > vrst else 0.0
-            if above >= trst:
-                restarted, running = True, frst
-        if vk >= vbrk:
-            pr = p0 + kp1 * (vk - vbrk) ** np1
-            qr = q0 + kq1 * (vk - vbrk) ** nq1
-        else:
-            pr = p0 + kp2 * (vbrk - vk) ** np2
-            qr = q0 + kq2 * (vbrk - vk) ** nq2
-        p[k] = running * pr + (1.0 - running) * gs * vk * vk
-        q[k] = running * qr + (1.0 - running) * bs * vk * vk
+        p[k], q[k], st[0], st[1], st[2], st[3], st[4], _ = d_step(dt, v[k], st, dp, -1)
     return p, q
 
 

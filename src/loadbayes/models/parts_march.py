@@ -67,6 +67,7 @@ from loadbayes.models.motor_kernel import (
     start_speed,
     steady_state,
 )
+from loadbayes.models.parts import d_step as _d_step
 from loadbayes.models.parts_loop import cdiv, columns
 
 __all__ = ["MIN_STEP", "NEWTON_STEPS", "NEWTON_TOL", "march", "marched"]
@@ -77,42 +78,6 @@ NEWTON_STEPS = 40
 NEWTON_TOL = 1e-12
 #: The finest step of the continuation parameter ``l`` before a sample's root is given up.
 MIN_STEP = 1.0 / 4096.0
-
-
-@numba.njit(cache=True, nogil=True)
-def _d_step(dt, vk, st, dp, force):  # pragma: no cover - compiled
-    # One sample of parts._motor_d (the same arithmetic, in its order): motor D's P, Q on
-    # its own base at |V_L| = vk, from st = (running, below, above, stalled, restarted);
-    # returns (p, q, running, below, above, stalled, restarted, jump): jump, whether it
-    # stalls (or restarts) at this sample; force 0 / 1 makes it not / so (-1: as it falls).
-    vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2 = dp[:9]
-    vstall, tstall, rstall, xstall, frst, vrst, trst, comp_pf = dp[9:]
-    tan_phi = math.sqrt(1.0 - comp_pf * comp_pf) / comp_pf
-    p0 = 1.0 - kp1 * (1.0 - vbrk) ** np1
-    q0 = tan_phi - kq1 * (1.0 - vbrk) ** nq1
-    zz = rstall * rstall + xstall * xstall
-    gs, bs = rstall / zz, xstall / zz
-    running, below, above, stalled, restarted = st[0], st[1], st[2], st[3], st[4]
-    jump = False
-    if stalled == 0.0:
-        below = below + dt if vk < vstall else 0.0
-        jump = below >= tstall
-        if jump if force < 0 else force == 1:
-            stalled, running = 1.0, 0.0
-    elif restarted == 0.0:
-        above = above + dt if vk > vrst else 0.0
-        jump = above >= trst
-        if jump if force < 0 else force == 1:
-            restarted, running = 1.0, frst
-    if vk >= vbrk:
-        pr = p0 + kp1 * (vk - vbrk) ** np1
-        qr = q0 + kq1 * (vk - vbrk) ** nq1
-    else:
-        pr = p0 + kp2 * (vbrk - vk) ** np2
-        qr = q0 + kq2 * (vbrk - vk) ** nq2
-    p = running * pr + (1.0 - running) * gs * vk * vk
-    q = running * qr + (1.0 - running) * bs * vk * vk
-    return p, q, running, below, above, stalled, restarted, jump
 
 
 @numba.njit(cache=True, nogil=True)
