@@ -146,14 +146,29 @@ def d_step(dt, vk, st, dp, force):  # pragma: no cover - compiled
     restarted, jump)``: ``jump``, whether it stalls (or restarts) at this sample;
     ``force`` 0 / 1 makes it not / so (-1: as it falls).
     """
-    vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2 = dp[:9]
-    vstall, tstall, rstall, xstall, frst, vrst, trst, comp_pf = dp[9:]
+    return _d_sample(dt, vk, st[0], st[1], st[2], st[3], st[4], dp, _d_constants(dp), force)
+
+
+@numba.njit(cache=True, nogil=True)
+def _d_constants(dp):  # pragma: no cover - compiled
+    # The run curves through (1, 1) and (1, tan_phi) on the unit's own base at V = 1, the
+    # stalled units' conductance and susceptance: (p0, q0, gs, bs).
+    vbrk, kp1, np1, kq1, nq1 = dp[0], dp[1], dp[2], dp[3], dp[4]
+    rstall, xstall, comp_pf = dp[11], dp[12], dp[16]
     tan_phi = math.sqrt(1.0 - comp_pf * comp_pf) / comp_pf
     p0 = 1.0 - kp1 * (1.0 - vbrk) ** np1
     q0 = tan_phi - kq1 * (1.0 - vbrk) ** nq1
     zz = rstall * rstall + xstall * xstall
-    gs, bs = rstall / zz, xstall / zz
-    running, below, above, stalled, restarted = st[0], st[1], st[2], st[3], st[4]
+    return p0, q0, rstall / zz, xstall / zz
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _d_sample(dt, vk, running, below, above, stalled, restarted, dp, c,
+              force):  # pragma: no cover - compiled  # fmt: skip
+    # d_step with its state in scalars and its constants c (_d_constants) made once.
+    vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2 = dp[:9]
+    vstall, tstall, frst, vrst, trst = dp[9], dp[10], dp[13], dp[14], dp[15]
+    p0, q0, gs, bs = c
     jump = False
     if stalled == 0.0:
         below = below + dt if vk < vstall else 0.0
@@ -185,10 +200,12 @@ def _motor_d(t, v, vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2, vstall, tstall,
     q = np.empty(n)
     dp = np.array([vbrk, kp1, np1, kq1, nq1, kp2, np2, kq2, nq2, vstall, tstall, rstall,
                    xstall, frst, vrst, trst, comp_pf])  # fmt: skip
-    st = np.array([1.0, 0.0, 0.0, 0.0, 0.0])  # running, below, above, stalled, restarted
+    c = _d_constants(dp)
+    running, below, above, stalled, restarted = 1.0, 0.0, 0.0, 0.0, 0.0
     for k in range(n):
         dt = 0.0 if k == 0 else t[k] - t[k - 1]
-        p[k], q[k], st[0], st[1], st[2], st[3], st[4], _ = d_step(dt, v[k], st, dp, -1)
+        p[k], q[k], running, below, above, stalled, restarted, _ = _d_sample(
+            dt, v[k], running, below, above, stalled, restarted, dp, c, -1)  # fmt: skip
     return p, q
 
 
