@@ -212,19 +212,7 @@ def test_pmu_example_is_the_stated_load(tmp_path):
     assert abs(np.median(s.real) - 5.0) < 0.05 and abs(np.median(s.imag) - 2.0) < 0.05
 
 
-def test_readme_python_block_runs(tmp_path):
-    # The README's Python lines, after its first usage line wrote bus.csv.
-    text = README.read_text(encoding="utf-8")
-    block = re.search(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
-    assert block is not None
-    with open(tmp_path / "bus.csv", "w") as fh:
-        ok = subprocess.run(
-            [sys.executable, "-m", "loadbayes", "example", "zip"], stdout=fh, timeout=300
-        )
-    assert ok.returncode == 0
-    proc = subprocess.run(
-        [sys.executable, "-c", block.group(1)], cwd=tmp_path, capture_output=True, text=True,
-        timeout=600,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "a1" in proc.stdout
+# The README's Python block: tests/integration/test_readme_python.py runs it as written
+# after the README's first line, in an empty folder, and checks what it prints (a second
+# run here, in a subprocess asserting only that "a1" was printed, left on 30 Nov 2026:
+# 37 s of make test under load for a check that file already makes).

@@ -3,15 +3,32 @@
 Each sampler under test (``loadbayes.studies.calibration.registry.REGISTRY``: ZIP blocked,
 single-site, exact, blocked with the conjugate prior, unknown nominal power; the motor's
 three blocks in both forms and every scheme; the Student-t sampler with nu fixed and
-sampled; the online tracker, exact, windowed and with drift) is run on 500 data sets
-simulated from its prior, with fixed seeds. The rank of each true parameter among the
-kept posterior draws is binned in 20 bins and tested for uniformity (chi-square).
+sampled; the online tracker, exact, windowed and with drift) is run on 200 data sets
+simulated from its prior, with fixed seeds (the composite sampler, whose fit costs 20
+times more, on 50). The rank of each true parameter among the kept posterior draws is
+binned in 20 bins (10 for the composite at 50, so that 5 ranks fall in a bin) and tested
+for uniformity (chi-square). ``make validate`` (LOADBAYES_VALIDATE=1) runs this file at
+500 (the composite at 100), the counts of ``make test`` until 30 Nov 2026, and
+``studies/calibration/run.py`` runs every sampler at 1000 with other seeds.
 
 False-alarm rate (how often a *correct* sampler would fail over random seeds; the seeds
 are fixed, so a run is deterministic): each sampler fails when any of its parameters has
 a p-value below 1e-3 / (number of parameters) (Bonferroni), i.e. at most 1e-3 per
 sampler and 1.5% for the 15 samplers. The thinning guard (median lag-1 autocorrelation of
 the kept draws below 0.1, measured 0.00-0.04) has no false alarms at these settings.
+The chi-square tail is the multinomial's only approximately: simulated with uniform
+ranks, a parameter fails 1.2e-4 of the time at 100 ranks in 20 bins and 1.7e-4 at 50 in 10
+(nominal 7e-5 for 14 parameters), so the composite's rate is at most 2.3e-3.
+
+Power (the fixed seeds make each run one draw; simulated, normal posteriors, a parameter
+failing alone): a sampler whose draws sit 0.5 posterior sd off the truth fails with
+probability 0.88 at 200 replications (1.00 at 500; at 0.3 sd 0.10, against 0.79 at 500);
+draws 30% too narrow, 0.85 (1.00 at 500). The composite at 50 replications and 10 bins
+sees a 1 sd bias with probability 0.94 and draws half as wide as they should be with 0.60
+(at 100: 1.00 and 0.99), a 0.5 sd bias hardly (0.08; 0.23 at 100): in ``make test`` it
+guards against gross errors and a chain that does not mix; its calibration is
+``make validate``'s. The wrong-sign bugs below are seen at 50-200 replications with p
+below 1e-8.
 
 A sampler given a wrong sign in one term of its coefficient conditional (injected here
 only, by monkeypatching the kernel's entry point) must fail the same check: the data
@@ -23,6 +40,7 @@ there; the Geweke test catches it.)
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -38,13 +56,31 @@ from loadbayes.testing.sbc import run_sbc
 pytestmark = pytest.mark.statistical
 
 ALPHA = 1e-3  # per sampler
-REPLICATIONS = 500
+#: ``make validate`` (LOADBAYES_VALIDATE=1): the counts of ``make test`` until 30 Nov 2026.
+FULL = os.environ.get("LOADBAYES_VALIDATE") == "1"
+REPLICATIONS = 500 if FULL else 200
 SEED = 20_180_406  # Talts et al., arXiv v1
+
+
+def _count_and_bins(name: str) -> tuple[int, int]:
+    """Replications, and the most bins of at most 20 that divide the ranks' range and
+    keep 5 ranks a bin expected (the chi-square's usual rule)."""
+    ci = REGISTRY[name].ci_replications  # an expensive fit's count in CI (composite: 50)
+    count = (2 * ci if FULL else ci) if ci else REPLICATIONS
+    ranks = REGISTRY[name].kept + 1
+    bins = max(b for b in range(1, 21) if ranks % b == 0 and count >= 5 * b)
+    return count, bins
+
+
+def test_counts_and_bins():
+    assert _count_and_bins("zip-blocked") == (REPLICATIONS, 20)
+    assert _count_and_bins("composite-mwg") == (100, 20) if FULL else (50, 10)
 
 
 @pytest.mark.parametrize("name", sorted(REGISTRY))
 def test_ranks_of_the_truth_are_uniform(name):
-    res = run_sbc(REGISTRY[name], REGISTRY[name].ci_replications or REPLICATIONS, seed=SEED)
+    count, bins = _count_and_bins(name)
+    res = run_sbc(REGISTRY[name], count, seed=SEED, bins=bins)
     pvalues = res.pvalues()
     assert res.passes(ALPHA), (name, pvalues)
     lag1 = np.median(res.lag1, axis=0)
