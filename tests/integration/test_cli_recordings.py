@@ -1,26 +1,41 @@
-"""The recordings chain as a user runs it: read comtrade -> events -> fit zip -> export."""
+"""The recordings chain as a user runs it: read comtrade -> events -> fit zip -> export.
+
+The commands are the user's, word for word, run in this process through Click's runner
+from the test's folder (``run``): what is checked is each command's files, exit code and
+one-line errors, the same in or out of a process (the entry point's own exit codes and
+output are tests/integration/test_cli_exit_clean.py's). Fourteen processes here paid the
+imports again, about 4 s of CPU each (pandapower's for the export more).
+"""
 
 import json
-import subprocess
-import sys
+import os
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 import pytest
+from click.testing import CliRunner
 
+from loadbayes.cli import main
 from loadbayes.recordings.synth import sag_profile, write_comtrade, zip_waveforms
 
 pytestmark = pytest.mark.integration
 
-EXE = [sys.executable, "-m", "loadbayes"]
 FAST = ["--draws", "1200", "--burn", "200", "--chains", "2", "--quiet"]
 COEFS = (0.3, 0.2, 0.5, 0.6, 0.1, 0.3)
 
 
 def run(*args, cwd):
-    return subprocess.run(
-        [*EXE, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=180
-    )
+    """The command run from ``cwd``: returncode, stdout and stderr, as a process gives them."""
+    here = os.getcwd()
+    os.chdir(cwd)
+    try:
+        res = CliRunner().invoke(main, [str(a) for a in args])
+    finally:
+        os.chdir(here)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    return SimpleNamespace(returncode=res.exit_code, stdout=res.stdout, stderr=res.stderr)
 
 
 def one_line_error(res, *needles):
@@ -144,10 +159,6 @@ def test_read_pmu_reports_and_export_draws(tmp_path):
 def test_bases_no_network_has_are_refused_by_option(tmp_path, args, needle):
     # Red-team L4: --v-base 1e308 said "the first cycle has no voltage (a dead or unscaled
     # VT)"; --s-base 1e-308 wrote a table of overflowed powers with numpy's warning.
-    from click.testing import CliRunner
-
-    from loadbayes.cli import main
-
     _record(tmp_path / "rec", "1999", "BINARY")
     res = CliRunner().invoke(main, ["read", "comtrade", str(tmp_path / "rec.cfg"), "--out",
                                     str(tmp_path / "x.csv"), *args])  # fmt: skip

@@ -16,8 +16,12 @@ pytest.importorskip("pandapower")
 pytestmark = pytest.mark.integration
 
 
-@pytest.mark.parametrize("engine", ["newton", "recycle"])
-def test_fast_paths_match_plain_runpp_over_many_shares(engine):
+@pytest.fixture(scope="module")
+def many_shares():
+    """60 factor rows and posterior-like shares, and pandapower's own runpp on them.
+
+    The reference runs once for both engines compared with it (it is the slow one).
+    """
     rng = np.random.default_rng(20)
     n = 60
     factors = ieee33.draw_factors(n, seed=21)
@@ -25,19 +29,28 @@ def test_fast_paths_match_plain_runpp_over_many_shares(engine):
     zip_p = np.column_stack([0.25 + rng.normal(0, 0.4, n), 0.25 + rng.normal(0, 0.4, n)])
     zip_p[:, 1] = np.minimum(zip_p[:, 1], 1.0 - zip_p[:, 0])  # keep a3 >= 0 for runpp
     zip_q = np.column_stack([rng.uniform(-0.5, 1.0, n), np.zeros(n)])
-    ref = Feeder33(engine="runpp").run_many(factors, zip_p=zip_p, zip_q=zip_q)
-    got = Feeder33(engine=engine).run_many(factors, zip_p=zip_p, zip_q=zip_q)
-    assert ref["converged"].all() and got["converged"].all()
+    kw = {"zip_p": zip_p, "zip_q": zip_q}
+    ref = Feeder33(engine="runpp").run_many(factors, **kw)
+    assert ref["converged"].all()
+    return factors, kw, ref
+
+
+@pytest.mark.parametrize("engine", ["newton", "recycle"])
+def test_fast_paths_match_plain_runpp_over_many_shares(engine, many_shares):
+    factors, kw, ref = many_shares
+    got = Feeder33(engine=engine).run_many(factors, **kw)
+    assert got["converged"].all()
     for key in ("v_pu", "p_pu", "q_pu"):
         np.testing.assert_allclose(got[key], ref[key], rtol=0, atol=1e-8)
 
 
-@pytest.mark.parametrize(("engine", "n"), [("newton", 450), ("recycle", 150)])
-def test_output_is_identical_for_one_and_two_workers(engine, n, monkeypatch):
-    # Chunks restart the recycle engine cold; small chunks make several of them.
-    monkeypatch.setattr(
-        ieee33_parallel, "_CHUNK", 40 if engine == "recycle" else ieee33_parallel._CHUNK
-    )
+@pytest.mark.parametrize(("engine", "n", "chunk"), [("newton", 150, 60), ("recycle", 80, 25)])
+def test_output_is_identical_for_one_and_two_workers(engine, n, chunk, monkeypatch):
+    # Small chunks make several of them (3 for newton, 4 for recycle: 25, 25, 25, 5), so
+    # each worker takes more than one and the last is short; the recycle engine restarts
+    # cold at each chunk. Before, newton ran 450 rows in chunks of 200 and recycle 150 in
+    # chunks of 40 (the same code paths, twice the power flows).
+    monkeypatch.setattr(ieee33_parallel, "_CHUNK", chunk)
     kw = {"seed": 31, "engine": engine, "factor_range": (0.1, 6.5)}  # some failures too
     one = ieee33.generate_experiments(n, **kw)
     two = ieee33.generate_experiments(n, workers=2, **kw)

@@ -10,6 +10,10 @@ wider than the printable width; it saves a screenshot and the PDF next to the re
 
 Chromium is found on PATH, or installed with apt-get when running as root; the test is
 skipped, saying so, only when neither works.
+
+The fits and reports the pages come from are made with the CLI's commands run in this
+process (Click's runner, ``_cli``): the pages are what is checked here, and a process per
+command paid the imports again (seven processes).
 """
 
 from __future__ import annotations
@@ -18,7 +22,6 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -26,7 +29,6 @@ import pytest
 
 pytestmark = pytest.mark.integration
 
-EXE = [sys.executable, "-m", "loadbayes"]
 NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 
 
@@ -49,6 +51,24 @@ def _chromium() -> str:
     if path is None:
         pytest.skip("no chromium on PATH and it cannot be installed (not root or no apt-get)")
     return path
+
+
+def _cli(*args: str, cwd: Path) -> str:
+    """Run one ``loadbayes`` command in this process from ``cwd``; its standard output."""
+    from click.testing import CliRunner
+
+    from loadbayes.cli import main
+
+    here = os.getcwd()
+    os.chdir(cwd)
+    try:
+        res = CliRunner().invoke(main, [str(a) for a in args])
+    finally:
+        os.chdir(here)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    assert res.exit_code == 0, res.stderr
+    return res.stdout
 
 
 class Browser:
@@ -168,20 +188,11 @@ def report(tmp_path_factory) -> Path:
     """The README's example data, a one-level fit (all four figures, load curves among
     them: the quick start's drift fit has no single P0 to draw P(V) at), its report."""
     root = tmp_path_factory.mktemp("browser")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
-
-    def run(*args, stdout=None):
-        res = subprocess.run([*EXE, *args], cwd=root, env=env, capture_output=stdout is None,
-                             stdout=stdout, text=True, timeout=600)  # fmt: skip
-        assert res.returncode == 0, res.stderr
-        return res
-
-    with open(root / "bus.csv", "w") as fh:
-        run("example", "zip", stdout=fh)
-    run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1", "--q0", "0.4",
-        "--draws", "3000", "--burn", "500", "--netcdf", "fit.nc", "--quiet")  # fmt: skip
-    run("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", "--truth", "a2=0.25",
-        "--truth", "a3=0.45", "--quiet")  # fmt: skip
+    (root / "bus.csv").write_text(_cli("example", "zip", cwd=root))
+    _cli("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1", "--q0", "0.4",
+         "--draws", "3000", "--burn", "500", "--netcdf", "fit.nc", "--quiet", cwd=root)  # fmt: skip
+    _cli("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", "--truth", "a2=0.25",
+         "--truth", "a3=0.45", "--quiet", cwd=root)  # fmt: skip
     return root / "report.html"
 
 
@@ -275,15 +286,12 @@ def test_composite_report_shows_the_recordings_units_and_what_is_determined(tmp_
     p = 0.5 * v**2 + 0.5 * (1 - 0.6 * lag) + rng.normal(0, 0.005, t.size)
     q = 0.2 * v**2 + 0.1 + 0.3 * lag + rng.normal(0, 0.005, t.size)
     pd.DataFrame({"t_s": t, "v": v, "p": p, "q": q}).to_csv(tmp_path / "sag.csv", index=False)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     for args in (
         ["fit", "composite", "sag.csv", "--draws", "400", "--burn", "200", "--chains", "2",
          "--json", "c.json", "--netcdf", "c.nc", "--quiet"],
         ["report", "c.nc", "--out", "c.html", "--quiet"],
     ):  # fmt: skip
-        res = subprocess.run([*EXE, *args], cwd=tmp_path, env=env, capture_output=True,
-                             text=True, timeout=600)  # fmt: skip
-        assert res.returncode == 0, res.stderr
+        _cli(*args, cwd=tmp_path)
     b = Browser(exe, tmp_path / "profile")
     try:
         _open(b, tmp_path / "c.html")
@@ -361,12 +369,9 @@ def test_paper_report_pieces_fit_the_screen_and_the_page(tmp_path):
 def fleet_report(tmp_path_factory) -> Path:
     """The README's fleet (``loadbayes example fleet``), pooled, with a map of its buses."""
     root = tmp_path_factory.mktemp("fleet_browser")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
 
     def run(*args):
-        res = subprocess.run([*EXE, *args], cwd=root, env=env, capture_output=True, text=True,
-                             timeout=600)  # fmt: skip
-        assert res.returncode == 0, res.stderr
+        _cli(*args, cwd=root)
 
     run("example", "fleet", "--out", "meters")
     run("fit", "zip", "meters/", "--by", "bus_id", "--class-col", "customer_class",

@@ -1,15 +1,27 @@
-"""The quick start and ``loadbayes report`` end to end, as a newcomer runs them (issue 15)."""
+"""The quick start and ``loadbayes report`` end to end, as a newcomer runs them (issue 15).
+
+The quick start (``example zip``, the drift fit) runs as processes, as a newcomer types
+it; the other commands here run in this process through Click's runner (``cli``): what
+they check is the command's output, exit code and one-line errors, which are the same in
+or out of a process (the process boundary itself, the entry point's exit codes and
+output, is tests/integration/test_cli_exit_clean.py's), and each process would pay the
+imports again (about 4 s of CPU each, 17 processes).
+"""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
+from loadbayes.cli import main
 from loadbayes.core.settings import DataSpec, SamplerSettings
 
 pytestmark = pytest.mark.integration
@@ -21,6 +33,19 @@ FAST = ["--draws", "1200", "--burn", "200", "--chains", "2"]
 def run(*args, cwd, stdout=None):
     return subprocess.run([*EXE, *map(str, args)], cwd=cwd, capture_output=stdout is None,
                           stdout=stdout, text=True, timeout=300)  # fmt: skip
+
+
+def cli(*args, cwd):
+    """The command run in this process from ``cwd``: returncode, stdout, stderr as ``run``."""
+    here = os.getcwd()
+    os.chdir(cwd)
+    try:
+        res = CliRunner().invoke(main, [str(a) for a in args])
+    finally:
+        os.chdir(here)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    return SimpleNamespace(returncode=res.exit_code, stdout=res.stdout, stderr=res.stderr)
 
 
 @pytest.fixture(scope="module")
@@ -60,12 +85,12 @@ def test_report_from_netcdf_has_summary_figures_and_truth_flags(quick_start, tmp
     root, _ = quick_start
     # A one-level fit of the same day (confounded, and said so) draws all four figures,
     # the load curves P(V), Q(V) among them.
-    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1",
+    res = cli("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", "--p0", "1",
               "--q0", "0.4", *FAST, "--quiet", "--netcdf", tmp_path / "plain.nc",
               cwd=root)  # fmt: skip
     assert res.returncode == 0, res.stderr
     # a1 = 20 lies far outside the fit's interval of a1; a4 = 0.6 inside.
-    res = run("report", tmp_path / "plain.nc", "--out", "r.html", "--truth", "a1=20",
+    res = cli("report", tmp_path / "plain.nc", "--out", "r.html", "--truth", "a1=20",
               "--truth", "a4=0.6", cwd=root)  # fmt: skip
     assert res.returncode == 0, res.stderr
     html = (root / "r.html").read_text()
@@ -87,7 +112,7 @@ def test_report_of_the_quick_start_drift_fit(quick_start):
     # (no load curves: a drifting level has no single P0 to draw P(V) at) and no
     # confounding warning.
     root, _ = quick_start
-    res = run("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", cwd=root)
+    res = cli("report", "fit.nc", "--out", "report.html", "--truth", "a1=0.3", cwd=root)
     assert res.returncode == 0, res.stderr
     html = (root / "report.html").read_text()
     assert html.count("<figure>") == html.count("<figcaption>Figure ") >= 3
@@ -98,10 +123,10 @@ def test_report_of_the_quick_start_drift_fit(quick_start):
 
 def test_report_from_json_says_where_the_figures_are(quick_start, tmp_path):
     root, _ = quick_start
-    res = run("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", *FAST, "--quiet",
+    res = cli("fit", "zip", "bus.csv", "--v-base", "11", "--s-base", "5", *FAST, "--quiet",
               "--json", tmp_path / "fit.json", cwd=root)  # fmt: skip
     assert res.returncode == 0, res.stderr
-    res = run("report", tmp_path / "fit.json", "--out", tmp_path / "r.html", "--quiet", cwd=root)
+    res = cli("report", tmp_path / "fit.json", "--out", tmp_path / "r.html", "--quiet", cwd=root)
     assert res.returncode == 0 and res.stderr == "", res.stderr
     html = (tmp_path / "r.html").read_text()
     assert "<img" not in html and "--netcdf fit.nc" in html and "a6" in html
@@ -110,13 +135,13 @@ def test_report_from_json_says_where_the_figures_are(quick_start, tmp_path):
 def test_report_errors_are_one_line_with_exit_2(quick_start, tmp_path):
     root, _ = quick_start
     (tmp_path / "r.html").write_text("old")
-    res = run("report", "fit.nc", "--out", tmp_path / "r.html", cwd=root)
+    res = cli("report", "fit.nc", "--out", tmp_path / "r.html", cwd=root)
     assert res.returncode == 2 and "exists; use --force" in res.stderr
     for bad, why in (("missing.nc", "file not found"), ("bus.csv", "not a JSON result")):
-        res = run("report", bad, "--out", tmp_path / "x.html", cwd=root)
+        res = cli("report", bad, "--out", tmp_path / "x.html", cwd=root)
         assert res.returncode == 2 and why in res.stderr, res.stderr
         assert len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
-    res = run("report", "fit.nc", "--out", tmp_path / "x.html", "--truth", "zz=1", cwd=root)
+    res = cli("report", "fit.nc", "--out", tmp_path / "x.html", "--truth", "zz=1", cwd=root)
     assert res.returncode == 2 and "zz" in res.stderr
 
 
@@ -152,8 +177,8 @@ def test_reports_of_an_exponential_and_a_motor_fit(tmp_path):
 
 def test_report_of_a_parquet_that_is_not_a_fleet_table_exits_2_in_one_line(tmp_path):
     """The fleet's input given for its result, and a fleet table missing a column."""
-    assert run("example", "fleet", "--out", "meters", cwd=tmp_path).returncode == 0
-    res = run("report", "meters/part-00000.parquet", "--out", "r.html", cwd=tmp_path)
+    assert cli("example", "fleet", "--out", "meters", cwd=tmp_path).returncode == 0
+    res = cli("report", "meters/part-00000.parquet", "--out", "r.html", cwd=tmp_path)
     assert res.returncode == 2, res.stderr
     err = [line for line in res.stderr.splitlines() if "error" in line]
     assert err == [
@@ -168,17 +193,17 @@ def test_report_of_a_parquet_that_is_not_a_fleet_table_exits_2_in_one_line(tmp_p
                           "mean": [0.3], "sd": [0.1], "hdi_low": [0.1], "hdi_high": [0.5],
                           "r_hat": [1.0], "n": [100], "warnings": [""]})  # fmt: skip
     table.to_parquet(tmp_path / "f.parquet")
-    res = run("report", "f.parquet", "--out", "r.html", "--quiet", cwd=tmp_path)
+    res = cli("report", "f.parquet", "--out", "r.html", "--quiet", cwd=tmp_path)
     assert res.returncode == 2
     assert res.stderr.startswith("loadbayes: error: f.parquet: column 'ess_bulk': not a loadbayes")
     assert len(res.stderr.strip().splitlines()) == 1, res.stderr
     table.assign(ess_bulk=[900.0]).to_parquet(tmp_path / "ok.parquet")
-    res = run("report", "ok.parquet", "--out", "r.html", "--quiet", cwd=tmp_path)
+    res = cli("report", "ok.parquet", "--out", "r.html", "--quiet", cwd=tmp_path)
     assert res.returncode == 0, res.stderr
-    res = run("report", "ok.parquet", "--out", "r.html", "--coords", "meters/part-00001.parquet",
+    res = cli("report", "ok.parquet", "--out", "r.html", "--coords", "meters/part-00001.parquet",
               "--quiet", cwd=tmp_path)  # fmt: skip
     assert res.returncode == 2 and "exists; use --force" in res.stderr
-    res = run("report", "ok.parquet", "--out", "r2.html", "--coords", "meters/part-00001.parquet",
+    res = cli("report", "ok.parquet", "--out", "r2.html", "--coords", "meters/part-00001.parquet",
               "--quiet", cwd=tmp_path)  # fmt: skip
     assert res.returncode == 2
     assert res.stderr.strip() == (

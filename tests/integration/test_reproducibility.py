@@ -226,6 +226,10 @@ def test_two_processes_write_the_same_draws(tmp_path):
     ja = json.loads((tmp_path / "o0.json").read_text())
     jb = json.loads((tmp_path / "o1.json").read_text())
     assert ja["parameters"] == jb["parameters"]
+    # And this process, fitting again from nothing but the JSON another process wrote,
+    # gives the same bits (the defaults' case of the rerun test below, which ran its own
+    # process for this).
+    _same_as_rerun(ja, tmp_path, tmp_path / "o0.nc")
 
 
 # ------------------------------------------------------------- re-run from the output
@@ -271,49 +275,42 @@ def _rerun(doc: dict, cwd: Path) -> Posterior:
     return post
 
 
-def _fit_cli(args: list[str], cwd: Path, runner: str) -> None:
-    if runner == "subprocess":
-        res = subprocess.run([*EXE, *args], cwd=cwd, capture_output=True, text=True, timeout=HANG_S)
-        assert res.returncode == 0, res.stderr
-    else:
-        from click.testing import CliRunner
+def _fit_cli(args: list[str], cwd: Path) -> None:
+    from click.testing import CliRunner
 
-        from loadbayes.cli import main
+    from loadbayes.cli import main
 
-        here = os.getcwd()
-        os.chdir(cwd)  # the JSON records the data path as given
-        try:
-            res = CliRunner().invoke(main, args)
-        finally:
-            os.chdir(here)
-        assert res.exit_code == 0, res.output
+    here = os.getcwd()
+    os.chdir(cwd)  # the JSON records the data path as given
+    try:
+        res = CliRunner().invoke(main, args)
+    finally:
+        os.chdir(here)
+    assert res.exit_code == 0, res.output
 
 
 @pytest.mark.parametrize(
-    ("options", "runner"),
+    "options",
     [
-        ([], "subprocess"),
-        (["--scheme", "single-site", "--seed", "42", "--thin", "3", "--init", "dispersed"], "cli"),
-        (
-            [
-                "--scheme",
-                "exact",
-                "--conjugate",
-                "--prior",
-                "a1=0.3,0.1",
-                "--tau-shape",
-                "2",
-                "--p0",
-                "1",
-            ],  # a prior on a1 needs a known P0 (issue 14: auto by default)
-            "cli",
-        ),  # fmt: skip
-        (["--p0", "auto", "--q-col", "none", "--chains", "2", "--hdi-prob", "0.9"], "cli"),
-        (["--v-base", "2", "--s-base", "0.5", "--prior-sd", "3", "--prior-mean", "0.1"], "cli"),
+        [],  # a process's result rerun here: test_two_processes_write_the_same_draws
+        ["--scheme", "single-site", "--seed", "42", "--thin", "3", "--init", "dispersed"],
+        [
+            "--scheme",
+            "exact",
+            "--conjugate",
+            "--prior",
+            "a1=0.3,0.1",
+            "--tau-shape",
+            "2",
+            "--p0",
+            "1",
+        ],  # a prior on a1 needs a known P0 (issue 14: auto by default)
+        ["--p0", "auto", "--q-col", "none", "--chains", "2", "--hdi-prob", "0.9"],
+        ["--v-base", "2", "--s-base", "0.5", "--prior-sd", "3", "--prior-mean", "0.1"],
     ],
     ids=["defaults", "single-site", "exact", "auto-p-only", "bases-priors"],
 )
-def test_a_result_can_be_rerun_from_its_own_json(options, runner, tmp_path):
+def test_a_result_can_be_rerun_from_its_own_json(options, tmp_path):
     path = _bus(tmp_path / "bus.csv")
     if "--v-base" in options:  # the same data in other units
         df = pd.read_csv(path)
@@ -321,19 +318,24 @@ def test_a_result_can_be_rerun_from_its_own_json(options, runner, tmp_path):
         df[["p", "q"]] *= 0.5
         df.to_csv(path, index=False)
     args = ["fit", "zip", "bus.csv", "--draws", "2500", "--burn", "250", "--quiet", *options]
-    _fit_cli([*args, "--json", "o.json", "--netcdf", "o.nc"], tmp_path, runner)
+    _fit_cli([*args, "--json", "o.json", "--netcdf", "o.nc"], tmp_path)
     doc = json.loads((tmp_path / "o.json").read_text())
     assert doc["loadbayes_version"] == loadbayes.__version__
     assert {"seed", "scheme", "chains", "draws", "burn", "thin", "init", "priors", "data"} <= set(
         doc["settings"]
     )
-    again = _rerun(doc, tmp_path)
+    _same_as_rerun(doc, tmp_path, tmp_path / "o.nc")
+
+
+def _same_as_rerun(doc: dict, cwd: Path, nc: Path) -> None:
+    """The fit again from ``doc`` alone has the NetCDF's draws and the JSON's summary."""
+    again = _rerun(doc, cwd)
     # The NetCDF keeps evenly thinned draws when its pointwise groups would be large (their
     # indices are its draw coordinate): the rerun must give those draws bit for bit.
     from loadbayes.posterior import _arviz
 
-    kept = _arviz().from_netcdf(str(tmp_path / "o.nc")).posterior.draw.to_numpy()
-    saved = Posterior.from_netcdf(tmp_path / "o.nc")
+    kept = _arviz().from_netcdf(str(nc)).posterior.draw.to_numpy()
+    saved = Posterior.from_netcdf(nc)
     assert again.names == saved.names
     for k in again.names:
         np.testing.assert_array_equal(again[k][:, kept], saved[k], err_msg=k)
