@@ -8,14 +8,13 @@ imports again, about 4 s of CPU each (pandapower's for the export more).
 """
 
 import json
-import os
-from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 import pytest
 from click.testing import CliRunner
 
+from cli_here import cli_here
 from loadbayes.cli import main
 from loadbayes.recordings.synth import sag_profile, write_comtrade, zip_waveforms
 
@@ -27,15 +26,7 @@ COEFS = (0.3, 0.2, 0.5, 0.6, 0.1, 0.3)
 
 def run(*args, cwd):
     """The command run from ``cwd``: returncode, stdout and stderr, as a process gives them."""
-    here = os.getcwd()
-    os.chdir(cwd)
-    try:
-        res = CliRunner().invoke(main, [str(a) for a in args])
-    finally:
-        os.chdir(here)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return SimpleNamespace(returncode=res.exit_code, stdout=res.stdout, stderr=res.stderr)
+    return cli_here(*args, cwd=cwd)
 
 
 def one_line_error(res, *needles):

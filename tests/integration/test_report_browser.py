@@ -55,19 +55,10 @@ def _chromium() -> str:
 
 def _cli(*args: str, cwd: Path) -> str:
     """Run one ``loadbayes`` command in this process from ``cwd``; its standard output."""
-    from click.testing import CliRunner
+    from cli_here import cli_here
 
-    from loadbayes.cli import main
-
-    here = os.getcwd()
-    os.chdir(cwd)
-    try:
-        res = CliRunner().invoke(main, [str(a) for a in args])
-    finally:
-        os.chdir(here)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    assert res.exit_code == 0, res.stderr
+    res = cli_here(*args, cwd=cwd)
+    assert res.returncode == 0, res.stderr
     return res.stdout
 
 

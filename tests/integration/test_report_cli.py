@@ -10,18 +10,15 @@ imports again (about 4 s of CPU each, 17 processes).
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
 import warnings
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from loadbayes.cli import main
+from cli_here import cli_here
 from loadbayes.core.settings import DataSpec, SamplerSettings
 
 pytestmark = pytest.mark.integration
@@ -37,15 +34,7 @@ def run(*args, cwd, stdout=None):
 
 def cli(*args, cwd):
     """The command run in this process from ``cwd``: returncode, stdout, stderr as ``run``."""
-    here = os.getcwd()
-    os.chdir(cwd)
-    try:
-        res = CliRunner().invoke(main, [str(a) for a in args])
-    finally:
-        os.chdir(here)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return SimpleNamespace(returncode=res.exit_code, stdout=res.stdout, stderr=res.stderr)
+    return cli_here(*args, cwd=cwd)
 
 
 @pytest.fixture(scope="module")
