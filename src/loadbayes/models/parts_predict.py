@@ -328,7 +328,7 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
         play_draws,
     )
 
-    th = thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
+    th = np.atleast_2d(np.asarray(thetas, dtype=float))
     n = th.shape[0]
     given = {k: np.broadcast_to(np.asarray(x, dtype=float), (n,)) for k, x in
              (thresholds or {}).items()}  # fmt: skip
@@ -352,7 +352,7 @@ def play_reference(model, event: EventRecord, thetas: NDArray, p0: float, q0: fl
         if got is None and why[-1] != "no operating point":  # the fifth try: marched in
             # time (parts_march, compiled: it has no NumPy twin; tests/unit/test_parts_march.py
             # checks it against SciPy)
-            one = play_draws(model, event, thetas[j : j + 1], p0, q0, q_shares[j : j + 1],
+            one = play_draws(model, event, th[j : j + 1], p0, q0, q_shares[j : j + 1],
                              {k: x[j : j + 1] for k, x in given.items()},
                              only_march=True)  # fmt: skip
             lows[j] = low[0] = min(low[0], float(one.low[0]))
