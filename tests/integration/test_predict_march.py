@@ -86,7 +86,10 @@ def test_the_draws_no_sweep_settles_are_marched(cmld_lite_short_nc, monkeypatch)
         # Marching every draw gives each the outcome the tries and the march gave it.
         alone = play_draws(*a, **k, only_march=True)
         assert np.array_equal(alone.why, played.why)
-    assert marched >= 4  # 3 at 70 % and 3 at 80 % when the march was added
+    # The frozen draws still reach the march: 3 at 70 % and 3 at 80 % when it was added;
+    # 2 since motor_kernel.OSC_STEP, with which the sweeps settle the draws whose motor
+    # the load turned backwards (tests/unit/test_motor_backwards.py).
+    assert marched >= 2
 
 
 def test_a_feeder_too_big_collapses_in_the_march(cmld_lite_short_nc, monkeypatch):

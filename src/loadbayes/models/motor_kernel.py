@@ -121,16 +121,29 @@ FAST_STEPS = 10.0
 #: to very large |V| between two sweeps (issue 37's averaged band check, two of 20 data
 #: sets: tests/unit/test_motor_kernel.py).
 MAX_SUBSTEPS = 100_000
+#: Largest turn (rad) of the rotor's frame against the voltage's, ``wb |1 - w| h``, in one
+#: RK4 sub-step. The flux equations ring at ``wb (1 - w)``; RK4 is stable on that axis
+#: only up to 2.83 rad a step. A running or stalled motor (``0 <= w <= 1``) never comes
+#: near it at ``H_MAX_S`` (1.9 rad at 60 Hz), so its sub-steps are as before, to the bit;
+#: a stalled motor that a constant load torque drives backwards (``w`` to -4 in a second
+#: at H = 0.1 s and 15 % voltage: ``tests/unit/test_motor_backwards.py``) left the finite
+#: numbers, and ``predict`` said such draws "fail numerically" at deep sags.
+OSC_STEP = 2.0
 
 
 @numba.njit(cache=True, nogil=True)
-def _substeps(span, h_k, jump):  # pragma: no cover - compiled
+def _substeps(span, h_k, jump, turn=0.0):  # pragma: no cover - compiled
     # One interval's RK4 sub-steps, for both integrators: ceil(span / h_k), more for a fast
-    # input (DV_STEP a sub-step); 0 where it asks for more than MAX_SUBSTEPS (an input no
-    # load sees: the caller returns False; NaN fails too).
-    if not (span / h_k < MAX_SUBSTEPS and jump / DV_STEP < MAX_SUBSTEPS):
+    # input (DV_STEP a sub-step) or a fast-turning frame (turn = wb |1 - w|, rad/s:
+    # OSC_STEP a sub-step); 0 where it asks for more than MAX_SUBSTEPS (an input no load
+    # sees: the caller returns False; NaN fails too).
+    osc = span * turn / OSC_STEP
+    if not (span / h_k < MAX_SUBSTEPS and jump / DV_STEP < MAX_SUBSTEPS and osc < MAX_SUBSTEPS):
         return 0
-    return max(1, int(math.ceil(span / h_k - 1e-9)), int(math.ceil(jump / DV_STEP)))
+    m = max(1, int(math.ceil(span / h_k - 1e-9)), int(math.ceil(jump / DV_STEP)))
+    if osc > m:
+        m = int(math.ceil(osc))
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -437,6 +450,7 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
             not fine
             and j + 1 < n
             and t[j + 1] - t[k] <= h_max * (1.0 + 1e-9)
+            and (t[j + 1] - t[k]) * wb * abs(1.0 - w) <= OSC_STEP
             and _on_chord(t, v, delta, v2, k, j + 1)
         ):
             j += 1
@@ -467,7 +481,7 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
             # error follows the input's change per step as well as h / T'.
             jump = max(abs(v[j] - v[k]), abs(delta[j] - delta[k]))
             h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
-            m = _substeps(span, h_k, jump)
+            m = _substeps(span, h_k, jump, wb * abs(1.0 - w))
             if m == 0:
                 return False
             if jump > STEP_JUMP:
@@ -630,7 +644,7 @@ def integrate_window_v2_into(
         span = tm[j] - tm[k]
         jump = max(abs(vm[j] - vm[k]), abs(dm[j] - dm[k]))
         h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
-        m = _substeps(span, h_k, jump)
+        m = _substeps(span, h_k, jump, wb * abs(1.0 - w))
         if m == 0:
             return False
         if jump > STEP_JUMP:

@@ -92,7 +92,7 @@ def _piece(m, x, ta, tb, va, vb, da, db, ba, bb, has_angle, nb):  # pragma: no c
     fine = ta < x[3]
     jump = max(abs(vb - va), abs(db - da))
     h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
-    n_s = _substeps(span, h_k, jump)
+    n_s = _substeps(span, h_k, jump, wb * abs(1.0 - x[2]))
     if n_s == 0:
         return False
     if jump > STEP_JUMP:
