@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import loadbayes.fit.composite.predict as predict_module
 from loadbayes.cli import main
 from loadbayes.export.planning import select
 from loadbayes.fit.composite.predict import _model_of, predict
@@ -106,11 +107,32 @@ def test_the_shares_reported_are_those_counted_draw_by_draw(cmld_lite_nc):
 
 
 def test_a_depth_where_every_draw_collapses_is_said_and_the_sweep_goes_on(cmld_lite_nc,
-                                                                          tmp_path):  # fmt: skip
+                                                                          tmp_path,
+                                                                          monkeypatch):  # fmt: skip
     post = _posterior(cmld_lite_nc, every=1)  # every draw's feeder six times the fit's
     shallow = predict(post, sag=NONE_GONE, duration=DURATION, draws=20, seed=0)
     assert shallow.outcome is None and "outcome" not in shallow.to_dict()  # as it was
-    deep = predict(post, sag=ALL_GONE, duration=DURATION, draws=20, seed=0)
+    # The command's sweep: past the depth where all collapse it goes on. Its first depth
+    # is predict(post, sag=ALL_GONE, duration=DURATION, draws=20, seed=0) (fit/composite/
+    # predict.sweep): that Prediction is kept and read below, not made a second time.
+    nc = tmp_path / "big.nc"
+    post.to_netcdf(nc)
+    out = tmp_path / "s.json"
+    made, real = [], predict_module.predict
+
+    def kept(*a, **k):
+        made.append(real(*a, **k))
+        return made[-1]
+
+    monkeypatch.setattr(predict_module, "predict", kept)
+    r = CliRunner().invoke(main, ["predict", str(nc), "--sweep", "0.8:0.9:0.1", "--duration",
+                                  str(DURATION), "--draws", "20", "--json", str(out), "--plot",
+                                  str(tmp_path / "s.png")])  # fmt: skip
+    monkeypatch.undo()
+    assert r.exit_code == 0, r.output
+    deep = made[0]
+    assert (deep.fault["sag"], deep.fault["duration"]) == (ALL_GONE, DURATION)
+    assert deep.draws["asked"] == 20 and len(made) == 2
     assert deep.outcome["collapses"]["n"] == 20, deep.outcome
     assert "every draw collapses at this depth: no band" in deep.outcome["message"]
     assert deep.outcome["message"] in deep.summary_lines()
@@ -119,14 +141,6 @@ def test_a_depth_where_every_draw_collapses_is_said_and_the_sweep_goes_on(cmld_l
     plot_prediction(deep)  # the words where the band would be
     with pytest.raises(ValueError, match="no draw plays through this fault"):
         select(deep.outcomes, [0.5], outcome="q_excess_pu_s")  # export --planning's pick
-    # The command's sweep: past the depth where all collapse it goes on.
-    nc = tmp_path / "big.nc"
-    post.to_netcdf(nc)
-    out = tmp_path / "s.json"
-    r = CliRunner().invoke(main, ["predict", str(nc), "--sweep", "0.8:0.9:0.1", "--duration",
-                                  str(DURATION), "--draws", "20", "--json", str(out), "--plot",
-                                  str(tmp_path / "s.png")])  # fmt: skip
-    assert r.exit_code == 0, r.output
     lines = [line for line in r.output.splitlines() if line.startswith("depth ")]
     assert len(lines) == 2, r.output
     assert "every draw collapses at this depth: no band" in lines[0], r.output
