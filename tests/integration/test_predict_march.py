@@ -45,8 +45,11 @@ from loadbayes.posterior import Posterior
 pytestmark = pytest.mark.integration
 
 
-def _captured(monkeypatch, post, sag, draws):
-    """``play_draws``' arguments and result as ``predict`` calls it at this sag."""
+def _captured(monkeypatch, post, sag, draws, told=None):
+    """``play_draws``' arguments and result as ``predict`` calls it at this sag.
+
+    ``told``: a list the prediction itself is appended to.
+    """
     got = {}
 
     def spy(*a, **k):
@@ -54,8 +57,10 @@ def _captured(monkeypatch, post, sag, draws):
         return got["call"][2]
 
     monkeypatch.setattr(predict_module, "play_draws", spy)
-    predict(post, sag=sag, duration=0.1, draws=draws, seed=0)
+    pred = predict(post, sag=sag, duration=0.1, draws=draws, seed=0)
     monkeypatch.undo()
+    if told is not None:
+        told.append(pred)
     return got["call"]
 
 
@@ -74,10 +79,19 @@ def test_where_the_sweeps_settle_the_march_agrees(cmld_lite_short_nc, monkeypatc
 
 
 def test_the_draws_no_sweep_settles_are_marched(cmld_lite_short_nc, monkeypatch):
+    # Also the fit as it is at deep sags, the check test_predict_collapse.py made on 100
+    # draws of this chain (80 and 67 played, 20 and 33 collapsed, none failed; before the
+    # march 2 and 3 failed): here the same predictions on predict's 150 (200 asked of the
+    # 300), measured 118 and 98 play, 32 and 52 collapse, none fails numerically. At most
+    # one of the 300 may fail: a failure here is the solver's.
     post = Posterior.from_netcdf(cmld_lite_short_nc)
-    marched = 0
+    marched = fails = 0
     for sag in (0.7, 0.8):
-        a, k, played = _captured(monkeypatch, post, sag, 200)
+        told = []
+        a, k, played = _captured(monkeypatch, post, sag, 200, told)
+        out = told[0].outcome
+        assert out is not None and out["collapses"]["n"] >= 1, out  # deep enough to matter
+        fails += out["fails_numerically"]["n"]
         n = a[1].n
         by_march = played.iterations == n  # the march returns the samples it played
         marched += int(by_march.sum())
@@ -90,6 +104,7 @@ def test_the_draws_no_sweep_settles_are_marched(cmld_lite_short_nc, monkeypatch)
     # 2 since motor_kernel.OSC_STEP, with which the sweeps settle the draws whose motor
     # the load turned backwards (tests/unit/test_motor_backwards.py).
     assert marched >= 2
+    assert fails <= 1, fails
 
 
 def test_a_feeder_too_big_collapses_in_the_march(cmld_lite_short_nc, monkeypatch):
