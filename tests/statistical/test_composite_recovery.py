@@ -1,4 +1,4 @@
-"""Recovery of the composite load on 100 simulated events: 95% interval coverage.
+"""Recovery of the composite load on 48 simulated events (100 under make validate): coverage.
 
 The generator and the quantities are those of ``make validate``
 (``python -m loadbayes.studies.calibration.composite_recovery --events 200``): the four
@@ -17,13 +17,25 @@ False-alarm rates, if each quantity's interval covered independently with probab
   operating point, the ZIP shares, the motor share): no miss of 100 has probability
   0.59%; three or more of the 9 with none, at most 1.7e-5.
 The suite ran 200 events until 29 Nov 2026 (23 misses, at most 1), then 150 (at most 13
-misses, on a4 and a5; at least 3 on the determined quantities), now 100 for the suite's 12
-minutes. ``make validate`` runs 200.
+misses, on a4 and a5; at least 3 on the determined quantities), then 100 (at most 11
+misses, on a4 and a5; none of the 9 with no miss). Since 30 Nov 2026 the suite runs the
+first 48 (each motor at each depth 4 times; measured: at most 5 misses, on x_open and
+q_c; 2 of the 9 with no miss; contraction ratios 1.80 and 2.92), with the thresholds
+scaled to keep the false-alarm rates above: 10 or more misses of 48 has probability
+1.1e-4 (at most 0.20% over the 18 quantities); no miss of 48 has probability 0.085, and
+5 or more of the 9 with none 4.2e-4. ``make validate`` (LOADBAYES_VALIDATE=1) runs this
+test at 100 with the thresholds above, and the study itself at 200.
+Power lost (a quantity's true coverage c, the too-few-hits check alone): at 48 a c of
+0.85 fails with probability 0.17, 0.80 with 0.50, 0.75 with 0.80; at 100 0.54, 0.92 and
+0.99. Intervals too wide (every determined quantity covering 99%) fail at 48 with
+probability 0.77 (0.70 at 100).
 The quantities on the motor's base symmetry (X', H, Rs, T0, the rating) are left to
 over-cover: their intervals are the prior's width along the symmetry (docs/composite.md).
 """
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
@@ -32,22 +44,25 @@ from loadbayes.studies.calibration.composite_recovery import CI_SETTINGS, run_re
 
 pytestmark = pytest.mark.statistical
 
-N_EVENTS = 100
+N_EVENTS = 100 if os.environ.get("LOADBAYES_VALIDATE") == "1" else 48
+#: Fewest misses of N_EVENTS that fail a quantity, and most of the 9 determined quantities
+#: allowed no miss (module docstring: the false-alarm rates).
+TOO_MANY_MISSES, MOST_WITH_NONE = {100: (15, 2), 48: (10, 4)}[N_EVENTS]
 DETERMINED = ("p0", "q0", "a1", "a2", "a3", "a4", "a5", "a6", "f_m")
 
 
-def test_100_events_cover_at_the_nominal_rate():
+def test_the_events_cover_at_the_nominal_rate():
     # One test, not a module fixture shared by several: under pytest-xdist each worker
-    # would fit the 200 events again.
+    # would fit the events again.
     rec = run_recovery(N_EVENTS, seed=2026, workers=2, **CI_SETTINGS)
     assert all(len(v) == N_EVENTS for v in rec["hits"].values())
     misses = {k: N_EVENTS - sum(v) for k, v in rec["hits"].items()}
-    too_few = {k: m for k, m in misses.items() if m >= 15}
+    too_few = {k: m for k, m in misses.items() if m >= TOO_MANY_MISSES}
     assert not too_few, (too_few, rec["coverage"])
     # Too many hits (intervals too wide) for what the event determines.
-    assert sum(misses[k] == 0 for k in DETERMINED) <= 2, misses
+    assert sum(misses[k] == 0 for k in DETERMINED) <= MOST_WITH_NONE, misses
     # Physics, not calibration: a deeper sag moves the motor further from its operating
-    # point, so its share of the load is better determined (medians over ~50 events).
+    # point, so its share of the load is better determined (medians over 16-34 events).
     sd = {
         d: np.median([c["f_m_sd"] for c in rec["contraction"] if c["depth"] == d])
         for d in (0.15, 0.3, 0.5)
