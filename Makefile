@@ -79,7 +79,9 @@ validate: $(STAMP)
 		tests/statistical/test_predict_band_average.py tests/integration/test_readme.py \
 		tests/integration/test_zip_study.py tests/statistical/test_reclose_model_error.py \
 		tests/statistical/test_parts_negative_sequence.py tests/statistical/test_parts_stall_threshold.py \
-		tests/statistical/test_sbc.py tests/integration/test_composite_waveform.py
+		tests/statistical/test_sbc.py tests/integration/test_composite_waveform.py \
+		tests/statistical/test_composite_recovery.py tests/statistical/test_composite_independent.py \
+		tests/statistical/test_composite_ramps.py tests/statistical/test_parts_ar1_coverage.py
 
 clean:
 	rm -rf $(VENV) $(BENCH_VENV) $(GRIDDYN_VENV) results .pytest_cache .ruff_cache
