@@ -27,6 +27,8 @@ from pathlib import Path
 
 import pytest
 
+from cli_here import cli_here
+
 README = Path(__file__).resolve().parents[2] / "README.md"
 MARKER = "<!-- readme-usage"
 #: Lines left to the statistical tier (slow), by their start.
@@ -55,14 +57,45 @@ def usage_lines(text: str) -> list[str]:
     return lines
 
 
+def simple_command(line: str) -> tuple[list[str], str | None] | None:
+    """``(args, stdout file)`` of ``loadbayes ARGS [> FILE] [# note]``; None for any other line.
+
+    bash reads such a line as those words (quotes and comments as :func:`shlex.split`
+    reads them) with stdout sent to FILE; a line with any other shell syntax (``&&``,
+    pipes, ``$``, globs, other redirections) is not of this form and runs in bash.
+    """
+    words = shlex.split(line, comments=True)
+    out = None
+    if len(words) >= 2 and words[-2] == ">":
+        words, out = words[:-2], words[-1]
+    if not words or words[0] != "loadbayes" or re.search(r"[|&;<>$`*?(){}\[\]]", " ".join(words)):
+        return None
+    return words[1:], out
+
+
 def run_lines(lines: list[str], folder: Path) -> None:
+    """Run each line from ``folder``; a line that exits other than 0 fails, named.
+
+    A line of the simple form (:func:`simple_command`) runs in this process through Click's
+    runner (``tests/cli_here.py``: the words bash would pass, stdout to the named file),
+    which saves each line a Python start and the package's imports (about 4 s of CPU); the
+    README's lines are about what a command writes, not about processes. Any other line
+    runs in bash with ``loadbayes`` standing for ``sys.executable -m loadbayes``.
+    """
     prelude = f'loadbayes() {{ {shlex.quote(sys.executable)} -m loadbayes "$@"; }}\n'
     env = dict(os.environ)
     for line in lines:
-        proc = subprocess.run(
-            ["bash", "-c", prelude + line], cwd=folder, env=env, capture_output=True,
-            text=True, timeout=600,
-        )  # fmt: skip
+        simple = simple_command(line)
+        if simple is not None:
+            args, out = simple
+            proc = cli_here(*args, cwd=folder)
+            if out is not None and proc.returncode == 0:
+                (folder / out).write_text(proc.stdout, encoding="utf-8")
+        else:
+            proc = subprocess.run(
+                ["bash", "-c", prelude + line], cwd=folder, env=env, capture_output=True,
+                text=True, timeout=600,
+            )  # fmt: skip
         tail = "\n".join(proc.stderr.strip().splitlines()[-5:])
         assert proc.returncode == 0, f"README line failed ({proc.returncode}): {line}\n{tail}"
 
@@ -79,6 +112,25 @@ def test_usage_block_is_found():
 def test_parser_joins_continuations_and_skips_comments():
     text = f"x\n{MARKER} -->\n```sh\n# a note\na --b \\\n    --c d  # e\n\nf\n```\nafter\n"
     assert usage_lines(text) == ["a --b --c d  # e", "f"]
+
+
+def test_simple_lines_are_the_words_bash_passes():
+    assert simple_command("loadbayes example zip > bus.csv   # a note") == (
+        ["example", "zip"],
+        "bus.csv",
+    )
+    assert simple_command("loadbayes fit zip 'a b.csv' --json x.json") == (
+        ["fit", "zip", "a b.csv", "--json", "x.json"],
+        None,
+    )
+    for shell in (
+        "loadbayes simulate im --out m.csv && loadbayes fit im m.csv",
+        "ls > x",
+        "loadbayes fit zip *.csv",
+        "loadbayes example zip | head",
+        "x=1 loadbayes",
+    ):
+        assert simple_command(shell) is None, shell
 
 
 def test_a_failing_line_is_named(tmp_path):

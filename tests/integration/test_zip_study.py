@@ -117,21 +117,25 @@ def test_reproduce_zip_refuses_existing_results_in_one_line(tmp_path, monkeypatc
     assert len(res.stderr.strip().splitlines()) == 1
 
 
-#: ``make validate`` (LOADBAYES_VALIDATE=1) runs the whole report with the shared real record.
+#: ``make validate`` (LOADBAYES_VALIDATE=1) runs the whole report at ``--quick``.
 FULL = os.environ.get("LOADBAYES_VALIDATE") == "1"
+_VALIDATE = [pytest.mark.statistical, pytest.mark.skipif(not FULL, reason="make validate's")]
 
 
-@pytest.mark.parametrize("record", [
-    # make test: the record hidden ($LOADBAYES_REAL_RECORD names no file), as for a user
-    # without it: the real record's three sections (the real record, its physical models,
-    # the planning question on it: about 70 of the report's 130 CPU s) say so in one line.
-    # Their code is tested in pieces there (test_real_record_validation, test_cli_dfr,
+@pytest.mark.parametrize(("size", "record"), [
+    # make test: ``--smoke`` (every section's whole code path at its smallest sizes: a
+    # pipeline check, not results) with the record hidden ($LOADBAYES_REAL_RECORD names no
+    # file), as for a user without it: the real record's three sections (the real record,
+    # its physical models, the planning question on it) say so in one line. Their code is
+    # tested in pieces there (test_real_record_validation, test_cli_dfr,
     # test_negative_sequence_real, test_real_record_miss) and whole by `make demo`.
-    "hidden",
-    pytest.param("shared", marks=[pytest.mark.statistical, pytest.mark.skipif(
-        not FULL, reason="the report with the real record (2 minutes): make validate")]),
+    ("smoke", "hidden"),
+    # make validate: ``--quick`` (what `make demo` runs on every fresh clone, 150 s of CPU
+    # with the record hidden), hidden and with the shared real record (2 more minutes).
+    pytest.param("quick", "hidden", marks=_VALIDATE),
+    pytest.param("quick", "shared", marks=_VALIDATE),
 ])  # fmt: skip
-def test_reproduce_all_quick_through_the_cli(tmp_path, record):
+def test_reproduce_all_through_the_cli(tmp_path, size, record):
     env = dict(os.environ)
     if record == "hidden":
         env["LOADBAYES_REAL_RECORD"] = str(tmp_path / "no-record.cfg")
@@ -142,7 +146,7 @@ def test_reproduce_all_quick_through_the_cli(tmp_path, record):
             "from loadbayes.cli import main; main(prog_name='loadbayes')",
             "reproduce",
             "all",
-            "--quick",
+            f"--{size}",
             "--quiet",
             "--out",
             str(tmp_path / "results"),
@@ -154,6 +158,10 @@ def test_reproduce_all_quick_through_the_cli(tmp_path, record):
     )
     assert res.returncode == 0, res.stderr
     root = Path(tmp_path / "results")
+    # --smoke says on stdout (even --quiet) and atop the report that it is no result.
+    smoke_note = "--smoke: a pipeline check, not results."
+    assert (smoke_note in res.stdout) == (size == "smoke")
+    assert (smoke_note in (root / "report.html").read_text()) == (size == "smoke")
     for p in zip_study.output_paths(root):
         assert p.exists(), p
     assert (root / "im" / "table1.csv").exists()

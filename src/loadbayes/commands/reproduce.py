@@ -33,6 +33,7 @@ def run_zip(
     workers: int,
     quiet: bool,
     force: bool,
+    smoke: bool = False,
 ):
     """Run and write the ZIP study; return it (shared with ``reproduce all``)."""
     from loadbayes.studies import zip_paper as zip_study
@@ -49,6 +50,7 @@ def run_zip(
         workers=workers,
         progress=say,
         pf_progress=not quiet,
+        smoke=smoke,
     )
     say("zip: writing tables, figures and the report section ...")
     root.mkdir(parents=True, exist_ok=True)
@@ -158,6 +160,11 @@ def reproduce_im_cmd(out, motors, noise, seed, quick, quiet, force):
         click.echo(f"wrote {len(paths)} files under {root / 'im'} and {root / 'report.html'}")
 
 
+#: What ``reproduce all --smoke`` says on stdout and atop the report.
+SMOKE_NOTE = (
+    "--smoke: a pipeline check, not results. Every section ran at sizes too small for "
+    "its numbers to mean anything; run --quick or the full study for results."
+)
 # Marker of the motor study's section in report.html (experiments.im_study).
 _IM_MARK = "loadbayes:section im"
 
@@ -171,6 +178,12 @@ _IM_MARK = "loadbayes:section im"
     help="Results folder: OUT/zip/, OUT/im/ and OUT/report.html.",
 )
 @click.option("--quick", is_flag=True, help="Small settings (make demo, tests): about a minute.")
+@click.option(
+    "--smoke",
+    is_flag=True,
+    help="A pipeline check, not results: every section's whole code path at the smallest "
+    "sizes that still write every file and section (the tests' check).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every study.")
 @click.option(
     "--workers",
@@ -182,11 +195,15 @@ _IM_MARK = "loadbayes:section im"
 @click.option("--quiet", is_flag=True, help="No progress messages.")
 @click.option("--force", is_flag=True, help="Overwrite existing results.")
 @user_errors
-def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
+def reproduce_all_cmd(out, quick, smoke, seed, workers, quiet, force):
     """Every study of the paper (ZIP, induction motor) and past it, in one self-contained report.
 
     After the paper's two studies come the ones that go past it: bad data (Student-t),
     time-varying loads (online tracking), and the choice between ZIP and exponential.
+
+    ``--smoke`` runs every step of every section at sizes too small for its numbers to
+    mean anything (a check that the pipeline runs and writes everything, for the tests);
+    the report's summary and stdout say so, even with ``--quiet``.
     """
     from loadbayes.models.motor_library import MOTORS
     from loadbayes.studies import im_paper as im_study
@@ -203,11 +220,12 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
 
     t0 = time.perf_counter()
     zs = run_zip(
-        root, n=None, noise=0.1, seed=seed, quick=quick, workers=workers, quiet=quiet, force=force
-    )
+        root, n=None, noise=0.1, seed=seed, quick=quick, workers=workers, quiet=quiet,
+        force=force, smoke=smoke,
+    )  # fmt: skip
     t_zip = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ims = im_study.run(motors, seed=seed, quick=quick, progress=say)
+    ims = im_study.run(motors, seed=seed, quick=quick, progress=say, smoke=smoke)
     im_study.write(ims, root, force=force)
     t_im = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -230,7 +248,7 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
                       ("fleet", fleet_study), ("cvr", cvr_study),
                       ("archive", archive_study)):  # fmt: skip
         say(f"study past the paper: {name}")
-        past.append(zip_study.marked(mod.html_section(mod.run(quick=quick, seed=seed)),
+        past.append(zip_study.marked(mod.html_section(mod.run(quick=quick, seed=seed, smoke=smoke)),
                                      f"loadbayes:section {name.replace(' ', '-')}"))  # fmt: skip
     t_past = time.perf_counter() - t0
     # One page, ZIP first as in the paper; each section keeps its markers so that a later
@@ -246,15 +264,20 @@ def reproduce_all_cmd(out, quick, seed, workers, quiet, force):
         root / "report.html",
         sections,
         settings={
-            "command": "loadbayes reproduce all" + (" --quick" if quick else ""),
+            "command": "loadbayes reproduce all"
+            + (" --quick" if quick else "")
+            + (" --smoke" if smoke else ""),
             "seed": seed,
             "ZIP study (s)": f"{t_zip:.0f}",
             "motor study (s)": f"{t_im:.0f}",
             "studies past the paper (s)": f"{t_past:.0f}",
             "ZIP: n, noise": f"{zs.settings['n']}, {zs.settings['noise_sd_pu']:g}",
         },
+        summary=f"<p><strong>{SMOKE_NOTE}</strong></p>" if smoke else "",
     )
     if not quiet:
         click.echo(zip_study.text_tables(zs))
         click.echo(im_study.text_tables(ims))
         click.echo(f"wrote {root / 'zip'}, {root / 'im'} and {report}")
+    if smoke:
+        click.echo(SMOKE_NOTE)

@@ -33,6 +33,8 @@ __all__ = ["ArchiveStudy", "html_section", "monthly_truth", "run"]
 #: (records per station, bays, draws, burn, pool draws) of the quick and the full run.
 QUICK = (6, 1, 1500, 500, 500)
 FULL = (24, 2, 3000, 1000, 1000)
+#: The same for ``smoke`` (a check of the pipeline, not a result).
+SMOKE = (3, 1, 1500, 500, 300)
 YEAR = 2025
 
 
@@ -58,12 +60,12 @@ def monthly_truth(station: int, bay: int, year: int = YEAR) -> np.ndarray:
     return pd.Series(share).groupby(days.month).mean().to_numpy()
 
 
-def run(*, quick: bool = True, seed: int = 0) -> ArchiveStudy:
+def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> ArchiveStudy:
     """Write the example's records, scan, fit and pool them; compare with the truth."""
     from loadbayes.archive import failures_frame, fit, fits_frame, pool, scan
     from loadbayes.cases.archive_example import ARCHIVE_STATIONS, archive_files
 
-    records, bays, draws, burn, pool_draws = QUICK if quick else FULL
+    records, bays, draws, burn, pool_draws = SMOKE if smoke else QUICK if quick else FULL
     seconds = {}
     with tempfile.TemporaryDirectory(prefix="loadbayes-archive-") as tmp:
         folder, db = Path(tmp) / "records", Path(tmp) / "archive.db"

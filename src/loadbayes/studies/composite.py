@@ -40,8 +40,11 @@ class CompositeStudy:
     identifiability: dict[str, Any]
 
 
-def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
-    """Simulate the two events, fit them, and tabulate against the truth and the NLS."""
+def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> CompositeStudy:
+    """Simulate the two events, fit them, and tabulate against the truth and the NLS.
+
+    ``smoke``: 400 iterations (200 burn-in), a check of the pipeline, not a result.
+    """
     from loadbayes.cases.composite_sim import simulate_event
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite, predictive_band
@@ -62,7 +65,7 @@ def run(*, quick: bool = True, seed: int = 0) -> CompositeStudy:
         )
         events.append(ev)
         truth = truth or tr
-    draws, burn = (2000, 1000) if quick else (8000, 3000)
+    draws, burn = (400, 200) if smoke else (2000, 1000) if quick else (8000, 3000)
     sampler = SamplerSettings(draws=draws, burn=burn, chains=4, seed=seed)
     fit = fit_composite(CompositeModel(window_s=0), events, sampler=sampler)
     post, nls = fit.posterior, fit.baseline

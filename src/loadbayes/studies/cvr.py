@@ -25,22 +25,29 @@ class CVRStudy:
     settings: dict[str, Any]
 
 
-def run(*, quick: bool = True, seed: int = 0) -> CVRStudy:
-    """Fit the example feeder (``seed`` seeds the draws; the feeder is the example's)."""
+def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> CVRStudy:
+    """Fit the example feeder (``seed`` seeds the draws; the feeder is the example's).
+
+    ``smoke``: the first 30 of the 90 days and 200 draws, a check of the pipeline, not a
+    result (the truth stays the 90 days').
+    """
     from loadbayes.cases.cvr_example import FEEDER_KV, FEEDER_MVA, cvr_frame, cvr_truth
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.cvr import CVR_DEFAULTS, cvr
 
-    draws = 1_000 if quick else 4_000
+    draws = 200 if smoke else 1_000 if quick else 4_000
+    frame = cvr_frame()
+    if smoke:
+        frame = frame.iloc[: 30 * 288]  # 5-minute rows
     res = cvr(
-        cvr_frame(), t_col="time", v_col="v_kv", p_col="p_mw", q_col="q_mvar",
+        frame, t_col="time", v_col="v_kv", p_col="p_mw", q_col="q_mvar",
         v_base=FEEDER_KV, s_base=FEEDER_MVA, weather_col="temp_c", holiday_col="holiday",
         pv_col="irradiance", sampler=CVR_DEFAULTS.with_(draws=draws, seed=seed),
         step_sampler=SamplerSettings(draws=draws + 300, burn=300, chains=2, seed=seed),
     )  # fmt: skip
     rows = res["instantaneous"].get("dP/dV", {}).get("step_rows")
     return CVRStudy(res, cvr_truth(step_rows=rows), {"draws": draws, "seed": seed,
-                                                     "quick": quick})  # fmt: skip
+                                                     "quick": quick, "smoke": smoke})  # fmt: skip
 
 
 def _row(name: str, s: dict | None, truth: float | None) -> dict[str, Any]:

@@ -32,15 +32,19 @@ class FleetStudy:
     settings: dict[str, Any]
 
 
-def run(*, quick: bool = True, seed: int = 0) -> FleetStudy:
-    """Run the study (quick: 60 buses, about 20 s; full: 300 buses)."""
+def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> FleetStudy:
+    """Run the study (quick: 60 buses, about 20 s; full: 300 buses).
+
+    ``smoke``: 20 buses and 300 draws (100 burn-in), a check of the pipeline, not a result.
+    """
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fleet.generate import fleet_truth, write_fleet
     from loadbayes.fleet.partitions import ReadSpec
     from loadbayes.fleet.run import fit_fleet, fleet_statistics
 
-    n_buses = 60 if quick else 300
-    sampler = SamplerSettings(draws=1000 if quick else 2500, burn=250 if quick else 500, seed=seed)
+    n_buses = 20 if smoke else 60 if quick else 300
+    draws, burn = (300, 100) if smoke else (1000, 250) if quick else (2500, 500)
+    sampler = SamplerSettings(draws=draws, burn=burn, seed=seed)
     truth = fleet_truth(n_buses, seed=seed)
     with tempfile.TemporaryDirectory() as tmp:
         write_fleet(truth, tmp, buses_per_file=20)

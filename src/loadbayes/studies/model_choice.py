@@ -314,7 +314,7 @@ class ModelChoice:
         return pd.DataFrame(rows)
 
 
-def run(*, quick: bool = True, seed: int = 0) -> ModelChoice:
+def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> ModelChoice:
     """Compare ZIP and exponential on the paper's 33-bus data and on two controls.
 
     Data sets (P at bus 18, P0 known, n = 300 quick / 1000 full):
@@ -326,11 +326,14 @@ def run(*, quick: bool = True, seed: int = 0) -> ModelChoice:
       control where the exponential model is true;
     * ``33-bus, 10% noise, 5% spikes``: the paper's data with bad samples, comparing
       the Gaussian and the Student-t ZIP too.
+
+    ``smoke``: n = 150 and 400 draws (100 burn-in), a check of the pipeline, not a result.
     """
     from loadbayes.cases.scenarios import corrupt, paper_data
 
-    n = 300 if quick else 1000
-    sampler = {"draws": 2000 if quick else 6000, "burn": 500 if quick else 1000, "chains": 2}
+    n = 150 if smoke else 300 if quick else 1000
+    draws, burn = (400, 100) if smoke else (2000, 500) if quick else (6000, 1000)
+    sampler = {"draws": draws, "burn": burn, "chains": 2}
     out = ModelChoice(settings={"n": n, "seed": seed, **sampler, "criterion": "PSIS-LOO"})
     for noise in (0.1, 0.01):
         df = paper_data(n, noise_sd=noise, seed=seed, noise_seed=1)

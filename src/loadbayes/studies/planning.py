@@ -111,9 +111,9 @@ def _griddyn(draws, burn, seed) -> dict[str, Any]:
             "recorded": deep}  # fmt: skip
 
 
-def run(*, quick: bool = True, seed: int = 0) -> PlanningStudy:
-    """Fit and predict both cases (see the module docstring)."""
-    draws, burn = QUICK if quick else FULL
+def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> PlanningStudy:
+    """Fit and predict both cases (see the module docstring); ``smoke``: 400 (200) iterations."""
+    draws, burn = (400, 200) if smoke else QUICK if quick else FULL
     out, seconds = {}, {}
     for name, case in (("real record", _real), ("GridDyn", _griddyn)):
         t0 = time.perf_counter()

@@ -144,7 +144,9 @@ def _rms_all(score) -> tuple[float, float]:
     )
 
 
-def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> RealRecordStudy:
+def run(
+    *, quick: bool = True, seed: int = 0, record: str | None = None, smoke: bool = False
+) -> RealRecordStudy:
     """Fit the first fault at each transformer, predict the second, tabulate both."""
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite import fit_composite
@@ -156,7 +158,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Real
     cfg = Path(record) if record else find_record()
     if cfg is None or not cfg.is_file():
         return RealRecordStudy(pd.DataFrame(), None, {"missing": True}, record=None)
-    draws, burn = QUICK if quick else FULL
+    draws, burn = (1000, 500) if smoke else QUICK if quick else FULL  # smoke: a pipeline check
     chains = 4
     rows, scores, titles, ident, warns = [], [], [], {}, {}
     seconds: dict[str, float] = {}

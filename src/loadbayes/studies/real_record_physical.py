@@ -252,7 +252,9 @@ def _miss_words(miss: dict, own: dict, apart: dict, h2: list) -> list[str]:
     return out
 
 
-def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> PhysicalStudy:
+def run(
+    *, quick: bool = True, seed: int = 0, record: str | None = None, smoke: bool = False
+) -> PhysicalStudy:
     """Fit, compare and predict on both transformers (see the module docstring)."""
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite.choice import compare_models
@@ -263,7 +265,7 @@ def run(*, quick: bool = True, seed: int = 0, record: str | None = None) -> Phys
     cfg = find_record(record)
     if cfg is None:
         return PhysicalStudy(pd.DataFrame(), record=None)
-    draws, burn = QUICK if quick else FULL
+    draws, burn = (1000, 500) if smoke else QUICK if quick else FULL  # smoke: a pipeline check
     sampler = SamplerSettings(draws=draws, burn=burn, chains=2, seed=seed)
     cols, choice, words, seconds = {}, {}, {}, {}
     for bay, short in BAYS:

@@ -144,7 +144,9 @@ def _mean_or_nan(x: list[float]) -> float:
     return float(a.mean()) if a.size else float("nan")
 
 
-def run(*, quick: bool = True, seed: int = 0, progress: bool = False) -> RobustStudy:
+def run(
+    *, quick: bool = True, seed: int = 0, progress: bool = False, smoke: bool = False
+) -> RobustStudy:
     """Run the study (quick: about 20-30 s on one core; full: a few minutes).
 
     Parameters
@@ -155,18 +157,19 @@ def run(*, quick: bool = True, seed: int = 0, progress: bool = False) -> RobustS
         Seed of the power flows, noise, bad samples and samplers.
     progress : bool
         Print one line per scenario to stderr.
+    smoke : bool
+        The quick scenarios at n = 60, 1 replicate, 4 validation runs and 400 draws:
+        a check of the pipeline, not a result.
     """
     from loadbayes.cases.scenarios import corrupt, paper_data
 
     t0 = time.perf_counter()
-    n = 300 if quick else 1000
-    reps = 6 if quick else 40
-    n_val = 25 if quick else 100
-    sampler = (
-        {"draws": 2000, "burn": 500, "chains": 2}
-        if quick
-        else {"draws": 6000, "burn": 1000, "chains": 2}
-    )
+    quick = quick or smoke
+    n = 60 if smoke else 300 if quick else 1000
+    reps = 1 if smoke else 6 if quick else 40
+    n_val = 4 if smoke else 25 if quick else 100
+    draws, burn = (400, 100) if smoke else (2000, 500) if quick else (6000, 1000)
+    sampler = {"draws": draws, "burn": burn, "chains": 2}
     scen = _scenarios(quick)
     rows, est_rows = [], []
     first: dict[tuple, np.ndarray] = {}

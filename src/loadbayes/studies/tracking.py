@@ -172,7 +172,9 @@ def _robust_rvar(z, r, window=50) -> float:
     return float(np.median(vals))
 
 
-def run(*, quick: bool = True, seed: int = 0, progress: bool = False) -> TrackingStudy:
+def run(
+    *, quick: bool = True, seed: int = 0, progress: bool = False, smoke: bool = False
+) -> TrackingStudy:
     """Run the tracking study (quick: about 20-30 s; full: a few minutes).
 
     Parameters
@@ -183,12 +185,14 @@ def run(*, quick: bool = True, seed: int = 0, progress: bool = False) -> Trackin
         Seed of the loading and the noise.
     progress : bool
         Print one line per noise level to stderr.
+    smoke : bool
+        180 samples at 1% noise: a check of the pipeline, not a result.
     """
     from loadbayes.cases.scenarios import day_flows, measure
 
     t_start = time.perf_counter()
-    n = 720 if quick else 2880
-    noises = (0.01,) if quick else (0.001, 0.01, 0.1)
+    n = 180 if smoke else 720 if quick else 2880
+    noises = (0.01,) if quick or smoke else (0.001, 0.01, 0.1)
     flows = day_flows(n, int(seed), (0.1, 4.5))
     rows = []
     tracks: dict[str, dict[str, np.ndarray]] = {}

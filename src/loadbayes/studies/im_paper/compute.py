@@ -16,6 +16,7 @@ from loadbayes.studies.im_paper.study import (
     EIV_MOTOR,
     FULL,
     QUICK,
+    SMOKE,
     ImStudy,
     MotorRun,
     _err,
@@ -65,6 +66,7 @@ def run(
     sampler: dict[str, int] | None = None,
     eiv: bool = True,
     progress: Callable[[str], None] | None = None,
+    smoke: bool = False,
 ) -> ImStudy:
     """Simulate each motor, fit it five ways, and run the errors-in-variables check.
 
@@ -87,6 +89,8 @@ def run(
         Also run the errors-in-variables table (on ``small_industrial`` if studied).
     progress : callable, optional
         Called with a short message before each motor.
+    smoke : bool
+        :data:`SMOKE` draws: a check of the pipeline, not a result.
 
     Returns
     -------
@@ -99,7 +103,7 @@ def run(
     unknown = [m for m in motors if m not in MOTORS]
     if unknown:
         raise ValueError(f"unknown motor(s) {unknown}; documented: {sorted(MOTORS)}")
-    smp = dict(QUICK if quick else FULL)
+    smp = dict(SMOKE if smoke else QUICK if quick else FULL)
     smp.update(sampler or {})
     say = progress or (lambda _msg: None)
     runs = {}
@@ -126,6 +130,7 @@ def run(
         "seed": seed,
         "sampler": smp,
         "quick": quick,
+        "smoke": smoke,
         "priors": "each coefficient N(0, 100^2); each precision Gamma(1e-3, 1e-9)",
         "t0": "from the first sample (steady state)",
         "kalman": "state = block coefficients, Q = 0, P0 = 100 I, R = LS residual variance",

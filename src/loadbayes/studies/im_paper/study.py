@@ -43,6 +43,8 @@ METHODS = {
 EIV_MOTOR = "small_industrial"
 FULL = {"draws": 40_000, "burn": 5_000, "chains": 4}
 QUICK = {"draws": 4_000, "burn": 1_000, "chains": 2}
+#: ``reproduce all --smoke``: a check of the pipeline, not a result.
+SMOKE = {"draws": 600, "burn": 200, "chains": 2}
 _MARK = "loadbayes:section im"
 
 

@@ -20,6 +20,7 @@ from loadbayes.studies.zip_paper.study import (
     KF_RANDOM_WALK,
     METHODS,
     QUICK,
+    SMOKE,
     SWEEP_NOISE,
     TRUE_ZIP,
     ZipStudy,
@@ -177,6 +178,7 @@ def run(
     engine: str = "newton",
     progress: Callable[[str], None] | None = None,
     pf_progress: bool = False,
+    smoke: bool = False,
 ) -> ZipStudy:
     """Run the ZIP study: data, fits, validation, predictive band and sweep.
 
@@ -213,6 +215,8 @@ def run(
         Called with a short message before each step.
     pf_progress : bool
         Progress bars of the power flows on stderr (needs ``tqdm``).
+    smoke : bool
+        :data:`SMOKE` sizes (a check of the pipeline, not a result) instead of ``quick``'s.
 
     Returns
     -------
@@ -222,7 +226,7 @@ def run(
     from loadbayes.fit import prior_settings
     from loadbayes.models.zip import ZIPModel
 
-    cfg = dict(QUICK if quick else FULL)
+    cfg = dict(SMOKE if smoke else QUICK if quick else FULL)
     for key, val in (
         ("n", n),
         ("sweep_n", sweep_n),
@@ -329,6 +333,7 @@ def run(
         "n_failed_generated": int(df_all.attrs["n_failed"]),
         "v_range_pu": [float(cols["v"].min()), float(cols["v"].max())],
         "quick": quick,
+        "smoke": smoke,
         "sampler": smp,
         "priors": prior_settings(priors),
         "priors_text": "a1, a2 (a4, a5) ~ N(0, 10^2) independent; tau ~ Gamma(1e-3, rate 1e-9)",

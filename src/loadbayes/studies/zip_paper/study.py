@@ -58,6 +58,18 @@ QUICK: dict[str, Any] = {
     "predictive_experiments": 20,
     "predictive_draws": 25,
 }
+#: ``reproduce all --smoke``: every step at a size that only checks the pipeline (the
+#: numbers are not results).
+SMOKE: dict[str, Any] = {
+    "n": 40,
+    "sweep_n": (20, 40),
+    "draws": 600,
+    "burn": 200,
+    "chains": 2,
+    "n_validation": 4,
+    "predictive_experiments": 2,
+    "predictive_draws": 3,
+}
 SWEEP_NOISE = (0.01, 0.05, 0.1)
 _MARK = "loadbayes:section zip"
 
