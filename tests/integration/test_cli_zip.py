@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+
 from cli_here import cli_here
 
 pytestmark = pytest.mark.integration
