@@ -15,15 +15,17 @@ from click.testing import CliRunner
 from loadbayes.cli import main
 
 
-def cli_here(*args, cwd) -> SimpleNamespace:
+def cli_here(*args, cwd, input=None) -> SimpleNamespace:
     """``returncode``, ``stdout``, ``stderr`` of ``loadbayes ARGS`` run from ``cwd``.
+
+    ``input``, if given, is the command's standard input (text or bytes).
 
     An exception other than the command's own exit is raised, as a traceback would be.
     """
     here = os.getcwd()
     os.chdir(cwd)
     try:
-        res = CliRunner().invoke(main, [str(a) for a in args])
+        res = CliRunner().invoke(main, [str(a) for a in args], input=input)
     finally:
         os.chdir(here)
     if res.exception is not None and not isinstance(res.exception, SystemExit):

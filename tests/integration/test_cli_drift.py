@@ -6,18 +6,16 @@ telemetry gap and 0.3% noise on P and Q. True dP/dV at v0 = 2 a1 + a2 = 1.15.
 """
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from cli_here import cli_here
 from loadbayes.core.settings import DataSpec, SamplerSettings
 
 pytestmark = pytest.mark.integration
 
-EXE = [sys.executable, "-m", "loadbayes"]
 COLS = ["--v-col", "V_kV", "--p-col", "P_MW", "--q-col", "Q_Mvar", "--v-base", "13.8"]
 A1, A2 = 0.4, 0.35  # dP/dV = 1.15
 
@@ -51,8 +49,8 @@ def feeder_day(n=1440, dt=60.0, seed=0, flat=False):
 
 
 def run(*args, cwd):
-    return subprocess.run([*EXE, *map(str, args)], cwd=cwd, capture_output=True, text=True,
-                          timeout=300)  # fmt: skip
+    """The command in-process (``cli_here``): its files, exit code and lines are the subject."""
+    return cli_here(*args, cwd=cwd)
 
 
 @pytest.fixture(scope="module")

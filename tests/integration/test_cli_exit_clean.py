@@ -34,7 +34,12 @@ EXE = [sys.executable, "-m", "loadbayes"]
 #: fewer to keep `make test` within its budget; the detection rates are stated per test).
 FULL = os.environ.get("LOADBAYES_VALIDATE") == "1"
 MANY_RUNS = 60
-SIGNAL_RUNS = 40 if FULL else 8
+#: make test's 3 (seed 25's first: SIGINT and SIGTERM inside the NetCDF write, SIGINT at
+#: 4.9 s) with the parametrized test's 3 (SIGINT inside the write twice, SIGTERM at 1.7 s)
+#: are each kind of moment and signal once at least; validate's 40 are the repeats.
+SIGNAL_RUNS = 40 if FULL else 3
+#: Runs of each early-error path in make test: one pair, two processes at once.
+EARLY_RUNS = 2
 #: The early errors' repeated runs are `make validate`'s only: `make test` keeps the 4 runs
 #: of each path below (their detection rates are stated there). That is 40 interpreter
 #: starts fewer, about a minute of the suite on 2 idle cores (4 min on a loaded machine),
@@ -126,15 +131,16 @@ def _check_runs(results, needles) -> None:
 
 @pytest.mark.parametrize(("name", "args", "needles"), PATHS, ids=[p[0] for p in PATHS])
 def test_early_errors_exit_2_every_time(inputs, name, args, needles):
-    """4 runs of each path, two at once (16 in all, about 20 s).
+    """2 runs of each path, two at once (8 in all, about 10 s; 4 each until 30 Nov 2026).
 
     What it can detect: before the fix the wrong --p0 path aborted in 17 of 30 runs on
-    this (loaded) machine, so 4 runs miss it with probability (13/30)^4 = 3.5%; a rate
-    of 5% (the red-team's, over all paths) is seen by the 16 runs with probability 56%.
-    `make validate` runs each path 60 times more (below). A run that does not exit 2 with
-    its one line is always a defect: there is no false alarm to budget.
+    this (loaded) machine, so 2 runs miss it with probability (13/30)^2 = 19% (4 runs:
+    3.5%); a rate of 5% (the red-team's, over all paths) is seen by the 8 runs with
+    probability 34% (16 runs: 56%). `make validate` runs each path 60 times more (below),
+    where a 5% rate is seen with certainty. A run that does not exit 2 with its one line
+    is always a defect: there is no false alarm to budget.
     """
-    _check_runs(_run_many(inputs, args, 4), needles)
+    _check_runs(_run_many(inputs, args, EARLY_RUNS), needles)
 
 
 @pytest.mark.statistical
@@ -145,15 +151,15 @@ def test_early_errors_exit_2_every_time_many_runs(inputs, name, args, needles):
 
     A 1% abort rate (over all paths) is seen with probability 91%, a 5% rate with
     certainty; the measured pre-fix rates (1-57% per path) with certainty. False-alarm
-    rate: 0 (an abort is a defect). CI ran 20 per path, then 10, and now none: its 16
-    runs are the test above (a 5% rate seen with probability 56%).
+    rate: 0 (an abort is a defect). CI ran 20 per path, then 10, and now none: its 8
+    runs are the test above (a 5% rate seen with probability 34%).
     """
     _check_runs(_run_many(inputs, args, MANY_RUNS), needles)
 
 
 # ------------------------------------------------------------- the entry point itself
 def test_the_entry_point_keeps_exit_codes_and_output(tmp_path):
-    """Success, a data error and --help go through LoadbayesGroup.main unchanged."""
+    """Success and --help go through LoadbayesGroup.main unchanged (a data error: above)."""
     feeder(tmp_path / "kv.csv", n=200)
     ok = subprocess.run([*EXE, "fit", "zip", "kv.csv", "--v-base", "11", "--s-base", "5",
                          "--draws", "600", "--burn", "100", "--chains", "2", "--quiet",
@@ -161,9 +167,7 @@ def test_the_entry_point_keeps_exit_codes_and_output(tmp_path):
                         text=True, timeout=300)  # fmt: skip
     assert ok.returncode == 0, ok.stderr
     assert '"model": "zip"' in ok.stdout
-    bad = subprocess.run([*EXE, "fit", "zip", "nothere.csv", "--quiet"], cwd=tmp_path, env=_env(),
-                         capture_output=True, text=True, timeout=120)  # fmt: skip
-    assert bad.returncode == 2 and bad.stderr.startswith("loadbayes: error: nothere.csv")
+    # A data error's exit 2 and one line through it: the early-error runs above.
     usage = subprocess.run([*EXE, "--help"], env=_env(), capture_output=True, text=True,
                            timeout=120)  # fmt: skip
     assert usage.returncode == 0 and "fit" in usage.stdout
@@ -282,14 +286,16 @@ def test_a_signal_at_a_random_moment_leaves_no_temporary(tmp_path, k):
 
 @pytest.mark.statistical
 def test_signals_at_random_moments_leave_no_temporary_many_runs(tmp_path):
-    """8 runs in CI, 40 in `make validate`, seed 25: signals inside the NetCDF write (70%)
+    """3 runs in CI, 40 in `make validate`, seed 25: signals inside the NetCDF write (70%)
     or anywhere in the run.
 
-    The pre-fix leak was seen once in three runs of a marker-triggered SIGTERM; the 5 runs
-    inside the write (CI; 9 of 12 until 29 Nov 2026, cut to keep `make test` within 12
-    minutes as the suite grew), with the parametrized test's 2 of 3, miss a 1-in-3 leak with
-    probability (2/3)^7 = 5.9%, 28 (validate) with < 1e-4. False alarms: none (a
-    temporary left is always a defect).
+    The pre-fix leak was seen once in three runs of a marker-triggered SIGTERM; the 2 runs
+    inside the write (CI: one SIGINT, one SIGTERM; 9 of 12 until 29 Nov 2026, 5 of 8 until
+    30 Nov, cut to keep `make test` within 12 minutes as the suite grew), with the
+    parametrized test's 2 of 3 and test_cli_issue14's 2 (SIGTERM and SIGINT at the
+    NetCDF write's first temporary), miss a 1-in-3 leak with probability (2/3)^6 = 8.8%
+    (it was (2/3)^9 = 2.6%), 28 (validate) with < 1e-4. False alarms: none (a temporary
+    left is always a defect).
     """
     feeder(tmp_path / "bus.csv", kv=1.0, mw=1.0, mvar=1.0, n=300)
     for sig, marker, delay in _random_moments(25, SIGNAL_RUNS):

@@ -511,7 +511,10 @@ def test_odd_but_legal_files_are_fitted(case, tmp_path):
     assert exercise(path) == "ok", case
 
 
-@pytest.mark.parametrize("case", ["empty-csv", "directory", "corrupt-parquet", "utf16"])
+#: Every case is also run in-process above (the contract); a real process adds its end after
+#: a reader failed, so one per reader: Arrow's Parquet and its CSV (text it cannot decode).
+#: "empty-csv" and "directory" ran here too until 30 Nov 2026: their process ends as these.
+@pytest.mark.parametrize("case", ["corrupt-parquet", "utf16"])
 def test_whole_file_faults_through_a_real_process(case, tmp_path):
     path, where = _make(case, tmp_path)
     assert exercise(path, where=where, runner="subprocess") != "ok", case

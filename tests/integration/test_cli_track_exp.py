@@ -1,25 +1,23 @@
 """`loadbayes track zip`, `fit exp` and `fit zip --likelihood student-t`, as a user runs them."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from cli_here import cli_here
+
 pytestmark = pytest.mark.integration
 
-EXE = [sys.executable, "-m", "loadbayes"]
 FAST = ["--draws", "1200", "--burn", "300", "--chains", "2", "--quiet"]
 BAD_ROWS = (4, 40, 150)  # 0-based; file rows 5, 41, 151
 
 
 def run(*args, cwd, stdin=None):
-    return subprocess.run(
-        [*EXE, *map(str, args)], cwd=cwd, capture_output=True, text=True, input=stdin, timeout=180
-    )
+    """The command in-process (``cli_here``): its files, exit code and lines are the subject."""
+    return cli_here(*args, cwd=cwd, input=stdin)
 
 
 def _write(path: Path, n=300, seed=0, bad=True, t=True):

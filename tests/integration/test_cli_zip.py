@@ -1,4 +1,8 @@
-"""`loadbayes fit zip` end to end, as a user runs it (subprocess)."""
+"""`loadbayes fit zip` end to end, as a user runs it.
+
+The commands run in-process (``cli_here``): their subject is files, exit codes and
+one-line errors, not the process; ``python -m loadbayes.cli`` runs as a process.
+"""
 
 import json
 import subprocess
@@ -9,16 +13,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from cli_here import cli_here
+
 pytestmark = pytest.mark.integration
 
-EXE = [sys.executable, "-m", "loadbayes"]
 FAST = ["--draws", "1500", "--burn", "300", "--chains", "2", "--quiet"]
 
 
-def run(*args, cwd, stdin=None):
-    return subprocess.run(
-        [*EXE, *map(str, args)], cwd=cwd, capture_output=True, text=True, input=stdin, timeout=120
-    )
+def run(*args, cwd):
+    return cli_here(*args, cwd=cwd)
 
 
 def _write(path: Path, n=300, seed=0, **overrides):

@@ -51,7 +51,9 @@ def test_output_is_identical_for_one_and_two_workers(engine, n, chunk, monkeypat
     # cold at each chunk. Before, newton ran 450 rows in chunks of 200 and recycle 150 in
     # chunks of 40 (the same code paths, twice the power flows).
     monkeypatch.setattr(ieee33_parallel, "_CHUNK", chunk)
-    kw = {"seed": 31, "engine": engine, "factor_range": (0.1, 6.5)}  # some failures too
+    # Some failures too; noise on V as well. (The unit tier's own run of workers=2, the
+    # newton engine on 3 chunks with noise on V, was this case's duplicate: it is here.)
+    kw = {"seed": 31, "engine": engine, "factor_range": (0.1, 6.5), "noise_on_v": 0.01}
     one = ieee33.generate_experiments(n, **kw)
     two = ieee33.generate_experiments(n, workers=2, **kw)
     pd.testing.assert_frame_equal(one, two, check_exact=True)

@@ -89,12 +89,20 @@ def inadmissible_event():
     return ev, truth
 
 
-def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event):
+@pytest.fixture(scope="module")
+def bounded_fit(inadmissible_event):
+    """The bounded fit of that event (seed 5), which two tests read."""
+    ev, _ = inadmissible_event
+    run = SamplerSettings(draws=400, burn=200, chains=2, seed=5)
+    return fit_composite(CompositeModel(window_s=0, shares="bounded"), [ev], sampler=run)
+
+
+def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event, bounded_fit):
     ev, truth = inadmissible_event
     run = SamplerSettings(draws=400, burn=200, chains=2, seed=5)
     free = fit_composite(CompositeModel(window_s=0), [ev], sampler=run)
     assert any("--shares bounded" in w for w in free.posterior.warnings)
-    fit = fit_composite(CompositeModel(window_s=0, shares="bounded"), [ev], sampler=run)
+    fit = bounded_fit
     d = fit.posterior.draws
     for n in ("a1", "a2", "a3", "a4", "a5", "a6", "f_m"):
         assert np.all(d[n] >= 0) and np.all(d[n] <= 1), n
@@ -103,12 +111,11 @@ def test_bounded_fit_keeps_every_share_in_the_unit_interval(inadmissible_event):
     assert not any("--shares bounded" in w for w in fit.posterior.warnings)
 
 
-def test_a_prior_on_a_share_pulls_it(inadmissible_event):
+def test_a_prior_on_a_share_pulls_it(inadmissible_event, bounded_fit):
     # The data put a1 near 0 (truth 0); a tight prior at 0.6 must move it most of the way.
     ev, _ = inadmissible_event
     run = SamplerSettings(draws=400, burn=200, chains=2, seed=5)
-    plain = fit_composite(CompositeModel(window_s=0, shares="bounded"), [ev], sampler=run)
-    plain = plain.posterior.draws["a1"]
+    plain = bounded_fit.posterior.draws["a1"]
     model = CompositeModel(window_s=0, shares="bounded", priors={"a1": (0.6, 0.02)})
     fit = fit_composite(model, [ev], sampler=run)
     pulled = fit.posterior.draws["a1"]

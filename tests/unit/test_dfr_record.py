@@ -10,6 +10,7 @@ three-phase load behind them.
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -26,6 +27,18 @@ _HERE = Path(__file__).resolve()
 # ../shared/real beside the repository (found above this file, as the demo finds it).
 REAL = find_record(_HERE) or _HERE.parents[3] / "shared" / "real" / "xtz.cfg"
 needs_real = pytest.mark.skipif(not REAL.is_file(), reason="../shared/real is not beside the repo")
+
+
+@functools.cache
+def _transformer_1_at_4():
+    """Transformer #1 of the real record, its table at 4 windows a cycle, and the progress
+    counts said while it was made: read once for the two tests that check them."""
+    w = read_comtrade(REAL, bay="1号主变")
+    seen: list[int] = []
+    rec = record_table(w, per_cycle=4, progress=seen.append)
+    return w, rec, seen
+
+
 A = np.exp(2j * np.pi / 3)
 
 
@@ -93,7 +106,7 @@ def test_the_real_record_reads_and_each_transformer_matches_an_independent_dft(
 
 @needs_real
 def test_both_faults_are_seen_unbalanced_and_the_amplitude_segments_are_magnitudes_only():
-    rec = record_table(read_comtrade(REAL, bay="1号主变"), per_cycle=4)
+    _, rec, _ = _transformer_1_at_4()
     c = rec.columns
     for seg in (0, 2):  # the two waveform windows: the fault and the reclose onto it
         rows = (c["segment"] == seg) & ~c["straddle"]
@@ -378,9 +391,7 @@ def test_overlapping_windows_correlate_their_noise_by_the_overlap_fraction(per_c
 def test_the_phasor_windows_are_counted_for_the_progress_bar():
     from loadbayes.recordings.record import phasor_windows
 
-    w = read_comtrade(REAL, bay="1号主变")
-    seen: list[int] = []
-    rec = record_table(w, per_cycle=4, progress=seen.append)
+    w, rec, seen = _transformer_1_at_4()
     phasor_rows_fitted = int((rec.columns["kind"] == "phasor").sum())
     # Two passes (at f0, then at the segment's frequency) over every window.
     assert sum(seen) == 2 * phasor_rows_fitted

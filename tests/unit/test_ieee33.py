@@ -13,7 +13,6 @@ import pytest
 
 from loadbayes.cases import ieee33
 from loadbayes.cases.ieee33 import DEFAULT_ZIP, N_FACTORS, ZIP_BUS, Feeder33
-from loadbayes.cases.ieee33 import parallel as ieee33_parallel
 from loadbayes.studies.ieee33_validation import validate
 
 pp = pytest.importorskip("pandapower")
@@ -165,13 +164,6 @@ def test_generate_experiments_is_reproducible_and_documented(feeder):
     np.testing.assert_array_equal(quiet.p_meas_pu, quiet.p_true_pu)
     np.testing.assert_array_equal(df.v_meas_pu, df.v_pu)
     assert df.attrs["n_failed"] == 0 and df.attrs["p0_mw"] == 0.09
-
-
-def test_workers_do_not_change_the_output(monkeypatch):
-    monkeypatch.setattr(ieee33_parallel, "_CHUNK", 20)  # three chunks, cheaply
-    one = ieee33.generate_experiments(50, seed=7, noise_on_v=0.01)
-    two = ieee33.generate_experiments(50, seed=7, noise_on_v=0.01, workers=2)
-    pd.testing.assert_frame_equal(one, two, check_exact=True)
 
 
 def test_failed_power_flows_are_kept_and_counted():

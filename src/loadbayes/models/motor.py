@@ -259,6 +259,10 @@ def derivatives(
     dw = (electrical_torque(ed, eq, id_, iq) - mechanical_torque(w, t0, params)) / (
         2.0 * params.h_s
     )
+    if np.ndim(ded) == np.ndim(deq) == np.ndim(dw) == 0:
+        # One sample (an ODE solver's call): nothing to broadcast, and the stack of
+        # broadcast views costs more than the model's arithmetic.
+        return np.array([ded, deq, dw], dtype=float)
     return np.stack(np.broadcast_arrays(ded, deq, dw))
 
 
