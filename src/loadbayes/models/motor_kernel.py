@@ -446,11 +446,12 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
         # states between by cubic Hermite interpolation (smooth states, O(h^4) error).
         j = k + 1
         fine = t[k] < fine_until
+        turn = wb * abs(1.0 - w)  # the rotor frame's speed against V's (OSC_STEP)
         while (
             not fine
             and j + 1 < n
             and t[j + 1] - t[k] <= h_max * (1.0 + 1e-9)
-            and (t[j + 1] - t[k]) * wb * abs(1.0 - w) <= OSC_STEP
+            and (t[j + 1] - t[k]) * turn <= OSC_STEP
             and _on_chord(t, v, delta, v2, k, j + 1)
         ):
             j += 1
@@ -481,7 +482,7 @@ def integrate_v2_into(t, v, delta, v2, rs, xp, dx, tp, h, wb, t0, a, b, c, h_max
             # error follows the input's change per step as well as h / T'.
             jump = max(abs(v[j] - v[k]), abs(delta[j] - delta[k]))
             h_k = min(h_max, tau_fast / FAST_STEPS) if fine else h_max
-            m = _substeps(span, h_k, jump, wb * abs(1.0 - w))
+            m = _substeps(span, h_k, jump, turn)
             if m == 0:
                 return False
             if jump > STEP_JUMP:
