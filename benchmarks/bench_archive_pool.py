@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
-import os
 import resource
 import subprocess
 import sys
@@ -37,6 +36,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from bench_zip import machine  # noqa: E402  (one copy: the machine's description)
+
 OUT = HERE / "results" / "archive_pool.json"
 CASES = {
     "5 stations x 100 events (1 bay)": dict(stations=5, bays=1, events=100, hour=False),
@@ -127,22 +129,6 @@ def run_row(case: str, draws: int) -> dict:
         "coverage": float(np.mean(hits)),
         "left_out": sum(res.left_out.values()),
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-    }
-
-
-def machine() -> dict:
-    import platform
-
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    return {
-        "platform": platform.platform(),
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": usable,
-        "load_average_at_start": list(os.getloadavg()),
-        "python": sys.version.split()[0],
     }
 
 

@@ -38,6 +38,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from bench_zip import machine  # noqa: E402  (one copy: the machine's description)
+
 OUT = HERE / "results" / "drift.json"
 A1, A2 = 0.4, 0.35
 TRUE_DPDV = 2 * A1 + A2
@@ -129,22 +132,6 @@ def run_row(case: str, method: str) -> dict:
         "r_hat_dpdv": float(s["r_hat"][0]),
         "ess_per_s": float(s["ess_bulk"][0]) / wall,
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-    }
-
-
-def machine() -> dict:
-    import platform
-
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    return {
-        "platform": platform.platform(),
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": usable,
-        "load_average_at_start": list(os.getloadavg()),
-        "python": sys.version.split()[0],
     }
 
 
