@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
+import numba
 import numpy as np
 
 from loadbayes.fit.composite.problem import CompositeProblem
@@ -85,20 +86,33 @@ def _motor_p0_q0(
 ) -> tuple[np.ndarray, np.ndarray]:
     # The motor's own-base P, Q at each event's first sample, per draw (and per-draw
     # torque shares when they are estimated).
+    # One compiled loop over the draws: the until-converged rule names every draw so far
+    # after each round (2 x 38,400 draws, 0.6 s a call in the Python loop this replaced).
     flat = theta.reshape(-1, len(THETA_NAMES))
     e = np.exp(flat)
     wb = 2.0 * math.pi * problem.f_hz
-    abc_flat = None if abc is None else abc.reshape(-1, 3)
-    n_ev = len(problem.events)
+    if abc is None:
+        abc_flat = np.empty((flat.shape[0], 3))
+        abc_flat[:] = np.asarray(problem.torque, dtype=float)
+    else:
+        abc_flat = np.ascontiguousarray(abc.reshape(-1, 3), dtype=float)
+    v0 = np.array([float(ev.v0) for ev in problem.events])
+    n_ev = v0.size
     pm0 = np.full((flat.shape[0], n_ev), np.nan)
     qm0 = np.full((flat.shape[0], n_ev), np.nan)
-    for i, (rs, xp, dx, tp, _h, t0) in enumerate(e):
-        a, b, c = problem.torque if abc_flat is None else abc_flat[i]
-        for k, ev in enumerate(problem.events):
-            out = steady_state(rs, xp, dx, tp, wb, ev.v0, t0, a, b, c)
-            pm0[i, k], qm0[i, k] = out[3], out[4]
+    _steady_pq_into(e, abc_flat, wb, v0, pm0, qm0)
     shape = theta.shape[:-1] + (n_ev,)
     return pm0.reshape(shape), qm0.reshape(shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _steady_pq_into(e, abc, wb, v0, pm0, qm0):  # pragma: no cover - compiled
+    # The motor's steady P, Q of draw i (exp of its log parameters e[i]) at event k's v0.
+    for i in range(e.shape[0]):
+        rs, xp, dx, tp, t0 = e[i, 0], e[i, 1], e[i, 2], e[i, 3], e[i, 5]
+        for k in range(v0.size):
+            out = steady_state(rs, xp, dx, tp, wb, v0[k], t0, abc[i, 0], abc[i, 1], abc[i, 2])
+            pm0[i, k], qm0[i, k] = out[3], out[4]
 
 
 def named_draws(
