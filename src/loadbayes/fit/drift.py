@@ -252,8 +252,9 @@ def fit_zip_drift(
         flat = res.path.reshape(-1, res.path.shape[-1])
         level["t_s"] = t[res.keep_idx].tolist()
         level[f"{ch}_mean"] = flat.mean(axis=0).tolist()
-        level[f"{ch}_low"] = np.quantile(flat, 0.025, axis=0).tolist()
-        level[f"{ch}_high"] = np.quantile(flat, 0.975, axis=0).tolist()
+        # both ends from one partition of the draws (each end's values to the bit)
+        low, high = np.quantile(flat, [0.025, 0.975], axis=0)
+        level[f"{ch}_low"], level[f"{ch}_high"] = low.tolist(), high.tolist()
         accept[ch] = res.acceptance.tolist()
         if ch not in eiv:
             ar1[ch] = res.rho

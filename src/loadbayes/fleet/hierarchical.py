@@ -80,9 +80,7 @@ from loadbayes.fleet.hier_kernels import (
     _factor,
     _mu_draw,
     _mu_terms,
-    _scale_apply,
-    _scale_terms,
-    _scale_tries,
+    _scale_moves_all,
 )
 from loadbayes.fleet.stats import FleetStats
 from loadbayes.fleet.summary import PRIOR_DRIVEN, failed_rows, stat_rows
@@ -389,18 +387,15 @@ def _scale_moves(gen, data, nu0, psi0, mu, theta, s, t, sigma, sig_inv, dirs, ac
     say little (the funnel of hierarchical models).
     """
     ncls = mu.shape[0]
-    z = np.empty((_SCALE_TRIES, ncls))
-    uni = np.empty((_SCALE_TRIES, ncls))
-    total = np.empty(ncls)
-    for v in dirs:
-        _scale_terms(data.cls, data.g3, data.xy, s, t, theta, mu, v, acc_a, acc_b)
-        for r in range(_SCALE_TRIES):  # the stream's order: normals, then uniforms, per try
-            z[r] = gen.standard_normal(ncls)
-            uni[r] = gen.random(ncls)
-        total[:] = 1.0
-        _scale_tries(psi0, nu0, v, _SCALE_STEP, sigma, sig_inv, acc_a, acc_b, z, uni, total)
-        if np.any(total != 1.0):
-            _scale_apply(data.cls, theta, mu, v, total)
+    z = np.empty((len(dirs), _SCALE_TRIES, ncls))
+    uni = np.empty((len(dirs), _SCALE_TRIES, ncls))
+    for k in range(len(dirs)):  # the stream's order: per direction and try, normals, uniforms
+        for r in range(_SCALE_TRIES):
+            z[k, r] = gen.standard_normal(ncls)
+            uni[k, r] = gen.random(ncls)
+    # (the moves draw nothing themselves: drawn first, the chain's stream is the same)
+    _scale_moves_all(data.cls, data.g3, data.xy, s, t, theta, mu, dirs, psi0, nu0, _SCALE_STEP,
+                     sigma, sig_inv, acc_a, acc_b, z, uni, np.empty(ncls))  # fmt: skip
     return sigma, sig_inv
 
 
