@@ -225,6 +225,7 @@ class PartsModel:
         set_(self, "thresholds", tuple(thr))
         set_(self, "_kept", {})
         set_(self, "_lowest", {})
+        set_(self, "_of_theta", {})  # parts_kernel._of_theta
         set_(self, "_fixed", {})
 
     def _tag(self, m: str) -> str:
