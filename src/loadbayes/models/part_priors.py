@@ -194,8 +194,7 @@ class PartsPrior:
     def log_u(self, u: np.ndarray) -> float:
         """Log prior density at ``u`` up to a constant."""
         u = np.asarray(u, dtype=float)
-        # The limits' mass of each motor's log T0 (part_scale.py), computed once: it is
-        # both :meth:`inside`'s test and a term of the density.
+        # The limits' mass of each motor's log T0 (part_scale.py): inside's test, a term.
         masses = [float(m.log_mass(u)) for m in self.maps]
         if not self._inside(u, masses):
             return -math.inf
@@ -220,7 +219,6 @@ class PartsPrior:
         return self._inside(u, [float(m.log_mass(u)) for m in self.maps])
 
     def _inside(self, u: np.ndarray, masses: list[float]) -> bool:
-        # :meth:`inside` given the maps' masses at ``u``.
         if not all(math.isfinite(mass) for mass in masses):
             return False
         for i, lo, hi in self.ranges:
