@@ -33,6 +33,7 @@ the samples, whether and when motor D stalled, its thresholds and shares.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -231,6 +232,7 @@ def stall_depth(*, dur, lo=0.05, hi=0.45, tol=1e-4, **kw):
     """
     kw = {**kw, "t_end": kw.get("t_on", 0.1) + dur + 0.1, "dur": dur}
 
+    @functools.cache  # brentq asks the two ends again: the same runs
     def stalls(x):
         return simulate(depth=x, **kw)[5]["stalled"]
 

@@ -208,6 +208,15 @@ def griddyn(tmp_path_factory):
     return both, shallow, deep, frames[2]
 
 
+@pytest.fixture(scope="module")
+def griddyn_deep(griddyn):
+    """The deep fault played by each fit, 300 draws, seed 0: computed once, read by the
+    three tests below (each asked the same ``predict`` calls of its own before)."""
+    both, shallow, deep, _ = griddyn
+    return {"both": predict(both, voltage=deep, draws=300),
+            "shallow": predict(shallow, voltage=deep, draws=300)}  # fmt: skip
+
+
 def _inside(pred, frame):
     b = pred.band
     x = {ch: frame[ch].to_numpy() for ch in ("p", "q")}
@@ -216,10 +225,10 @@ def _inside(pred, frame):
 
 
 @pytest.mark.statistical
-def test_griddyn_deep_fault_predicted_from_shallow_and_medium(griddyn):
+def test_griddyn_deep_fault_predicted_from_shallow_and_medium(griddyn, griddyn_deep):
     """Fixed seeds (fit 7, prediction 0): deterministic; the numbers are reported."""
-    both, _, deep, frame = griddyn
-    pred = predict(both, voltage=deep, draws=300)
+    frame = griddyn[3]
+    pred = griddyn_deep["both"]
     inside = _inside(pred, frame)
     print("inside the 95% band:", inside, "stall:", pred.stall)
     assert pred.extrapolation["extrapolated"]  # 46 % against the deepest fitted 25 %
@@ -232,9 +241,9 @@ def test_griddyn_deep_fault_predicted_from_shallow_and_medium(griddyn):
 
 
 @pytest.mark.statistical
-def test_griddyn_from_the_shallow_fault_alone_is_flagged(griddyn):
-    _, shallow, deep, frame = griddyn
-    b = predict(shallow, voltage=deep, draws=300)
+def test_griddyn_from_the_shallow_fault_alone_is_flagged(griddyn, griddyn_deep):
+    frame = griddyn[3]
+    b = griddyn_deep["shallow"]
     print("from the shallow fault alone: inside", _inside(b, frame), "stall:", b.stall)
     assert b.extrapolation["extrapolated"]
     assert "deepest 13%" in b.extrapolation["message"]
@@ -253,11 +262,10 @@ def test_griddyn_from_the_shallow_fault_alone_is_flagged(griddyn):
                    "over data sets (the law of total variance), not in each: here the medium "
                    "fault moved motor D's share up within its interval, and the band with it. "
                    "The extrapolation is flagged all the same")  # fmt: skip
-def test_griddyn_band_from_the_shallow_fault_alone_is_wider(griddyn):
-    both, shallow, deep, _ = griddyn
+def test_griddyn_band_from_the_shallow_fault_alone_is_wider(griddyn_deep):
     widths = []
-    for post in (both, shallow):
-        b = predict(post, voltage=deep, draws=300).band
+    for key in ("both", "shallow"):
+        b = griddyn_deep[key].band
         widths.append(float(np.mean(b["p_pred_hi"] - b["p_pred_lo"])))
     print("mean width of P's band, shallow+medium then shallow:", widths)
     assert widths[1] > widths[0]

@@ -194,13 +194,15 @@ class PartsPrior:
     def log_u(self, u: np.ndarray) -> float:
         """Log prior density at ``u`` up to a constant."""
         u = np.asarray(u, dtype=float)
-        if not self.inside(u):
+        # The limits' mass of each motor's log T0 (part_scale.py): inside's test, a term.
+        masses = [float(m.log_mass(u)) for m in self.maps]
+        if not self._inside(u, masses):
             return -math.inf
         mean, prec = self._gauss
         d = u[: self.mean.size] - mean
         out = -0.5 * float(d @ prec @ d)
-        for m in self.maps:  # the limits' mass of each motor's log T0 (part_scale.py)
-            out += float(m.log_mass(u))
+        for mass in masses:
+            out += mass
         for a, b in self.groups:
             # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
             z = np.append(u[a:b], 0.0)
@@ -214,9 +216,11 @@ class PartsPrior:
         ``log T0`` inside the limits, so they hold wherever they leave ``log T0`` some
         prior mass.
         """
-        for m in self.maps:
-            if not math.isfinite(float(m.log_mass(u))):
-                return False
+        return self._inside(u, [float(m.log_mass(u)) for m in self.maps])
+
+    def _inside(self, u: np.ndarray, masses: list[float]) -> bool:
+        if not all(math.isfinite(mass) for mass in masses):
+            return False
         for i, lo, hi in self.ranges:
             if not lo <= u[i] <= hi:
                 return False

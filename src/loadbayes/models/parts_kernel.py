@@ -465,21 +465,35 @@ def _arguments(model, event, theta) -> tuple:
     # The kernels' arguments at theta: the event's arrays, the parts' constants, whether
     # the negative sequence is read, and theta split (its shares for event_sums).
     fixed = _fixed_of(model, event)
-    c = model._split(np.asarray(theta, dtype=float))
+    c, motors, d_params = _of_theta(model, np.asarray(theta, dtype=float))
     x_fd = model.feeder_x(fixed[4][0], fixed[5][0], c)  # the first kept row's P, Q
-    wb = 2.0 * math.pi * model.f_hz
-    motors = np.empty((len(model.motors), 11))
-    for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
-        rs, xp, dx, tp, h, t0 = np.exp(logs)
-        a, b, cc = MOTOR_CLASSES[m]["torque"]
-        motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
-    params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
-              "tstall": float(c["tstall"])}  # fmt: skip
-    d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
     parts = (model.rx * x_fd, x_fd, motors, float(model.window_s), model.motor_d, d_params,
              model.electronics, float(c["vd1"]), float(c["vd2"]), float(model.frcel))  # fmt: skip
     ns_on = len(model.channel_names) == 3 and bool(fixed[10].any())
     return fixed, parts, ns_on, c
+
+
+def _of_theta(model, theta) -> tuple:
+    # theta split, the motors' constants and motor D's: the same for every event, so
+    # kept on the model for the last few theta (a fit's events each ask them in turn).
+    key = theta.tobytes()
+    got = model._of_theta.get(key)
+    if got is None:
+        c = model._split(theta)
+        wb = 2.0 * math.pi * model.f_hz
+        motors = np.empty((len(model.motors), 11))
+        for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
+            rs, xp, dx, tp, h, t0 = np.exp(logs)
+            a, b, cc = MOTOR_CLASSES[m]["torque"]
+            motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
+        params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
+                  "tstall": float(c["tstall"])}  # fmt: skip
+        d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
+        got = (c, motors, d_params)
+        if len(model._of_theta) > 64:
+            model._of_theta.clear()
+        model._of_theta[key] = got
+    return got
 
 
 #: The AR(1) sums' arguments of the white-noise kernel call (not read).

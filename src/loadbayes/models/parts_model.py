@@ -224,6 +224,8 @@ class PartsModel:
         set_(self, "_tags", tuple(tags))
         set_(self, "thresholds", tuple(thr))
         set_(self, "_kept", {})
+        set_(self, "_lowest", {})
+        set_(self, "_of_theta", {})  # parts_kernel._of_theta
         set_(self, "_fixed", {})
 
     def _tag(self, m: str) -> str:
@@ -381,11 +383,21 @@ class PartsModel:
 
         Below it no threshold is reached (``fit/composite/thresholds.py``).
         """
-        keep, _ = self.drive_of(event)
-        if keep.size < event.n:
-            event = event.take(keep)
-        x_fd = self.feeder_x(event.p[0], event.q[0], self._split(theta)) if self.feeder else 0.0
-        return float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v))
+        # It depends on theta through the feeder's X alone (theta[0], as _split reads it),
+        # which most of the sampler's steps leave as it was: kept per event and value.
+        log_x = float(np.asarray(theta, dtype=float)[0]) if self.feeder else 0.0
+        key = (id(event), event.n, log_x)
+        if key not in self._lowest:
+            keep, _ = self.drive_of(event)
+            if keep.size < event.n:
+                event = event.take(keep)
+            x_fd = 0.0
+            if self.feeder:
+                x_fd = self.feeder_x(event.p[0], event.q[0], {"x_fd": np.exp(log_x)})
+            if len(self._lowest) > 4096:
+                self._lowest.clear()
+            self._lowest[key] = float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v))
+        return self._lowest[key]
 
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""

@@ -62,6 +62,7 @@ class ThresholdMoves:
         """One independence and (where the voltages are reached) one random-walk step per pair."""
         prior, inside = self.problem.prior, self.problem.in_support
         low = self.lowest_voltage(u)
+        prior_u = None  # prior.log_u(u), computed once per u (the same number each time)
         for pair in self.pairs:
             ix = list(pair)
             for kind in (0, 1):
@@ -75,10 +76,13 @@ class ThresholdMoves:
                 self.tried[kind] += 1
                 if not inside(cand):
                     continue
-                dprior = prior.log_u(cand) - prior.log_u(u)
+                prior_c = prior.log_u(cand)
+                if prior_u is None:
+                    prior_u = prior.log_u(u)
+                dprior = prior_c - prior_u
                 if low > max(u[pair[0]], cand[pair[0]]) + MARGIN:
                     # Neither value is reached: the same likelihood, no solve needed.
-                    u, lp = cand, lp + dprior
+                    u, lp, prior_u = cand, lp + dprior, prior_c
                     self.accepted[kind] += 1
                     continue
                 lc, s2 = logp(cand)
@@ -87,6 +91,6 @@ class ThresholdMoves:
                 # Independence from the prior: the likelihood ratio; random walk: the posterior's.
                 log_r = lc - lp - (dprior if kind == 0 else 0.0)
                 if math.log(rng.uniform()) < log_r:
-                    u, lp, sums = cand, lc, s2
+                    u, lp, sums, prior_u = cand, lc, s2, prior_c
                     self.accepted[kind] += 1
         return u, lp, sums
