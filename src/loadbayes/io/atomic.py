@@ -207,6 +207,11 @@ def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
     from h5py's finalisers and crashed the process (segmentation fault, exit 139) when
     the half-closed file's objects were freed (the red-team's H2). The groups, their
     order and the attributes are those of ``InferenceData.to_netcdf`` (ArviZ 0.23).
+
+    SIGINT and SIGTERM are held back while the file is built (in memory, milliseconds):
+    an interrupt inside h5netcdf's ``File`` constructor left an object whose finaliser
+    printed an ``AttributeError`` traceback ("Exception ignored in File.close") under
+    the CLI's one-line message (a fleet's --netcdf-dir interrupted on a loaded machine).
     """
     import io
 
@@ -215,7 +220,7 @@ def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
     buf = io.BytesIO()
     mode = "w"
     attrs = getattr(idata, "_attrs", None)
-    with _local_write_lock():
+    with held_signals(), _local_write_lock():
         if attrs:
             xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
             mode = "a"
