@@ -28,9 +28,9 @@ from loadbayes.cases.ieee33.parallel import solve_chunks
 
 #: With ``numba=None``: the flows this process solves (all its feeders together) from which
 #: it compiles pandapower's numba kernels, like renting skis until their price is spent.
-#: Measured on the 33-bus case (CPU s, one process, machine loaded): compiling costs
-#: 3.4-5.2 s; a flow then takes 11 instead of 25 ms (``newton``), 47 instead of 59 ms
-#: (``recycle``), 72 instead of 100 ms (``runpp``): even at about 180-370 flows.
+#: Measured on the 33-bus case (CPU s, one process, load average 1-2): compiling costs
+#: 2.9-4.5 s; a flow then takes 8.7 instead of 22 ms (``newton``), 39 instead of 54 ms
+#: (``recycle``), 72 instead of 86 ms (``runpp``): even at about 200-330 flows.
 NUMBA_FROM_FLOWS = 300
 #: Flows solved here so far with ``numba=None``, and whether numba took over.
 _PROCESS = {"flows": 0, "numba": False}
