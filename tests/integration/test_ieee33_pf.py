@@ -89,3 +89,28 @@ def test_validate_point_estimate_close_to_truth_is_small():
     assert out.converged.all()
     assert out.dv_pu.abs().max() < 1e-4
     assert out.dp_pu.abs().max() < 2e-3
+
+
+def test_numba_and_scipy_paths_give_the_same_bits_and_the_default_switches(monkeypatch):
+    """pandapower compiles its numba kernels in every process (about 5 CPU s); the default
+    (``numba=None``) runs SciPy's path until the process has solved ``NUMBA_FROM_FLOWS``
+    flows, then numba's. The switch must not change a number: both paths, bit for bit."""
+    from loadbayes.cases.ieee33 import feeder as feeder_module
+
+    factors = ieee33.draw_factors(40, seed=5, factor_range=(0.1, 6.5))  # some fail
+    for engine in ("newton", "recycle"):
+        scipy = Feeder33(engine=engine, numba=False).run_many(factors)
+        numba = Feeder33(engine=engine, numba=True).run_many(factors)
+        assert 0 < scipy["converged"].sum() < len(factors)
+        for key, value in scipy.items():
+            np.testing.assert_array_equal(numba[key], value, err_msg=f"{engine}: {key}")
+    monkeypatch.setattr(feeder_module, "_PROCESS", {"flows": 0, "numba": False})
+    monkeypatch.setattr(feeder_module, "NUMBA_FROM_FLOWS", 50)
+    auto = Feeder33()
+    auto.run_many(factors[:20])
+    assert not auto._numba_now and not auto._opts["numba"]
+    auto.run_many(factors[20:])  # 20 + 20 < 50: still SciPy
+    assert not auto._numba_now
+    auto.run_many(factors[:10])  # the 50th flow: numba from here on, for every feeder
+    assert auto._numba_now and auto._opts["numba"] and Feeder33()._numba_now
+    assert Feeder33(numba=False)._numba_now is False

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -207,6 +208,11 @@ def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
     from h5py's finalisers and crashed the process (segmentation fault, exit 139) when
     the half-closed file's objects were freed (the red-team's H2). The groups, their
     order and the attributes are those of ``InferenceData.to_netcdf`` (ArviZ 0.23).
+
+    SIGINT and SIGTERM are held back while the file is built (in memory, milliseconds):
+    an interrupt inside h5netcdf's ``File`` constructor left an object whose finaliser
+    printed an ``AttributeError`` traceback ("Exception ignored in File.close") under
+    the CLI's one-line message (a fleet's --netcdf-dir interrupted on a loaded machine).
     """
     import io
 
@@ -215,7 +221,7 @@ def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
     buf = io.BytesIO()
     mode = "w"
     attrs = getattr(idata, "_attrs", None)
-    with _local_write_lock():
+    with held_signals(), _local_write_lock():
         if attrs:
             xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
             mode = "a"
@@ -240,7 +246,28 @@ def _local_write_lock() -> contextlib.AbstractContextManager:
         import dask
     except ImportError:  # the cluster extra is not installed: no scheduler to override
         return contextlib.nullcontext()
-    return dask.config.set(scheduler="threads")
+    if "distributed" in sys.modules:
+        return dask.config.set(scheduler="threads")
+    return _threads_without_distributed(dask)
+
+
+@contextlib.contextmanager
+def _threads_without_distributed(dask: Any) -> Iterator[None]:
+    # Where distributed was never imported no Client exists, but xarray's scheduler
+    # check imports it to ask (``from dask.distributed import Client``; dask's own check
+    # does too for a scheduler given by name): about 0.4-1 CPU s in every process that
+    # writes a NetCDF. The threads scheduler given as its function, and that one import
+    # answered "not installed" for the write, give xarray's answer without it: "threaded",
+    # the same lock and the same bytes (sha256 checked).
+    import dask.threaded
+
+    with dask.config.set(scheduler=dask.threaded.get):
+        sys.modules["dask.distributed"] = None  # type: ignore[assignment]
+        try:
+            yield
+        finally:
+            if sys.modules.get("dask.distributed", 0) is None:
+                del sys.modules["dask.distributed"]
 
 
 def _fsync(path: Path) -> None:

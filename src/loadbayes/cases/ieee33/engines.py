@@ -60,7 +60,7 @@ class PandapowerEngines:
                 self.net,
                 tolerance_mva=self.tolerance_mva,
                 max_iteration=self.max_iteration,
-                numba=self.numba,
+                numba=self._numba_now,
                 **kwargs,
             )
         except self._pp.LoadflowNotConverged:
@@ -153,7 +153,7 @@ class NewtonEngine:
             voltage_depend_loads=True,
             max_iteration=self.max_iteration,
             tolerance_mva=self.tolerance_mva,
-            numba=self.numba,
+            numba=self._numba_now,
         )
         self._opts = opts
 

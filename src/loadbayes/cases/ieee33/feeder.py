@@ -26,6 +26,15 @@ from loadbayes.cases.ieee33.network import (
 )
 from loadbayes.cases.ieee33.parallel import solve_chunks
 
+#: With ``numba=None``: the flows this process solves (all its feeders together) from which
+#: it compiles pandapower's numba kernels, like renting skis until their price is spent.
+#: Measured on the 33-bus case (CPU s, one process, load average 1-2): compiling costs
+#: 2.9-4.5 s; a flow then takes 8.7 instead of 22 ms (``newton``), 39 instead of 54 ms
+#: (``recycle``), 72 instead of 86 ms (``runpp``): even at about 200-330 flows.
+NUMBA_FROM_FLOWS = 300
+#: Flows solved here so far with ``numba=None``, and whether numba took over.
+_PROCESS = {"flows": 0, "numba": False}
+
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
@@ -44,8 +53,14 @@ class Feeder33(PandapowerEngines, NewtonEngine):
         Newton mismatch tolerance, in per unit of ``net.sn_mva`` as pandapower uses it.
     max_iteration : int
         Newton iterations before a run counts as not converged.
-    numba : bool
-        Use pandapower's numba kernels (faster; compiled once per process).
+    numba : bool or None
+        Use pandapower's numba kernels. They solve a flow about twice as fast, but
+        pandapower compiles them in every process (``cache=False``: about 5 CPU s on the
+        first flow), which pays back only after some hundreds of flows; SciPy's path
+        gives the same numbers (bit for bit, checked on 300 flows of each engine). None
+        (the default) uses numba once the process has come to solve at least
+        ``NUMBA_FROM_FLOWS`` flows (counted over its :meth:`run_many` calls), SciPy
+        before.
 
     Attributes
     ----------
@@ -73,7 +88,7 @@ class Feeder33(PandapowerEngines, NewtonEngine):
         engine: Engine = "newton",
         tolerance_mva: float = 1e-10,
         max_iteration: int = 30,
-        numba: bool = True,
+        numba: bool | None = None,
     ) -> None:
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -82,7 +97,9 @@ class Feeder33(PandapowerEngines, NewtonEngine):
         self.engine = engine
         self.tolerance_mva = float(tolerance_mva)
         self.max_iteration = int(max_iteration)
-        self.numba = bool(numba)
+        self.numba = None if numba is None else bool(numba)
+        # What the solver uses now; automatic: numba if this process has compiled it.
+        self._numba_now = _PROCESS["numba"] if numba is None else bool(numba)
         if engine != "newton" and not self._runpp_ok():
             raise ValueError(
                 f"engine {engine!r}: pandapower refuses a negative constant-power share "
@@ -142,7 +159,7 @@ class Feeder33(PandapowerEngines, NewtonEngine):
             "engine": self.engine,
             "tolerance_mva": self.tolerance_mva,
             "max_iteration": self.max_iteration,
-            "numba": self.numba,
+            "numba": self._numba_now if self.numba is None else self.numba,
         }
 
     def __repr__(self) -> str:
@@ -150,6 +167,15 @@ class Feeder33(PandapowerEngines, NewtonEngine):
             f"Feeder33(zip_p={self.zip_p.tolist()}, zip_q={self.zip_q.tolist()}, "
             f"engine={self.engine!r})"
         )
+
+    def _auto_numba(self, flows: float) -> None:
+        # numba from the call that brings this process's flows to NUMBA_FROM_FLOWS (a
+        # worker's share counts as its own process's); once compiled, for every feeder.
+        if _PROCESS["numba"] or _PROCESS["flows"] + flows >= NUMBA_FROM_FLOWS:
+            _PROCESS["numba"] = self._numba_now = True
+            if self.engine == "newton":
+                self._opts["numba"] = True
+        _PROCESS["flows"] += int(flows)
 
     def _runpp_ok(self) -> bool:
         return bool(self.zip_p[2] >= 0 and self.zip_q[2] >= 0)
@@ -225,12 +251,16 @@ class Feeder33(PandapowerEngines, NewtonEngine):
         -----
         Work is cut into chunks of a fixed size, so the numbers are identical for any
         ``workers``. Worker processes are forked where the platform allows it, which
-        lets them reuse the pandapower case and the numba code compiled here (a fresh
+        lets them reuse the pandapower case and any numba code compiled here (a fresh
         process needs about 8 s for both); elsewhere they are spawned. Python >= 3.12
-        warns when it forks a process that runs threads (e.g. a Dask client).
+        warns when it forks a process that runs threads (e.g. a Dask client). With
+        ``numba=None``, the call that brings this process's flows (or a worker's share)
+        to ``NUMBA_FROM_FLOWS`` switches to numba, for it and every later call.
         """
         f = self._check_factors(factors, ndim=2)
         n = f.shape[0]
+        if self.numba is None:
+            self._auto_numba(n / max(int(workers), 1))
         zp = _per_row(self.zip_p if zip_p is None else as_zip(zip_p, "zip_p"), n, "zip_p")
         zq = _per_row(self.zip_q if zip_q is None else as_zip(zip_q, "zip_q"), n, "zip_q")
         out, ok = solve_chunks(self, f, zp, zq, workers=workers, progress=progress)
