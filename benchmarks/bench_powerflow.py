@@ -18,36 +18,22 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import importlib
 import json
-import os
-import platform
 import resource
 import sys
 import time
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
 
-from loadbayes.cases.ieee33 import Feeder33, draw_factors
-from loadbayes.io.atomic import atomic_write
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_zip import _version, machine  # noqa: E402  (one copy of each)
+from loadbayes.cases.ieee33 import Feeder33, draw_factors  # noqa: E402
+from loadbayes.io.atomic import atomic_write  # noqa: E402
 
 # newton/1 first: it is the reference for max_dv_pu.
 CONFIGS = [("newton", 1), ("newton", 2), ("recycle", 1), ("recycle", 2), ("runpp", 1), ("runpp", 2)]
 OUT = Path(__file__).resolve().parent / "results" / "powerflow.json"
-
-
-def _version(pkg: str) -> str | None:
-    # The module's own __version__ first: stale dist-info folders can disagree with it.
-    try:
-        return str(importlib.import_module(pkg).__version__)
-    except (ImportError, AttributeError):
-        pass
-    try:
-        return version(pkg)
-    except PackageNotFoundError:
-        return None
 
 
 def _cpu_seconds() -> float:
@@ -55,27 +41,6 @@ def _cpu_seconds() -> float:
     me = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
-
-
-def machine() -> dict:
-    try:
-        cpus_usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        cpus_usable = os.cpu_count()
-    cpu_model = platform.processor()
-    if Path("/proc/cpuinfo").exists():
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    return {
-        "platform": platform.platform(),
-        "cpu": cpu_model,
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": cpus_usable,
-        "load_average_at_start": os.getloadavg() if hasattr(os, "getloadavg") else None,
-        "python": sys.version.split()[0],
-    }
 
 
 def main(argv: list[str] | None = None) -> int:
