@@ -159,7 +159,7 @@ class Feeder33(PandapowerEngines, NewtonEngine):
             "engine": self.engine,
             "tolerance_mva": self.tolerance_mva,
             "max_iteration": self.max_iteration,
-            "numba": self._numba_now if self.numba is None else self.numba,
+            "numba": self._numba_now,  # what the solver uses now (as given, or automatic)
         }
 
     def __repr__(self) -> str:
