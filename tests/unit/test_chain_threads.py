@@ -1,7 +1,8 @@
-"""A short plain zip+motor fit runs its chains in one thread, with the same draws.
+"""A short plain zip+motor fit run in Python runs its chains in one thread, with the same draws.
 
-Two threads lose to one on short events (the GIL: sampler.ONE_THREAD_SAMPLES gives the
-measurements); the choice must change nothing but the time.
+Two threads lose to one on short events when the chains run the Python iteration (the
+GIL: sampler.ONE_THREAD_SAMPLES gives the measurements); chains that run compiled take one
+per CPU. The choice must change nothing but the time.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ def test_one_thread_below_the_threshold_and_none_above_or_when_asked(monkeypatch
     long, n_long = _problem(6.0)
     assert n_short < ONE_THREAD_SAMPLES <= n_long
     assert chain_threads(short) == 1 and chain_threads(long) is None
+    assert chain_threads(short, compiled=True) is None  # compiled chains hold no GIL
     monkeypatch.setenv("LOADBAYES_NUM_THREADS", "2")  # asked: the user's choice holds
     assert chain_threads(short) is None
 

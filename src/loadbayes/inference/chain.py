@@ -207,22 +207,40 @@ class Chain(Generic[S]):
         writes the fields of each kept one (:func:`is_kept`) into ``buffers[name][k -
         kept0]``, ``k`` its index among the chain's kept draws. The driver still owns the
         arrays (allocated here for the run, every field in memory), the count, the stop
-        flag and the progress, checked between batches.
+        flag, the progress and the deadline (:meth:`run`'s rule), looked at between
+        batches.
         """
         start, end = self.iteration, self.iteration + int(iterations)
-        kept0 = kept_count(0, start, self.burn, self.thin)
-        kept = kept_count(start, end, self.burn, self.thin)
+        burn, thin = self.burn, self.thin
+        kept0 = kept_count(0, start, burn, thin)
+        kept = kept_count(start, end, burn, thin)
         bufs = {k: np.empty((kept, *f.shape), f.dtype) for k, f in self.fields.items()}
-        state = self.state
-        for b0 in range(start, end, batch):
+        state, progress, deadline = self.state, self.progress, self.deadline
+        it, told, last = start, start, time.perf_counter()
+        while it < end:
             check_stop(self.stop)
-            m = min(batch, end - b0)
-            state = step_batch(state, self.rng, b0, m, bufs, kept0)
-            if self.progress is not None:
-                self.progress(m)
+            now = time.perf_counter()
+            if deadline is not None and now > deadline:
+                if it < burn:  # the burn-in ends here: the draws start at once
+                    skip = min(burn, end) - it
+                    self.cut += skip
+                    it += skip
+                    continue
+                if kept_count(0, it, burn, thin) >= self.min_kept:
+                    self.cut += end - it
+                    break
+            if progress is not None and now - last > self.progress_every:
+                progress(it - told)
+                told, last = it, now
+            m = min(batch, end - it)
+            state = step_batch(state, self.rng, it, m, bufs, kept0)
+            it += m
+        if progress is not None:
+            progress(it - told)
         self.state, self.iteration = state, end
+        j = kept_count(start, it, burn, thin)
         for k, buf in bufs.items():
-            self._runs[k].append(buf)
+            self._runs[k].append(buf[:j] if j < kept else buf)
 
     def draws(self) -> dict[str, np.ndarray]:
         """Every run's kept draws of each field kept in memory, (kept, *shape)."""

@@ -37,6 +37,7 @@ __all__ = [
     "moments_arrays",
     "posterior_moments",
     "residual_ss",
+    "residual_ss_arrays",
 ]
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -251,6 +252,11 @@ def _residual_ss(ztz, zty, yty, beta):  # pragma: no cover - compiled
                 acc += beta[i] * ztz[g, i, j] * beta[j]
         out[g] = max(acc, 0.0)
     return out
+
+
+#: :func:`residual_ss` on raw arrays ``(ztz, zty, yty, beta)``, compiled: for other
+#: kernels to call (fit/composite/chain_loop.py).
+residual_ss_arrays = _residual_ss
 
 
 def draw_tau(

@@ -192,9 +192,12 @@ def _estimate_seconds(
     # The chains that run at once (one per thread), timed in rounds until their pace
     # settles (fit/composite/until.estimate_seconds), their own throw-away run.
     from loadbayes.core.parallel import num_threads
+    from loadbayes.fit.composite.chain_fast import compiled_run
     from loadbayes.fit.composite.until import estimate_seconds
 
-    lanes = max(1, min(run.threads or chain_threads(sampled) or num_threads(), run.chains))
+    compiled = compiled_run(sampled, move, student_t, factor, noise == "ar1")
+    lanes = max(1, min(run.threads or chain_threads(sampled, compiled) or num_threads(),
+                       run.chains))  # fmt: skip
 
     def probe(n: int, extend=None) -> None:
         sample(sampled, start=start, draws=n, burn=n // 2, chains=lanes, seed=run.seed,

@@ -1,8 +1,9 @@
 """The composite fit's sampler: Metropolis-within-Gibbs on the collapsed density.
 
-One idea needs these 658 lines: the composite's Metropolis-within-Gibbs sweep (one
+One idea needs these 689 lines: the composite's Metropolis-within-Gibbs sweep (one
 ``step`` that :class:`loadbayes.inference.chain.Chain` drives), with its jump proposal
-and the chains' result.
+and the chains' result. A plain ``zip+motor`` chain runs the same sweep compiled whole
+(``chain_loop.py``, driven by ``chain_fast.py``: the same draws).
 Each iteration: a block move on the sampled vector ``u`` (the motor's scale-free
 coordinates, the steps' fractions, any torque log-ratios) with the linear coefficients
 integrated out; each event's coefficients exactly; the noise precisions (and, with
@@ -32,6 +33,7 @@ import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -40,6 +42,7 @@ from loadbayes.core.parallel import asked_threads, chain_generators, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.bounded_kernel import share_steps
+from loadbayes.fit.composite.chain_fast import BATCH, compiled_run, runs_compiled, step_batch
 from loadbayes.fit.composite.checks import MIN_KEPT
 from loadbayes.fit.composite.nls import NLSResult
 from loadbayes.fit.composite.problem import CompositeProblem
@@ -138,20 +141,26 @@ def block_steps(move, state: BlockState, logp, rng: np.random.Generator, iterati
     return state
 
 
-#: Below this many samples (all events together) a plain ``zip+motor`` fit runs its chains
-#: in one thread unless threads are asked for (``workers``, ``SamplerSettings.threads``,
-#: ``LOADBAYES_NUM_THREADS``): an iteration's compiled integration then lasts about as
-#: long as its Python, which holds the GIL, and two threads spend their time handing it
-#: back and forth. Sampler wall s on 2 idle cores, one thread against two: the real first
-#: fault (76 samples) 2.7-3.2 against 4.3-4.6; a 3 s event at 60/s (181) 3.6 against 3.9;
-#: a 10 s event (601) 5.7 against 3.9; a 20 s event (1,201) 7.9-9.2 against 4.4-5.2
-#: (docs/composite.md, "One thread for short events"). The draws do not depend on it.
+#: Below this many samples (all events together) a plain ``zip+motor`` fit whose chains run
+#: the Python iteration runs them in one thread unless threads are asked for (``workers``,
+#: ``SamplerSettings.threads``, ``LOADBAYES_NUM_THREADS``): an iteration's compiled
+#: integration then lasts about as long as its Python, which holds the GIL, and two threads
+#: spend their time handing it back and forth. Sampler wall s on 2 idle cores, one thread
+#: against two: the real first fault (76 samples) 2.7-3.2 against 4.3-4.6; a 3 s event at
+#: 60/s (181) 3.6 against 3.9; a 10 s event (601) 5.7 against 3.9; a 20 s event (1,201)
+#: 7.9-9.2 against 4.4-5.2 (docs/composite.md, "One thread for short events"). Chains that
+#: run compiled (``chain_fast.py``) hold no GIL and take one thread per CPU: the first fault
+#: 1.2-1.3 s against 1.8-1.9 in one. The draws do not depend on it.
 ONE_THREAD_SAMPLES = 300
 
 
-def chain_threads(problem) -> int | None:
-    """1 for a short plain ``zip+motor`` problem when no thread count is asked; else None."""
-    if asked_threads() is not None:
+def chain_threads(problem, compiled: bool = False) -> int | None:
+    """1 for a short plain ``zip+motor`` problem run in Python, no threads asked; else None.
+
+    None: one thread per CPU. ``compiled``: the chains run compiled
+    (:func:`~loadbayes.fit.composite.chain_fast.compiled_run`), and hold no GIL.
+    """
+    if asked_threads() is not None or compiled:
         return None
     short = sum(e.n for e in problem.events) < ONE_THREAD_SAMPLES
     return 1 if type(problem) is CompositeProblem and short else None
@@ -474,6 +483,14 @@ class _Gibbs:
         return u, sums, tilt.select(cands, logr, rng)
 
 
+def _run(gibbs: _Gibbs, chain: Chain, iterations: int) -> None:
+    """``iterations`` more of a chain: compiled for a plain zip+motor (``chain_fast.py``)."""
+    if runs_compiled(gibbs):
+        chain.run_batched(iterations, BATCH, partial(step_batch, gibbs))
+    else:
+        chain.run(iterations)
+
+
 def _result(gibbs: _Gibbs, chain: Chain) -> ChainResult:
     """A chain's kept draws so far and its statistics."""
     d, p = chain.draws(), gibbs.problem
@@ -534,7 +551,7 @@ def sample(
         Root seed (chain ``i`` uses child ``i`` of ``SeedSequence(seed)``).
     workers : int, optional
         Threads for the chains; by default one for a short plain ``zip+motor`` problem
-        (:func:`chain_threads`), else one per CPU.
+        run in Python (:func:`chain_threads`), else one per CPU.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
     move : {"shear", "am", "slice"}
@@ -619,16 +636,17 @@ def sample(
                   thin=thin, stats=g.stats, stop=stop, progress=progress, deadline=deadline,
                   min_kept=MIN_KEPT)  # fmt: skip
         state[index] = (g, c)
-        c.run(burn if pool else draws)
+        _run(g, c, burn if pool else draws)
         return _result(g, c)
 
     def rest(index: int, rng: np.random.Generator) -> ChainResult:
         g, c = state[index]
-        c.run(draws - burn)
+        _run(g, c, draws - burn)
         return _result(g, c)
 
     generators = chain_generators(seed, chains)
-    workers = workers or chain_threads(problem)
+    workers = workers or chain_threads(problem, compiled_run(problem, move, student_t, factor,
+                                                             ar))  # fmt: skip
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
         if state[0][0].late_lp is not None:  # chains left in a lower mode (restart.py)
@@ -665,7 +683,7 @@ def sample(
 
         def again(index: int, rng: np.random.Generator, more=more) -> ChainResult:
             g, c = state[index]
-            c.run(more)
+            _run(g, c, more)
             return _result(g, c)
 
         out = run_chains(again, generators, workers=workers, stop=stop)

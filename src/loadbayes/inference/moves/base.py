@@ -22,7 +22,8 @@ from typing import Any, NamedTuple
 import numba
 import numpy as np
 
-__all__ = ["BlockMove", "BlockState", "LogDensity", "RunningCovariance", "scaled_eigenvectors"]
+__all__ = ["BlockMove", "BlockState", "LogDensity", "RunningCovariance", "scaled_eigenvectors",
+           "welford_step"]  # fmt: skip
 
 #: ``logp(x) -> (log density, aux)``: ``-inf`` outside the support (such proposals are
 #: never accepted); ``aux`` is carried along with the state (e.g. a simulated
@@ -86,10 +87,18 @@ class RunningCovariance:
         self._n += 1
         _welford(self._mean, self._m2, np.asarray(x, dtype=float), float(self._n))
         if self._n >= self.adapt_start and self._n % 20 == 0:
-            emp = self._m2 / (self._n - 1)
-            self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
+            self.refresh()
             return True
         return False
+
+    def refresh(self) -> None:
+        """Take the draws' covariance into use.
+
+        :meth:`update` does every 20 draws; a compiled loop that ran the Welford steps
+        itself asks for it.
+        """
+        emp = self._m2 / (self._n - 1)
+        self.cov = emp + 1e-3 * np.diag(np.diag(self.cov)) + 1e-10 * np.eye(self.d)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -105,6 +114,11 @@ def _welford(mean, m2, x, n):  # pragma: no cover - compiled
     for i in range(d):
         for j in range(d):
             m2[i, j] += delta[i] * (x[j] - mean[j])
+
+
+#: Welford's step in place ``(mean, m2, x, n)``, compiled: for a compiled chain loop that
+#: runs the adaptive moves' burn-in itself (fit/composite/chain_loop.py).
+welford_step = _welford
 
 
 class BlockMove:

@@ -39,11 +39,14 @@ from __future__ import annotations
 import math
 import warnings
 
+import numba
 import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.special import gammaln
 
 __all__ = ["StudentTMixture"]
+
+_LOG2 = math.log(2.0)
 
 #: How far the weights may sum from 1 (NumPy's ``choice``'s own check).
 _ATOL = float(np.sqrt(np.finfo(np.float64).eps))
@@ -190,6 +193,9 @@ class StudentTMixture:
     def _component(self, rng: np.random.Generator) -> int:
         # rng.choice(components, p=weights), its cumulative weights made once: NumPy's
         # choice normalises p.cumsum() by its last entry and searches one rng.random().
+        return int(self._component_cdf().searchsorted(rng.random(), side="right"))
+
+    def _component_cdf(self) -> np.ndarray:
         cdf = self.__dict__.get("_cdf")
         if cdf is None or cdf[0] is not self.weights:
             p = np.ascontiguousarray(self.weights, dtype=float)
@@ -198,12 +204,54 @@ class StudentTMixture:
             c = p.cumsum()
             c /= c[-1]
             cdf = self._cdf = (self.weights, c)
-        return int(cdf[1].searchsorted(rng.random(), side="right"))
+        return cdf[1]
 
     def log_density(self, x: np.ndarray) -> float:
         """``log q(x)`` up to a constant common to every ``x``."""
-        z = np.einsum("kij,kj->ki", self._inverse_roots, np.asarray(x, dtype=float) - self.means)
-        q = np.einsum("ki,ki->k", z, z)
-        nu = self._dofs
-        v = self._const - 0.5 * (nu + self.d) * np.log1p(q / nu)
-        return float(np.logaddexp.reduce(v))
+        return float(mixture_log_density(np.asarray(x, dtype=float), self.means,
+                                         self._inverse_roots, self._const, self._dofs))  # fmt: skip
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """What a compiled loop draws and weighs with.
+
+        ``(cdf, means, roots, inverse roots, constants, dofs)``, ``cdf`` the cumulative
+        weights :meth:`draw` searches.
+        """
+        self._component_cdf()
+        return (self._cdf[1], self.means, self._roots, self._inverse_roots, self._const,
+                self._dofs)  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def log_add_exp(x, y):  # pragma: no cover - compiled
+    """NumPy's ``logaddexp`` of two floats, its branches in its order."""
+    if x == y:
+        return x + _LOG2
+    d = x - y
+    if d > 0:
+        return x + math.log1p(math.exp(-d))
+    if d <= 0:
+        return y + math.log1p(math.exp(d))
+    return d
+
+
+@numba.njit(cache=True, nogil=True)
+def mixture_log_density(x, means, inverse_roots, const, dofs):  # pragma: no cover
+    """:meth:`StudentTMixture.log_density` on its arrays, compiled.
+
+    The compiled chain loop's and the Python path's one function, so both weigh a jump
+    alike (NumPy's einsum summed in another order).
+    """
+    k_n, d = means.shape
+    out = 0.0
+    for k in range(k_n):
+        q = 0.0
+        for i in range(d):
+            zi = 0.0
+            for j in range(d):
+                zi += inverse_roots[k, i, j] * (x[j] - means[k, j])
+            q += zi * zi
+        nu = dofs[k]
+        v = const[k] - 0.5 * (nu + d) * math.log1p(q / nu)
+        out = v if k == 0 else log_add_exp(out, v)
+    return out

@@ -34,7 +34,7 @@ import numpy as np
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.moves.base import BlockState, LogDensity, RunningCovariance
 
-__all__ = ["MIN_HISTORY", "MIN_R2", "Shear", "ShearedAM"]
+__all__ = ["MIN_HISTORY", "MIN_R2", "Shear", "ShearedAM", "sheared", "unsheared"]
 
 #: The bend is used when it explains at least this share of some coordinate's variance
 #: across the principal direction.
@@ -137,6 +137,12 @@ def _unsheared(w, a, b, c0, c1, m, d):  # pragma: no cover - compiled
     for i in range(w.size):
         out[i] = m[i] + d[i] * (w[i] + (a * c0[i] + b * c1[i]))
     return out
+
+
+#: The shear's maps on arrays, compiled: for a compiled chain loop to call
+#: (fit/composite/chain_loop.py). ``sheared(y, a, b, c0, c1)``; ``unsheared(w, a, b, c0,
+#: c1, m, d)``.
+sheared, unsheared = _sheared, _unsheared
 
 
 class ShearedAM(AdaptiveMetropolis):
