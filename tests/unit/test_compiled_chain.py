@@ -71,10 +71,10 @@ def test_shear_with_its_switch_jumps_and_refresh_gives_the_same_draws(monkeypatc
     _same(a, b)
 
 
-def test_adaptive_metropolis_and_threads_give_the_same_draws(monkeypatch, fitted):
+def test_adaptive_metropolis_thinned_in_threads_gives_the_same_draws(monkeypatch, fitted):
     prob, start = fitted
-    a, b = _both(monkeypatch, prob, start, draws=700, burn=400, chains=2, seed=3, move="am",
-                 workers=2)  # fmt: skip
+    a, b = _both(monkeypatch, prob, start, draws=700, burn=400, thin=3, chains=2, seed=3,
+                 move="am", workers=2)  # fmt: skip
     _same(a, b)
 
 

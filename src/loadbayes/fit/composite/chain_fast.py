@@ -147,8 +147,11 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
         _switch(move, it)
         ready = _jumps_ready(move, it)
         if ready is None:  # not a mixture: the Python iteration from here
-            return _python(gibbs, state_type(u, _sums(p, ztz, zty, yty), tau, None, betas, log_t0),
-                           rng, it, end, bufs, kept0)  # fmt: skip
+            m = it - start
+            _store(bufs, kept0, start, m, burn, thin, theta_out[:m], beta_out[:m], tau_out[:m],
+                   u_out[:m], p._n_steps, gibbs.n_base, p.n_free)  # fmt: skip
+            here = state_type(u, _sums(p, ztz, zty, yty), tau, None, betas, log_t0)
+            return _python(gibbs, here, rng, it, end, bufs, kept0)
         jumps, n_jumps, multi = ready
         stop = end
         if isinstance(move, ShearedAM) and move.shear is None and it < move._switch:
