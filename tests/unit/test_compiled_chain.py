@@ -19,6 +19,8 @@ import pytest
 import loadbayes.fit.composite.chain_fast as fast
 import loadbayes.fit.composite.sampler as sampler_module
 from loadbayes.cases.composite_sim import simulate_event
+from loadbayes.fit.composite.bounded import share_start
+from loadbayes.fit.composite.driver import _append_start
 from loadbayes.fit.composite.nls import nls
 from loadbayes.fit.composite.problem import CompositeProblem
 from loadbayes.fit.composite.ridge import cached_ridge_points
@@ -76,6 +78,39 @@ def test_adaptive_metropolis_thinned_in_threads_gives_the_same_draws(monkeypatch
     a, b = _both(monkeypatch, prob, start, draws=700, burn=400, thin=3, chains=2, seed=3,
                  move="am", workers=2)  # fmt: skip
     _same(a, b)
+
+
+def test_ar1_noise_gives_the_same_draws(monkeypatch, fitted):
+    # AR(1) noise: rho drawn each iteration after beta, the sums whitened for it.
+    prob, start = fitted
+    a, b = _both(monkeypatch, prob, start, draws=1_500, burn=1_100, chains=2, seed=5,
+                 move="shear", ar=True, workers=1)  # fmt: skip
+    _same(a, b)
+    for x, y in zip(a[0], b[0], strict=True):
+        np.testing.assert_array_equal(x.rho, y.rho)
+    assert np.ptp(a[0][0].rho[:, 0]) > 0  # rho moved
+
+
+def test_bounded_shares_give_the_same_draws(monkeypatch):
+    # Bounded shares: the shares' own steps each iteration, the coefficients drawn in the
+    # quadrant, the jumps refitted to the kept u before each round run on.
+    evs = [simulate_event("small_industrial", depth=0.3, t_end_s=1.2, fs=60.0, seed=3)[0]]
+    prior = CompositePrior.default(evs)
+    free = CompositeProblem(evs, prior, window_s=0)
+    prob = CompositeProblem(evs, prior, window_s=0, bounded=True)
+    fit = nls(free)
+    start = _append_start(fit, share_start(fit.betas), sd=0.5)  # as the driver starts it
+    rounds = iter([400, 0, 400, 0])
+
+    def extend(_):
+        return next(rounds)
+
+    a, b = _both(monkeypatch, prob, start, draws=1_300, burn=1_100, chains=2, seed=6,
+                 move="shear", workers=1, extend=extend)  # fmt: skip
+    _same(a, b)
+    for x, y in zip(a[0], b[0], strict=True):
+        np.testing.assert_array_equal(x.u_extra, y.u_extra)
+    assert a[0][0].theta.shape[0] == 600  # the round ran
 
 
 def test_a_jump_that_is_not_a_mixture_runs_the_python_iteration(monkeypatch, fitted):

@@ -31,7 +31,7 @@ from numba.extending import get_cython_function_address
 
 from loadbayes.inference.condlinear import _given_one, _moments
 
-__all__ = ["draw_beta_positive", "draw_gammas", "ndtr", "ndtri"]
+__all__ = ["draw_beta_positive", "draw_gammas", "draw_rho_one", "ndtr", "ndtri"]
 
 # SciPy's ndtr (double: the second of its fused versions) and ndtri, both
 # ``double f(double, int skip_dispatch)``, registered under names of our own.
@@ -113,3 +113,22 @@ def draw_gammas(shape, n, rate, ssr, rng):  # pragma: no cover - compiled
     for g in range(n.size):
         out[g] = rng.gamma(shape + 0.5 * n[g], 1.0 / (rate + 0.5 * ssr[g]))
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def draw_rho_one(stats, tau, rho, rng, rho_max):  # pragma: no cover - compiled
+    """:func:`loadbayes.inference.ar1.draw_rho` compiled: the same step and draws."""
+    b, a_ns, a_st, segments = stats[0], stats[1], stats[2], stats[3]
+    a = a_ns - a_st
+    if not (a > 0 and tau > 0):
+        return rho
+    m, sd = b / a, 1.0 / math.sqrt(tau * a)
+    lo, hi = _ndtr((-rho_max - m) / sd, 0), _ndtr((rho_max - m) / sd, 0)
+    if not hi > lo:
+        return rho
+    w = rng.uniform(lo, hi)
+    cand = min(max(m + sd * _ndtri(w, 0), -rho_max), rho_max)
+    log_ratio = 0.5 * segments * (math.log1p(-cand * cand) - math.log1p(-rho * rho))
+    if log_ratio >= 0 or rng.uniform(0.0, 1.0) < math.exp(log_ratio):
+        return cand
+    return rho

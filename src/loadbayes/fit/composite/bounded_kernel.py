@@ -33,7 +33,7 @@ from numba.extending import get_cython_function_address
 from loadbayes.inference.condlinear import moments_arrays
 
 __all__ = ["bounded_terms", "draw_gamma_one", "event_term", "gamma_moments", "owens_t",
-           "share_steps", "stacked"]  # fmt: skip
+           "share_steps", "shares_one", "stacked"]  # fmt: skip
 
 _LOG_2PI = math.log(2.0 * math.pi)
 _P_ZIP, _Q0, _P_M0 = 0, 1, 2
@@ -211,6 +211,23 @@ def draw_gamma_one(a, ztz, zty, tau, p0_gamma, rng):  # pragma: no cover - compi
         out[i] = pz * a[i]
         out[3 + i] = q0 * a[3 + i]
     out[6] = pm
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def shares_one(z):  # pragma: no cover - compiled
+    """``bounded.shares_of`` of one event's log-ratios ``z`` (4,), compiled.
+
+    NumPy's arithmetic in its order: the softmax of ``(z0, z1, 0)`` less its maximum, then
+    of ``(z2, z3, 0)``; three terms summed left to right, as NumPy's sum of three does.
+    """
+    out = np.empty(6)
+    for c in range(2):
+        f0, f1, f2 = z[2 * c], z[2 * c + 1], 0.0
+        top = max(max(f0, f1), f2)
+        e0, e1, e2 = math.exp(f0 - top), math.exp(f1 - top), math.exp(f2 - top)
+        total = (e0 + e1) + e2
+        out[3 * c], out[3 * c + 1], out[3 * c + 2] = e0 / total, e1 / total, e2 / total
     return out
 
 

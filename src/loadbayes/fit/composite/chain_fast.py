@@ -1,10 +1,11 @@
 """Running a plain zip+motor chain through the compiled loop (``chain_loop.py``).
 
-:func:`runs_compiled` says whether a chain's iterations can run compiled: a plain
-``zip+motor`` problem (:class:`~loadbayes.fit.composite.problem.CompositeProblem`, free
-shares, Gaussian white noise, no coefficient prior, one block step, no extra coordinates)
-moved by ``am`` or ``shear``, whose jumps (if any) are a mixture of t's. Every other
-problem and move runs the Python iteration, :meth:`_Gibbs.step`.
+:func:`runs_compiled` says whether a chain's iterations can run compiled: a ``zip+motor``
+problem (:class:`~loadbayes.fit.composite.problem.CompositeProblem`: free or bounded
+shares, Gaussian noise white or AR(1), no prior factor on the coefficients, no estimated
+torque) moved by ``am`` or ``shear``, whose jumps (if any) are a mixture of t's. Student-t
+noise, the models of parts and the slice move run the Python iteration,
+:meth:`_Gibbs.step`.
 
 :func:`step_batch` is what :meth:`loadbayes.inference.chain.Chain.run_batched` calls:
 it hands the chain's state and its move's to the compiled loop, and between the loop's
@@ -21,12 +22,13 @@ import numpy as np
 
 from loadbayes.fit.composite import chain_loop as L
 from loadbayes.fit.composite.problem import (
-    _NO_RHO,
     _NO_WEIGHTS,
     _T_INV_T0,
     _T_INV_U,
     CompositeProblem,
+    ResponseSums,
 )
+from loadbayes.inference.ar1 import RHO_MAX
 from loadbayes.inference.condlinear import GroupSums
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.moves.mixture import StudentTMixture
@@ -52,12 +54,10 @@ def compiled_run(problem, move: str, student_t=None, factor=None, ar: bool = Fal
     return bool(
         COMPILED
         and type(problem) is CompositeProblem
-        and not problem.bounded
         and move in ("am", "shear")
         and student_t is None
         and not (factor is not None and factor.active)
-        and not ar
-        and problem.dim == problem.n_free + problem.n_steps
+        and problem.dim == problem.n_free + problem.n_steps + problem.n_share_coords
     )
 
 
@@ -68,17 +68,14 @@ def runs_compiled(gibbs) -> bool:
     return bool(
         COMPILED
         and type(p) is CompositeProblem
-        and not p.bounded
         and gibbs.wt is None
         and gibbs.tilted is None
         and gibbs.own_moves is None
         and gibbs.block_steps == 1
-        and "rho" not in gibbs.fields
-        and p.dim == gibbs.n_base
+        and p.dim == gibbs.n_base + p.n_share_coords
         and type(move) in (AdaptiveMetropolis, ShearedAM)
         and (refresh is None or (refresh.low, refresh.high) == (0.0, 1.0))
         and gibbs.start.sums is not None
-        and gibbs.kept_u is None
         and gibbs.late_lp is None
     )
 
@@ -128,7 +125,13 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
            float(prior.tau_rate))  # fmt: skip
     a, b, c = p._torque
     kc = (_T_INV_U, a, b, c, float(p.h_max), p._xsums, p.seg, float(p.window), _NO_WEIGHTS,
-          _NO_RHO, p._n_steps)  # fmt: skip
+          p._n_steps)  # fmt: skip
+    ar = "rho" in gibbs.fields  # AR(1) noise: its coefficients and the motor's P, Q
+    rho = np.array(state.rho, dtype=float) if ar else np.zeros(2)
+    pm_s = np.array(state.sums.pm, dtype=float) if ar else np.zeros(0)
+    qm_s = np.array(state.sums.qm, dtype=float) if ar else np.zeros(0)
+    rho_max = float(getattr(p, "rho_max", RHO_MAX))
+    bnd = _bounded(gibbs)
     refresh = gibbs.refresh
     r_index = np.zeros(0, dtype=np.int64) if refresh is None else refresh.index.astype(np.int64)
     r_share = 0.0 if refresh is None else float(refresh.share)
@@ -141,6 +144,7 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
     u_move, u_out = np.empty((count, d)), np.empty((count, d))
     theta_out = np.empty((count, p.n_theta))
     beta_out, tau_out = np.empty((count, n_ev, p.n_beta)), np.empty((count, tau.size))
+    rho_out = np.empty((count, 2))
     betas, log_t0 = state.betas, state.log_t0
     it, end = start, start + count
     while it < end:
@@ -149,8 +153,15 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
         if ready is None:  # not a mixture: the Python iteration from here
             m = it - start
             _store(bufs, kept0, start, m, burn, thin, theta_out[:m], beta_out[:m], tau_out[:m],
-                   u_out[:m], p._n_steps, gibbs.n_base, p.n_free)  # fmt: skip
-            here = state_type(u, _sums(p, ztz, zty, yty), tau, None, betas, log_t0)
+                   u_out[:m], rho_out[:m], p._n_steps, gibbs.n_base, p.n_free)  # fmt: skip
+            here = state_type(
+                u,
+                _sums(p, ztz, zty, yty, ar, pm_s, qm_s),
+                tau,
+                rho.copy() if ar else None,
+                betas,
+                log_t0,
+            )
             return _python(gibbs, here, rng, it, end, bufs, kept0)
         jumps, n_jumps, multi = ready
         stop = end
@@ -173,7 +184,8 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
         done = L.run_iterations(
             it, stop - it, burn, rng, u, tau, ztz, zty, yty, p._kernel_data, kc, lin,
             prior_args, mf, mi, root, running._mean, running._m2, shear, jumps, q_x, r_index,
-            r_share, u_move[i0:], u_out[i0:], theta_out[i0:], beta_out[i0:], tau_out[i0:],
+            r_share, ar, rho, pm_s, qm_s, rho_max, bnd, u_move[i0:], u_out[i0:], theta_out[i0:],
+            beta_out[i0:], tau_out[i0:], rho_out[i0:],
         )  # fmt: skip
         # The move's state back into its objects.
         move.log_scale = float(mf[L.F_LOG_SCALE])
@@ -195,14 +207,32 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
         betas = [beta_out[i0 + done - 1, e].copy() for e in range(n_ev)]
         log_t0 = float(mf[L.F_LOG_T0])
         it += done
-    _store(bufs, kept0, start, count, burn, thin, theta_out, beta_out, tau_out, u_out,
+    _store(bufs, kept0, start, count, burn, thin, theta_out, beta_out, tau_out, u_out, rho_out,
            p._n_steps, gibbs.n_base, p.n_free)  # fmt: skip
-    return state_type(u, _sums(p, ztz, zty, yty), tau, None, betas, log_t0)
+    return state_type(
+        u, _sums(p, ztz, zty, yty, ar, pm_s, qm_s), tau, rho.copy() if ar else None, betas, log_t0
+    )
 
 
-def _sums(p, ztz, zty, yty) -> list[GroupSums]:
-    # The events' GroupSums, as CompositeProblem.group_sums makes them.
-    return [GroupSums(ztz[e], zty[e], yty[e], n) for e, n in enumerate(p._n_rows)]
+def _bounded(gibbs) -> tuple:
+    # The bounded shares' arguments of the loop (chain_loop.run_iterations' ``bnd``), the
+    # same types for free shares (one compiled loop for both).
+    p = gibbs.problem
+    nf = np.asarray(p.samples.n, dtype=float)
+    if not p.bounded:
+        none = np.zeros(0)
+        return (False, 0, nf, np.zeros(3), np.zeros(0, dtype=np.int64), none, none,
+                np.zeros(len(p.events)), 0)  # fmt: skip
+    if gibbs.share_scale is None:  # _Gibbs._share_steps's start
+        gibbs.share_scale = np.full(len(p.events), 0.3)
+    return (True, gibbs.n_base, nf, *p._share_fixed(), gibbs.share_scale, gibbs.share_steps_n)
+
+
+def _sums(p, ztz, zty, yty, ar, pm, qm):
+    # The events' GroupSums, as CompositeProblem.group_sums makes them (AR(1): with the
+    # motor's P, Q, as CompositeProblem.resum).
+    groups = [GroupSums(ztz[e], zty[e], yty[e], n) for e, n in enumerate(p._n_rows)]
+    return ResponseSums(groups, pm, qm) if ar else groups
 
 
 def _learned(gibbs, it: int, done: int, u_move, u_out) -> None:
@@ -215,9 +245,13 @@ def _learned(gibbs, it: int, done: int, u_move, u_out) -> None:
     if gibbs.late_burn is not None:
         lo, hi = max(it, burn // 2), min(it + done, burn)
         gibbs.late_burn.extend(np.array(r) for r in u_out[lo - it : hi - it])
+    if gibbs.kept_u is not None:  # bounded shares: every refit_thin-th kept u
+        thin = gibbs.refit_thin
+        gibbs.kept_u.extend(np.array(u_out[k - it]) for k in range(max(it, burn), it + done)
+                            if k % thin == 0)  # fmt: skip
 
 
-def _store(bufs, kept0, start, count, burn, thin, theta, beta, tau, u, ns, n_base,
+def _store(bufs, kept0, start, count, burn, thin, theta, beta, tau, u, rho, ns, n_base,
            n_free) -> None:  # fmt: skip
     # The kept iterations' fields (Chain.record's), row k - kept0 for the k-th kept draw.
     its = np.arange(start, start + count)
@@ -230,6 +264,8 @@ def _store(bufs, kept0, start, count, burn, thin, theta, beta, tau, u, ns, n_bas
     bufs["tau"][k] = tau[keep]
     bufs["phi"][k] = u[keep][:, n_free : n_free + ns]
     bufs["u_extra"][k] = u[keep][:, n_base:]
+    if "rho" in bufs:
+        bufs["rho"][k] = rho[keep]
 
 
 def _python(gibbs, state, rng, it, end, bufs, kept0):

@@ -358,6 +358,7 @@ class _Gibbs:
         # Bounded shares: every REFIT_THIN-th kept u, to refit the jumps before each
         # round run on until converged (REFIT_THIN); None: the jumps stay as fitted.
         self.kept_u: list[np.ndarray] | None = [] if jumps and problem.n_share_coords else None
+        self.refit_thin, self.share_steps_n = REFIT_THIN, SHARE_STEPS  # (chain_fast reads them)
         # And their joint log densities, where the model asks for chains in a lower mode
         # to be restarted (a model of parts: restart.py); None: not kept.
         modes = bool(getattr(getattr(problem, "model", None), "restart_modes", False))
