@@ -155,25 +155,11 @@ class Chain(Generic[S]):
         live = {k: bufs[k] for k in names if streamed and self.fields[k].streamed}
         step, record, rng, state = self.step, self.record, self.rng, self.state
         assert step is not None and record is not None, "a batched-only chain: run_batched"
-        stop, progress, every = self.stop, self.progress, self.progress_every
-        j = 0
-        told, last = start, time.perf_counter()
-        deadline, it = self.deadline, start
-        while it < end:
-            check_stop(stop)
-            now = time.perf_counter()
-            if deadline is not None and now > deadline:
-                if it < burn:  # the burn-in ends here: the draws start at once
-                    skip = min(burn, end) - it
-                    self.cut += skip
-                    it += skip
-                    continue
-                if kept_count(0, it, burn, thin) >= self.min_kept:
-                    self.cut += end - it
-                    break
-            if progress is not None and now - last > every:
-                progress(it - told)
-                told, last = it, now
+        j, it, clock = 0, start, [start, time.perf_counter()]
+        while True:
+            it, go = self._gate(it, end, clock)
+            if not go:
+                break
             state = step(state, rng, it)
             if it >= burn and (it - burn) % thin == 0:  # is_kept, inlined
                 values = record(state)
@@ -186,12 +172,47 @@ class Chain(Generic[S]):
             it += 1
         if live and j < kept and j % rows:  # stopped by the deadline mid-block
             self.sink(j - j % rows, live, j % rows)  # type: ignore[misc]
-        if progress is not None:
-            progress(it - told)
+        if self.progress is not None:
+            self.progress(it - clock[0])
         self.state, self.iteration = state, end
         for k in names:
             if k not in live:
                 self._runs[k].append(bufs[k][:j] if j < kept else bufs[k])
+
+    def _gate(self, it: int, end: int, clock: list) -> tuple[int, bool]:
+        # Before iteration ``it`` of a run ending at ``end``: the stop flag, the deadline
+        # (the module notes: the burn-in ends, or the run does), the progress (``clock``:
+        # the iteration and time of the last report). Returns the iteration to run next
+        # and whether to run it (False: the run ends there).
+        while it < end:
+            check_stop(self.stop)
+            now = time.perf_counter()
+            if self.deadline is not None and now > self.deadline:
+                after = self._past_deadline(it, end)
+                if after is None:
+                    return it, False
+                if after != it:
+                    it = after
+                    continue
+            if self.progress is not None and now - clock[1] > self.progress_every:
+                self.progress(it - clock[0])
+                clock[0], clock[1] = it, now
+            return it, True
+        return it, False
+
+    def _past_deadline(self, it: int, end: int) -> int | None:
+        # The deadline rule (the module notes), at iteration ``it`` of a run ending at
+        # ``end``: the burn-in ends here (the iteration the draws start at), the chain
+        # stops (None: it holds min_kept kept draws), or it goes on (``it``).
+        burn, thin = self.burn, self.thin
+        if it < burn:
+            skip = min(burn, end) - it
+            self.cut += skip
+            return it + skip
+        if kept_count(0, it, burn, thin) >= self.min_kept:
+            self.cut += end - it
+            return None
+        return it
 
     def run_batched(
         self,
@@ -215,28 +236,16 @@ class Chain(Generic[S]):
         kept0 = kept_count(0, start, burn, thin)
         kept = kept_count(start, end, burn, thin)
         bufs = {k: np.empty((kept, *f.shape), f.dtype) for k, f in self.fields.items()}
-        state, progress, deadline = self.state, self.progress, self.deadline
-        it, told, last = start, start, time.perf_counter()
-        while it < end:
-            check_stop(self.stop)
-            now = time.perf_counter()
-            if deadline is not None and now > deadline:
-                if it < burn:  # the burn-in ends here: the draws start at once
-                    skip = min(burn, end) - it
-                    self.cut += skip
-                    it += skip
-                    continue
-                if kept_count(0, it, burn, thin) >= self.min_kept:
-                    self.cut += end - it
-                    break
-            if progress is not None and now - last > self.progress_every:
-                progress(it - told)
-                told, last = it, now
+        state, it, clock = self.state, start, [start, time.perf_counter()]
+        while True:
+            it, go = self._gate(it, end, clock)
+            if not go:
+                break
             m = min(batch, end - it)
             state = step_batch(state, self.rng, it, m, bufs, kept0)
             it += m
-        if progress is not None:
-            progress(it - told)
+        if self.progress is not None:
+            self.progress(it - clock[0])
         self.state, self.iteration = state, end
         j = kept_count(start, it, burn, thin)
         for k, buf in bufs.items():

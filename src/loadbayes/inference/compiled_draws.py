@@ -29,7 +29,7 @@ import numpy as np
 from numba import types
 from numba.extending import get_cython_function_address
 
-from loadbayes.inference.condlinear import _given_one, _moments
+from loadbayes.inference.condlinear import _given_one, _moments, conditional_one
 
 __all__ = ["draw_beta_positive", "draw_gammas", "draw_rho_one", "ndtr", "ndtri"]
 
@@ -70,23 +70,9 @@ def _truncated_standard(a, rng):  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def _semidefinite(mu, cov, j, bj, z):  # pragma: no cover - compiled
     # condlinear.draw_beta's fallback: the others given coordinate j by eigh.
-    k = mu.size
-    m = k - 1
-    rest = np.empty(m, dtype=np.int64)
-    r = 0
-    for i in range(k):
-        if i != j:
-            rest[r] = i
-            r += 1
-    cjj = cov[j, j]
-    mean_r = np.empty(m)
-    cov_r = np.empty((m, m))
-    for a in range(m):
-        mean_r[a] = mu[rest[a]] + cov[rest[a], j] / cjj * (bj - mu[j])
-        for b in range(m):
-            cov_r[a, b] = cov[rest[a], rest[b]] - cov[rest[a], j] * cov[rest[b], j] / cjj
+    rest, mean_r, cov_r = conditional_one(mu, cov, j, bj)
     w, v = np.linalg.eigh((cov_r + cov_r.T) / 2)
-    out = np.empty(k)
+    out = np.empty(mu.size)
     out[j] = bj
     out[rest] = mean_r + v @ (np.sqrt(np.maximum(w, 0.0)) * z)
     return out

@@ -30,6 +30,7 @@ from scipy import special
 
 __all__ = [
     "GroupSums",
+    "conditional_one",
     "draw_beta",
     "draw_betas",
     "draw_tau",
@@ -203,11 +204,12 @@ def draw_beta(
 
 
 @numba.njit(cache=True, nogil=True)
-def _given_one(mu, cov, j, bj, z):  # pragma: no cover - compiled
-    # The other coordinates of N(mu, cov) given coordinate j = bj, drawn with the
-    # standard normals z (k - 1): mean and covariance of the conditional, its Cholesky
-    # factor (numpy.linalg.LinAlgError when rounding made it semi-definite). Compiled:
-    # k is 7, where NumPy's fancy indexing cost more than the arithmetic (issue 21).
+def conditional_one(mu, cov, j, bj):  # pragma: no cover - compiled
+    """The other coordinates of ``N(mu, cov)`` given coordinate ``j = bj``, compiled.
+
+    Returns ``(rest, mean, cov)``: their indices, and the conditional's mean and covariance
+    (:func:`draw_beta`'s and its compiled fallback's one arithmetic).
+    """
     k = mu.size
     m = k - 1
     rest = np.empty(m, dtype=np.int64)
@@ -224,6 +226,18 @@ def _given_one(mu, cov, j, bj, z):  # pragma: no cover - compiled
         mean_r[a] = mu[rest[a]] + ca / cjj * (bj - mu[j])
         for b in range(m):
             cov_r[a, b] = cov[rest[a], rest[b]] - ca * cov[rest[b], j] / cjj
+    return rest, mean_r, cov_r
+
+
+@numba.njit(cache=True, nogil=True)
+def _given_one(mu, cov, j, bj, z):  # pragma: no cover - compiled
+    # The other coordinates of N(mu, cov) given coordinate j = bj, drawn with the
+    # standard normals z (k - 1): mean and covariance of the conditional, its Cholesky
+    # factor (numpy.linalg.LinAlgError when rounding made it semi-definite). Compiled:
+    # k is 7, where NumPy's fancy indexing cost more than the arithmetic (issue 21).
+    k = mu.size
+    m = k - 1
+    rest, mean_r, cov_r = conditional_one(mu, cov, j, bj)
     chol = np.linalg.cholesky(cov_r)
     out = np.empty(k)
     out[j] = bj
