@@ -36,7 +36,7 @@ def _event(sag: float = 0.2):
 
 
 def part_a() -> None:
-    """ZIP (one level, drifting), zip+motor (point and window readings, its chain loop)."""
+    """ZIP (one level, drifting), zip+motor (point and window readings), fleets, tracker."""
     import tempfile
     from importlib.resources import files
 
@@ -53,10 +53,11 @@ def part_a() -> None:
     for window in (0.0, None):
         fit = lb.fit_composite(lb.CompositeModel(f_hz=50.0, window_s=window), [ev], sampler=s)
     lb.predict(fit.posterior, sag=0.4, duration=0.1, draws=20)
+    _fleet_and_track()
 
 
 def part_b() -> None:
-    """The parts models (slm, cmld-lite), their play and predict; fleets, tracker."""
+    """The parts models (slm, cmld-lite), their play and predict."""
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite.driver import fit_composite
     from loadbayes.fit.composite.predict import predict
@@ -67,10 +68,6 @@ def part_b() -> None:
     for name in ("slm", "cmld-lite"):
         fit = fit_composite(dynamic_model(name, f_hz=50.0), [ev], sampler=s)
         predict(fit.posterior, sag=0.45, duration=0.1, draws=20)
-    # Here since the zip+motor chain's compiled loop (fit/composite/chain_loop.py, about
-    # 30 CPU s to compile) made part a the longer: measured cold, a 130 and b 79 CPU s, of
-    # which these 30 of a's.
-    _fleet_and_track()
 
 
 def _fleet_and_track() -> None:

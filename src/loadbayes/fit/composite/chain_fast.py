@@ -46,7 +46,7 @@ _NO_JUMPS = (np.ones(1), np.zeros((1, 1)), np.zeros((1, 1, 1)), np.zeros((1, 1, 
              np.zeros(1), np.ones(1))  # fmt: skip
 
 
-def compiled_run(problem, move: str, student_t=None, factor=None, ar: bool = False) -> bool:
+def compiled_run(problem, move: str, student_t=None, factor=None) -> bool:
     """Whether a run of ``sample`` with these settings runs its chains compiled.
 
     Asked before the chains exist: the thread count is chosen by it.

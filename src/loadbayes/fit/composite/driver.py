@@ -195,7 +195,7 @@ def _estimate_seconds(
     from loadbayes.fit.composite.chain_fast import compiled_run
     from loadbayes.fit.composite.until import estimate_seconds
 
-    compiled = compiled_run(sampled, move, student_t, factor, noise == "ar1")
+    compiled = compiled_run(sampled, move, student_t, factor)  # AR(1) noise runs compiled too
     lanes = max(1, min(run.threads or chain_threads(sampled, compiled) or num_threads(),
                        run.chains))  # fmt: skip
 

@@ -646,8 +646,7 @@ def sample(
         return _result(g, c)
 
     generators = chain_generators(seed, chains)
-    workers = workers or chain_threads(problem, compiled_run(problem, move, student_t, factor,
-                                                             ar))  # fmt: skip
+    workers = workers or chain_threads(problem, compiled_run(problem, move, student_t, factor))
     out = run_chains(first, generators, workers=workers, stop=stop)
     if pool:
         if state[0][0].late_lp is not None:  # chains left in a lower mode (restart.py)
