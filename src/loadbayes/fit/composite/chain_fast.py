@@ -32,7 +32,7 @@ from loadbayes.inference.ar1 import RHO_MAX
 from loadbayes.inference.condlinear import GroupSums
 from loadbayes.inference.moves.adaptive_metropolis import AdaptiveMetropolis
 from loadbayes.inference.moves.mixture import StudentTMixture
-from loadbayes.inference.moves.sheared import Shear, ShearedAM
+from loadbayes.inference.moves.sheared import ShearedAM
 
 __all__ = ["BATCH", "COMPILED", "compiled_run", "runs_compiled", "step_batch"]
 
@@ -93,14 +93,6 @@ def _jumps_ready(move, it: int):
     return jump.arrays(), jump.components, int(jump.components > 1)
 
 
-def _switch(move, it: int) -> None:
-    # ShearedAM.step's one-off at mid burn-in: the shear learned, or not.
-    if isinstance(move, ShearedAM) and move.shear is None and it == move._switch:
-        if len(move._history) >= move._min_history:
-            move.use_shear(Shear(np.array(move._history)))
-        move._history = []
-
-
 def _shear_arrays(move):
     shear = getattr(move, "shear", None)
     if shear is None:
@@ -148,7 +140,8 @@ def step_batch(gibbs, state, rng, start: int, count: int, bufs, kept0: int):
     betas, log_t0 = state.betas, state.log_t0
     it, end = start, start + count
     while it < end:
-        _switch(move, it)
+        if isinstance(move, ShearedAM):
+            move.learn_shear(it)  # its one-off at mid burn-in
         ready = _jumps_ready(move, it)
         if ready is None:  # not a mixture: the Python iteration from here
             m = it - start

@@ -217,9 +217,8 @@ class StudentTMixture:
         ``(cdf, means, roots, inverse roots, constants, dofs)``, ``cdf`` the cumulative
         weights :meth:`draw` searches.
         """
-        self._component_cdf()
-        return (self._cdf[1], self.means, self._roots, self._inverse_roots, self._const,
-                self._dofs)  # fmt: skip
+        return (self._component_cdf(), self.means, self._roots, self._inverse_roots,
+                self._const, self._dofs)  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)

@@ -189,14 +189,22 @@ class ShearedAM(AdaptiveMetropolis):
 
         The contract is :meth:`BlockMove.step`'s.
         """
-        if self.shear is None and iteration == self._switch:
-            if len(self._history) >= self._min_history:
-                self.use_shear(Shear(np.array(self._history)))
-            self._history = []
+        self.learn_shear(iteration)
         out = super().step(state, logp, rng, iteration)
         if self.shear is None and self._switch // 2 <= iteration < self._switch:
             self._history.append(np.array(out[0].x, dtype=float))
         return out
+
+    def learn_shear(self, iteration: int) -> None:
+        """At mid burn-in (``iteration`` the switch): the shear learned, or not (too few draws).
+
+        :meth:`step` calls it first; a compiled chain loop that runs the steps itself calls
+        it before each run of them (fit/composite/chain_fast.py).
+        """
+        if self.shear is None and iteration == self._switch:
+            if len(self._history) >= self._min_history:
+                self.use_shear(Shear(np.array(self._history)))
+            self._history = []
 
     def _walk(self, x: np.ndarray) -> np.ndarray:
         # The walk's coordinates of the current block, asked each step: kept while the
