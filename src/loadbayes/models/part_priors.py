@@ -185,6 +185,7 @@ class PartsPrior:
         object.__setattr__(self, "_gauss", (mean, np.linalg.inv(cov)))
         object.__setattr__(self, "_full", (full_mean, full))
         object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
+        object.__setattr__(self, "_kept", {})  # log_u and its terms, of the last vectors
 
     def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(mean, cov, gain, sd_cond)``: the Gaussian stand-in of every coordinate."""
@@ -194,20 +195,49 @@ class PartsPrior:
     def log_u(self, u: np.ndarray) -> float:
         """Log prior density at ``u`` up to a constant."""
         u = np.asarray(u, dtype=float)
+        if u.ndim == 1:  # the sampler's one vector: kept, it asks again of one state
+            key = u.tobytes()
+            got = self._kept.get(key)
+            if got is None:
+                got = self._log_u(u)
+                if len(self._kept) > 2048:
+                    self._kept.clear()
+                self._kept[key] = got
+            return got
+        return self._log_u(u)
+
+    def _log_u(self, u: np.ndarray) -> float:
         # The limits' mass of each motor's log T0 (part_scale.py): inside's test, a term.
         masses = [float(m.log_mass(u)) for m in self.maps]
         if not self._inside(u, masses):
             return -math.inf
-        mean, prec = self._gauss
-        d = u[: self.mean.size] - mean
-        out = -0.5 * float(d @ prec @ d)
+        out = self._term(u, 0, self.mean.size)
         for mass in masses:
             out += mass
         for a, b in self.groups:
-            # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
-            z = np.append(u[a:b], 0.0)
-            out += float(z.sum() - z.size * np.logaddexp.reduce(z))
+            out += self._term(u, a, b)
         return out
+
+    def _term(self, u: np.ndarray, a: int, b: int) -> float:
+        # The Gaussian block's term (u[a:b] its coordinates, a = 0) or a simplex's, kept
+        # by its coordinates (the sampler's steps move some blocks and leave the others).
+        x = u[a:b]
+        key = (a, x.tobytes())
+        got = self._kept.get(key)
+        if got is not None:
+            return got
+        if a == 0:
+            mean, prec = self._gauss
+            d = x - mean
+            got = -0.5 * float(d @ prec @ d)
+        else:
+            # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
+            z = np.append(x, 0.0)
+            got = float(z.sum() - z.size * np.logaddexp.reduce(z))
+        if len(self._kept) > 2048:
+            self._kept.clear()
+        self._kept[key] = got
+        return got
 
     def inside(self, u: np.ndarray) -> bool:
         """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold.

@@ -63,6 +63,16 @@ def _log_mass_one(a: float, b: float) -> float:
     return out if math.isfinite(out) else -math.inf
 
 
+#: Values kept per motor (:meth:`ScaleMap.log_mass`, :meth:`ScaleMap.log_t0`) before
+#: the store is emptied.
+_KEEP = 512
+
+
+def _one_vector(u) -> bool:
+    # The sampler's one float vector (kept values are looked up by its bytes).
+    return type(u) is np.ndarray and u.ndim == 1 and u.dtype == np.float64
+
+
 @dataclass(frozen=True)
 class ScaleMap:
     """One motor's ``z <-> log T0`` (module docstring).
@@ -89,6 +99,9 @@ class ScaleMap:
         set_(self, "_sd", math.sqrt(float(self.cov[5, 5] - coef @ s_ot)))
         for name in ("rs_max", "h_min", "x_min", "x_max"):
             set_(self, f"_log_{name}", math.log(getattr(self, name)))
+        # One vector's log_mass and log_t0, kept by its motor's coordinates: the sampler
+        # asks them again and again of one state (its support, prior and theta in turn).
+        set_(self, "_kept", {})
 
     def _ab(self, u):
         # The conditional's mean and the standardised bounds of log T0, given o.
@@ -109,6 +122,13 @@ class ScaleMap:
 
     def log_mass(self, u):
         """``log(Phi(b) - Phi(a))``: the prior mass of ``log T0`` the limits leave at ``o``."""
+        one = _one_vector(u)
+        if one:
+            key = (0, u[self.index : self.index + 5].tobytes())
+            got = self._kept.get(key)
+            if got is None:
+                got = self._keep(key, _log_mass_one(*self._ab(u)[1:]))
+            return got
         _, a, b = self._ab(u)
         if np.ndim(u) == 1:
             return _log_mass_one(a, b)
@@ -116,6 +136,19 @@ class ScaleMap:
 
     def log_t0(self, u):
         """``log T0`` of the sampled vector(s) ``u`` (NaN where the interval is empty)."""
+        if _one_vector(u):
+            key = (1, u[self.index : self.index + 6].tobytes())
+            got = self._kept.get(key)
+            return self._keep(key, self._log_t0(u)) if got is None else got
+        return self._log_t0(u)
+
+    def _keep(self, key, value):
+        if len(self._kept) > _KEEP:
+            self._kept.clear()
+        self._kept[key] = value
+        return value
+
+    def _log_t0(self, u):
         m, a, b = self._ab(u)
         if np.ndim(u) == 1:
             if not a < b:

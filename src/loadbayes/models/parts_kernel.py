@@ -1,13 +1,14 @@
-"""The sums a model of parts' likelihood needs, for one event, in one compiled call.
+"""The sums a model of parts' likelihood needs, for one event, in two compiled calls.
 
-One idea needs these lines: one event's parts solved once (:func:`_parts_of`) and
+One idea needs these lines: one event's parts solved once (:func:`event_parts`) and
 summed two ways, at given shares (:func:`event_sums`) or as the shares' basis
-(:func:`event_basis`), with the AR(1) stacks of each.
+(:func:`event_basis`), with the AR(1) stacks of each. ``parts_sums.py`` calls them, and
+keeps each solve for the states that share it (the shares' steps read the block move's).
 
 :meth:`PartsModel.channels <loadbayes.models.parts_model.PartsModel.channels>` builds
 each channel's design and target in NumPy (the NLS start and the tests read those);
 the sampler needs only their sums ``Z'Z, Z'y, y'y`` per channel, at every proposal.
-:func:`event_sums` computes them in one ``numba`` function: the load bus through the
+:func:`event_parts` and :func:`event_sums` compute them in ``numba``: the load bus through the
 recorded current (``parts.load_bus``), every motor (``motor_kernel``'s integrators, at
 the samples or as window means, braked by the load bus's ``|V2 - Z I2|`` where the event
 has V2 rows, ``parts.brake_drive``), motor D (``parts._motor_d``), the electronics, the
@@ -27,7 +28,7 @@ fixed columns (Q's ``x^2, x, 1``; the negative-sequence current's ``-j V2_L / V_
 three times; P's none, zeros). :func:`event_basis` returns the basis' sums ``B'B, B'y,
 y'y`` (and P's and Q's AR(1) stacks of them), so the sums at any shares are
 ``W'(B'B)W, W'(B'y), y'y`` with no motor solve (``fit/composite/shares.py``). Both
-kernels read the parts' responses from one function, :func:`_parts_of`.
+kernels read the parts' responses from one function, :func:`event_parts`.
 """
 
 from __future__ import annotations
@@ -38,20 +39,16 @@ import numba
 import numpy as np
 
 from loadbayes.models.motor_kernel import (
-    H_MAX_S,
-    TP_STEPS,
     integrate_v2_into,
     integrate_window_v2_into,
 )
-from loadbayes.models.part_priors import MOTOR_CLASSES
-from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, _motor_d, gaps_of
+from loadbayes.models.parts import NEG_SEQ_MIN, _motor_d
 
 __all__ = [
     "event_basis",
+    "event_parts",
     "event_sums",
     "knots_of",
-    "model_basis",
-    "model_sums",
     "motor_drive",
     "motor_into",
 ]
@@ -99,7 +96,7 @@ def motor_into(m, t, vm, dl, u2, drive, window_s, pm, qm, states):  # pragma: no
 
 
 @numba.njit(cache=True, nogil=True)
-def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2, i2, r, x, motors, window_s, d_on,
+def event_parts(t, v, delta, has_angle, p, q, gap, steps, v2, i2, r, x, motors, window_s, d_on,
               d_params, el_on, vd1, vd2, frcel):  # pragma: no cover - compiled  # fmt: skip
     """Every part's own response at the load bus, for one event: no share enters here.
 
@@ -183,27 +180,20 @@ def _parts_of(t, v, delta, has_angle, p, q, gap, steps, v2, i2, r, x, motors, wi
 
 
 @numba.njit(cache=True, nogil=True)
-def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors, window_s,
-               shares, a_p, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, ztz, zty, yty,
+def event_sums(solved, gap, v2, i2, i2_rows, r, x, n_m, d_on, shares, a_p, ns_on, ztz, zty, yty,
                nn, ar, mzz, mzy, myy):  # pragma: no cover - compiled  # fmt: skip
     """Fill ``ztz (G, 4, 4)``, ``zty (G, 4)``, ``yty (G,)``, ``nn (G,)``; False if infeasible.
 
-    ``motors`` (k, 11): ``rs, xp, dx, tp, h, wb, t0, a, b, c, h_step`` each; ``shares``
-    the parts' shares of P (motors, then motor D, then electronics, the static part
-    last); ``a_p`` the static P's Z, I, P split; ``d_params`` motor D's 17 constants in
-    ``parts.MOTOR_D_DEFAULTS``' order; ``v2, i2`` the event's (zeros without), which
-    brake the motors (:func:`_parts_of`) whatever ``ns_on``; ``i2_rows`` the I2
-    channel's rows (none where it is off).
+    ``solved``: :func:`event_parts`' parts (its ``ok`` True), ``n_m`` the motors' count;
+    ``shares`` the parts' shares of P (motors, then motor D, then electronics, the static
+    part last); ``a_p`` the static P's Z, I, P split; ``v2, i2`` the event's (zeros
+    without); ``i2_rows`` the I2 channel's rows (none where it is off).
     """
-    ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
-                                                 v2, i2, r, x, motors, window_s, d_on,
-                                                 d_params, el_on, vd1, vd2, frcel)  # fmt: skip
-    if not ok:
-        return False
-    n = t.size
+    vm, xl, pl, ql, pr, qr, yraw = solved
+    n = vm.size
     zc = complex(r, x)
     v0 = vm[0]
-    n_q = motors.shape[0] + (1 if d_on else 0)  # the parts with a Q of their own
+    n_q = n_m + (1 if d_on else 0)  # the parts with a Q of their own
     f_s = shares[shares.size - 1]
     col_p = f_s * (a_p[0] * xl * xl + a_p[1] * xl + a_p[2])
     col_qp = np.zeros(n)
@@ -217,7 +207,7 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
         for k in range(n):
             col_p[k] += fj * pr[j, k] / pr[j, 0]
             col_qp[k] += fj * (qr[j, k] - qr[j, 0] * xl[k] * xl[k]) / pr[j, 0]
-        if j < motors.shape[0]:
+        if j < n_m:
             y2p += fj / pr[j, 0] * yraw[j]
         else:  # motor D: the constant impedance of its operating point
             y2p += fj / (v0 * v0)
@@ -262,25 +252,20 @@ def event_sums(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, 
 
 
 @numba.njit(cache=True, nogil=True)
-def event_basis(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows, r, x, motors,
-                window_s, d_on, d_params, el_on, vd1, vd2, frcel, ns_on, bb, by, yy, nn, ar,
-                mbb, mby, myy):  # pragma: no cover - compiled  # fmt: skip
+def event_basis(solved, gap, v2, i2, i2_rows, r, x, n_m, d_on, ns_on, bb, by, yy, nn, ar, mbb,
+                mby, myy):  # pragma: no cover - compiled  # fmt: skip
     """Fill the shares' basis sums (module docstring); False if infeasible at some shares.
 
-    ``bb (G, M, M)``, ``by (G, M)``, ``yy (G,)``, ``nn (G,)`` with ``M = K + 6`` (the
-    ``K`` dynamic parts, the static part's three, three fixed columns); with ``ar``, P's
-    and Q's AR(1) stacks ``mbb (2, 4, M, M)``, ``mby (2, 4, M)``, ``myy (2, 4)``. False
-    also where a basis column passes 1e6 (:func:`event_sums` refuses a column that large:
-    below it every share vector is feasible, above it some are not).
+    ``solved``: :func:`event_parts`' parts (its ``ok`` True). ``bb (G, M, M)``, ``by (G,
+    M)``, ``yy (G,)``, ``nn (G,)`` with ``M = K + 6`` (the ``K`` dynamic parts, the static
+    part's three, three fixed columns); with ``ar``, P's and Q's AR(1) stacks ``mbb (2, 4,
+    M, M)``, ``mby (2, 4, M)``, ``myy (2, 4)``. False also where a basis column passes 1e6
+    (:func:`event_sums` refuses a column that large: below it every share vector is
+    feasible, above it some are not).
     """
-    ok, vm, xl, pl, ql, pr, qr, yraw = _parts_of(t, v, delta, has_angle, p, q, gap, steps,
-                                                 v2, i2, r, x, motors, window_s, d_on,
-                                                 d_params, el_on, vd1, vd2, frcel)  # fmt: skip
-    if not ok:
-        return False
-    n = t.size
+    vm, xl, pl, ql, pr, qr, yraw = solved
+    n = vm.size
     n_dyn = pr.shape[0]
-    n_m = motors.shape[0]
     n_q = n_m + (1 if d_on else 0)
     m_cols = n_dyn + 6
     zc = complex(r, x)
@@ -417,111 +402,3 @@ def knots_of(t, vm, dl, gap, steps, window_s):  # pragma: no cover - compiled
             ta[pos + 1], va[pos + 1], da[pos + 1] = mid + 1e-6, vm[k + 1], dl[k + 1]
             pos += 2
     return ta, va, da, real
-
-
-def model_sums(model, event, theta, ar=False):
-    """:func:`event_sums` for a ``PartsModel`` at ``theta``: ``(ztz, zty, yty, n)`` or None.
-
-    With ``ar``, ``((ztz, zty, yty, n), (mzz, mzy, myy, segments))``: P's and Q's AR(1)
-    sums beside them (``inference.ar1.ar_moments``' stacks, one per channel).
-    """
-    fixed, parts, ns_on, c = _arguments(model, event, theta)
-    g = len(model.channel_names)
-    ztz, zty, yty, nn = np.empty((g, 4, 4)), np.empty((g, 4)), np.empty(g), np.empty(g)
-    moments = ((np.empty((2, 4, 4, 4)), np.empty((2, 4, 4)), np.empty((2, 4))) if ar
-               else _NO_MOMENTS)  # fmt: skip
-    r, x, motors, window_s, d_on, d_params, el_on, vd1, vd2, frcel = parts
-    ok = event_sums(*fixed, r, x, motors, window_s, np.ascontiguousarray(c["f"]),
-                    np.ascontiguousarray(c["a_p"]), d_on, d_params, el_on, vd1, vd2, frcel,
-                    ns_on, ztz, zty, yty, nn, ar, *moments)  # fmt: skip
-    return _result(ok, (ztz, zty, yty, nn), moments, fixed, ar)
-
-
-def model_basis(model, event, theta, ar=False):
-    """:func:`event_basis` for a ``PartsModel`` at ``theta`` (its shares not read).
-
-    ``(bb, by, yy, n)`` or None, as :func:`model_sums` returns; with ``ar`` their AR(1)
-    stacks and segment count beside them.
-    """
-    fixed, parts, ns_on, _ = _arguments(model, event, theta)
-    g = len(model.channel_names)
-    m = len(model.parts) + 6
-    bb, by, yy, nn = np.empty((g, m, m)), np.empty((g, m)), np.empty(g), np.empty(g)
-    moments = (np.empty((2, 4, m, m)), np.empty((2, 4, m)), np.empty((2, 4)))
-    ok = event_basis(*fixed, *parts, ns_on, bb, by, yy, nn, ar, *moments)
-    return _result(ok, (bb, by, yy, nn), moments, fixed, ar)
-
-
-def _result(ok, sums, moments, fixed, ar):
-    if not ok:
-        return None
-    if not ar:
-        return sums
-    segments = 1.0 + float(np.count_nonzero(fixed[6][:-1]))
-    return sums, (*moments, segments)
-
-
-def _arguments(model, event, theta) -> tuple:
-    # The kernels' arguments at theta: the event's arrays, the parts' constants, whether
-    # the negative sequence is read, and theta split (its shares for event_sums).
-    fixed = _fixed_of(model, event)
-    c, motors, d_params = _of_theta(model, np.asarray(theta, dtype=float))
-    x_fd = model.feeder_x(fixed[4][0], fixed[5][0], c)  # the first kept row's P, Q
-    parts = (model.rx * x_fd, x_fd, motors, float(model.window_s), model.motor_d, d_params,
-             model.electronics, float(c["vd1"]), float(c["vd2"]), float(model.frcel))  # fmt: skip
-    ns_on = len(model.channel_names) == 3 and bool(fixed[10].any())
-    return fixed, parts, ns_on, c
-
-
-def _of_theta(model, theta) -> tuple:
-    # theta split, the motors' constants and motor D's: the same for every event, so
-    # kept on the model for the last few theta (a fit's events each ask them in turn).
-    key = theta.tobytes()
-    got = model._of_theta.get(key)
-    if got is None:
-        c = model._split(theta)
-        wb = 2.0 * math.pi * model.f_hz
-        motors = np.empty((len(model.motors), 11))
-        for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
-            rs, xp, dx, tp, h, t0 = np.exp(logs)
-            a, b, cc = MOTOR_CLASSES[m]["torque"]
-            motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
-        params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
-                  "tstall": float(c["tstall"])}  # fmt: skip
-        d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
-        got = (c, motors, d_params)
-        if len(model._of_theta) > 64:
-            model._of_theta.clear()
-        model._of_theta[key] = got
-    return got
-
-
-#: The AR(1) sums' arguments of the white-noise kernel call (not read).
-_NO_MOMENTS = (np.zeros((2, 4, 4, 4)), np.zeros((2, 4, 4)), np.zeros((2, 4)))
-
-
-def _fixed_of(model, event) -> tuple:
-    # The event's arrays the kernel reads, once per event (kept on the model).
-    key = (id(event), event.n)
-    if key not in model._fixed:
-        keep, steps = model.drive_of(event)
-        if keep.size < event.n:  # as channels: the rows left out make a gap
-            event = event.take(keep)
-        n = event.n
-        ns = model.negative_sequence != "off" and model.uses_negative_sequence(event)
-        # V2 and I2 wherever the event has them (the motors brake with them, parts.brake_drive,
-        # I2 channel or not: without I2 the feeder's drop of V2 is unknown, left out).
-        has_v2 = getattr(event, "v2", None) is not None
-        v2 = np.asarray(event.v2, dtype=complex) if has_v2 else np.zeros(n, complex)
-        i2 = (np.asarray(event.i2, dtype=complex) if has_v2 and event.i2 is not None
-              else np.zeros(n, complex))  # fmt: skip
-        rows = (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
-        delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
-        model._fixed[key] = (
-            np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
-            np.ascontiguousarray(delta), event.delta is not None,
-            np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
-            gaps_of(event.t, steps), np.ascontiguousarray(steps, float),
-            np.ascontiguousarray(v2), np.ascontiguousarray(i2), rows,
-        )  # fmt: skip
-    return model._fixed[key]

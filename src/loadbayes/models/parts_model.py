@@ -86,7 +86,7 @@ from loadbayes.models.parts import (
     step_knots,
     step_times,
 )
-from loadbayes.models.parts_kernel import model_basis, model_sums
+from loadbayes.models.parts_sums import model_basis, model_sums, threshold_pairs
 
 __all__ = ["NEG_SEQ_MIN", "SHARE_STEPS", "PartsModel"]
 
@@ -225,8 +225,11 @@ class PartsModel:
         set_(self, "thresholds", tuple(thr))
         set_(self, "_kept", {})
         set_(self, "_lowest", {})
-        set_(self, "_of_theta", {})  # parts_kernel._of_theta
+        set_(self, "_of_theta", {})  # parts_sums._of_theta, _shares_of
+        set_(self, "_shares", {})
         set_(self, "_fixed", {})
+        set_(self, "_solved", {})  # parts_sums._entry: each event's parts solved, their basis
+        set_(self, "_threshold_pairs", threshold_pairs(self))
 
     def _tag(self, m: str) -> str:
         return "" if len(self.motors) == 1 else f"_{m}"
@@ -239,7 +242,8 @@ class PartsModel:
 
     # -- the physics -------------------------------------------------------------------
 
-    def _split(self, theta: NDArray) -> dict[str, Any]:
+    def _split(self, theta: NDArray, shares: bool = True) -> dict[str, Any]:
+        # shares False: the parts' own parameters alone (no "f", "a_p": parts_sums).
         th = np.asarray(theta, dtype=float)
         out: dict[str, Any] = {}
         i = 0
@@ -262,11 +266,14 @@ class PartsModel:
                 i += 1
             else:
                 out[name] = fixed[name]
-        k = len(self.parts)
-        f = alr_simplex(th[..., i : i + k])  # parts..., static last
-        out["f"] = f
-        out["a_p"] = alr_simplex(th[..., i + k : i + k + 2])
+        if shares:
+            out["f"], out["a_p"] = self._split_shares(th)
         return out
+
+    def _split_shares(self, theta: NDArray) -> tuple[NDArray, NDArray]:
+        # The parts' shares of P (static last) and the static P's split, from theta (...,).
+        i, k = self._n_gauss, len(self.parts)
+        return alr_simplex(theta[..., i : i + k]), alr_simplex(theta[..., i + k : i + k + 2])
 
     def uses_negative_sequence(self, event: EventRecord) -> bool:
         """Whether ``event``'s negative sequence enters the likelihood (see the docstring)."""
@@ -340,9 +347,9 @@ class PartsModel:
     def event_sums(self, event: EventRecord, theta: NDArray, ar: bool = False):
         """The channels' sums ``(ztz, zty, yty, n)`` at ``theta`` in one compiled call.
 
-        The same numbers as :meth:`channels` summed (``models/parts_kernel.py``); None
+        The same numbers as :meth:`channels` summed (``models/parts_sums.py``); None
         where infeasible. With ``ar``, P's and Q's AR(1) sums beside them
-        (``parts_kernel.model_sums``), the same as :meth:`first_rows` and ``channels``
+        (``parts_sums.model_sums``), the same as :meth:`first_rows` and ``channels``
         give ``inference.ar1.ar_moments``.
         """
         return model_sums(self, event, theta, ar)
