@@ -227,6 +227,7 @@ class PartsModel:
         set_(self, "_lowest", {})
         set_(self, "_of_theta", {})  # parts_sums._of_theta, _shares_of
         set_(self, "_shares", {})
+        set_(self, "_responses", {})  # load_columns: each motor's response, kept
         set_(self, "_fixed", {})
         set_(self, "_solved", {})  # parts_sums._entry: each event's parts solved, their basis
         set_(self, "_threshold_pairs", threshold_pairs(self))
@@ -292,13 +293,15 @@ class PartsModel:
         """Each channel's design on ``beta = (p0, cq2, cq1, cq0)`` and target: P, Q, maybe I2."""
         c = self._split(theta)
         keep, steps = self.drive_of(event)
+        recorded = event
         if keep.size < event.n:  # the rows inside a step left out: a gap, stepped across
             event = event.take(keep)
         x_fd = self.feeder_x(event.p[0], event.q[0], c)
         lb = load_bus(event, self.rx * x_fd, x_fd)
         ev = lb.event
         v2 = getattr(event, "v2", None)  # without I2 the feeder's drop of V2 is unknown
-        cols = self.load_columns(ev, c, steps, brake_drive(v2, v2 if lb.v2 is None else lb.v2))
+        cols = self.load_columns(ev, c, steps, brake_drive(v2, v2 if lb.v2 is None else lb.v2),
+                                 kept=(recorded, x_fd))  # fmt: skip
         if cols is None:
             return None
         col_p, col_qp, y2p = cols
@@ -411,12 +414,15 @@ class PartsModel:
         return float(c["x_fd"]) / float(np.hypot(p0, q0)) if self.feeder else 0.0
 
     def load_columns(self, ev: EventRecord, c: dict[str, Any], steps: NDArray | None = None,
-                     v2: NDArray | None = None):  # fmt: skip
+                     v2: NDArray | None = None, kept: tuple | None = None):  # fmt: skip
         """At the load bus (``ev``): P's column on ``p0``, Q's on ``p0`` and ``Y2`` per ``p0``.
 
         ``c`` is :meth:`_split` of one ``theta``; None where a motor has no steady state.
         ``v2``: the motors' braking drive at ``ev``'s rows (``parts.brake_drive``), None
-        for none.
+        for none. ``kept``: a key of ``ev`` and ``v2`` (:meth:`channels`': the recorded
+        event and the feeder's X), under which each motor's response is kept for the
+        next calls (the NLS's differences move one coordinate at a time: most leave a
+        motor as it was); None: none kept.
         """
         xl = ev.v / ev.v[0]
         f = c["f"]
@@ -434,9 +440,18 @@ class PartsModel:
                 if v2 is not None:  # |V2| steps with V
                     u2 = step_knots(ev.t, v2, None, gap, steps)[1]
         for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
-            resp = motor_response(drive, logs, f_hz=self.f_hz, real=real,
-                                  torque=MOTOR_CLASSES[m]["torque"],
-                                  window_s=self.window_s, v2=u2)  # fmt: skip
+            key = None if kept is None else (id(kept[0]), kept[1], m, logs.tobytes())
+            got = None if key is None else self._responses.get(key)
+            if got is not None and got[0] is kept[0]:  # the event held: its id not reused
+                resp = got[1]
+            else:
+                resp = motor_response(drive, logs, f_hz=self.f_hz, real=real,
+                                      torque=MOTOR_CLASSES[m]["torque"],
+                                      window_s=self.window_s, v2=u2)  # fmt: skip
+                if key is not None:
+                    if len(self._responses) > 64:
+                        self._responses.clear()
+                    self._responses[key] = (kept[0], resp)
             if resp is None:
                 return None
             pm, qm = resp
