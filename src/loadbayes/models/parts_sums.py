@@ -114,7 +114,7 @@ def _entry(model, event, theta, fixed, parts) -> list:
         if entry[2] is None or _holds(entry, thr, pairs):
             return entry
     ok, *arrays = event_parts(*fixed[:10], *parts)
-    entry = [thr, float(np.min(arrays[0])), tuple(arrays) if ok else None, {}]
+    entry = [thr, float(arrays[0].min()), tuple(arrays) if ok else None, {}]
     entries.append(entry)
     if len(entries) > PER_KEY:
         del entries[0]

@@ -78,6 +78,7 @@ class DesignProblem:
         #: AR(1) noise: the bound of the coefficients' uniform prior (the model's, if any).
         self.rho_max = float(getattr(self.model, "rho_max", RHO_MAX))
         self.n_channels = len(self.channel_names)
+        self._thetas: dict[bytes, np.ndarray] = {}  # theta of the last vectors (theta)
 
     @property
     def dim(self) -> int:
@@ -94,9 +95,19 @@ class DesignProblem:
         A prior with its own map of the sampled coordinates (``to_theta``: a model of
         parts' motors' ``log T0``, ``models/part_scale.py``) applies it after.
         """
-        theta = np.asarray(u, dtype=float)[..., : self.n_free] @ self._to_theta
+        u = np.asarray(u, dtype=float)
+        key = u.tobytes() if u.ndim == 1 else None  # the sampler's one vector: kept
+        got = None if key is None else self._thetas.get(key)
+        if got is not None:
+            return got.copy()
+        theta = u[..., : self.n_free] @ self._to_theta
         to_theta = getattr(self.prior, "to_theta", None)
-        return theta if to_theta is None else to_theta(theta)
+        theta = theta if to_theta is None else to_theta(theta)
+        if key is not None:
+            if len(self._thetas) > 64:
+                self._thetas.clear()
+            self._thetas[key] = theta.copy()
+        return theta
 
     def phi(self, u: np.ndarray) -> np.ndarray:
         """No steps: an empty vector of step fractions."""

@@ -171,6 +171,7 @@ class ShareMoves:
         self.counts = np.zeros(4, dtype=np.int64)
         self.positive = -1 if problem.positive is None else int(problem.positive)
         self._last = None  # (the other coordinates, their basis): the last solve
+        self._weights: dict[bytes, np.ndarray] = {}  # weights of the last share coordinates
 
     @property
     def acceptance(self) -> tuple[float, float]:
@@ -180,9 +181,16 @@ class ShareMoves:
 
     def weights(self, u: np.ndarray) -> np.ndarray:
         """``w = (f_1, ..., f_K, f_s a1, f_s a2, f_s a3)`` of the sampled vector ``u``."""
-        f = alr_simplex(u[self.f_index])
-        a = alr_simplex(u[self.a_index])
-        return np.concatenate([f[:-1], f[-1] * a])
+        zf, za = u[self.f_index], u[self.a_index]
+        key = zf.tobytes() + za.tobytes()
+        got = self._weights.get(key)
+        if got is None:  # kept: an iteration asks them of the state the last one left
+            f, a = alr_simplex(zf), alr_simplex(za)
+            got = np.concatenate([f[:-1], f[-1] * a])
+            if len(self._weights) > 64:
+                self._weights.clear()
+            self._weights[key] = got
+        return got.copy()
 
     def with_weights(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
         """``u`` with its share coordinates (additive log-ratios) those of ``w``."""
