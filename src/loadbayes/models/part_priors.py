@@ -25,6 +25,10 @@ transformer plus feeder X 0.12).
 The shares of P among the parts and of the static part among Z, I and P are uniform on
 their simplex (Dirichlet(1, ..., 1)): every share in [0, 1], none favoured.
 :class:`PartsPrior` is the whole prior in the sampled coordinates.
+
+One idea needs these lines: the published ranges and the one prior they make
+(:class:`PartsPrior`, whose density the sampler asks of every state, so it keeps its
+terms by their coordinates).
 """
 
 from __future__ import annotations
