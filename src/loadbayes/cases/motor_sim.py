@@ -24,7 +24,7 @@ present so the schema does not change). ``ded, deq, dw`` are the right-hand side
 ODE at the samples (exact), not finite differences. ``p`` and ``q`` are computed from
 the noiseless voltages and currents.
 
-One idea at about 450 lines, the reference simulation of a motor through a disturbance:
+One idea at about 480 lines, the reference simulation of a motor through a disturbance:
 the profiles it is driven by (constant, sag, ramp, random walk, from a file), the
 integration, and the record's CSV with its settings sidecar that ``fit im`` reads back.
 """
@@ -35,7 +35,9 @@ import json
 import math
 import os
 import tempfile
+from bisect import bisect_left, bisect_right
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Literal
 
@@ -107,7 +109,28 @@ class Disturbance:
         """Return ``V(t-)``, the value just before any step at ``t``."""
         return self._eval(t, "left")
 
+    @cached_property
+    def _knots(self) -> tuple[list[float], list[float]]:
+        return self.t_knots.tolist(), self.v_knots.tolist()
+
+    def _eval_scalar(self, t: float, side: Literal["left", "right"]) -> NDArray[np.float64]:
+        # The same arithmetic as _eval on one time (an ODE solver's call), in floats:
+        # NumPy's per-call overhead on 0-d arrays cost more than the integration's model.
+        tk, vk = self._knots
+        k = (bisect_right if side == "right" else bisect_left)(tk, t) - 1
+        k = min(max(k, 0), len(tk) - 2)
+        span = tk[k + 1] - tk[k]
+        frac = (t - tk[k]) / span if span > 0 else 1.0
+        v = vk[k] + min(max(frac, 0.0), 1.0) * (vk[k + 1] - vk[k])
+        if t < tk[0]:
+            v = vk[0]
+        if t > tk[-1]:
+            v = vk[-1]
+        return np.array(v)
+
     def _eval(self, t: ArrayLike, side: Literal["left", "right"]) -> NDArray[np.float64]:
+        if isinstance(t, float) and t == t:  # a finite or infinite float, not NaN
+            return self._eval_scalar(t, side)
         t = np.asarray(t, dtype=float)
         # At a repeated knot (a step) side="right" picks the later value, "left" the earlier.
         k = np.clip(np.searchsorted(self.t_knots, t, side=side) - 1, 0, self.t_knots.size - 2)

@@ -251,6 +251,8 @@ def derivatives(
     ndarray, shape (3, ...)
         ``(dEd'/dt, dEq'/dt, dw/dt)`` in 1/s (module docstring, "Time base").
     """
+    if np.ndim(ud) == np.ndim(uq) == 0 and np.shape(state) == (3,):
+        return _derivatives_one(state, float(ud), float(uq), params, t0)
     ed, eq, w = (np.asarray(s, dtype=float) for s in state)
     id_, iq = currents(ud, uq, ed, eq, params)
     tp, dx, wb = params.tp_s, params.x - params.xp, params.wb
@@ -264,6 +266,28 @@ def derivatives(
         # broadcast views costs more than the model's arithmetic.
         return np.array([ded, deq, dw], dtype=float)
     return np.stack(np.broadcast_arrays(ded, deq, dw))
+
+
+def _derivatives_one(
+    state: ArrayLike, ud: float, uq: float, params: MotorParams, t0: float
+) -> NDArray[np.float64]:
+    """:func:`derivatives` at one sample (an ODE solver's call), in Python floats.
+
+    The same operations in the same order as the array path (``w**2`` is ``w * w``, as
+    NumPy computes a square), so the same bits; NumPy's per-call cost on 0-d arrays was
+    most of a reference simulation's time.
+    """
+    ed, eq, w = (float(s) for s in state)
+    rs, xp = params.rs, params.xp
+    den = rs**2 + xp**2
+    dd, dq = ud - ed, uq - eq
+    id_, iq = (rs * dd + xp * dq) / den, (rs * dq - xp * dd) / den
+    tp, dx, wb = params.tp_s, params.x - params.xp, params.wb
+    ded = -(ed + dx * iq) / tp - wb * (w - 1.0) * eq
+    deq = -(eq - dx * id_) / tp + wb * (w - 1.0) * ed
+    tm = t0 * (params.a * (w * w) + params.b * w + params.c)
+    dw = (ed * id_ + eq * iq - tm) / (2.0 * params.h_s)
+    return np.array([ded, deq, dw], dtype=float)
 
 
 @dataclass(frozen=True)
