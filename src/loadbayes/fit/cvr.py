@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.core.parallel import chain_generators
+from loadbayes.core.parallel import chain_generators, one_blas_thread
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.cvr_data import (
     daily_table,
@@ -172,6 +172,7 @@ def cvr(
     return out
 
 
+@one_blas_thread  # a few hundred coefficients; OpenBLAS's threads cost 3-4x the CPU
 def fit_cvr(
     stamps: np.ndarray,
     t: np.ndarray,
