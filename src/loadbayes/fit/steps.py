@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from loadbayes.core.blocks import LinearBlock
+from loadbayes.core.parallel import one_blas_thread
 from loadbayes.core.priors import BlockPrior
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.core.stats import GramAccumulator
@@ -249,6 +250,7 @@ def lag_words(lags: Sequence[float], weights: Sequence[float]) -> str:
     return f"{head} (weights: {listed}); dP/dV averages over them"
 
 
+@one_blas_thread  # k ~ 360 blocks: one LAPACK thread, the chains are the threads
 def fit_steps(
     v: np.ndarray,
     p: np.ndarray,
