@@ -34,10 +34,12 @@ def figures(study: ImStudy) -> dict[str, Any]:
             lo = min(gs.min(), ms.min(), truth[k])
             hi = max(gs.max(), ms.max(), truth[k])
             bins = np.linspace(lo, hi, 120) if hi > lo else 10
-            ax.hist(gs, bins=bins, density=True, color="#4c72b0", label="GS, modelled currents")
-            ax.hist(
-                ms, bins=bins, density=True, color="#dd8452", alpha=0.6, label="GS, paper's form"
-            )
+            # One filled outline per histogram, not a bar per bin (the same picture: the
+            # bars have no edges; 40 x 120 bars took 9 CPU s of the figure's 10).
+            ax.hist(gs, bins=bins, density=True, histtype="stepfilled", color="#4c72b0",
+                    label="GS, modelled currents")  # fmt: skip
+            ax.hist(ms, bins=bins, density=True, histtype="stepfilled", color="#dd8452",
+                    alpha=0.6, label="GS, paper's form")  # fmt: skip
             ax.axvline(truth[k], color="k", lw=1, ls="--", label="true")
             ax.set_yticks([])
             ax.tick_params(labelsize=7)
