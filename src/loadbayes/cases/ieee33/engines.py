@@ -54,22 +54,25 @@ class PandapowerEngines:
             True,
         )
 
-    def _runpp(self, **kwargs: Any) -> bool:
+    def _runpp(self, numba: bool | None = None, **kwargs: Any) -> bool:
         try:
             self._pp.runpp(
                 self.net,
                 tolerance_mva=self.tolerance_mva,
                 max_iteration=self.max_iteration,
-                numba=self._numba_now,
+                numba=self._numba_now if numba is None else numba,
                 **kwargs,
             )
         except self._pp.LoadflowNotConverged:
             return False
         return True
 
-    def _solve_runpp(self, factors: np.ndarray, zp: np.ndarray, zq: np.ndarray) -> _Raw:
+    def _solve_runpp(
+        self, factors: np.ndarray, zp: np.ndarray, zq: np.ndarray, numba: bool | None = None
+    ) -> _Raw:
         self._set_loads(factors, zp, zq)
-        return self._read_result() if self._runpp() else (np.nan, np.nan, np.nan, False)
+        ok = self._runpp(numba=numba)
+        return self._read_result() if ok else (np.nan, np.nan, np.nan, False)
 
     def _solve_recycle(self, factors: np.ndarray, zp: np.ndarray, zq: np.ndarray) -> _Raw:
         self._set_loads(factors, zp, zq)
@@ -110,8 +113,12 @@ class NewtonEngine:
         }
         # One full runpp with constant-power loads builds the solver's arrays; the ZIP
         # shares are then written into the bus matrix for every run.
+        # SciPy's runpp even once numba solves the flows: compiling pandapower's runpp
+        # kernels (makeYbus and others, not the Newton ones) took 3 CPU s for the one or
+        # two runpp of a feeder; the arrays are the same (the slack's P and Q aside, which
+        # the Newton step does not read), the flows bit for bit.
         self._set_loads(np.ones(N_FACTORS), np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0]))
-        if not self._runpp(init="flat"):
+        if not self._runpp(numba=False, init="flat"):
             raise RuntimeError("the base case of case33bw did not converge")
         ppc = self.net._ppc
         internal = ppc["internal"]

@@ -139,7 +139,8 @@ class Feeder33(PandapowerEngines, NewtonEngine):
         base = np.ones(N_FACTORS)
         if engine == "newton":
             self._setup_newton()
-            check = self._solve_runpp(base, self.zip_p, self.zip_q) if self._runpp_ok() else None
+            ok = self._runpp_ok()
+            check = self._solve_runpp(base, self.zip_p, self.zip_q, numba=False) if ok else None
             got = self._solve_newton(base, self.zip_p, self.zip_q)
             if check is not None and not np.allclose(got, check, rtol=0, atol=1e-8):
                 raise RuntimeError(
