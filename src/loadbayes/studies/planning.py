@@ -25,9 +25,10 @@ import numpy as np
 
 __all__ = ["PlanningStudy", "html_section", "run"]
 
-#: Iterations (burn-in) per chain, quick and full; draws played per prediction.
+#: Iterations (burn-in) per chain, quick and full; draws played per prediction, and with
+#: ``smoke`` (playing them was 5.7 of the smoke section's 12 s).
 QUICK, FULL = (1500, 750), (8000, 3000)
-PLAYED = 200
+PLAYED, PLAYED_SMOKE = 200, 50
 #: The real record's question: a 50 % sag of 0.1 s.
 SAG, DURATION = 0.5, 0.1
 
@@ -48,7 +49,7 @@ def _fit(model, events, draws, burn, seed):
     return fit_composite(model, events, sampler=run).posterior
 
 
-def _real(draws, burn, seed) -> dict[str, Any]:
+def _real(draws, burn, seed, played) -> dict[str, Any]:
     from loadbayes.fit.composite.predict import predict
     from loadbayes.models.dynamic import dynamic_model
     from loadbayes.studies.real_record import BAYS, SOURCE, events_of, find_record
@@ -62,13 +63,13 @@ def _real(draws, burn, seed) -> dict[str, Any]:
     evs = [replace(e, straddle=np.asarray(fl["straddle"], bool))
            for e, fl in zip(events[:2], flags[:2], strict=True)]  # fmt: skip
     post = _fit(dynamic_model("cmld-lite", f_hz=f, window_s=1.0 / f), evs, draws, burn, seed)
-    pred = predict(post, sag=SAG, duration=DURATION, draws=PLAYED, seed=seed)
+    pred = predict(post, sag=SAG, duration=DURATION, draws=played, seed=seed)
     return {"title": f"the real record, transformer {short}: a {SAG:.0%} sag of {DURATION:g} s",
             "source": SOURCE, "prediction": pred, "fit_warnings": list(post.warnings),
             "check": None}  # fmt: skip
 
 
-def _griddyn(draws, burn, seed) -> dict[str, Any]:
+def _griddyn(draws, burn, seed, played) -> dict[str, Any]:
     from loadbayes.cases.griddyn import cases
     from loadbayes.cases.griddyn.events import griddyn_events
     from loadbayes.fit.composite.predict import predict
@@ -88,7 +89,7 @@ def _griddyn(draws, burn, seed) -> dict[str, Any]:
     profile = EventRecord(deep.t_s.to_numpy(), deep.v.to_numpy(), np.zeros(len(deep)),
                           np.zeros(len(deep)), deep.angle_rad.to_numpy(),
                           f"GridDyn's {depths[2]:.0%} sag (its recorded voltage)")  # fmt: skip
-    pred = predict(post, voltage=profile, draws=PLAYED, seed=seed)
+    pred = predict(post, voltage=profile, draws=played, seed=seed)
     b = pred.band
     inside = {ch: float(np.mean((deep[ch].to_numpy() >= b[f"{ch}_pred_lo"])
                                 & (deep[ch].to_numpy() <= b[f"{ch}_pred_hi"])))
@@ -112,14 +113,18 @@ def _griddyn(draws, burn, seed) -> dict[str, Any]:
 
 
 def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> PlanningStudy:
-    """Fit and predict both cases (see the module docstring); ``smoke``: 400 (200) iterations."""
+    """Fit and predict both cases (see the module docstring).
+
+    ``smoke``: 400 (200) iterations and :data:`PLAYED_SMOKE` draws played.
+    """
     draws, burn = (400, 200) if smoke else QUICK if quick else FULL
+    played = PLAYED_SMOKE if smoke else PLAYED
     out, seconds = {}, {}
     for name, case in (("real record", _real), ("GridDyn", _griddyn)):
         t0 = time.perf_counter()
-        out[name] = case(draws, burn, seed)
+        out[name] = case(draws, burn, seed, played)
         seconds[name] = time.perf_counter() - t0
-    return PlanningStudy(out, {"draws": draws, "burn": burn, "chains": 2, "played": PLAYED,
+    return PlanningStudy(out, {"draws": draws, "burn": burn, "chains": 2, "played": played,
                                "seed": seed, "seconds": seconds})  # fmt: skip
 
 
