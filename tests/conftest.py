@@ -28,6 +28,25 @@ def pytest_collection_modifyitems(items):  # noqa: D103
     items.sort(key=_rank)
 
 
+def pytest_configure(config):
+    """In each of ``-n 2``'s workers: one BLAS thread (and in the processes they start).
+
+    Two workers on two cores leave no core for a BLAS pool: OpenBLAS's second thread only
+    contends (and spins) beside the other worker, where a fit ran 3-4x its CPU on small
+    regressions (fit_cvr, fit_steps). A user's process keeps its pools; the tests that
+    check the package's own capping (test_fleet_threads) lift this cap around themselves.
+    """
+    import os
+
+    if not hasattr(config, "workerinput"):
+        return
+    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")
+    from threadpoolctl import threadpool_limits
+
+    config._blas_cap = threadpool_limits(limits=1, user_api="blas")
+
+
 def pytest_sessionstart(session):
     """With workers (``-n 2``, as ``make test``): the numba kernels compiled once, first.
 

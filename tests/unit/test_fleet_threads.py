@@ -109,10 +109,13 @@ def test_one_blas_thread_caps_the_pools_during_the_call_only():
     def counts():
         return [p["num_threads"] for p in threadpool_info()]
 
-    before = counts()
-    inside = one_blas_thread(counts)()
-    assert inside and all(n == 1 for n in inside)
-    assert counts() == before
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2):  # the suite's workers cap BLAS at one (conftest)
+        before = counts()
+        inside = one_blas_thread(counts)()
+        assert inside and all(n == 1 for n in inside)
+        assert counts() == before
     # Where the fit spends its BLAS: the reading's two NLS fits, and NLS + chains.
     for f in (reading.choose_reading, driver.fit_composite):
         names = [f.__code__.co_name]
