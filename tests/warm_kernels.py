@@ -104,6 +104,12 @@ def _fleet_and_track() -> None:
 def _cache_is_warm() -> bool:
     import importlib.util
 
+    # The import first: its guard (loadbayes/_numba_cache.py) deletes caches built from
+    # other sources. Looked at before it, a tree whose numba sources had changed since its
+    # last run counted as warm, and both workers then compiled every kernel side by side
+    # (a whole suite at 941 s, as long as the warmed run it should have beaten).
+    import loadbayes  # noqa: F401
+
     spec = importlib.util.find_spec("loadbayes")
     roots = [Path(spec.origin).parent] if spec and spec.origin else []
     if os.environ.get("NUMBA_CACHE_DIR"):
