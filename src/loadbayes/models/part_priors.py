@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.kept import Kept
 from loadbayes.models.part_scale import ScaleMap
 
 __all__ = [
@@ -189,7 +190,7 @@ class PartsPrior:
         object.__setattr__(self, "_gauss", (mean, np.linalg.inv(cov)))
         object.__setattr__(self, "_full", (full_mean, full))
         object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
-        object.__setattr__(self, "_kept", {})  # log_u and its terms, of the last vectors
+        object.__setattr__(self, "_kept", Kept(2048))  # log_u and its terms, of the last vectors
 
     def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(mean, cov, gain, sd_cond)``: the Gaussian stand-in of every coordinate."""
@@ -203,10 +204,7 @@ class PartsPrior:
             key = u.tobytes()
             got = self._kept.get(key)
             if got is None:
-                got = self._log_u(u)
-                if len(self._kept) > 2048:
-                    self._kept.clear()
-                self._kept[key] = got
+                got = self._kept.keep(key, self._log_u(u))
             return got
         return self._log_u(u)
 
@@ -238,10 +236,7 @@ class PartsPrior:
             # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
             z = np.append(x, 0.0)
             got = float(z.sum() - z.size * np.logaddexp.reduce(z))
-        if len(self._kept) > 2048:
-            self._kept.clear()
-        self._kept[key] = got
-        return got
+        return self._kept.keep(key, got)
 
     def inside(self, u: np.ndarray) -> bool:
         """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold.

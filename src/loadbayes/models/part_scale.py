@@ -37,6 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import log_ndtr, ndtr, ndtri
 
+from loadbayes.core.kept import Kept
+
 __all__ = ["ScaleMap", "log_mass"]
 
 
@@ -101,7 +103,7 @@ class ScaleMap:
             set_(self, f"_log_{name}", math.log(getattr(self, name)))
         # One vector's log_mass and log_t0, kept by its motor's coordinates: the sampler
         # asks them again and again of one state (its support, prior and theta in turn).
-        set_(self, "_kept", {})
+        set_(self, "_kept", Kept(_KEEP))
 
     def _ab(self, u):
         # The conditional's mean and the standardised bounds of log T0, given o.
@@ -127,7 +129,7 @@ class ScaleMap:
             key = (0, u[self.index : self.index + 5].tobytes())
             got = self._kept.get(key)
             if got is None:
-                got = self._keep(key, _log_mass_one(*self._ab(u)[1:]))
+                got = self._kept.keep(key, _log_mass_one(*self._ab(u)[1:]))
             return got
         _, a, b = self._ab(u)
         if np.ndim(u) == 1:
@@ -139,14 +141,8 @@ class ScaleMap:
         if _one_vector(u):
             key = (1, u[self.index : self.index + 6].tobytes())
             got = self._kept.get(key)
-            return self._keep(key, self._log_t0(u)) if got is None else got
+            return self._kept.keep(key, self._log_t0(u)) if got is None else got
         return self._log_t0(u)
-
-    def _keep(self, key, value):
-        if len(self._kept) > _KEEP:
-            self._kept.clear()
-        self._kept[key] = value
-        return value
 
     def _log_t0(self, u):
         m, a, b = self._ab(u)

@@ -61,6 +61,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from loadbayes.core.kept import Kept
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import SCALE_FREE_MATRIX, motor_physical, motor_response
@@ -86,7 +87,7 @@ from loadbayes.models.parts import (
     step_knots,
     step_times,
 )
-from loadbayes.models.parts_sums import model_basis, model_sums, threshold_pairs
+from loadbayes.models.parts_sums import KEEP, model_basis, model_sums, threshold_pairs
 
 __all__ = ["NEG_SEQ_MIN", "SHARE_STEPS", "PartsModel"]
 
@@ -224,12 +225,12 @@ class PartsModel:
         set_(self, "_tags", tuple(tags))
         set_(self, "thresholds", tuple(thr))
         set_(self, "_kept", {})
-        set_(self, "_lowest", {})
-        set_(self, "_of_theta", {})  # parts_sums._of_theta, _shares_of
-        set_(self, "_shares", {})
-        set_(self, "_responses", {})  # load_columns: each motor's response, kept
+        set_(self, "_lowest", Kept(4096))
+        set_(self, "_of_theta", Kept(64))  # parts_sums._of_theta, _shares_of
+        set_(self, "_shares", Kept(64))
+        set_(self, "_responses", Kept(64))  # load_columns: each motor's response, kept
         set_(self, "_fixed", {})
-        set_(self, "_solved", {})  # parts_sums._entry: each event's parts solved, their basis
+        set_(self, "_solved", Kept(KEEP))  # parts_sums._entry: each event's parts solved
         set_(self, "_threshold_pairs", threshold_pairs(self))
 
     def _tag(self, m: str) -> str:
@@ -404,9 +405,7 @@ class PartsModel:
             x_fd = 0.0
             if self.feeder:
                 x_fd = self.feeder_x(event.p[0], event.q[0], {"x_fd": np.exp(log_x)})
-            if len(self._lowest) > 4096:
-                self._lowest.clear()
-            self._lowest[key] = float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v))
+            self._lowest.keep(key, float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v)))
         return self._lowest[key]
 
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
@@ -449,9 +448,7 @@ class PartsModel:
                                       torque=MOTOR_CLASSES[m]["torque"],
                                       window_s=self.window_s, v2=u2)  # fmt: skip
                 if key is not None:
-                    if len(self._responses) > 64:
-                        self._responses.clear()
-                    self._responses[key] = (kept[0], resp)
+                    self._responses.keep(key, (kept[0], resp))
             if resp is None:
                 return None
             pm, qm = resp

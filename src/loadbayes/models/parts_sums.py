@@ -107,9 +107,7 @@ def _entry(model, event, theta, fixed, parts) -> list:
     key = (id(event), event.n, rest.tobytes())
     entries = model._solved.get(key)
     if entries is None:
-        if len(model._solved) > KEEP:
-            model._solved.clear()
-        entries = model._solved[key] = []
+        entries = model._solved.keep(key, [])
     for entry in entries:
         if entry[2] is None or _holds(entry, thr, pairs):
             return entry
@@ -194,10 +192,7 @@ def _of_theta(model, theta) -> tuple:
         params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
                   "tstall": float(c["tstall"])}  # fmt: skip
         d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
-        got = (c, motors, d_params)
-        if len(model._of_theta) > 64:
-            model._of_theta.clear()
-        model._of_theta[key] = got
+        got = model._of_theta.keep(key, (c, motors, d_params))
     return got
 
 
@@ -207,10 +202,9 @@ def _shares_of(model, theta) -> tuple:
     key = theta[model._n_gauss :].tobytes()
     got = model._shares.get(key)
     if got is None:
-        got = tuple(np.ascontiguousarray(x) for x in model._split_shares(theta))
-        if len(model._shares) > 64:
-            model._shares.clear()
-        model._shares[key] = got
+        got = model._shares.keep(
+            key, tuple(np.ascontiguousarray(x) for x in model._split_shares(theta))
+        )
     return got
 
 

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from loadbayes.core.kept import Kept
 from loadbayes.fit.composite.naming import event_suffix
 from loadbayes.inference.ar1 import RHO_MAX, ar_moments, residual_stats, whitened
 from loadbayes.inference.condlinear import (
@@ -78,7 +79,7 @@ class DesignProblem:
         #: AR(1) noise: the bound of the coefficients' uniform prior (the model's, if any).
         self.rho_max = float(getattr(self.model, "rho_max", RHO_MAX))
         self.n_channels = len(self.channel_names)
-        self._thetas: dict[bytes, np.ndarray] = {}  # theta of the last vectors (theta)
+        self._thetas = Kept(64)  # theta of the last vectors (theta)
 
     @property
     def dim(self) -> int:
@@ -104,9 +105,7 @@ class DesignProblem:
         to_theta = getattr(self.prior, "to_theta", None)
         theta = theta if to_theta is None else to_theta(theta)
         if key is not None:
-            if len(self._thetas) > 64:
-                self._thetas.clear()
-            self._thetas[key] = theta.copy()
+            self._thetas.keep(key, theta.copy())
         return theta
 
     def phi(self, u: np.ndarray) -> np.ndarray:

@@ -42,6 +42,7 @@ import math
 import numba
 import numpy as np
 
+from loadbayes.core.kept import Kept
 from loadbayes.inference.ar1 import whitened
 from loadbayes.inference.condlinear import GroupSums, log_marginal_arrays
 from loadbayes.models.parts_model import alr_simplex
@@ -171,7 +172,7 @@ class ShareMoves:
         self.counts = np.zeros(4, dtype=np.int64)
         self.positive = -1 if problem.positive is None else int(problem.positive)
         self._last = None  # (the other coordinates, their basis): the last solve
-        self._weights: dict[bytes, np.ndarray] = {}  # weights of the last share coordinates
+        self._weights = Kept(64)  # weights of the last share coordinates
 
     @property
     def acceptance(self) -> tuple[float, float]:
@@ -186,10 +187,7 @@ class ShareMoves:
         got = self._weights.get(key)
         if got is None:  # kept: an iteration asks them of the state the last one left
             f, a = alr_simplex(zf), alr_simplex(za)
-            got = np.concatenate([f[:-1], f[-1] * a])
-            if len(self._weights) > 64:
-                self._weights.clear()
-            self._weights[key] = got
+            got = self._weights.keep(key, np.concatenate([f[:-1], f[-1] * a]))
         return got.copy()
 
     def with_weights(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
