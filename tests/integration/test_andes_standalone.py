@@ -50,7 +50,8 @@ try:
 except ImportError:
     out["loadbayes"] = False
 import andes
-andes.config_logger(stream_level=50)
+# file=False and a log_path: ANDES makes a new /tmp/andes-* folder whenever log_path is None
+andes.config_logger(stream_level=50, file=False, log_path=os.path.dirname(sys.argv[1]))
 ss = andes.load(sys.argv[1], setup=False, no_output=True, default_config=True)
 ss.add("Fault", {"idx": 1, "bus": 1, "tf": 0.2, "tc": 0.3, "xf": 0.08})
 ss.setup()

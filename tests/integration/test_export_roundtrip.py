@@ -99,7 +99,8 @@ def test_psse_raw_round_trip_and_andes_reads_it(tmp_path):
         assert rec["ql"] + rec["iq"] * v - rec["yq"] * v**2 == pytest.approx(q, rel=1e-9)
     # An independent reader of the v33 format: ANDES turns the record into P, Q at the
     # bus's case voltage (v0 here) with the same formula.
-    andes.config_logger(stream_level=50)
+    # file=False and a log_path: ANDES makes a new /tmp/andes-* folder whenever it is None
+    andes.config_logger(stream_level=50, file=False, log_path=str(tmp_path))
     ss = andes.load(str(out), setup=True, no_output=True, default_config=True)
     p0, q0 = zip_model(ZIP, 0.98, v0=0.98, s_base=1.0)
     assert ss.PQ.p0.v[0] == pytest.approx(p0, rel=1e-9)
