@@ -6,13 +6,21 @@ most coordinates as they were. The parts models keep such values by the bytes of
 coordinates they depend on. Emptying the store whole when it is full (not evicting the
 oldest) keeps a lookup one dict access; a sampler only ever reads back its last few
 states, which are stored again at once.
+
+Values of one event (its arrays, its solves) are kept by the event object itself
+(:class:`PerObject`, :func:`token`), never by ``id(event)``: an id is an address, and
+Python gives a freed event's address to the next object of its size. Keyed by id, a
+model fitted to one event and then to another read the first one's V, P and Q for the
+second (reproduced in ``tests/unit/test_kept.py``).
 """
 
 from __future__ import annotations
 
+import itertools
+import weakref
 from typing import Any
 
-__all__ = ["Kept"]
+__all__ = ["Kept", "PerObject", "token"]
 
 
 class Kept(dict):
@@ -28,3 +36,48 @@ class Kept(dict):
             self.clear()
         self[key] = value
         return value
+
+
+class PerObject:
+    """Values kept per object, by identity, for as long as the object lives.
+
+    A weak mapping: an entry goes when its object is collected, so a model fitted to one
+    event after another keeps none of the dead ones' arrays. An object that cannot be
+    weakly referenced (a ``SimpleNamespace``) is not kept: :meth:`get` gives None and
+    the caller computes again.
+    """
+
+    def __init__(self) -> None:
+        self._values: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+    def get(self, obj: Any) -> Any:
+        """The value kept for ``obj``, or None."""
+        try:
+            return self._values.get(obj)
+        except TypeError:  # not weakly referable
+            return None
+
+    def keep(self, obj: Any, value: Any) -> Any:
+        """Keep ``value`` for ``obj`` unless one is kept already; return the kept one."""
+        try:
+            return self._values.setdefault(obj, value)
+        except TypeError:
+            return value
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+
+_TOKENS = PerObject()
+_NEXT = itertools.count()
+
+
+def token(obj: Any) -> int:
+    """A number that stands for ``obj`` in a key, given to no other object in this process.
+
+    Unlike ``id(obj)``, it is not given again once ``obj`` is freed, so a key holding it
+    can go stale but never match another object. An object that cannot be weakly
+    referenced gets a new number at every call (its keys never match: computed again).
+    """
+    got = _TOKENS.get(obj)
+    return got if got is not None else _TOKENS.keep(obj, next(_NEXT))

@@ -61,7 +61,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from loadbayes.core.kept import Kept
+from loadbayes.core.kept import Kept, PerObject, token
 from loadbayes.measurements.record import EventRecord
 from loadbayes.models.base import ModelOptionError
 from loadbayes.models.composite import SCALE_FREE_MATRIX, motor_physical, motor_response
@@ -224,12 +224,12 @@ class PartsModel:
         set_(self, "_n_gauss", n_gauss)
         set_(self, "_tags", tuple(tags))
         set_(self, "thresholds", tuple(thr))
-        set_(self, "_kept", {})
+        set_(self, "_kept", PerObject())  # drive_of, per event (core/kept.py: not by id)
         set_(self, "_lowest", Kept(4096))
         set_(self, "_of_theta", Kept(64))  # parts_sums._of_theta, _shares_of
         set_(self, "_shares", Kept(64))
         set_(self, "_responses", Kept(64))  # load_columns: each motor's response, kept
-        set_(self, "_fixed", {})
+        set_(self, "_fixed", PerObject())  # parts_sums._fixed_of, per event
         set_(self, "_solved", Kept(KEEP))  # parts_sums._entry: each event's parts solved
         set_(self, "_threshold_pairs", threshold_pairs(self))
 
@@ -334,8 +334,8 @@ class PartsModel:
 
     def drive_of(self, event: EventRecord) -> tuple[NDArray[np.int64], NDArray]:
         """``(kept, steps)``: the kept rows and each gap's step instant (``parts.step_times``)."""
-        key = (id(event), event.n)
-        if key not in self._kept:
+        got = self._kept.get(event)
+        if got is None:
             keep = np.arange(event.n)
             if self.window_s > 0:
                 if event.straddle is not None:
@@ -345,8 +345,8 @@ class PartsModel:
                                             detect=True)  # fmt: skip
                     keep = np.asarray(found.keep[0], dtype=np.int64)
             steps = step_times(event.t, event.v, keep, self.window_s)
-            self._kept[key] = (keep, steps)
-        return self._kept[key]
+            got = self._kept.keep(event, (keep, steps))
+        return got
 
     def event_sums(self, event: EventRecord, theta: NDArray, ar: bool = False):
         """The channels' sums ``(ztz, zty, yty, n)`` at ``theta`` in one compiled call.
@@ -397,7 +397,7 @@ class PartsModel:
         # It depends on theta through the feeder's X alone (theta[0], as _split reads it),
         # which most of the sampler's steps leave as it was: kept per event and value.
         log_x = float(np.asarray(theta, dtype=float)[0]) if self.feeder else 0.0
-        key = (id(event), event.n, log_x)
+        key = (token(event), log_x)
         if key not in self._lowest:
             keep, _ = self.drive_of(event)
             if keep.size < event.n:

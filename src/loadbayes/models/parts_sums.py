@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from loadbayes.core.kept import token
 from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
 from loadbayes.models.part_priors import MOTOR_CLASSES, THRESHOLD_COORDS
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, gaps_of
@@ -104,7 +105,7 @@ def _entry(model, event, theta, fixed, parts) -> list:
     for key_v, other, _ in pairs:
         thr += [float(theta[key_v]), float(theta[other])]
         rest[key_v] = rest[other] = 0.0
-    key = (id(event), event.n, rest.tobytes())
+    key = (token(event), rest.tobytes())
     entries = model._solved.get(key)
     if entries is None:
         entries = model._solved.keep(key, [])
@@ -214,8 +215,9 @@ _NO_MOMENTS = (np.zeros((2, 4, 4, 4)), np.zeros((2, 4, 4)), np.zeros((2, 4)))
 
 def _fixed_of(model, event) -> tuple:
     # The event's arrays the kernel reads, once per event (kept on the model).
-    key = (id(event), event.n)
-    if key not in model._fixed:
+    got = model._fixed.get(event)
+    if got is None:
+        held = event  # the key: the event as given, not its kept rows
         keep, steps = model.drive_of(event)
         if keep.size < event.n:  # as channels: the rows left out make a gap
             event = event.take(keep)
@@ -229,11 +231,11 @@ def _fixed_of(model, event) -> tuple:
               else np.zeros(n, complex))  # fmt: skip
         rows = (np.abs(v2) >= NEG_SEQ_MIN) if ns else np.zeros(n, dtype=bool)
         delta = np.zeros(n) if event.delta is None else np.asarray(event.delta, float)
-        model._fixed[key] = (
+        got = model._fixed.keep(held, (
             np.ascontiguousarray(event.t, float), np.ascontiguousarray(event.v, float),
             np.ascontiguousarray(delta), event.delta is not None,
             np.ascontiguousarray(event.p, float), np.ascontiguousarray(event.q, float),
             gaps_of(event.t, steps), np.ascontiguousarray(steps, float),
             np.ascontiguousarray(v2), np.ascontiguousarray(i2), rows,
-        )  # fmt: skip
-    return model._fixed[key]
+        ))  # fmt: skip
+    return got
