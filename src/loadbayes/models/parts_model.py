@@ -439,16 +439,16 @@ class PartsModel:
                 if v2 is not None:  # |V2| steps with V
                     u2 = step_knots(ev.t, v2, None, gap, steps)[1]
         for j, (m, logs) in enumerate(zip(self.motors, c["motors"], strict=True)):
-            key = None if kept is None else (id(kept[0]), kept[1], m, logs.tobytes())
+            key = None if kept is None else (token(kept[0]), kept[1], m, logs.tobytes())
             got = None if key is None else self._responses.get(key)
-            if got is not None and got[0] is kept[0]:  # the event held: its id not reused
-                resp = got[1]
+            if got is not None:
+                resp = got
             else:
                 resp = motor_response(drive, logs, f_hz=self.f_hz, real=real,
                                       torque=MOTOR_CLASSES[m]["torque"],
                                       window_s=self.window_s, v2=u2)  # fmt: skip
                 if key is not None:
-                    self._responses.keep(key, (kept[0], resp))
+                    self._responses.keep(key, resp)
             if resp is None:
                 return None
             pm, qm = resp
