@@ -126,3 +126,36 @@ def test_multiplicative_exp_likelihood_is_on_the_scale_of_p():
     b = az.loo(add.to_arviz(), var_name="p").elpd_loo
     # Both are densities of P (the log form carries its 1/P Jacobian): within a few units.
     assert abs(a - b) < 10
+
+
+def _same(a: Posterior, b: Posterior) -> None:
+    for name in ("model", "method", "coefficients", "free", "settings", "warnings",
+                 "extra_json", "written_fit_id"):  # fmt: skip
+        assert getattr(a, name) == getattr(b, name), name
+    for name in ("draws", "observed", "constant"):
+        x, y = getattr(a, name) or {}, getattr(b, name) or {}
+        assert list(x) == list(y), name
+        for k in x:
+            assert np.asarray(x[k]).dtype == np.asarray(y[k]).dtype, (name, k)
+            np.testing.assert_array_equal(x[k], y[k], err_msg=f"{name}[{k}]")
+
+
+def test_the_file_read_without_arviz_is_the_file_read_by_arviz(zip_file, cmld_lite_nc,
+                                                                 tmp_path):  # fmt: skip
+    # Posterior.from_netcdf reads the groups with xarray alone (no ArviZ import); the
+    # same files through az.from_netcdf and from_arviz give the same Posterior: a ZIP fit
+    # with its pointwise groups and thinned draws, a composite of parts' frozen draws.
+    az = _arviz()
+    for path in (zip_file[1], cmld_lite_nc):
+        idata = az.from_netcdf(str(path))
+        _same(Posterior.from_netcdf(path), Posterior.from_arviz(idata))
+        idata.close()
+    # A NetCDF without a posterior group is refused by both readers, in words.
+    import xarray as xr
+
+    other = tmp_path / "other.nc"
+    xr.Dataset({"x": ("n", np.arange(3.0))}).to_netcdf(other, engine="h5netcdf")
+    with pytest.raises(ValueError, match="no posterior group"):
+        Posterior.from_netcdf(other)
+    with pytest.raises(ValueError, match="no posterior group"):
+        Posterior.from_arviz(az.from_netcdf(str(other)))
