@@ -370,12 +370,16 @@ def q_excess(t: np.ndarray, q: np.ndarray, t_clear: float) -> float:
 
 
 def jeffreys(k: int, n: int, prob: float) -> list[float]:
-    """The Jeffreys interval (``prob``) of a share ``k / n`` (0 and 1 at the ends)."""
-    from scipy.stats import beta
+    """The Jeffreys interval (``prob``) of a share ``k / n`` (0 and 1 at the ends).
+
+    ``betaincinv`` is the function ``scipy.stats.beta.ppf`` calls (equal on 40,000
+    arguments, checked); importing ``scipy.stats`` cost a ``predict`` about 0.6 s.
+    """
+    from scipy.special import betaincinv
 
     a = (1 - prob) / 2
-    lo = 0.0 if k == 0 else float(beta.ppf(a, k + 0.5, n - k + 0.5))
-    hi = 1.0 if k == n else float(beta.ppf(1 - a, k + 0.5, n - k + 0.5))
+    lo = 0.0 if k == 0 else float(betaincinv(k + 0.5, n - k + 0.5, a))
+    hi = 1.0 if k == n else float(betaincinv(k + 0.5, n - k + 0.5, 1 - a))
     return [lo, hi]
 
 
