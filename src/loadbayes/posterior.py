@@ -365,7 +365,13 @@ class Posterior:
         pointwise : bool
             Add the pointwise groups; ``False`` keeps every draw and no predictions.
         """
-        az = import_arviz()
+        attrs, groups = self._groups(pointwise)
+        return import_arviz().InferenceData(attrs=attrs, **groups)
+
+    def _groups(self, pointwise: bool = True) -> tuple[dict[str, str], dict[str, Any]]:
+        # The file's attributes and :meth:`to_arviz`'s groups as xarray Datasets, built
+        # without ArviZ (io/idata.py): to_netcdf writes them as InferenceData would.
+        from loadbayes.io.idata import GROUP_ORDER, dataset
         from loadbayes.predictive import channel_units
         from loadbayes.predictive import pointwise as _pointwise
 
@@ -415,28 +421,30 @@ class Posterior:
                 "sample_stats": {"lp": total},
             }
             dims.update({k: ["sample"] for k in pw.log_likelihood})
-        idata = az.from_dict(
-            posterior=draws,
-            observed_data=measured or None,
-            constant_data={**inputs, **self.constant} or None,
-            dims=dims or None,
-            coords=coords or None,
-            attrs=attrs,
-            **extra,
-        )
+        data = {"posterior": draws, **extra, "observed_data": measured,
+                "constant_data": {**inputs, **self.constant}}  # fmt: skip
+        groups = {
+            g: dataset(
+                data[g],
+                sampled=g not in ("observed_data", "constant_data"),
+                dims=dims,
+                coords=coords,
+                attrs=attrs,
+            )  # fmt: skip
+            for g in GROUP_ORDER
+            if data.get(g)
+        }
         for group in ("observed_data", "constant_data", "posterior_predictive"):
-            if group in idata.groups():
-                ds = getattr(idata, group)
+            if group in groups:
+                ds = groups[group]
                 for name in ds.data_vars:
                     if name in units:
                         ds[name].attrs["units"] = units[name]
-        for group in idata.groups():
-            getattr(idata, group).attrs.update(attrs)
-        if "sample_stats" in idata.groups():
-            idata.sample_stats["lp"].attrs["description"] = (
+        if "sample_stats" in groups:
+            groups["sample_stats"]["lp"].attrs["description"] = (
                 "log-likelihood of the measured P (and Q) at each kept draw"
             )
-        return idata
+        return attrs, groups
 
     def pointwise_missing(self) -> str | None:
         """Why this result has no pointwise groups (log_likelihood, posterior_predictive).
@@ -502,16 +510,14 @@ class Posterior:
         which would otherwise get a temporary of its own, and a signal at the wrong
         moment could leave that one behind (``.x.nc.XXXX.tmp.nc.YYYY.tmp.nc``).
         """
-        from loadbayes.io.atomic import atomic_write, write_netcdf
+        from loadbayes.io.atomic import atomic_write, write_groups
 
         path = Path(path)
         if not atomic:
-            idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
-            write_netcdf(idata, path)
+            write_groups(*self._groups(pointwise), path)
             return path
         with atomic_write(path, force=force) as tmp:
-            idata = self.to_arviz() if pointwise else self.to_arviz(pointwise=False)
-            write_netcdf(idata, tmp)
+            write_groups(*self._groups(pointwise), tmp)
         return path
 
     @classmethod

@@ -381,10 +381,10 @@ def test_an_error_while_writing_the_netcdf_leaves_no_part(tmp_path, monkeypatch)
 
     _bus(tmp_path / "bus.csv")
 
-    def broken(self):
+    def broken(self, *args, **kwargs):
         raise ValueError("disk full (simulated)")
 
-    monkeypatch.setattr(Posterior, "to_arviz", broken)
+    monkeypatch.setattr(Posterior, "_groups", broken)  # what to_netcdf writes
     res = CliRunner().invoke(
         main,
         ["fit", "zip", str(tmp_path / "bus.csv"), "--json", str(tmp_path / "o.json"),
@@ -428,10 +428,10 @@ def test_an_interrupt_between_two_outputs_is_reported_truthfully(tmp_path, monke
 
     _bus(tmp_path / "bus.csv")
 
-    def interrupted(self):
+    def interrupted(self, *args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(Posterior, "to_arviz", interrupted)
+    monkeypatch.setattr(Posterior, "_groups", interrupted)  # what to_netcdf writes
     res = CliRunner().invoke(
         main,
         ["fit", "zip", str(tmp_path / "bus.csv"), "--json", str(tmp_path / "o.json"),

@@ -159,3 +159,56 @@ def test_the_file_read_without_arviz_is_the_file_read_by_arviz(zip_file, cmld_li
         Posterior.from_netcdf(other)
     with pytest.raises(ValueError, match="no posterior group"):
         Posterior.from_arviz(az.from_netcdf(str(other)))
+
+
+def test_the_groups_built_without_arviz_are_arviz_from_dicts(zip_file, cmld_lite_nc):
+    # Posterior._groups (io/idata.py) against az.from_dict of the same draws, group by
+    # group: variables, dims, coordinates and attributes identical (created_at aside, the
+    # moment each was made); to_arviz is ArviZ's InferenceData of them.
+    import xarray as xr
+
+    from loadbayes.predictive import channel_units
+
+    az = _arviz()
+    for post in (zip_file[0], Posterior.from_netcdf(cmld_lite_nc)):
+        attrs, groups = post._groups()
+        units = channel_units(post)
+        ref = az.from_dict(**_from_dict_args(post))
+        assert list(groups) == list(ref.groups())
+        assert attrs == ref.attrs
+        for g, ds in groups.items():
+            want = getattr(ref, g)
+            want.attrs.update(attrs)  # what to_arviz then did to each group, as before
+            for name in want.data_vars:
+                if g in ("observed_data", "constant_data", "posterior_predictive"):
+                    if name in units:
+                        want[name].attrs["units"] = units[name]
+            if g == "sample_stats":
+                want["lp"].attrs["description"] = ds["lp"].attrs["description"]
+            assert ds.attrs.pop("created_at") and want.attrs.pop("created_at")
+            xr.testing.assert_identical(ds, want)
+        assert list(post.to_arviz().groups()) == list(groups)
+
+
+def _from_dict_args(post: Posterior) -> dict:
+    # What to_arviz gave az.from_dict before io/idata.py, rebuilt from its groups' data.
+    from loadbayes.predictive import pointwise
+
+    attrs, groups = post._groups()
+    pw = pointwise(post) if "log_likelihood" in groups else None
+    draws = {k: groups["posterior"][k].to_numpy() for k in groups["posterior"].data_vars}
+    dims, coords = {}, {}
+    if "sample" in groups.get("observed_data", {"dims": {}}).dims:
+        dims = {k: ["sample"] for k in [*post.observed, *(pw.log_likelihood if pw else {})]}
+        coords["sample"] = groups["observed_data"]["sample"].to_numpy()
+    if pw is not None and pw.draw_index.size < post.n_draws:
+        coords["draw"] = pw.draw_index
+    extra = {}
+    if pw is not None:
+        extra = {g: {k: groups[g][k].to_numpy() for k in groups[g].data_vars}
+                 for g in ("posterior_predictive", "log_likelihood", "sample_stats")}  # fmt: skip
+    data = {g: {k: groups[g][k].to_numpy() for k in groups[g].data_vars}
+            for g in ("observed_data", "constant_data") if g in groups}  # fmt: skip
+    return {"posterior": draws, "observed_data": data.get("observed_data"),
+            "constant_data": data.get("constant_data"), "dims": dims or None,
+            "coords": coords or None, "attrs": attrs, **extra}  # fmt: skip

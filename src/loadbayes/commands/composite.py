@@ -402,9 +402,7 @@ def fit_composite_cmd(
             stop_if_signalled()
         if netcdf_out:
             # Into the transaction's temporary (to_netcdf's own one a signal could leave).
-            from loadbayes.io.atomic import write_netcdf
-
-            write_netcdf(post.to_arviz(), out.temp("--netcdf"))
+            post.to_netcdf(out.temp("--netcdf"), atomic=False)
             stop_if_signalled()
         if plot_out:
             from loadbayes.plots.composite import plot_composite_fit

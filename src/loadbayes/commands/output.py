@@ -623,10 +623,7 @@ def _import_writers(options) -> None:
             import PIL.Image  # noqa: F401  (matplotlib writes PNG through Pillow)
         if netcdf:
             import h5netcdf  # noqa: F401  (h5py's extension)
-
-            from loadbayes.posterior import import_arviz
-
-            import_arviz()
+            import xarray  # noqa: F401  (the writer: io/idata.py, io/atomic.write_groups)
 
 
 def _isatty(stream) -> bool:

@@ -19,7 +19,7 @@ from typing import Any
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["atomic_write", "check_target", "held_signals", "write_netcdf"]
+__all__ = ["atomic_write", "check_target", "held_signals", "write_groups", "write_netcdf"]
 
 _WRITE_MODES = ("w", "wt", "wb")
 
@@ -214,19 +214,27 @@ def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
     printed an ``AttributeError`` traceback ("Exception ignored in File.close") under
     the CLI's one-line message (a fleet's --netcdf-dir interrupted on a loaded machine).
     """
+    groups = {g: getattr(idata, g) for g in idata._groups_all}
+    write_groups(getattr(idata, "_attrs", None) or {}, groups, path)
+
+
+def write_groups(attrs: dict, groups: dict, path: str | os.PathLike[str]) -> None:
+    """:func:`write_netcdf` of the file's attributes and its groups (``xarray.Dataset``).
+
+    The groups as ``Posterior._groups`` builds them without ArviZ (``io/idata.py``), in
+    their order; the same file ``InferenceData.to_netcdf`` writes of them.
+    """
     import io
 
     import xarray as xr
 
     buf = io.BytesIO()
     mode = "w"
-    attrs = getattr(idata, "_attrs", None)
     with held_signals(), _local_write_lock():
         if attrs:
             xr.Dataset(attrs=attrs).to_netcdf(buf, mode=mode, engine="h5netcdf", group="/")
             mode = "a"
-        for group in idata._groups_all:
-            data = getattr(idata, group)
+        for group, data in groups.items():
             data.to_netcdf(buf, mode=mode, group=f"//{group}", engine="h5netcdf")
             mode = "a"
     name = os.fspath(path)
