@@ -37,7 +37,7 @@ import functools
 import numpy as np
 from numba import njit
 
-__all__ = ["DIRECT_LAGS", "summarize"]
+__all__ = ["DIRECT_LAGS", "hdi", "summarize"]
 
 #: Lags summed directly before the FFT over all lags takes over. A lag costs a pass over
 #: the draws (about 4 us for 8,000), the FFT about 20 lags' worth; a chain that
@@ -371,6 +371,12 @@ def _hdi_sorted(s: np.ndarray, prob: float) -> tuple[np.ndarray, np.ndarray]:
     i = np.argmin(width, axis=1)
     rows = np.arange(s.shape[0])
     return s[rows, i], s[rows, i + inc]
+
+
+def hdi(x: np.ndarray, prob: float = 0.95) -> tuple[float, float]:
+    """``arviz.hdi(x, hdi_prob=prob)`` of all of ``x`` (one interval), without ArviZ."""
+    lo, hi = _hdi_sorted(np.sort(np.asarray(x, dtype=float).reshape(1, -1), axis=1), prob)
+    return float(lo[0]), float(hi[0])
 
 
 def _quantile7(s: np.ndarray, p: float) -> np.ndarray:

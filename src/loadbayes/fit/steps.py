@@ -411,14 +411,14 @@ def fit_steps(
 
 def derived(post: Posterior, hdi_prob: float = 0.95) -> dict[str, dict[str, float]]:
     """dP/dV (dQ/dV) at V0, per unit of the level: ``2 a1 + a2`` (``2 a4 + a5``)."""
-    import arviz as az
+    from loadbayes.core.convergence import hdi
 
     out = {}
     for name, (i, j) in (("dP/dV", ("a1", "a2")), ("dQ/dV", ("a4", "a5"))):
         if i not in post.draws:
             continue
         s = 2.0 * post.draws[i] + post.draws[j]
-        lo, hi = az.hdi(s.reshape(-1), hdi_prob=hdi_prob).tolist()  # type: ignore[union-attr]
+        lo, hi = hdi(s, hdi_prob)
         out[name] = {
             "mean": float(s.mean()),
             "sd": float(s.std(ddof=1)),
