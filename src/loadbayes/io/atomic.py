@@ -19,7 +19,7 @@ from typing import Any
 
 from loadbayes.io.errors import DataError
 
-__all__ = ["atomic_write", "check_target", "held_signals", "write_groups", "write_netcdf"]
+__all__ = ["atomic_write", "check_target", "held_signals", "write_groups"]
 
 _WRITE_MODES = ("w", "wt", "wb")
 
@@ -199,30 +199,21 @@ def _keep_back(signum, frame) -> None:
         _HOLD["pending"] = signum
 
 
-def write_netcdf(idata: Any, path: str | os.PathLike[str]) -> None:
-    """Write an ArviZ InferenceData to ``path`` (NetCDF 4, h5netcdf), as its to_netcdf would.
+def write_groups(attrs: dict, groups: dict, path: str | os.PathLike[str]) -> None:
+    """Write a fit's NetCDF: the file's attributes and its groups (``xarray.Dataset``).
 
     The file is built in memory, then written by a plain Python write: a full disk or a
     file-size limit is then an ``OSError`` naming ``path``. HDF5 writing to the file
     itself met them inside its C calls, printed about a hundred lines of tracebacks
     from h5py's finalisers and crashed the process (segmentation fault, exit 139) when
-    the half-closed file's objects were freed (the red-team's H2). The groups, their
-    order and the attributes are those of ``InferenceData.to_netcdf`` (ArviZ 0.23).
+    the half-closed file's objects were freed (the red-team's H2). The groups (as
+    ``Posterior._groups`` builds them without ArviZ, ``io/idata.py``), their order and the
+    attributes are written as ``InferenceData.to_netcdf`` (ArviZ 0.23) writes them.
 
     SIGINT and SIGTERM are held back while the file is built (in memory, milliseconds):
     an interrupt inside h5netcdf's ``File`` constructor left an object whose finaliser
     printed an ``AttributeError`` traceback ("Exception ignored in File.close") under
     the CLI's one-line message (a fleet's --netcdf-dir interrupted on a loaded machine).
-    """
-    groups = {g: getattr(idata, g) for g in idata._groups_all}
-    write_groups(getattr(idata, "_attrs", None) or {}, groups, path)
-
-
-def write_groups(attrs: dict, groups: dict, path: str | os.PathLike[str]) -> None:
-    """:func:`write_netcdf` of the file's attributes and its groups (``xarray.Dataset``).
-
-    The groups as ``Posterior._groups`` builds them without ArviZ (``io/idata.py``), in
-    their order; the same file ``InferenceData.to_netcdf`` writes of them.
     """
     import io
 
