@@ -430,7 +430,7 @@ class Posterior:
                 dims=dims,
                 coords=coords,
                 attrs=attrs,
-            )  # fmt: skip
+            )
             for g in GROUP_ORDER
             if data.get(g)
         }
@@ -576,7 +576,7 @@ class Posterior:
         The groups it needs are read with xarray, as ``arviz.from_netcdf`` reads them
         (h5netcdf, each group's Dataset and the root's attributes), without importing
         ArviZ: that import alone was 2.4 of a ``loadbayes predict``'s 6.6 s. The same
-        file read by ArviZ gives the same :class:`Posterior` (``tests/unit/test_api.py``).
+        file read by ArviZ gives the same :class:`Posterior` (``tests/unit/test_netcdf_arviz.py``).
         """
         import h5netcdf
         import xarray as xr

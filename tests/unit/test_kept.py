@@ -91,3 +91,22 @@ def test_kept_empties_whole_past_its_size():
     assert dict(k) == {0: 0, 1: 1, 2: 2}
     k.keep(3, 3)  # past size 2 with three held: emptied, then stored
     assert dict(k) == {3: 3}
+
+
+def test_a_model_holding_the_stores_still_pickles_and_its_copy_starts_empty():
+    # Models go to Dask workers and processes: a weak mapping alone cannot be pickled.
+    import copy
+    import pickle
+
+    t, v, d, p, q, _ = simulate(sag=0.2)
+    model = dynamic_model("cmld-lite", f_hz=60.0)
+    event = EventRecord(t, v, p, q, d, "e")
+    _fixed_of(model, event)
+    model.lowest_voltage(event, np.zeros(len(model.theta_names)))
+    assert len(model._lowest) == 1
+    for other in (pickle.loads(pickle.dumps(model)), copy.deepcopy(model)):
+        # Empty: the numbers of token() in the bounded stores' keys are this process's.
+        assert len(other._fixed) == 0 and len(other._kept) == 0 and len(other._lowest) == 0
+        assert other._lowest.size == model._lowest.size
+        np.testing.assert_array_equal(_fixed_of(other, event)[1], v)
+    assert len(model._fixed) == 1

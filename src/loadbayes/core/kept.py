@@ -37,6 +37,12 @@ class Kept(dict):
         self[key] = value
         return value
 
+    def __reduce__(self) -> tuple:
+        # Pickled or copied empty: its keys may hold :func:`token` numbers, which another
+        # process gives to its own objects (a model sent to a Dask worker would have met
+        # there the solves of the sender's events under its events' numbers).
+        return (Kept, (self.size,))
+
 
 class PerObject:
     """Values kept per object, by identity, for as long as the object lives.
@@ -66,6 +72,12 @@ class PerObject:
 
     def __len__(self) -> int:
         return len(self._values)
+
+    def __reduce__(self) -> tuple:
+        # Pickled or copied empty: the values belong to this process's objects (a model
+        # sent to a worker or a process meets other event objects there), and a weak
+        # mapping cannot be pickled (a model holding one could not be sent at all).
+        return (PerObject, ())
 
 
 _TOKENS = PerObject()
