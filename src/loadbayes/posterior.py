@@ -524,13 +524,13 @@ class Posterior:
     def from_arviz(cls, idata) -> Posterior:
         """Rebuild a :class:`Posterior` from an InferenceData written by :meth:`to_arviz`."""
         groups = {g: getattr(idata, g) for g in _READ_GROUPS if g in idata.groups()}
-        if "posterior" not in groups:
-            raise ValueError("no posterior group")
         return cls._from_groups(groups, dict(getattr(idata, "attrs", {}) or {}))
 
     @classmethod
     def _from_groups(cls, groups: Mapping[str, Any], root_attrs: Mapping[str, Any]) -> Posterior:
         # The groups that to_arviz writes (xarray Datasets), and the file's own attributes.
+        if "posterior" not in groups:
+            raise ValueError("no posterior group")
         post = groups["posterior"]
         # ArviZ keeps from_dict(attrs=...) on the InferenceData; older files on the group.
         attrs = {**dict(post.attrs), **dict(root_attrs)}
@@ -584,14 +584,11 @@ class Posterior:
         path = str(path)
         with h5netcdf.File(path, mode="r") as f:
             present = [g for g in _READ_GROUPS if g in f.groups]
-        if "posterior" not in present:
-            raise ValueError("no posterior group")
+            root_attrs = dict(f.attrs)  # what xarray gives of the root group (all text)
         groups = {}
         for g in present:
             with xr.open_dataset(path, group=g, engine="h5netcdf") as ds:
                 groups[g] = ds.load()
-        with xr.open_dataset(path, group="/", engine="h5netcdf") as ds:
-            root_attrs = dict(ds.attrs)
         return cls._from_groups(groups, root_attrs)
 
     def to_dict(

@@ -398,15 +398,17 @@ class PartsModel:
         # which most of the sampler's steps leave as it was: kept per event and value.
         log_x = float(np.asarray(theta, dtype=float)[0]) if self.feeder else 0.0
         key = (token(event), log_x)
-        if key not in self._lowest:
+        got = self._lowest.get(key)
+        if got is None:
             keep, _ = self.drive_of(event)
             if keep.size < event.n:
                 event = event.take(keep)
             x_fd = 0.0
             if self.feeder:
                 x_fd = self.feeder_x(event.p[0], event.q[0], {"x_fd": np.exp(log_x)})
-            self._lowest.keep(key, float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v)))
-        return self._lowest[key]
+            low = float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v))
+            got = self._lowest.keep(key, low)
+        return got
 
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:
         """The series X in system p.u. (its draw is on the load's base, ``|S|`` at the start)."""
