@@ -52,11 +52,16 @@ def one_process(scanned, tmp_path_factory) -> pd.DataFrame:
 
 @pytest.fixture(scope="module")
 def cluster():
-    """A local cluster of two worker processes and its client, shared by the Dask tests."""
+    """A local cluster of two worker processes and its client, shared by the Dask tests.
+
+    Its dashboard on a free loopback port: ``dashboard_address=None`` is distributed's
+    default, 8787, and under ``-n 2`` the other test worker's cluster (this fixture's own,
+    or test_fleet_dask's) held it once: "Port 8787 is already in use" (30 Nov 2026).
+    """
     distributed = pytest.importorskip("dask.distributed")
     with (
         distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                 dashboard_address=None) as local,
+                                 dashboard_address="127.0.0.1:0") as local,
         distributed.Client(local) as client,
     ):  # fmt: skip
         yield client

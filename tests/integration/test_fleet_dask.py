@@ -20,10 +20,12 @@ SPEC = ReadSpec(class_col="customer_class")
 
 @pytest.fixture(scope="module")
 def client():
-    # One cluster for the module: starting one costs seconds.
+    # One cluster for the module: starting one costs seconds. Its dashboard on a free
+    # loopback port: dashboard_address=None is distributed's default, 8787, which another
+    # test worker's cluster could hold at that moment (test_archive_fit's did once).
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0"
         ) as cluster,
         distributed.Client(cluster) as c,
     ):
