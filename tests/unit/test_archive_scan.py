@@ -227,3 +227,43 @@ def test_fits_that_fail_are_recorded_with_their_reason_and_not_retried_unless_as
     assert failed["reason"].str.contains(r"zip\+motor: .*\.dat not found", regex=True).all()
     assert (fit(db).failed, fit(db).skipped) == (0, out.usable)
     assert fit(db, retry_failed=True, draws=100, burn=0).failed == out.usable
+
+
+def test_the_defaults_are_the_composite_fits_first_round_with_the_chains_on_the_cores(
+    archive, tmp_path, monkeypatch
+):
+    # Before, 3,000 draws after 1,000 x 2 chains: the chains of 2 of 6 example events had
+    # not mixed on the share, and the pool left them out (archive/fit.py says the numbers).
+    import importlib
+
+    from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS, parts_defaults
+    from loadbayes.fleet.engine import Engine
+    from loadbayes.models.cmld_lite import CmldLite
+
+    fit_module = importlib.import_module("loadbayes.archive.fit")
+    d = COMPOSITE_DEFAULTS
+    assert (fit_module.default_draws("zip+motor"), fit_module.BURN, fit_module.CHAINS) == (
+        d.draws, d.burn, d.chains)  # fmt: skip
+    assert fit_module.default_draws("cmld-lite") == parts_defaults(CmldLite).draws
+    _, db, out, _ = _scanned(archive, tmp_path)
+    seen = []
+    monkeypatch.setattr(Engine, "map", lambda self, func, items, **kw: seen.extend(items) or [])
+    fit_module.fit(db)
+    # In this process one event runs at a time, so its chains take the cores (threads None:
+    # the fit's default); a Dask worker's task keeps one thread (the same draws either way:
+    # test_archive_fit's one process against two workers).
+    assert len(seen) == out.usable
+    assert {(t.draws, t.burn, t.chains, t.threads) for t in seen} == {(6000, 4000, 4, None)}
+    assert fit_module.FitTask.__dataclass_fields__["threads"].default == 1
+
+
+def test_the_demo_says_which_events_intervals_miss_their_truth_and_on_which_side():
+    from loadbayes.studies.archive import _misses
+
+    def frame(means):
+        return pd.DataFrame({"mean": means, "true": 1.0, "covered": [m == 1.0 for m in means]})
+
+    assert _misses(frame([1.0, 1.0])) == ""
+    assert _misses(frame([1.0, 1.1])).startswith("; the one that misses it (above) is read")
+    assert "the 2 that miss it (all above) are" in _misses(frame([1.2, 1.1]))
+    assert "the 2 that miss it (1 above, 1 below) are" in _misses(frame([1.2, 0.9]))
