@@ -6,10 +6,12 @@ one sample changed until there are 1,000, so that every file has its own content
 is read in full (the scan's cost is the reading and the per-cycle phasors, not what the
 waveforms hold).
 
-The fit: ``N`` usable events with ``zip+motor`` at the command's defaults (3,000 draws
-after 1,000 of burn-in, 2 chains), once in this process and once on a local Dask cluster
-of 2 workers; per event the task's own seconds. Projections: ``200`` events on 2
-workers and ``10,000`` on N workers as ``start-up + events x seconds per event / N``.
+The fit: ``N`` usable events with ``zip+motor`` at the command's defaults (6,000 draws
+after 4,000 of burn-in, 4 chains; 3,000 after 1,000 x 2 until 30 Nov 2026), once in this
+process (an event's chains on the cores, one event at a time) and once on a local Dask
+cluster of 2 workers (a core each, an event each); per event the task's own seconds.
+Projections: ``200`` events on 2 workers and ``10,000`` on N workers as ``start-up +
+events x a worker's seconds per event / N``.
 
 Writes ``benchmarks/results/archive.json``. Run:
 ``python benchmarks/bench_archive.py [--quick] [--output PATH]``.
@@ -121,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"fit, 1 process: {one}", flush=True)
         two = bench_fit(work, events, 2)
         print(f"fit, 2 workers: {two}", flush=True)
-    per = one["per_event_s"]
+    # A worker's seconds per event (one core; in this process an event's chains take both).
+    per = two["per_event_s"]
     # 200 events on 2 workers: the measured run's start-up (cluster, imports, compilation:
     # its wall time beyond its events' seconds over 2) plus 200 events' seconds over 2.
     startup2 = max(two["wall_s"] - two["events"] * per / 2, 0.0)
@@ -148,8 +151,9 @@ def main(argv: list[str] | None = None) -> int:
         "results": [s, one, two],
         "targets": targets,
         "notes": [
-            f"fit: {per:.1f} s per event in one process ({one['first_event_s']:.1f} s for the "
-            "first, which compiles and imports); 10,000 events projected at "
+            f"fit: {one['per_event_s']:.1f} s per event in one process, its chains on the "
+            f"cores ({one['first_event_s']:.1f} s for the first, which compiles and imports); "
+            f"{per:.1f} s on a worker's one core; 10,000 events projected at "
             + ", ".join(f"{m:.0f} min on {n} workers" for n, m in proj.items())
             + " (events x seconds per event / workers, start-up aside)",
         ],
