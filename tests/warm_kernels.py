@@ -61,9 +61,9 @@ def part_b() -> None:
 
     The warm-up lasts as long as its longer part, so the fleet and the tracker go where
     they even the two out (both parts at once into one empty cache, 2 idle cores, 30 Nov
-    2026): with both here, a took 68 s and b 81 s; with the tracker in part a, 74 s each. Putting the fleet first here, so that part
-    a's zip+motor fits would cache the kernels both parts use (the motor's, R-hat) before
-    b asked for them, gained nothing (81 s).
+    2026): with both here, a took 68 s and b 81 s; with the tracker in part a, 74 s each.
+    Putting the fleet first here, so that part a's zip+motor fits would cache the kernels
+    both parts use (the motor's, R-hat) before b asked for them, gained nothing (81 s).
     """
     from loadbayes.core.settings import SamplerSettings
     from loadbayes.fit.composite.driver import fit_composite
