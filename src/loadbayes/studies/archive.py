@@ -137,9 +137,10 @@ def _misses(ok: pd.DataFrame) -> str:
                 else f"{high} above, {n - high} below")  # fmt: skip
         who = f"the {n} that miss it ({side}) are"
     own = "its own" if n == 1 else "each one's"
-    return (f"; {who} read further from it than {own} noise allows: a bias of the fit on "
-            "these records (the median ratio above), which the pool's event-to-event "
-            "spread (tau) takes up")  # fmt: skip
+    why = ("a bias of the fit on these records (the median ratio above)" if high in (0, n)
+           else "more scatter between events than their intervals allow")  # fmt: skip
+    return (f"; {who} read further from it than {own} noise allows: {why}, which the pool's "
+            "event-to-event spread (tau) takes up")  # fmt: skip
 
 
 def html_section(study: ArchiveStudy) -> str:
@@ -186,7 +187,7 @@ def html_section(study: ArchiveStudy) -> str:
         f"scan</code> ({s['files']} files, {s['broken']} broken, {s['events']} events, "
         f"{s['usable']} usable; {sec['scan']:.0f} s), <code>archive fit</code> (zip+motor, "
         f"the one-cycle phasor window, {s['draws']:,} draws after {s['burn']:,} x "
-        f"{s.get('chains', 2)} chains "
+        f"{s['chains']} chains "
         f"per event: {s['fitted']} fitted, {s['fit_failed']} failed; {sec['fit']:.0f} s), "
         f"<code>archive pool</code> ({s['pool_draws']:,} draws x 4 chains, "
         f"{sec['pool']:.0f} s); the records written in {sec['write']:.0f} s. Left out of the "
