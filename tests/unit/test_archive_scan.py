@@ -236,15 +236,16 @@ def test_the_defaults_are_the_composite_fits_first_round_with_the_chains_on_the_
     # not mixed on the share, and the pool left them out (archive/fit.py says the numbers).
     import importlib
 
-    from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS, parts_defaults
+    from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS
     from loadbayes.fleet.engine import Engine
-    from loadbayes.models.cmld_lite import CmldLite
 
     fit_module = importlib.import_module("loadbayes.archive.fit")
     d = COMPOSITE_DEFAULTS
-    assert (fit_module.default_draws("zip+motor"), fit_module.BURN, fit_module.CHAINS) == (
-        d.draws, d.burn, d.chains)  # fmt: skip
-    assert fit_module.default_draws("cmld-lite") == parts_defaults(CmldLite).draws
+    assert (fit_module.DRAWS, fit_module.BURN, fit_module.CHAINS) == (d.draws, d.burn, d.chains)
+    from loadbayes.commands.archive import archive_fit_cmd
+
+    shown = {p.name: p.default for p in archive_fit_cmd.params}
+    assert (shown["draws"], shown["burn"], shown["chains"]) == (d.draws, d.burn, d.chains)
     _, db, out, _ = _scanned(archive, tmp_path)
     seen = []
     monkeypatch.setattr(Engine, "map", lambda self, func, items, **kw: seen.extend(items) or [])

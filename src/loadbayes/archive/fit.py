@@ -35,17 +35,20 @@ import numpy as np
 from loadbayes.archive.catalog import connect, record_fit, results_folder
 from loadbayes.io.errors import DataError, OptionError
 
-__all__ = ["FitRun", "FitTask", "default_draws", "event_seed", "fit", "fit_event"]
+__all__ = ["FitRun", "FitTask", "event_seed", "fit", "fit_event"]
 
-#: The sampler's settings per event unless given: the first round of the composite fit's
-#: defaults (``fit/composite/driver.COMPOSITE_DEFAULTS``; a model of parts' draws are its
-#: own first round, :func:`default_draws`), as fixed draws (no run until converged), so
-#: that every event costs the same and a run's time can be said in advance. Was 3,000
-#: after 1,000 x 2 chains: on the example archive's 6 transformer events (2 records a
-#: station) the chains had not mixed on the share in 2 of them (R-hat 1.03-1.08, bulk ESS
-#: 25-50; at 1,500 after 500, in 5 of 6), and the pool leaves such events out, the deep
-#: dips' most often; at these settings all 6 mixed (R-hat at most 1.012, bulk ESS of the
-#: share 480-800), 2.8 s an event on one core.
+#: The sampler's settings per event unless given: the first round of ``zip+motor``'s
+#: defaults (``fit/composite/driver.COMPOSITE_DEFAULTS``) for every model, as fixed draws
+#: (no run until converged), so that every event costs the same and a run's time can be
+#: said in advance. Was 3,000 after 1,000 x 2 chains: on the example archive's 6
+#: transformer events (2 records a station) the chains had not mixed on the share in 2 of
+#: them (R-hat 1.03-1.08, bulk ESS 25-50; at 1,500 after 500, in 5 of 6), and the pool
+#: leaves such events out, the deep dips' most often; at these settings all 6 mixed (R-hat
+#: at most 1.012, bulk ESS of the share 480-800), 2.8 s an event on one core. A model of
+#: parts mixes slower (its own fit's first round is 16,000 draws, ``cmld-lite``'s 10,000):
+#: on one of the example's events ``slm`` had mixed neither at these (R-hat 1.27, 22 s
+#: on 2 cores) nor at 16,000 (R-hat 1.21, 54 s), so the default stays the cheaper round
+#: and ``--draws`` is the user's to raise.
 DRAWS, BURN, CHAINS = 6000, 4000, 4
 #: Phasor estimates per cycle of the fitted rows.
 PER_CYCLE = 4
@@ -92,15 +95,6 @@ class FitRun:
             f"{self.done} fitted, {self.failed} failed, {self.skipped} already in the catalog "
             f"({self.where}, {self.seconds:.1f} s)"
         )
-
-
-def default_draws(model: str) -> int:
-    """Draws per chain of ``model`` when none are given: the composite fit's first round."""
-    from loadbayes.fit.composite.driver import COMPOSITE_DEFAULTS, parts_defaults
-    from loadbayes.models.dynamic import DYNAMIC_MODELS
-
-    cls = DYNAMIC_MODELS[model]
-    return COMPOSITE_DEFAULTS.draws if model == "zip+motor" else parts_defaults(cls).draws
 
 
 def event_seed(seed: int, model: str, event_id: str) -> int:
@@ -265,9 +259,9 @@ def fit(
     catalog: str | os.PathLike[str],
     *,
     model: str = "zip+motor",
-    draws: int | None = None,
-    burn: int | None = None,
-    chains: int | None = None,
+    draws: int = DRAWS,
+    burn: int = BURN,
+    chains: int = CHAINS,
     seed: int = 0,
     per_cycle: int = PER_CYCLE,
     window_s: float | None = None,
@@ -287,9 +281,7 @@ def fit(
     model : str
         A dynamic model's name (``zip+motor``, ``slm``, ``cmld-lite``).
     draws, burn, chains, seed : int
-        Per event; the event's own seed is :func:`event_seed` of ``seed``. None:
-        :func:`default_draws` (:data:`DRAWS` for ``zip+motor``), :data:`BURN`,
-        :data:`CHAINS`.
+        Per event; the event's own seed is :func:`event_seed` of ``seed``.
     per_cycle : int
         Phasor estimates per cycle of the fitted rows.
     window_s : float, optional
@@ -312,9 +304,6 @@ def fit(
 
     if model not in DYNAMIC_MODELS:
         raise OptionError(f"--model {model}: not a dynamic model ({', '.join(DYNAMIC_MODELS)})")
-    draws = default_draws(model) if draws is None else draws
-    burn = BURN if burn is None else burn
-    chains = CHAINS if chains is None else chains
     for name, value, least in (("draws", draws, 100), ("burn", burn, 0), ("chains", chains, 1)):
         if value < least:
             raise OptionError(f"--{name} {value}: must be at least {least}")

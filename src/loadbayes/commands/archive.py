@@ -82,11 +82,11 @@ def archive_scan_cmd(folder, catalog, rules, workers, quiet):
               help="The catalog of loadbayes archive scan.")  # fmt: skip
 @click.option("--model", default="zip+motor", show_default=True,
               help="The dynamic load model: zip+motor, slm, cmld-lite.")  # fmt: skip
-@click.option("--draws", type=int,
-              help="Iterations per chain [default: the composite fit's first round: 6000 "
-              "for zip+motor, a model of parts' own].")  # fmt: skip
-@click.option("--burn", type=int, help="Burn-in per chain [default: 4000].")
-@click.option("--chains", type=int, help="[default: 4]")
+@click.option("--draws", type=int, default=6000, show_default=True,
+              help="Iterations per chain, fixed (zip+motor's first round; a model of parts "
+              "mixes slower: raise it).")  # fmt: skip
+@click.option("--burn", type=int, default=4000, show_default=True, help="Burn-in per chain.")
+@click.option("--chains", type=int, default=4, show_default=True)
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Each event's seed comes from it and the event's content hash.")  # fmt: skip
 @click.option("--per-cycle", type=click.IntRange(1, 64), default=4, show_default=True,

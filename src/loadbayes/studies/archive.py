@@ -68,12 +68,12 @@ def monthly_truth(station: int, bay: int, year: int = YEAR) -> np.ndarray:
 def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> ArchiveStudy:
     """Write the example's records, scan, fit and pool them; compare with the truth."""
     from loadbayes.archive import failures_frame, fit, fits_frame, pool, scan
-    from loadbayes.archive.fit import BURN, CHAINS, default_draws
+    from loadbayes.archive.fit import BURN, CHAINS, DRAWS
     from loadbayes.cases.archive_example import ARCHIVE_STATIONS, archive_files
 
     records, bays, draws, burn, chains, pool_draws = (SMOKE if smoke else QUICK if quick
                                                       else FULL)  # fmt: skip
-    draws = default_draws("zip+motor") if draws is None else draws
+    draws = DRAWS if draws is None else draws
     burn, chains = (BURN if burn is None else burn), (CHAINS if chains is None else chains)
     seconds = {}
     with tempfile.TemporaryDirectory(prefix="loadbayes-archive-") as tmp:
