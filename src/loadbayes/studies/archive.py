@@ -28,13 +28,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from loadbayes.archive.fit import BURN, CHAINS, DRAWS
+
 __all__ = ["ArchiveStudy", "html_section", "monthly_truth", "run"]
 
 #: (records per station, bays, draws, burn, chains, pool draws) of the quick and the full
-#: run; None: ``archive fit``'s default. The quick run's 1,500 after 500 x 2 chains left 15
-#: of its 18 events unconverged, out of the pool (3 pooled).
-QUICK = (6, 1, None, None, None, 500)
-FULL = (24, 2, None, None, None, 1000)
+#: run: each event at ``archive fit``'s defaults. The quick run's 1,500 after 500 x 2
+#: chains left 15 of its 18 events unconverged, out of the pool (3 pooled).
+QUICK = (6, 1, DRAWS, BURN, CHAINS, 500)
+FULL = (24, 2, DRAWS, BURN, CHAINS, 1000)
 #: The same for ``smoke`` (a check of the pipeline, not a result): one record a station,
 #: 3 events, of which 2 pass the pool's convergence check at seed 0 (at 3 a station, 1 of
 #: 9 did, for 4 s more of the tests' ``reproduce all --smoke``). The pool needs one; the
@@ -68,13 +70,10 @@ def monthly_truth(station: int, bay: int, year: int = YEAR) -> np.ndarray:
 def run(*, quick: bool = True, seed: int = 0, smoke: bool = False) -> ArchiveStudy:
     """Write the example's records, scan, fit and pool them; compare with the truth."""
     from loadbayes.archive import failures_frame, fit, fits_frame, pool, scan
-    from loadbayes.archive.fit import BURN, CHAINS, DRAWS
     from loadbayes.cases.archive_example import ARCHIVE_STATIONS, archive_files
 
     records, bays, draws, burn, chains, pool_draws = (SMOKE if smoke else QUICK if quick
                                                       else FULL)  # fmt: skip
-    draws = DRAWS if draws is None else draws
-    burn, chains = (BURN if burn is None else burn), (CHAINS if chains is None else chains)
     seconds = {}
     with tempfile.TemporaryDirectory(prefix="loadbayes-archive-") as tmp:
         folder, db = Path(tmp) / "records", Path(tmp) / "archive.db"
