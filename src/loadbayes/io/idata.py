@@ -16,6 +16,7 @@ as ``InferenceData.to_netcdf`` would. ``tests/unit/test_netcdf_arviz.py`` holds 
 from __future__ import annotations
 
 import datetime
+import functools
 import importlib.metadata
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -29,6 +30,7 @@ GROUP_ORDER = ("posterior", "posterior_predictive", "log_likelihood", "sample_st
                "observed_data", "constant_data")  # fmt: skip
 
 
+@functools.cache
 def _arviz_version() -> str:
     try:
         return importlib.metadata.version("arviz")
