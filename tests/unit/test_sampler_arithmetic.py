@@ -144,6 +144,22 @@ def test_prior_kept_scale_free_is_the_cached_one():
     assert prior.log_u(u) == -0.5 * float(d @ np.linalg.inv(cov) @ d)
 
 
+def test_log_t0_of_many_rows_is_one_draw_a_row_in_order():
+    # The NLS baseline's log T0 (fit/composite/driver._baseline_draws) is drawn for every
+    # row at once. The normals are the stream's, in order, to the bit; the sum differs
+    # from the row-by-row dot product by an ulp at most (a matrix product adds in its own
+    # order). The baseline is not the sampler's chain, which still draws one at a time.
+    prior = CompositePrior(np.array([-3.9, -1.9, 0.9, -0.7, -0.2, -0.5]),
+                           np.array([1.0, 0.7, 0.7, 1.2, 0.6, 0.5]), np.full(7, 10.0))  # fmt: skip
+    u = np.random.default_rng(1).standard_normal((500, 5))
+    one = np.random.default_rng(3)
+    rows = np.array([prior.draw_log_t0(x, one) for x in u])
+    many = np.random.default_rng(3)
+    at_once = prior.draw_log_t0s(u, many)
+    np.testing.assert_allclose(at_once, rows, rtol=0, atol=4 * np.finfo(float).eps * 8)
+    assert one.standard_normal() == many.standard_normal()  # both streams at one place
+
+
 @pytest.fixture(scope="module")
 def stepped_problem():
     from loadbayes.cases.composite_sim import simulate_event

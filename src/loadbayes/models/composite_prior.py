@@ -127,6 +127,15 @@ class CompositePrior:
         mean, _, gain, sd = self.scale_free()
         return float(self.theta_mean[5] + gain @ (u - mean) + sd * rng.standard_normal())
 
+    def draw_log_t0s(self, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`draw_log_t0` of each row of ``u`` (n, 5) at once: the same normals, in order.
+
+        A Generator's ``standard_normal(n)`` gives the n numbers that n single calls give.
+        """
+        mean, _, gain, sd = self.scale_free()
+        z = rng.standard_normal(u.shape[0])
+        return self.theta_mean[5] + (u - mean) @ gain + sd * z
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (for the output's settings)."""
         return {

@@ -90,6 +90,10 @@ class DesignProblem:
         """No scale left to the prior: nothing drawn."""
         return None
 
+    def draw_scales(self, u: np.ndarray, rng: np.random.Generator) -> None:
+        """No scale left to the prior: nothing drawn."""
+        return None
+
     def theta(self, u: np.ndarray, scale: Any = None) -> np.ndarray:
         """``theta`` of free coordinates ``u`` (..., n_free); a scale, if any, at 0.
 

@@ -157,9 +157,10 @@ def _baseline_draws(
     d = problem.dim
     u = x[..., : problem.n_free]
     # A scale the data never see (zip+motor's log T0), drawn from its prior draw by draw as
-    # the sampler does; a model with none draws nothing.
-    scale = [problem.draw_scale(ui, rng) for ui in u.reshape(-1, problem.n_free)]
-    theta = problem.theta(u, None if scale[0] is None else np.reshape(scale, (chains, draws)))
+    # the sampler does; a model with none draws nothing. One call for every draw: the loop
+    # of single draws it replaced took 10 us a draw (0.2 s of a default fit's 24,000).
+    scale = problem.draw_scales(u.reshape(-1, problem.n_free), rng)
+    theta = problem.theta(u, None if scale is None else scale.reshape(chains, draws))
     betas = x[..., d:].reshape(chains, draws, n_ev, problem.n_beta)
     tau = np.broadcast_to(1.0 / start.sigma**2, (chains, draws, start.sigma.size)).copy()
     return named_draws(problem, theta, betas, tau, phi=problem.phi(x[..., :d]))
@@ -457,8 +458,9 @@ def fit_composite(
         if budget:
             post.warnings.append(budget)
     # Baseline draws per chain: (draws - burn) // thin, at least one (not run.kept, which
-    # rounds up: the baseline's size has always been this).
-    n_baseline = max((run.draws - run.burn) // run.thin, 1)
+    # rounds up: the baseline's size has always been this); no more than the chains kept,
+    # when a budget cut them short (a cut run of 200,000 asked spent 1.8 s naming them).
+    n_baseline = max(min((run.draws - run.burn) // run.thin, res[0].theta.shape[0]), 1)
     base_draws = _baseline_draws(problem, start, run.chains, n_baseline, run.seed)
     baseline = Posterior(
         base_draws,

@@ -230,6 +230,10 @@ class CompositeProblem:
         """
         return self.prior.draw_log_t0(np.asarray(u, dtype=float)[:N_FREE], rng)
 
+    def draw_scales(self, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`draw_scale` of each row of ``u`` (n, n_free), in one call."""
+        return self.prior.draw_log_t0s(np.asarray(u, dtype=float)[:, :N_FREE], rng)
+
     def theta(self, u: np.ndarray, scale: float | np.ndarray = 0.0) -> np.ndarray:
         """``THETA_NAMES`` of the free coordinates ``u`` and the scale ``log T0``."""
         return theta_of(np.asarray(u, dtype=float)[..., :N_FREE], scale)
