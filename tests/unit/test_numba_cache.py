@@ -26,8 +26,14 @@ RUN = "import sys; sys.path.insert(0, {root!r}); {pre}from pkg.caller import f; 
 
 
 def _call(root, pre=""):
+    # -B: no .pyc of the package written here. Python checks a .pyc by its source's size and
+    # mtime in whole seconds, and callee.py is rewritten at the same size: where the first
+    # call took under a second, the later ones ran the old callee from its .pyc, and the
+    # purged caller still gave 1 (a fresh clone's make test, 30 Nov 2026, once `make test`
+    # let pytest write bytecode). The test is about numba's cache, not Python's.
     code = RUN.format(root=str(root), pre=pre)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-B", "-c", code], capture_output=True, text=True,
+                         check=True)  # fmt: skip
     return out.stdout.strip()
 
 
