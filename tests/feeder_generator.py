@@ -70,7 +70,14 @@ def simulate(*, f_hz=50.0, rs=0.04, xs=0.1, xm=3.0, rr=0.03, h=0.4, t0=0.7, torq
             r = vl + z_fd * np.conj(ss / vl) - v
             return [r.real, r.imag]
 
-        vl = complex(*fsolve(f, [guess[0].real, guess[0].imag], xtol=1e-12))
+        # full_output: fsolve then warns of nothing, and the residual is checked here.
+        # Started at the last instant's solution, it can find no relative progress at
+        # xtol 1e-12 and said so as a RuntimeWarning (on an AVX-512 machine, whose NumPy
+        # rounds its elementary functions differently), though already at the root.
+        z, info, _, _ = fsolve(f, [guess[0].real, guess[0].imag], xtol=1e-12, full_output=True)
+        if np.max(np.abs(info["fvec"])) > 1e-10:
+            raise RuntimeError(f"the load bus's voltage at t = {t}: no solution")
+        vl = complex(*z)
         guess[0] = vl
         return vl
 
