@@ -72,7 +72,8 @@ griddyn-env:
 	@if [ -n "$(PYTHON313)" ]; then $(MAKE) --no-print-directory $(GRIDDYN_VENV)/.installed; \
 	else echo "python3.13 missing: the GridDyn tests will skip"; fi
 
-validate: $(STAMP)
+# GridDyn's environment too: test_composite_generators and test_predict fit its events.
+validate: envs
 	$(PY) -m loadbayes.studies.calibration.run --out results/validation
 	$(PY) -m loadbayes.studies.calibration.composite_recovery --events 200 \
 		--output results/validation/composite_recovery.json
@@ -80,7 +81,7 @@ validate: $(STAMP)
 		--output results/validation/composite_independent.json
 	$(PY) -m loadbayes.studies.calibration.fleet_coverage \
 		--output results/validation/fleet_coverage.json
-	LOADBAYES_VALIDATE=1 $(PY) -m pytest -q -p no:cacheprovider -m statistical \
+	env -u PYTHONDONTWRITEBYTECODE LOADBAYES_VALIDATE=1 $(PY) -m pytest -q -p no:cacheprovider -m statistical \
 		tests/integration/test_cli_exit_clean.py tests/statistical/test_cvr_coverage.py \
 		tests/integration/test_predict.py tests/statistical/test_archive_pool_coverage.py \
 		tests/statistical/test_drift_fleet_coverage.py tests/statistical/test_drift_year.py \
