@@ -100,3 +100,25 @@ def test_window_means_match_solve_ivp(motor):
                           m.tp_s, 1.05 * m.h_s, m.wb, 0.6, 1.0, 0.0, 0.0,
                           step_size(m.tp_s, 5e-3), p_bad, q)  # fmt: skip
     assert np.max(np.abs(p_bad - ref[0])) > TOL_PU
+
+
+def test_the_window_bounds_order_is_a_stable_argsort():
+    # _merge_bounds orders the windows' bounds by merging the lower and the upper ones
+    # (each sorted for samples in time order) instead of sorting them: the same order as
+    # np.argsort's stable mergesort, ties (a window's upper bound on the next one's lower,
+    # as at one window per sample interval) included, and argsort itself where the
+    # bounds come unsorted. Deterministic cases: no false alarms.
+    from loadbayes.models.motor_kernel import _bounds_order
+
+    rng = np.random.default_rng(0)
+    for case in range(2000):
+        n = int(rng.integers(1, 60))
+        t = np.cumsum(rng.choice([1 / 60, 1 / 120, 1 / 240, 0.005], size=n))
+        if case % 3 == 0:
+            t = np.round(t * 240) / 240  # on a grid: ties between bounds
+        half = rng.choice([1 / 60, 1 / 120, 0.02, 0.0, 1 / 30]) / 2
+        b = np.empty(2 * n)
+        b[0::2], b[1::2] = t - half, t + half
+        if case % 10 == 0:
+            rng.shuffle(b)
+        np.testing.assert_array_equal(_bounds_order(b), np.argsort(b, kind="mergesort"))

@@ -140,7 +140,8 @@ OSC_STEP = 2.0
 #: and sweeps agree (test_parts_play; at REST_TOL 1e-9 they were 2.7e-9 apart). There
 #: the motor rests from the first sample to the sag and from 0.6-2.9 s after its
 #: recovery to the end: the integration cost 44-60 us instead of 240 (point samples),
-#: 100-118 instead of 330 (window means). A simulated event
+#: 75-91 instead of 330 (window means, with the bounds merged in one pass,
+#: ``_bounds_order``). A simulated event
 #: holds its voltage before and after the sag; a recorded one with noise on V never holds
 #: a value and is integrated as before, to the bit.
 REST_TOL = 1e-11
@@ -596,6 +597,28 @@ def _pq_at(ed, eq, ud, uq, rs, xp, den):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _bounds_order(bounds):  # pragma: no cover - compiled
+    # np.argsort(bounds, kind="mergesort") (stable: ties by index), in one pass where the
+    # windows' lower bounds (even entries) and upper bounds (odd) each increase, as they
+    # do for samples in time order: the merge of two sorted lists. A mergesort of the
+    # 2,402 bounds of a 20 s event at 60/s was 27 of the 41 us of the whole merge.
+    m = bounds.size
+    for k in range(2, m):
+        if bounds[k] < bounds[k - 2]:
+            return np.argsort(bounds, kind="mergesort")
+    order = np.empty(m, dtype=np.int64)
+    i, j = 0, 1  # the next lower bound's index, the next upper bound's
+    for k in range(m):
+        if j >= m or (i < m and (bounds[i] < bounds[j] or (bounds[i] == bounds[j] and i < j))):
+            order[k] = i
+            i += 2
+        else:
+            order[k] = j
+            j += 2
+    return order
+
+
+@numba.njit(cache=True, nogil=True)
 def _merge_bounds(t, v, delta, real, window, tm, vm, dm, lo_pos, hi_pos):  # pragma: no cover
     # The input's knots merged with every real sample's window bounds t_r -+ W/2 (the
     # input linear between knots there, held at its last value after the last knot).
@@ -608,7 +631,7 @@ def _merge_bounds(t, v, delta, real, window, tm, vm, dm, lo_pos, hi_pos):  # pra
     for i in range(nr):
         bounds[2 * i] = t[real[i]] - half
         bounds[2 * i + 1] = t[real[i]] + half
-    order = np.argsort(bounds, kind="mergesort")
+    order = _bounds_order(bounds)
     where = np.empty(2 * nr, dtype=np.int64)
     m = 0
     k = 0
