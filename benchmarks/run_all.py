@@ -39,6 +39,7 @@ SCRIPTS = [
     ("bench_drift.py", "drift"),
     ("bench_fleet.py", "fleet"),
     ("bench_predict.py", "predict"),
+    ("bench_rest.py", "rest"),
     ("bench_archive_pool.py", "archive_pool"),
     ("bench_archive.py", "archive"),
 ]

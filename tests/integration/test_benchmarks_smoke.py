@@ -27,6 +27,7 @@ BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
 SCRIPTS = [
     "bench_zip.py", "bench_stream.py", "bench_powerflow.py", "bench_im.py", "bench_cli.py",
     "bench_drift.py", "bench_fleet.py", "bench_archive_pool.py", "bench_composite.py",
+    "bench_rest.py",
 ]  # fmt: skip
 
 
