@@ -27,8 +27,8 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
+import os
 import sys
-import time
 from functools import partial
 from pathlib import Path
 
@@ -36,6 +36,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+from bench_online import _best  # noqa: E402  (one copy: the best of repeated runs)
 from bench_zip import machine  # noqa: E402  (one copy: the machine's description)
 
 OUT = HERE / "results" / "rest.json"
@@ -80,14 +81,14 @@ def _motors() -> dict:
 
 
 def _time_us(fn, count: int, rounds: int = 5) -> float:
-    fn()
-    best = np.inf
-    for _ in range(rounds):
-        t0 = time.perf_counter()
+    """Microseconds a call: the best of ``rounds`` rounds of ``count`` calls, after one."""
+
+    def calls():
         for _ in range(count):
             fn()
-        best = min(best, (time.perf_counter() - t0) / count)
-    return best * 1e6
+
+    fn()
+    return _best(calls, rounds) / count * 1e6
 
 
 def main(argv=None) -> int:
@@ -95,6 +96,8 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="Smoke sizes (a second).")
     ap.add_argument("--output", default=str(OUT))
     args = ap.parse_args(argv)
+    import numba
+
     from loadbayes.models.motor_kernel import REST_NEAR, REST_TOL, integrate
 
     info = machine()
@@ -134,12 +137,12 @@ def main(argv=None) -> int:
         {"target": f"held output within {TARGET_DIFF:g} p.u. of the integrated",
          "measured": f"{worst:.1e} p.u. at most", "met": worst <= TARGET_DIFF},
     ]  # fmt: skip
-    info["load_average_at_end"] = list(__import__("os").getloadavg())
+    info["load_average_at_end"] = list(os.getloadavg())
     out = {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "quick": bool(args.quick),
         "machine": info,
-        "versions": {"numpy": np.__version__, "numba": __import__("numba").__version__},
+        "versions": {"numpy": np.__version__, "numba": numba.__version__},
         "settings": {
             "REST_TOL": REST_TOL,
             "REST_NEAR": REST_NEAR,

@@ -141,9 +141,9 @@ OSC_STEP = 2.0
 #: the motor rests from the first sample to the sag and from 0.6-2.9 s after its
 #: recovery to the end: the integration cost 44-60 us instead of 240 (point samples),
 #: 75-91 instead of 330 (window means, with the bounds merged in one pass,
-#: ``_bounds_order``). A simulated event
-#: holds its voltage before and after the sag; a recorded one with noise on V never holds
-#: a value and is integrated as before, to the bit.
+#: ``_bounds_order``). A simulated event holds its voltage before and after the sag; a
+#: recorded one with noise on V never holds a value and is integrated as before, to the
+#: bit.
 REST_TOL = 1e-11
 REST_KNOTS = 4
 #: The steady state at a held input is solved (a bisection, about 3 us) only once the
