@@ -30,6 +30,14 @@ SRC = str(Path(__file__).resolve().parents[2] / "src")
 STOP_WITHIN_S = 3.0
 
 
+def _env() -> dict:
+    # The child imports this tree. PYTHONFAULTHANDLER: a native crash (seen once in about
+    # 70 runs of the SIGINT case on 2026-11-30: exit -11, SIGSEGV, cause unknown) prints
+    # every thread's Python stack into the stderr file that the assertions show.
+    return {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
+            "PYTHONFAULTHANDLER": "1"}  # fmt: skip
+
+
 def _csv(path):
     ev, _ = simulate_event("small_industrial", depth=0.3, seed=1, t_end_s=2.0)
     pd.DataFrame({"t_s": ev.t, "v": ev.v, "p": ev.p, "q": ev.q}).to_csv(path, index=False)
@@ -47,7 +55,7 @@ def test_a_signal_during_sampling_stops_the_run_at_once(
 ):
     _csv(tmp_path / "sag.csv")
     err = tmp_path / "err.txt"
-    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env = _env()
     args = [sys.executable, "-m", "loadbayes", "fit", "composite", "sag.csv",
             "--draws", "200000", "--burn", "1000", "--likelihood", likelihood,
             "--json", "c.json", "--netcdf", "c.nc"]  # fmt: skip
@@ -136,7 +144,7 @@ def test_sigterm_inside_the_writes_leaves_all_outputs_or_none(tmp_path):
     # are written after it), at a seeded random delay: every output, or none, and no
     # temporary file of any depth.
     _csv(tmp_path / "sag.csv")
-    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env = _env()
     args = [sys.executable, "-m", "loadbayes", "fit", "composite", "sag.csv",
             "--draws", "400", "--burn", "200", "--chains", "2", "--quiet",
             "--json", "c.json", "--netcdf", "c.nc", "--plot", "c.png",

@@ -46,6 +46,12 @@ def _on_signal(signum, frame) -> None:
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
+#: Chains that check their stop flag hold this handler back while they run and call it
+#: once they have stopped (core.parallel.signals_at_checks: a raise at an arbitrary
+#: bytecode could crash the process inside numba's unboxing of a generator).
+_on_signal.stops_chains = True
+
+
 def _unraisable(hook_args) -> None:
     # A signal that lands while Python runs a callback whose exceptions it cannot raise
     # (a weakref finaliser during garbage collection) makes it print "Exception ignored

@@ -13,6 +13,17 @@ the main thread was interrupted) or :func:`request_stop` was called (the CLI's S
 SIGTERM handler does). Without it, Ctrl-C took effect only when the running chains ended
 (minutes later on a long composite fit).
 
+While chains that check such a flag run, SIGINT and SIGTERM do not raise wherever the main
+thread happens to be (:func:`signals_at_checks`): they set the flag, the chains stop at
+their next check, and the signal is delivered as before once they have. A
+``KeyboardInterrupt`` raised at an arbitrary bytecode crashed the process (SIGSEGV, about
+one run in 12-70 of ``tests/integration/test_cli_composite_signals.py``): numba's
+unboxing of a ``numpy.random.Generator`` argument calls ``ctypes.cast``, a Python
+function, and reads ``.value`` of its result without checking it for NULL, so an
+exception raised inside that call (the signal's handler runs there) is dereferenced
+(numba 0.65-0.68, ``numba/core/boxing.py``, ``unbox_numpy_random_bitgenerator``;
+``tests/unit/test_signals_at_checks.py`` shows it).
+
 :func:`one_blas_thread` runs a function with the BLAS and OpenMP pools held at one thread
 (threadpoolctl): the composite fit's least squares are small (a 2,402 x 7 ``lstsq`` cost
 15.9 ms of CPU on OpenBLAS's two threads of a loaded machine, 0.10 ms on one), and its
@@ -21,8 +32,10 @@ chains are the threads it wants.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
+import signal
 import threading
 from collections.abc import Callable, Sequence
 from typing import TypeVar
@@ -44,6 +57,7 @@ __all__ = [
     "request_stop",
     "run_chains",
     "run_threads",
+    "signals_at_checks",
 ]
 
 #: Set by :func:`request_stop` (a signal): every running chain stops at its next check.
@@ -119,6 +133,54 @@ def _first_error(errors: list[BaseException]) -> BaseException:
     return errors[0]
 
 
+def _deferrable(handler) -> bool:
+    """Whether :func:`signals_at_checks` holds ``handler`` back.
+
+    Python's own for SIGINT, and any marked ``stops_chains = True`` (the CLI's, which
+    raises once it has recorded the signal). Any other is the caller's, and stays.
+    """
+    return handler is signal.default_int_handler or bool(getattr(handler, "stops_chains", False))
+
+
+@contextlib.contextmanager
+def signals_at_checks(stop: threading.Event | None):
+    """SIGINT and SIGTERM inside the block stop the chains at their checks, then raise.
+
+    In the main thread, with a raising handler (Python's ``KeyboardInterrupt``, or one
+    marked ``stops_chains``) and a ``stop`` flag the chains check: the signal sets
+    ``stop`` and :func:`request_stop` instead of raising at whatever bytecode runs (the
+    module's notes say why), and the block's end calls the handler it held back, which
+    raises there; a signal the chains finished before noticing is raised all the same.
+    Elsewhere, or without ``stop``, the handlers stay as they are.
+    """
+    if stop is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    had_stop = _ALL_STOP.is_set()
+
+    def held(signum, frame) -> None:
+        if not pending:
+            pending.append(signum)
+        stop.set()
+        _ALL_STOP.set()
+
+    previous = {}
+    for s in (signal.SIGINT, signal.SIGTERM):
+        h = signal.getsignal(s)
+        if _deferrable(h):
+            previous[s] = signal.signal(s, held)
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        if pending:
+            if not had_stop:  # the handler sets it again if it wants it (the CLI's does)
+                _ALL_STOP.clear()
+            previous[pending[0]](pending[0], None)
+
+
 def run_threads(
     tasks: Sequence[Callable[[], None]], *, stop: threading.Event | None = None
 ) -> None:
@@ -131,6 +193,11 @@ def run_threads(
     this thread is interrupted, so tasks that call :func:`check_stop` end within one step
     instead of running to their end.
     """
+    with signals_at_checks(stop):
+        _run_threads(tasks, stop)
+
+
+def _run_threads(tasks: Sequence[Callable[[], None]], stop: threading.Event | None) -> None:
     if len(tasks) == 1:
         tasks[0]()
         return
@@ -227,8 +294,9 @@ def run_chains(
 
         return run
 
-    if workers <= 1:
-        lane(0)()
-    else:
-        run_threads([lane(k) for k in range(workers)], stop=stop)
+    with signals_at_checks(stop):
+        if workers <= 1:
+            lane(0)()
+        else:
+            _run_threads([lane(k) for k in range(workers)], stop)
     return out
