@@ -208,6 +208,45 @@ def _event_sums(rng, n=60):
             np.array([float(n), float(n)]))  # fmt: skip
 
 
+def test_written_out_moments_are_numpys_3_x_3_algebra():
+    """``gamma_moments`` in closed form against ``T' Z'Z T`` and its inverse by NumPy, on
+    well and badly conditioned sums (columns nearly collinear, as x^2, x, 1 are: A's
+    condition number up to 1e8), to the rounding that condition allows (forming A
+    itself rounds that much: LAPACK's factor was no closer to an exact log|A|, 1e-9
+    apart at 7e7); a matrix that is not positive definite raises as ``cholesky`` did."""
+    from loadbayes.fit.composite.bounded import transform
+    from loadbayes.fit.composite.bounded_kernel import gamma_moments
+
+    rng = np.random.default_rng(11)
+    eps = np.finfo(float).eps
+    for spread in (1.0, 1e-3, 1e-6):
+        x = 1.0 - spread * rng.uniform(size=(80, 1))
+        for _ in range(5):
+            z = np.hstack([x**2, x, np.ones_like(x), x**2, x, np.ones_like(x),
+                           rng.normal(size=(80, 1))])  # fmt: skip
+            ztz = np.stack([z.T @ z, 2.0 * z.T @ z])
+            zty = rng.normal(size=(2, 7))
+            tau, p0 = np.array([3e3, 2e3]), np.array([0.01, 0.02, 0.01])
+            a = rng.dirichlet(np.ones(3), size=2).ravel()
+            mu, cov, h, logdet = gamma_moments(a, ztz, zty, tau, p0)
+            t = transform(a)
+            big = sum(tau[g] * t.T @ ztz[g] @ t for g in range(2)) + np.diag(p0)
+            want_h = sum(tau[g] * t.T @ zty[g] for g in range(2))
+            tol = 64 * eps * np.linalg.cond(big)
+            assert tol < 1e-5
+            np.testing.assert_allclose(h, want_h, rtol=1e-12)
+            want_cov = np.linalg.inv(big)
+            np.testing.assert_allclose(cov, want_cov, rtol=tol, atol=tol * np.abs(want_cov).max())
+            want_mu = np.linalg.solve(big, want_h)
+            np.testing.assert_allclose(mu, want_mu, rtol=tol, atol=tol * np.abs(want_mu).max())
+            assert abs(logdet - np.linalg.slogdet(big)[1]) <= tol * max(1.0, abs(logdet))
+            assert np.array_equal(cov, cov.T)
+    bad = np.zeros((2, 7, 7))
+    with pytest.raises(np.linalg.LinAlgError):
+        gamma_moments(np.full(6, 1 / 3), bad, np.zeros((2, 7)), np.array([1.0, 1.0]),
+                      np.array([-1.0, 1.0, 1.0]))  # fmt: skip
+
+
 def test_compiled_owens_t_is_scipys():
     """The kernels call SciPy's own compiled Owen's T: the same numbers, bit for bit."""
     from scipy import special
