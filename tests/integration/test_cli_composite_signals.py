@@ -31,9 +31,10 @@ STOP_WITHIN_S = 3.0
 
 
 def _env() -> dict:
-    # The child imports this tree. PYTHONFAULTHANDLER: a native crash (seen once in about
-    # 70 runs of the SIGINT case on 2026-11-30: exit -11, SIGSEGV, cause unknown) prints
-    # every thread's Python stack into the stderr file that the assertions show.
+    # The child imports this tree. PYTHONFAULTHANDLER: a native crash prints every
+    # thread's Python stack into the stderr file that the assertions show. It traced the
+    # SIGSEGV this test met in about 1 of 12-70 runs to numba's unboxing of a generator
+    # (core/parallel.py, signals_at_checks, which now holds the signal back).
     return {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
             "PYTHONFAULTHANDLER": "1"}  # fmt: skip
 
