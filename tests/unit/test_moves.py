@@ -200,6 +200,23 @@ def test_the_shear_is_a_bijection_with_unit_jacobian():
         assert np.linalg.det(jac) == pytest.approx(1.0 / np.prod(shear.D), rel=1e-6)
 
 
+def test_the_shears_rows_at_once_are_its_points_one_at_a_time():
+    # forward_rows (the jumps' fit maps every kept draw with it) against forward, inside
+    # and far outside the range the bend was learned on (its pivot clipped there).
+    rng = np.random.default_rng(1)
+    y1 = rng.standard_normal(2000)
+    draws = np.stack([y1, y1 + B * (y1**2 - 1) + SD * rng.standard_normal(2000),
+                      rng.standard_normal(2000)], axis=1)  # fmt: skip
+    from loadbayes.inference.moves.sheared import Shear
+
+    shear = Shear(draws * [2.0, 0.5, 3.0] + [1.0, -1.0, 0.0])
+    assert shear.active
+    for xs in (draws, rng.standard_normal((300, 3)) * 30):
+        one = np.array([shear.forward(x) for x in xs])
+        np.testing.assert_allclose(shear.forward_rows(xs), one, rtol=1e-13,
+                                   atol=1e-13 * np.abs(one).max())  # fmt: skip
+
+
 def test_with_a_short_burn_in_the_sheared_move_is_adaptive_metropolis_draw_for_draw():
     """A bend learned from the 100 draws of a 400-iteration burn-in was wrong (200 short
     composite fits covered T' at 88%): below MIN_HISTORY draws it is not learned."""

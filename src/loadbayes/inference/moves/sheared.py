@@ -103,6 +103,17 @@ class Shear:
         c0, c1 = self._rows()
         return _sheared(y, *self._powers(float(y @ self.e)), c0, c1)
 
+    def forward_rows(self, xs: np.ndarray) -> np.ndarray:
+        """``w`` of each row of ``xs`` (n, d): :meth:`forward`'s arithmetic, vectorised.
+
+        The same elementwise operations; the pivots ``e . y`` are one matrix-vector
+        product, which may round differently from the rows' dot products in the last bit.
+        """
+        y = (np.asarray(xs, dtype=float) - self.m) / self.D
+        s = np.clip(y @ self.e, self.s_lo, self.s_hi)
+        c0, c1 = self._rows()
+        return y - ((s * s - self.c2)[:, None] * c0 + (s**3)[:, None] * c1)
+
     def inverse(self, w: np.ndarray) -> np.ndarray:
         """The block ``x`` of ``w``."""
         c0, c1 = self._rows()
@@ -220,6 +231,11 @@ class ShearedAM(AdaptiveMetropolis):
 
     def _block(self, w: np.ndarray) -> np.ndarray:
         return w if self.shear is None else self.shear.inverse(w)
+
+    def _walk_rows(self, xs: np.ndarray) -> np.ndarray:
+        if self.shear is None:
+            return super()._walk_rows(xs)
+        return self.shear.forward_rows(xs)
 
     def use_shear(self, shear: Shear, draws: np.ndarray | None = None) -> None:
         """Move in ``shear``'s coordinates from now on; the covariance restarts there.
