@@ -366,6 +366,7 @@ def fit_composite(
         )
         t_sample = time.perf_counter()
     until = None
+    steady: dict = {}  # the motor's steady P, Q of the draws named so far (naming.py)
     if until_converged and run.chains >= 2:
 
         def quantities(results) -> dict[str, np.ndarray]:
@@ -373,7 +374,7 @@ def fit_composite(
             # Every reported quantity, the noise precisions and sampled torque shares
             # included (a constant one is skipped by the rule): the JSON gives each its
             # R-hat and ESS, and the predictive band draws from the precisions.
-            out = named.named(problem)
+            out = named.named(problem, cache=steady)
             if noise == "ar1":
                 rho = np.stack([r.rho for r in results])
                 out["rho_p"], out["rho_q"] = rho[..., 0], rho[..., 1]
@@ -395,7 +396,7 @@ def fit_composite(
     t2 = time.perf_counter()
     seconds = {"nls": t1 - t0, "sampler": t2 - t_sample}
     blocks = ChainDraws.stack(res, steps=bool(problem.n_steps), torque=estimate)
-    draws_named = blocks.named(problem)
+    draws_named = blocks.named(problem, cache=steady)
     if noise == "ar1":
         rho = np.stack([r.rho for r in res])
         draws_named["rho_p"], draws_named["rho_q"] = rho[..., 0], rho[..., 1]

@@ -67,9 +67,10 @@ class ChainDraws:
             return None
         return np.apply_along_axis(lambda x: np.array(shares(x)), -1, self.z)
 
-    def named(self, problem: CompositeProblem) -> dict[str, np.ndarray]:
+    def named(self, problem: CompositeProblem, cache: dict | None = None) -> dict[str, np.ndarray]:
         """:func:`named_draws`, with the log-ratios ``log_a_over_c``, ``log_b_over_c``."""
-        out = named_draws(problem, self.theta, self.betas, self.tau, phi=self.phi, abc=self.abc)
+        out = named_draws(problem, self.theta, self.betas, self.tau, phi=self.phi, abc=self.abc,
+                          cache=cache)  # fmt: skip
         if self.z is not None:
             for i, name in enumerate(("log_a_over_c", "log_b_over_c")):
                 out[name] = self.z[..., i]
@@ -82,10 +83,29 @@ def event_suffix(k: int) -> str:
 
 
 def _motor_p0_q0(
-    problem: CompositeProblem, theta: np.ndarray, abc: np.ndarray | None = None
+    problem: CompositeProblem,
+    theta: np.ndarray,
+    abc: np.ndarray | None = None,
+    cache: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     # The motor's own-base P, Q at each event's first sample, per draw (and per-draw
-    # torque shares when they are estimated).
+    # torque shares when they are estimated). With ``cache`` (one fit's dict), the draws
+    # a previous call saw at the head of every chain are not solved again: the rounds of
+    # a run until converged extend the chains, and each round named them all (a bounded
+    # fit of 5 rounds solved 174,000 steady states for 71,000 draws, 0.85 s).
+    if cache is not None and abc is None and theta.ndim == 3:
+        old = cache.get("theta")
+        k = 0
+        if (old is not None and old.shape[0] == theta.shape[0]
+                and old.shape[1] <= theta.shape[1]
+                and np.array_equal(old, theta[:, : old.shape[1]])):  # fmt: skip
+            k = old.shape[1]
+        pm0, qm0 = _motor_p0_q0(problem, theta[:, k:])
+        if k:
+            pm0 = np.concatenate([cache["pm0"], pm0], axis=1)
+            qm0 = np.concatenate([cache["qm0"], qm0], axis=1)
+        cache.update(theta=np.array(theta), pm0=pm0, qm0=qm0)
+        return pm0, qm0
     # One compiled loop over the draws: the until-converged rule names every draw so far
     # after each round (2 x 38,400 draws, 0.6 s a call in the Python loop this replaced).
     flat = theta.reshape(-1, len(THETA_NAMES))
@@ -122,6 +142,7 @@ def named_draws(
     tau: np.ndarray,
     phi: np.ndarray | None = None,
     abc: np.ndarray | None = None,
+    cache: dict | None = None,
 ) -> dict[str, np.ndarray]:
     """Draws named as the contract says, from the sampled blocks.
 
@@ -141,6 +162,9 @@ def named_draws(
         event's steps).
     abc : ndarray, shape (chain, draw, 3), optional
         Draws of the torque shares when estimated (else ``problem.torque``).
+    cache : dict, optional
+        One fit's store of the motor's steady P, Q per draw: a later call on the same
+        chains, extended, solves only the new draws (the same numbers).
 
     Returns
     -------
@@ -148,7 +172,7 @@ def named_draws(
     """
     if not isinstance(problem, CompositeProblem):  # another model: its own composition
         return problem.named(theta, betas, tau)
-    pm0, qm0 = _motor_p0_q0(problem, theta, abc)
+    pm0, qm0 = _motor_p0_q0(problem, theta, abc, cache)
     phys = motor_physical(theta, f_hz=problem.f_hz)
     shape = theta.shape[:-1]
     out: dict[str, np.ndarray] = {}
