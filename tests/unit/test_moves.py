@@ -180,15 +180,22 @@ def test_the_sheared_move_learns_a_bent_ridge_and_keeps_its_marginals():
     assert all(0.15 < m.acceptance < 0.4 for m in moves)
 
 
-def test_the_shear_is_a_bijection_with_unit_jacobian():
-    rng = np.random.default_rng(0)
+def _bent_shear(rng):
+    # A shear learned on draws bent along their first coordinate, and the draws.
+    from loadbayes.inference.moves.sheared import Shear
+
     y1 = rng.standard_normal(2000)
     draws = np.stack([y1, y1 + B * (y1**2 - 1) + SD * rng.standard_normal(2000),
                       rng.standard_normal(2000)], axis=1)  # fmt: skip
-    from loadbayes.inference.moves.sheared import Shear
-
-    shear = Shear(draws * [2.0, 0.5, 3.0] + [1.0, -1.0, 0.0])
+    draws = draws * [2.0, 0.5, 3.0] + [1.0, -1.0, 0.0]
+    shear = Shear(draws)
     assert shear.active
+    return shear, draws
+
+
+def test_the_shear_is_a_bijection_with_unit_jacobian():
+    rng = np.random.default_rng(0)
+    shear, _ = _bent_shear(rng)
     for x in rng.standard_normal((20, 3)) * 3:
         np.testing.assert_allclose(shear.inverse(shear.forward(x)), x, atol=1e-12)
         # Jacobian of x -> w by central differences: det = 1 / prod(D) (the standardising).
@@ -204,13 +211,7 @@ def test_the_shears_rows_at_once_are_its_points_one_at_a_time():
     # forward_rows (the jumps' fit maps every kept draw with it) against forward, inside
     # and far outside the range the bend was learned on (its pivot clipped there).
     rng = np.random.default_rng(1)
-    y1 = rng.standard_normal(2000)
-    draws = np.stack([y1, y1 + B * (y1**2 - 1) + SD * rng.standard_normal(2000),
-                      rng.standard_normal(2000)], axis=1)  # fmt: skip
-    from loadbayes.inference.moves.sheared import Shear
-
-    shear = Shear(draws * [2.0, 0.5, 3.0] + [1.0, -1.0, 0.0])
-    assert shear.active
+    shear, draws = _bent_shear(rng)
     for xs in (draws, rng.standard_normal((300, 3)) * 30):
         one = np.array([shear.forward(x) for x in xs])
         np.testing.assert_allclose(shear.forward_rows(xs), one, rtol=1e-13,
