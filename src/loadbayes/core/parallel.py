@@ -151,7 +151,10 @@ def signals_at_checks(stop: threading.Event | None):
     ``stop`` and :func:`request_stop` instead of raising at whatever bytecode runs (the
     module's notes say why), and the block's end calls the handler it held back, which
     raises there; a signal the chains finished before noticing is raised all the same.
-    Elsewhere, or without ``stop``, the handlers stay as they are.
+    Elsewhere, or without ``stop``, the handlers stay as they are. The twin of
+    :func:`loadbayes.io.atomic.held_signals`, which holds every handler back for a few
+    renames; here the chains must also hear of the signal at once (their flags), and a
+    handler of the caller's own (not a raising one) is left to run where it lands.
     """
     if stop is None or threading.current_thread() is not threading.main_thread():
         yield

@@ -366,8 +366,9 @@ def fit_composite(
         )
         t_sample = time.perf_counter()
     until = None
-    steady: dict = {}  # the motor's steady P, Q of the draws named so far (naming.py)
+    steady: dict | None = None  # the motor's steady P, Q of the draws named so far
     if until_converged and run.chains >= 2:
+        steady = {}  # (naming.py: each round names them all; the last naming too)
 
         def quantities(results) -> dict[str, np.ndarray]:
             named = ChainDraws.stack(results, steps=bool(problem.n_steps), torque=estimate)
