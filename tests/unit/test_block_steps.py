@@ -121,3 +121,23 @@ def test_cmld_lite_runs_a_first_round_of_10000_and_slm_keeps_16000():
     assert (cmld.draws, cmld.burn, cmld.chains) == (10_000, 4_000, 4)
     assert slm == PARTS_DEFAULTS and slm.draws == 16_000
     assert cmld.burn >= BLOCK_STEPS_MIN_BURN  # the default run takes the block steps
+
+
+def test_the_cost_estimates_probe_takes_the_runs_block_steps(monkeypatch):
+    """The probe behind "about N s on this machine" runs a short burn-in, which alone
+    would take one block step; a cmld-lite run at the defaults takes 12, and its
+    estimate read 36 s for a first round of 4 min (real record, seed 3). The probe must
+    ask for the run's steps."""
+    from loadbayes.core.settings import SamplerSettings
+    from loadbayes.fit.composite import chain_fast, driver, until
+
+    asked = []
+    monkeypatch.setattr(driver, "sample", lambda *a, **k: asked.append(k["block_steps"]))
+    monkeypatch.setattr(chain_fast, "compiled_run", lambda *a, **k: False)
+    monkeypatch.setattr(until, "estimate_seconds", lambda probe, draws, rounds: probe(64))
+    problem = SimpleNamespace(model=dynamic_model("cmld-lite"), events=[])
+    for burn, steps in ((BLOCK_STEPS_MIN_BURN, 12), (BLOCK_STEPS_MIN_BURN - 1, 1)):
+        run = SamplerSettings(draws=2 * burn, burn=burn, chains=4, seed=0, threads=2)
+        asked.clear()
+        driver._estimate_seconds(problem, None, run, "shear", None)
+        assert asked == [steps, steps]  # the compiling call, then the probe

@@ -58,6 +58,7 @@ from loadbayes.fit.composite.sampler import (
     ONE_EVALUATION_MOVES,
     chain_threads,
     sample,
+    steps_per_iteration,
 )
 from loadbayes.fit.composite.torque import TorqueProblem, extend_start
 from loadbayes.fit.composite.until import DEFAULT_MAX_SECONDS, UntilConverged
@@ -201,10 +202,14 @@ def _estimate_seconds(
     lanes = max(1, min(run.threads or chain_threads(sampled, compiled) or num_threads(),
                        run.chains))  # fmt: skip
 
+    # The run's block steps per iteration (a model of parts takes 12 in a long run, and a
+    # probe's short burn-in would take one: cmld-lite's estimate read 36 s for 4 min).
+    steps = steps_per_iteration(sampled, run.burn)
+
     def probe(n: int, extend=None) -> None:
         sample(sampled, start=start, draws=n, burn=n // 2, chains=lanes, seed=run.seed,
                workers=lanes, move=move, student_t=student_t, factor=factor,
-               ar=noise == "ar1", extend=extend)  # fmt: skip
+               ar=noise == "ar1", extend=extend, block_steps=steps)  # fmt: skip
 
     probe(2)  # the first call compiles the kernels (the run would pay it anyway)
     return estimate_seconds(probe, run.draws, math.ceil(run.chains / lanes))

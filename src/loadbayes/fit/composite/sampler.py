@@ -305,7 +305,7 @@ class _Gibbs:
 
     def __init__(self, problem, start, lap, root, tau0, n_tot, rng, *, burn, thin, move,
                  dispersion, student_t, factor=None, ar=False, jumps=False,
-                 u0=None):  # fmt: skip
+                 u0=None, steps=None):  # fmt: skip
         self.problem, self.rng, self.burn, self.thin = problem, rng, burn, thin
         self.n_tot = n_tot
         dim = problem.dim
@@ -313,7 +313,7 @@ class _Gibbs:
         # Steps of the block move per iteration: a model of parts may ask for more
         # (PartsModel.block_steps, its notes) in a long run (BLOCK_STEPS_MIN_BURN); 1 for
         # any other problem and run. And the share of them that jump (jump_share).
-        self.block_steps = steps_per_iteration(problem, burn)
+        self.block_steps = steps_per_iteration(problem, burn) if steps is None else steps
         share = {"independence": jump_share(problem, self.block_steps)} if jumps else {}
         self.am = MOVES[move](
             lap, adapt_until=burn, adapt_start=min(200, max(burn // 4, 1)), **share
@@ -530,6 +530,7 @@ def sample(
     factor: Any = None,
     ar: bool = False,
     deadline: float | None = None,
+    block_steps: int | None = None,
 ) -> list[ChainResult]:
     """Metropolis-within-Gibbs for the composite model.
 
@@ -582,6 +583,9 @@ def sample(
         A :func:`time.perf_counter` time: the time budget, from the first iteration. Past
         it every chain ends its burn-in and stops once it holds
         :data:`~loadbayes.fit.composite.checks.MIN_KEPT` kept draws; no extension runs.
+    block_steps : int, optional
+        Steps of the block move per iteration; by default :func:`steps_per_iteration` of
+        ``burn``. The cost estimate's probe, whose burn-in is short, passes the run's.
 
     Returns
     -------
@@ -632,7 +636,7 @@ def sample(
         u0 = optima[index % len(optima)]
         g = _Gibbs(problem, start, lap, root, tau0, n_tot, rng, burn=burn, thin=thin,
                    move=move, dispersion=dispersion, student_t=student_t, factor=factor,
-                   ar=ar, jumps=pool, u0=u0)  # fmt: skip
+                   ar=ar, jumps=pool, u0=u0, steps=block_steps)  # fmt: skip
         c = Chain(g.step, g.start, rng, fields=g.fields, record=g.record, burn=burn,
                   thin=thin, stats=g.stats, stop=stop, progress=progress, deadline=deadline,
                   min_kept=MIN_KEPT)  # fmt: skip
