@@ -141,21 +141,25 @@ def block_steps(move, state: BlockState, logp, rng: np.random.Generator, iterati
     return state
 
 
-#: Below this many samples (all events together) a plain ``zip+motor`` fit whose chains run
-#: the Python iteration runs them in one thread unless threads are asked for (``workers``,
+#: Below this many samples (all events together) a fit whose chains run the Python
+#: iteration runs them in one thread unless threads are asked for (``workers``,
 #: ``SamplerSettings.threads``, ``LOADBAYES_NUM_THREADS``): an iteration's compiled
-#: integration then lasts about as long as its Python, which holds the GIL, and two threads
-#: spend their time handing it back and forth. Sampler wall s on 2 idle cores, one thread
-#: against two: the real first fault (76 samples) 2.7-3.2 against 4.3-4.6; a 3 s event at
-#: 60/s (181) 3.6 against 3.9; a 10 s event (601) 5.7 against 3.9; a 20 s event (1,201)
-#: 7.9-9.2 against 4.4-5.2 (docs/composite.md, "One thread for short events"). Chains that
-#: run compiled (``chain_fast.py``) hold no GIL and take one thread per CPU: the first fault
-#: 1.2-1.3 s against 1.8-1.9 in one. The draws do not depend on it.
+#: integration then lasts about as long as its Python, or less, and the Python holds the
+#: GIL: two threads spend their time handing it back and forth. Sampler wall s on 2 idle
+#: cores, one thread against two, plain ``zip+motor``: the real first fault (76 samples)
+#: 2.7-3.2 against 4.3-4.6; a 3 s event at 60/s (181) 3.6 against 3.9; a 10 s event (601)
+#: 5.7 against 3.9; a 20 s event (1,201) 7.9-9.2 against 4.4-5.2 (docs/composite.md, "One
+#: thread for short events"). Models of parts alike (the whole command's wall s, 4 chains,
+#: AMD Zen 4): the first fault, ``cmld-lite`` (12 block steps) 84.9 against 96.8 and ``slm``
+#: 12.1 against 15.2, the two threads taking 1.5 times the CPU; 5 s at 60/s (301) ``slm``
+#: 4.33 both, ``cmld-lite`` 8.1 against 7.4; 10 s (601) 4.7 against 4.5 and 10.2 against
+#: 8.0. Chains that run compiled (``chain_fast.py``) hold no GIL and take one thread per
+#: CPU: the first fault 1.2-1.3 s against 1.8-1.9 in one. The draws do not depend on it.
 ONE_THREAD_SAMPLES = 300
 
 
 def chain_threads(problem, compiled: bool = False) -> int | None:
-    """1 for a short plain ``zip+motor`` problem run in Python, no threads asked; else None.
+    """1 for a short problem whose chains run in Python, no threads asked; else None.
 
     None: one thread per CPU. ``compiled``: the chains run compiled
     (:func:`~loadbayes.fit.composite.chain_fast.compiled_run`), and hold no GIL.
@@ -163,7 +167,7 @@ def chain_threads(problem, compiled: bool = False) -> int | None:
     if asked_threads() is not None or compiled:
         return None
     short = sum(e.n for e in problem.events) < ONE_THREAD_SAMPLES
-    return 1 if type(problem) is CompositeProblem and short else None
+    return 1 if short else None
 
 
 @dataclass
@@ -552,8 +556,8 @@ def sample(
     seed : int
         Root seed (chain ``i`` uses child ``i`` of ``SeedSequence(seed)``).
     workers : int, optional
-        Threads for the chains; by default one for a short plain ``zip+motor`` problem
-        run in Python (:func:`chain_threads`), else one per CPU.
+        Threads for the chains; by default one for a short problem whose chains run
+        in Python (:func:`chain_threads`), else one per CPU.
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
     move : {"shear", "am", "slice"}
