@@ -357,6 +357,8 @@ class _InTurn:
         self.moves = moves
 
     def __getattr__(self, name):  # the first move's attributes (the thresholds' tests)
+        if name.startswith("__") or "moves" not in self.__dict__:  # unpickled: not yet set
+            raise AttributeError(name)
         return getattr(self.moves[0], name)
 
     def __call__(self, u, lp, sums, logp, rng, **state):

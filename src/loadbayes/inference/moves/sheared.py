@@ -81,7 +81,11 @@ class Shear:
         # directions and coordinate axes, the one across which the draws bend most
         # found spurious bends in a chain's poorly mixed burn-in: min ESS 5-14 against
         # 214-291 on issue 21's events (docs/composite.md, "A bent ridge, straightened").
-        self.e = v[:, -1]
+        # Contiguous, not eigh's strided column: BLAS sums e . y in another order over a
+        # stride, so a copy (a pickled move, a restart's deepcopy, the compiled chain's)
+        # stepped differently in the last bit from the original (docs/composite.md,
+        # "Models of parts in processes").
+        self.e = np.ascontiguousarray(v[:, -1])
         coef, self.r2, s = _bend(y, self.e)
         self.s_lo, self.s_hi = float(s.min()), float(s.max())
         self.active = bool(np.max(self.r2) >= MIN_R2)
