@@ -56,6 +56,7 @@ from loadbayes.fit.composite.robust import StudentT, robust_outputs
 from loadbayes.fit.composite.sampler import (
     DEFAULT_MOVE,
     ONE_EVALUATION_MOVES,
+    chain_processes,
     chain_threads,
     sample,
     steps_per_iteration,
@@ -201,14 +202,18 @@ def _estimate_seconds(
     compiled = compiled_run(sampled, move, student_t, factor)  # AR(1) noise runs compiled too
     lanes = max(1, min(run.threads or chain_threads(sampled, compiled) or num_threads(),
                        run.chains))  # fmt: skip
+    # Chains in processes (sampler.chain_processes): as many lanes, each one chain at a
+    # time, so the probe is one chain in this process.
+    forked = chain_processes(sampled, compiled, run.chains, run.threads)
+    per, lanes = (1, forked) if forked else (lanes, lanes)
 
     # The run's block steps per iteration (a model of parts takes 12 in a long run, and a
     # probe's short burn-in would take one: cmld-lite's estimate read 36 s for 4 min).
     steps = steps_per_iteration(sampled, run.burn)
 
     def probe(n: int, extend=None) -> None:
-        sample(sampled, start=start, draws=n, burn=n // 2, chains=lanes, seed=run.seed,
-               workers=lanes, move=move, student_t=student_t, factor=factor,
+        sample(sampled, start=start, draws=n, burn=n // 2, chains=per, seed=run.seed,
+               workers=per, move=move, student_t=student_t, factor=factor,
                ar=noise == "ar1", extend=extend, block_steps=steps)  # fmt: skip
 
     probe(2)  # the first call compiles the kernels (the run would pay it anyway)

@@ -38,7 +38,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from loadbayes.core.parallel import asked_threads, chain_generators, run_chains
+from loadbayes.core.forked import Relay, SharedFlag, can_fork, run_forked
+from loadbayes.core.parallel import asked_threads, chain_generators, num_threads, run_chains
 from loadbayes.core.settings import check_iterations
 from loadbayes.fit.composite.bounded import SHARE_COORDS
 from loadbayes.fit.composite.bounded_kernel import share_steps
@@ -58,7 +59,7 @@ from loadbayes.inference.moves.refresh import UniformRefresh
 
 __all__ = ["BLOCK_STEPS_MIN_BURN", "DEFAULT_MOVE", "JUMP_SHARE", "MOVES",
            "ONE_EVALUATION_MOVES", "ONE_THREAD_SAMPLES", "REFRESH_SHARE", "ChainResult",
-           "block_steps", "chain_threads", "jump_share", "sample",
+           "block_steps", "chain_processes", "chain_threads", "jump_share", "sample",
            "steps_per_iteration"]  # fmt: skip
 
 #: The default u-move: the better ESS per second on the benchmark (docs/composite.md).
@@ -168,6 +169,22 @@ def chain_threads(problem, compiled: bool = False) -> int | None:
         return None
     short = sum(e.n for e in problem.events) < ONE_THREAD_SAMPLES
     return 1 if short else None
+
+
+def chain_processes(problem, compiled: bool, chains: int, workers: int | None) -> int:
+    """Processes to run the chains in, or 0 (threads, :func:`chain_threads`).
+
+    A short problem whose chains run in Python runs them in one thread: two hand the GIL
+    back and forth (:data:`ONE_THREAD_SAMPLES`). Where it may fork
+    (:func:`~loadbayes.core.forked.can_fork`) it runs them in one process per CPU instead,
+    unless threads or workers are asked for. The draws are the same.
+    """
+    if workers is not None or compiled or chains < 2 or asked_threads() is not None:
+        return 0
+    if chain_threads(problem, compiled) != 1:
+        return 0
+    cpus = num_threads()
+    return min(chains, cpus) if cpus >= 2 and can_fork() else 0
 
 
 @dataclass
@@ -621,9 +638,13 @@ def sample(
     n_tot = (np.array([sum(e.n for e in problem.events)] * 2, dtype=float) if rows is None
              else rows())  # fmt: skip
     root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
+    # Short events whose chains run in Python: the chains in processes (chain_processes).
+    compiled = compiled_run(problem, move, student_t, factor)
+    lanes = chain_processes(problem, compiled, chains, workers)
     # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
     # chain end every chain within one iteration, not when the chains finish.
-    stop = threading.Event()
+    stop: Any = SharedFlag() if lanes else threading.Event()
+    relay = Relay(progress) if lanes else None  # the lanes' progress, to the caller's
     state: list[Any] = [None] * chains  # each chain's (_Gibbs, Chain)
 
     # The Metropolis moves jump from a t fitted to every chain's late burn-in, pooled: a
@@ -642,8 +663,8 @@ def sample(
                    move=move, dispersion=dispersion, student_t=student_t, factor=factor,
                    ar=ar, jumps=pool, u0=u0, steps=block_steps)  # fmt: skip
         c = Chain(g.step, g.start, rng, fields=g.fields, record=g.record, burn=burn,
-                  thin=thin, stats=g.stats, stop=stop, progress=progress, deadline=deadline,
-                  min_kept=MIN_KEPT)  # fmt: skip
+                  thin=thin, stats=g.stats, stop=stop, deadline=deadline, min_kept=MIN_KEPT,
+                  progress=progress if relay is None else relay)  # fmt: skip
         state[index] = (g, c)
         _run(g, c, burn if pool else draws)
         return _result(g, c)
@@ -654,8 +675,16 @@ def sample(
         return _result(g, c)
 
     generators = chain_generators(seed, chains)
-    workers = workers or chain_threads(problem, compiled_run(problem, move, student_t, factor))
-    out = run_chains(first, generators, workers=workers, stop=stop)
+    workers = workers or chain_threads(problem, compiled)
+    shared = (problem, getattr(problem, "model", None), *problem.events)
+
+    def run(fn: Callable[[int, np.random.Generator], ChainResult]) -> list[ChainResult]:
+        if lanes:  # each chain's state comes back with its result (core/forked.py)
+            return run_forked(fn, generators, lanes=lanes, stop=stop, state=state,
+                              shared=shared, relay=relay)  # fmt: skip
+        return run_chains(fn, generators, workers=workers, stop=stop)
+
+    out = run(first)
     if pool:
         if state[0][0].late_lp is not None:  # chains left in a lower mode (restart.py)
             gaps = late_gaps([g.late_lp for g, _ in state])
@@ -678,7 +707,7 @@ def sample(
             g.am.fit_jumps(late, components=regions, wide=wide, anchors=ridge,
                            anchor=JUMP_RIDGE if ridge is not None else 0.0)  # fmt: skip
             g.late_burn = []
-        out = run_chains(rest, generators, workers=workers, stop=stop)
+        out = run(rest)
     while extend is not None and not any(r.cut for r in out):
         more = int(extend(out))
         if more <= 0:
@@ -694,5 +723,5 @@ def sample(
             _run(g, c, more)
             return _result(g, c)
 
-        out = run_chains(again, generators, workers=workers, stop=stop)
+        out = run(again)
     return _common_length(out)
