@@ -25,8 +25,7 @@ The rest is what the threads do:
   that ends without a result is an error that says so.
 
 Only from the main thread of a process that runs no other thread (a fork copies one
-thread and whatever locks the others held), and only where ``os.fork`` exists:
-:func:`can_fork`.
+thread and whatever locks the others held), and only on Linux: :func:`can_fork`.
 """
 
 from __future__ import annotations
@@ -38,6 +37,7 @@ import multiprocessing.connection
 import os
 import pickle
 import signal
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
@@ -82,9 +82,14 @@ class Relay:
 
 
 def can_fork() -> bool:
-    """Whether :func:`run_forked` may run here: ``os.fork``, the main thread, no other thread."""
+    """Whether :func:`run_forked` may run here: Linux, the main thread, no other thread.
+
+    (macOS has ``fork`` too, but its system libraries do not promise to work in a forked
+    child that does not exec.)
+    """
     return (
-        hasattr(os, "fork")
+        sys.platform.startswith("linux")
+        and hasattr(os, "fork")
         and threading.current_thread() is threading.main_thread()
         and threading.active_count() == 1
     )
