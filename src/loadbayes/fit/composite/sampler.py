@@ -573,8 +573,9 @@ def sample(
     seed : int
         Root seed (chain ``i`` uses child ``i`` of ``SeedSequence(seed)``).
     workers : int, optional
-        Threads for the chains; by default one for a short problem whose chains run
-        in Python (:func:`chain_threads`), else one per CPU.
+        Threads for the chains; by default one per CPU, but for a short problem whose
+        chains run in Python: one process per CPU where it may fork
+        (:func:`chain_processes`), else one thread (:func:`chain_threads`).
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
     move : {"shear", "am", "slice"}
