@@ -1,9 +1,9 @@
 """Chains in forked processes (core/forked.py): the threads' results, state, errors and stops.
 
-The chains of a short problem run in Python go to one process per CPU
-(``sampler.chain_processes``): their Python holds the GIL, so threads run them no faster
-than one. The processes must change nothing but the time: the same draws, each chain's
-state back in the caller for the next round, the progress said, an error or a signal
+Chains that run in Python go to one process per CPU (``sampler.chain_processes``):
+their Python holds the GIL, so threads run them little faster than one, or slower. The
+processes must change nothing but the time: the same draws, each chain's state back in
+the caller for the next round, the progress said, an error or a signal
 raised as the threads raise it, and no process left behind.
 """
 
@@ -133,7 +133,7 @@ def test_a_model_of_parts_draws_the_same_in_processes(name, monkeypatch):
             np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
 
 
-def test_processes_only_where_threads_lose_and_nothing_was_asked(monkeypatch):
+def test_processes_for_chains_run_in_python_where_nothing_was_asked(monkeypatch):
     monkeypatch.delenv("LOADBAYES_NUM_THREADS", raising=False)
     monkeypatch.setattr(sampler, "num_threads", lambda: 2)
     monkeypatch.setattr(sampler, "can_fork", lambda: True)
@@ -151,7 +151,7 @@ def test_processes_only_where_threads_lose_and_nothing_was_asked(monkeypatch):
     ev, _ = simulate_event("small_industrial", depth=0.3, t_end_s=6.0, fs=60.0, seed=3)
     model = dynamic_model("slm", f_hz=60.0, window_s=0.0)
     long = DesignProblem(model, [ev], model.default_prior([ev]))
-    assert sampler.chain_processes(long, False, 4, None) == 0  # a long event: threads
+    assert sampler.chain_processes(long, False, 4, None) == 2  # a long event too
     monkeypatch.setattr(sampler, "can_fork", lambda: False)
     assert sampler.chain_processes(problem, False, 4, None) == 0  # not from here
 

@@ -1,7 +1,7 @@
 """Chains run in forked processes: for chains whose Python holds the GIL.
 
-Chains that run the Python iteration on a short event spend most of their time in Python,
-which holds the GIL: two threads then run no faster than one, and on some machines slower
+Chains that run the Python iteration spend much of their time in Python, which holds the
+GIL: on a short event two threads run them slower than one, on a long one a little faster
 (docs/composite.md, "Models of parts on one thread"). Two processes run them side by side.
 
 :func:`run_forked` is :func:`~loadbayes.core.parallel.run_chains` in processes. Each round

@@ -174,14 +174,14 @@ def chain_threads(problem, compiled: bool = False) -> int | None:
 def chain_processes(problem, compiled: bool, chains: int, workers: int | None) -> int:
     """Processes to run the chains in, or 0 (threads, :func:`chain_threads`).
 
-    A short problem whose chains run in Python runs them in one thread: two hand the GIL
-    back and forth (:data:`ONE_THREAD_SAMPLES`). Where it may fork
-    (:func:`~loadbayes.core.forked.can_fork`) it runs them in one process per CPU instead,
-    unless threads or workers are asked for. The draws are the same.
+    Chains that run in Python hold the GIL while they do: on a short event two threads
+    run them slower than one (:data:`ONE_THREAD_SAMPLES`), on a long one a little faster.
+    Where the process may fork (:func:`~loadbayes.core.forked.can_fork`) they run in one
+    process per CPU instead, unless threads or workers are asked for: faster than either
+    on every event measured (docs/composite.md, "Models of parts in processes"). The
+    draws are the same.
     """
     if workers is not None or compiled or chains < 2 or asked_threads() is not None:
-        return 0
-    if chain_threads(problem, compiled) != 1:
         return 0
     cpus = num_threads()
     return min(chains, cpus) if cpus >= 2 and can_fork() else 0
@@ -573,9 +573,9 @@ def sample(
     seed : int
         Root seed (chain ``i`` uses child ``i`` of ``SeedSequence(seed)``).
     workers : int, optional
-        Threads for the chains; by default one per CPU, but for a short problem whose
-        chains run in Python: one process per CPU where it may fork
-        (:func:`chain_processes`), else one thread (:func:`chain_threads`).
+        Threads for the chains; by default one per CPU, but chains that run in Python go
+        to one process per CPU where the process may fork (:func:`chain_processes`), and
+        else to one thread on a short event (:func:`chain_threads`).
     dispersion : float
         Spread of the chains' starting points, in Laplace sds.
     move : {"shear", "am", "slice"}
@@ -639,7 +639,7 @@ def sample(
     n_tot = (np.array([sum(e.n for e in problem.events)] * 2, dtype=float) if rows is None
              else rows())  # fmt: skip
     root = np.linalg.cholesky(lap + 1e-12 * np.eye(dim))
-    # Short events whose chains run in Python: the chains in processes (chain_processes).
+    # Chains that run in Python: in processes where it may fork (chain_processes).
     compiled = compiled_run(problem, move, student_t, factor)
     lanes = chain_processes(problem, compiled, chains, workers)
     # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
