@@ -11,15 +11,16 @@ iterations, 4,000 burn-in; a model of parts: 16,000, 4,000; 4 chains) with the v
 (``--against bounded``: ``shares="bounded"``, zip+motor only; ``--against ar1``:
 ``noise="ar1"``) and then plain (free shares, white noise), in this process (one warm-up
 fit of each first, so numba's compilation is not counted), and prints the CPU seconds of
-each ``fit_composite`` call (``time.process_time``: every chain's thread, not the
-machine's other users), the iterations per chain, the smallest bulk ESS over the reported
-quantities (and which), and the variant / plain ratio, then the ratios' median and range
-and the load average (``os.getloadavg``; the machine may be shared). ``--fixed-draws``
-runs the first round alone (CPU per iteration, where a model does not converge: the real
-record's ``cmld-lite``, whose motors' regions do not join, docs/composite.md). The tables in
-docs/composite.md ("Bounded shares and AR(1) noise: where the cost goes") are its output
-on the real record's first fault. Not part of ``run_all.py`` (it needs an event file: the
-real record's, cut by ``loadbayes events``, docs/formats.md).
+each ``fit_composite`` call (``core.forked.cpu_seconds``: every chain's thread or
+process, not the machine's other users), the iterations per chain, the smallest bulk ESS
+over the reported quantities (and which), and the variant / plain ratio, then the
+ratios' median and range and the load average (``os.getloadavg``; the machine may be
+shared). ``--fixed-draws`` runs the first round alone (CPU per iteration, where a model
+does not converge: the real record's ``cmld-lite``, whose motors' regions do not join,
+docs/composite.md). The tables in docs/composite.md ("Bounded shares and AR(1) noise:
+where the cost goes") are its output on the real record's first fault. Not part of
+``run_all.py`` (it needs an event file: the real record's, cut by ``loadbayes events``,
+docs/formats.md).
 """
 
 from __future__ import annotations
@@ -27,11 +28,11 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import time
 
 import arviz as az
 import numpy as np
 
+from loadbayes.core.forked import cpu_seconds
 from loadbayes.core.settings import SamplerSettings
 from loadbayes.fit.composite import fit_composite
 from loadbayes.fit.composite.api import read
@@ -59,9 +60,9 @@ def build(name: str, f_hz: float, variant: str):
 def run(model, events, seed: int, first: SamplerSettings) -> tuple[float, int, float, str]:
     """CPU seconds, iterations per chain, min bulk ESS and its quantity of one fit."""
     settings = first.with_(seed=seed, max_seconds=1e5)
-    c0 = time.process_time()
+    c0 = cpu_seconds()
     fit = fit_composite(model, events, sampler=settings)
-    cpu = time.process_time() - c0
+    cpu = cpu_seconds() - c0
     post = fit.posterior
     ess = {k: float(az.ess(np.asarray(v))) for k, v in post.draws.items()
            if np.ndim(v) == 2 and np.std(v) > 0}  # fmt: skip

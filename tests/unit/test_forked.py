@@ -193,3 +193,19 @@ def test_a_sheared_move_steps_the_same_after_the_trip_back():
         for x in rng.standard_normal((200, 23)):
             assert other.forward(x).tobytes() == shear.forward(x).tobytes()
             assert other.inverse(x).tobytes() == shear.inverse(x).tobytes()
+
+
+def test_cpu_seconds_count_the_lanes():
+    # A benchmark's CPU of a fit whose chains ran in lanes: process_time alone misses it.
+    def chain(i, rng):
+        t = time.process_time()
+        while time.process_time() - t < 0.3:
+            pass
+        return i
+
+    from loadbayes.core.forked import cpu_seconds
+
+    c0, p0 = cpu_seconds(), time.process_time()
+    run_forked(chain, chain_generators(0, 2), lanes=2, stop=SharedFlag(), state=[None] * 2)
+    assert cpu_seconds() - c0 >= 0.5
+    assert time.process_time() - p0 < 0.3

@@ -46,7 +46,7 @@ import numpy as np
 
 from loadbayes.core.parallel import ChainsStopped, _first_error, signals_at_checks
 
-__all__ = ["Relay", "SharedFlag", "can_fork", "run_forked"]
+__all__ = ["Relay", "SharedFlag", "can_fork", "cpu_seconds", "run_forked"]
 
 T = TypeVar("T")
 
@@ -93,6 +93,16 @@ def can_fork() -> bool:
         and threading.current_thread() is threading.main_thread()
         and threading.active_count() == 1
     )
+
+
+def cpu_seconds() -> float:
+    """CPU seconds of this process and of every child it has reaped: the chains' lanes.
+
+    ``time.process_time`` counts this process alone, so a benchmark of a fit whose chains
+    ran in lanes would miss their CPU. (Any other child reaped counts too.)
+    """
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
 
 
 def run_forked(
