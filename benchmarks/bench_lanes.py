@@ -55,8 +55,22 @@ def run_fit(event: Path, out: Path, threads: str | None, *options) -> tuple[floa
     env = {k: v for k, v in os.environ.items() if k != "LOADBAYES_NUM_THREADS"}
     if threads is not None:
         env["LOADBAYES_NUM_THREADS"] = threads
-    args = [sys.executable, "-m", "loadbayes", "fit", "composite", str(event), "--json",
-            str(out), "--quiet", "--force", "--fixed-draws", "--seed", "0", *map(str, options)]
+    args = [
+        sys.executable,
+        "-m",
+        "loadbayes",
+        "fit",
+        "composite",
+        str(event),
+        "--json",
+        str(out),
+        "--quiet",
+        "--force",
+        "--fixed-draws",
+        "--seed",
+        "0",
+        *map(str, options),
+    ]
     cpu, wall = _children_cpu(), time.perf_counter()
     done = subprocess.run(args, env=env, capture_output=True, text=True)  # fmt: skip
     wall, cpu = time.perf_counter() - wall, _children_cpu() - cpu
@@ -68,8 +82,21 @@ def run_fit(event: Path, out: Path, threads: str | None, *options) -> tuple[floa
 def real_event(cfg: Path, folder: Path) -> Path:
     """The real record's first fault, cut as a user cuts it."""
     table = folder / "xtz.parquet"
-    for args in (["read", "comtrade", cfg, "--bay", "1号主变", "--per-cycle", "4", "--out",
-                  table, "--quiet"], ["events", table, "--out", folder / "events", "--quiet"]):
+    for args in (
+        [
+            "read",
+            "comtrade",
+            cfg,
+            "--bay",
+            "1号主变",
+            "--per-cycle",
+            "4",
+            "--out",
+            table,
+            "--quiet",
+        ],
+        ["events", table, "--out", folder / "events", "--quiet"],
+    ):
         subprocess.run([sys.executable, "-m", "loadbayes", *map(str, args)], check=True,
                        capture_output=True)  # fmt: skip
     return folder / "events" / "event_001.csv"
@@ -133,16 +160,22 @@ def main(argv: list[str] | None = None) -> int:
     }
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=1))
-    print("| event | options | one thread: wall s (CPU s) | two threads | processes | "
-          "one thread / processes | two threads / processes | same JSON |")
+    print(
+        "| event | options | one thread: wall s (CPU s) | two threads | processes | "
+        "one thread / processes | two threads / processes | same JSON |"
+    )
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for r in rows:
         cells = [f"{r[m]['wall_s']:.1f} ({r[m]['cpu_s']:.1f})" for m in MODES]
         ratios = [r[m]["wall_s"] / r["processes"]["wall_s"] for m in ("one thread", "two threads")]
-        print(f"| {r['event']} | `{r['options']}` | {' | '.join(cells)} | "
-              f"{ratios[0]:.2f} | {ratios[1]:.2f} | {'yes' if r['same_json'] else 'NO'} |")
-    print(f"\nload average at start {load0[0]:.1f}, at end {os.getloadavg()[0]:.1f}; "
-          f"written {args.output}")
+        print(
+            f"| {r['event']} | `{r['options']}` | {' | '.join(cells)} | "
+            f"{ratios[0]:.2f} | {ratios[1]:.2f} | {'yes' if r['same_json'] else 'NO'} |"
+        )
+    print(
+        f"\nload average at start {load0[0]:.1f}, at end {os.getloadavg()[0]:.1f}; "
+        f"written {args.output}"
+    )
     return 0
 
 
