@@ -184,8 +184,12 @@ def _lane(k, lanes, chain, generators, state, refs, relay, stop, conn) -> None: 
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         _die_with_parent()
         try:
-            if relay is not None:
-                relay.send = lambda m: conn.send_bytes(_dumps(("progress", m), refs))
+            if relay is not None:  # (no caller's target: nothing to say)
+                relay.send = (
+                    (lambda m: None)
+                    if relay.target is None
+                    else (lambda m: conn.send_bytes(_dumps(("progress", m), refs)))
+                )
             got = {}
             for i in range(k, len(generators), lanes):
                 if stop.is_set():
