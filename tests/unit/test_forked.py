@@ -233,3 +233,16 @@ def test_cpu_seconds_count_the_lanes():
     run_forked(chain, chain_generators(0, 2), lanes=2, stop=SharedFlag(), state=[None] * 2)
     assert cpu_seconds() - c0 >= 0.5
     assert time.process_time() - p0 < 0.3
+
+
+def test_the_stop_flag_is_shared_with_a_forked_child():
+    flag = SharedFlag()
+    assert not flag.is_set()
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child
+        flag.set()
+        os._exit(0)
+    os.waitpid(pid, 0)
+    assert flag.is_set()
+    flag.clear()
+    assert not flag.is_set()

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import ctypes
 import io
+import mmap
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -52,19 +53,23 @@ T = TypeVar("T")
 
 
 class SharedFlag:
-    """A stop flag in shared memory: ``set``, ``clear``, ``is_set`` as ``threading.Event``'s."""
+    """A stop flag in shared memory: ``set``, ``clear``, ``is_set`` as ``threading.Event``'s.
+
+    One byte of an anonymous shared mapping, which a forked process shares with its
+    parent (no file, no ``/dev/shm``, no lock: one byte is written whole).
+    """
 
     def __init__(self) -> None:
-        self._value = multiprocessing.RawValue("b", 0)
+        self._byte = mmap.mmap(-1, 1)
 
     def set(self) -> None:  # noqa: D102
-        self._value.value = 1
+        self._byte[0] = 1
 
     def clear(self) -> None:  # noqa: D102
-        self._value.value = 0
+        self._byte[0] = 0
 
     def is_set(self) -> bool:  # noqa: D102
-        return bool(self._value.value)
+        return self._byte[0] != 0
 
 
 class Relay:
