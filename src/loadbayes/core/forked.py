@@ -75,15 +75,12 @@ class SharedFlag:
 class Relay:
     """The chains' progress: calls in a forked lane reach the caller's ``target``."""
 
-    def __init__(self, target: Callable[[int], None] | None) -> None:
+    def __init__(self, target: Callable[[int], None]) -> None:
         self.target = target
         self.send: Callable[[int], None] | None = None  # set in a lane
 
     def __call__(self, n: int) -> None:  # noqa: D102
-        if self.send is not None:
-            self.send(n)
-        elif self.target is not None:
-            self.target(n)
+        (self.target if self.send is None else self.send)(n)
 
 
 def can_fork() -> bool:
@@ -167,8 +164,7 @@ def _receive(conn, refs, relay, out, state, generators, errors, stop) -> bool:
         stop.set()
         return True
     if kind == "progress":
-        if relay is not None and relay.target is not None:
-            relay.target(payload)
+        relay.target(payload)
         return False
     if kind == "done":
         for i, (result, new_state, drawn) in payload.items():
@@ -189,12 +185,8 @@ def _lane(k, lanes, chain, generators, state, refs, relay, stop, conn) -> None: 
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
         _die_with_parent()
         try:
-            if relay is not None:  # (no caller's target: nothing to say)
-                relay.send = (
-                    (lambda m: None)
-                    if relay.target is None
-                    else (lambda m: conn.send_bytes(_dumps(("progress", m), refs)))
-                )
+            if relay is not None:
+                relay.send = lambda m: conn.send_bytes(_dumps(("progress", m), refs))
             got = {}
             for i in range(k, len(generators), lanes):
                 if stop.is_set():

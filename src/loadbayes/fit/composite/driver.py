@@ -200,12 +200,13 @@ def _estimate_seconds(
     from loadbayes.fit.composite.until import estimate_seconds
 
     compiled = compiled_run(sampled, move, student_t, factor)  # AR(1) noise runs compiled too
-    lanes = max(1, min(run.threads or chain_threads(sampled, compiled) or num_threads(),
-                       run.chains))  # fmt: skip
     # Chains in processes (sampler.chain_processes): as many lanes, each one chain at a
-    # time, so the probe is one chain in this process.
-    forked = chain_processes(sampled, compiled, run.chains, run.threads)
-    per, lanes = (1, forked) if forked else (lanes, lanes)
+    # time, so the probe is one chain in this process; in threads, one chain per thread.
+    lanes = chain_processes(sampled, compiled, run.chains, run.threads)
+    per = 1
+    if not lanes:
+        lanes = per = max(1, min(run.threads or chain_threads(sampled, compiled)
+                                 or num_threads(), run.chains))  # fmt: skip
 
     # The run's block steps per iteration (a model of parts takes 12 in a long run, and a
     # probe's short burn-in would take one: cmld-lite's estimate read 36 s for 4 min).

@@ -645,7 +645,8 @@ def sample(
     # The chains' stop flag: SIGINT/SIGTERM (core.parallel.request_stop) or a failed
     # chain end every chain within one iteration, not when the chains finish.
     stop: Any = SharedFlag() if lanes else threading.Event()
-    relay = Relay(progress) if lanes else None  # the lanes' progress, to the caller's
+    # The lanes' progress, to the caller's (none asked: none sent).
+    relay = Relay(progress) if lanes and progress is not None else None
     state: list[Any] = [None] * chains  # each chain's (_Gibbs, Chain)
 
     # The Metropolis moves jump from a t fitted to every chain's late burn-in, pooled: a
