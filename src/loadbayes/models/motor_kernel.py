@@ -432,6 +432,7 @@ def _off_chord_impl(v2, i, k, j, fr):  # pragma: no cover - at numba's typing
 def _brake_of_impl(b2, w, rs, nb):  # pragma: no cover - at numba's typing
     if _none(nb):
         return lambda b2, w, rs, nb: 0.0
+
     def impl(b2, w, rs, nb):
         # |V2| = 0 (every row off the fault's unbalance): no torque, to the bit (0 * x).
         if b2 == 0.0:

@@ -41,8 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from loadbayes.core.kept import Kept
 from loadbayes.models.part_scale import ScaleMap
+from loadbayes.models.parts_state import prior_log_u, theta_of
 
 __all__ = [
     "FEEDER_X",
@@ -190,7 +190,15 @@ class PartsPrior:
         object.__setattr__(self, "_gauss", (mean, np.linalg.inv(cov)))
         object.__setattr__(self, "_full", (full_mean, full))
         object.__setattr__(self, "_prec", np.linalg.inv(self.cov))
-        object.__setattr__(self, "_kept", Kept(2048))  # log_u and its terms, of the last vectors
+        # The compiled prior's constants (models/parts_state.py): one vector's log_u,
+        # inside and to_theta are its functions, the compiled density's numbers.
+        rows = np.array([m.row for m in maps]).reshape(-1, 12)
+        object.__setattr__(self, "packed", (
+            np.ascontiguousarray(mean), np.ascontiguousarray(self._gauss[1]), rows,
+            np.array(self.ranges, dtype=float).reshape(-1, 3),
+            np.array(self.order, dtype=float).reshape(-1, 3),
+            np.array(self.groups, dtype=float).reshape(-1, 2),
+        ))  # fmt: skip
 
     def scale_free(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(mean, cov, gain, sd_cond)``: the Gaussian stand-in of every coordinate."""
@@ -198,45 +206,25 @@ class PartsPrior:
         return mean, cov, np.zeros(mean.size), 0.0
 
     def log_u(self, u: np.ndarray) -> float:
-        """Log prior density at ``u`` up to a constant."""
+        """Log prior density at ``u`` up to a constant (-inf outside the hard limits)."""
         u = np.asarray(u, dtype=float)
-        if u.ndim == 1:  # the sampler's one vector: kept, it asks again of one state
-            key = u.tobytes()
-            got = self._kept.get(key)
-            if got is None:
-                got = self._kept.keep(key, self._log_u(u))
-            return got
-        return self._log_u(u)
-
-    def _log_u(self, u: np.ndarray) -> float:
-        # The limits' mass of each motor's log T0 (part_scale.py): inside's test, a term.
-        masses = [float(m.log_mass(u)) for m in self.maps]
-        if not self._inside(u, masses):
-            return -math.inf
-        out = self._term(u, 0, self.mean.size)
+        if u.ndim == 1:  # the sampler's one vector: compiled (models/parts_state.py)
+            return float(prior_log_u(u, *self.packed))
+        masses = [m.log_mass(u) for m in self.maps]
+        inside = np.all([np.isfinite(x) for x in masses], axis=0) if masses else True
+        for i, lo, hi in self.ranges:
+            inside = inside & (lo <= u[..., i]) & (u[..., i] <= hi)
+        for i, j, gap in self.order:
+            inside = inside & (u[..., j] <= u[..., i] - gap)
+        mean, prec = self._gauss
+        d = u[..., : self.mean.size] - mean
+        out = -0.5 * np.einsum("...i,ij,...j->...", d, prec, d)
         for mass in masses:
-            out += mass
+            out = out + np.where(np.isfinite(mass), mass, 0.0)
         for a, b in self.groups:
-            out += self._term(u, a, b)
-        return out
-
-    def _term(self, u: np.ndarray, a: int, b: int) -> float:
-        # The Gaussian block's term (u[a:b] its coordinates, a = 0) or a simplex's, kept
-        # by its coordinates (the sampler's steps move some blocks and leave the others).
-        x = u[a:b]
-        key = (a, x.tobytes())
-        got = self._kept.get(key)
-        if got is not None:
-            return got
-        if a == 0:
-            mean, prec = self._gauss
-            d = x - mean
-            got = -0.5 * float(d @ prec @ d)
-        else:
-            # Dirichlet(1,...,1) in additive log-ratio coordinates: density prod(share).
-            z = np.append(x, 0.0)
-            got = float(z.sum() - z.size * np.logaddexp.reduce(z))
-        return self._kept.keep(key, got)
+            z = np.concatenate([u[..., a:b], np.zeros(u.shape[:-1] + (1,))], axis=-1)
+            out = out + z.sum(axis=-1) - z.shape[-1] * np.logaddexp.reduce(z, axis=-1)
+        return np.where(inside, out, -np.inf)
 
     def inside(self, u: np.ndarray) -> bool:
         """Whether ``u`` lies in the region :attr:`limits`, :attr:`ranges`, :attr:`order` hold.
@@ -245,15 +233,7 @@ class PartsPrior:
         ``log T0`` inside the limits, so they hold wherever they leave ``log T0`` some
         prior mass.
         """
-        return self._inside(u, [float(m.log_mass(u)) for m in self.maps])
-
-    def _inside(self, u: np.ndarray, masses: list[float]) -> bool:
-        if not all(math.isfinite(mass) for mass in masses):
-            return False
-        for i, lo, hi in self.ranges:
-            if not lo <= u[i] <= hi:
-                return False
-        return all(u[j] <= u[i] - gap for i, j, gap in self.order)
+        return math.isfinite(self.log_u(np.asarray(u, dtype=float)))
 
     def to_theta(self, u: np.ndarray) -> np.ndarray:
         """The model's ``theta`` of sampled vector(s) ``u``: each motor's ``z`` made its ``log T0``.
@@ -262,6 +242,8 @@ class PartsPrior:
         """
         if not self.maps:
             return u
+        if np.ndim(u) == 1:
+            return theta_of(np.asarray(u, dtype=float), self.packed[2])
         theta = np.array(u, dtype=float)
         for m in self.maps:
             theta[..., m.index + 5] = m.log_t0(u)

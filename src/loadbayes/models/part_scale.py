@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import log_ndtr, ndtr, ndtri
 
-from loadbayes.core.kept import Kept
+from loadbayes.models.parts_state import log_mass_of, log_t0_of, map_row
 
 __all__ = ["ScaleMap", "log_mass"]
 
@@ -51,28 +51,6 @@ def log_mass(a, b):
         top, bottom = log_ndtr(hi), log_ndtr(lo)
         out = top + np.log1p(-np.exp(bottom - top))
     return np.where((a < b) & np.isfinite(out), out, -np.inf)
-
-
-def _log_mass_one(a: float, b: float) -> float:
-    # log_mass of two floats (the sampler's one vector), the same arithmetic.
-    if not a < b:
-        return -math.inf
-    lo, hi = (-b, -a) if a > 0 else (a, b)
-    top, bottom = float(log_ndtr(hi)), float(log_ndtr(lo))
-    if bottom >= top:
-        return -math.inf
-    out = top + math.log1p(-math.exp(bottom - top))
-    return out if math.isfinite(out) else -math.inf
-
-
-#: Values kept per motor (:meth:`ScaleMap.log_mass`, :meth:`ScaleMap.log_t0`) before
-#: the store is emptied.
-_KEEP = 512
-
-
-def _one_vector(u) -> bool:
-    # The sampler's one float vector (kept values are looked up by its bytes).
-    return type(u) is np.ndarray and u.ndim == 1 and u.dtype == np.float64
 
 
 @dataclass(frozen=True)
@@ -101,9 +79,10 @@ class ScaleMap:
         set_(self, "_sd", math.sqrt(float(self.cov[5, 5] - coef @ s_ot)))
         for name in ("rs_max", "h_min", "x_min", "x_max"):
             set_(self, f"_log_{name}", math.log(getattr(self, name)))
-        # One vector's log_mass and log_t0, kept by its motor's coordinates: the sampler
-        # asks them again and again of one state (its support, prior and theta in turn).
-        set_(self, "_kept", Kept(_KEEP))
+        # One vector's log_mass and log_t0 are compiled (models/parts_state.py): the
+        # sampler's numbers and the compiled density's, one function.
+        set_(self, "row", map_row(self.index, coef, self._m0, self._sd, self.rs_max, self.h_min,
+                                  self.x_min, self.x_max))  # fmt: skip
 
     def _ab(self, u):
         # The conditional's mean and the standardised bounds of log T0, given o.
@@ -124,37 +103,16 @@ class ScaleMap:
 
     def log_mass(self, u):
         """``log(Phi(b) - Phi(a))``: the prior mass of ``log T0`` the limits leave at ``o``."""
-        one = _one_vector(u)
-        if one:
-            key = (0, u[self.index : self.index + 5].tobytes())
-            got = self._kept.get(key)
-            if got is None:
-                got = self._kept.keep(key, _log_mass_one(*self._ab(u)[1:]))
-            return got
-        _, a, b = self._ab(u)
         if np.ndim(u) == 1:
-            return _log_mass_one(a, b)
+            return float(log_mass_of(np.asarray(u, dtype=float), self.row))
+        _, a, b = self._ab(u)
         return log_mass(a, b)
 
     def log_t0(self, u):
         """``log T0`` of the sampled vector(s) ``u`` (NaN where the interval is empty)."""
-        if _one_vector(u):
-            key = (1, u[self.index : self.index + 6].tobytes())
-            got = self._kept.get(key)
-            return self._kept.keep(key, self._log_t0(u)) if got is None else got
-        return self._log_t0(u)
-
-    def _log_t0(self, u):
-        m, a, b = self._ab(u)
         if np.ndim(u) == 1:
-            if not a < b:
-                return math.nan
-            z = float(u[self.index + 5])
-            if a > 0:
-                x = -float(ndtri(ndtr(-a) * ndtr(-z) + ndtr(z) * ndtr(-b)))
-            else:
-                x = float(ndtri(ndtr(a) * ndtr(-z) + ndtr(z) * ndtr(b)))
-            return m + self._sd * min(max(x, a), b)
+            return float(log_t0_of(np.asarray(u, dtype=float), self.row))
+        m, a, b = self._ab(u)
         z = np.asarray(u, dtype=float)[..., self.index + 5]
         flip = a > 0
         with np.errstate(invalid="ignore"):

@@ -87,7 +87,13 @@ from loadbayes.models.parts import (
     step_knots,
     step_times,
 )
-from loadbayes.models.parts_sums import KEEP, model_basis, model_sums, threshold_pairs
+from loadbayes.models.parts_sums import (
+    KEEP,
+    model_basis,
+    model_constants,
+    model_sums,
+    threshold_pairs,
+)
 
 __all__ = ["NEG_SEQ_MIN", "SHARE_STEPS", "PartsModel"]
 
@@ -232,6 +238,7 @@ class PartsModel:
         set_(self, "_fixed", PerObject())  # parts_sums._fixed_of, per event
         set_(self, "_solved", Kept(KEEP))  # parts_sums._entry: each event's parts solved
         set_(self, "_threshold_pairs", threshold_pairs(self))
+        set_(self, "constants", model_constants(self))  # parts_state.parts_constants' arrays
 
     def _tag(self, m: str) -> str:
         return "" if len(self.motors) == 1 else f"_{m}"

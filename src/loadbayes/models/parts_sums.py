@@ -29,12 +29,13 @@ import math
 import numpy as np
 
 from loadbayes.core.kept import token
-from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
+from loadbayes.models.composite import SCALE_FREE_MATRIX
 from loadbayes.models.part_priors import MOTOR_CLASSES, THRESHOLD_COORDS
 from loadbayes.models.parts import MOTOR_D_DEFAULTS, NEG_SEQ_MIN, gaps_of
 from loadbayes.models.parts_kernel import event_basis, event_parts, event_sums
+from loadbayes.models.parts_state import K_NAMES, feeder_of, parts_constants, shares_of
 
-__all__ = ["model_basis", "model_sums"]
+__all__ = ["event_arrays", "model_basis", "model_constants", "model_sums"]
 
 #: Keys (an event and theta without shares or thresholds) kept per model before the
 #: store is emptied, and solves kept per key (at different thresholds).
@@ -155,6 +156,33 @@ def threshold_pairs(model) -> tuple[tuple[int, int, bool], ...]:
     return tuple(out)
 
 
+def model_constants(model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(k, inv_sf, torques, d_base)``: the arrays ``parts_state.parts_constants`` reads.
+
+    ``k`` (``parts_state.K_NAMES``): the feeder (1/0), ``wb``, the motors' count, each threshold's
+    coordinate in ``theta`` (-1: held) and held value, where ``vstall, tstall`` sit in
+    ``d_base`` (motor D's constants in ``parts.MOTOR_D_DEFAULTS``' order, the model's
+    own over them), the Gaussian coordinates' and the parts' counts; ``inv_sf`` the
+    inverse of the motors' scale-free map; ``torques`` each motor's ``(A, B, C)``.
+    """
+    params = {**MOTOR_D_DEFAULTS, **model.motor_d_params}
+    held = {"vstall": params["vstall"], "tstall": params["tstall"], "vd1": model.vd1,
+            "vd2": model.vd2}  # fmt: skip
+    index = {n: (model.theta_names.index(THRESHOLD_COORDS[n]) if n in model.thresholds else -1)
+             for n in held}  # fmt: skip
+    keys = list(MOTOR_D_DEFAULTS)
+    values = {"feeder": float(model.feeder), "wb": 2.0 * math.pi * model.f_hz,
+              "n_motors": len(model.motors), "d_vstall": keys.index("vstall"),
+              "d_tstall": keys.index("tstall"), "n_gauss": model._n_gauss,
+              "n_parts": len(model.parts),
+              **{f"i_{n}": index[n] for n in held}, **held}  # fmt: skip
+    k = np.array([float(values[n]) for n in K_NAMES])
+    torques = np.array([MOTOR_CLASSES[m]["torque"] for m in model.motors], dtype=float)
+    d_base = np.array([float(params[n]) for n in keys])
+    inv_sf = np.linalg.inv(SCALE_FREE_MATRIX)  # as PartsModel._split's
+    return k, np.ascontiguousarray(inv_sf), torques.reshape(-1, 3), d_base
+
+
 def _result(ok, sums, moments, fixed, ar):
     if not ok:
         return None
@@ -168,49 +196,45 @@ def _arguments(model, event, theta) -> tuple:
     # The kernels' arguments at theta but the shares: the event's arrays, the parts'
     # constants, whether the negative sequence is read.
     fixed = _fixed_of(model, event)
-    c, motors, d_params = _of_theta(model, theta)
-    x_fd = model.feeder_x(fixed[4][0], fixed[5][0], c)  # the first kept row's P, Q
+    x_load, motors, d_params, vd1, vd2 = _of_theta(model, theta)
+    x_fd = feeder_of(x_load, fixed[4][0], fixed[5][0])  # the first kept row's P, Q
     parts = (model.rx * x_fd, x_fd, motors, float(model.window_s), model.motor_d, d_params,
-             model.electronics, float(c["vd1"]), float(c["vd2"]), float(model.frcel))  # fmt: skip
+             model.electronics, vd1, vd2, float(model.frcel))  # fmt: skip
     ns_on = len(model.channel_names) == 3 and bool(fixed[10].any())
     return fixed, parts, ns_on
 
 
 def _of_theta(model, theta) -> tuple:
-    # theta split but its shares, the motors' constants and motor D's: the same for every
-    # event and every share, so kept on the model for the last few (a fit's events each
-    # ask them in turn, the shares' steps at the block move's state).
+    # The parts' constants at theta but its shares (parts_state.parts_constants): the
+    # same for every event and every share, so kept on the model for the last few (a
+    # fit's events each ask them in turn, the shares' steps at the block move's state).
     key = theta[: model._n_gauss].tobytes()
     got = model._of_theta.get(key)
     if got is None:
-        c = model._split(theta, shares=False)
-        wb = 2.0 * math.pi * model.f_hz
-        motors = np.empty((len(model.motors), 11))
-        for j, (m, logs) in enumerate(zip(model.motors, c["motors"], strict=True)):
-            rs, xp, dx, tp, h, t0 = np.exp(logs)
-            a, b, cc = MOTOR_CLASSES[m]["torque"]
-            motors[j] = (rs, xp, dx, tp, h, wb, t0, a, b, cc, min(H_MAX_S, tp / TP_STEPS))
-        params = {**MOTOR_D_DEFAULTS, **model.motor_d_params, "vstall": float(c["vstall"]),
-                  "tstall": float(c["tstall"])}  # fmt: skip
-        d_params = np.array([float(params[k]) for k in MOTOR_D_DEFAULTS])
-        got = model._of_theta.keep(key, (c, motors, d_params))
+        got = model._of_theta.keep(key, parts_constants(theta, *model.constants))
     return got
 
 
 def _shares_of(model, theta) -> tuple:
-    # The parts' shares of P and the static P's split (PartsModel._split's), kept by
+    # The parts' shares of P and the static P's split (parts_state.shares_of), kept by
     # theta's shares.
     key = theta[model._n_gauss :].tobytes()
     got = model._shares.get(key)
     if got is None:
-        got = model._shares.keep(
-            key, tuple(np.ascontiguousarray(x) for x in model._split_shares(theta))
-        )
+        got = model._shares.keep(key, shares_of(theta, model._n_gauss, len(model.parts)))
     return got
 
 
 #: The AR(1) sums' arguments of the white-noise kernel call (not read).
 _NO_MOMENTS = (np.zeros((2, 4, 4, 4)), np.zeros((2, 4, 4)), np.zeros((2, 4)))
+
+
+def event_arrays(model, event) -> tuple:
+    """The event's arrays the kernels read, over its kept rows (kept on the model).
+
+    ``(t, v, delta, has_angle, p, q, gap, steps, v2, i2, i2_rows)``.
+    """
+    return _fixed_of(model, event)
 
 
 def _fixed_of(model, event) -> tuple:

@@ -30,6 +30,7 @@ import numpy as np
 
 from loadbayes.core.kept import Kept
 from loadbayes.fit.composite.naming import event_suffix
+from loadbayes.fit.composite.parts_density import PartsDensity
 from loadbayes.inference.ar1 import RHO_MAX, ar_moments, residual_stats, whitened
 from loadbayes.inference.condlinear import (
     GroupSums,
@@ -80,6 +81,10 @@ class DesignProblem:
         self.rho_max = float(getattr(self.model, "rho_max", RHO_MAX))
         self.n_channels = len(self.channel_names)
         self._thetas = Kept(64)  # theta of the last vectors (theta)
+        # A model of parts' density in one compiled call (white noise: collapsed).
+        self._density = (PartsDensity(self.model, self.prior, self.events, self.m0, self.p0,
+                                      self.positive)
+                         if PartsDensity.serves(self) else None)  # fmt: skip
 
     @property
     def dim(self) -> int:
@@ -217,6 +222,9 @@ class DesignProblem:
         which :meth:`resum` whitens again for another ``rho``; the log-determinant,
         which does not depend on ``u``, is left out, as the ``zip+motor`` problem does).
         """
+        if rho is None and self._density is not None:
+            self.evaluations += 1
+            return self._density(u, tau)
         if rho is None:
             sums = self.sums(u)
         else:
