@@ -79,8 +79,10 @@ def run_fit(event: Path, out: Path, threads: str | None, *options) -> tuple[floa
     return wall, cpu, json.loads(out.read_text())["parameters"]
 
 
-def real_event(cfg: Path, folder: Path) -> Path:
-    """The real record's first fault, cut as a user cuts it."""
+def real_event(cfg: Path, folder: Path, bay: str = "1号主变") -> Path:
+    """The real record's first fault at ``bay``, cut as a user cuts it."""
+    folder = folder / bay
+    folder.mkdir(parents=True, exist_ok=True)
     table = folder / "xtz.parquet"
     for args in (
         [
@@ -88,7 +90,7 @@ def real_event(cfg: Path, folder: Path) -> Path:
             "comtrade",
             cfg,
             "--bay",
-            "1号主变",
+            bay,
             "--per-cycle",
             "4",
             "--out",

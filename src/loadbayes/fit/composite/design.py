@@ -8,7 +8,9 @@ integrates the linear coefficients out exactly (``inference/condlinear.py``), as
 :class:`~loadbayes.fit.composite.problem.CompositeProblem` does for ``zip+motor`` in one
 compiled call. It reads the events as point samples with no steps between them and takes
 the Gaussian likelihood, white or AR(1) on P and Q; the options beyond those (steps,
-Student-t, bounded shares, an estimated torque) are the ``zip+motor`` problem's.
+Student-t, bounded shares, an estimated torque) are the ``zip+motor`` problem's. A model
+of parts with white noise has :meth:`DesignProblem.collapsed` in one compiled call
+(``parts_density.py``), the same number as the steps below, to the bit.
 
 **AR(1) noise** (a model whose ``noise`` is ``"ar1"``): P's and Q's rows are whitened
 for their coefficients ``rho`` (Prais-Winsten: ``z_k - rho z_k-1``, each segment's first
