@@ -33,12 +33,14 @@ from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
 __all__ = [
     "K_NAMES",
     "K_SIZE",
+    "alr_shares",
     "feeder_of",
     "log_mass_of",
     "log_t0_of",
     "map_row",
     "parts_constants",
     "prior_log_u",
+    "share_weights",
     "shares_of",
     "theta_of",
 ]
@@ -211,8 +213,8 @@ def feeder_of(x_fd, p0, q0):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _alr(z):  # pragma: no cover - compiled
-    # The shares whose additive log-ratios are z (the last share's 0).
+def alr_shares(z):  # pragma: no cover - compiled
+    """The shares whose additive log-ratios are ``z`` (the last share's 0)."""
     top = 0.0
     for x in z:
         top = max(top, x)
@@ -228,4 +230,16 @@ def _alr(z):  # pragma: no cover - compiled
 def shares_of(theta, n_gauss, n_parts):  # pragma: no cover - compiled
     """The parts' shares of P (static last) and the static P's Z, I, P split."""
     i = n_gauss
-    return _alr(theta[i : i + n_parts]), _alr(theta[i + n_parts : i + n_parts + 2])
+    return alr_shares(theta[i : i + n_parts]), alr_shares(theta[i + n_parts : i + n_parts + 2])
+
+
+@numba.njit(cache=True, nogil=True)
+def share_weights(zf, za):  # pragma: no cover - compiled
+    """``w = (f_1, ..., f_K, f_s a1, f_s a2, f_s a3)`` of the shares' log-ratios ``zf, za``."""
+    f, a = alr_shares(zf), alr_shares(za)
+    k = f.size - 1
+    w = np.empty(k + a.size)
+    w[:k] = f[:k]
+    for i in range(a.size):
+        w[k + i] = f[k] * a[i]
+    return w

@@ -45,7 +45,7 @@ import numpy as np
 from loadbayes.core.kept import Kept
 from loadbayes.inference.ar1 import whitened
 from loadbayes.inference.condlinear import GroupSums, log_marginal_arrays
-from loadbayes.models.parts_model import alr_simplex
+from loadbayes.models.parts_state import share_weights
 
 __all__ = ["ShareMoves"]
 
@@ -186,8 +186,8 @@ class ShareMoves:
         key = zf.tobytes() + za.tobytes()
         got = self._weights.get(key)
         if got is None:  # kept: an iteration asks them of the state the last one left
-            f, a = alr_simplex(zf), alr_simplex(za)
-            got = self._weights.keep(key, np.concatenate([f[:-1], f[-1] * a]))
+            # (compiled: the shares the model's density reads, parts_state.shares_of)
+            got = self._weights.keep(key, share_weights(zf, za))
         return got.copy()
 
     def with_weights(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
