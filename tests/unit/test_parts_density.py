@@ -22,6 +22,7 @@ from test_parts_kernel import _events
 from loadbayes.core.normal import log_ndtr, ndtr, ndtri
 from loadbayes.fit.composite.design import DesignProblem
 from loadbayes.models.dynamic import dynamic_model
+from loadbayes.models.parts_model import PartsModel
 
 
 @numba.njit
@@ -81,6 +82,40 @@ def test_the_compiled_density_is_the_python_paths(name, window, angle, negative,
     bad = start.copy()
     bad[0] = math.nan
     assert problem.collapsed(bad, tau) == (-math.inf, None)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [dict(motors=("a", "b", "slm"), feeder=False, motor_d=True, electronics=True,
+          fit_thresholds=False, window_s=1 / 60),
+     dict(motors=("a",), physical_region=False, motor_d=True),
+     dict(motors=("b", "a"), electronics=True, negative_sequence="off",
+          motor_d_params={"vstall": 0.55, "kp2": 10.0})],
+)  # fmt: skip
+def test_any_model_of_parts_has_the_python_paths_density(options):
+    # Three motors and no feeder with the thresholds held; one motor outside any limits;
+    # motor D's own constants and no negative sequence (measured: 76, 77, 53 feasible).
+    model = PartsModel(f_hz=60.0, **options)
+    evs = _events(True, True)
+    problem = DesignProblem(model, evs, model.default_prior(evs))
+    start = problem.prior.project(problem.prior.scale_free()[0])
+    rng = np.random.default_rng(0)
+    tau = np.array([4e4, 3e4, 900.0])[: problem.n_channels]
+    feasible = 0
+    for spread in (0.01, 0.1, 0.5, 1.5):
+        for _ in range(25):
+            u = start + spread * rng.standard_normal(start.size)
+            lp, sums = problem.collapsed(u, tau)
+            want, want_sums = _python(problem, u, tau)
+            assert (sums is None) == (want_sums is None)
+            if sums is None:
+                continue
+            feasible += 1
+            assert lp == want
+            for got, ref in zip(sums, want_sums, strict=True):
+                np.testing.assert_array_equal(got.ztz, ref.ztz)
+                np.testing.assert_array_equal(got.zty, ref.zty)
+    assert feasible >= 40
 
 
 def test_ar1_noise_keeps_the_python_path():
