@@ -11,20 +11,37 @@ the numbers are ``scipy.special``'s to the bit (``tests/unit/test_normal.py``).
 
 from __future__ import annotations
 
+import ctypes
+import re
+
 from llvmlite import binding, ir
 from numba.core import cgutils, types
 from numba.extending import get_cython_function_address, intrinsic
+from scipy.special import cython_special
 
 __all__ = ["log_ndtr", "ndtr", "ndtri"]
 
-#: The name each function is registered under, and SciPy's (the double-precision one).
-_SYMBOLS = {
-    "loadbayes_ndtr": "__pyx_fuse_1ndtr",
-    "loadbayes_log_ndtr": "__pyx_fuse_1log_ndtr",
-    "loadbayes_ndtri": "ndtri",
-}
+#: The name each function is registered under, and SciPy's.
+_SYMBOLS = {"loadbayes_ndtr": "ndtr", "loadbayes_log_ndtr": "log_ndtr", "loadbayes_ndtri": "ndtri"}
+#: The C signature of the one taken (a fused function has a complex twin beside it).
+_SIGNATURE = b"double (double, int __pyx_skip_dispatch)"
+
+
+def _double_version(name: str) -> str:
+    # SciPy's exported name of ``name`` on doubles: itself, or one of its fused copies
+    # (``__pyx_fuse_<k>name``), told apart by their capsules' signatures.
+    capi = cython_special.__pyx_capi__
+    get_name = ctypes.pythonapi.PyCapsule_GetName
+    get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+    for key in sorted(capi):
+        if re.fullmatch(rf"(__pyx_fuse_\d+)?{name}", key) and get_name(capi[key]) == _SIGNATURE:
+            return key
+    raise ImportError(f"scipy.special.cython_special has no {name}(double): SciPy changed")
+
+
 for _name, _scipy in _SYMBOLS.items():
-    binding.add_symbol(_name, get_cython_function_address("scipy.special.cython_special", _scipy))
+    binding.add_symbol(_name, get_cython_function_address("scipy.special.cython_special",
+                                                          _double_version(_scipy)))  # fmt: skip
 
 
 def _external(name: str):
