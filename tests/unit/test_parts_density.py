@@ -130,3 +130,27 @@ def test_ar1_noise_keeps_the_python_path():
     lp, sums = problem.collapsed(u, np.array([1e4, 1e4, 1.0])[: problem.n_channels],
                                  rho=np.array([0.5, 0.3]))  # fmt: skip
     assert not called and math.isfinite(lp) and sums is not None
+
+
+def test_the_lowest_voltage_is_the_solves():
+    # The thresholds' steps ask the events' lowest load-bus voltage (parts_model's
+    # lowest_voltage, compiled): the solve's own, to the bit, and NumPy's load bus's to
+    # an ulp (measured: 1.1e-16).
+    from loadbayes.models.parts import load_bus
+    from loadbayes.models.parts_kernel import event_parts
+    from loadbayes.models.parts_sums import _arguments
+
+    model = dynamic_model("cmld-lite", f_hz=60.0, window_s=1 / 60)
+    evs = _events(True, True)
+    mean, cov, _, _ = model.default_prior(evs).scale_free()
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        theta = rng.multivariate_normal(mean, 0.3 * cov)
+        for ev in evs:
+            low = model.lowest_voltage(ev, theta)
+            fixed, parts, _ = _arguments(model, ev, theta)
+            assert low == event_parts(*fixed[:10], *parts)[1].min()
+            keep, _ = model.drive_of(ev)
+            kept = ev.take(keep) if keep.size < ev.n else ev
+            x = model.feeder_x(kept.p[0], kept.q[0], {"x_fd": np.exp(theta[0])})
+            assert abs(low - load_bus(kept, model.rx * x, x).event.v.min()) < 1e-14

@@ -87,8 +87,10 @@ from loadbayes.models.parts import (
     step_knots,
     step_times,
 )
+from loadbayes.models.parts_state import feeder_of, lowest_load_bus
 from loadbayes.models.parts_sums import (
     KEEP,
+    event_arrays,
     model_basis,
     model_constants,
     model_sums,
@@ -406,15 +408,11 @@ class PartsModel:
         log_x = float(np.asarray(theta, dtype=float)[0]) if self.feeder else 0.0
         key = (token(event), log_x)
         got = self._lowest.get(key)
-        if got is None:
-            keep, _ = self.drive_of(event)
-            if keep.size < event.n:
-                event = event.take(keep)
-            x_fd = 0.0
-            if self.feeder:
-                x_fd = self.feeder_x(event.p[0], event.q[0], {"x_fd": np.exp(log_x)})
-            low = float(np.min(load_bus(event, self.rx * x_fd, x_fd).event.v))
-            got = self._lowest.keep(key, low)
+        if got is None:  # the kept rows' |V_L| as the solve's (parts_kernel.event_parts)
+            t, v, delta, _, p, q = event_arrays(self, event)[:6]
+            x_fd = feeder_of(math.exp(log_x), p[0], q[0]) if self.feeder else 0.0
+            got = self._lowest.keep(key, float(lowest_load_bus(v, delta, p, q, self.rx * x_fd,
+                                                               x_fd)))  # fmt: skip
         return got
 
     def feeder_x(self, p0: float, q0: float, c: dict[str, Any]) -> float:

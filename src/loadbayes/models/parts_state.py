@@ -37,6 +37,7 @@ __all__ = [
     "feeder_of",
     "log_mass_of",
     "log_t0_of",
+    "lowest_load_bus",
     "map_row",
     "parts_constants",
     "prior_log_u",
@@ -210,6 +211,18 @@ def parts_constants(theta, k, inv_sf, torques, d_base):  # pragma: no cover - co
 def feeder_of(x_fd, p0, q0):  # pragma: no cover - compiled
     """The feeder's X in system p.u. from its draw on the load's base (``|S|`` at the start)."""
     return x_fd / math.hypot(p0, q0)
+
+
+@numba.njit(cache=True, nogil=True)
+def lowest_load_bus(v, delta, p, q, r, x):  # pragma: no cover - compiled
+    """The lowest ``|V_L|`` behind ``Z = r + jx``, as ``parts_kernel.event_parts`` solves it."""
+    zc = complex(r, x)
+    low = math.inf
+    for k in range(v.size):
+        vk = v[k] * complex(math.cos(delta[k]), math.sin(delta[k]))
+        cur = ((p[k] + 1j * q[k]) / vk).conjugate()
+        low = min(low, abs(vk - zc * cur))
+    return low
 
 
 @numba.njit(cache=True, nogil=True)
