@@ -75,3 +75,18 @@ def test_python_refuses_a_default_60_hz_model_for_50_hz_events(events50):
     # The model built as said passes (and the model is never changed silently).
     _check_index_frequency(CompositeModel(f_hz=50), files)
     assert CompositeModel().f_hz == 60
+
+
+@pytest.mark.usefixtures("no_cost_probe")
+def test_a_model_of_parts_says_it_reads_points_from_events_csv(events50, tmp_path):
+    # A model of parts reads point samples (window means are zip+motor's): the note said
+    # "one-cycle window means" of its events until 2026-12-02, the reading it did not do.
+    res = run("fit", "composite", events50 / "event_001.csv", "--model", "slm",
+              "--draws", "80", "--burn", "30", "--chains", "1", "--fixed-draws",
+              "--json", tmp_path / "s.json")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "one-cycle window means (0.02 s)" not in res.output
+    assert "loadbayes: note: point samples (" in res.output
+    assert "a model of parts reads each sample as the load's P and Q at its stamp" in res.output
+    options = json.loads((tmp_path / "s.json").read_text())["settings"]["model_options"]
+    assert options["window_s"] == 0.0

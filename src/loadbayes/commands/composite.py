@@ -148,7 +148,8 @@ def _parse_torque(text: str) -> tuple[float, ...] | str:
     help="The recorder's phasor window in s: each sample is read as the motor's mean over "
     "it, centred on its stamp (a fault's edge's samples left out). 0: point samples (as "
     "simulators write them). Default: one cycle for events cut by `loadbayes events`; for a "
-    "plain table, points or one-cycle means, whichever fits better (the run says which).",
+    "plain table, points or one-cycle means, whichever fits better (the run says which). "
+    "zip+motor only: slm and cmld-lite read point samples.",
 )
 @sampler_settings(
     draws=6_000,  # COMPOSITE_DEFAULTS, not imported: the command starts light (parts: 16,000)
@@ -336,7 +337,8 @@ def fit_composite_cmd(
     if not quiet:
         if bases_note:
             click.echo(f"loadbayes: note: {bases_note}", err=True)
-        for note in (f_note, reading_note(reading, window_s, f_found, f_hz)):
+        own = model.window_s if parts else None  # a model of parts' reading is its own
+        for note in (f_note, reading_note(reading, window_s, f_found, f_hz, model_window_s=own)):
             if note:
                 click.echo(f"loadbayes: note: {note}", err=True)
         n = sum(e.n for e in events)

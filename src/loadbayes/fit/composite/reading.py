@@ -149,11 +149,20 @@ def reading_model(model: Any, events: list[EventRecord], *, chosen: bool) -> tup
 
 
 def reading_note(reading: SampleReading | None, window_s: float | None, f_found: Any,
-                 f_hz: float) -> str | None:  # fmt: skip
+                 f_hz: float, *, model_window_s: float | None = None) -> str | None:  # fmt: skip
     """How the samples are read, and who said so: the data, ``--window-s`` or the record.
 
     ``f_found``: the record's index and frequency when the events came from one.
+    ``model_window_s``: the window a model fixes itself (a model of parts, built by the
+    command: ``--window-s`` is ``zip+motor``'s), None where the reading is the command's.
     """
+    if model_window_s is not None:
+        if model_window_s == 0:
+            said = f" ({f_found[1]} says they are one-cycle phasors)" if f_found else ""
+            return (f"point samples{said}: a model of parts reads each sample as the "
+                    "load's P and Q at its stamp, not as a window's mean (window means "
+                    "are zip+motor's, --window-s)")  # fmt: skip
+        return f"samples read as {model_window_s:g}-s window means (the model's own)"
     if reading is not None:
         return f"samples {reading.words}"
     if window_s is not None:
