@@ -59,6 +59,7 @@ def validate_parts_event(
     p0n, q0n = operating_point(event, scored)
     n_out = int(event.n - scored.sum())
     full = replace(event, straddle=~scored) if n_out else event
+    rows = scored
     if n_out:  # the rows straddling a step left out: the motors step across the gap
         event = event.take(scored)
         scored = np.ones(event.n, dtype=bool)
@@ -71,6 +72,8 @@ def validate_parts_event(
         if out is None:
             continue
         mp, mq, _ = out
+        if mp.size != event.n:  # point samples (window_s 0): every row predicted, so pick
+            mp, mq = mp[rows], mq[rows]
         tau_p, tau_q = noise_precision(d, "p", i), noise_precision(d, "q", i)
         sp, sq = 1 / math.sqrt(tau_p), 1 / math.sqrt(tau_q)
         means_p.append(mp)
