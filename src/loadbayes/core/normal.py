@@ -6,20 +6,24 @@ C functions SciPy exports for Cython (``scipy.special.cython_special``: ``ndtr``
 ``log_ndtr`` and ``ndtri`` on doubles) are registered with LLVM under names of their own
 when this module is imported, and compiled code calls them by name (:func:`ndtr`,
 :func:`log_ndtr`, :func:`ndtri`): a cached function holds the name, not the address, and
-the numbers are ``scipy.special``'s to the bit (``tests/unit/test_normal.py``).
+the numbers are ``scipy.special``'s to the bit (``tests/unit/test_parts_density.py``). Beside
+them, :func:`log_add_exp`, NumPy's ``logaddexp`` in compiled code, which the log-densities
+built on them share.
 """
 
 from __future__ import annotations
 
 import ctypes
+import math
 import re
 
+import numba
 from llvmlite import binding, ir
 from numba.core import cgutils, types
 from numba.extending import get_cython_function_address, intrinsic
 from scipy.special import cython_special
 
-__all__ = ["log_ndtr", "ndtr", "ndtri"]
+__all__ = ["log_add_exp", "log_ndtr", "ndtr", "ndtri"]
 
 #: The name each function is registered under, and SciPy's.
 _SYMBOLS = {"loadbayes_ndtr": "ndtr", "loadbayes_log_ndtr": "log_ndtr", "loadbayes_ndtri": "ndtri"}
@@ -62,3 +66,19 @@ def _external(name: str):
 ndtr = _external("loadbayes_ndtr")
 log_ndtr = _external("loadbayes_log_ndtr")
 ndtri = _external("loadbayes_ndtri")
+
+
+_LOG2 = math.log(2.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def log_add_exp(x, y):  # pragma: no cover - compiled
+    """NumPy's ``logaddexp`` of two floats (``npy_logaddexp``), its branches in its order."""
+    if x == y:
+        return x + _LOG2
+    d = x - y
+    if d > 0:
+        return x + math.log1p(math.exp(-d))
+    if d <= 0:
+        return y + math.log1p(math.exp(d))
+    return d

@@ -27,7 +27,7 @@ import math
 import numba
 import numpy as np
 
-from loadbayes.core.normal import log_ndtr, ndtr, ndtri
+from loadbayes.core.normal import log_add_exp, log_ndtr, ndtr, ndtri
 from loadbayes.models.motor_kernel import H_MAX_S, TP_STEPS
 
 __all__ = [
@@ -45,8 +45,6 @@ __all__ = [
     "shares_of",
     "theta_of",
 ]
-
-_LOG2 = math.log(2.0)
 
 
 def map_row(index, coef, m0, sd, rs_max, h_min, x_min, x_max) -> np.ndarray:
@@ -97,19 +95,6 @@ def log_t0_of(u, row):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _logaddexp(x, y):  # pragma: no cover - compiled
-    # NumPy's npy_logaddexp.
-    if x == y:
-        return x + _LOG2
-    d = x - y
-    if d > 0:
-        return x + math.log1p(math.exp(-d))
-    if d <= 0:
-        return y + math.log1p(math.exp(d))
-    return d
-
-
-@numba.njit(cache=True, nogil=True)
 def prior_log_u(u, gmean, gprec, maps, ranges, order, groups):  # pragma: no cover - compiled
     """Log prior density at ``u`` up to a constant; -inf outside the hard limits.
 
@@ -144,8 +129,8 @@ def prior_log_u(u, gmean, gprec, maps, ranges, order, groups):  # pragma: no cov
         total, lse = 0.0, 0.0  # z = (u[a:b], 0): sum(z) - size * logsumexp(z)
         for i in range(a, b):
             total += u[i]
-            lse = u[i] if i == a else _logaddexp(lse, u[i])
-        lse = 0.0 if b == a else _logaddexp(lse, 0.0)
+            lse = u[i] if i == a else log_add_exp(lse, u[i])
+        lse = 0.0 if b == a else log_add_exp(lse, 0.0)
         out += total - (b - a + 1) * lse
     return out
 

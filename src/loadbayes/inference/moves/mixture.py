@@ -44,9 +44,10 @@ import numpy as np
 from scipy.cluster.vq import kmeans2
 from scipy.special import gammaln
 
+from loadbayes.core.normal import log_add_exp
+
 __all__ = ["StudentTMixture"]
 
-_LOG2 = math.log(2.0)
 
 #: How far the weights may sum from 1 (NumPy's ``choice``'s own check).
 _ATOL = float(np.sqrt(np.finfo(np.float64).eps))
@@ -219,19 +220,6 @@ class StudentTMixture:
         """
         return (self._component_cdf(), self.means, self._roots, self._inverse_roots,
                 self._const, self._dofs)  # fmt: skip
-
-
-@numba.njit(cache=True, nogil=True)
-def log_add_exp(x, y):  # pragma: no cover - compiled
-    """NumPy's ``logaddexp`` of two floats, its branches in its order."""
-    if x == y:
-        return x + _LOG2
-    d = x - y
-    if d > 0:
-        return x + math.log1p(math.exp(-d))
-    if d <= 0:
-        return y + math.log1p(math.exp(d))
-    return d
 
 
 @numba.njit(cache=True, nogil=True)
